@@ -1,0 +1,46 @@
+# The two commands of the README: `make demo` runs the product against the emulator, `make test`
+# runs every check. Both install what they need on a fresh Debian machine (run as root there, or
+# have the Debian packages below installed already).
+
+SHELL := /bin/bash
+.SHELLFLAGS := -eu -o pipefail -c
+VENV := .venv
+PY := $(VENV)/bin/python
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed-stamp
+
+.PHONY: test demo lint typecheck pytest codegen venv clean
+
+venv: $(STAMP)
+
+$(STAMP): backend/pyproject.toml
+	@command -v python3 >/dev/null || { echo "python3 missing: apt-get install -y python3"; exit 1; }
+	@python3 -c 'import sys; sys.exit(sys.version_info < (3, 11))' || { echo "Python >= 3.11 needed"; exit 1; }
+	@python3 -m venv --help >/dev/null 2>&1 && python3 -c 'import ensurepip' 2>/dev/null \
+	  || { apt-get update -qq && apt-get install -y -qq python3-venv; }
+	python3 -m venv $(VENV)
+	$(BIN)/pip install -q --upgrade pip
+	$(BIN)/pip install -q -e 'backend[dev]'
+	touch $@
+
+lint: $(STAMP)
+	cd backend && ../$(BIN)/ruff check . && ../$(BIN)/ruff format --check .
+
+typecheck: $(STAMP)
+	cd backend && ../$(BIN)/mypy
+
+# pytest exits 5 when it collected nothing: that is a failure here, never a pass.
+pytest: $(STAMP)
+	cd backend && { ../$(BIN)/pytest $(PYTEST_ARGS); status=$$?; \
+	  if [ $$status -eq 5 ]; then echo "pytest collected no tests: failing"; fi; exit $$status; }
+
+test: lint typecheck pytest
+
+codegen: $(STAMP)
+	$(BIN)/cobot-hmi codegen
+
+demo: $(STAMP)
+	@echo "make demo arrives with the emulator and the backend service (issues 3-5)."; exit 1
+
+clean:
+	rm -rf $(VENV) backend/.pytest_cache backend/.mypy_cache backend/.ruff_cache

@@ -1,0 +1,50 @@
+"""Layer: entry point. The one command line, ``cobot-hmi <verb>``.
+
+Each verb lives in a module of this package that exposes ``register(subparsers)``; the module
+imports what it runs inside its handler, so ``cobot-hmi --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Callable, Sequence
+from typing import Protocol, cast
+
+from cobot_hmi import __version__
+
+VERB_MODULES = ("cobot_hmi.cli.codec_verbs",)
+"""Modules whose ``register`` adds verbs; a new verb goes in one of them or in a new module."""
+
+
+class _VerbModule(Protocol):
+    def register(self, subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None: ...
+
+
+Handler = Callable[[argparse.Namespace], int]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="cobot-hmi",
+        description="Web HMI for a Doosan cobot over an EtherNet/IP class 1 connection.",
+    )
+    parser.add_argument("--version", action="version", version=f"cobot-hmi {__version__}")
+    subparsers = parser.add_subparsers(dest="verb", required=True, metavar="VERB")
+    for name in VERB_MODULES:
+        cast(_VerbModule, importlib.import_module(name)).register(subparsers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    handler = cast(Handler, args.handler)
+    try:
+        return handler(args)
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

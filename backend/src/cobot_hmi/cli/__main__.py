@@ -1,0 +1,5 @@
+import sys
+
+from cobot_hmi.cli import main
+
+sys.exit(main())
