@@ -1,0 +1,75 @@
+"""Shared fixtures: every test gets loopback addresses of its own, and leaks fail the test.
+
+All of 127.0.0.0/8 routes to ``lo`` on Linux, so giving each test its own pair of addresses lets
+the emulator and the scanner each own UDP 2222 (as a robot and a PLC would on a real network)
+while several test runs share the machine. Nothing here ever leaves the loopback range.
+"""
+
+from __future__ import annotations
+
+import gc
+import itertools
+import logging
+import os
+import socket
+from collections.abc import Iterator
+
+import pytest
+
+# 127.<a>.<b>.<c>: <a> from the process id keeps concurrent pytest runs apart.
+_PROCESS_OCTET = 10 + os.getpid() % 200
+_HOSTS = itertools.count(1)
+
+
+def _next_host() -> str:
+    n = next(_HOSTS)
+    return f"127.{_PROCESS_OCTET}.{(n // 250) % 250}.{n % 250 + 2}"
+
+
+@pytest.fixture
+def robot_host() -> str:
+    """A fresh loopback address for the emulated robot (the target)."""
+    return _next_host()
+
+
+@pytest.fixture
+def plc_host() -> str:
+    """A fresh loopback address for the scanner (the originator)."""
+    return _next_host()
+
+
+def free_tcp_port(host: str = "127.0.0.1") -> int:
+    """A TCP port free on ``host`` right now."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind((host, 0))
+        port: int = s.getsockname()[1]
+        return port
+
+
+class _PendingTaskLog(logging.Handler):
+    def __init__(self) -> None:
+        super().__init__(logging.ERROR)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        message = record.getMessage()
+        if "destroyed but it is pending" in message or "exception was never retrieved" in message:
+            self.messages.append(message)
+
+
+@pytest.fixture(autouse=True)
+def _no_leaked_tasks() -> Iterator[None]:
+    """Fail a test that leaves an asyncio task pending or an exception unretrieved.
+
+    Unclosed sockets and running subprocesses are caught by ``filterwarnings`` in
+    pyproject.toml, which turns their ``ResourceWarning`` into an error.
+    """
+    handler = _PendingTaskLog()
+    logger = logging.getLogger("asyncio")
+    logger.addHandler(handler)
+    try:
+        yield
+        gc.collect()
+    finally:
+        logger.removeHandler(handler)
+    assert not handler.messages, f"test leaked asyncio tasks: {handler.messages}"
