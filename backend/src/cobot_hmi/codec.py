@@ -163,7 +163,7 @@ def _index(f: Field, key: object) -> int:
 
 def _values_from_json(f: Field, value: object, base: tuple[object, ...]) -> tuple[object, ...]:
     """A field's new tuple: a full JSON array, or a map from index to value over ``base``."""
-    if isinstance(value, list):
+    if isinstance(value, list | tuple):
         if len(value) != f.count:
             raise CodecError(f"{f.name}: expected {f.count} values, got {len(value)}")
         return tuple(_element(f, f"{f.name}[{i}]", v) for i, v in enumerate(value))
