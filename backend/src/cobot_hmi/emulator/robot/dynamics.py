@@ -1,0 +1,111 @@
+"""Layer: emulator, pure robot model (no I/O). Imports only ``robot.models``, ``robot.kinematics``.
+
+"Dynamics-ish" monitoring values: believable, consistent with the motion, not a full rigid-body
+model. Joint torque is what the motor must give: gravity (every link's mass at its URDF centre of
+mass, plus the payload at the TCP) plus an inertia term (the masses beyond the joint as points at
+their distance from its axis, plus the motor's reflected inertia, times the joint's acceleration)
+plus viscous friction. Motor current is torque over the joint's torque constant, plus noise. Motor
+temperature approaches, first-order, a level that rises with the square of the current (copper
+losses), starting at room temperature.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from collections.abc import Sequence
+from typing import Final
+
+from cobot_hmi.emulator.robot.kinematics import Kinematics, Transform, axis_z, cross
+from cobot_hmi.emulator.robot.models import RobotModel, Vector3
+
+GRAVITY_M_S2: Final = 9.80665
+
+
+def _point_in_base(frame: Transform, local: Vector3) -> Vector3:
+    x, y, z = local
+    return (
+        frame[0] * x + frame[1] * y + frame[2] * z + frame[3],
+        frame[4] * x + frame[5] * y + frame[6] * z + frame[7],
+        frame[8] * x + frame[9] * y + frame[10] * z + frame[11],
+    )
+
+
+def joint_torques(
+    model: RobotModel,
+    kin: Kinematics,
+    velocity_deg_s: Sequence[float],
+    acceleration_deg_s2: Sequence[float],
+    payload_kg: float = 0.0,
+) -> tuple[float, ...]:
+    """Torque (N·m) each joint's motor gives to hold and move the arm as it is moving."""
+    masses = [link.mass_kg for link in model.links]
+    centres = [
+        _point_in_base(frame, link.com_m)
+        for frame, link in zip(kin.joint_frames, model.links, strict=True)
+    ]
+    if payload_kg > 0.0:
+        masses.append(payload_kg)
+        centres.append((kin.tcp[3], kin.tcp[7], kin.tcp[11]))
+    torques: list[float] = []
+    for i, (frame, spec) in enumerate(zip(kin.joint_frames, model.joints, strict=True)):
+        axis = axis_z(frame)
+        origin = (frame[3], frame[7], frame[11])
+        gravity_nm = 0.0
+        inertia_kg_m2 = spec.reflected_inertia_kg_m2
+        # Link i is the first the joint moves; the payload (index 6) moves with every joint.
+        for mass, centre in zip(masses[i:], centres[i:], strict=True):
+            r = (centre[0] - origin[0], centre[1] - origin[1], centre[2] - origin[2])
+            weight = (0.0, 0.0, -mass * GRAVITY_M_S2)
+            moment = cross(r, weight)
+            gravity_nm += axis[0] * moment[0] + axis[1] * moment[1] + axis[2] * moment[2]
+            along = r[0] * axis[0] + r[1] * axis[1] + r[2] * axis[2]
+            inertia_kg_m2 += mass * max(0.0, r[0] ** 2 + r[1] ** 2 + r[2] ** 2 - along * along)
+        torques.append(
+            -gravity_nm
+            + inertia_kg_m2 * math.radians(acceleration_deg_s2[i])
+            + spec.viscous_friction_nm_s_deg * velocity_deg_s[i]
+        )
+    return tuple(torques)
+
+
+def motor_currents(
+    model: RobotModel, torques_nm: Sequence[float], rng: random.Random, noise_a: float
+) -> tuple[float, ...]:
+    """Motor current (A): torque over the joint's torque constant, plus Gaussian noise."""
+    return tuple(
+        torque / spec.torque_per_amp_nm + rng.gauss(0.0, noise_a)
+        for torque, spec in zip(torques_nm, model.joints, strict=True)
+    )
+
+
+class MotorThermal:
+    """Motor temperatures: first-order approach to room + rise·(I / I_rated)²."""
+
+    def __init__(
+        self,
+        model: RobotModel,
+        room_temperature_c: float,
+        time_constant_s: float,
+        rise_at_rated_current_c: float,
+    ) -> None:
+        self.rated_current_a = tuple(spec.rated_current_a for spec in model.joints)
+        self.room_temperature_c = room_temperature_c
+        self.time_constant_s = time_constant_s
+        self.rise_at_rated_current_c = rise_at_rated_current_c
+        self.temperatures_c = [room_temperature_c] * len(model.joints)
+
+    def steady_state_c(self, currents_a: Sequence[float]) -> tuple[float, ...]:
+        """The temperature each motor would settle at if these currents lasted."""
+        return tuple(
+            self.room_temperature_c + self.rise_at_rated_current_c * (current / rated) ** 2
+            for current, rated in zip(currents_a, self.rated_current_a, strict=True)
+        )
+
+    def update(self, currents_a: Sequence[float], dt_s: float) -> tuple[float, ...]:
+        """Advance ``dt_s`` seconds under ``currents_a`` (exact for a constant current)."""
+        if dt_s > 0.0:
+            keep = math.exp(-dt_s / self.time_constant_s)
+            for i, target in enumerate(self.steady_state_c(currents_a)):
+                self.temperatures_c[i] = target + (self.temperatures_c[i] - target) * keep
+        return tuple(self.temperatures_c)

@@ -1,0 +1,191 @@
+"""Layer: emulator, pure robot model (no I/O). Imports only ``robot.models``.
+
+Forward kinematics by composing the URDF joint transforms, the TCP with a tool offset, Euler
+Z-Y-Z angles as the controller reports them, and the TCP's linear and angular velocity.
+
+Spec (``shared/spec/assembly.md``, "Reference facts for an emulator"): each joint's transform is
+its origin (translation, then roll-pitch-yaw ``Rz(yaw)·Ry(pitch)·Rx(roll)`` as URDF defines it)
+followed by a rotation about its local z; orientation A, B, C is ``R = Rz(A)·Ry(B)·Rz(C)``.
+
+Plain Python floats: a 3×4 rigid transform is a tuple of 12 numbers, row-major ``(R | p)``. Six
+joints take a few microseconds this way, and the model needs no numeric library.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Final, NamedTuple
+
+from cobot_hmi.emulator.robot.models import RobotModel, Vector3
+
+Transform = tuple[
+    float, float, float, float, float, float, float, float, float, float, float, float
+]
+"""A rigid transform ``(r00, r01, r02, px, r10, r11, r12, py, r20, r21, r22, pz)``."""
+
+IDENTITY: Final[Transform] = (1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0)
+
+GIMBAL_LOCK_SIN: Final = 1e-9
+"""Below this |sin B| the Z-Y-Z angles A and C are not separable (see ``euler_zyz_deg``)."""
+
+
+def compose(a: Transform, b: Transform) -> Transform:
+    """``a · b``."""
+    a00, a01, a02, ax, a10, a11, a12, ay, a20, a21, a22, az = a
+    b00, b01, b02, bx, b10, b11, b12, by, b20, b21, b22, bz = b
+    return (
+        a00 * b00 + a01 * b10 + a02 * b20,
+        a00 * b01 + a01 * b11 + a02 * b21,
+        a00 * b02 + a01 * b12 + a02 * b22,
+        a00 * bx + a01 * by + a02 * bz + ax,
+        a10 * b00 + a11 * b10 + a12 * b20,
+        a10 * b01 + a11 * b11 + a12 * b21,
+        a10 * b02 + a11 * b12 + a12 * b22,
+        a10 * bx + a11 * by + a12 * bz + ay,
+        a20 * b00 + a21 * b10 + a22 * b20,
+        a20 * b01 + a21 * b11 + a22 * b21,
+        a20 * b02 + a21 * b12 + a22 * b22,
+        a20 * bx + a21 * by + a22 * bz + az,
+    )
+
+
+def from_rpy(xyz: Vector3, rpy_rad: Vector3) -> Transform:
+    """A URDF ``<origin xyz rpy>``: translation, rotation ``Rz(yaw)·Ry(pitch)·Rx(roll)``."""
+    roll, pitch, yaw = rpy_rad
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    return (
+        cy * cp,
+        cy * sp * sr - sy * cr,
+        cy * sp * cr + sy * sr,
+        xyz[0],
+        sy * cp,
+        sy * sp * sr + cy * cr,
+        sy * sp * cr - cy * sr,
+        xyz[1],
+        -sp,
+        cp * sr,
+        cp * cr,
+        xyz[2],
+    )
+
+
+def rot_z(angle_rad: float) -> Transform:
+    c, s = math.cos(angle_rad), math.sin(angle_rad)
+    return (c, -s, 0.0, 0.0, s, c, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0)
+
+
+def from_euler_zyz_deg(position_mm: Sequence[float], abc_deg: Sequence[float]) -> Transform:
+    """A pose as the controller writes it: position in mm, ``Rz(A)·Ry(B)·Rz(C)`` in degrees."""
+    a, b, c = (math.radians(v) for v in abc_deg)
+    ca, sa, cb, sb, cc, sc = (
+        math.cos(a),
+        math.sin(a),
+        math.cos(b),
+        math.sin(b),
+        math.cos(c),
+        math.sin(c),
+    )
+    return (
+        ca * cb * cc - sa * sc,
+        -ca * cb * sc - sa * cc,
+        ca * sb,
+        position_mm[0] / 1000.0,
+        sa * cb * cc + ca * sc,
+        -sa * cb * sc + ca * cc,
+        sa * sb,
+        position_mm[1] / 1000.0,
+        -sb * cc,
+        sb * sc,
+        cb,
+        position_mm[2] / 1000.0,
+    )
+
+
+def euler_zyz_deg(t: Transform) -> Vector3:
+    """A, B, C in degrees with ``R = Rz(A)·Ry(B)·Rz(C)``, B in [0, 180].
+
+    At B = 0 or 180 (gimbal lock) only A + C, respectively A − C, is defined; this model then
+    reports C = 0 and puts the whole angle in A. Controllers resolve the same ambiguity their own
+    way (the M1013's published check shows A = 75, C = 45 where A − C = 30 is all that is
+    defined), so a comparison across the lock must compare rotations, not the three numbers.
+    """
+    r02, r12, r20, r21, r22 = t[2], t[6], t[8], t[9], t[10]
+    sin_b = math.hypot(r02, r12)
+    b = math.atan2(sin_b, r22)
+    if sin_b > GIMBAL_LOCK_SIN:
+        a = math.atan2(r12, r02)
+        c = math.atan2(r21, -r20)
+    else:
+        # R = Rz(A ± C)·Ry(B): read the combined angle from the first column and set C = 0.
+        c = 0.0
+        a = math.atan2(t[4], t[0]) if r22 > 0 else math.atan2(-t[4], -t[0])
+    return (math.degrees(a), math.degrees(b), math.degrees(c))
+
+
+def rotation_angle_deg(a: Transform, b: Transform) -> float:
+    """The angle of the rotation that takes ``a``'s orientation to ``b``'s (geodesic distance)."""
+    trace = sum(a[i] * b[i] + a[4 + i] * b[4 + i] + a[8 + i] * b[8 + i] for i in range(3))
+    return math.degrees(math.acos(max(-1.0, min(1.0, (trace - 1.0) / 2.0))))
+
+
+class Kinematics(NamedTuple):
+    """Everything one forward-kinematics pass yields (SI units, base frame)."""
+
+    joint_frames: tuple[Transform, ...]
+    """Frame of each moving link (after its joint's rotation), J1 first."""
+    tcp: Transform
+    """The TCP: the flange frame (link 6) times the tool offset."""
+
+
+def forward(
+    model: RobotModel, joints_deg: Sequence[float], tool: Transform = IDENTITY
+) -> Kinematics:
+    """Compose the chain base → link 1 → … → link 6 → tool."""
+    frames: list[Transform] = []
+    current = IDENTITY
+    for spec, q_deg in zip(model.joints, joints_deg, strict=True):
+        current = compose(
+            compose(current, from_rpy(spec.origin_xyz_m, spec.origin_rpy_rad)),
+            rot_z(math.radians(q_deg)),
+        )
+        frames.append(current)
+    return Kinematics(tuple(frames), compose(current, tool))
+
+
+def position_mm(t: Transform) -> Vector3:
+    return (t[3] * 1000.0, t[7] * 1000.0, t[11] * 1000.0)
+
+
+def axis_z(t: Transform) -> Vector3:
+    """The frame's z axis in base coordinates: the joint axis for a joint frame."""
+    return (t[2], t[6], t[10])
+
+
+def cross(a: Vector3, b: Vector3) -> Vector3:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def tcp_velocity(kin: Kinematics, joint_velocity_deg_s: Sequence[float]) -> tuple[Vector3, Vector3]:
+    """The TCP's linear velocity (mm/s) and angular velocity (degree/s) in the base frame.
+
+    This is the time derivative of the forward-kinematics pose by the chain rule (each joint i
+    adds ``z_i × (p_tcp − p_i)·q̇_i`` to the linear and ``z_i·q̇_i`` to the angular velocity), so it
+    equals the pose's numerically differentiated rate of change; a test checks that.
+    """
+    px, py, pz = kin.tcp[3], kin.tcp[7], kin.tcp[11]
+    vx = vy = vz = wx = wy = wz = 0.0
+    for frame, qd_deg in zip(kin.joint_frames, joint_velocity_deg_s, strict=True):
+        if qd_deg == 0.0:
+            continue
+        qd = math.radians(qd_deg)
+        z = axis_z(frame)
+        lx, ly, lz = cross(z, (px - frame[3], py - frame[7], pz - frame[11]))
+        vx, vy, vz = vx + lx * qd, vy + ly * qd, vz + lz * qd
+        wx, wy, wz = wx + z[0] * qd, wy + z[1] * qd, wz + z[2] * qd
+    return (
+        (vx * 1000.0, vy * 1000.0, vz * 1000.0),
+        (math.degrees(wx), math.degrees(wy), math.degrees(wz)),
+    )

@@ -1,0 +1,375 @@
+"""Layer: emulator, pure robot model (no I/O, no sockets, no asyncio). Imports the layout's
+generated frames, the codec and the other ``robot`` modules; never the target or the scanner.
+
+``SimulatedRobot`` is the robot behind the emulator's EtherNet/IP target: it implements the
+target's ``ProcessImage`` protocol (``produce_frame``, ``consume_command``, ``outputs_idle``,
+``command_image``) and offers the commands the control API exposes (stops, reset, buttons, forced
+state, program, joints, inputs, tool offset, collaborative mode). It is deterministic: the same
+settings (seed included) and the same sequence of calls with the same times give the same frames.
+Every method takes the current time in seconds (any monotonic clock) and first brings the
+simulation up to it.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Final, NamedTuple
+
+from cobot_hmi.codec import CommandImage
+from cobot_hmi.emulator.robot.dynamics import MotorThermal, joint_torques, motor_currents
+from cobot_hmi.emulator.robot.kinematics import (
+    Transform,
+    euler_zyz_deg,
+    forward,
+    from_euler_zyz_deg,
+    position_mm,
+    tcp_velocity,
+)
+from cobot_hmi.emulator.robot.models import Vector3, model_by_name
+from cobot_hmi.emulator.robot.robot_io import IdleBehaviour, RobotIO
+from cobot_hmi.emulator.robot.states import (
+    RobotCommandError,
+    StateMachine,
+    StateTimings,
+)
+from cobot_hmi.emulator.robot.trajectory import DEMO_STEPS, JointSample, ProgramRunner, at_rest
+from cobot_hmi.generated.frames import ControllerVersion, Frame, RobotState
+
+KINEMATIC_REFRESH_MS_REAL: Final = 100.0
+"""Doosan: monitoring values refresh about every 100 ms whatever the RPI (spec, reference facts)."""
+
+
+@dataclass(slots=True)
+class RobotSettings:
+    """Everything that shapes the simulated robot; the defaults are the emulator's defaults."""
+
+    model: str = "M1013"
+    seed: int = 1
+    timings: StateTimings = field(default_factory=StateTimings)
+    autostart_program: bool = True
+    collaborative: bool = False
+    speed_fraction: float = 0.4
+    """Fraction of each joint's speed limit the demo program uses."""
+    accel_fraction: float = 0.5
+    idle_behaviour: IdleBehaviour = IdleBehaviour.HOLD
+    register_map: tuple[int | None, ...] | None = None
+    """Bit output register n ← bit input register ``register_map[n]``; None = identity."""
+    kinematic_refresh_ms: float = 0.0
+    """0: monitoring values are fresh in every frame; 100: as often as the real controller."""
+    room_temperature_c: float = 25.0
+    thermal_time_constant_s: float = 180.0
+    temperature_rise_at_rated_current_c: float = 40.0
+    payload_kg: float = 1.0
+    tool_offset_position_mm: Vector3 = (0.0, 0.0, 0.0)
+    tool_offset_orientation_deg: Vector3 = (0.0, 0.0, 0.0)
+    controller_version: tuple[int, int, int] = (2, 12, 1)
+    current_noise_a: float = 0.02
+    external_torque_noise_nm: float = 0.15
+    external_force_noise_n: float = 0.8
+    external_moment_noise_nm: float = 0.08
+    analog_input_noise: float = 0.005
+
+
+class Monitoring(NamedTuple):
+    """The frame's joint and TCP values, refreshed together (every frame or every 100 ms)."""
+
+    joint_position: tuple[float, ...]
+    joint_velocity: tuple[float, ...]
+    joint_motor_current: tuple[float, ...]
+    joint_motor_temperature: tuple[float, ...]
+    joint_torque: tuple[float, ...]
+    joint_external_torque: tuple[float, ...]
+    tcp_position: tuple[float, ...]
+    tcp_orientation: tuple[float, ...]
+    tcp_velocity: tuple[float, ...]
+    tcp_angular_velocity: tuple[float, ...]
+    external_force: tuple[float, ...]
+    external_moment: tuple[float, ...]
+
+
+class SimulatedRobot:
+    """A Doosan arm in a cell: motion, monitoring values, states, I/O. See the module docstring."""
+
+    def __init__(self, settings: RobotSettings | None = None, start_s: float = 0.0) -> None:
+        self.settings = settings or RobotSettings()
+        s = self.settings
+        self.model = model_by_name(s.model)
+        self._rng = random.Random(s.seed)
+        self._states = StateMachine(
+            start_s, s.timings, autostart_program=s.autostart_program, collaborative=s.collaborative
+        )
+        self._runner = ProgramRunner(self.model, DEMO_STEPS, s.speed_fraction, s.accel_fraction)
+        self._io = RobotIO(s.idle_behaviour, s.register_map, s.analog_input_noise)
+        self._thermal = MotorThermal(
+            self.model,
+            s.room_temperature_c,
+            s.thermal_time_constant_s,
+            s.temperature_rise_at_rated_current_c,
+        )
+        self._tool: Transform = from_euler_zyz_deg(
+            s.tool_offset_position_mm, s.tool_offset_orientation_deg
+        )
+        self._controller_version = ControllerVersion(*s.controller_version)
+        self._motion: JointSample = at_rest(self.model.demo_waypoints_deg[0])
+        self._moving = False
+        self._currents_a: tuple[float, ...] = (0.0,) * len(self.model.joints)
+        self._now_s = start_s
+        self._monitoring: Monitoring | None = None
+        self._monitoring_at_s = -math.inf
+        self._frame: Frame | None = None
+        self._frame_at_s: float | None = None
+
+    # ------------------------------------------------------------------ simulation
+
+    def _advance(self, now_s: float) -> None:
+        dt_s = now_s - self._now_s
+        if dt_s <= 0.0:
+            self._states.update(self._now_s)
+            return
+        self._states.update(now_s)
+        if self._states.motion_allowed():
+            self._motion = self._runner.advance(self._motion.position, dt_s)
+            self._moving = True
+        else:
+            self._stop_if_moving()
+        if not self._states.flags().servo_on:
+            self._currents_a = (0.0,) * len(self._currents_a)
+        self._thermal.update(self._currents_a, dt_s)
+        self._now_s = now_s
+        self._frame = None
+
+    def _stop_if_moving(self) -> None:
+        """Motion not allowed any more (a stop, a pause): hold where the arm is, at once, and
+        plan the interrupted move again when the program resumes."""
+        if self._moving or any(self._motion.velocity):
+            self._runner.interrupt()
+            self._motion = at_rest(self._motion.position)
+            self._moving = False
+            self._monitoring = None
+
+    def _refresh_monitoring(self) -> Monitoring:
+        s = self.settings
+        position, velocity, acceleration = self._motion
+        kin = forward(self.model, position, self._tool)
+        torques = joint_torques(self.model, kin, velocity, acceleration, s.payload_kg)
+        if self._states.flags().servo_on:
+            currents = motor_currents(self.model, torques, self._rng, s.current_noise_a)
+        else:
+            currents = (0.0,) * len(torques)  # brakes hold the arm; the drives carry no current
+        self._currents_a = currents
+        linear, angular = tcp_velocity(kin, velocity)
+        gauss = self._rng.gauss
+        return Monitoring(
+            joint_position=position,
+            joint_velocity=velocity,
+            joint_motor_current=currents,
+            joint_motor_temperature=tuple(self._thermal.temperatures_c),
+            joint_torque=torques,
+            joint_external_torque=tuple(
+                gauss(0.0, s.external_torque_noise_nm) for _ in self.model.joints
+            ),
+            tcp_position=position_mm(kin.tcp),
+            tcp_orientation=euler_zyz_deg(kin.tcp),
+            tcp_velocity=linear,
+            tcp_angular_velocity=angular,
+            external_force=tuple(gauss(0.0, s.external_force_noise_n) for _ in range(3)),
+            external_moment=tuple(gauss(0.0, s.external_moment_noise_nm) for _ in range(3)),
+        )
+
+    def _monitoring_now(self) -> Monitoring:
+        refresh_s = self.settings.kinematic_refresh_ms / 1000.0
+        if self._monitoring is None or self._now_s - self._monitoring_at_s >= refresh_s:
+            self._monitoring = self._refresh_monitoring()
+            self._monitoring_at_s = self._now_s
+        return self._monitoring
+
+    # ------------------------------------------------------------------ ProcessImage
+
+    def produce_frame(self, now_s: float) -> Frame:
+        """The T→O frame to send now."""
+        self._advance(now_s)
+        if self._frame is not None and self._frame_at_s == self._now_s:
+            return self._frame  # several connections producing at the same instant
+        m = self._monitoring_now()
+        flags = self._states.flags()
+        applied = self._io.applied
+        s = self.settings
+        frame = Frame(
+            controlbox_di=self._io.controlbox_di(self._runner.part_present),
+            controlbox_do=applied.controlbox_do,
+            analog_input_type=self._io.analog_input_type(),
+            analog_output_type=applied.analog_output_type,
+            analog_input=self._io.analog_input(self._rng),
+            analog_output=applied.analog_output,
+            tool_di=self._io.tool_di(),
+            tool_do=applied.tool_do,
+            controller_version=self._controller_version,
+            robot_state=self._states.state(),
+            servo_on=flags.servo_on,
+            safety_stopped=flags.safety_stopped,
+            emergency_stopped=flags.emergency_stopped,
+            direct_teach_button_pressed=flags.direct_teach_button_pressed,
+            power_button_pressed=flags.power_button_pressed,
+            joint_position=m.joint_position,
+            joint_velocity=m.joint_velocity,
+            joint_motor_current=m.joint_motor_current,
+            joint_motor_temperature=m.joint_motor_temperature,
+            joint_torque=m.joint_torque,
+            joint_external_torque=m.joint_external_torque,
+            tcp_position=m.tcp_position,
+            tcp_orientation=m.tcp_orientation,
+            tcp_velocity=m.tcp_velocity,
+            tcp_angular_velocity=m.tcp_angular_velocity,
+            tool_offset_position=s.tool_offset_position_mm,
+            tool_offset_orientation=s.tool_offset_orientation_deg,
+            external_force=m.external_force,
+            external_moment=m.external_moment,
+            bit_output_registers=self._io.bit_output_registers(),
+        )
+        self._frame, self._frame_at_s = frame, self._now_s
+        return frame
+
+    def consume_command(self, image: CommandImage, now_s: float) -> None:
+        """A connection owner in run (or an explicit Set_Attribute_Single) commands the outputs."""
+        self._advance(now_s)
+        self._io.consume_command(image)
+        self._frame = None
+
+    def outputs_idle(self, now_s: float) -> None:
+        """The owner is idle, timed out or closed: apply the idle behaviour."""
+        self._advance(now_s)
+        self._io.outputs_idle()
+        self._frame = None
+
+    def command_image(self) -> CommandImage:
+        """What the PLC last commanded."""
+        return self._io.last_command
+
+    # ------------------------------------------------------------------ commands
+
+    def _command(self, now_s: float) -> None:
+        self._advance(now_s)
+        self._frame = None
+
+    def _applied(self) -> None:
+        """After a command changed the state: a stop or a pause takes effect at once."""
+        if not self._states.motion_allowed():
+            self._stop_if_moving()
+
+    def estop(self, now_s: float) -> None:
+        """Emergency stop: servo off and motion stopped at once."""
+        self._command(now_s)
+        self._states.emergency_stop()
+        self._applied()
+
+    def protective_stop(self, now_s: float) -> None:
+        self._command(now_s)
+        self._states.protective_stop()
+        self._applied()
+
+    def reset(self, now_s: float) -> None:
+        """Clear a stop (or a forced state): SAFE_OFF, then standby."""
+        self._command(now_s)
+        self._states.reset(now_s)
+        self._applied()
+
+    def set_teach_button(self, pressed: bool, now_s: float) -> None:
+        self._command(now_s)
+        self._states.set_teach_button(pressed)
+        self._applied()
+
+    def set_power_button(self, pressed: bool, now_s: float) -> None:
+        self._command(now_s)
+        self._states.set_power_button(pressed)
+
+    def set_collaborative(self, enabled: bool, now_s: float) -> None:
+        self._command(now_s)
+        self._states.set_collaborative(enabled)
+        self._applied()
+
+    def force_state(self, state: int, now_s: float) -> None:
+        """Report ``state`` (any of the enum, or another byte value) until the next command."""
+        self._command(now_s)
+        self._states.force(state)
+        self._applied()
+
+    def set_program_running(self, running: bool, now_s: float) -> None:
+        self._command(now_s)
+        self._states.set_program_running(running)
+        self._applied()
+
+    def hold_joints(self, joints_deg: Sequence[float], now_s: float) -> None:
+        """Stop the program and hold the arm at ``joints_deg`` (checked against the limits)."""
+        if len(joints_deg) != len(self.model.joints):
+            raise RobotCommandError(
+                f"joint_position: expected {len(self.model.joints)} values, got {len(joints_deg)}"
+            )
+        for i, (value, spec) in enumerate(zip(joints_deg, self.model.joints, strict=True)):
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise RobotCommandError(f"joint_position[{i}]: expected a number, got {value!r}")
+            if not math.isfinite(value) or abs(value) > spec.limit_deg:
+                raise RobotCommandError(
+                    f"joint_position[{i}]: {value} is outside J{i + 1}'s limits "
+                    f"±{spec.limit_deg:g}°"
+                )
+        self._command(now_s)
+        self._states.set_program_running(False)
+        self._runner.interrupt()
+        self._motion = at_rest(tuple(float(v) for v in joints_deg))
+        self._moving = False
+        self._monitoring = None
+
+    def set_inputs(self, changes: Mapping[str, Mapping[object, object]], now_s: float) -> None:
+        """Set DI 2–16, tool DI, AI and AI types from index maps (all or nothing)."""
+        self._io.set_inputs(changes)
+        self._command(now_s)
+
+    def set_tool_offset(
+        self, position_mm: Sequence[float], orientation_deg: Sequence[float], now_s: float
+    ) -> None:
+        values = [*position_mm, *orientation_deg]
+        if len(position_mm) != 3 or len(orientation_deg) != 3:
+            raise RobotCommandError("tool offset: expected 3 position and 3 angle values")
+        if not all(isinstance(v, int | float) and math.isfinite(v) for v in values):
+            raise RobotCommandError("tool offset: every value must be a finite number")
+        self._command(now_s)
+        position = (float(position_mm[0]), float(position_mm[1]), float(position_mm[2]))
+        angles = (float(orientation_deg[0]), float(orientation_deg[1]), float(orientation_deg[2]))
+        self.settings.tool_offset_position_mm = position
+        self.settings.tool_offset_orientation_deg = angles
+        self._tool = from_euler_zyz_deg(position, angles)
+        self._monitoring = None
+
+    # ------------------------------------------------------------------ introspection
+
+    def status(self) -> dict[str, object]:
+        """The model's own view, beyond the frame (for the control API's ``GET /status``)."""
+        machine = self._states
+        state = machine.state()
+        return {
+            "model": self.model.name,
+            "phase": machine.phase.value,
+            "robot_state": state,
+            "forced_state": state if machine.phase.value == "forced" else None,
+            "program_running": machine.program_running,
+            "collaborative": machine.collaborative,
+            "teach_button_pressed": machine.teach_button_pressed,
+            "power_button_pressed": machine.power_button_pressed,
+            "program_step": self._runner.step_index,
+            "program_cycles_completed": self._runner.cycles_completed,
+            "part_present": self._runner.part_present,
+            "outputs_owned_in_run": self._io.owner_in_run,
+            "idle_behaviour": self._io.idle_behaviour.value,
+            "kinematic_refresh_ms": self.settings.kinematic_refresh_ms,
+        }
+
+
+__all__ = [
+    "RobotCommandError",
+    "RobotSettings",
+    "RobotState",
+    "SimulatedRobot",
+]
