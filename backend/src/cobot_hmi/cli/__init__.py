@@ -14,7 +14,11 @@ from typing import Protocol, cast
 
 from cobot_hmi import __version__
 
-VERB_MODULES = ("cobot_hmi.cli.codec_verbs",)
+VERB_MODULES = (
+    "cobot_hmi.cli.codec_verbs",
+    "cobot_hmi.cli.emulator_verb",
+    "cobot_hmi.cli.scanner_verbs",
+)
 """Modules whose ``register`` adds verbs; a new verb goes in one of them or in a new module."""
 
 

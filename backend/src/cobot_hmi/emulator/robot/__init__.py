@@ -8,7 +8,7 @@ values, robot states and flags, I/O. ``SimulatedRobot`` is what the target reads
 from cobot_hmi.emulator.robot.models import MODELS, RobotModel, model_by_name
 from cobot_hmi.emulator.robot.robot_io import IdleBehaviour
 from cobot_hmi.emulator.robot.simulated import RobotSettings, SimulatedRobot
-from cobot_hmi.emulator.robot.states import RobotCommandError, StateTimings
+from cobot_hmi.emulator.robot.states import RobotCommandError, RobotStateConflict, StateTimings
 
 __all__ = [
     "MODELS",
@@ -16,6 +16,7 @@ __all__ = [
     "RobotCommandError",
     "RobotModel",
     "RobotSettings",
+    "RobotStateConflict",
     "SimulatedRobot",
     "StateTimings",
     "model_by_name",

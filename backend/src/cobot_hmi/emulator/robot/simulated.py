@@ -93,13 +93,17 @@ class Monitoring(NamedTuple):
 class SimulatedRobot:
     """A Doosan arm in a cell: motion, monitoring values, states, I/O. See the module docstring."""
 
-    def __init__(self, settings: RobotSettings | None = None, start_s: float = 0.0) -> None:
+    def __init__(self, settings: RobotSettings | None = None, start_s: float | None = None) -> None:
+        """``start_s``: when the robot powers on; None = at the time of the first call."""
         self.settings = settings or RobotSettings()
         s = self.settings
         self.model = model_by_name(s.model)
         self._rng = random.Random(s.seed)
         self._states = StateMachine(
-            start_s, s.timings, autostart_program=s.autostart_program, collaborative=s.collaborative
+            start_s or 0.0,
+            s.timings,
+            autostart_program=s.autostart_program,
+            collaborative=s.collaborative,
         )
         self._runner = ProgramRunner(self.model, DEMO_STEPS, s.speed_fraction, s.accel_fraction)
         self._io = RobotIO(s.idle_behaviour, s.register_map, s.analog_input_noise)
@@ -116,7 +120,8 @@ class SimulatedRobot:
         self._motion: JointSample = at_rest(self.model.demo_waypoints_deg[0])
         self._moving = False
         self._currents_a: tuple[float, ...] = (0.0,) * len(self.model.joints)
-        self._now_s = start_s
+        self._started = start_s is not None
+        self._now_s = start_s or 0.0
         self._monitoring: Monitoring | None = None
         self._monitoring_at_s = -math.inf
         self._frame: Frame | None = None
@@ -125,6 +130,10 @@ class SimulatedRobot:
     # ------------------------------------------------------------------ simulation
 
     def _advance(self, now_s: float) -> None:
+        if not self._started:
+            self._started = True
+            self._now_s = now_s
+            self._states.restart(now_s)
         dt_s = now_s - self._now_s
         if dt_s <= 0.0:
             self._states.update(self._now_s)

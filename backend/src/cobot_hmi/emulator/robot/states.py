@@ -28,7 +28,11 @@ from cobot_hmi.generated.frames import RobotState
 
 
 class RobotCommandError(ValueError):
-    """A command the robot refuses in its current state; nothing was changed."""
+    """A command the robot refuses (a bad value, or the wrong state); nothing was changed."""
+
+
+class RobotStateConflict(RobotCommandError):
+    """A well-formed command the robot refuses in its current state (reset first, ...)."""
 
 
 class Phase(Enum):
@@ -94,11 +98,11 @@ class StateMachine:
         collaborative: bool = False,
     ) -> None:
         self.timings = timings or StateTimings()
+        self.autostart_program = autostart_program
         self.phase = Phase.INITIALIZING
-        self.phase_until_s = start_s + self.timings.initializing_s
-        self.autostart_at_s: float | None = (
-            self.phase_until_s + self.timings.program_start_delay_s if autostart_program else None
-        )
+        self.phase_until_s = 0.0
+        self.autostart_at_s: float | None = None
+        self.restart(start_s)
         self.forced_state: int = RobotState.INITIALIZING
         self.teach_button_pressed = False
         self.power_button_pressed = False
@@ -106,6 +110,16 @@ class StateMachine:
         self.program_running = False
 
     # ------------------------------------------------------------------ time
+
+    def restart(self, start_s: float) -> None:
+        """Power on at ``start_s``: INITIALIZING, then standby, then (autostart) the program."""
+        self.phase = Phase.INITIALIZING
+        self.phase_until_s = start_s + self.timings.initializing_s
+        self.autostart_at_s = (
+            self.phase_until_s + self.timings.program_start_delay_s
+            if self.autostart_program
+            else None
+        )
 
     def update(self, now_s: float) -> None:
         """Apply the timed transitions due by ``now_s``."""
@@ -170,7 +184,7 @@ class StateMachine:
 
     def protective_stop(self) -> None:
         if self.phase in (Phase.EMERGENCY_STOP, Phase.INITIALIZING, Phase.SAFE_OFF):
-            raise RobotCommandError(
+            raise RobotStateConflict(
                 f"no protective stop in {RobotState(self.state()).name}: the servo is off"
             )
         self.phase = Phase.PROTECTIVE_STOP
@@ -179,7 +193,7 @@ class StateMachine:
 
     def reset(self, now_s: float) -> None:
         if self.phase in (Phase.NORMAL, Phase.INITIALIZING):
-            raise RobotCommandError(f"nothing to reset in {_state_name(self.state())}")
+            raise RobotStateConflict(f"nothing to reset in {_state_name(self.state())}")
         self.phase = Phase.SAFE_OFF
         self.phase_until_s = now_s + self.timings.safe_off_s
         self.program_running = False
@@ -198,11 +212,11 @@ class StateMachine:
     def set_program_running(self, running: bool) -> None:
         if running and self.phase is not Phase.FORCED:
             if self.phase is not Phase.NORMAL:
-                raise RobotCommandError(
+                raise RobotStateConflict(
                     f"cannot start the program in {_state_name(self.state())}: reset first"
                 )
             if self.teach_button_pressed:
-                raise RobotCommandError("cannot start the program while the teach button is held")
+                raise RobotStateConflict("cannot start the program while the teach button is held")
         self.program_running = running
         self.autostart_at_s = None
 

@@ -1,0 +1,112 @@
+"""Layer: entry point. The ``emulator`` verb: the robot's EtherNet/IP target until SIGINT or
+SIGTERM. Imports the emulator lazily, inside the handler."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def _rpi_range(text: str) -> tuple[int, int]:
+    try:
+        low, high = (int(float(part) * 1000) for part in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError("expected MIN_MS,MAX_MS, e.g. 1,10000") from None
+    if not 0 < low <= high:
+        raise argparse.ArgumentTypeError("expected 0 < MIN_MS <= MAX_MS")
+    return low, high
+
+
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    parser = subparsers.add_parser(
+        "emulator",
+        help="run the emulated robot's EtherNet/IP target (TCP 44818, UDP 2222)",
+        description=(
+            "Serve the robot's EtherNet/IP adapter: explicit messages, Forward Open and class 1 "
+            "cyclic I/O. Runs until SIGINT or SIGTERM."
+        ),
+    )
+    parser.add_argument("--host", default="127.0.0.2", help="address to bind (default 127.0.0.2)")
+    parser.add_argument("--tcp-port", type=int, default=44818)
+    parser.add_argument("--udp-port", type=int, default=2222)
+    parser.add_argument("--config-instance", type=int, default=151)
+    parser.add_argument("--o2t-instance", type=int, default=150)
+    parser.add_argument("--t2o-instance", type=int, default=100)
+    parser.add_argument("--input-only-instance", type=int, default=198)
+    parser.add_argument("--listen-only-instance", type=int, default=199)
+    parser.add_argument("--o2t-size", type=int, default=20, help="O→T data bytes (default 20)")
+    parser.add_argument("--t2o-size", type=int, default=284, help="T→O data bytes (default 284)")
+    parser.add_argument(
+        "--rpi-range-ms",
+        type=_rpi_range,
+        default=(1_000, 10_000_000),
+        metavar="MIN,MAX",
+        help="accepted RPI range in ms (default 1,10000)",
+    )
+    parser.add_argument("--max-connections", type=int, default=8)
+    parser.add_argument(
+        "--idle",
+        choices=("hold", "clear"),
+        default="hold",
+        help="outputs when the owner goes idle or times out (default hold)",
+    )
+    parser.add_argument("-v", "--verbose", action="store_true", help="log connections")
+    parser.set_defaults(handler=_run)
+
+
+def _run(args: argparse.Namespace) -> int:
+    import asyncio
+    import logging
+    import signal
+
+    from cobot_hmi.emulator.process_image import IdleBehaviour
+    from cobot_hmi.emulator.settings import TargetSettings
+    from cobot_hmi.emulator.static_robot import StaticRobot
+    from cobot_hmi.emulator.target import Target
+    from cobot_hmi.eventloop import precise_event_loop
+
+    logging.basicConfig(
+        level=logging.INFO if args.verbose else logging.WARNING,
+        format="%(asctime)s %(name)s %(message)s",
+    )
+    idle = IdleBehaviour(args.idle)
+    settings = TargetSettings(
+        host=args.host,
+        tcp_port=args.tcp_port,
+        udp_port=args.udp_port,
+        config_instance=args.config_instance,
+        o2t_instance=args.o2t_instance,
+        t2o_instance=args.t2o_instance,
+        input_only_instance=args.input_only_instance,
+        listen_only_instance=args.listen_only_instance,
+        o2t_size=args.o2t_size,
+        t2o_size=args.t2o_size,
+        rpi_min_us=args.rpi_range_ms[0],
+        rpi_max_us=args.rpi_range_ms[1],
+        max_connections=args.max_connections,
+        idle_behaviour=idle,
+    )
+
+    async def serve() -> None:
+        target = Target(settings, StaticRobot(idle))
+        stop = asyncio.Event()
+        loop = asyncio.get_running_loop()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            loop.add_signal_handler(sig, stop.set)
+        await target.start()
+        print(
+            f"cobot-hmi emulator: EtherNet/IP target on {args.host} "
+            f"TCP {target.tcp_port} UDP {target.udp_port}",
+            flush=True,
+        )
+        try:
+            await stop.wait()
+        finally:
+            await target.stop()
+
+    try:
+        with asyncio.Runner(loop_factory=precise_event_loop) as runner:
+            runner.run(serve())
+    except OSError as error:
+        print(f"cobot-hmi emulator: {error}", flush=True)
+        return 1
+    return 0

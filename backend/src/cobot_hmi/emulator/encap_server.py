@@ -1,0 +1,203 @@
+"""Layer: emulator (asyncio TCP). Imports ``cobot_hmi.enip``.
+
+One encapsulation session per TCP client on port 44818 (ethernetip.md "Encapsulation"):
+ListIdentity, ListServices, ListInterfaces, RegisterSession, UnRegisterSession and SendRRData;
+SendUnitData is answered with an error (this target has no class 3 connections). A malformed
+or unknown message is answered with an encapsulation status and counted; the session goes on.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import struct
+from typing import Protocol
+
+from cobot_hmi.emulator.counters import TargetCounters
+from cobot_hmi.enip import cip, cpf, encapsulation
+from cobot_hmi.enip.cpf import CpfItem, ItemType, Sockaddr
+from cobot_hmi.enip.encapsulation import Command, EncapHeader, EncapStatus
+from cobot_hmi.enip.errors import EnipError
+from cobot_hmi.enip.identity import IdentityInfo
+
+log = logging.getLogger(__name__)
+
+_CAPABILITY_CIP_TCP_AND_UDP = 0x0120  # bit 5: CIP over TCP, bit 8: class 0/1 over UDP
+
+
+class SessionContext(Protocol):
+    """What the CIP layer may ask about the session a request came in on."""
+
+    session_handle: int
+    peer_host: str
+    local_host: str
+
+
+class CipHandler(Protocol):
+    counters: TargetCounters
+    identity: IdentityInfo
+
+    def identity_address(self, local_host: str) -> Sockaddr: ...
+
+    def handle_unconnected(
+        self, request_data: bytes, items: list[CpfItem], session: SessionContext
+    ) -> tuple[bytes, list[CpfItem]]:
+        """A Message Router request's bytes → the response's bytes and extra reply items."""
+        ...
+
+
+class EncapSession:
+    """One TCP client: reads whole encapsulation messages and answers them in order."""
+
+    _next_handle = 0x1000
+
+    def __init__(
+        self,
+        handler: CipHandler,
+        reader: asyncio.StreamReader,
+        writer: asyncio.StreamWriter,
+    ) -> None:
+        self.handler = handler
+        self.reader = reader
+        self.writer = writer
+        peer = writer.get_extra_info("peername") or ("0.0.0.0", 0)
+        local = writer.get_extra_info("sockname") or ("0.0.0.0", 0)
+        self.peer_host: str = peer[0]
+        self.local_host: str = local[0]
+        self.session_handle = 0
+
+    async def run(self) -> None:
+        counters = self.handler.counters
+        try:
+            while True:
+                head = await self.reader.readexactly(encapsulation.HEADER_SIZE)
+                header = encapsulation.decode_header(head)
+                data = await self.reader.readexactly(header.length)
+                try:
+                    reply = self._handle(header, data)
+                except Exception:  # never let one bad message end the session
+                    counters.internal_errors += 1
+                    log.exception("encapsulation command 0x%04X failed", header.command)
+                    reply = self._status(header, EncapStatus.INCORRECT_DATA)
+                if reply is _CLOSE:
+                    break
+                if isinstance(reply, bytes):
+                    self.writer.write(reply)
+                    await self.writer.drain()
+        except (asyncio.IncompleteReadError, ConnectionError):
+            pass
+        finally:
+            self.writer.close()
+            with contextlib.suppress(ConnectionError, OSError):
+                await self.writer.wait_closed()
+
+    def close(self) -> None:
+        self.writer.close()
+
+    # ------------------------------------------------------------------ commands
+
+    def _status(self, header: EncapHeader, status: int, data: bytes = b"") -> bytes:
+        return encapsulation.encode(
+            header.command, data, session=header.session, status=status, context=header.context
+        )
+
+    def _handle(self, header: EncapHeader, data: bytes) -> bytes | object | None:
+        counters = self.handler.counters
+        command = header.command
+        if header.options != 0:
+            # The encapsulation spec: a receiver discards a message with non-zero options.
+            counters.encapsulation_malformed += 1
+            return None
+        if command == Command.NOP:
+            return None
+        if command == Command.LIST_IDENTITY:
+            if data:
+                counters.encapsulation_malformed += 1
+            address = self.handler.identity_address(self.local_host)
+            item = CpfItem(
+                ItemType.LIST_IDENTITY,
+                self.handler.identity.encode_list_identity_item(address),
+            )
+            return self._status(header, EncapStatus.SUCCESS, cpf.encode_items([item]))
+        if command == Command.LIST_SERVICES:
+            body = struct.pack("<HH", 1, _CAPABILITY_CIP_TCP_AND_UDP) + b"Communications\x00\x00"
+            items = [CpfItem(0x0100, body)]
+            return self._status(header, EncapStatus.SUCCESS, cpf.encode_items(items))
+        if command == Command.LIST_INTERFACES:
+            return self._status(header, EncapStatus.SUCCESS, cpf.encode_items([]))
+        if command == Command.REGISTER_SESSION:
+            return self._register(header, data)
+        if command == Command.UNREGISTER_SESSION:
+            if header.session == self.session_handle and self.session_handle:
+                return _CLOSE
+            counters.encapsulation_bad_session += 1
+            return None
+        if command in (Command.SEND_RR_DATA, Command.SEND_UNIT_DATA):
+            if not self.session_handle or header.session != self.session_handle:
+                counters.encapsulation_bad_session += 1
+                return self._status(header, EncapStatus.INVALID_SESSION)
+            if command == Command.SEND_UNIT_DATA:
+                counters.encapsulation_unsupported += 1
+                return self._status(header, EncapStatus.INCORRECT_DATA)
+            return self._rr_data(header, data)
+        counters.encapsulation_unsupported += 1
+        return self._status(header, EncapStatus.INVALID_COMMAND)
+
+    def _register(self, header: EncapHeader, data: bytes) -> bytes:
+        counters = self.handler.counters
+        try:
+            request = encapsulation.decode_register_session(data)
+        except EnipError:
+            counters.encapsulation_malformed += 1
+            return self._status(header, EncapStatus.INVALID_LENGTH)
+        if request.protocol_version != encapsulation.PROTOCOL_VERSION or request.options:
+            counters.encapsulation_malformed += 1
+            return self._status(
+                header, EncapStatus.UNSUPPORTED_PROTOCOL, encapsulation.encode_register_session()
+            )
+        if self.session_handle:
+            # One session per TCP connection: a second RegisterSession is an invalid command.
+            counters.encapsulation_malformed += 1
+            return self._status(header, EncapStatus.INVALID_COMMAND, data)
+        EncapSession._next_handle = EncapSession._next_handle % 0x7FFF_FFFF + 1
+        self.session_handle = EncapSession._next_handle
+        counters.tcp_sessions += 1
+        return encapsulation.encode(
+            Command.REGISTER_SESSION, data, session=self.session_handle, context=header.context
+        )
+
+    def _rr_data(self, header: EncapHeader, data: bytes) -> bytes:
+        counters = self.handler.counters
+        try:
+            _prefix, rest = encapsulation.decode_rr_prefix(data)
+            items = cpf.decode_items(rest)
+        except EnipError:
+            counters.encapsulation_malformed += 1
+            return self._status(header, EncapStatus.INCORRECT_DATA)
+        if (
+            len(items) < 2
+            or items[0].type_id != ItemType.NULL_ADDRESS
+            or items[0].data
+            or items[1].type_id != ItemType.UNCONNECTED_DATA
+        ):
+            counters.encapsulation_malformed += 1
+            return self._status(header, EncapStatus.INCORRECT_DATA)
+        try:
+            cip.decode_request(items[1].data)
+        except EnipError:
+            counters.encapsulation_malformed += 1
+            return self._status(header, EncapStatus.INCORRECT_DATA)
+        counters.explicit_requests += 1
+        response, extra = self.handler.handle_unconnected(items[1].data, items[2:], self)
+        reply_items = [
+            CpfItem(ItemType.NULL_ADDRESS, b""),
+            CpfItem(ItemType.UNCONNECTED_DATA, response),
+        ]
+        body = encapsulation.encode_rr_prefix(0) + cpf.encode_items(reply_items + extra)
+        return encapsulation.encode(
+            Command.SEND_RR_DATA, body, session=self.session_handle, context=header.context
+        )
+
+
+_CLOSE = object()

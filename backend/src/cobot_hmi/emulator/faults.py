@@ -1,0 +1,32 @@
+"""Layer: emulator. Imports nothing of the project.
+
+Fault hooks the target honours on every T→O packet and Forward Open. The emulator's control
+API (issue 4) sets them; tests set them directly. Plain mutable fields: the target reads them
+each time, so a change takes effect on the next packet.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass
+class TargetFaults:
+    t2o_drop_percent: float = 0.0
+    """Share of T→O packets not sent (their sequence numbers are used up: the consumer sees
+    gaps). Drawn from the target's seeded ``random.Random``."""
+    t2o_delay_ms: float = 0.0
+    """Extra delay before each T→O packet leaves."""
+    t2o_silent: bool = False
+    """Stop producing T→O entirely (the TCP session and the connection stay open)."""
+    t2o_corrupt_count: int = 0
+    """Corrupt the next N T→O packets (each sent malformed), counting down."""
+    refuse_next_forward_open: int | None = None
+    """Refuse the next Forward Open with this extended status (general status 0x01)."""
+
+    def reset(self) -> None:
+        self.t2o_drop_percent = 0.0
+        self.t2o_delay_ms = 0.0
+        self.t2o_silent = False
+        self.t2o_corrupt_count = 0
+        self.refuse_next_forward_open = None

@@ -1,0 +1,65 @@
+"""Layer: emulator. Imports the codec's sizes and ``cobot_hmi.enip``.
+
+Everything about the target that a user or a test may configure: addresses, the assembly
+instances and sizes of issue 3, the RPI range, the connection limit, the idle behaviour and
+the identity the target reports.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from cobot_hmi.codec import O2T_SIZE, T2O_SIZE
+from cobot_hmi.emulator.process_image import IdleBehaviour
+from cobot_hmi.enip.encapsulation import ENIP_TCP_PORT, ENIP_UDP_PORT
+from cobot_hmi.enip.identity import IdentityInfo
+
+
+def default_identity() -> IdentityInfo:
+    # Placeholder identity values: a real controller's come from its EDS file.
+    return IdentityInfo(
+        vendor_id=0xFFFE,
+        device_type=0x2B,  # generic device (keyable)
+        product_code=1013,
+        revision_major=2,
+        revision_minor=12,
+        status=0x0030,
+        serial_number=0x20131013,
+        product_name="Doosan M1013 (emulated)",
+    )
+
+
+@dataclass(frozen=True)
+class TargetSettings:
+    host: str = "127.0.0.2"
+    tcp_port: int = ENIP_TCP_PORT
+    """0 picks a free port (tests), read back from ``Target.tcp_port``."""
+    udp_port: int = ENIP_UDP_PORT
+    config_instance: int = 151
+    o2t_instance: int = 150
+    t2o_instance: int = 100
+    input_only_instance: int = 198
+    listen_only_instance: int = 199
+    o2t_size: int = O2T_SIZE
+    t2o_size: int = T2O_SIZE
+    heartbeat_sizes: tuple[int, ...] = (0, 2, 6)
+    """O→T connection sizes accepted for input-only and listen-only (vendors differ)."""
+    rpi_min_us: int = 1_000
+    rpi_max_us: int = 10_000_000
+    max_connections: int = 8
+    idle_behaviour: IdleBehaviour = IdleBehaviour.HOLD
+    t2o_port_default: int = ENIP_UDP_PORT
+    """Where T→O goes on the originator's address unless its 0x8001 item says otherwise."""
+    identity: IdentityInfo = field(default_factory=default_identity)
+    seed: int = 0
+    """Seed of the random numbers for connection IDs and fault drops."""
+
+    @property
+    def o2t_connection_size(self) -> int:
+        """O→T connection size: data + 2 (sequence count) + 4 (run/idle header)."""
+        return self.o2t_size + 6
+
+    @property
+    def t2o_connection_size(self) -> int:
+        """T→O connection size: data + 2 (sequence count); no run/idle header."""
+        return self.t2o_size + 2

@@ -1,0 +1,494 @@
+"""Layer: emulator (asyncio I/O). Imports the codec, ``cobot_hmi.enip`` and the emulator's own
+modules; never the scanner or the service.
+
+The robot's EtherNet/IP adapter (issue 3, "The target"): the encapsulation server on TCP 44818
+(``encap_server``), the Connection Manager (Forward Open, Large Forward Open, Forward Close),
+the explicit objects (``objects``), and the class 1 engine on UDP 2222: one producer per
+connection on a drift-free RPI schedule, O→T consumed by connection ID, run/idle applied to the
+:class:`ProcessImage`, and a watchdog per connection.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import random
+import time
+from dataclasses import dataclass
+
+from cobot_hmi.codec import CodecError, decode_command, encode_command, encode_frame
+from cobot_hmi.emulator.connections import (
+    ConnectionKind,
+    IoConnection,
+    RefusalError,
+    admit,
+)
+from cobot_hmi.emulator.counters import TargetCounters
+from cobot_hmi.emulator.encap_server import EncapSession, SessionContext
+from cobot_hmi.emulator.faults import TargetFaults
+from cobot_hmi.emulator.objects import handle_object_request
+from cobot_hmi.emulator.process_image import ProcessImage
+from cobot_hmi.emulator.settings import TargetSettings
+from cobot_hmi.enip import cip, epath, io
+from cobot_hmi.enip.cip import MessageRouterRequest, MessageRouterResponse, Service
+from cobot_hmi.enip.connection_manager import (
+    ConnectionFailureReply,
+    ForwardCloseReply,
+    ForwardOpenReply,
+    decode_forward_close,
+    decode_forward_open,
+    decode_unconnected_send,
+)
+from cobot_hmi.enip.cpf import CpfItem, ItemType, Sockaddr, decode_sockaddr, sockaddr_item
+from cobot_hmi.enip.errors import EnipError
+from cobot_hmi.enip.identity import IdentityInfo
+from cobot_hmi.enip.status import ExtendedStatus, GeneralStatus
+from cobot_hmi.eventloop import sleep_until
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, slots=True)
+class ConnectionInfo:
+    """A snapshot of one class 1 connection, for a status API."""
+
+    o2t_connection_id: int
+    t2o_connection_id: int
+    kind: str
+    peer: str
+    """Where T→O goes, ``host:port``."""
+    o2t_rpi_us: int
+    t2o_rpi_us: int
+    timeout_multiplier: int
+    run: bool
+    packets_in: int
+    packets_out: int
+    opened_at: float
+
+
+class _UdpEndpoint(asyncio.DatagramProtocol):
+    def __init__(self, target: Target) -> None:
+        self.target = target
+
+    def datagram_received(self, data: bytes, addr: tuple[str, int]) -> None:
+        self.target._o2t_received(data, addr)
+
+    def error_received(self, exc: Exception) -> None:
+        # ICMP port unreachable after a T→O packet: the originator is gone; its watchdog
+        # (here, the O→T one) decides, not the error.
+        log.debug("UDP error: %s", exc)
+
+
+class Target:
+    """The EtherNet/IP target. ``await start()`` binds the sockets, ``await stop()`` closes
+    every connection, session and socket."""
+
+    def __init__(
+        self,
+        settings: TargetSettings,
+        process_image: ProcessImage,
+        *,
+        faults: TargetFaults | None = None,
+    ) -> None:
+        self.settings = settings
+        self.process_image = process_image
+        self.faults = faults if faults is not None else TargetFaults()
+        self.counters = TargetCounters()
+        self.identity: IdentityInfo = settings.identity
+        self._rng = random.Random(settings.seed)
+        self._by_o2t: dict[int, IoConnection] = {}
+        self._sessions: set[EncapSession] = set()
+        self._session_tasks: set[asyncio.Task[None]] = set()
+        self._server: asyncio.Server | None = None
+        self._udp: asyncio.DatagramTransport | None = None
+        self._t2o_cache: tuple[object, bytes] | None = None
+        self._closing: set[asyncio.Task[None]] = set()
+        self.tcp_port = settings.tcp_port
+        self.udp_port = settings.udp_port
+
+    # ------------------------------------------------------------------ lifecycle
+
+    async def start(self) -> None:
+        loop = asyncio.get_running_loop()
+        transport, _ = await loop.create_datagram_endpoint(
+            lambda: _UdpEndpoint(self), local_addr=(self.settings.host, self.settings.udp_port)
+        )
+        self._udp = transport
+        self.udp_port = transport.get_extra_info("sockname")[1]
+        try:
+            self._server = await asyncio.start_server(
+                self._client_connected, self.settings.host, self.settings.tcp_port
+            )
+        except OSError:
+            transport.close()
+            self._udp = None
+            raise
+        self.tcp_port = self._server.sockets[0].getsockname()[1]
+        log.info(
+            "EtherNet/IP target on %s TCP %d, UDP %d",
+            self.settings.host,
+            self.tcp_port,
+            self.udp_port,
+        )
+
+    async def stop(self) -> None:
+        for conn in list(self._by_o2t.values()):
+            self._close(conn, "target stopping", idle=False)
+        if self._server is not None:
+            self._server.close()
+        await self.drop_sessions()
+        if self._server is not None:
+            await self._server.wait_closed()
+            self._server = None
+        tasks = [t for conn in self._by_o2t.values() for t in conn.tasks]
+        for task in tasks:
+            task.cancel()
+        await asyncio.gather(*tasks, return_exceptions=True)
+        if self._udp is not None:
+            self._udp.close()
+            self._udp = None
+        await asyncio.gather(*self._closing, return_exceptions=True)
+
+    async def drop_sessions(self) -> None:
+        """Close every TCP session (class 1 connections carry on: they live on UDP)."""
+        for session in list(self._sessions):
+            session.close()
+        await asyncio.gather(*self._session_tasks, return_exceptions=True)
+
+    def connections(self) -> list[ConnectionInfo]:
+        return [
+            ConnectionInfo(
+                c.o2t_id,
+                c.t2o_id,
+                str(c.kind),
+                f"{c.peer[0]}:{c.peer[1]}",
+                c.o2t_rpi_us,
+                c.t2o_rpi_us,
+                c.timeout_multiplier,
+                c.run,
+                c.packets_in,
+                c.packets_out,
+                c.opened_at,
+            )
+            for c in self._by_o2t.values()
+        ]
+
+    async def _client_connected(
+        self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter
+    ) -> None:
+        session = EncapSession(self, reader, writer)
+        self._sessions.add(session)
+        task = asyncio.current_task()
+        assert task is not None
+        self._session_tasks.add(task)
+        try:
+            await session.run()
+        finally:
+            self._sessions.discard(session)
+            self._session_tasks.discard(task)
+
+    # ------------------------------------------------------------------ explicit messages
+
+    def identity_address(self, local_host: str) -> Sockaddr:
+        return Sockaddr(local_host, self.tcp_port)
+
+    def handle_unconnected(
+        self, request_data: bytes, items: list[CpfItem], session: SessionContext
+    ) -> tuple[bytes, list[CpfItem]]:
+        request = cip.decode_request(request_data)
+        response, extra = self._dispatch(request, items, session)
+        return response.encode(), extra
+
+    def _dispatch(
+        self, request: MessageRouterRequest, items: list[CpfItem], session: SessionContext
+    ) -> tuple[MessageRouterResponse, list[CpfItem]]:
+        if request.path == epath.request_path(epath.CLASS_CONNECTION_MANAGER, 1):
+            if request.service in (Service.FORWARD_OPEN, Service.LARGE_FORWARD_OPEN):
+                return self._forward_open(request, items, session)
+            if request.service == Service.FORWARD_CLOSE:
+                return self._forward_close(request), []
+            if request.service == Service.UNCONNECTED_SEND:
+                try:
+                    inner = cip.decode_request(decode_unconnected_send(request.data).message)
+                except EnipError:
+                    return MessageRouterResponse(
+                        request.service,
+                        GeneralStatus.CONNECTION_FAILURE,
+                        (ExtendedStatus.UNCONNECTED_SEND_PARAMETER_ERROR,),
+                    ), []
+                # The embedded request's reply stands for the Unconnected Send's (CIP Vol 1
+                # 3-5.5.2): this target is the end of the route.
+                return self._dispatch(inner, items, session)
+            return MessageRouterResponse(request.service, GeneralStatus.SERVICE_NOT_SUPPORTED), []
+        return handle_object_request(request, self.identity, self), []
+
+    # AssemblyAccess for ``objects``
+    def assembly_instances(self) -> tuple[int, ...]:
+        s = self.settings
+        return (s.t2o_instance, s.o2t_instance, s.config_instance)
+
+    def assembly_data(self, instance: int) -> bytes:
+        if instance == self.settings.t2o_instance:
+            return self._t2o_data(time.time())
+        if instance == self.settings.o2t_instance:
+            return encode_command(self.process_image.command_image())
+        return b""
+
+    def set_assembly_data(self, instance: int, data: bytes) -> int:
+        if instance != self.settings.o2t_instance:
+            if instance == self.settings.config_instance and not data:
+                return GeneralStatus.SUCCESS
+            return GeneralStatus.ATTRIBUTE_NOT_SETTABLE
+        if any(c.kind is ConnectionKind.OWNER for c in self._by_o2t.values()):
+            return GeneralStatus.OBJECT_STATE_CONFLICT  # a connection owns the outputs
+        if len(data) < self.settings.o2t_size:
+            return GeneralStatus.NOT_ENOUGH_DATA
+        if len(data) > self.settings.o2t_size:
+            return GeneralStatus.TOO_MUCH_DATA
+        try:
+            image = decode_command(data)
+        except CodecError:
+            return GeneralStatus.INVALID_ATTRIBUTE_VALUE
+        self.process_image.consume_command(image, time.time())
+        return GeneralStatus.SUCCESS
+
+    # ------------------------------------------------------------------ Connection Manager
+
+    def _forward_open(
+        self, request: MessageRouterRequest, items: list[CpfItem], session: SessionContext
+    ) -> tuple[MessageRouterResponse, list[CpfItem]]:
+        large = request.service == Service.LARGE_FORWARD_OPEN
+        self.counters.forward_opens += 1
+        try:
+            fo = decode_forward_open(request.data, large=large)
+        except EnipError:
+            self.counters.forward_open_refusals += 1
+            return MessageRouterResponse(request.service, GeneralStatus.NOT_ENOUGH_DATA), []
+
+        def refuse(refusal: RefusalError) -> tuple[MessageRouterResponse, list[CpfItem]]:
+            self.counters.forward_open_refusals += 1
+            failure = ConnectionFailureReply(
+                fo.connection_serial, fo.vendor_id, fo.originator_serial
+            )
+            log.info("Forward Open refused: 0x%04X", refusal.extended)
+            return MessageRouterResponse(
+                request.service,
+                GeneralStatus.CONNECTION_FAILURE,
+                refusal.words,
+                failure.encode(),
+            ), []
+
+        injected = self.faults.refuse_next_forward_open
+        if injected is not None:
+            self.faults.refuse_next_forward_open = None
+            return refuse(RefusalError(injected))
+        t2o_port = self.settings.t2o_port_default
+        for item in items:
+            if item.type_id == ItemType.SOCKADDR_T2O:
+                try:
+                    t2o_port = decode_sockaddr(item.data).port
+                except EnipError:
+                    return refuse(RefusalError(ExtendedStatus.INVALID_NETWORK_PARAMETER))
+        table = list(self._by_o2t.values())
+        try:
+            kind = admit(fo, self.settings, table)
+        except RefusalError as refusal:
+            return refuse(refusal)
+        o2t_id = self._new_connection_id()
+        t2o_id = fo.t2o_connection_id or self._new_connection_id()
+        loop = asyncio.get_running_loop()
+        conn = IoConnection(
+            kind=kind,
+            o2t_id=o2t_id,
+            t2o_id=t2o_id,
+            triplet=fo.triplet,
+            peer=(session.peer_host, t2o_port),
+            o2t_rpi_us=fo.o2t_rpi_us,
+            t2o_rpi_us=fo.t2o_rpi_us,
+            timeout_multiplier=fo.timeout_multiplier,
+            o2t_connection_size=fo.o2t_params.size_bytes,
+            t2o_connection_size=fo.t2o_params.size_bytes,
+            request_path=fo.path,
+            opened_at=time.time(),
+            last_rx=loop.time(),
+        )
+        self._by_o2t[o2t_id] = conn
+        conn.tasks.append(loop.create_task(self._produce(conn), name=f"t2o-{t2o_id:08x}"))
+        conn.tasks.append(loop.create_task(self._watchdog(conn), name=f"wd-{o2t_id:08x}"))
+        log.info(
+            "%s connection open: O→T 0x%08X T→O 0x%08X to %s:%d", kind, o2t_id, t2o_id, *conn.peer
+        )
+        reply = ForwardOpenReply(
+            o2t_id,
+            t2o_id,
+            fo.connection_serial,
+            fo.vendor_id,
+            fo.originator_serial,
+            fo.o2t_rpi_us,
+            fo.t2o_rpi_us,
+        )
+        # Where O→T goes: our UDP port on the address the originator reached us at.
+        o2t_item = sockaddr_item(ItemType.SOCKADDR_O2T, Sockaddr(session.local_host, self.udp_port))
+        return MessageRouterResponse(request.service, 0, (), reply.encode()), [o2t_item]
+
+    def _new_connection_id(self) -> int:
+        while True:
+            candidate = self._rng.getrandbits(32)
+            if (
+                candidate
+                and candidate not in self._by_o2t
+                and all(c.t2o_id != candidate for c in self._by_o2t.values())
+            ):
+                return candidate
+
+    def _forward_close(self, request: MessageRouterRequest) -> MessageRouterResponse:
+        self.counters.forward_closes += 1
+        try:
+            fc = decode_forward_close(request.data)
+        except EnipError:
+            return MessageRouterResponse(request.service, GeneralStatus.NOT_ENOUGH_DATA)
+        for conn in list(self._by_o2t.values()):
+            if conn.triplet == fc.triplet:
+                self._close(conn, "Forward Close")
+                reply = ForwardCloseReply(fc.connection_serial, fc.vendor_id, fc.originator_serial)
+                return MessageRouterResponse(request.service, 0, (), reply.encode())
+        failure = ConnectionFailureReply(fc.connection_serial, fc.vendor_id, fc.originator_serial)
+        return MessageRouterResponse(
+            request.service,
+            GeneralStatus.CONNECTION_FAILURE,
+            (ExtendedStatus.CONNECTION_NOT_FOUND,),
+            failure.encode(),
+        )
+
+    def _close(self, conn: IoConnection, reason: str, *, idle: bool = True) -> None:
+        if self._by_o2t.pop(conn.o2t_id, None) is None:
+            return
+        log.info("%s connection 0x%08X closed: %s", conn.kind, conn.o2t_id, reason)
+        current = asyncio.current_task()
+        for task in conn.tasks:
+            if task is not current:
+                task.cancel()
+                self._closing.add(task)
+                task.add_done_callback(self._closing.discard)
+        if idle and conn.kind is ConnectionKind.OWNER and conn.run:
+            conn.run = False
+            self.process_image.outputs_idle(time.time())
+        if conn.produces and not any(c.produces for c in self._by_o2t.values()):
+            # Listen-only connections follow the data they listen to (CIP: 0x0119).
+            for other in list(self._by_o2t.values()):
+                self._close(other, "the last non-listen-only connection closed", idle=idle)
+
+    # ------------------------------------------------------------------ class 1 engine
+
+    def _t2o_data(self, now_s: float) -> bytes:
+        frame = self.process_image.produce_frame(now_s)
+        cache = self._t2o_cache
+        if cache is not None and cache[0] is frame:
+            return cache[1]
+        data = encode_frame(frame)
+        size = self.settings.t2o_size
+        if len(data) != size:
+            data = data[:size].ljust(size, b"\x00")
+        self._t2o_cache = (frame, data)
+        return data
+
+    async def _produce(self, conn: IoConnection) -> None:
+        loop = asyncio.get_running_loop()
+        period_s = conn.t2o_rpi_us / 1e6
+        deadline = loop.time()
+        while True:
+            try:
+                self._send_t2o(conn)
+            except Exception:  # a robot bug must not stop the connection's heartbeat
+                self.counters.internal_errors += 1
+                log.exception("T→O production failed")
+            deadline += period_s
+            now = loop.time()
+            if deadline < now - period_s:
+                deadline = now  # far behind (a stalled loop): resynchronise, never burst
+            await sleep_until(deadline)
+
+    def _send_t2o(self, conn: IoConnection) -> None:
+        faults = self.faults
+        if faults.t2o_silent or self._udp is None:
+            return
+        data = self._t2o_data(time.time())
+        conn.t2o_encap_seq = (conn.t2o_encap_seq + 1) & 0xFFFFFFFF
+        conn.t2o_cip_seq = (conn.t2o_cip_seq + 1) & 0xFFFF
+        packet = io.encode_io(conn.t2o_id, conn.t2o_encap_seq, conn.t2o_cip_seq, data)
+        if faults.t2o_drop_percent and self._rng.random() * 100.0 < faults.t2o_drop_percent:
+            self.counters.t2o_dropped += 1
+            return
+        if faults.t2o_corrupt_count > 0:
+            faults.t2o_corrupt_count -= 1
+            self.counters.t2o_corrupted += 1
+            packet = packet[: len(packet) // 2]  # truncated: the length fields no longer hold
+        conn.packets_out += 1
+        self.counters.t2o_sent += 1
+        if faults.t2o_delay_ms > 0:
+            asyncio.get_running_loop().call_later(
+                faults.t2o_delay_ms / 1e3, self._sendto, packet, conn.peer
+            )
+        else:
+            self._udp.sendto(packet, conn.peer)
+
+    def _sendto(self, packet: bytes, peer: tuple[str, int]) -> None:
+        if self._udp is not None:
+            self._udp.sendto(packet, peer)
+
+    async def _watchdog(self, conn: IoConnection) -> None:
+        loop = asyncio.get_running_loop()
+        timeout_s = conn.timeout_s
+        while True:
+            deadline = conn.last_rx + timeout_s
+            if loop.time() >= deadline:
+                break
+            await sleep_until(deadline)
+        self.counters.watchdog_timeouts += 1
+        self._close(conn, f"watchdog: no O→T for {timeout_s * 1e3:.0f} ms (0x0203)")
+
+    def _o2t_received(self, data: bytes, addr: tuple[str, int]) -> None:
+        counters = self.counters
+        try:
+            packet = io.decode_io(data)
+        except EnipError:
+            counters.udp_malformed += 1
+            return
+        conn = self._by_o2t.get(packet.connection_id)
+        if conn is None or addr[0] != conn.peer[0]:
+            counters.udp_unknown_connection += 1
+            return
+        last = conn.last_o2t_encap_seq
+        if last is not None and io.seq32_newer(packet.encap_seq, last) <= 0:
+            counters.udp_stale += 1
+            return
+        if conn.kind is not ConnectionKind.OWNER:
+            conn.last_o2t_encap_seq = packet.encap_seq
+            conn.last_rx = asyncio.get_running_loop().time()
+            conn.packets_in += 1
+            return
+        payload = packet.payload
+        if packet.cip_seq is None or len(payload) != self.settings.o2t_size + 4:
+            counters.udp_malformed += 1
+            return
+        conn.last_o2t_encap_seq = packet.encap_seq
+        conn.last_rx = asyncio.get_running_loop().time()
+        conn.packets_in += 1
+        if packet.cip_seq == conn.last_o2t_cip_seq:
+            conn.duplicates += 1
+            counters.udp_duplicates += 1
+            return  # the same sequence count: no new data
+        conn.last_o2t_cip_seq = packet.cip_seq
+        run, command = io.split_run_idle(payload)
+        if run:
+            conn.run = True
+            if command != conn.last_applied:
+                conn.last_applied = command
+                self.process_image.consume_command(decode_command(command), time.time())
+        elif conn.run:
+            conn.run = False
+            conn.last_applied = None
+            self.process_image.outputs_idle(time.time())
+
+
+__all__ = ["ConnectionInfo", "Target"]
