@@ -19,6 +19,7 @@ from typing import Final
 
 import orjson
 
+from cobot_hmi.codec_errors import CodecError, FrameSizeError
 from cobot_hmi.generated.frames import (
     O2T_COUNTS,
     O2T_SIZE,
@@ -56,38 +57,18 @@ __all__ = [
 ]
 
 
-class CodecError(ValueError):
-    """Bytes or JSON that do not form a frame or a command image."""
+decode_frame = decode_t2o
+"""Decode a T→O frame. Bytes past 284 are kept as ``frame.extra``; fewer raise
+``FrameSizeError`` naming the expected and actual sizes. (The generated decoder itself: no
+wrapper call on the hot path.)"""
 
-
-class FrameSizeError(CodecError):
-    """A buffer shorter than its assembly (or, for O→T, not exactly its size)."""
-
-    def __init__(self, what: str, expected: int, actual: int) -> None:
-        super().__init__(f"{what}: expected {expected} bytes, got {actual}")
-        self.expected = expected
-        self.actual = actual
-
-
-def decode_frame(data: bytes | bytearray | memoryview) -> Frame:
-    """Decode a T→O frame. Bytes past 284 are kept as ``frame.extra``; fewer is an error."""
-    size = len(data)
-    if size < T2O_SIZE:
-        raise FrameSizeError("T→O frame too short", T2O_SIZE, size)
-    extra = bytes(data[T2O_SIZE:]) if size > T2O_SIZE else b""
-    return decode_t2o(data, extra)
+decode_command = decode_o2t
+"""Decode an O→T command image, which is exactly 20 bytes (``FrameSizeError`` otherwise)."""
 
 
 def encode_frame(frame: Frame) -> bytes:
     """The wire bytes of a T→O frame, its ``extra`` bytes appended."""
     return encode_t2o(frame) + frame.extra
-
-
-def decode_command(data: bytes | bytearray | memoryview) -> CommandImage:
-    """Decode an O→T command image, which is exactly 20 bytes."""
-    if len(data) != O2T_SIZE:
-        raise FrameSizeError("O→T command image", O2T_SIZE, len(data))
-    return decode_o2t(data)
 
 
 def encode_command(image: CommandImage) -> bytes:

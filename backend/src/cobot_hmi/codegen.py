@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -53,7 +54,7 @@ def _q(text: str) -> str:
 
 @dataclass
 class _Slot:
-    """A run of bytes unpacked as one ``struct`` item (or ``count`` items for REAL/USINT)."""
+    """One ``struct`` item run: a byte that holds bits, or a REAL / USINT run of ``items``."""
 
     start: int
     size: int
@@ -62,30 +63,43 @@ class _Slot:
     fields: list[Field] = field(default_factory=list)
 
 
+@dataclass(frozen=True)
+class _BitChunk:
+    """The part of a BOOL field that lies in one byte: ``width`` bits from bit ``shift``."""
+
+    byte: int
+    shift: int
+    first_element: int
+    width: int
+
+
+def _bit_chunks(f: Field) -> list[_BitChunk]:
+    chunks = []
+    position, element = f.first_wire_bit, 0
+    while element < f.count:
+        shift = position % 8
+        width = min(8 - shift, f.count - element)
+        chunks.append(_BitChunk(position // 8, shift, element, width))
+        position += width
+        element += width
+    return chunks
+
+
 def _slots(assembly: Assembly) -> list[_Slot]:
-    """Cut an assembly into struct items: whole bit-holding words, REAL and USINT runs."""
+    """Cut an assembly into struct items: every byte holding bits is its own ``B`` item, so
+    that a whole byte of bits decodes with one table look-up and no shifting; REAL and USINT
+    fields are runs."""
     slots: list[_Slot] = []
-    bit_spans: list[tuple[int, int, Field]] = []
+    bit_bytes: dict[int, list[Field]] = {}
     for f in assembly.fields:
         if f.cip_type is CipType.BOOL:
-            first = f.first_wire_bit // 8
-            last = (f.first_wire_bit + f.count - 1) // 8
-            bit_spans.append((first, last, f))
+            for chunk in _bit_chunks(f):
+                bit_bytes.setdefault(chunk.byte, []).append(f)
         else:
             code = "f" if f.cip_type is CipType.REAL else "B"
             size = {"f": 4, "B": 1}[code]
             slots.append(_Slot(f.offset, size * f.count, f"{f.count}{code}", f.count, [f]))
-    bit_spans.sort(key=lambda span: span[0])
-    merged: list[tuple[int, int, list[Field]]] = []
-    for first, last, f in bit_spans:
-        if merged and first <= merged[-1][1]:
-            prev_first, prev_last, fields = merged[-1]
-            merged[-1] = (prev_first, max(prev_last, last), [*fields, f])
-        else:
-            merged.append((first, last, [f]))
-    for first, last, fields in merged:
-        size = next(s for s in (1, 2, 4, 8) if s >= last - first + 1)
-        slots.append(_Slot(first, size, _STRUCT_CODE_BY_SIZE[size], 1, fields))
+    slots += [_Slot(byte, 1, "B", 1, fields) for byte, fields in bit_bytes.items()]
     slots.sort(key=lambda s: s.start)
     return slots
 
@@ -108,8 +122,13 @@ def struct_format(assembly: Assembly) -> str:
     return "".join(parts)
 
 
-def _shift_in_slot(f: Field, slot: _Slot) -> int:
-    return f.first_wire_bit - slot.start * 8
+def _item_index(assembly: Assembly) -> dict[int, int]:
+    """Byte offset of each slot → index of its first value in the unpacked tuple."""
+    index, positions = 0, {}
+    for slot in _slots(assembly):
+        positions[slot.start] = index
+        index += slot.items
+    return positions
 
 
 # --------------------------------------------------------------------------- frames.py
@@ -128,59 +147,102 @@ def _class_name(assembly: Assembly) -> str:
     return "Frame" if assembly is T2O_ASSEMBLY else "CommandImage"
 
 
-def _bits_expr(value: str, shift: int, count: int, coded: bool) -> str:
-    """Expression turning ``count`` bits of ``value`` from ``shift`` on into a tuple."""
-    if coded:
-        items = ", ".join(f"({value} >> {shift + i}) & 1" for i in range(count))
-        return f"({items},)"
-    chunks = []
-    done = 0
-    while done < count:
-        width = min(8, count - done)
-        at = shift + done
-        shifted = f"({value} >> {at})" if at else value
-        chunks.append(f"_BITS[{width}][{shifted} & {(1 << width) - 1:#x}]")
-        done += width
-    return " + ".join(chunks)
+def _chunk_expr(value: str, chunk: _BitChunk, table: str = "_BITS") -> str:
+    """Expression giving the chunk's bits of byte ``value`` as a tuple (booleans or 0/1)."""
+    if chunk.shift == 0 and chunk.width == 8 and table == "_BITS":
+        return f"_B8[{value}]"
+    shifted = f"({value} >> {chunk.shift})" if chunk.shift else value
+    if chunk.shift + chunk.width < 8:
+        shifted = f"{shifted} & {(1 << chunk.width) - 1:#x}"
+    return f"{table}[{chunk.width}][{shifted}]"
 
 
-def _decode_exprs(assembly: Assembly) -> dict[str, str]:
-    exprs: dict[str, str] = {}
-    index = 0
-    for slot in _slots(assembly):
-        for f in slot.fields:
-            if f.cip_type is CipType.BOOL:
-                shift = _shift_in_slot(f, slot)
-                value = f"v[{index}]"
-                if f.scalar:
-                    exprs[f.name] = f"_TF[({value} >> {shift}) & 1]"
-                else:
-                    exprs[f.name] = _bits_expr(value, shift, f.count, bool(f.value_names))
-            elif f.element_names:
-                exprs[f.name] = f"_new(ControllerVersion, v[{index}:{index + f.count}])"
-            elif f.scalar:
-                exprs[f.name] = f"v[{index}]"
+def _decode_elements(assembly: Assembly) -> tuple[list[str], list[str]]:
+    """The elements of the decoded tuple, in field order, and module constants they need.
+
+    Speed matters here (one call per received frame), so runs of REAL arrays come out of one
+    ``itemgetter`` of slices, neighbouring flags out of one table look-up, and wide bit arrays
+    are spliced rather than concatenated; every element is still derived from the table.
+    """
+    items = _item_index(assembly)
+    tag = assembly.direction.value.upper()
+    elements: list[str] = []
+    constants: list[str] = []
+    pending_slices: list[str] = []
+    pending_flags: list[_BitChunk] = []
+
+    def flush() -> None:
+        if len(pending_slices) > 1:
+            name = f"_{tag}_RUN_{len(constants)}"
+            constants.append(f"{name}: Final = itemgetter({', '.join(pending_slices)})")
+            elements.append(f"*{name}(v)")
+        elif pending_slices:
+            elements.append(f"v[{pending_slices[0].replace('slice(', '').replace(', ', ':')[:-1]}]")
+        pending_slices.clear()
+        if len(pending_flags) > 1:
+            first = pending_flags[0]
+            run = _BitChunk(first.byte, first.shift, 0, len(pending_flags))
+            elements.append("*" + _chunk_expr(f"v[{items[first.byte]}]", run))
+        elif pending_flags:
+            chunk = pending_flags[0]
+            elements.append(f"_TF[({f'v[{items[chunk.byte]}]'} >> {chunk.shift}) & 1]")
+        pending_flags.clear()
+
+    for f in assembly.fields:
+        if f.cip_type is CipType.BOOL and f.scalar:
+            (chunk,) = _bit_chunks(f)
+            last = pending_flags[-1] if pending_flags else None
+            if last and not (last.byte == chunk.byte and last.shift + 1 == chunk.shift):
+                flush()
+            if pending_slices:
+                flush()
+            pending_flags.append(chunk)
+            continue
+        if f.cip_type is not CipType.BOOL and not f.scalar and not f.element_names:
+            if pending_flags:
+                flush()
+            at = items[f.offset]
+            pending_slices.append(f"slice({at}, {at + f.count})")
+            continue
+        flush()
+        if f.cip_type is CipType.BOOL:
+            table = "_INTS" if f.value_names else "_BITS"
+            chunks = [_chunk_expr(f"v[{items[c.byte]}]", c, table) for c in _bit_chunks(f)]
+            if len(chunks) > 2:
+                elements.append("(" + ", ".join(f"*{c}" for c in chunks) + ")")
             else:
-                exprs[f.name] = f"v[{index}:{index + f.count}]"
-        index += slot.items
-    return exprs
+                elements.append(" + ".join(chunks))
+        elif f.element_names:
+            at = items[f.offset]
+            elements.append(f"_new(ControllerVersion, v[{at}:{at + f.count}])")
+        else:
+            elements.append(f"v[{items[f.offset]}]")
+    flush()
+    return elements, constants
 
 
 def _encode_args(assembly: Assembly, var: str) -> list[str]:
+    parts_by_byte: dict[int, list[str]] = {}
+    for f in assembly.fields:
+        if f.cip_type is not CipType.BOOL:
+            continue
+        for c in _bit_chunks(f):
+            if f.scalar:
+                part = f"(int({var}.{f.name}) << {c.shift})"
+            else:
+                whole = c.first_element == 0 and c.width == f.count
+                values = f"{var}.{f.name}"
+                if not whole:
+                    values += f"[{c.first_element}:{c.first_element + c.width}]"
+                part = f"_pack_bits({values}, {c.shift})"
+            parts_by_byte.setdefault(c.byte, []).append(part)
     args: list[str] = []
     for slot in _slots(assembly):
         first = slot.fields[0]
-        if first.cip_type is not CipType.BOOL:
+        if first.cip_type is CipType.BOOL:
+            args.append(" | ".join(parts_by_byte[slot.start]))
+        else:
             args.append(f"{var}.{first.name}" if first.scalar else f"*{var}.{first.name}")
-            continue
-        parts = []
-        for f in slot.fields:
-            shift = _shift_in_slot(f, slot)
-            if f.scalar:
-                parts.append(f"(int({var}.{f.name}) << {shift})")
-            else:
-                parts.append(f"_pack_bits({var}.{f.name}, {shift})")
-        args.append(" | ".join(parts))
     return args
 
 
@@ -197,7 +259,10 @@ def _frames_module() -> str:
         "import struct",
         "from collections.abc import Sequence",
         "from enum import IntEnum",
+        "from operator import itemgetter",
         "from typing import Final, NamedTuple",
+        "",
+        "from cobot_hmi.codec_errors import FrameSizeError",
         "",
         f"LAYOUT_VERSION: Final = {LAYOUT_VERSION}",
         f"UNKNOWN_STATE_NAME: Final = {_q(UNKNOWN_STATE_NAME)}",
@@ -237,6 +302,12 @@ def _frames_module() -> str:
         "    for width in range(9)",
         ")",
         '"""``_BITS[w][v]``: the ``w`` low bits of ``v`` as booleans, bit 0 first."""',
+        "_B8: Final = _BITS[8]",
+        "_INTS: Final = tuple(",
+        "    tuple(tuple(v >> i & 1 for i in range(width)) for v in range(1 << width))",
+        "    for width in range(9)",
+        ")",
+        '"""``_INTS[w][v]``: the ``w`` low bits of ``v`` as 0/1 codes, bit 0 first."""',
         "",
         "",
         "def _pack_bits(bits: Sequence[bool | int], shift: int) -> int:",
@@ -259,19 +330,35 @@ def _frames_module() -> str:
         ]
         out += [f"    {_q(f.name)}: {f.count}," for f in assembly.fields if not f.scalar]
         out += ["}", ""]
-        extra = ', extra: bytes = b""' if cls == "Frame" else ""
+        elements, constants = _decode_elements(assembly)
+        out += constants
+        size = assembly.size_bytes
+        out += ["", "", f"def decode_{tag}(data: bytes | bytearray | memoryview) -> {cls}:"]
+        if cls == "Frame":
+            out += [
+                f'    """Decode a T→O frame: bytes past {size} are kept as ``extra``, fewer is an'
+                ' error."""',
+                "    size = len(data)",
+                f"    if size == {size}:",
+                '        extra = b""',
+                f"    elif size > {size}:",
+                f"        extra = bytes(data[{size}:])",
+                "    else:",
+                f'        raise FrameSizeError("T→O frame too short", {size}, size)',
+            ]
+        else:
+            out += [
+                f'    """Decode an O→T command image, which is exactly {size} bytes."""',
+                f"    if len(data) != {size}:",
+                f'        raise FrameSizeError("O→T command image", {size}, len(data))',
+            ]
         out += [
-            "",
-            f"def decode_{tag}(data: bytes | bytearray | memoryview{extra}) -> {cls}:",
-            f'    """Decode the first {assembly.size_bytes} bytes of ``data`` (the caller checks'
-            ' the size)."""',
             f"    v = _{tag.upper()}_UNPACK(data)",
             "    return _new(",
             f"        {cls},",
             "        (",
         ]
-        exprs = _decode_exprs(assembly)
-        out += [f"            {exprs[f.name]}," for f in assembly.fields]
+        out += [f"            {element}," for element in elements]
         if cls == "Frame":
             out.append("            extra,")
         out += ["        ),", "    )", ""]
@@ -316,7 +403,7 @@ def _frames_module() -> str:
         "_STATE_NAMES: Final = {state.value: state.name for state in RobotState}",
         "",
     ]
-    return "\n".join(out)
+    return re.sub(r"\n{4,}", "\n\n\n", "\n".join(out))
 
 
 # --------------------------------------------------------------------------- layout.json

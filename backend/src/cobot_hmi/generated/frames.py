@@ -9,7 +9,10 @@ from __future__ import annotations
 import struct
 from collections.abc import Sequence
 from enum import IntEnum
+from operator import itemgetter
 from typing import Final, NamedTuple
+
+from cobot_hmi.codec_errors import FrameSizeError
 
 LAYOUT_VERSION: Final = 1
 UNKNOWN_STATE_NAME: Final = "UNKNOWN"
@@ -138,6 +141,12 @@ _BITS: Final = tuple(
     for width in range(9)
 )
 """``_BITS[w][v]``: the ``w`` low bits of ``v`` as booleans, bit 0 first."""
+_B8: Final = _BITS[8]
+_INTS: Final = tuple(
+    tuple(tuple(v >> i & 1 for i in range(width)) for v in range(1 << width))
+    for width in range(9)
+)
+"""``_INTS[w][v]``: the ``w`` low bits of ``v`` as 0/1 codes, bit 0 first."""
 
 
 def _pack_bits(bits: Sequence[bool | int], shift: int) -> int:
@@ -148,7 +157,7 @@ def _pack_bits(bits: Sequence[bool | int], shift: int) -> int:
     return word
 
 
-T2O_STRUCT: Final = struct.Struct("<HHB3x2f2fB1xB1x3B1x1B1xB1x6f6f6f6f6f6f3f3f3f3f3f3f3f3fQ")
+T2O_STRUCT: Final = struct.Struct("<BBBBB3x2f2fB1xB1x3B1x1B1xB1x6f6f6f6f6f6f3f3f3f3f3f3f3f3fBBBBBBBB")
 _T2O_UNPACK: Final = T2O_STRUCT.unpack_from
 T2O_SIZE: Final = 284
 T2O_COUNTS: Final = {
@@ -178,43 +187,35 @@ T2O_COUNTS: Final = {
     "bit_output_registers": 64,
 }
 
+_T2O_RUN_0: Final = itemgetter(slice(5, 7), slice(7, 9))
+_T2O_RUN_1: Final = itemgetter(slice(16, 22), slice(22, 28), slice(28, 34), slice(34, 40), slice(40, 46), slice(46, 52), slice(52, 55), slice(55, 58), slice(58, 61), slice(61, 64), slice(64, 67), slice(67, 70), slice(70, 73), slice(73, 76))
 
-def decode_t2o(data: bytes | bytearray | memoryview, extra: bytes = b"") -> Frame:
-    """Decode the first 284 bytes of ``data`` (the caller checks the size)."""
+
+def decode_t2o(data: bytes | bytearray | memoryview) -> Frame:
+    """Decode a T→O frame: bytes past 284 are kept as ``extra``, fewer is an error."""
+    size = len(data)
+    if size == 284:
+        extra = b""
+    elif size > 284:
+        extra = bytes(data[284:])
+    else:
+        raise FrameSizeError("T→O frame too short", 284, size)
     v = _T2O_UNPACK(data)
     return _new(
         Frame,
         (
-            _BITS[8][v[0] & 0xff] + _BITS[8][(v[0] >> 8) & 0xff],
-            _BITS[8][v[1] & 0xff] + _BITS[8][(v[1] >> 8) & 0xff],
-            ((v[2] >> 0) & 1, (v[2] >> 1) & 1,),
-            ((v[2] >> 2) & 1, (v[2] >> 3) & 1,),
-            v[3:5],
-            v[5:7],
-            _BITS[6][v[7] & 0x3f],
-            _BITS[6][v[8] & 0x3f],
-            _new(ControllerVersion, v[9:12]),
-            v[12],
-            _TF[(v[13] >> 0) & 1],
-            _TF[(v[13] >> 1) & 1],
-            _TF[(v[13] >> 2) & 1],
-            _TF[(v[13] >> 3) & 1],
-            _TF[(v[13] >> 4) & 1],
-            v[14:20],
-            v[20:26],
-            v[26:32],
-            v[32:38],
-            v[38:44],
-            v[44:50],
-            v[50:53],
-            v[53:56],
-            v[56:59],
-            v[59:62],
-            v[62:65],
-            v[65:68],
-            v[68:71],
-            v[71:74],
-            _BITS[8][v[74] & 0xff] + _BITS[8][(v[74] >> 8) & 0xff] + _BITS[8][(v[74] >> 16) & 0xff] + _BITS[8][(v[74] >> 24) & 0xff] + _BITS[8][(v[74] >> 32) & 0xff] + _BITS[8][(v[74] >> 40) & 0xff] + _BITS[8][(v[74] >> 48) & 0xff] + _BITS[8][(v[74] >> 56) & 0xff],
+            _B8[v[0]] + _B8[v[1]],
+            _B8[v[2]] + _B8[v[3]],
+            _INTS[2][v[4] & 0x3],
+            _INTS[2][(v[4] >> 2) & 0x3],
+            *_T2O_RUN_0(v),
+            _BITS[6][v[9] & 0x3f],
+            _BITS[6][v[10] & 0x3f],
+            _new(ControllerVersion, v[11:14]),
+            v[14],
+            *_BITS[5][v[15] & 0x1f],
+            *_T2O_RUN_1(v),
+            (*_B8[v[76]], *_B8[v[77]], *_B8[v[78]], *_B8[v[79]], *_B8[v[80]], *_B8[v[81]], *_B8[v[82]], *_B8[v[83]]),
             extra,
         ),
     )
@@ -229,8 +230,10 @@ def encode_t2o(frame: Frame) -> bytes:
                 f"expected {count}"
             )
     return T2O_STRUCT.pack(
-        _pack_bits(frame.controlbox_di, 0),
-        _pack_bits(frame.controlbox_do, 0),
+        _pack_bits(frame.controlbox_di[0:8], 0),
+        _pack_bits(frame.controlbox_di[8:16], 0),
+        _pack_bits(frame.controlbox_do[0:8], 0),
+        _pack_bits(frame.controlbox_do[8:16], 0),
         _pack_bits(frame.analog_input_type, 0) | _pack_bits(frame.analog_output_type, 2),
         *frame.analog_input,
         *frame.analog_output,
@@ -253,7 +256,14 @@ def encode_t2o(frame: Frame) -> bytes:
         *frame.tool_offset_orientation,
         *frame.external_force,
         *frame.external_moment,
-        _pack_bits(frame.bit_output_registers, 0),
+        _pack_bits(frame.bit_output_registers[0:8], 0),
+        _pack_bits(frame.bit_output_registers[8:16], 0),
+        _pack_bits(frame.bit_output_registers[16:24], 0),
+        _pack_bits(frame.bit_output_registers[24:32], 0),
+        _pack_bits(frame.bit_output_registers[32:40], 0),
+        _pack_bits(frame.bit_output_registers[40:48], 0),
+        _pack_bits(frame.bit_output_registers[48:56], 0),
+        _pack_bits(frame.bit_output_registers[56:64], 0),
     )
 
 
@@ -294,7 +304,7 @@ def t2o_to_dict(frame: Frame) -> dict[str, object]:
     }
 
 
-O2T_STRUCT: Final = struct.Struct("<HBB2fQ")
+O2T_STRUCT: Final = struct.Struct("<BBBB2fBBBBBBBB")
 _O2T_UNPACK: Final = O2T_STRUCT.unpack_from
 O2T_SIZE: Final = 20
 O2T_COUNTS: Final = {
@@ -307,16 +317,18 @@ O2T_COUNTS: Final = {
 
 
 def decode_o2t(data: bytes | bytearray | memoryview) -> CommandImage:
-    """Decode the first 20 bytes of ``data`` (the caller checks the size)."""
+    """Decode an O→T command image, which is exactly 20 bytes."""
+    if len(data) != 20:
+        raise FrameSizeError("O→T command image", 20, len(data))
     v = _O2T_UNPACK(data)
     return _new(
         CommandImage,
         (
-            _BITS[8][v[0] & 0xff] + _BITS[8][(v[0] >> 8) & 0xff],
-            _BITS[6][v[1] & 0x3f],
-            ((v[2] >> 0) & 1, (v[2] >> 1) & 1,),
-            v[3:5],
-            _BITS[8][v[5] & 0xff] + _BITS[8][(v[5] >> 8) & 0xff] + _BITS[8][(v[5] >> 16) & 0xff] + _BITS[8][(v[5] >> 24) & 0xff] + _BITS[8][(v[5] >> 32) & 0xff] + _BITS[8][(v[5] >> 40) & 0xff] + _BITS[8][(v[5] >> 48) & 0xff] + _BITS[8][(v[5] >> 56) & 0xff],
+            _B8[v[0]] + _B8[v[1]],
+            _BITS[6][v[2] & 0x3f],
+            _INTS[2][v[3] & 0x3],
+            v[4:6],
+            (*_B8[v[6]], *_B8[v[7]], *_B8[v[8]], *_B8[v[9]], *_B8[v[10]], *_B8[v[11]], *_B8[v[12]], *_B8[v[13]]),
         ),
     )
 
@@ -330,11 +342,19 @@ def encode_o2t(image: CommandImage) -> bytes:
                 f"expected {count}"
             )
     return O2T_STRUCT.pack(
-        _pack_bits(image.controlbox_do, 0),
+        _pack_bits(image.controlbox_do[0:8], 0),
+        _pack_bits(image.controlbox_do[8:16], 0),
         _pack_bits(image.tool_do, 0),
         _pack_bits(image.analog_output_type, 0),
         *image.analog_output,
-        _pack_bits(image.bit_input_registers, 0),
+        _pack_bits(image.bit_input_registers[0:8], 0),
+        _pack_bits(image.bit_input_registers[8:16], 0),
+        _pack_bits(image.bit_input_registers[16:24], 0),
+        _pack_bits(image.bit_input_registers[24:32], 0),
+        _pack_bits(image.bit_input_registers[32:40], 0),
+        _pack_bits(image.bit_input_registers[40:48], 0),
+        _pack_bits(image.bit_input_registers[48:56], 0),
+        _pack_bits(image.bit_input_registers[56:64], 0),
     )
 
 
