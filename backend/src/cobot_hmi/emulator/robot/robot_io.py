@@ -1,4 +1,5 @@
-"""Layer: emulator, pure robot model (no I/O). Imports the layout, the codec and ``robot.states``.
+"""Layer: emulator, pure robot model (no I/O). Imports the layout, the codec, ``robot.states`` and
+the target's ``process_image`` interface types (pure).
 
 The robot's I/O as the controller sees it:
 
@@ -18,10 +19,10 @@ from __future__ import annotations
 import math
 import random
 from collections.abc import Mapping, Sequence
-from enum import StrEnum
 from typing import Final
 
 from cobot_hmi.codec import CommandImage, zero_command
+from cobot_hmi.emulator.process_image import IdleBehaviour
 from cobot_hmi.emulator.robot.states import RobotCommandError
 from cobot_hmi.layout import Direction, Field, field_by_name
 
@@ -33,13 +34,6 @@ SETTABLE_INPUTS: Final = ("controlbox_di", "tool_di", "analog_input", "analog_in
 
 _BIT_INPUT_REGISTERS: Final = field_by_name(Direction.O_TO_T, "bit_input_registers")
 _BIT_OUTPUT_REGISTERS: Final = field_by_name(Direction.T_TO_O, "bit_output_registers")
-
-
-class IdleBehaviour(StrEnum):
-    """What the outputs do when no connection in run owns them any more."""
-
-    HOLD = "hold"
-    CLEAR = "clear"
 
 
 def identity_register_map() -> tuple[int | None, ...]:

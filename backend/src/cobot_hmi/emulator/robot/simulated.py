@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from typing import Final, NamedTuple
 
 from cobot_hmi.codec import CommandImage
+from cobot_hmi.emulator.process_image import IdleBehaviour
 from cobot_hmi.emulator.robot.dynamics import MotorThermal, joint_torques, motor_currents
 from cobot_hmi.emulator.robot.kinematics import (
     Transform,
@@ -29,7 +30,7 @@ from cobot_hmi.emulator.robot.kinematics import (
     tcp_velocity,
 )
 from cobot_hmi.emulator.robot.models import Vector3, model_by_name
-from cobot_hmi.emulator.robot.robot_io import IdleBehaviour, RobotIO
+from cobot_hmi.emulator.robot.robot_io import RobotIO
 from cobot_hmi.emulator.robot.states import (
     RobotCommandError,
     StateMachine,

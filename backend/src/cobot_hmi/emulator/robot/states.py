@@ -31,7 +31,7 @@ class RobotCommandError(ValueError):
     """A command the robot refuses (a bad value, or the wrong state); nothing was changed."""
 
 
-class RobotStateConflict(RobotCommandError):
+class RobotStateConflictError(RobotCommandError):
     """A well-formed command the robot refuses in its current state (reset first, ...)."""
 
 
@@ -184,7 +184,7 @@ class StateMachine:
 
     def protective_stop(self) -> None:
         if self.phase in (Phase.EMERGENCY_STOP, Phase.INITIALIZING, Phase.SAFE_OFF):
-            raise RobotStateConflict(
+            raise RobotStateConflictError(
                 f"no protective stop in {RobotState(self.state()).name}: the servo is off"
             )
         self.phase = Phase.PROTECTIVE_STOP
@@ -193,7 +193,7 @@ class StateMachine:
 
     def reset(self, now_s: float) -> None:
         if self.phase in (Phase.NORMAL, Phase.INITIALIZING):
-            raise RobotStateConflict(f"nothing to reset in {_state_name(self.state())}")
+            raise RobotStateConflictError(f"nothing to reset in {_state_name(self.state())}")
         self.phase = Phase.SAFE_OFF
         self.phase_until_s = now_s + self.timings.safe_off_s
         self.program_running = False
@@ -212,11 +212,13 @@ class StateMachine:
     def set_program_running(self, running: bool) -> None:
         if running and self.phase is not Phase.FORCED:
             if self.phase is not Phase.NORMAL:
-                raise RobotStateConflict(
+                raise RobotStateConflictError(
                     f"cannot start the program in {_state_name(self.state())}: reset first"
                 )
             if self.teach_button_pressed:
-                raise RobotStateConflict("cannot start the program while the teach button is held")
+                raise RobotStateConflictError(
+                    "cannot start the program while the teach button is held"
+                )
         self.program_running = running
         self.autostart_at_s = None
 
