@@ -9,7 +9,18 @@ PY := $(VENV)/bin/python
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: test demo lint typecheck pytest codegen venv clean
+.PHONY: test demo lint typecheck pytest codegen venv clean system-deps
+
+# Debian packages the tests use: tshark reads our captures, chromium runs the browser tests.
+# Installed only when missing (needs root, as on a fresh CI machine).
+SYSTEM_COMMANDS := tshark:tshark chromium:chromium
+system-deps:
+	@missing=""; for pair in $(SYSTEM_COMMANDS); do \
+	  command -v "$${pair%%:*}" >/dev/null || missing="$$missing $${pair##*:}"; done; \
+	if [ -n "$$missing" ]; then \
+	  echo "installing Debian packages:$$missing"; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing >/dev/null; \
+	fi
 
 venv: $(STAMP)
 
@@ -24,15 +35,15 @@ $(STAMP): backend/pyproject.toml
 	touch $@
 
 lint: $(STAMP)
-	cd backend && ../$(BIN)/ruff check . && ../$(BIN)/ruff format --check .
+	cd backend && ../$(BIN)/ruff check . ../bench && ../$(BIN)/ruff format --check . ../bench
 
 typecheck: $(STAMP)
 	cd backend && ../$(BIN)/mypy
 
 # pytest exits 5 when it collected nothing: that is a failure here, never a pass.
-pytest: $(STAMP)
-	cd backend && { ../$(BIN)/pytest $(PYTEST_ARGS); status=$$?; \
-	  if [ $$status -eq 5 ]; then echo "pytest collected no tests: failing"; fi; exit $$status; }
+pytest: $(STAMP) system-deps
+	cd backend && status=0 && { ../$(BIN)/pytest $(PYTEST_ARGS) || status=$$?; } && \
+	  if [ $$status -eq 5 ]; then echo "pytest collected no tests: failing"; fi && exit $$status
 
 test: lint typecheck pytest
 
