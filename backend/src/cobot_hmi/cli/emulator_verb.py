@@ -49,6 +49,30 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         default="hold",
         help="outputs when the owner goes idle or times out (default hold)",
     )
+    robot = parser.add_argument_group("the simulated robot (docs/emulator.md)")
+    robot.add_argument("--model", choices=("M1013", "M0609"), default="M1013")
+    robot.add_argument(
+        "--static", action="store_true", help="a robot that stands still instead of the simulation"
+    )
+    robot.add_argument("--seed", type=int, default=1, help="seed of the simulation's noise")
+    robot.add_argument(
+        "--no-program", action="store_true", help="do not start the demo program by itself"
+    )
+    robot.add_argument("--collaborative", action="store_true", help="start in collaborative mode")
+    robot.add_argument(
+        "--kinematic-refresh-ms",
+        type=float,
+        default=0.0,
+        metavar="MS",
+        help="refresh joint/TCP values every MS (100 as the real controller; default 0: always)",
+    )
+    robot.add_argument(
+        "--control-port",
+        type=int,
+        default=8081,
+        help="control API port on --host (default 8081; 0 picks a free one)",
+    )
+    robot.add_argument("--no-control-api", action="store_true", help="serve no control API")
     parser.add_argument("-v", "--verbose", action="store_true", help="log connections")
     parser.set_defaults(handler=_run)
 
@@ -58,7 +82,9 @@ def _run(args: argparse.Namespace) -> int:
     import logging
     import signal
 
-    from cobot_hmi.emulator.process_image import IdleBehaviour
+    from cobot_hmi.emulator.control_api import ControlApiServer, create_control_app
+    from cobot_hmi.emulator.process_image import IdleBehaviour, ProcessImage
+    from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot
     from cobot_hmi.emulator.settings import TargetSettings
     from cobot_hmi.emulator.static_robot import StaticRobot
     from cobot_hmi.emulator.target import Target
@@ -86,21 +112,47 @@ def _run(args: argparse.Namespace) -> int:
         idle_behaviour=idle,
     )
 
+    simulated: SimulatedRobot | None = None
+    robot: ProcessImage
+    if args.static:
+        robot = StaticRobot(idle)
+    else:
+        simulated = SimulatedRobot(
+            RobotSettings(
+                model=args.model,
+                seed=args.seed,
+                autostart_program=not args.no_program,
+                collaborative=args.collaborative,
+                idle_behaviour=idle,
+                kinematic_refresh_ms=args.kinematic_refresh_ms,
+            )
+        )
+        robot = simulated
+
     async def serve() -> None:
-        target = Target(settings, StaticRobot(idle))
+        target = Target(settings, robot)
         stop = asyncio.Event()
         loop = asyncio.get_running_loop()
         for sig in (signal.SIGINT, signal.SIGTERM):
             loop.add_signal_handler(sig, stop.set)
         await target.start()
-        print(
-            f"cobot-hmi emulator: EtherNet/IP target on {args.host} "
-            f"TCP {target.tcp_port} UDP {target.udp_port}",
-            flush=True,
-        )
+        control = None
         try:
+            if simulated is not None and not args.no_control_api:
+                control = ControlApiServer(
+                    create_control_app(simulated, target), args.host, args.control_port
+                )
+                await control.start()
+            print(
+                f"cobot-hmi emulator: EtherNet/IP target on {args.host} "
+                f"TCP {target.tcp_port} UDP {target.udp_port}"
+                + (f", control API http://{args.host}:{control.port}" if control else ""),
+                flush=True,
+            )
             await stop.wait()
         finally:
+            if control is not None:
+                await control.stop()
             await target.stop()
 
     try:

@@ -1,0 +1,369 @@
+"""Layer: emulator (HTTP I/O, asyncio). Imports the codec, the emulator's fault hooks and its
+simulated robot; never the scanner or the service.
+
+The emulator's control API (issue 4, documented in ``docs/emulator.md``): HTTP on the emulator's
+address (default port 8081), served by uvicorn inside the same asyncio loop as the EtherNet/IP
+target, so a handler and the target's producers never run at the same time and the robot needs
+no lock. Every handler is ``async`` for that reason (FastAPI would run a plain ``def`` in a
+thread).
+
+Tests and demos use it to drive scenarios (stops, buttons, states, program, joints, inputs) and
+to make the connection misbehave on purpose (drop, delay, silence, corrupt, refuse, drop TCP).
+A request is validated whole before anything changes: 400 for a body that is not a JSON object,
+422 for a bad field or value, 409 for a command the robot refuses in its current state; the
+error body is ``{"detail": {"reason": …, "field": …}}`` like the product's API.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import dataclasses
+import logging
+import math
+import socket
+import time
+from collections.abc import Awaitable, Callable, Generator, Mapping, Sequence
+from typing import Final, Protocol
+
+import orjson
+import uvicorn
+from fastapi import FastAPI, Request
+from fastapi.responses import JSONResponse, Response
+
+from cobot_hmi.codec import command_to_json, dumps, frame_to_json
+from cobot_hmi.emulator.faults import TargetFaults
+from cobot_hmi.emulator.robot import (
+    RobotCommandError,
+    RobotStateConflictError,
+    SimulatedRobot,
+)
+
+log = logging.getLogger(__name__)
+
+DEFAULT_CONTROL_PORT: Final = 8081
+
+MAX_DELAY_MS: Final = 10_000.0
+"""Longest T→O delay the API accepts (longer is a silence: use ``t2o_silent``)."""
+MAX_CORRUPT_COUNT: Final = 1_000_000
+MAX_EXTENDED_STATUS: Final = 0xFFFF
+
+
+class EmulatorTarget(Protocol):
+    """What the control API needs of the EtherNet/IP target (``emulator.target.Target``)."""
+
+    faults: TargetFaults
+
+    def connections(self) -> Sequence[object]: ...
+
+    async def drop_sessions(self) -> None: ...
+
+
+class ControlError(Exception):
+    """A refused request: HTTP ``status``, a ``reason`` and, for a bad value, the ``field``."""
+
+    def __init__(self, status: int, reason: str, field: str | None = None) -> None:
+        super().__init__(reason)
+        self.status = status
+        self.reason = reason
+        self.field = field
+
+
+def _json_response(data: object, status: int = 200) -> Response:
+    return Response(dumps(data), status_code=status, media_type="application/json")
+
+
+def _snapshot(item: object) -> object:
+    """A JSON-able view of a dataclass snapshot (plain fields only)."""
+    if dataclasses.is_dataclass(item) and not isinstance(item, type):
+        return {
+            f.name: getattr(item, f.name)
+            for f in dataclasses.fields(item)
+            if isinstance(getattr(item, f.name), str | int | float | bool | type(None))
+        }
+    return repr(item)
+
+
+async def _body(request: Request, *, required: bool = True) -> dict[str, object]:
+    raw = await request.body()
+    if not raw.strip():
+        if required:
+            raise ControlError(400, "expected a JSON object in the request body")
+        return {}
+    try:
+        data = orjson.loads(raw)
+    except orjson.JSONDecodeError as error:
+        raise ControlError(400, f"the body is not JSON: {error}") from None
+    if not isinstance(data, dict):
+        raise ControlError(400, f"expected a JSON object, got {type(data).__name__}")
+    return data
+
+
+def _only(data: Mapping[str, object], allowed: Sequence[str], *, all_required: bool) -> None:
+    unknown = sorted(set(data) - set(allowed))
+    if unknown:
+        raise ControlError(
+            422, f"unknown field {unknown[0]!r}; expected {', '.join(allowed)}", unknown[0]
+        )
+    missing = [name for name in allowed if name not in data]
+    if all_required and missing:
+        raise ControlError(422, f"missing field {missing[0]!r}", missing[0])
+    if not data:
+        raise ControlError(422, f"expected at least one of {', '.join(allowed)}")
+
+
+def _bool(data: Mapping[str, object], name: str) -> bool:
+    value = data[name]
+    if not isinstance(value, bool):
+        raise ControlError(422, f"{name}: expected true or false, got {value!r}", name)
+    return value
+
+
+def _int(data: Mapping[str, object], name: str, low: int, high: int) -> int:
+    value = data[name]
+    if isinstance(value, str) and value.lower().startswith("0x"):
+        try:
+            value = int(value, 16)
+        except ValueError:
+            raise ControlError(422, f"{name}: {data[name]!r} is not a hex number", name) from None
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ControlError(422, f"{name}: expected an integer, got {value!r}", name)
+    if not low <= value <= high:
+        raise ControlError(422, f"{name}: {value} is outside {low}–{high}", name)
+    return value
+
+
+def _number(data: Mapping[str, object], name: str, low: float, high: float) -> float:
+    value = data[name]
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise ControlError(422, f"{name}: expected a finite number, got {value!r}", name)
+    if not low <= value <= high:
+        raise ControlError(422, f"{name}: {value} is outside {low:g}–{high:g}", name)
+    return float(value)
+
+
+def create_control_app(
+    robot: SimulatedRobot,
+    target: EmulatorTarget,
+    clock: Callable[[], float] = time.time,
+) -> FastAPI:
+    """The control API over ``robot`` and ``target``; ``clock`` is the target's clock."""
+    app = FastAPI(
+        title="cobot-hmi emulator control API",
+        description="Scenarios and faults for the emulated robot (docs/emulator.md).",
+    )
+
+    @app.exception_handler(ControlError)
+    async def _control_error(_: Request, error: ControlError) -> JSONResponse:
+        detail: dict[str, object] = {"reason": error.reason}
+        if error.field is not None:
+            detail["field"] = error.field
+        return JSONResponse({"detail": detail}, status_code=error.status)
+
+    @app.exception_handler(RobotCommandError)
+    async def _robot_error(_: Request, error: RobotCommandError) -> JSONResponse:
+        status = 409 if isinstance(error, RobotStateConflictError) else 422
+        return JSONResponse({"detail": {"reason": str(error)}}, status_code=status)
+
+    def robot_view() -> dict[str, object]:
+        now_s = clock()
+        frame = robot.produce_frame(now_s)
+        return {
+            "robot_state": frame.robot_state,
+            "robot_state_name": frame_to_json(frame)["robot_state_name"],
+            **robot.status(),
+        }
+
+    @app.get("/status")
+    async def status() -> Response:
+        now_s = clock()
+        counters = getattr(target, "counters", None)
+        return _json_response(
+            {
+                "time": now_s,
+                "frame": frame_to_json(robot.produce_frame(now_s)),
+                "robot": robot.status(),
+                "connections": [_snapshot(c) for c in target.connections()],
+                "faults": dataclasses.asdict(target.faults),
+                "plc_command": command_to_json(robot.command_image()),
+                "target_counters": _snapshot(counters) if counters is not None else None,
+            }
+        )
+
+    def command(
+        path: str, apply: Callable[[dict[str, object], float], None], *, needs_body: bool
+    ) -> None:
+        async def handler(request: Request) -> Response:
+            data = await _body(request, required=needs_body)
+            apply(data, clock())
+            return _json_response({"robot": robot_view()})
+
+        handler.__name__ = "post_" + path.strip("/").replace("-", "_")
+        app.post(path)(handler)
+
+    def no_body(action: Callable[[float], None]) -> Callable[[dict[str, object], float], None]:
+        def apply(data: dict[str, object], now_s: float) -> None:
+            if data:
+                raise ControlError(422, f"no fields expected, got {', '.join(sorted(data))}")
+            action(now_s)
+
+        return apply
+
+    def flag(
+        name: str, action: Callable[[bool, float], None]
+    ) -> Callable[[dict[str, object], float], None]:
+        def apply(data: dict[str, object], now_s: float) -> None:
+            _only(data, (name,), all_required=True)
+            action(_bool(data, name), now_s)
+
+        return apply
+
+    def set_state(data: dict[str, object], now_s: float) -> None:
+        _only(data, ("robot_state",), all_required=True)
+        robot.force_state(_int(data, "robot_state", 0, 255), now_s)
+
+    def set_joints(data: dict[str, object], now_s: float) -> None:
+        _only(data, ("joint_position",), all_required=True)
+        values = data["joint_position"]
+        if not isinstance(values, list):
+            raise ControlError(
+                422, "joint_position: expected an array of 6 numbers", "joint_position"
+            )
+        robot.hold_joints(values, now_s)
+
+    def set_inputs(data: dict[str, object], now_s: float) -> None:
+        if not data:
+            raise ControlError(422, "expected at least one input map")
+        robot.set_inputs(data, now_s)  # type: ignore[arg-type]  # checked by RobotIO
+
+    def set_tool_offset(data: dict[str, object], now_s: float) -> None:
+        _only(data, ("position", "orientation"), all_required=True)
+        position, orientation = data["position"], data["orientation"]
+        if not isinstance(position, list) or not isinstance(orientation, list):
+            raise ControlError(422, "position and orientation: expected arrays of 3 numbers")
+        robot.set_tool_offset(position, orientation, now_s)
+
+    command("/estop", no_body(robot.estop), needs_body=False)
+    command("/reset", no_body(robot.reset), needs_body=False)
+    command("/protective-stop", no_body(robot.protective_stop), needs_body=False)
+    command("/teach-button", flag("pressed", robot.set_teach_button), needs_body=True)
+    command("/power-button", flag("pressed", robot.set_power_button), needs_body=True)
+    command("/program", flag("running", robot.set_program_running), needs_body=True)
+    command("/collaborative", flag("enabled", robot.set_collaborative), needs_body=True)
+    command("/state", set_state, needs_body=True)
+    command("/joints", set_joints, needs_body=True)
+    command("/inputs", set_inputs, needs_body=True)
+    command("/tool-offset", set_tool_offset, needs_body=True)
+
+    fault_fields: Final = (
+        "t2o_drop_percent",
+        "t2o_delay_ms",
+        "t2o_silent",
+        "t2o_corrupt_count",
+        "refuse_next_forward_open",
+        "drop_sessions",
+    )
+
+    @app.post("/faults")
+    async def set_faults(request: Request) -> Response:
+        data = await _body(request)
+        _only(data, fault_fields, all_required=False)
+        changes: dict[str, object] = {}
+        if "t2o_drop_percent" in data:
+            changes["t2o_drop_percent"] = _number(data, "t2o_drop_percent", 0.0, 100.0)
+        if "t2o_delay_ms" in data:
+            changes["t2o_delay_ms"] = _number(data, "t2o_delay_ms", 0.0, MAX_DELAY_MS)
+        if "t2o_silent" in data:
+            changes["t2o_silent"] = _bool(data, "t2o_silent")
+        if "t2o_corrupt_count" in data:
+            changes["t2o_corrupt_count"] = _int(data, "t2o_corrupt_count", 0, MAX_CORRUPT_COUNT)
+        if "refuse_next_forward_open" in data:
+            changes["refuse_next_forward_open"] = (
+                None
+                if data["refuse_next_forward_open"] is None
+                else _int(data, "refuse_next_forward_open", 1, MAX_EXTENDED_STATUS)
+            )
+        drop = _bool(data, "drop_sessions") if "drop_sessions" in data else False
+        for name, value in changes.items():  # everything valid: now apply
+            setattr(target.faults, name, value)
+        if drop:
+            await target.drop_sessions()
+        return _json_response(
+            {"faults": dataclasses.asdict(target.faults), "sessions_dropped": drop}
+        )
+
+    @app.post("/faults/clear")
+    async def clear_faults() -> Response:
+        target.faults.reset()
+        return _json_response({"faults": dataclasses.asdict(target.faults)})
+
+    return app
+
+
+class _EmbeddedServer(uvicorn.Server):
+    """uvicorn without its signal handlers: the emulator's process owns its signals."""
+
+    @contextlib.contextmanager
+    def capture_signals(self) -> Generator[None, None, None]:
+        yield
+
+
+class ControlApiServer:
+    """The control API served by uvicorn in the running asyncio loop.
+
+    ``await start()`` binds (an ``OSError`` if the address is taken) and returns once the server
+    accepts; ``await stop()`` shuts it down and waits for it.
+    """
+
+    def __init__(self, app: FastAPI, host: str, port: int = DEFAULT_CONTROL_PORT) -> None:
+        self.app = app
+        self.host = host
+        self.port = port
+        self._server: _EmbeddedServer | None = None
+        self._task: asyncio.Task[None] | None = None
+
+    async def start(self) -> None:
+        sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            sock.bind((self.host, self.port))
+            sock.listen(128)
+            sock.setblocking(False)
+        except OSError:
+            sock.close()
+            raise
+        self.port = sock.getsockname()[1]
+        config = uvicorn.Config(
+            self.app, log_level="warning", lifespan="off", access_log=False, loop="none"
+        )
+        server = _EmbeddedServer(config)
+        self._server = server
+        self._task = asyncio.create_task(server.serve(sockets=[sock]), name="control-api")
+        for _ in range(500):  # up to 5 s: the server starts in a few loop turns
+            if server.started or self._task.done():
+                break
+            await asyncio.sleep(0.01)
+        if self._task.done():
+            await self._task  # raises why it stopped
+        log.info("emulator control API on http://%s:%d", self.host, self.port)
+
+    async def stop(self) -> None:
+        if self._server is None or self._task is None:
+            return
+        self._server.should_exit = True
+        with contextlib.suppress(asyncio.CancelledError):
+            await self._task
+        self._server = None
+        self._task = None
+
+
+async def run_with_control_api(
+    app: FastAPI, host: str, port: int, body: Callable[[], Awaitable[None]]
+) -> None:
+    """Serve the control API while ``body`` runs; stop it afterwards whatever happens."""
+    server = ControlApiServer(app, host, port)
+    await server.start()
+    try:
+        await body()
+    finally:
+        await server.stop()
