@@ -1,0 +1,636 @@
+"""Layer: scanner (asyncio I/O, the originator role). Imports the codec, ``cobot_hmi.enip``
+and the scanner's own modules; never the emulator or the service.
+
+The backend's class 1 connection to the robot, held as a PLC holds it (issue 3, "The
+originator"): RegisterSession, Forward Open (exclusive owner, or input-only as a read-only
+mode), T→O received on UDP 2222 of the local address, O→T sent from the same socket at the RPI
+on a drift-free schedule with the run/idle header, a watchdog on T→O silence, reconnection with
+backoff, and Forward Close + UnRegisterSession on shutdown.
+
+Bumpless takeover: every connection starts **idle**, and its command image is seeded from the
+robot's actual outputs in the first T→O frame (and the bit input registers from an explicit
+read of the O→T assembly where the target allows it), so switching to run changes nothing
+until someone writes. The state is CONNECTED only once that first frame has arrived.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import random
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from enum import StrEnum
+from typing import Any
+
+from cobot_hmi.codec import (
+    CodecError,
+    CommandImage,
+    Frame,
+    decode_command,
+    decode_frame,
+    encode_command,
+    zero_command,
+)
+from cobot_hmi.enip import epath, io
+from cobot_hmi.enip.connection_manager import (
+    ConnectionType,
+    ForwardCloseRequest,
+    ForwardOpenRequest,
+    NetworkParams,
+    Priority,
+    connection_timeout_us,
+    decode_failure_reply,
+    decode_forward_open_reply,
+)
+from cobot_hmi.enip.cpf import CpfItem, ItemType, Sockaddr, decode_sockaddr, sockaddr_item
+from cobot_hmi.enip.encapsulation import ENIP_TCP_PORT, ENIP_UDP_PORT
+from cobot_hmi.enip.errors import EnipError
+from cobot_hmi.eventloop import sleep_until
+from cobot_hmi.scanner.session import EnipSession, SessionError
+from cobot_hmi.scanner.stats import IntervalWindow
+
+log = logging.getLogger(__name__)
+
+ORIGINATOR_VENDOR_ID = 0xFFFE
+"""Vendor ID in our Forward Opens (a placeholder; part of the connection triplet only)."""
+
+
+class ConnectionState(StrEnum):
+    IDLE = "idle"
+    CONNECTING = "connecting"
+    CONNECTED = "connected"
+    LOST = "lost"
+    REFUSED = "refused"
+
+
+class ReadOnlyError(Exception):
+    """The originator is input-only: it never owns the robot's outputs."""
+
+
+class NotConnectedError(Exception):
+    """No class 1 connection is up."""
+
+
+@dataclass(frozen=True)
+class OriginatorSettings:
+    robot_host: str
+    tcp_port: int = ENIP_TCP_PORT
+    local_host: str = "0.0.0.0"
+    local_udp_port: int = ENIP_UDP_PORT
+    rpi_us: int = 10_000
+    timeout_multiplier: int = 2
+    """Connection timeout = RPI × (4 << multiplier): 2 → RPI × 16."""
+    input_only: bool = False
+    large_forward_open: bool = False
+    config_instance: int = 151
+    o2t_instance: int = 150
+    t2o_instance: int = 100
+    heartbeat_instance: int = 198
+    o2t_size: int = 20
+    t2o_size: int = 284
+    request_t2o_port: int | None = None
+    """Ask for T→O on this local port (a Sockaddr Info 0x8001 item) instead of 2222."""
+    heartbeat_o2t_size: int = 0
+    """O→T connection size of an input-only connection (targets accept 0, 2 or 6)."""
+    backoff_initial_s: float = 0.1
+    backoff_max_s: float = 5.0
+    tcp_timeout_s: float = 5.0
+    first_frame_timeout_s: float = 2.0
+    """How long after a Forward Open the first T→O frame may take (at least the watchdog)."""
+
+    @property
+    def udp_port(self) -> int:
+        return self.request_t2o_port if self.request_t2o_port is not None else self.local_udp_port
+
+
+@dataclass(frozen=True)
+class ConnectionStats:
+    state: ConnectionState
+    reason: str | None
+    packets_in: int
+    packets_out: int
+    gaps: int
+    """T→O packets missing (CIP sequence count jumps), summed."""
+    duplicates: int
+    """T→O packets repeating the last CIP sequence count (no new data)."""
+    late: int
+    """T→O frames that came more than 1.5 RPI after the previous one."""
+    malformed: int
+    interval_mean_ms: float | None
+    interval_p99_ms: float | None
+    interval_max_ms: float | None
+    last_frame_age_s: float | None
+    connected_since: float | None
+    """Epoch seconds."""
+    stale: int = 0
+    """T→O packets older than one already received (out of order), dropped."""
+    foreign: int = 0
+    """Datagrams for another connection ID, dropped."""
+    frames: int = 0
+    interval_p50_ms: float | None = None
+    rpi_us: int | None = None
+    """The T→O actual packet interval of the connection (the target's reply)."""
+
+
+class _RefusedError(Exception):
+    def __init__(self, reason: str) -> None:
+        super().__init__(reason)
+        self.reason = reason
+
+
+@dataclass
+class _Link:
+    """One Forward Open's worth of negotiated parameters and sequence state."""
+
+    o2t_id: int
+    t2o_id: int
+    connection_serial: int
+    originator_serial: int
+    o2t_api_us: int
+    t2o_api_us: int
+    o2t_addr: tuple[str, int]
+    path: bytes
+    o2t_encap_seq: int = 0
+    o2t_cip_seq: int = 0
+    last_t2o_encap_seq: int | None = None
+    last_t2o_cip_seq: int | None = None
+    last_frame_at: float | None = None
+    """Loop time of the last new frame."""
+    last_rx: float = 0.0
+
+
+class _UdpEndpoint(asyncio.DatagramProtocol):
+    def __init__(self, owner: Originator) -> None:
+        self.owner = owner
+
+    def datagram_received(self, data: bytes, addr: tuple[str, int]) -> None:
+        self.owner._t2o_received(data)
+
+    def error_received(self, exc: Exception) -> None:
+        log.debug("UDP error: %s", exc)
+
+
+class Originator:
+    def __init__(
+        self,
+        settings: OriginatorSettings,
+        *,
+        on_frame: Callable[[Frame, float, int], None] | None = None,
+        on_state: Callable[[ConnectionState, str | None], None] | None = None,
+    ) -> None:
+        self.settings = settings
+        self.on_frame = on_frame
+        self.on_state = on_state
+        self.state = ConnectionState.IDLE
+        self.reason: str | None = None
+        self.latest: tuple[Frame, float] | None = None
+        self.run = False
+        self.command: CommandImage = zero_command()
+        self._command_bytes = encode_command(self.command)
+        self._rng = random.Random()
+        self._udp: asyncio.DatagramTransport | None = None
+        self._session: EnipSession | None = None
+        self._link: _Link | None = None
+        self._supervisor: asyncio.Task[None] | None = None
+        self._link_tasks: list[asyncio.Task[None]] = []
+        self._lost: asyncio.Future[str] | None = None
+        self._first_frame: asyncio.Future[None] | None = None
+        self._connected_event = asyncio.Event()
+        self._sent_waiters: list[tuple[int, asyncio.Future[None]]] = []
+        self._explicit_bits: tuple[bool, ...] | None = None
+        self._seeded = False
+        self._stopping = False
+        self._window = IntervalWindow()
+        self._connected_since: float | None = None
+        self.packets_in = 0
+        self.packets_out = 0
+        self.gaps = 0
+        self.duplicates = 0
+        self.late = 0
+        self.malformed = 0
+        self.stale = 0
+        self.foreign = 0
+        self.frames = 0
+
+    # ------------------------------------------------------------------ public interface
+
+    async def start(self) -> None:
+        if self._supervisor is None:
+            self._stopping = False
+            self._supervisor = asyncio.get_running_loop().create_task(
+                self._supervise(), name="originator"
+            )
+
+    async def stop(self) -> None:
+        self._stopping = True
+        task, self._supervisor = self._supervisor, None
+        if task is not None:
+            task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await task
+        await self._teardown(forward_close=True)
+        if self._udp is not None:
+            self._udp.close()
+            self._udp = None
+        self._set_state(ConnectionState.IDLE, None)
+
+    def stats(self) -> ConnectionStats:
+        figures = self._window.figures()
+        latest = self.latest
+        link = self._link
+        return ConnectionStats(
+            state=self.state,
+            reason=self.reason,
+            packets_in=self.packets_in,
+            packets_out=self.packets_out,
+            gaps=self.gaps,
+            duplicates=self.duplicates,
+            late=self.late,
+            malformed=self.malformed,
+            interval_mean_ms=figures.mean_ms,
+            interval_p99_ms=figures.p99_ms,
+            interval_max_ms=figures.max_ms,
+            last_frame_age_s=time.time() - latest[1] if latest is not None else None,
+            connected_since=self._connected_since,
+            stale=self.stale,
+            foreign=self.foreign,
+            frames=self.frames,
+            interval_p50_ms=figures.p50_ms,
+            rpi_us=link.t2o_api_us if link is not None else None,
+        )
+
+    def set_run(self, run: bool) -> None:
+        if self.settings.input_only:
+            raise ReadOnlyError("input-only connection: the outputs belong to another owner")
+        if self.state is not ConnectionState.CONNECTED:
+            raise NotConnectedError(f"not connected ({self.state}: {self.reason or 'no reason'})")
+        self.run = run
+
+    def set_command(self, image: CommandImage) -> int:
+        """Put ``image`` on the wire; returns the ``packets_out`` count after which it has
+        gone out (see :meth:`wait_sent`)."""
+        self.command = image
+        self._command_bytes = encode_command(image)
+        return self.packets_out + 1
+
+    async def wait_sent(self, packets_out: int, timeout_s: float) -> bool:
+        if self.packets_out >= packets_out:
+            return True
+        future: asyncio.Future[None] = asyncio.get_running_loop().create_future()
+        entry = (packets_out, future)
+        self._sent_waiters.append(entry)
+        try:
+            await asyncio.wait_for(future, timeout_s)
+            return True
+        except TimeoutError:
+            return False
+        finally:
+            with contextlib.suppress(ValueError):
+                self._sent_waiters.remove(entry)
+
+    async def wait_connected(self, timeout_s: float) -> bool:
+        if self.state is ConnectionState.CONNECTED:
+            return True
+        try:
+            await asyncio.wait_for(self._connected_event.wait(), timeout_s)
+        except TimeoutError:
+            return False
+        state: ConnectionState = self.state  # changed by the supervisor meanwhile
+        return state is ConnectionState.CONNECTED
+
+    # ------------------------------------------------------------------ supervision
+
+    def _set_state(self, state: ConnectionState, reason: str | None) -> None:
+        if state is self.state and reason == self.reason:
+            return
+        self.state = state
+        self.reason = reason
+        if state is ConnectionState.CONNECTED:
+            self._connected_event.set()
+        else:
+            self._connected_event.clear()
+        if reason:
+            log.info("originator %s: %s", state, reason)
+        if self.on_state is not None:
+            try:
+                self.on_state(state, reason)
+            except Exception:
+                log.exception("on_state callback failed")
+
+    async def _supervise(self) -> None:
+        s = self.settings
+        backoff_s = s.backoff_initial_s
+        while True:
+            self._set_state(ConnectionState.CONNECTING, self.reason)
+            try:
+                await self._ensure_udp()
+                await self._connect_once()
+            except _RefusedError as refused:
+                self._set_state(ConnectionState.REFUSED, refused.reason)
+                await self._teardown(forward_close=False)
+            except (OSError, SessionError, EnipError, TimeoutError) as error:
+                self._set_state(ConnectionState.LOST, str(error) or type(error).__name__)
+                await self._teardown(forward_close=True)
+            else:
+                backoff_s = s.backoff_initial_s
+                assert self._lost is not None
+                reason = await self._lost
+                self._set_state(ConnectionState.LOST, reason)
+                await self._teardown(forward_close=True)
+            await asyncio.sleep(backoff_s)
+            backoff_s = min(backoff_s * 2, s.backoff_max_s)
+
+    async def _ensure_udp(self) -> None:
+        if self._udp is not None:
+            return
+        s = self.settings
+        try:
+            transport, _ = await asyncio.get_running_loop().create_datagram_endpoint(
+                lambda: _UdpEndpoint(self), local_addr=(s.local_host, s.udp_port)
+            )
+        except OSError as error:
+            raise OSError(f"cannot bind UDP {s.local_host}:{s.udp_port}: {error}") from None
+        self._udp = transport
+
+    async def _connect_once(self) -> None:
+        s = self.settings
+        loop = asyncio.get_running_loop()
+        session = EnipSession(s.robot_host, s.tcp_port, s.tcp_timeout_s, self._source_host)
+        self._session = session
+        await session.open()
+        self._explicit_bits = await self._read_o2t_bits(session)
+
+        connection_serial = self._rng.getrandbits(16)
+        originator_serial = self._rng.getrandbits(32)
+        t2o_id = self._rng.getrandbits(32) or 1
+        o2t_point = s.heartbeat_instance if s.input_only else s.o2t_instance
+        o2t_size = s.heartbeat_o2t_size if s.input_only else s.o2t_size + 6
+        path = epath.connection_path(s.config_instance, o2t_point, s.t2o_instance)
+        request = ForwardOpenRequest(
+            o2t_connection_id=0,
+            t2o_connection_id=t2o_id,
+            connection_serial=connection_serial,
+            vendor_id=ORIGINATOR_VENDOR_ID,
+            originator_serial=originator_serial,
+            timeout_multiplier=s.timeout_multiplier,
+            o2t_rpi_us=s.rpi_us,
+            o2t_params=NetworkParams(o2t_size, ConnectionType.POINT_TO_POINT, Priority.SCHEDULED),
+            t2o_rpi_us=s.rpi_us,
+            t2o_params=NetworkParams(
+                s.t2o_size + 2, ConnectionType.POINT_TO_POINT, Priority.SCHEDULED
+            ),
+            path=path,
+            large=s.large_forward_open,
+        )
+        extra: list[CpfItem] = []
+        if s.request_t2o_port is not None:
+            extra.append(sockaddr_item(ItemType.SOCKADDR_T2O, Sockaddr("0.0.0.0", s.udp_port)))
+        response, items = await session.request(request.request(), extra)
+        if not response.ok:
+            with contextlib.suppress(EnipError):
+                decode_failure_reply(response.data)
+            raise _RefusedError(f"Forward Open refused: {response.describe()}")
+        reply = decode_forward_open_reply(response.data)
+        o2t_addr = (s.robot_host, ENIP_UDP_PORT)
+        for item in items:
+            if item.type_id == ItemType.SOCKADDR_O2T:
+                announced = decode_sockaddr(item.data)
+                host = announced.host if announced.host != "0.0.0.0" else s.robot_host
+                o2t_addr = (host, announced.port)
+        self._link = _Link(
+            o2t_id=reply.o2t_connection_id,
+            t2o_id=reply.t2o_connection_id,
+            connection_serial=connection_serial,
+            originator_serial=originator_serial,
+            o2t_api_us=reply.o2t_api_us or s.rpi_us,
+            t2o_api_us=reply.t2o_api_us or s.rpi_us,
+            o2t_addr=o2t_addr,
+            path=path,
+            last_rx=loop.time(),
+        )
+        self.run = False
+        self._seeded = False
+        self._window.clear()
+        self._lost = loop.create_future()
+        self._first_frame = loop.create_future()
+        self._link_tasks = [
+            loop.create_task(self._send_loop(self._link), name="o2t"),
+            loop.create_task(self._watchdog(self._link), name="t2o-watchdog"),
+        ]
+        first_timeout_s = max(s.first_frame_timeout_s, self._timeout_s(self._link))
+        waits: list[asyncio.Future[Any]] = [self._first_frame, self._lost]
+        done, _ = await asyncio.wait(waits, timeout=first_timeout_s)
+        if self._first_frame not in done:
+            raise TimeoutError(
+                f"no T→O frame within {first_timeout_s:.1f} s of the Forward Open "
+                f"(T→O connection 0x{self._link.t2o_id:08X} on UDP {s.udp_port})"
+            )
+        self._connected_since = time.time()
+        self._set_state(ConnectionState.CONNECTED, None)
+
+    async def _read_o2t_bits(self, session: EnipSession) -> tuple[bool, ...] | None:
+        """The bit input registers from an explicit read of the O→T assembly, if allowed."""
+        s = self.settings
+        try:
+            response = await session.get_attribute_single(epath.CLASS_ASSEMBLY, s.o2t_instance, 3)
+        except EnipError:
+            return None
+        if not response.ok or len(response.data) != s.o2t_size:
+            return None
+        try:
+            return decode_command(response.data).bit_input_registers
+        except CodecError:
+            return None
+
+    @property
+    def _source_host(self) -> str | None:
+        # The target sends T→O to the address our TCP connection comes from (ethernetip.md
+        # "Two stacks on one host"): it must be the address we receive UDP on.
+        host = self.settings.local_host
+        return None if host in ("0.0.0.0", "") else host
+
+    def _timeout_s(self, link: _Link) -> float:
+        return connection_timeout_us(link.t2o_api_us, self.settings.timeout_multiplier) / 1e6
+
+    async def _teardown(self, *, forward_close: bool) -> None:
+        tasks, self._link_tasks = self._link_tasks, []
+        for task in tasks:
+            task.cancel()
+        await asyncio.gather(*tasks, return_exceptions=True)
+        link, self._link = self._link, None
+        for future in (self._lost, self._first_frame):
+            if future is not None and not future.done():
+                future.cancel()
+        session, self._session = self._session, None
+        if link is not None and forward_close:
+            with contextlib.suppress(SessionError, EnipError, OSError, TimeoutError):
+                await asyncio.wait_for(self._forward_close(session, link), 1.0)
+        if session is not None:
+            with contextlib.suppress(OSError, TimeoutError):
+                await asyncio.wait_for(session.close(), 1.0)
+        if self.state is ConnectionState.CONNECTED and not self._stopping:
+            self._set_state(ConnectionState.LOST, "connection closed")
+        self.run = False
+        self._connected_since = None
+
+    async def _forward_close(self, session: EnipSession | None, link: _Link) -> None:
+        s = self.settings
+        own = session is None or not session.is_open
+        if own:
+            session = EnipSession(s.robot_host, s.tcp_port, 1.0, self._source_host)
+            await session.open()
+        assert session is not None
+        try:
+            request = ForwardCloseRequest(
+                link.connection_serial, ORIGINATOR_VENDOR_ID, link.originator_serial, link.path
+            )
+            await session.request(request.request())
+        finally:
+            if own:
+                await session.close()
+
+    # ------------------------------------------------------------------ class 1
+
+    async def _send_loop(self, link: _Link) -> None:
+        loop = asyncio.get_running_loop()
+        period_s = link.o2t_api_us / 1e6
+        deadline = loop.time()
+        while True:
+            self._send_o2t(link)
+            deadline += period_s
+            now = loop.time()
+            if deadline < now - period_s:
+                deadline = now  # the loop stalled: resynchronise rather than burst
+            await sleep_until(deadline)
+
+    def _send_o2t(self, link: _Link) -> None:
+        udp = self._udp
+        if udp is None:
+            return
+        link.o2t_encap_seq = (link.o2t_encap_seq + 1) & 0xFFFFFFFF
+        link.o2t_cip_seq = (link.o2t_cip_seq + 1) & 0xFFFF
+        s = self.settings
+        if not s.input_only:
+            packet = io.encode_io(
+                link.o2t_id,
+                link.o2t_encap_seq,
+                link.o2t_cip_seq,
+                self._command_bytes,
+                io.RUN_BIT if self.run else 0,
+            )
+        elif s.heartbeat_o2t_size == 0:
+            packet = io.encode_heartbeat(link.o2t_id, link.o2t_encap_seq)
+        elif s.heartbeat_o2t_size == 6:
+            packet = io.encode_io(link.o2t_id, link.o2t_encap_seq, link.o2t_cip_seq, b"", 0)
+        else:
+            packet = io.encode_io(link.o2t_id, link.o2t_encap_seq, link.o2t_cip_seq, b"")
+        try:
+            udp.sendto(packet, link.o2t_addr)
+        except OSError as error:
+            log.debug("O→T send failed: %s", error)
+            return
+        self.packets_out += 1
+        if self._sent_waiters:
+            count = self.packets_out
+            for wanted, future in self._sent_waiters:
+                if wanted <= count and not future.done():
+                    future.set_result(None)
+
+    async def _watchdog(self, link: _Link) -> None:
+        loop = asyncio.get_running_loop()
+        timeout_s = self._timeout_s(link)
+        while True:
+            deadline = link.last_rx + timeout_s
+            if loop.time() >= deadline:
+                break
+            await sleep_until(deadline)
+        if self._lost is not None and not self._lost.done():
+            self._lost.set_result(
+                f"no T→O for {timeout_s * 1e3:.0f} ms (RPI {link.t2o_api_us / 1e3:g} ms × "
+                f"{4 << self.settings.timeout_multiplier}): connection timed out"
+            )
+
+    def _t2o_received(self, data: bytes) -> None:
+        link = self._link
+        try:
+            packet = io.decode_io(data)
+        except EnipError:
+            self.malformed += 1
+            return
+        if link is None or packet.connection_id != link.t2o_id:
+            self.foreign += 1
+            return
+        payload = packet.payload
+        if packet.cip_seq is None or len(payload) < self.settings.t2o_size:
+            self.malformed += 1
+            return
+        last_encap = link.last_t2o_encap_seq
+        if last_encap is not None and io.seq32_newer(packet.encap_seq, last_encap) <= 0:
+            self.stale += 1
+            return
+        link.last_t2o_encap_seq = packet.encap_seq
+        now = asyncio.get_running_loop().time()
+        link.last_rx = now
+        self.packets_in += 1
+        last_cip = link.last_t2o_cip_seq
+        if last_cip is not None:
+            ahead = io.seq16_newer(packet.cip_seq, last_cip)
+            if ahead == 0:
+                self.duplicates += 1
+                return
+            if ahead < 0:
+                self.stale += 1
+                return
+            if ahead > 1:
+                self.gaps += ahead - 1
+        link.last_t2o_cip_seq = packet.cip_seq
+        try:
+            frame = decode_frame(payload)
+        except CodecError:
+            self.malformed += 1
+            return
+        received_at = time.time()
+        previous = link.last_frame_at
+        link.last_frame_at = now
+        if previous is not None:
+            interval_s = now - previous
+            self._window.add(interval_s * 1e3)
+            if interval_s > link.t2o_api_us * 1.5e-6:
+                self.late += 1
+        self.frames += 1
+        self.latest = (frame, received_at)
+        if not self._seeded:
+            self._seed(frame)
+        if self.on_frame is not None:
+            try:
+                self.on_frame(frame, received_at, self.frames)
+            except Exception:
+                log.exception("on_frame callback failed")
+
+    def _seed(self, frame: Frame) -> None:
+        """Bumpless takeover: the command image becomes what the robot does now."""
+        bits = self._explicit_bits or self.command.bit_input_registers
+        self.command = CommandImage(
+            controlbox_do=frame.controlbox_do,
+            tool_do=frame.tool_do,
+            analog_output_type=frame.analog_output_type,
+            analog_output=frame.analog_output,
+            bit_input_registers=bits,
+        )
+        self._command_bytes = encode_command(self.command)
+        self._seeded = True
+        if self._first_frame is not None and not self._first_frame.done():
+            self._first_frame.set_result(None)
+
+
+__all__ = [
+    "ConnectionState",
+    "ConnectionStats",
+    "NotConnectedError",
+    "Originator",
+    "OriginatorSettings",
+    "ReadOnlyError",
+]
