@@ -85,7 +85,7 @@ export interface CommandImage {
   readonly bit_input_registers: readonly boolean[];
 }
 
-/** A partial command image: each array as a map from its index (a string) to a value. */
+/** A partial command image: each array as a map from index (a string) to value. */
 export interface CommandPatch {
   readonly controlbox_do?: Readonly<Record<string, boolean>>;
   readonly tool_do?: Readonly<Record<string, boolean>>;

@@ -1,0 +1,5 @@
+import sys
+
+from cobot_hmi.codegen import main
+
+sys.exit(main())
