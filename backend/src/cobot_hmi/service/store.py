@@ -1,0 +1,259 @@
+"""Layer: service. The audit trail and the event log, in SQLite (WAL), durable across a crash.
+
+One connection, used only from one worker thread, so the event loop never waits on the disk.
+``synchronous=FULL`` makes every commit durable before the call returns: an audited write is
+on disk before its HTTP answer goes out, so it survives ``kill -9`` (and power loss). Events
+(robot state, flags, connection) arrive in bursts from the broadcast loop; they are queued and
+written a batch per transaction. Imports nothing of the project.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import csv
+import io
+import sqlite3
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Final, TypeVar
+
+import orjson
+
+_T = TypeVar("_T")
+
+_SCHEMA: Final = """
+CREATE TABLE IF NOT EXISTS audit (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    time REAL NOT NULL,
+    user TEXT,
+    client TEXT,
+    action TEXT NOT NULL,
+    fields TEXT NOT NULL,
+    before TEXT,
+    requested TEXT,
+    outcome TEXT NOT NULL,
+    reason TEXT
+);
+CREATE TABLE IF NOT EXISTS events (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    time REAL NOT NULL,
+    kind TEXT NOT NULL,
+    data TEXT NOT NULL
+);
+CREATE INDEX IF NOT EXISTS events_kind ON events (kind, id);
+"""
+
+AUDIT_COLUMNS: Final = (
+    "id",
+    "time",
+    "user",
+    "client",
+    "action",
+    "fields",
+    "before",
+    "requested",
+    "outcome",
+    "reason",
+)
+_AUDIT_JSON: Final = frozenset({"fields", "before", "requested"})
+EVENT_COLUMNS: Final = ("id", "time", "kind", "data")
+MAX_PAGE: Final = 1000
+
+
+@dataclass(frozen=True, slots=True)
+class AuditEntry:
+    """One write attempt or control change, as it is stored."""
+
+    user: str | None
+    client: str | None
+    action: str
+    fields: Sequence[str]
+    before: object
+    requested: object
+    outcome: str
+    reason: str | None
+    time: float = 0.0
+
+
+@dataclass(frozen=True, slots=True)
+class Page:
+    items: list[dict[str, object]]
+    total: int
+
+
+class Store:
+    """The database at ``path``. ``open`` before use, ``close`` at the end."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self._executor: ThreadPoolExecutor | None = None
+        self._connection: sqlite3.Connection | None = None
+        self._events: asyncio.Queue[tuple[float, str, dict[str, object]]] = asyncio.Queue()
+        self._writer: asyncio.Task[None] | None = None
+        self.events_written = 0
+        self.event_write_errors = 0
+
+    async def open(self) -> None:
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="store")
+        await self._run(self._open_sync)
+        self._writer = asyncio.create_task(self._write_events(), name="store-events")
+
+    def _open_sync(self) -> None:
+        connection = sqlite3.connect(self.path, check_same_thread=False)
+        connection.execute("PRAGMA journal_mode=WAL")
+        connection.execute("PRAGMA synchronous=FULL")
+        connection.executescript(_SCHEMA)
+        self._connection = connection
+
+    async def close(self) -> None:
+        if self._writer is not None:
+            self._events.put_nowait((0.0, "", {}))  # sentinel: flush and stop
+            await self._writer
+            self._writer = None
+        if self._executor is not None:
+            if self._connection is not None:
+                await self._run(self._connection.close)
+                self._connection = None
+            self._executor.shutdown(wait=True)
+            self._executor = None
+
+    async def _run(self, function: Callable[..., _T], *args: Any) -> _T:
+        assert self._executor is not None, "Store.open() first"
+        return await asyncio.get_running_loop().run_in_executor(self._executor, function, *args)
+
+    def _db(self) -> sqlite3.Connection:
+        assert self._connection is not None
+        return self._connection
+
+    # ----------------------------------------------------------------- audit
+
+    async def add_audit(self, entry: AuditEntry) -> int:
+        """Insert and commit (durably) one audit row; its id."""
+        return await self._run(self._add_audit_sync, entry)
+
+    def _add_audit_sync(self, entry: AuditEntry) -> int:
+        with self._db() as db:
+            cursor = db.execute(
+                "INSERT INTO audit (time, user, client, action, fields, before, requested,"
+                " outcome, reason) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                (
+                    entry.time or time.time(),
+                    entry.user,
+                    entry.client,
+                    entry.action,
+                    orjson.dumps(list(entry.fields)).decode(),
+                    orjson.dumps(entry.before).decode(),
+                    orjson.dumps(entry.requested).decode(),
+                    entry.outcome,
+                    entry.reason,
+                ),
+            )
+            row_id = cursor.lastrowid
+        assert row_id is not None
+        return row_id
+
+    async def finish_audit(self, row_id: int, outcome: str, reason: str | None) -> None:
+        """Set the outcome of a row written as ``pending``; committed durably."""
+        await self._run(self._finish_audit_sync, row_id, outcome, reason)
+
+    def _finish_audit_sync(self, row_id: int, outcome: str, reason: str | None) -> None:
+        with self._db() as db:
+            db.execute(
+                "UPDATE audit SET outcome = ?, reason = ? WHERE id = ?", (outcome, reason, row_id)
+            )
+
+    async def audit_page(self, limit: int, offset: int) -> Page:
+        """Audit rows, newest first."""
+        return await self._run(self._audit_page_sync, limit, offset)
+
+    def _audit_page_sync(self, limit: int, offset: int) -> Page:
+        db = self._db()
+        total = db.execute("SELECT count(*) FROM audit").fetchone()[0]
+        rows = db.execute(
+            f"SELECT {', '.join(AUDIT_COLUMNS)} FROM audit ORDER BY id DESC LIMIT ? OFFSET ?",
+            (limit, offset),
+        ).fetchall()
+        items = []
+        for row in rows:
+            item = dict(zip(AUDIT_COLUMNS, row, strict=True))
+            for name in _AUDIT_JSON:
+                text = item[name]
+                item[name] = orjson.loads(text) if isinstance(text, str) else None
+            items.append(item)
+        return Page(items, int(total))
+
+    # ----------------------------------------------------------------- events
+
+    def submit_event(self, time_s: float, kind: str, data: dict[str, object]) -> None:
+        """Queue an event for the log; never blocks, written within one batch."""
+        self._events.put_nowait((time_s, kind, data))
+
+    async def _write_events(self) -> None:
+        stopping = False
+        while not stopping:
+            batch = [await self._events.get()]
+            while not self._events.empty():
+                batch.append(self._events.get_nowait())
+            rows = []
+            for t, kind, data in batch:
+                if not kind:
+                    stopping = True
+                    continue
+                rows.append((t, kind, orjson.dumps(data).decode()))
+            if rows:
+                try:
+                    await self._run(self._add_events_sync, rows)
+                    self.events_written += len(rows)
+                except sqlite3.Error:
+                    # A full disk must not stop the service; the count shows in /metrics.
+                    self.event_write_errors += len(rows)
+
+    def _add_events_sync(self, rows: list[tuple[float, str, str]]) -> None:
+        with self._db() as db:
+            db.executemany("INSERT INTO events (time, kind, data) VALUES (?, ?, ?)", rows)
+
+    async def flush_events(self) -> None:
+        """Wait until every event submitted so far is committed (tests, shutdown)."""
+        for _ in range(1000):
+            if self._events.empty():
+                # One more round trip through the worker: the batch in flight is done after it.
+                await self._run(lambda: None)
+                if self._events.empty():
+                    return
+            await asyncio.sleep(0.005)
+
+    async def events_page(self, kind: str | None, limit: int, offset: int) -> Page:
+        """Events, newest first, optionally of one kind."""
+        return await self._run(self._events_page_sync, kind, limit, offset)
+
+    def _events_page_sync(self, kind: str | None, limit: int, offset: int) -> Page:
+        db = self._db()
+        where, params = ("WHERE kind = ?", (kind,)) if kind else ("", ())
+        total = db.execute(f"SELECT count(*) FROM events {where}", params).fetchone()[0]
+        rows = db.execute(
+            f"SELECT id, time, kind, data FROM events {where} ORDER BY id DESC LIMIT ? OFFSET ?",
+            (*params, limit, offset),
+        ).fetchall()
+        items = [{"id": r[0], "time": r[1], "kind": r[2], "data": orjson.loads(r[3])} for r in rows]
+        return Page(items, int(total))
+
+
+def to_csv(items: Sequence[dict[str, object]], columns: Sequence[str]) -> str:
+    """A page as CSV with a header row; nested values as JSON text."""
+    out = io.StringIO()
+    writer = csv.writer(out)
+    writer.writerow(columns)
+    for item in items:
+        row = []
+        for name in columns:
+            value = item.get(name)
+            if isinstance(value, dict | list):
+                row.append(orjson.dumps(value).decode())
+            else:
+                row.append("" if value is None else str(value))
+        writer.writerow(row)
+    return out.getvalue()

@@ -1,0 +1,245 @@
+"""The service's settings (flags > environment > TOML), users file, sessions and throttling."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import stat
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from cobot_hmi.service.auth import LoginThrottle, Session, Sessions
+from cobot_hmi.service.settings import (
+    ServiceSettings,
+    SettingsError,
+    add_arguments,
+    load_settings,
+    settings_from_args,
+)
+from cobot_hmi.service.users import (
+    Role,
+    User,
+    UsersError,
+    UsersFile,
+    hash_password,
+    verify_password,
+)
+
+
+def _parse(argv: list[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    return parser.parse_args(argv)
+
+
+def test_defaults() -> None:
+    settings = load_settings({}, environ={})
+    assert settings.rpi_ms == 10.0
+    assert settings.rpi_us == 10_000
+    assert settings.mode == "exclusive_owner"
+    assert settings.users_path == settings.state_dir / "users.json"
+
+
+def test_precedence_flags_over_environment_over_toml(tmp_path: Path) -> None:
+    config = tmp_path / "hmi.toml"
+    config.write_text('rpi_ms = 4.0\nport = 9000\nrobot_host = "10.0.0.9"\ninput_only = true\n')
+    environ = {"COBOT_HMI_PORT": "9100", "COBOT_HMI_INPUT_ONLY": "false"}
+    args = _parse(["--config", str(config), "--port", "9200", "--robot", "127.0.0.9"])
+    settings = settings_from_args(args, environ)
+    assert settings.rpi_ms == 4.0  # TOML only
+    assert settings.port == 9200  # flag beats environment beats TOML
+    assert settings.robot_host == "127.0.0.9"
+    assert settings.input_only is False  # environment beats TOML
+    without_flag = settings_from_args(_parse(["--config", str(config)]), environ)
+    assert without_flag.port == 9100
+
+
+def test_config_file_from_environment(tmp_path: Path) -> None:
+    config = tmp_path / "hmi.toml"
+    config.write_text("ws_batch_ms = 20\n")
+    settings = load_settings({}, environ={"COBOT_HMI_CONFIG": str(config)})
+    assert settings.ws_batch_ms == 20.0
+
+
+def test_composite_flags_and_booleans() -> None:
+    args = _parse(["--instances", "1,2,3", "--sizes", "24,300", "--input-only", "--rpi-ms", "2"])
+    settings = settings_from_args(args, {})
+    assert (settings.config_instance, settings.o2t_instance, settings.t2o_instance) == (1, 2, 3)
+    assert (settings.o2t_size, settings.t2o_size) == (24, 300)
+    assert settings.input_only
+    assert settings.mode == "input_only"
+    assert settings.rpi_us == 2000
+    assert not settings_from_args(
+        _parse(["--no-input-only"]), {"COBOT_HMI_INPUT_ONLY": "1"}
+    ).input_only
+
+
+@pytest.mark.parametrize(
+    ("environ", "message"),
+    [
+        ({"COBOT_HMI_PORT": "eighty"}, "port (from COBOT_HMI_PORT): expected an integer"),
+        ({"COBOT_HMI_PORT": "70000"}, "port: 70000 is not a port number"),
+        ({"COBOT_HMI_RPI_MS": "-1"}, "rpi_ms: must be a positive number"),
+        ({"COBOT_HMI_INPUT_ONLY": "maybe"}, "expected true or false"),
+    ],
+)
+def test_bad_values_are_named(environ: dict[str, str], message: str) -> None:
+    with pytest.raises(SettingsError, match=re.escape(message)):
+        load_settings({}, environ=environ)
+
+
+def test_unknown_toml_key_and_bad_toml(tmp_path: Path) -> None:
+    config = tmp_path / "bad.toml"
+    config.write_text("rpi = 3\n")
+    with pytest.raises(SettingsError, match="unknown setting 'rpi'"):
+        load_settings({}, environ={}, config_file=config)
+    config.write_text("rpi_ms = \n")
+    with pytest.raises(SettingsError, match=r"bad\.toml"):
+        load_settings({}, environ={}, config_file=config)
+    with pytest.raises(SettingsError, match=r"missing\.toml"):
+        load_settings({}, environ={}, config_file=tmp_path / "missing.toml")
+
+
+def test_originator_settings_need_a_robot() -> None:
+    with pytest.raises(SettingsError, match="no robot"):
+        ServiceSettings().originator_settings()
+
+
+# --------------------------------------------------------------------------- users
+
+
+def test_password_hashes_are_salted_and_verify() -> None:
+    first, second = hash_password("correct horse"), hash_password("correct horse")
+    assert first != second
+    assert first.startswith("scrypt$")
+    assert verify_password("correct horse", first)
+    assert not verify_password("wrong horse", first)
+    assert not verify_password("correct horse", "scrypt$garbage")
+    assert not verify_password("correct horse", "md5$x$y$z$a$b")
+
+
+def test_users_file_add_authenticate_and_reload(tmp_path: Path) -> None:
+    path = tmp_path / "state" / "users.json"
+    users = UsersFile(path)
+    assert users.users() == []
+    users.add("alice", Role.OPERATOR, "alice-password")
+    assert stat.S_IMODE(path.stat().st_mode) == 0o600
+    assert "alice-password" not in path.read_text()
+    assert users.authenticate("alice", "alice-password") == User("alice", Role.OPERATOR)
+    assert users.authenticate("alice", "wrong-password") is None
+    assert users.authenticate("nobody", "alice-password") is None
+    # Another process adds a user: picked up without a restart.
+    UsersFile(path).add("bob", Role.VIEWER, "bob-password")
+    assert [u.name for u in users.users()] == ["alice", "bob"]
+    with pytest.raises(UsersError, match="exists"):
+        users.add("bob", Role.ADMIN, "bob-password", replace=False)
+    users.add("bob", Role.ADMIN, "new-bob-password")
+    assert users.authenticate("bob", "new-bob-password") == User("bob", Role.ADMIN)
+
+
+def test_users_file_rejects_bad_input(tmp_path: Path) -> None:
+    users = UsersFile(tmp_path / "users.json")
+    with pytest.raises(UsersError, match="user name"):
+        users.add("no spaces", Role.VIEWER, "long-enough")
+    with pytest.raises(UsersError, match="at least 8"):
+        users.add("carol", Role.VIEWER, "short")
+    with pytest.raises(UsersError, match="unknown role"):
+        Role.parse("superuser")
+
+
+def test_corrupt_users_file_keeps_last_good_table(tmp_path: Path) -> None:
+    path = tmp_path / "users.json"
+    users = UsersFile(path)
+    users.add("alice", Role.OPERATOR, "alice-password")
+    assert users.authenticate("alice", "alice-password") is not None
+    path.write_text("{not json")
+    with pytest.raises(UsersError, match="unreadable"):
+        users.users()
+    assert users.authenticate("alice", "alice-password") is not None
+
+
+def _cli(*args: str, stdin: str = "") -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "cobot_hmi.cli", *args],
+        input=stdin,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+
+
+def test_users_add_verb_with_password_stdin(tmp_path: Path) -> None:
+    result = _cli(
+        "users",
+        "add",
+        "dave",
+        "--role",
+        "admin",
+        "--password-stdin",
+        "--state-dir",
+        str(tmp_path),
+        stdin="dave-password\n",
+    )
+    assert result.returncode == 0, result.stderr
+    assert "dave: admin" in result.stdout
+    document = json.loads((tmp_path / "users.json").read_text())
+    assert document["users"]["dave"]["role"] == "admin"
+    assert UsersFile(tmp_path / "users.json").authenticate("dave", "dave-password") is not None
+    listing = _cli("users", "list", "--state-dir", str(tmp_path))
+    assert listing.stdout.strip() == "dave\tadmin"
+    bad = _cli("users", "add", "eve", "--role", "root", "--password-stdin", stdin="x" * 9 + "\n")
+    assert bad.returncode == 2
+    assert "unknown role" in bad.stderr
+
+
+# --------------------------------------------------------------------------- sessions
+
+
+def test_sessions_expire_when_unused() -> None:
+    ended: list[tuple[str, str]] = []
+    sessions = Sessions(0.2, lambda s, reason: ended.append((s.user.name, reason)))
+    session = sessions.create(User("alice", Role.OPERATOR))
+    assert sessions.get(session.token) is session
+    assert sessions.get("not-a-token") is None
+    time.sleep(0.25)
+    assert sessions.sweep() == 1
+    assert sessions.get(session.token) is None
+    assert ended == [("alice", "session expired")]
+
+
+def test_session_use_renews_it_and_logout_ends_it() -> None:
+    ended: list[Session] = []
+    sessions = Sessions(0.3, lambda s, _: ended.append(s))
+    session = sessions.create(User("alice", Role.OPERATOR))
+    for _ in range(4):
+        time.sleep(0.1)
+        assert sessions.get(session.token) is session
+    sessions.end(session, "logged out")
+    sessions.end(session, "logged out")  # twice: reported once
+    assert ended == [session]
+    assert len(sessions) == 0
+
+
+def test_login_throttle_slows_repeated_failures() -> None:
+    throttle = LoginThrottle(free_attempts=2, max_delay_s=4.0)
+    keys = ("user:alice", "client:127.0.0.1")
+    throttle.failed(keys)
+    assert throttle.retry_after_s(keys) == 0
+    throttle.failed(keys)
+    assert 0.9 < throttle.retry_after_s(keys) <= 1.0
+    throttle.failed(keys)
+    assert 1.9 < throttle.retry_after_s(keys) <= 2.0
+    for _ in range(5):
+        throttle.failed(keys)
+    assert throttle.retry_after_s(keys) <= 4.0
+    # Another user from the same address is slowed too (the address key), a fresh one is not.
+    assert throttle.retry_after_s(("user:bob", "client:127.0.0.1")) > 0
+    assert throttle.retry_after_s(("user:bob", "client:127.0.0.2")) == 0
+    throttle.succeeded(keys)
+    assert throttle.retry_after_s(keys) == 0

@@ -1,0 +1,279 @@
+"""The service's pure parts: write validation and confirmation, events, the hub's queues and
+decimation, and the SQLite store (durable commits, pages, CSV)."""
+
+from __future__ import annotations
+
+import asyncio
+import csv
+import io
+import sqlite3
+from pathlib import Path
+from typing import Any
+
+import orjson
+import pytest
+
+from cobot_hmi.codec import command_to_json, zero_command, zero_frame
+from cobot_hmi.service.events import FrameWatcher
+from cobot_hmi.service.hub import Hub, Kind, StreamClient
+from cobot_hmi.service.store import AUDIT_COLUMNS, AuditEntry, Store, to_csv
+from cobot_hmi.service.writes import (
+    FRAME_ECHOED,
+    WriteValidationError,
+    frame_shows,
+    plan_write,
+    robot_reports,
+)
+
+# --------------------------------------------------------------------------- writes
+
+
+def test_plan_write_applies_a_partial_image() -> None:
+    base = zero_command()._replace(analog_output=(4.0, 0.0))
+    body = {
+        "controlbox_do": {"3": True},
+        "tool_do": {"1": False},
+        "analog_output": {"0": 12.5},
+        "analog_output_type": {"0": 0},
+        "bit_input_registers": {"40": True},
+    }
+    plan = plan_write(body, base)
+    assert plan.image.controlbox_do[3] is True
+    assert plan.image.analog_output[0] == 12.5
+    assert plan.image.bit_input_registers[40] is True
+    assert plan.field_names == [
+        "controlbox_do.3",
+        "tool_do.1",
+        "analog_output_type.0",
+        "analog_output.0",
+        "bit_input_registers.40",
+    ]
+    assert plan.values(base)["analog_output.0"] == 4.0
+    assert plan.by_packet == (("bit_input_registers", 40),)
+    assert {"controlbox_do", "tool_do", "analog_output_type", "analog_output"} == FRAME_ECHOED
+
+
+@pytest.mark.parametrize(
+    ("body", "field", "reason"),
+    [
+        ({"controlbox_do": {"16": True}}, "controlbox_do.16", "out of range"),
+        ({"controlbox_do": {"x": True}}, "controlbox_do", "not a whole number"),
+        ({"tool_do": {"1": 1}}, "tool_do.1", "true or false"),
+        ({"analog_output_type": {"0": 2}}, "analog_output_type.0", "0 to 1"),
+        ({"analog_output": {"0": "12"}}, "analog_output.0", "a number"),
+        ({"analog_output": {"0": None}}, "analog_output.0", "finite"),
+        ({"analog_output": {"0": 25.0}}, "analog_output.0", "outside 4–20 mA"),
+        ({"analog_output": {"1": 3.0}}, "analog_output.1", "outside 4–20 mA"),
+        (
+            {"analog_output_type": {"1": 1}, "analog_output": {"1": 10.5}},
+            "analog_output.1",
+            "0–10 V",
+        ),
+        ({"analog_output_type": {"0": 0}}, "analog_output.0", "together with the type change"),
+        ({"speed": {"0": 1}}, "speed", "unknown field"),
+        ({}, None, "nothing to write"),
+        ([1, 2], None, "JSON object"),
+    ],
+)
+def test_plan_write_rejects_with_the_field(body: object, field: str | None, reason: str) -> None:
+    base = zero_command()  # both outputs: current, 0.0 (the robot's reset value)
+    with pytest.raises(WriteValidationError) as caught:
+        plan_write(body, base)
+    assert caught.value.field == field
+    assert reason in caught.value.reason
+
+
+def test_voltage_range_after_type_change_in_the_same_request() -> None:
+    plan = plan_write({"analog_output_type": {"1": 1}, "analog_output": {"1": 0.0}}, zero_command())
+    assert plan.image.analog_output_type[1] == 1
+    assert plan.image.analog_output[1] == 0.0
+
+
+def test_frame_confirmation_and_report() -> None:
+    plan = plan_write({"controlbox_do": {"2": True}, "analog_output": {"0": 12.5}}, zero_command())
+    frame = zero_frame()
+    assert not frame_shows(frame, plan.image, plan.by_frame)
+    shown = frame._replace(controlbox_do=plan.image.controlbox_do, analog_output=(12.5000001, 0.0))
+    assert frame_shows(shown, plan.image, plan.by_frame)
+    off = shown._replace(analog_output=(13.0, 0.0))
+    assert not frame_shows(off, plan.image, plan.by_frame)
+    assert robot_reports(off, plan.by_frame) == {"controlbox_do.2": True, "analog_output.0": 13.0}
+    assert robot_reports(None, plan.by_frame) == {"controlbox_do.2": None, "analog_output.0": None}
+
+
+# --------------------------------------------------------------------------- events
+
+
+def test_frame_watcher_reports_state_and_flag_changes() -> None:
+    watcher = FrameWatcher()
+    first = zero_frame()._replace(robot_state=13, servo_on=True)
+    events = watcher.observe(first, 1.0)
+    assert events == [
+        {
+            "kind": "robot_state",
+            "time": 1.0,
+            "from": None,
+            "to": 13,
+            "from_name": None,
+            "to_name": "STANDALONE_STANDBY",
+        }
+    ]
+    assert watcher.observe(first, 1.01) == []
+    estop = first._replace(robot_state=0, servo_on=False, emergency_stopped=True)
+    events = watcher.observe(estop, 2.0)
+    assert [e["kind"] for e in events] == ["robot_state", "flag", "flag"]
+    assert events[0]["to_name"] == "EMERGENCY_STOP"
+    assert {(e["flag"], e["value"]) for e in events[1:]} == {
+        ("servo_on", False),
+        ("emergency_stopped", True),
+    }
+    assert watcher.observe(first._replace(robot_state=99), 3.0)[0]["to_name"] == "UNKNOWN"
+
+
+# --------------------------------------------------------------------------- hub
+
+
+async def _noop_abort(_: str) -> None:
+    return None
+
+
+class _Sink:
+    """A client connection that records what it was sent (no network: queue logic only)."""
+
+    def __init__(self) -> None:
+        self.messages: list[Any] = []
+        self.gate = asyncio.Event()
+        self.gate.set()
+
+    async def send(self, text: str) -> None:
+        await self.gate.wait()
+        self.messages.append(orjson.loads(text))
+
+
+def test_stream_client_drops_oldest_frames_never_events() -> None:
+    client = StreamClient(lambda _: asyncio.sleep(0), _noop_abort, None, max_frames=10)
+    for i in range(5):
+        client.offer(Kind.FRAMES, f"frames{i}", 4)
+        client.offer(Kind.EVENT, f"event{i}")
+    kinds = [(k, t) for k, t, _ in client.queue]
+    assert (Kind.EVENT, "event0") in kinds
+    assert [t for k, t in kinds if k is Kind.EVENT] == [f"event{i}" for i in range(5)]
+    assert [t for k, t in kinds if k is Kind.FRAMES] == ["frames3", "frames4"]
+    assert client.queued_frames == 8
+    assert client.dropped_total == 12
+    assert client.dropped_pending == 12
+    client.offer(Kind.STATUS, "s1")
+    client.offer(Kind.STATUS, "s2")
+    assert [t for k, t, _ in client.queue if k is Kind.STATUS] == ["s2"]
+
+
+async def test_hub_batches_decimates_and_tells_about_drops() -> None:
+    hub = Hub(batch_s=0.05, queue_frames=1000, stall_timeout_s=5.0)
+    full, slow = _Sink(), _Sink()
+    a = hub.add_client(full.send, _noop_abort, None, {"type": "hello"})
+    b = hub.add_client(slow.send, _noop_abort, 20.0, {"type": "hello"})
+    frame = zero_frame()
+    for i in range(100):  # one second of frames at 10 ms
+        hub.on_frame(frame._replace(robot_state=i % 3), 1000.0 + i * 0.01, i)
+        if i % 5 == 4:
+            hub.tick()
+    for _ in range(20):
+        await asyncio.sleep(0)
+    full_frames = [f for m in full.messages if m["type"] == "frames" for f in m["frames"]]
+    slow_frames = [f for m in slow.messages if m["type"] == "frames" for f in m["frames"]]
+    assert full.messages[0] == {"type": "hello"}
+    assert [f["seq"] for f in full_frames] == list(range(1, 101))
+    assert sum(1 for m in full.messages if m["type"] == "frames") == 20  # 5 frames per message
+    assert 19 <= len(slow_frames) <= 21  # 20 Hz out of 100 Hz
+    assert full_frames[0]["frame"]["robot_state_name"] == "EMERGENCY_STOP"
+    events = [m["event"] for m in full.messages if m["type"] == "event"]
+    assert any(e["kind"] == "robot_state" for e in events)
+    assert a.frames_sent == 100
+    await hub.remove_client(b)
+    # A client that cannot keep up: its queue overflows and it is told how much it lost.
+    small = Hub(batch_s=0.05, queue_frames=10, stall_timeout_s=5.0)
+    blocked = _Sink()
+    blocked.gate.clear()
+    small.add_client(blocked.send, _noop_abort, None, {"type": "hello"})
+    for i in range(40):
+        small.on_frame(frame, 1000.0 + i * 0.01, i)
+        if i % 5 == 4:
+            small.tick()
+    blocked.gate.set()
+    for _ in range(20):
+        await asyncio.sleep(0)
+    dropped = [m["count"] for m in blocked.messages if m["type"] == "dropped"]
+    got = [f["seq"] for m in blocked.messages if m["type"] == "frames" for f in m["frames"]]
+    assert sum(dropped) + len(got) == 40
+    assert sum(dropped) > 0
+    assert got == sorted(got)
+    await hub.close()
+    await small.close()
+
+
+async def test_hub_wait_for_frame() -> None:
+    hub = Hub(batch_s=0.05, queue_frames=100, stall_timeout_s=5.0)
+    after = hub.seq
+    loop = asyncio.get_running_loop()
+    waiting = asyncio.create_task(hub.wait_for_frame(lambda f: f.robot_state == 5, after, 2.0))
+    await asyncio.sleep(0.01)
+    loop.call_soon(hub.on_frame, zero_frame(), 1.0, 1)
+    loop.call_soon(hub.on_frame, zero_frame()._replace(robot_state=5), 1.01, 2)
+    item = await waiting
+    assert item is not None
+    assert item[0] == 2
+    assert await hub.wait_for_frame(lambda f: f.robot_state == 7, hub.seq, 0.05) is None
+    await hub.close()
+
+
+# --------------------------------------------------------------------------- store
+
+
+async def test_store_audit_and_events(tmp_path: Path) -> None:
+    store = Store(tmp_path / "db" / "hmi.db")
+    await store.open()
+    try:
+        row = await store.add_audit(
+            AuditEntry(
+                "alice",
+                "127.0.0.1",
+                "write",
+                ["controlbox_do.3"],
+                {"controlbox_do.3": False},
+                {"controlbox_do.3": True},
+                "pending",
+                None,
+            )
+        )
+        # Committed before the call returned: another connection sees it at once.
+        with sqlite3.connect(tmp_path / "db" / "hmi.db") as other:
+            assert other.execute("SELECT outcome FROM audit WHERE id = ?", (row,)).fetchone() == (
+                "pending",
+            )
+            assert other.execute("PRAGMA journal_mode").fetchone() == ("wal",)
+        await store.finish_audit(row, "confirmed", None)
+        for i in range(3):
+            await store.add_audit(
+                AuditEntry("bob", None, "control.take", [], None, None, "refused", f"r{i}")
+            )
+        page = await store.audit_page(2, 0)
+        assert page.total == 4
+        assert [item["reason"] for item in page.items] == ["r2", "r1"]
+        last = (await store.audit_page(10, 3)).items
+        assert last[0]["outcome"] == "confirmed"
+        assert last[0]["requested"] == {"controlbox_do.3": True}
+        text = to_csv(last, AUDIT_COLUMNS)
+        rows = list(csv.reader(io.StringIO(text)))
+        assert rows[0] == list(AUDIT_COLUMNS)
+        assert rows[1][AUDIT_COLUMNS.index("fields")] == '["controlbox_do.3"]'
+
+        for i in range(50):
+            store.submit_event(float(i), "flag" if i % 2 else "robot_state", {"i": i})
+        await store.flush_events()
+        events = await store.events_page("flag", 5, 0)
+        assert events.total == 25
+        assert [e["data"] for e in events.items][:2] == [{"i": 49}, {"i": 47}]
+        assert (await store.events_page(None, 1, 0)).total == 50
+    finally:
+        await store.close()
+    assert command_to_json(zero_command())  # the codec's JSON form is what the store keeps
