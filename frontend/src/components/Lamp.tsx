@@ -1,0 +1,26 @@
+/** A read-only lamp: on, off, or unknown (no frame yet). */
+import { memo } from "react";
+
+interface Props {
+  readonly testId: string;
+  readonly label: string;
+  readonly on: boolean | null | undefined;
+  readonly title?: string;
+  readonly variant?: "io" | "flag" | "register";
+}
+
+export const Lamp = memo(function Lamp({ testId, label, on, title, variant = "io" }: Props) {
+  const state = on === true ? "on" : "off";
+  return (
+    <div
+      className={`lamp lamp--${variant}${on === null || on === undefined ? " lamp--unknown" : ""}`}
+      data-testid={testId}
+      data-state={state}
+      title={title ?? label}
+    >
+      <span className="lamp__light" aria-hidden="true" />
+      <span className="lamp__label">{label}</span>
+      <span className="visually-hidden">{state}</span>
+    </div>
+  );
+});

@@ -1,0 +1,130 @@
+/**
+ * One live plot: a container Plotly draws into (created once), fed by the coordinator's
+ * animation-frame tick. React holds only its configuration (window, pause, picked signals);
+ * samples never pass through React state.
+ */
+import { useEffect, useRef, useState } from "react";
+import { plotlyBackend } from "../lib/plotlyAdapter";
+import { LivePlot, traceColour, type PlotTheme } from "../lib/plotting";
+import { DEFAULT_WINDOW_MS, WINDOWS_MS, tracesOf, type PlotSpec } from "../lib/plots";
+import { useRuntime } from "./runtimeContext";
+
+interface Props {
+  readonly spec: PlotSpec;
+  readonly theme: PlotTheme;
+  /** Kiosk: no controls, a static picture. */
+  readonly readOnly?: boolean;
+  readonly height_px?: number;
+}
+
+export function LivePlotView({ spec, theme, readOnly = false, height_px }: Props) {
+  const { live, coordinator } = useRuntime();
+  const container = useRef<HTMLDivElement | null>(null);
+  const plotRef = useRef<LivePlot | null>(null);
+  const [paused, setPaused] = useState(false);
+  const [window_ms, setWindow] = useState(DEFAULT_WINDOW_MS);
+  const traces = tracesOf(spec);
+  const [visible, setVisible] = useState<boolean[]>(() => traces.map(() => true));
+
+  useEffect(() => {
+    const el = container.current;
+    if (el === null) return;
+    const plot = new LivePlot(spec, live.ring, live.channels, plotlyBackend, {
+      window_ms: DEFAULT_WINDOW_MS,
+      theme,
+      readOnly,
+      ...(height_px !== undefined ? { height_px } : {}),
+    });
+    plot.mount(el);
+    plotRef.current = plot;
+    coordinator.add(plot);
+    let observer: IntersectionObserver | null = null;
+    if (typeof IntersectionObserver !== "undefined") {
+      observer = new IntersectionObserver((entries) => {
+        for (const entry of entries) plot.onScreen = entry.isIntersecting;
+      });
+      observer.observe(el);
+    }
+    return () => {
+      observer?.disconnect();
+      coordinator.remove(plot);
+      plot.unmount();
+      plotRef.current = null;
+    };
+  }, [spec, live, coordinator, theme, readOnly, height_px]);
+
+  const togglePause = () => {
+    const next = !paused;
+    setPaused(next);
+    plotRef.current?.setPaused(next);
+  };
+  const chooseWindow = (ms: number) => {
+    setWindow(ms);
+    plotRef.current?.setWindow(ms);
+  };
+  const pick = (i: number, on: boolean) => {
+    setVisible((v) => v.map((x, k) => (k === i ? on : x)));
+    plotRef.current?.setTraceVisible(i, on);
+  };
+
+  return (
+    <figure className={`plot plot--${theme}`}>
+      <figcaption className="plot__header">
+        <span className="plot__title">{spec.title}</span>
+        {!readOnly && (
+          <span className="plot__controls">
+            <button
+              type="button"
+              className="plot__pause"
+              data-testid={`${spec.id}-pause`}
+              aria-pressed={paused}
+              onClick={togglePause}
+              title={paused ? "Resume (data kept buffering while paused)" : "Pause (data keeps buffering)"}
+            >
+              {paused ? "Resume" : "Pause"}
+            </button>
+            <select
+              aria-label={`${spec.title} window`}
+              data-testid={`${spec.id}-window`}
+              value={window_ms}
+              onChange={(e) => chooseWindow(Number(e.target.value))}
+            >
+              {WINDOWS_MS.map((w) => (
+                <option key={w.ms} value={w.ms}>
+                  {w.label}
+                </option>
+              ))}
+            </select>
+          </span>
+        )}
+      </figcaption>
+      {!readOnly && (
+        <div className="plot__signals" role="group" aria-label={`${spec.title} signals`}>
+          {traces.map((trace, i) => (
+            <label key={trace.name} className="plot__signal" title={`${trace.field.description} [${trace.field.unit}]`}>
+              <input
+                type="checkbox"
+                data-testid={`${spec.id}-signal-${i}`}
+                checked={visible[i] ?? true}
+                onChange={(e) => pick(i, e.target.checked)}
+              />
+              <span className="plot__swatch" style={{ background: traceColour(i) }} aria-hidden="true" />
+              {trace.name}
+            </label>
+          ))}
+        </div>
+      )}
+      {readOnly && (
+        <div className="plot__legend" aria-hidden="true">
+          {traces.map((trace, i) => (
+            <span key={trace.name} className="plot__signal">
+              <span className="plot__swatch" style={{ background: traceColour(i) }} />
+              {trace.name}
+            </span>
+          ))}
+        </div>
+      )}
+      <div className="plot__area" ref={container} data-testid={spec.id} data-points="0" />
+    </figure>
+  );
+}

@@ -1,0 +1,16 @@
+/** "Stale since …": stale data is never shown as live. */
+import { formatClock } from "../lib/health";
+import type { LiveSnapshot } from "../lib/liveData";
+
+export function StaleBanner({ live }: { readonly live: LiveSnapshot }) {
+  if (live.health === "connected") return null;
+  const since = live.staleSince_ms;
+  const what = live.health === "stale" ? "Data is stale" : "Disconnected";
+  return (
+    <div className={`stale-banner stale-banner--${live.health}`} data-testid="stale-banner" role="alert">
+      {what}
+      {since !== null ? ` — stale since ${formatClock(since)}` : ""}
+      {live.frame !== null ? "; the values shown are the last ones received." : "; no data received yet."}
+    </div>
+  );
+}

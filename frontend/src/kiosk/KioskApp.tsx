@@ -1,0 +1,90 @@
+/**
+ * The kiosk (`/kiosk`): read-only by construction. Its component tree imports no write control,
+ * no REST module and no login (a test walks its imports); it reads the WebSocket only. Dark,
+ * readable from three metres, cursor hidden, reconnects by itself, bounded memory, and shifts a
+ * few pixels now and then against burn-in without ever hiding the state or an emergency stop.
+ */
+import { useEffect, useMemo, useState } from "react";
+import { ConnectionHealth } from "../components/ConnectionHealth";
+import { ControlHolder } from "../components/ControlHolder";
+import { FlagBadges } from "../components/FlagBadges";
+import { LampRow } from "../components/IoView";
+import { LivePlotView } from "../components/LivePlotView";
+import { RuntimeContext, useLive } from "../components/runtimeContext";
+import { StaleBanner } from "../components/StaleBanner";
+import { StateBadge } from "../components/StateBadge";
+import { burnInOffset, BURN_IN_PERIOD_MS } from "../lib/burnIn";
+import { JOINT_PLOTS, TCP_PLOTS, type PlotSpec } from "../lib/plots";
+import { createLiveRuntime } from "../lib/runtime";
+import "../styles/kiosk.css";
+
+const KIOSK_PLOTS: readonly PlotSpec[] = [JOINT_PLOTS[0], TCP_PLOTS[0]].filter((p): p is PlotSpec => p !== undefined);
+/** A kiosk does not need every frame: 25 per second keeps a small PC cool for days. */
+const KIOSK_RATE_HZ = 25;
+
+function useBurnInOffset() {
+  const [now, setNow] = useState(() => Date.now());
+  useEffect(() => {
+    const timer = setInterval(() => setNow(Date.now()), BURN_IN_PERIOD_MS / 4);
+    return () => clearInterval(timer);
+  }, []);
+  return burnInOffset(now);
+}
+
+function Kiosk() {
+  const live = useLive();
+  const offset = useBurnInOffset();
+  const stale = live.health !== "connected";
+  const frame = live.frame;
+  const estop = frame?.emergency_stopped === true;
+  return (
+    <div className="kiosk" data-testid="kiosk" data-stale={stale ? "true" : "false"}>
+      <div
+        className="kiosk__shift"
+        data-testid="kiosk-shift"
+        style={{ transform: `translate(${offset.dx_px}px, ${offset.dy_px}px)` }}
+      >
+        <header className="kiosk__header">
+          <StateBadge value={frame?.robot_state} stale={stale} size="kiosk" />
+          {estop && (
+            <div className="kiosk__estop" data-testid="kiosk-estop" role="alert">
+              EMERGENCY STOP
+            </div>
+          )}
+          <FlagBadges frame={frame} stale={stale} />
+          <div className="kiosk__status">
+            <ConnectionHealth live={live} compact />
+            <ControlHolder control={live.control} />
+          </div>
+        </header>
+        <StaleBanner live={live} />
+        <main className={`kiosk__main${stale ? " is-stale" : ""}`}>
+          <div className="kiosk__plots">
+            {KIOSK_PLOTS.map((spec) => (
+              <LivePlotView key={spec.id} spec={spec} theme="dark" readOnly height_px={260} />
+            ))}
+          </div>
+          <div className="kiosk__io">
+            <LampRow field="controlbox_di" testPrefix="di" frame={frame} />
+            <LampRow field="controlbox_do" testPrefix="do" frame={frame} />
+            <LampRow field="tool_di" testPrefix="tool-di" frame={frame} />
+            <LampRow field="tool_do" testPrefix="tool-do" frame={frame} />
+          </div>
+        </main>
+      </div>
+    </div>
+  );
+}
+
+export function KioskApp() {
+  const runtime = useMemo(() => createLiveRuntime(KIOSK_PLOTS, { rate_hz: KIOSK_RATE_HZ }), []);
+  useEffect(() => {
+    runtime.start();
+    return () => runtime.stop();
+  }, [runtime]);
+  return (
+    <RuntimeContext.Provider value={runtime}>
+      <Kiosk />
+    </RuntimeContext.Provider>
+  );
+}

@@ -1,0 +1,65 @@
+// The kiosk is read-only by construction: walking its import graph from KioskApp must never
+// reach a write control (src/panel/), the REST module (lib/api.ts) or the write logic
+// (lib/writes.ts). A change that wires a write into the kiosk fails here.
+import { existsSync, readFileSync } from "node:fs";
+import { dirname, join, relative, resolve } from "node:path";
+import { fileURLToPath } from "node:url";
+import { describe, expect, it } from "vitest";
+import { isKioskPath } from "../lib/route";
+
+const SRC = resolve(dirname(fileURLToPath(import.meta.url)), "..");
+const FORBIDDEN = [/^panel\//, /^lib\/api\.ts$/, /^lib\/writes\.ts$/];
+
+function resolveImport(from: string, spec: string): string | null {
+  if (!spec.startsWith(".")) return null; // packages
+  const base = resolve(dirname(from), spec);
+  for (const candidate of [base, `${base}.ts`, `${base}.tsx`, join(base, "index.ts"), join(base, "index.tsx")]) {
+    if (existsSync(candidate) && /\.(ts|tsx|css)$/.test(candidate)) return candidate;
+  }
+  return null;
+}
+
+function importGraph(entry: string): Set<string> {
+  const seen = new Set<string>();
+  const queue = [entry];
+  const pattern = /(?:import|export)\s[^'"]*?from\s*["']([^"']+)["']|import\s*\(\s*["']([^"']+)["']\s*\)|import\s+["']([^"']+)["']/g;
+  while (queue.length > 0) {
+    const file = queue.pop() as string;
+    if (seen.has(file)) continue;
+    seen.add(file);
+    if (!/\.(ts|tsx)$/.test(file)) continue;
+    const text = readFileSync(file, "utf8");
+    for (const m of text.matchAll(pattern)) {
+      const spec = m[1] ?? m[2] ?? m[3];
+      if (spec === undefined) continue;
+      const target = resolveImport(file, spec);
+      if (target !== null) queue.push(target);
+    }
+  }
+  return seen;
+}
+
+describe("kiosk", () => {
+  it("imports no write control, no REST module and no write logic", () => {
+    const files = [...importGraph(join(SRC, "kiosk", "KioskApp.tsx"))].map((f) => relative(SRC, f));
+    expect(files).toContain("components/StateBadge.tsx");
+    expect(files).toContain("lib/stream.ts");
+    const forbidden = files.filter((f) => FORBIDDEN.some((p) => p.test(f)));
+    expect(forbidden).toEqual([]);
+  });
+
+  it("the walker does find the panel's writes (so the check above means something)", () => {
+    const files = [...importGraph(join(SRC, "panel", "PanelApp.tsx"))].map((f) => relative(SRC, f));
+    expect(files).toContain("lib/writes.ts");
+    expect(files).toContain("lib/api.ts");
+    expect(files).toContain("panel/OutputToggle.tsx");
+  });
+
+  it("routes /kiosk to the kiosk and everything else to the panel", () => {
+    expect(readFileSync(join(SRC, "main.tsx"), "utf8")).toContain('import("./kiosk/KioskApp")');
+    expect(isKioskPath("/kiosk")).toBe(true);
+    expect(isKioskPath("/kiosk/")).toBe(true);
+    expect(isKioskPath("/")).toBe(false);
+    expect(isKioskPath("/kiosky")).toBe(false);
+  });
+});

@@ -1,0 +1,57 @@
+/**
+ * Layer: pure connection-health rules (no React, no DOM, no network).
+ *
+ * Three words for a person: connected (live data), stale (connected but the newest frame is too
+ * old, or the backend says so), disconnected (no WebSocket, or the backend has no robot link).
+ * Stale data is never shown as live.
+ */
+import type { ConnectionStatus } from "./protocol";
+
+export type Health = "connected" | "stale" | "disconnected";
+export type SocketState = "connecting" | "open" | "closed";
+
+/** A frame older than this (as the browser sees it) makes the display stale. */
+export const STALE_AFTER_MS = 1000;
+
+export interface HealthInput {
+  readonly socket: SocketState;
+  readonly connection: ConnectionStatus | null;
+  /** ms since the browser received the newest frame, null if none yet */
+  readonly frameAge_ms: number | null;
+  readonly staleAfter_ms?: number;
+}
+
+export function connectionHealth(input: HealthInput): Health {
+  if (input.socket !== "open") return "disconnected";
+  if (input.connection === null || input.connection.state !== "connected") return "disconnected";
+  if (input.frameAge_ms === null) return "stale";
+  if (input.connection.stale) return "stale";
+  if (input.frameAge_ms > (input.staleAfter_ms ?? STALE_AFTER_MS)) return "stale";
+  return "connected";
+}
+
+/** "12 ms", "3.4 s", "5 min" — for ages and intervals. */
+export function formatDuration_ms(ms: number | null | undefined): string {
+  if (ms === null || ms === undefined || !Number.isFinite(ms)) return "—";
+  if (ms < 1000) return `${Math.round(ms)} ms`;
+  if (ms < 60_000) return `${(ms / 1000).toFixed(1)} s`;
+  if (ms < 3_600_000) return `${Math.floor(ms / 60_000)} min`;
+  return `${(ms / 3_600_000).toFixed(1)} h`;
+}
+
+/** Wall-clock time of day for banners and tables: "14:03:07". */
+export function formatClock(epoch_ms: number): string {
+  const d = new Date(epoch_ms);
+  const pad = (n: number) => String(n).padStart(2, "0");
+  return `${pad(d.getHours())}:${pad(d.getMinutes())}:${pad(d.getSeconds())}`;
+}
+
+/** Date and time for tables: "2025-11-21 14:03:07.123". */
+export function formatTimestamp(epoch_s: number): string {
+  const d = new Date(epoch_s * 1000);
+  const pad = (n: number, w = 2) => String(n).padStart(w, "0");
+  return (
+    `${d.getFullYear()}-${pad(d.getMonth() + 1)}-${pad(d.getDate())} ` +
+    `${pad(d.getHours())}:${pad(d.getMinutes())}:${pad(d.getSeconds())}.${pad(d.getMilliseconds(), 3)}`
+  );
+}

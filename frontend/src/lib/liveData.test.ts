@@ -1,0 +1,90 @@
+import { describe, expect, it } from "vitest";
+import type { Frame } from "../generated/layout";
+import { frameField } from "./layoutInfo";
+import { EVENT_LIMIT, LiveData } from "./liveData";
+import { JOINT_PLOTS } from "./plots";
+import type { ConnectionStatus } from "./protocol";
+
+const connection = {
+  state: "connected",
+  reason: null,
+  stale: false,
+  rpi_ms: 10,
+} as unknown as ConnectionStatus;
+
+function frame(position0: number | null): Frame {
+  const six = (v: number | null) => Array.from({ length: 6 }, () => v);
+  return {
+    joint_position: [position0, 1, 2, 3, 4, 5],
+    joint_velocity: six(0),
+    joint_motor_current: six(0),
+    joint_motor_temperature: six(30),
+    joint_torque: six(0),
+    joint_external_torque: six(0),
+    robot_state: 14,
+  } as unknown as Frame;
+}
+
+describe("LiveData", () => {
+  it("puts frames into the ring by the layout's channels and counts client gaps", () => {
+    const clock = { t: 0 };
+    const live = new LiveData(JOINT_PLOTS, { capacity: 128, now: () => clock.t });
+    expect(live.channels.channelCount).toBe(6 * frameField("joint_position").count);
+    live.setSocketState("open");
+    live.handle({ type: "hello", layout_version: 1, connection, control: { holder: null }, rate_hz: null });
+    live.handle({
+      type: "frames",
+      frames: [
+        { seq: 10, t: 100.0, frame: frame(7) },
+        { seq: 11, t: 100.01, frame: frame(null) },
+        { seq: 14, t: 100.04, frame: frame(9) },
+      ],
+    });
+    expect(live.ring.size).toBe(3);
+    expect(live.ring.valueAt(live.channels.channelOf("joint_position", 0), 0)).toBe(7);
+    expect(live.ring.valueAt(live.channels.channelOf("joint_position", 0), 1)).toBeNaN();
+    expect(live.ring.valueAt(live.channels.channelOf("joint_position", 5), 2)).toBe(5);
+    expect(live.ring.timeAt(2)).toBeCloseTo(100_040);
+    expect(live.clientGaps).toBe(2);
+    live.handle({ type: "dropped", count: 4 });
+    live.publish();
+    const snap = live.getSnapshot();
+    expect(snap.frame?.robot_state).toBe(14);
+    expect(snap.dropped).toBe(4);
+    expect(snap.health).toBe("connected");
+  });
+
+  it("turns stale after a second without frames, and remembers since when", () => {
+    const clock = { t: 1_000_000 };
+    const live = new LiveData(JOINT_PLOTS, { capacity: 16, now: () => clock.t });
+    live.setSocketState("open");
+    live.handle({ type: "hello", layout_version: 1, connection, control: { holder: null }, rate_hz: null });
+    live.handle({ type: "frames", frames: [{ seq: 1, t: 1, frame: frame(1) }] });
+    live.publish();
+    expect(live.getSnapshot().health).toBe("connected");
+    clock.t += 1500;
+    live.publish();
+    expect(live.getSnapshot().health).toBe("stale");
+    expect(live.getSnapshot().staleSince_ms).toBe(1_000_000);
+    live.setSocketState("closed");
+    expect(live.getSnapshot().health).toBe("disconnected");
+    expect(live.getSnapshot().staleSince_ms).toBe(1_000_000);
+  });
+
+  it("follows connection and control events, and keeps a bounded event list", () => {
+    const live = new LiveData(JOINT_PLOTS, { capacity: 16 });
+    live.setSocketState("open");
+    live.handle({ type: "hello", layout_version: 99, connection, control: { holder: null }, rate_hz: null });
+    expect(live.getSnapshot().layoutMismatch).toBe(99);
+    live.handle({ type: "event", event: { kind: "connection", time: 1, state: "lost", reason: "timeout" } });
+    expect(live.getSnapshot().connection?.state).toBe("lost");
+    expect(live.getSnapshot().health).toBe("disconnected");
+    live.handle({ type: "event", event: { kind: "control", time: 2, holder: { user: "alice", since: 2 }, reason: null } });
+    expect(live.getSnapshot().control.holder?.user).toBe("alice");
+    for (let i = 0; i < EVENT_LIMIT + 50; i++) {
+      live.handle({ type: "event", event: { kind: "flag", time: i, flag: "servo_on", value: true } });
+    }
+    expect(live.getSnapshot().events).toHaveLength(EVENT_LIMIT);
+    expect(live.getSnapshot().events[0]?.time).toBe(EVENT_LIMIT + 49);
+  });
+});

@@ -1,0 +1,228 @@
+/**
+ * Layer: the live-data store between the WebSocket and the views (plain TypeScript, no React).
+ *
+ * Frames go into a fixed-size sample ring (for the plots) and a "latest frame" slot; React reads
+ * an immutable snapshot that is republished at most every `publishInterval_ms` (and at once on
+ * status, control, event and socket changes), so a 100 Hz stream never means 100 React renders
+ * a second. Everything held is bounded (ring, event list), so memory stays flat over days.
+ * Must not import React or any component.
+ */
+import { LAYOUT_VERSION, type Frame } from "../generated/layout";
+import { connectionHealth, type Health, type SocketState } from "./health";
+import { ChannelMap, type PlotSpec } from "./plots";
+import type { ConnectionStatus, ControlStatus, ServerMessage, StreamEvent } from "./protocol";
+import { SampleRing } from "./ringBuffer";
+
+/** 32768 samples: over 5 minutes at RPI 10 ms, so a 2-minute window is always full. */
+export const RING_CAPACITY = 32_768;
+/** Newest events kept for the live table. */
+export const EVENT_LIMIT = 200;
+
+export interface LiveSnapshot {
+  readonly frame: Frame | null;
+  /** backend receive time of the newest frame (s since the epoch) */
+  readonly frameTime_s: number | null;
+  /** ms since the browser received the newest frame */
+  readonly frameAge_ms: number | null;
+  readonly socket: SocketState;
+  readonly connection: ConnectionStatus | null;
+  readonly control: ControlStatus;
+  readonly health: Health;
+  /** When the display stopped being live (browser clock, ms since the epoch), null while live. */
+  readonly staleSince_ms: number | null;
+  readonly framesReceived: number;
+  /** frames missing in the backend's sequence as this browser saw it */
+  readonly clientGaps: number;
+  /** frames the backend dropped for this browser (it read too slowly) */
+  readonly dropped: number;
+  readonly events: readonly StreamEvent[];
+  /** the backend speaks another layout version than this build */
+  readonly layoutMismatch: number | null;
+  readonly rate_hz: number | null;
+}
+
+export interface LiveDataOptions {
+  readonly capacity?: number;
+  readonly publishInterval_ms?: number;
+  readonly now?: () => number;
+}
+
+type Listener = () => void;
+
+export class LiveData {
+  readonly channels: ChannelMap;
+  readonly ring: SampleRing;
+  private readonly now: () => number;
+  private readonly publishInterval_ms: number;
+  private readonly row: Float64Array;
+  private readonly listeners = new Set<Listener>();
+  private readonly startedAt_ms: number;
+  private frame: Frame | null = null;
+  private frameTime_s: number | null = null;
+  private frameArrival_ms: number | null = null;
+  private lastSeq: number | null = null;
+  private socket: SocketState = "connecting";
+  private connection: ConnectionStatus | null = null;
+  private control: ControlStatus = { holder: null };
+  private events: StreamEvent[] = [];
+  private layoutMismatch: number | null = null;
+  private rate_hz: number | null = null;
+  private staleSince_ms: number | null = null;
+  private current: LiveSnapshot;
+  private timer: ReturnType<typeof setInterval> | null = null;
+  framesReceived = 0;
+  clientGaps = 0;
+  dropped = 0;
+
+  constructor(plots: readonly PlotSpec[], options: LiveDataOptions = {}) {
+    this.channels = new ChannelMap(plots);
+    this.ring = new SampleRing(options.capacity ?? RING_CAPACITY, this.channels.channelCount);
+    this.row = new Float64Array(this.channels.channelCount);
+    this.now = options.now ?? Date.now;
+    this.publishInterval_ms = options.publishInterval_ms ?? 100;
+    this.startedAt_ms = this.now();
+    this.current = this.build();
+  }
+
+  /** Republish on a timer (frame age and health move with time even without messages). */
+  start(): void {
+    if (this.timer !== null) return;
+    this.timer = setInterval(() => this.publish(), this.publishInterval_ms);
+  }
+
+  stop(): void {
+    if (this.timer !== null) clearInterval(this.timer);
+    this.timer = null;
+  }
+
+  subscribe = (listener: Listener): (() => void) => {
+    this.listeners.add(listener);
+    return () => {
+      this.listeners.delete(listener);
+    };
+  };
+
+  getSnapshot = (): LiveSnapshot => this.current;
+
+  setSocketState(state: SocketState): void {
+    if (state === this.socket) return;
+    this.socket = state;
+    if (state === "open") this.lastSeq = null; // a new socket starts its own sequence view
+    this.publish();
+  }
+
+  handle(message: ServerMessage): void {
+    switch (message.type) {
+      case "hello":
+        this.connection = message.connection;
+        this.control = message.control;
+        this.rate_hz = message.rate_hz;
+        this.layoutMismatch = message.layout_version === LAYOUT_VERSION ? null : message.layout_version;
+        this.lastSeq = null;
+        this.publish();
+        return;
+      case "frames":
+        for (const stamped of message.frames) this.addFrame(stamped.seq, stamped.t, stamped.frame);
+        return;
+      case "dropped":
+        this.dropped += message.count;
+        return;
+      case "status":
+        this.connection = message.connection;
+        this.publish();
+        return;
+      case "control":
+        this.control = message.control;
+        this.publish();
+        return;
+      case "event":
+        this.addEvent(message.event);
+        this.publish();
+        return;
+    }
+  }
+
+  /** Control changes learnt from a REST answer (take/release) before the event arrives. */
+  setControl(control: ControlStatus): void {
+    this.control = control;
+    this.publish();
+  }
+
+  private addFrame(seq: number, t_s: number, frame: Frame): void {
+    // With a decimated stream (?rate=) the backend's sequence jumps by design: not a gap.
+    if (this.rate_hz === null && this.lastSeq !== null && seq > this.lastSeq + 1) {
+      this.clientGaps += seq - this.lastSeq - 1;
+    }
+    if (this.lastSeq === null || seq > this.lastSeq) this.lastSeq = seq;
+    this.framesReceived++;
+    this.frame = frame;
+    this.frameTime_s = t_s;
+    this.frameArrival_ms = this.now();
+    const row = this.row;
+    row.fill(Number.NaN);
+    for (const [field, base] of this.channels.base) {
+      const values = frame[field];
+      if (!Array.isArray(values)) continue;
+      for (let i = 0; i < values.length; i++) {
+        const v: unknown = values[i];
+        row[base + i] = typeof v === "number" ? v : Number.NaN;
+      }
+    }
+    this.ring.push(t_s * 1000, row);
+  }
+
+  private addEvent(event: StreamEvent): void {
+    this.events = [event, ...this.events.slice(0, EVENT_LIMIT - 1)];
+    if (event.kind === "control") {
+      const holder = (event as { holder?: unknown }).holder;
+      if (holder === null || (typeof holder === "object" && holder !== undefined)) {
+        this.control = { holder: holder as ControlStatus["holder"] };
+      }
+    }
+    if (event.kind === "connection" && typeof event.state === "string" && this.connection !== null) {
+      // The event is immediate; the next status (≤ 1 s) brings the rest.
+      this.connection = {
+        ...this.connection,
+        state: event.state as ConnectionStatus["state"],
+        reason: typeof event.reason === "string" ? event.reason : null,
+      };
+    }
+  }
+
+  /** Rebuild the snapshot and tell React. */
+  publish(): void {
+    this.current = this.build();
+    for (const listener of this.listeners) listener();
+  }
+
+  private build(): LiveSnapshot {
+    const now = this.now();
+    const frameAge_ms = this.frameArrival_ms === null ? null : now - this.frameArrival_ms;
+    const health = connectionHealth({
+      socket: this.socket,
+      connection: this.connection,
+      frameAge_ms,
+    });
+    if (health === "connected") {
+      this.staleSince_ms = null;
+    } else if (this.staleSince_ms === null) {
+      this.staleSince_ms = this.frameArrival_ms ?? this.startedAt_ms;
+    }
+    return {
+      frame: this.frame,
+      frameTime_s: this.frameTime_s,
+      frameAge_ms,
+      socket: this.socket,
+      connection: this.connection,
+      control: this.control,
+      health,
+      staleSince_ms: this.staleSince_ms,
+      framesReceived: this.framesReceived,
+      clientGaps: this.clientGaps,
+      dropped: this.dropped,
+      events: this.events,
+      layoutMismatch: this.layoutMismatch,
+      rate_hz: this.rate_hz,
+    };
+  }
+}

@@ -1,0 +1,29 @@
+/**
+ * Layer: the one module that imports Plotly (its partial "basic" bundle: scatter only).
+ * It adapts Plotly to `PlotBackend`; nothing else in the app calls Plotly directly.
+ */
+import Plotly from "plotly.js-basic-dist-min";
+import type { PlotBackend } from "./plotting";
+
+function ignore(promise: Promise<unknown>): void {
+  // Plotly's promises reject only when the element was purged meanwhile: nothing to do.
+  promise.catch(() => undefined);
+}
+
+export const plotlyBackend: PlotBackend = {
+  newPlot(el, data, layout, config) {
+    ignore(Plotly.newPlot(el, data as never, layout as never, config as never));
+  },
+  react(el, data, layout, config) {
+    ignore(Plotly.react(el, data as never, layout as never, config as never));
+  },
+  extendTraces(el, update, indices, maxPoints) {
+    ignore(Plotly.extendTraces(el, update, indices, maxPoints));
+  },
+  restyle(el, update, indices) {
+    ignore(Plotly.restyle(el, update as never, indices));
+  },
+  purge(el) {
+    Plotly.purge(el);
+  },
+};

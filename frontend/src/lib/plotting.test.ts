@@ -1,0 +1,159 @@
+import { describe, expect, it } from "vitest";
+import { LivePlot, PlotCoordinator, type FrameScheduler, type PlotBackend } from "./plotting";
+import { ChannelMap, JOINT_PLOTS, TCP_PLOTS, axisTitle, tracesOf } from "./plots";
+import { SampleRing } from "./ringBuffer";
+
+type Call = { op: string; args: unknown[] };
+
+function fakeBackend(): PlotBackend & { calls: Call[] } {
+  const calls: Call[] = [];
+  const rec = (op: string) => (...args: unknown[]) => {
+    calls.push({ op, args });
+  };
+  return {
+    calls,
+    newPlot: rec("newPlot"),
+    react: rec("react"),
+    extendTraces: rec("extendTraces"),
+    restyle: rec("restyle"),
+    purge: rec("purge"),
+  };
+}
+
+function fakeElement(): HTMLElement {
+  return { dataset: {} } as unknown as HTMLElement;
+}
+
+const spec = JOINT_PLOTS[0]!;
+
+function setup() {
+  const channels = new ChannelMap([spec]);
+  const ring = new SampleRing(4096, channels.channelCount);
+  const backend = fakeBackend();
+  const plot = new LivePlot(spec, ring, channels, backend, { window_ms: 10_000, theme: "light", readOnly: false });
+  const el = fakeElement();
+  plot.mount(el);
+  const push = (t_ms: number) => ring.push(t_ms, [1, 2, 3, 4, 5, 6]);
+  return { ring, backend, plot, el, push };
+}
+
+describe("plot definitions", () => {
+  it("name traces by the layout's channels and put the layout's units on the axes", () => {
+    expect(tracesOf(spec).map((t) => t.name)).toEqual(["J 1", "J 2", "J 3", "J 4", "J 5", "J 6"]);
+    expect(axisTitle(spec.series[0]!)).toBe("position [degree]");
+    const velocity = TCP_PLOTS.find((p) => p.id === "plot-tcp-velocity")!;
+    expect(velocity.series.map(axisTitle)).toEqual(["linear [mm/s]", "angular [degree/s]"]);
+    expect(tracesOf(velocity)).toHaveLength(6);
+  });
+});
+
+describe("LivePlot", () => {
+  it("creates the plot once, then appends with extendTraces and trims to the window", () => {
+    const { backend, plot, el, push } = setup();
+    expect(backend.calls.map((c) => c.op)).toEqual(["newPlot"]);
+    plot.update(0); // first update: build from the (empty) ring
+    expect(backend.calls.at(-1)?.op).toBe("react");
+    for (let t = 0; t < 1000; t += 10) push(1_000_000 + t);
+    expect(plot.update(1)).toBe(true);
+    const extend = backend.calls.at(-1)!;
+    expect(extend.op).toBe("extendTraces");
+    const [, update, indices, maxPoints] = extend.args as [unknown, { x: unknown[][] }, number[], number];
+    expect(indices).toEqual([0, 1, 2, 3, 4, 5]);
+    expect(maxPoints).toBe(plot.maxPoints);
+    expect(update.x).toHaveLength(6);
+    expect(Number(el.dataset.points)).toBeGreaterThan(0);
+    expect(backend.calls.filter((c) => c.op === "newPlot")).toHaveLength(1);
+    // Nothing new: no Plotly call.
+    const n = backend.calls.length;
+    expect(plot.update(2)).toBe(false);
+    expect(backend.calls).toHaveLength(n);
+  });
+
+  it("keeps buffering while paused and redraws the whole window on resume", () => {
+    const { backend, plot, el, push, ring } = setup();
+    plot.update(0);
+    plot.setPaused(true);
+    expect(el.dataset.paused).toBe("true");
+    for (let t = 0; t < 5000; t += 10) push(2_000_000 + t);
+    expect(plot.hasWork()).toBe(false);
+    expect(plot.update(1)).toBe(false);
+    expect(ring.size).toBe(500);
+    plot.setPaused(false);
+    plot.update(2);
+    const last = backend.calls.at(-1)!;
+    expect(last.op).toBe("react");
+    const data = last.args[1] as { x: number[] }[];
+    expect(data[0]!.x.length).toBeGreaterThan(300);
+  });
+
+  it("a new window rebuilds with a new uirevision; data alone keeps the zoom's uirevision", () => {
+    const { backend, plot, push } = setup();
+    plot.update(0);
+    const rev0 = (backend.calls.at(-1)!.args[2] as { uirevision: string }).uirevision;
+    push(1);
+    push(5000);
+    plot.update(1);
+    expect(backend.calls.at(-1)!.op).toBe("extendTraces");
+    plot.setWindow(30_000);
+    plot.update(2);
+    const rev1 = (backend.calls.at(-1)!.args[2] as { uirevision: string }).uirevision;
+    expect(rev1).not.toBe(rev0);
+  });
+
+  it("rebuilds when it fell behind the ring", () => {
+    const { backend, plot, push } = setup();
+    plot.update(0);
+    for (let t = 0; t < 5000 * 10; t += 10) push(t);
+    plot.update(1);
+    expect(backend.calls.at(-1)!.op).toBe("react");
+  });
+
+  it("signal picking restyles one trace", () => {
+    const { backend, plot } = setup();
+    plot.setTraceVisible(3, false);
+    expect(backend.calls.at(-1)).toEqual({ op: "restyle", args: [expect.anything(), { visible: false }, [3]] });
+    expect(plot.isTraceVisible(3)).toBe(false);
+  });
+});
+
+describe("PlotCoordinator", () => {
+  it("updates plots round-robin within a budget per animation frame", () => {
+    let now = 0;
+    const scheduler: FrameScheduler = { now: () => now, request: () => 1, cancel: () => undefined };
+    const coordinator = new PlotCoordinator(scheduler);
+    coordinator.budget_ms = 10;
+    const plots = [setup(), setup(), setup()];
+    for (const p of plots) {
+      coordinator.add(p.plot);
+      // each update "costs" 6 ms
+      const original = p.plot.update.bind(p.plot);
+      p.plot.update = (t: number) => {
+        now += 6;
+        return original(t);
+      };
+    }
+    coordinator.tick(); // 2 plots fit in 10 ms (6 + 6 ≥ 10 stops after the second)
+    expect(plots.map((p) => p.plot.updates)).toEqual([1, 1, 0]);
+    coordinator.tick();
+    expect(plots.map((p) => p.plot.updates)).toEqual([1, 1, 1]);
+  });
+
+  it("refreshes plots out of view about once a second", () => {
+    let now = 0;
+    const scheduler: FrameScheduler = { now: () => now, request: () => 1, cancel: () => undefined };
+    const coordinator = new PlotCoordinator(scheduler);
+    const p = setup();
+    p.plot.onScreen = false;
+    coordinator.add(p.plot);
+    coordinator.tick();
+    expect(p.plot.updates).toBe(1);
+    p.push(1000);
+    p.push(2000);
+    now = 500;
+    coordinator.tick();
+    expect(p.plot.updates).toBe(1);
+    now = 1001;
+    coordinator.tick();
+    expect(p.plot.updates).toBe(2);
+  });
+});

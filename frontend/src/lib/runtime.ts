@@ -1,0 +1,45 @@
+/**
+ * Layer: wiring of the live pipeline for one page (plain TypeScript, no React):
+ * WebSocket (StreamClient) → LiveData (ring buffer + snapshot) → PlotCoordinator (rAF tick).
+ */
+import { LiveData } from "./liveData";
+import { PlotCoordinator } from "./plotting";
+import type { PlotSpec } from "./plots";
+import { StreamClient, streamUrl } from "./stream";
+
+export interface LiveRuntime {
+  readonly live: LiveData;
+  readonly stream: StreamClient;
+  readonly coordinator: PlotCoordinator;
+  start(): void;
+  stop(): void;
+}
+
+export interface RuntimeOptions {
+  /** Frames per second wanted from the backend; undefined: every frame. */
+  readonly rate_hz?: number;
+}
+
+export function createLiveRuntime(plots: readonly PlotSpec[], options: RuntimeOptions = {}): LiveRuntime {
+  const live = new LiveData(plots);
+  const stream = new StreamClient(() => streamUrl(window.location, options.rate_hz), {
+    onMessage: (m) => live.handle(m),
+    onSocketState: (s) => live.setSocketState(s),
+  });
+  const coordinator = new PlotCoordinator();
+  return {
+    live,
+    stream,
+    coordinator,
+    start() {
+      live.start();
+      stream.start();
+      coordinator.start();
+    },
+    stop() {
+      coordinator.stop();
+      stream.stop();
+      live.stop();
+    },
+  };
+}

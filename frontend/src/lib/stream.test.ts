@@ -1,0 +1,155 @@
+import { afterEach, beforeEach, describe, expect, it, vi } from "vitest";
+import type { SocketState } from "./health";
+import type { ServerMessage } from "./protocol";
+import { StreamClient, streamUrl, type SocketLike } from "./stream";
+
+class FakeSocket implements SocketLike {
+  onopen: ((ev: unknown) => void) | null = null;
+  onmessage: ((ev: { data: unknown }) => void) | null = null;
+  onclose: ((ev: { code?: number; reason?: string }) => void) | null = null;
+  onerror: ((ev: unknown) => void) | null = null;
+  closed = false;
+  constructor(readonly url: string) {}
+  close(): void {
+    this.closed = true;
+  }
+  open(): void {
+    this.onopen?.({});
+  }
+  send(message: object | string): void {
+    this.onmessage?.({ data: typeof message === "string" ? message : JSON.stringify(message) });
+  }
+  drop(): void {
+    this.onclose?.({ code: 1006 });
+  }
+}
+
+const hello = {
+  type: "hello",
+  layout_version: 1,
+  connection: { state: "connected" },
+  control: { holder: null },
+  rate_hz: null,
+};
+
+function setup(random = () => 0) {
+  const sockets: FakeSocket[] = [];
+  const states: SocketState[] = [];
+  const messages: ServerMessage[] = [];
+  const client = new StreamClient(
+    () => "ws://h/api/v1/stream",
+    { onMessage: (m) => messages.push(m), onSocketState: (s) => states.push(s) },
+    {
+      backoff: { initial_ms: 100, max_ms: 1000, factor: 2, jitter: 0.5 },
+      random,
+      silenceTimeout_ms: 3000,
+      socketFactory: (url) => {
+        const s = new FakeSocket(url);
+        sockets.push(s);
+        return s;
+      },
+    },
+  );
+  return { client, sockets, states, messages };
+}
+
+describe("StreamClient", () => {
+  beforeEach(() => {
+    vi.useFakeTimers();
+  });
+  afterEach(() => {
+    vi.useRealTimers();
+  });
+
+  it("builds the stream URL of the page's origin", () => {
+    expect(streamUrl({ protocol: "http:", host: "h:8000" })).toBe("ws://h:8000/api/v1/stream");
+    expect(streamUrl({ protocol: "https:", host: "h" }, 20)).toBe("wss://h/api/v1/stream?rate=20");
+  });
+
+  it("parses messages and skips bad ones without stopping", () => {
+    const { client, sockets, messages } = setup();
+    client.start();
+    const s = sockets[0] as FakeSocket;
+    s.open();
+    s.send(hello);
+    s.send("{not json");
+    s.send({ type: "frames", frames: "nope" });
+    s.send({ type: "dropped", count: 3 });
+    expect(messages.map((m) => m.type)).toEqual(["hello", "dropped"]);
+    expect(client.badMessages).toBe(2);
+    client.stop();
+  });
+
+  it("reconnects after a close with growing, jittered delays, and resets after a hello", () => {
+    const { client, sockets, states } = setup(() => 0);
+    client.start();
+    (sockets[0] as FakeSocket).drop();
+    expect(client.lastDelay_ms).toBe(100);
+    vi.advanceTimersByTime(99);
+    expect(sockets).toHaveLength(1);
+    vi.advanceTimersByTime(1);
+    expect(sockets).toHaveLength(2);
+    (sockets[1] as FakeSocket).drop();
+    expect(client.lastDelay_ms).toBe(200);
+    vi.advanceTimersByTime(200);
+    (sockets[2] as FakeSocket).drop();
+    expect(client.lastDelay_ms).toBe(400);
+    vi.advanceTimersByTime(400);
+    const s3 = sockets[3] as FakeSocket;
+    s3.open();
+    s3.send(hello);
+    s3.drop();
+    expect(client.lastDelay_ms).toBe(100);
+    expect(client.reconnects).toBe(3);
+    expect(states).toContain("open");
+    expect(states.at(-1)).toBe("closed");
+    client.stop();
+  });
+
+  it("applies jitter from the random source", () => {
+    const { client, sockets } = setup(() => 1);
+    client.start();
+    (sockets[0] as FakeSocket).drop();
+    expect(client.lastDelay_ms).toBe(50);
+    client.stop();
+  });
+
+  it("closes a silent socket and reconnects", () => {
+    const { client, sockets } = setup();
+    client.start();
+    const s = sockets[0] as FakeSocket;
+    s.open();
+    s.send(hello);
+    vi.advanceTimersByTime(2999);
+    expect(s.closed).toBe(false);
+    vi.advanceTimersByTime(1);
+    expect(s.closed).toBe(true);
+    vi.advanceTimersByTime(100);
+    expect(sockets).toHaveLength(2);
+    // The old socket's late close is ignored (no second retry).
+    s.drop();
+    vi.advanceTimersByTime(10_000);
+    expect(sockets).toHaveLength(2);
+    client.stop();
+  });
+
+  it("stops for good: no reconnect after stop", () => {
+    const { client, sockets } = setup();
+    client.start();
+    client.stop();
+    (sockets[0] as FakeSocket).drop();
+    vi.advanceTimersByTime(60_000);
+    expect(sockets).toHaveLength(1);
+    expect(vi.getTimerCount()).toBe(0);
+  });
+
+  it("restart opens a fresh socket at once", () => {
+    const { client, sockets } = setup();
+    client.start();
+    (sockets[0] as FakeSocket).open();
+    client.restart();
+    expect((sockets[0] as FakeSocket).closed).toBe(true);
+    expect(sockets).toHaveLength(2);
+    client.stop();
+  });
+});

@@ -1,0 +1,188 @@
+/**
+ * Layer: the WebSocket client of `WS /api/v1/stream` (plain TypeScript, no React).
+ *
+ * Connects, parses messages (bad ones are counted and skipped), and reconnects by itself with
+ * exponential backoff and jitter after any close. A watchdog closes a socket that has been
+ * silent for too long (the backend sends a status about once a second), so a half-open TCP
+ * connection of a kiosk left running for days does not freeze the display silently.
+ * Must not import React or any component.
+ */
+import { Backoff, DEFAULT_BACKOFF, type BackoffOptions } from "./backoff";
+import type { SocketState } from "./health";
+import { parseServerMessage, type ServerMessage } from "./protocol";
+
+/** The part of the browser's WebSocket this client uses (a test passes its own). */
+export interface SocketLike {
+  onopen: ((ev: unknown) => void) | null;
+  onmessage: ((ev: { data: unknown }) => void) | null;
+  onclose: ((ev: { code?: number; reason?: string }) => void) | null;
+  onerror: ((ev: unknown) => void) | null;
+  close(code?: number, reason?: string): void;
+}
+
+export type SocketFactory = (url: string) => SocketLike;
+
+export interface StreamCallbacks {
+  onMessage(message: ServerMessage): void;
+  onSocketState(state: SocketState): void;
+  onBadMessage?(): void;
+}
+
+export interface StreamOptions {
+  readonly backoff?: BackoffOptions;
+  readonly random?: () => number;
+  /** Close and reconnect when no message came for this long. */
+  readonly silenceTimeout_ms?: number;
+  readonly socketFactory?: SocketFactory;
+}
+
+export const DEFAULT_SILENCE_TIMEOUT_MS = 5000;
+
+/** ws(s)://host/api/v1/stream[?rate=HZ] for the page's own origin. */
+export function streamUrl(location: { protocol: string; host: string }, rate_hz?: number): string {
+  const scheme = location.protocol === "https:" ? "wss" : "ws";
+  const query = rate_hz === undefined ? "" : `?rate=${encodeURIComponent(String(rate_hz))}`;
+  return `${scheme}://${location.host}/api/v1/stream${query}`;
+}
+
+export class StreamClient {
+  private readonly url: () => string;
+  private readonly callbacks: StreamCallbacks;
+  private readonly backoff: Backoff;
+  private readonly silenceTimeout_ms: number;
+  private readonly factory: SocketFactory;
+  private socket: SocketLike | null = null;
+  private retryTimer: ReturnType<typeof setTimeout> | null = null;
+  private silenceTimer: ReturnType<typeof setTimeout> | null = null;
+  private running = false;
+  /** Number of connection attempts after the first. */
+  reconnects = 0;
+  badMessages = 0;
+  /** The delay chosen for the pending retry, for display and tests. */
+  lastDelay_ms: number | null = null;
+
+  constructor(url: () => string, callbacks: StreamCallbacks, options: StreamOptions = {}) {
+    this.url = url;
+    this.callbacks = callbacks;
+    this.backoff = new Backoff(options.backoff ?? DEFAULT_BACKOFF, options.random);
+    this.silenceTimeout_ms = options.silenceTimeout_ms ?? DEFAULT_SILENCE_TIMEOUT_MS;
+    this.factory =
+      options.socketFactory ?? ((u: string) => new WebSocket(u) as unknown as SocketLike);
+  }
+
+  start(): void {
+    if (this.running) return;
+    this.running = true;
+    this.connect();
+  }
+
+  stop(): void {
+    this.running = false;
+    this.clearTimers();
+    this.dropSocket();
+    this.callbacks.onSocketState("closed");
+  }
+
+  /** Reconnect now (e.g. after a login, so the new socket carries the session). */
+  restart(): void {
+    if (!this.running) return;
+    this.clearTimers();
+    this.dropSocket();
+    this.backoff.reset();
+    this.connect();
+  }
+
+  private connect(): void {
+    this.callbacks.onSocketState("connecting");
+    let socket: SocketLike;
+    try {
+      socket = this.factory(this.url());
+    } catch {
+      this.scheduleRetry();
+      return;
+    }
+    this.socket = socket;
+    socket.onopen = () => {
+      if (this.socket !== socket) return;
+      this.callbacks.onSocketState("open");
+      this.armSilence();
+    };
+    socket.onmessage = (ev) => {
+      if (this.socket !== socket) return;
+      this.armSilence();
+      const message = typeof ev.data === "string" ? parseServerMessage(ev.data) : null;
+      if (message === null) {
+        this.badMessages++;
+        this.callbacks.onBadMessage?.();
+        return;
+      }
+      // Only a hello proves the service answers: a socket that opens and closes at once
+      // (a proxy without a backend) keeps backing off.
+      if (message.type === "hello") this.backoff.reset();
+      this.callbacks.onMessage(message);
+    };
+    socket.onerror = () => {
+      // onclose follows; nothing to do here.
+    };
+    socket.onclose = () => {
+      if (this.socket !== socket) return;
+      this.socket = null;
+      this.clearSilence();
+      this.callbacks.onSocketState("closed");
+      this.scheduleRetry();
+    };
+  }
+
+  private scheduleRetry(): void {
+    if (!this.running || this.retryTimer !== null) return;
+    const delay = this.backoff.next_ms();
+    this.lastDelay_ms = delay;
+    this.retryTimer = setTimeout(() => {
+      this.retryTimer = null;
+      if (!this.running) return;
+      this.reconnects++;
+      this.connect();
+    }, delay);
+  }
+
+  private armSilence(): void {
+    this.clearSilence();
+    this.silenceTimer = setTimeout(() => {
+      this.silenceTimer = null;
+      const socket = this.socket;
+      if (socket === null) return;
+      // Treat a silent socket as closed: forget it first so its late onclose is ignored.
+      this.socket = null;
+      try {
+        socket.close(4000, "silent");
+      } catch {
+        // already closed
+      }
+      this.callbacks.onSocketState("closed");
+      this.scheduleRetry();
+    }, this.silenceTimeout_ms);
+  }
+
+  private clearSilence(): void {
+    if (this.silenceTimer !== null) clearTimeout(this.silenceTimer);
+    this.silenceTimer = null;
+  }
+
+  private clearTimers(): void {
+    this.clearSilence();
+    if (this.retryTimer !== null) clearTimeout(this.retryTimer);
+    this.retryTimer = null;
+  }
+
+  private dropSocket(): void {
+    const socket = this.socket;
+    this.socket = null;
+    if (socket !== null) {
+      try {
+        socket.close(1000, "client");
+      } catch {
+        // already closed
+      }
+    }
+  }
+}

@@ -1,0 +1,238 @@
+/**
+ * Events and audit tables. Events: history from the API (operators) or the live stream (anyone),
+ * filtered by kind; audit: write attempts and control changes (operators), filtered by action.
+ * CSV export goes through the API.
+ */
+import { useEffect, useMemo, useState } from "react";
+import { auditCsvUrl, eventsCsvUrl, getAudit, getEvents } from "../lib/api";
+import { formatTimestamp } from "../lib/health";
+import { EVENT_KINDS, roleAtLeast, type AuditItem, type EventItem, type Page, type StreamEvent, type User } from "../lib/protocol";
+
+const PAGE = 100;
+
+interface Row {
+  readonly key: string;
+  readonly time: number;
+  readonly kind: string;
+  readonly data: Record<string, unknown>;
+}
+
+function describe(kind: string, data: Record<string, unknown>): string {
+  const s = (v: unknown) => (v === null || v === undefined ? "—" : typeof v === "object" ? JSON.stringify(v) : String(v));
+  switch (kind) {
+    case "robot_state":
+      return `${s(data.from_name ?? data.from)} → ${s(data.to_name ?? data.to)}`;
+    case "flag":
+      return `${s(data.flag)} = ${s(data.value)}`;
+    case "connection":
+      return `${s(data.state)}${data.reason ? `: ${s(data.reason)}` : ""}`;
+    case "control": {
+      const holder = data.holder as { user?: string } | null | undefined;
+      return `${holder?.user ?? "nobody"} holds control${data.reason ? ` (${s(data.reason)})` : ""}`;
+    }
+    case "write":
+      return `${s(data.user)}: ${s(data.fields)} → ${s(data.outcome)}${data.reason ? ` (${s(data.reason)})` : ""}`;
+    default:
+      return JSON.stringify(data);
+  }
+}
+
+function fromStream(e: StreamEvent, i: number): Row {
+  const { kind, time, ...data } = e;
+  return { key: `live-${time}-${i}`, time, kind, data };
+}
+
+function fromApi(item: EventItem): Row {
+  const data = typeof item.data === "object" && item.data !== null ? (item.data as Record<string, unknown>) : { value: item.data };
+  return { key: `api-${item.id}`, time: item.time, kind: item.kind, data };
+}
+
+export function EventsView({ user, liveEvents }: { readonly user: User | null; readonly liveEvents: readonly StreamEvent[] }) {
+  const [kind, setKind] = useState("");
+  const [history, setHistory] = useState<Page<EventItem> | null>(null);
+  const [error, setError] = useState<string | null>(null);
+  const canReadHistory = roleAtLeast(user, "operator");
+  const newest = liveEvents[0];
+
+  useEffect(() => {
+    if (!canReadHistory) {
+      setHistory(null);
+      return;
+    }
+    let cancelled = false;
+    // Refetch when the filter changes or a new event arrives (debounced).
+    const timer = setTimeout(() => {
+      getEvents(kind === "" ? null : kind, PAGE, 0)
+        .then((answer) => {
+          if (cancelled) return;
+          if (answer.status === 200) {
+            setHistory(answer.body as Page<EventItem>);
+            setError(null);
+          } else setError(`events: HTTP ${answer.status}`);
+        })
+        .catch((e: unknown) => !cancelled && setError(String(e)));
+    }, 300);
+    return () => {
+      cancelled = true;
+      clearTimeout(timer);
+    };
+  }, [canReadHistory, kind, newest]);
+
+  const rows: Row[] = useMemo(() => {
+    if (history !== null) return history.items.map(fromApi);
+    return liveEvents.filter((e) => kind === "" || e.kind === kind).map(fromStream);
+  }, [history, liveEvents, kind]);
+
+  return (
+    <div className="table-view">
+      <div className="table-view__bar">
+        <label>
+          kind{" "}
+          <select data-testid="events-kind-filter" value={kind} onChange={(e) => setKind(e.target.value)}>
+            <option value="">all</option>
+            {EVENT_KINDS.map((k) => (
+              <option key={k} value={k}>
+                {k}
+              </option>
+            ))}
+          </select>
+        </label>
+        <span className="table-view__source">
+          {history !== null ? `${history.total} in the log` : "live events since this page opened (log in as an operator for the history)"}
+        </span>
+        <a data-testid="events-csv" href={eventsCsvUrl(kind === "" ? null : kind)} download>
+          Export CSV
+        </a>
+        {error !== null && <span className="reason">{error}</span>}
+      </div>
+      <div className="table-scroll">
+        <table data-testid="events-table">
+          <thead>
+            <tr>
+              <th>time</th>
+              <th>kind</th>
+              <th>what</th>
+            </tr>
+          </thead>
+          <tbody>
+            {rows.map((row) => (
+              <tr key={row.key} data-kind={row.kind}>
+                <td className="nowrap">{formatTimestamp(row.time)}</td>
+                <td>{row.kind}</td>
+                <td>{describe(row.kind, row.data)}</td>
+              </tr>
+            ))}
+            {rows.length === 0 && (
+              <tr>
+                <td colSpan={3} className="empty">
+                  no events
+                </td>
+              </tr>
+            )}
+          </tbody>
+        </table>
+      </div>
+    </div>
+  );
+}
+
+function short(v: unknown): string {
+  if (v === null || v === undefined) return "";
+  return typeof v === "string" ? v : JSON.stringify(v);
+}
+
+export function AuditView({ user, liveEvents }: { readonly user: User | null; readonly liveEvents: readonly StreamEvent[] }) {
+  const [page, setPage] = useState<Page<AuditItem> | null>(null);
+  const [action, setAction] = useState("");
+  const [error, setError] = useState<string | null>(null);
+  const allowed = roleAtLeast(user, "operator");
+  const newestAudited = liveEvents.find((e) => e.kind === "write" || e.kind === "control");
+
+  useEffect(() => {
+    if (!allowed) {
+      setPage(null);
+      return;
+    }
+    let cancelled = false;
+    const timer = setTimeout(() => {
+      getAudit(PAGE, 0)
+        .then((answer) => {
+          if (cancelled) return;
+          if (answer.status === 200) {
+            setPage(answer.body as Page<AuditItem>);
+            setError(null);
+          } else setError(`audit: HTTP ${answer.status}`);
+        })
+        .catch((e: unknown) => !cancelled && setError(String(e)));
+    }, 300);
+    return () => {
+      cancelled = true;
+      clearTimeout(timer);
+    };
+  }, [allowed, newestAudited]);
+
+  if (!allowed) return <p className="hint">Log in as an operator to see the audit log.</p>;
+  const actions = [...new Set((page?.items ?? []).map((i) => i.action))].sort();
+  const items = (page?.items ?? []).filter((i) => action === "" || i.action === action);
+  return (
+    <div className="table-view">
+      <div className="table-view__bar">
+        <label>
+          action{" "}
+          <select data-testid="audit-action-filter" value={action} onChange={(e) => setAction(e.target.value)}>
+            <option value="">all</option>
+            {actions.map((a) => (
+              <option key={a} value={a}>
+                {a}
+              </option>
+            ))}
+          </select>
+        </label>
+        <span className="table-view__source">{page !== null ? `${page.total} in the log, newest ${PAGE} shown` : "loading…"}</span>
+        <a data-testid="audit-csv" href={auditCsvUrl()} download>
+          Export CSV
+        </a>
+        {error !== null && <span className="reason">{error}</span>}
+      </div>
+      <div className="table-scroll">
+        <table data-testid="audit-table">
+          <thead>
+            <tr>
+              <th>time</th>
+              <th>user</th>
+              <th>client</th>
+              <th>action</th>
+              <th>fields</th>
+              <th>before</th>
+              <th>requested</th>
+              <th>outcome</th>
+              <th>reason</th>
+            </tr>
+          </thead>
+          <tbody>
+            {items.map((i) => (
+              <tr key={i.id} data-action={i.action} data-outcome={i.outcome}>
+                <td className="nowrap">{formatTimestamp(i.time)}</td>
+                <td>{i.user ?? ""}</td>
+                <td>{i.client ?? ""}</td>
+                <td>{i.action}</td>
+                <td>{short(i.fields)}</td>
+                <td>{short(i.before)}</td>
+                <td>{short(i.requested)}</td>
+                <td>{i.outcome}</td>
+                <td>{i.reason ?? ""}</td>
+              </tr>
+            ))}
+            {items.length === 0 && (
+              <tr>
+                <td colSpan={9} className="empty">
+                  no entries
+                </td>
+              </tr>
+            )}
+          </tbody>
+        </table>
+      </div>
+    </div>
+  );
+}

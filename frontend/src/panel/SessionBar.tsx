@@ -1,0 +1,120 @@
+/** Login form, the logged-in user, and Take control / Release. */
+import { useState, type FormEvent } from "react";
+import { controlOf, errorReason, login, logout, releaseControl, takeControl } from "../lib/api";
+import { roleAtLeast, type ControlStatus, type User } from "../lib/protocol";
+
+interface Props {
+  readonly user: User | null;
+  readonly control: ControlStatus;
+  readonly onUser: (user: User | null) => void;
+  readonly onControl: (control: ControlStatus) => void;
+}
+
+export function SessionBar({ user, control, onUser, onControl }: Props) {
+  const [username, setUsername] = useState("");
+  const [password, setPassword] = useState("");
+  const [busy, setBusy] = useState(false);
+  const [loginError, setLoginError] = useState<string | null>(null);
+  const [controlError, setControlError] = useState<string | null>(null);
+
+  const submit = async (e: FormEvent) => {
+    e.preventDefault();
+    setBusy(true);
+    setLoginError(null);
+    try {
+      const answer = await login(username, password);
+      if (answer.status === 200) {
+        setPassword("");
+        onUser((answer.body as { user: User }).user);
+      } else {
+        setLoginError(answer.status === 401 ? "wrong user name or password" : errorReason(answer));
+      }
+    } catch (error) {
+      setLoginError(error instanceof Error ? error.message : String(error));
+    } finally {
+      setBusy(false);
+    }
+  };
+
+  const controlAction = async (action: () => ReturnType<typeof takeControl>) => {
+    setBusy(true);
+    setControlError(null);
+    try {
+      const answer = await action();
+      const status = controlOf(answer);
+      if (status !== null) onControl(status);
+      else setControlError(errorReason(answer));
+    } catch (error) {
+      setControlError(error instanceof Error ? error.message : String(error));
+    } finally {
+      setBusy(false);
+    }
+  };
+
+  if (user === null) {
+    return (
+      <form className="session session--login" onSubmit={(e) => void submit(e)} aria-label="Operator login">
+        <input
+          aria-label="User name"
+          placeholder="user"
+          autoComplete="username"
+          data-testid="login-username"
+          value={username}
+          onChange={(e) => setUsername(e.target.value)}
+        />
+        <input
+          aria-label="Password"
+          placeholder="password"
+          type="password"
+          autoComplete="current-password"
+          data-testid="login-password"
+          value={password}
+          onChange={(e) => setPassword(e.target.value)}
+        />
+        <button type="submit" data-testid="login-submit" disabled={busy || username === ""}>
+          Log in
+        </button>
+        {loginError !== null && (
+          <span className="reason" data-testid="login-error" role="alert">
+            {loginError}
+          </span>
+        )}
+      </form>
+    );
+  }
+
+  const holding = control.holder?.user === user.name;
+  const operator = roleAtLeast(user, "operator");
+  return (
+    <div className="session">
+      <span className="session__user" data-testid="current-user" data-role={user.role}>
+        {user.name} <span className="session__role">({user.role})</span>
+      </span>
+      {operator && !holding && (
+        <button type="button" className="primary" data-testid="take-control" disabled={busy} onClick={() => void controlAction(takeControl)}>
+          Take control
+        </button>
+      )}
+      {holding && (
+        <button type="button" data-testid="release-control" disabled={busy} onClick={() => void controlAction(releaseControl)}>
+          Release
+        </button>
+      )}
+      <button
+        type="button"
+        data-testid="logout"
+        disabled={busy}
+        onClick={() => {
+          void logout().finally(() => onUser(null));
+        }}
+      >
+        Log out
+      </button>
+      {controlError !== null && (
+        <span className="reason" data-testid="control-error" role="alert">
+          {controlError}
+        </span>
+      )}
+    </div>
+  );
+}

@@ -1,0 +1,163 @@
+/**
+ * Layer: React glue for writing (panel only; the kiosk never imports this).
+ *
+ * Holds the logged-in user, the command image being sent (polled from the API), the write
+ * tracker, the "confirm register writes" setting and the confirmation dialog, and decides
+ * whether writing is possible at all (operator role, control held, live connection, not
+ * read-only) — with the reason shown when it is not.
+ */
+import { createContext, useCallback, useContext, useEffect, useMemo, useRef, useState, useSyncExternalStore, type ReactNode } from "react";
+import type { CommandPatch } from "../generated/layout";
+import { getCommand, patchCommand } from "../lib/api";
+import type { LiveSnapshot } from "../lib/liveData";
+import { roleAtLeast, type CommandState, type User } from "../lib/protocol";
+import { WriteTracker, performWrite, type WriteValue, type WriteView } from "../lib/writes";
+
+const CONFIRM_REGISTERS_KEY = "cobot-hmi.confirm-register-writes";
+const COMMAND_POLL_MS = 2000;
+
+export interface WriteApi {
+  readonly tracker: WriteTracker;
+  readonly user: User | null;
+  readonly canWrite: boolean;
+  readonly blockReason: string | null;
+  readonly command: CommandState | null;
+  readonly confirmRegisters: boolean;
+  setConfirmRegisters(on: boolean): void;
+  /** Ask (if `confirmMessage`), then PATCH `patch`, tracking `keys` ← `values`. */
+  write(keys: readonly string[], values: readonly WriteValue[], patch: CommandPatch, confirmMessage: string | null): Promise<void>;
+  refreshCommand(): void;
+}
+
+const WriteContext = createContext<WriteApi | null>(null);
+
+export function useWrites(): WriteApi {
+  const api = useContext(WriteContext);
+  if (api === null) throw new Error("WriteContext missing");
+  return api;
+}
+
+/** What a control shows for `key` given the robot's actual value; re-renders on write changes. */
+export function useWriteView(key: string, actual: WriteValue | null | undefined): WriteView {
+  const { tracker } = useWrites();
+  useSyncExternalStore(tracker.subscribe, tracker.getVersion);
+  return tracker.view(key, actual);
+}
+
+export function blockReasonOf(user: User | null, live: LiveSnapshot): string | null {
+  if (user === null) return "Log in as an operator to write.";
+  if (!roleAtLeast(user, "operator")) return `Your role (${user.role}) may not write.`;
+  if (live.control.holder?.user !== user.name) {
+    return live.control.holder === null ? "Take control to write." : `${live.control.holder.user} holds control.`;
+  }
+  if (live.connection?.mode === "input_only") return "Read-only: the HMI listens beside a PLC (input only).";
+  if (live.health !== "connected") return `Cannot write while ${live.health}.`;
+  return null;
+}
+
+interface ConfirmRequest {
+  readonly message: string;
+  readonly resolve: (ok: boolean) => void;
+}
+
+function readSetting(): boolean {
+  try {
+    return window.localStorage.getItem(CONFIRM_REGISTERS_KEY) !== "false";
+  } catch {
+    return true;
+  }
+}
+
+export function WriteProvider({ user, live, children }: { user: User | null; live: LiveSnapshot; children: ReactNode }) {
+  const tracker = useMemo(() => new WriteTracker(), []);
+  const [command, setCommand] = useState<CommandState | null>(null);
+  const [confirmRegisters, setConfirmRegistersState] = useState(readSetting);
+  const [confirm, setConfirm] = useState<ConfirmRequest | null>(null);
+  const alive = useRef(true);
+
+  const refreshCommand = useCallback(() => {
+    getCommand()
+      .then((c) => {
+        if (alive.current && c !== null) setCommand(c);
+      })
+      .catch(() => undefined);
+  }, []);
+
+  useEffect(() => {
+    alive.current = true;
+    refreshCommand();
+    const timer = setInterval(refreshCommand, COMMAND_POLL_MS);
+    return () => {
+      alive.current = false;
+      clearInterval(timer);
+    };
+  }, [refreshCommand]);
+
+  // Someone's write (ours or another operator's) changes the image: fetch it at once.
+  const newestEvent = live.events[0];
+  useEffect(() => {
+    if (newestEvent?.kind === "write" || newestEvent?.kind === "control") refreshCommand();
+  }, [newestEvent, refreshCommand]);
+
+  const setConfirmRegisters = useCallback((on: boolean) => {
+    setConfirmRegistersState(on);
+    try {
+      window.localStorage.setItem(CONFIRM_REGISTERS_KEY, on ? "true" : "false");
+    } catch {
+      // storage unavailable: the setting lasts for this page only
+    }
+  }, []);
+
+  const ask = useCallback(
+    (message: string) => new Promise<boolean>((resolve) => setConfirm({ message, resolve })),
+    [],
+  );
+
+  const write = useCallback(
+    async (keys: readonly string[], values: readonly WriteValue[], patch: CommandPatch, confirmMessage: string | null) => {
+      if (confirmMessage !== null && !(await ask(confirmMessage))) return;
+      await performWrite(tracker, keys, values, () => patchCommand(patch));
+      refreshCommand();
+    },
+    [ask, tracker, refreshCommand],
+  );
+
+  const blockReason = blockReasonOf(user, live);
+  const api: WriteApi = {
+    tracker,
+    user,
+    canWrite: blockReason === null,
+    blockReason,
+    command,
+    confirmRegisters,
+    setConfirmRegisters,
+    write,
+    refreshCommand,
+  };
+
+  const answer = (ok: boolean) => {
+    confirm?.resolve(ok);
+    setConfirm(null);
+  };
+
+  return (
+    <WriteContext.Provider value={api}>
+      {children}
+      {confirm !== null && (
+        <div className="dialog-backdrop">
+          <div className="dialog" role="alertdialog" aria-modal="true" aria-labelledby="confirm-text" data-testid="confirm-dialog">
+            <p id="confirm-text">{confirm.message}</p>
+            <div className="dialog__buttons">
+              <button type="button" data-testid="confirm-no" onClick={() => answer(false)}>
+                Cancel
+              </button>
+              <button type="button" className="primary" data-testid="confirm-yes" autoFocus onClick={() => answer(true)}>
+                Confirm
+              </button>
+            </div>
+          </div>
+        </div>
+      )}
+    </WriteContext.Provider>
+  );
+}
