@@ -422,7 +422,9 @@ class Originator:
         ]
         first_timeout_s = max(s.first_frame_timeout_s, self._timeout_s(self._link))
         waits: list[asyncio.Future[Any]] = [self._first_frame, self._lost]
-        done, _ = await asyncio.wait(waits, timeout=first_timeout_s)
+        done, _ = await asyncio.wait(
+            waits, timeout=first_timeout_s, return_when=asyncio.FIRST_COMPLETED
+        )
         if self._first_frame not in done:
             raise TimeoutError(
                 f"no T→O frame within {first_timeout_s:.1f} s of the Forward Open "
