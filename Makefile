@@ -9,7 +9,7 @@ PY := $(VENV)/bin/python
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: test demo lint typecheck pytest codegen venv clean system-deps
+.PHONY: test demo lint typecheck pytest codegen venv clean system-deps frontend-test frontend-build
 
 # Debian packages the tests use: tshark reads our captures, chromium runs the browser tests.
 # Installed only when missing (needs root, as on a fresh CI machine).
@@ -45,7 +45,20 @@ pytest: $(STAMP) system-deps
 	cd backend && status=0 && { ../$(BIN)/pytest $(PYTEST_ARGS) || status=$$?; } && \
 	  if [ $$status -eq 5 ]; then echo "pytest collected no tests: failing"; fi && exit $$status
 
-test: lint typecheck pytest
+test: lint typecheck pytest frontend-test
+
+# Frontend (Node >= 20.19 and npm): `npm ci` whenever package-lock.json is newer than the install.
+FRONTEND_STAMP := frontend/node_modules/.installed-stamp
+$(FRONTEND_STAMP): frontend/package-lock.json frontend/package.json
+	@command -v npm >/dev/null || { echo "npm missing: install Node.js >= 20.19"; exit 1; }
+	cd frontend && npm ci --no-audit --no-fund
+	touch $@
+
+frontend-test: $(FRONTEND_STAMP)
+	cd frontend && npm run --silent typecheck && npm test
+
+frontend-build: $(FRONTEND_STAMP)
+	cd frontend && npm run build
 
 codegen: $(STAMP)
 	$(BIN)/cobot-hmi codegen
