@@ -1,9 +1,175 @@
-"""Layer: entry point. The ``probe`` and ``scan`` verbs (originator side)."""
+"""Layer: entry point. The originator's verbs: ``probe`` (explicit reads through pycomm3) and
+``scan`` (a class 1 connection, one JSON line per frame or per second). Imports the scanner
+lazily, inside the handlers."""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+from collections.abc import Callable
+
+
+def _int_list(count: int, what: str) -> Callable[[str], tuple[int, ...]]:
+    def parse(text: str) -> tuple[int, ...]:
+        try:
+            values = tuple(int(part) for part in text.split(","))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {what}") from None
+        if len(values) != count or any(v < 0 for v in values):
+            raise argparse.ArgumentTypeError(f"expected {what}")
+        return values
+
+    return parse
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    """The verbs arrive with the originator."""
+    probe = subparsers.add_parser(
+        "probe",
+        help="read a robot's identity, assembly sizes and one T→O frame explicitly",
+        description="Explicit reads (pycomm3): ListIdentity, assembly sizes, one T→O frame.",
+    )
+    probe.add_argument("host")
+    probe.add_argument("--port", type=int, default=44818, help="TCP port (default 44818)")
+    probe.add_argument("--o2t-instance", type=int, default=150)
+    probe.add_argument("--t2o-instance", type=int, default=100)
+    probe.set_defaults(handler=_probe)
+
+    scan = subparsers.add_parser(
+        "scan",
+        help="hold a class 1 connection and print the frames",
+        description=(
+            "Hold a class 1 connection (exclusive owner, idle; or --input-only) and print one "
+            "JSON line per frame, or per second with --stats, then a summary. Exit 0 if the "
+            "connection held, 2 if it was refused, 3 if it was lost or never came up."
+        ),
+    )
+    scan.add_argument("host")
+    scan.add_argument("--port", type=int, default=44818, help="TCP port (default 44818)")
+    scan.add_argument("--rpi-ms", type=float, default=10.0, help="RPI in ms (default 10)")
+    scan.add_argument("--seconds", type=float, default=None, help="stop after N s (else ^C)")
+    scan.add_argument("--input-only", action="store_true", help="read-only: never own outputs")
+    scan.add_argument(
+        "--instances",
+        type=_int_list(3, "cfg,o2t,t2o"),
+        default=(151, 150, 100),
+        metavar="CFG,O2T,T2O",
+        help="assembly instances (default 151,150,100)",
+    )
+    scan.add_argument(
+        "--sizes",
+        type=_int_list(2, "o2t,t2o"),
+        default=(20, 284),
+        metavar="O2T,T2O",
+        help="data sizes in bytes (default 20,284)",
+    )
+    scan.add_argument("--heartbeat-instance", type=int, default=198)
+    scan.add_argument("--multiplier", type=int, default=2, help="timeout multiplier (2: RPI×16)")
+    scan.add_argument("--large", action="store_true", help="use a Large Forward Open")
+    scan.add_argument("--stats", action="store_true", help="one line of statistics per second")
+    scan.add_argument("--local-host", default="0.0.0.0", help="local address (default all)")
+    scan.add_argument("--t2o-port", type=int, default=None, help="ask for T→O on this port")
+    scan.set_defaults(handler=_scan)
+
+
+def _probe(args: argparse.Namespace) -> int:
+    import sys
+
+    from cobot_hmi.codec import dumps, frame_to_json
+    from cobot_hmi.scanner.explicit import ExplicitError, probe
+
+    try:
+        result = probe(
+            args.host, args.port, o2t_instance=args.o2t_instance, t2o_instance=args.t2o_instance
+        )
+    except ExplicitError as error:
+        print(f"cobot-hmi probe: {error}", file=sys.stderr)
+        return 1
+    identity = {k: (v.hex() if isinstance(v, bytes) else v) for k, v in result.identity.items()}
+    out: dict[str, object] = {
+        "identity": identity,
+        "assembly_sizes": {
+            str(args.o2t_instance): result.o2t_size,
+            str(args.t2o_instance): result.t2o_size,
+        },
+        "t2o_frame": frame_to_json(result.frame) if result.frame is not None else None,
+    }
+    if result.frame_error:
+        out["t2o_frame_error"] = result.frame_error
+        out["t2o_raw"] = result.t2o_data.hex()
+    sys.stdout.write(dumps(out).decode() + "\n")
+    return 0 if result.frame is not None else 1
+
+
+def _scan(args: argparse.Namespace) -> int:
+    import asyncio
+    import signal
+    import sys
+    import time
+    from dataclasses import asdict
+
+    from cobot_hmi.codec import Frame, dumps, frame_to_json
+    from cobot_hmi.eventloop import precise_event_loop
+    from cobot_hmi.scanner.originator import ConnectionState, Originator, OriginatorSettings
+
+    cfg, o2t, t2o = args.instances
+    o2t_size, t2o_size = args.sizes
+    settings = OriginatorSettings(
+        robot_host=args.host,
+        tcp_port=args.port,
+        local_host=args.local_host,
+        rpi_us=round(args.rpi_ms * 1000),
+        timeout_multiplier=args.multiplier,
+        input_only=args.input_only,
+        large_forward_open=args.large,
+        config_instance=cfg,
+        o2t_instance=o2t,
+        t2o_instance=t2o,
+        heartbeat_instance=args.heartbeat_instance,
+        o2t_size=o2t_size,
+        t2o_size=t2o_size,
+        request_t2o_port=args.t2o_port,
+    )
+    out = sys.stdout
+    seen: set[ConnectionState] = set()
+
+    def on_frame(frame: Frame, received_at: float, seq: int) -> None:
+        if not args.stats:
+            line = {"seq": seq, "received_at": received_at, "frame": frame_to_json(frame)}
+            out.write(dumps(line).decode() + "\n")
+
+    def on_state(state: ConnectionState, reason: str | None) -> None:
+        seen.add(state)
+        print(f"cobot-hmi scan: {state}{': ' + reason if reason else ''}", file=sys.stderr)
+
+    async def run() -> int:
+        originator = Originator(settings, on_frame=on_frame, on_state=on_state)
+        stop = asyncio.Event()
+        loop = asyncio.get_running_loop()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            loop.add_signal_handler(sig, stop.set)
+        end = loop.time() + args.seconds if args.seconds is not None else None
+        await originator.start()
+        try:
+            while not stop.is_set():
+                remaining = 1.0 if end is None else min(1.0, end - loop.time())
+                if remaining <= 0:
+                    break
+                with contextlib.suppress(TimeoutError):
+                    await asyncio.wait_for(stop.wait(), remaining)
+                if args.stats:
+                    stats = asdict(originator.stats())
+                    out.write(dumps({"t": time.time(), **stats}).decode() + "\n")
+                out.flush()
+            summary = asdict(originator.stats())
+        finally:
+            await originator.stop()
+        out.write(dumps({"summary": summary}).decode() + "\n")
+        out.flush()
+        if ConnectionState.REFUSED in seen:
+            return 2
+        if ConnectionState.LOST in seen or summary["state"] != ConnectionState.CONNECTED:
+            return 3
+        return 0
+
+    with asyncio.Runner(loop_factory=precise_event_loop) as runner:
+        return runner.run(run())
