@@ -8,6 +8,7 @@ connection, and the extended status (and expected size) of every refusal.
 from __future__ import annotations
 
 import asyncio
+from collections import deque
 from dataclasses import dataclass, field
 from enum import StrEnum
 
@@ -71,6 +72,11 @@ class IoConnection:
     packets_in: int = 0
     packets_out: int = 0
     duplicates: int = 0
+    o2t_gaps: int = 0
+    """O→T packets missing (CIP sequence count jumps), summed."""
+    last_o2t_at: float | None = None
+    o2t_intervals_ms: deque[float] = field(default_factory=lambda: deque(maxlen=16_384))
+    """Recent O→T arrival intervals (new data only), for the status API and the bench."""
     tasks: list[asyncio.Task[None]] = field(default_factory=list)
 
     @property

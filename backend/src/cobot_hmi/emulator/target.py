@@ -14,6 +14,7 @@ import asyncio
 import logging
 import random
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 from cobot_hmi.codec import CodecError, decode_command, encode_command, encode_frame
@@ -64,6 +65,12 @@ class ConnectionInfo:
     packets_in: int
     packets_out: int
     opened_at: float
+    o2t_gaps: int = 0
+    o2t_duplicates: int = 0
+    o2t_intervals: int = 0
+    o2t_interval_p50_ms: float | None = None
+    o2t_interval_p99_ms: float | None = None
+    o2t_interval_max_ms: float | None = None
 
 
 class _UdpEndpoint(asyncio.DatagramProtocol):
@@ -169,6 +176,9 @@ class Target:
                 c.packets_in,
                 c.packets_out,
                 c.opened_at,
+                c.o2t_gaps,
+                c.duplicates,
+                *_interval_figures(c.o2t_intervals_ms),
             )
             for c in self._by_o2t.values()
         ]
@@ -478,7 +488,16 @@ class Target:
             conn.duplicates += 1
             counters.udp_duplicates += 1
             return  # the same sequence count: no new data
+        last_cip = conn.last_o2t_cip_seq
+        if last_cip is not None:
+            ahead = io.seq16_newer(packet.cip_seq, last_cip)
+            if ahead > 1:
+                conn.o2t_gaps += ahead - 1
         conn.last_o2t_cip_seq = packet.cip_seq
+        now = conn.last_rx
+        if conn.last_o2t_at is not None:
+            conn.o2t_intervals_ms.append((now - conn.last_o2t_at) * 1e3)
+        conn.last_o2t_at = now
         run, command = io.split_run_idle(payload)
         if run:
             conn.run = True
@@ -489,6 +508,16 @@ class Target:
             conn.run = False
             conn.last_applied = None
             self.process_image.outputs_idle(time.time())
+
+
+def _interval_figures(
+    intervals_ms: Iterable[float],
+) -> tuple[int, float | None, float | None, float | None]:
+    values = sorted(intervals_ms)
+    n = len(values)
+    if not n:
+        return 0, None, None, None
+    return n, values[n // 2], values[min(n - 1, int(n * 0.99))], values[-1]
 
 
 __all__ = ["ConnectionInfo", "Target"]
