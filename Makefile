@@ -9,7 +9,7 @@ PY := $(VENV)/bin/python
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: test demo lint typecheck pytest codegen venv clean system-deps frontend-test frontend-build
+.PHONY: test demo lint typecheck pytest codegen venv clean system-deps frontend-test frontend-build peers
 
 # Debian packages the tests use: tshark reads our captures, chromium runs the browser tests.
 # Installed only when missing (needs root, as on a fresh CI machine).
@@ -41,11 +41,20 @@ typecheck: $(STAMP)
 	cd backend && ../$(BIN)/mypy
 
 # pytest exits 5 when it collected nothing: that is a failure here, never a pass.
-pytest: $(STAMP) system-deps
+pytest: $(STAMP) system-deps peers
 	cd backend && status=0 && { ../$(BIN)/pytest $(PYTEST_ARGS) || status=$$?; } && \
 	  if [ $$status -eq 5 ]; then echo "pytest collected no tests: failing"; fi && exit $$status
 
 test: lint typecheck pytest frontend-test
+
+# Independent EtherNet/IP peers from npm (st-ethernet-ip's IO.Scanner) for backend/tests.
+PEERS_STAMP := backend/tests/peers/node_modules/.installed-stamp
+$(PEERS_STAMP): backend/tests/peers/package-lock.json backend/tests/peers/package.json
+	@command -v npm >/dev/null || { echo "npm missing: install Node.js >= 20"; exit 1; }
+	cd backend/tests/peers && npm ci --no-audit --no-fund
+	touch $@
+
+peers: $(PEERS_STAMP)
 
 # Frontend (Node >= 20.19 and npm): `npm ci` whenever package-lock.json is newer than the install.
 FRONTEND_STAMP := frontend/node_modules/.installed-stamp
