@@ -35,6 +35,19 @@ describe("MinMaxBucketer", () => {
     expect(chunk?.xs[0]).toEqual([0, 437]);
   });
 
+  it("bridges a short silence with repeats of the next real sample (no gap drawn)", () => {
+    const b = new MinMaxBucketer([0], 10, 100, (t) => t, 100);
+    feedAll(b, [
+      [0, 1],
+      [40, 5], // 3 empty buckets (10, 20, 30) within 100 ms
+      [50, 6],
+    ]);
+    const chunk = b.take();
+    expect(chunk?.buckets).toBe(5);
+    expect(chunk?.ys[0]).toEqual([1, 1, 5, 5, 5, 5, 5, 5, 5, 5]);
+    expect(chunk?.xs[0]).toEqual([0, 0, 40, 40, 40, 40, 40, 40, 40, 40]);
+  });
+
   it("fills a gap with null pairs (a break in the line), capped", () => {
     const b = new MinMaxBucketer([0, 1], 10, 3);
     feedAll(b, [

@@ -5,8 +5,12 @@
  * edges do not move as data streams in), and every completed bucket becomes exactly two points
  * per trace, its minimum and its maximum in time order. Peaks survive however long the window,
  * the number of points per window is fixed (two per bucket), and so `extendTraces`' `maxPoints`
- * trims a trace to exactly the window. A bucket without a finite value gives two nulls, which
- * Plotly draws as a break in the line (a gap in the data is shown, never bridged).
+ * trims a trace to exactly the window. A real gap in the data (longer than `bridge_ms`, e.g. a
+ * lost connection) gives two nulls per empty bucket, which Plotly draws as a break in the line:
+ * it is shown, never bridged. A short one (a late packet, or a decimated stream slower than one
+ * sample per bucket) fills its empty buckets with repeats of the next real sample, so the line
+ * runs straight from one real sample to the next as it would without bucketing; no value or
+ * time is invented.
  */
 import type { SampleRing } from "./ringBuffer";
 
@@ -19,11 +23,15 @@ export interface TraceChunk {
 }
 
 export const POINTS_PER_BUCKET = 2;
+/** Silences up to this long are late packets or a decimated stream, not a gap to show. */
+export const DEFAULT_BRIDGE_MS = 100;
 
 export class MinMaxBucketer {
   readonly bucket_ms: number;
   private readonly channels: readonly number[];
   private readonly maxEmptyBuckets: number;
+  private readonly bridge_ms: number;
+  private lastTime_ms = Number.NaN;
   private readonly xOf: (time_ms: number) => number;
   private current: number | null = null;
   private readonly minV: Float64Array;
@@ -41,18 +49,21 @@ export class MinMaxBucketer {
    * @param maxEmptyBuckets at most this many empty buckets are emitted for one gap (a gap longer
    *   than the window need not be drawn point by point: it scrolls the window empty)
    * @param xOf maps a sample time to the plot's x value (e.g. a time-zone shift)
+   * @param bridge_ms a silence between two samples up to this long is not drawn as a gap
    */
   constructor(
     channels: readonly number[],
     bucket_ms: number,
     maxEmptyBuckets: number,
     xOf: (time_ms: number) => number = (t) => t,
+    bridge_ms = DEFAULT_BRIDGE_MS,
   ) {
     if (!(bucket_ms > 0)) throw new Error("bucket width must be > 0");
     this.channels = channels;
     this.bucket_ms = bucket_ms;
     this.maxEmptyBuckets = Math.max(0, Math.floor(maxEmptyBuckets));
     this.xOf = xOf;
+    this.bridge_ms = bridge_ms;
     const n = channels.length;
     this.minV = new Float64Array(n);
     this.minT = new Float64Array(n);
@@ -78,9 +89,14 @@ export class MinMaxBucketer {
     } else if (bucket > this.current) {
       this.emitCurrent();
       const empty = Math.min(bucket - this.current - 1, this.maxEmptyBuckets);
-      for (let k = empty; k >= 1; k--) this.emitEmpty(bucket - k);
+      if (empty > 0 && time_ms - this.lastTime_ms <= this.bridge_ms) {
+        for (let k = empty; k >= 1; k--) this.emitRepeat(time_ms, valueOf);
+      } else {
+        for (let k = empty; k >= 1; k--) this.emitEmpty(bucket - k);
+      }
       this.startBucket(bucket);
     }
+    this.lastTime_ms = time_ms;
     // A sample older than the open bucket (clock step back) joins the open bucket.
     for (let i = 0; i < this.channels.length; i++) {
       const v = valueOf(i);
@@ -141,6 +157,18 @@ export class MinMaxBucketer {
         xs.push(this.xOf(tMax), this.xOf(tMin));
         ys.push(vMax, vMin);
       }
+    }
+    this.buckets++;
+  }
+
+  /** An empty bucket inside a short silence: the next real sample, twice. */
+  private emitRepeat(time_ms: number, valueOf: (trace: number) => number): void {
+    const x = this.xOf(time_ms);
+    for (let i = 0; i < this.channels.length; i++) {
+      const v = valueOf(i);
+      const y = Number.isFinite(v) ? v : null;
+      (this.xs[i] as number[]).push(x, x);
+      (this.ys[i] as (number | null)[]).push(y, y);
     }
     this.buckets++;
   }

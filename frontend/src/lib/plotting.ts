@@ -241,7 +241,7 @@ export class LivePlot {
       plot_bgcolor: dark ? "#12161b" : "#ffffff",
       font: { color: fg, size: 11 },
       hovermode: this.options.readOnly ? false : "x",
-      xaxis: { type: "date", autorange: true, gridcolor: grid, tickformat: "%H:%M:%S" },
+      xaxis: { type: "date", autorange: true, gridcolor: grid },
       yaxis: {
         autorange: true,
         gridcolor: grid,
