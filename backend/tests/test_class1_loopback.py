@@ -28,6 +28,7 @@ from cobot_hmi.enip.connection_manager import (
     NetworkParams,
     decode_forward_open_reply,
 )
+from cobot_hmi.enip.identity import decode_attributes_all
 from cobot_hmi.enip.status import ExtendedStatus, GeneralStatus
 from cobot_hmi.scanner.originator import (
     ConnectionState,
@@ -356,6 +357,14 @@ async def test_explicit_services(
     try:
         identity = await session.list_identity()
         assert identity.product_name == target.identity.product_name
+        name = await session.get_attribute_single(1, 1, 7)
+        assert name.data == target.identity.encode_attribute(7)
+        everything, _ = await session.request(
+            MessageRouterRequest(Service.GET_ATTRIBUTES_ALL, epath.request_path(1, 1))
+        )
+        assert decode_attributes_all(everything.data) == target.identity
+        missing = await session.get_attribute_single(1, 1, 99)
+        assert missing.general_status == GeneralStatus.ATTRIBUTE_NOT_SUPPORTED
         size = await session.get_attribute_single(4, 100, 4)
         assert size.data == (284).to_bytes(2, "little")
         image = command_from_json({"bit_input_registers": {"63": True}})
