@@ -4,14 +4,17 @@ to the emulator on ``robot_host``; scenarios are driven through the emulator's c
 
 from __future__ import annotations
 
+import socket
 from collections.abc import AsyncIterator
 
 import pytest
 
 from cobot_hmi.codec import command_from_json
+from cobot_hmi.emulator.process_image import IdleBehaviour
 from cobot_hmi.emulator.robot import RobotSettings
 from cobot_hmi.generated.frames import Frame, RobotState
 from cobot_hmi.layout import ROBOT_STATES, RobotStateInfo
+from cobot_hmi.scanner.originator import Originator, OriginatorSettings
 from emulator_harness import (
     FAST_TIMINGS,
     Emulator,
@@ -231,3 +234,54 @@ async def test_outputs_follow_the_plc_while_in_run_and_hold_when_idle(emulator: 
 def test_state_table_is_complete() -> None:
     assert [info.value for info in ROBOT_STATES] == list(range(21))
     assert all(isinstance(info, RobotStateInfo) for info in ROBOT_STATES)
+
+
+def free_udp_port(host: str) -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind((host, 0))
+        port: int = s.getsockname()[1]
+        return port
+
+
+async def test_idle_behaviour_clear_when_the_owner_goes_idle_or_closes(
+    robot_host: str, plc_host: str
+) -> None:
+    settings = RobotSettings(timings=FAST_TIMINGS, idle_behaviour=IdleBehaviour.CLEAR)
+    async with running_emulator(robot_host, plc_host, settings) as emulator:
+        owner = await emulator.connect()
+        assert await owner.wait_connected(10)
+        command = command_from_json(
+            {"controlbox_do": {"2": True}, "analog_output": {"0": 9.0}}, base=owner.command
+        )
+        owner.set_command(command)
+        owner.set_run(True)
+        await emulator.frame_where(lambda f: f.controlbox_do[2])
+        # A second scanner that never owns the outputs watches what the robot does.
+        observer = Originator(
+            OriginatorSettings(
+                robot_host=robot_host,
+                tcp_port=emulator.target.tcp_port,
+                local_host=plc_host,
+                input_only=True,
+                request_t2o_port=free_udp_port(plc_host),
+            )
+        )
+        await observer.start()
+        try:
+            assert await observer.wait_connected(10)
+            await eventually(lambda: observer_frame(observer).controlbox_do[2])
+            owner.set_run(False)  # the owner goes idle: the outputs clear
+            await eventually(lambda: not observer_frame(observer).controlbox_do[2])
+            assert observer_frame(observer).analog_output == (0.0, 0.0)
+            owner.set_run(True)
+            await eventually(lambda: observer_frame(observer).controlbox_do[2])
+            await owner.stop()  # Forward Close: the outputs clear again
+            await eventually(lambda: not observer_frame(observer).controlbox_do[2])
+            assert emulator.robot.command_image() == command  # what the PLC last commanded
+        finally:
+            await observer.stop()
+
+
+def observer_frame(observer: Originator) -> Frame:
+    assert observer.latest is not None
+    return observer.latest[0]

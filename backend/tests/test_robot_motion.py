@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import itertools
 import math
+import random
 import statistics
 
 import pytest
 
 from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot, StateTimings
+from cobot_hmi.emulator.robot.dynamics import joint_torques
 from cobot_hmi.emulator.robot.kinematics import forward
 from cobot_hmi.emulator.robot.models import M0609, M1013, RobotModel
 from cobot_hmi.emulator.robot.trajectory import DEMO_STEPS, ProgramRunner, plan_move
@@ -155,6 +157,45 @@ def test_torque_is_gravity_at_rest_and_grows_with_acceleration() -> None:
         if f.joint_velocity[0] != 0.0
     )
     assert abs(frame.joint_torque[0]) > 1.0
+
+
+@pytest.mark.parametrize("model", [M1013, M0609], ids=lambda m: m.name)
+def test_torque_matches_a_body_by_body_sum(model: RobotModel) -> None:
+    """The moment-sum form of the model against the plain sum over every body beyond a joint."""
+    rng = random.Random(5)
+    g = 9.80665
+    for _ in range(50):
+        joints = [rng.uniform(-150, 150) for _ in range(6)]
+        velocity = [rng.uniform(-90, 90) for _ in range(6)]
+        acceleration = [rng.uniform(-300, 300) for _ in range(6)]
+        kin = forward(model, joints)
+        ours = joint_torques(model, kin, velocity, acceleration, payload_kg=2.0)
+        bodies = [
+            (
+                link.mass_kg,
+                [
+                    sum(f[4 * r + c] * link.com_m[c] for c in range(3)) + f[4 * r + 3]
+                    for r in range(3)
+                ],
+            )
+            for f, link in zip(kin.joint_frames, model.links, strict=True)
+        ] + [(2.0, [kin.tcp[3], kin.tcp[7], kin.tcp[11]])]
+        for i, (frame, spec) in enumerate(zip(kin.joint_frames, model.joints, strict=True)):
+            z = (frame[2], frame[6], frame[10])
+            p = (frame[3], frame[7], frame[11])
+            gravity = inertia = 0.0
+            for mass, centre in bodies[i:]:
+                r = [centre[k] - p[k] for k in range(3)]
+                # Torque of the weight (0, 0, −m·g) about the axis: z · (r × F).
+                gravity += z[0] * (r[1] * -mass * g) - z[1] * (r[0] * -mass * g)
+                along = sum(r[k] * z[k] for k in range(3))
+                inertia += mass * (sum(v * v for v in r) - along * along)
+            expected = (
+                -gravity
+                + (inertia + spec.reflected_inertia_kg_m2) * math.radians(acceleration[i])
+                + spec.viscous_friction_nm_s_deg * velocity[i]
+            )
+            assert ours[i] == pytest.approx(expected, rel=1e-9, abs=1e-9)
 
 
 def test_motor_temperature_rises_from_room_toward_a_load_level_and_cools_when_off() -> None:

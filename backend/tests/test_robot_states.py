@@ -16,6 +16,7 @@ from cobot_hmi.emulator.robot import (
     SimulatedRobot,
     StateTimings,
 )
+from cobot_hmi.emulator.robot.robot_io import parse_register_map
 from cobot_hmi.generated.frames import Frame, RobotState
 from cobot_hmi.layout import ROBOT_STATES, flag_fields
 
@@ -230,6 +231,16 @@ def test_register_mapping_is_a_setting() -> None:
     r.consume_command(zero_command()._replace(bit_input_registers=registers), 0.1)
     out = r.produce_frame(0.1).bit_output_registers
     assert [n for n, bit in enumerate(out) if bit] == [9]
+
+
+def test_register_map_from_text() -> None:
+    mapping = parse_register_map("0=1, 1=0,63=-")
+    assert mapping[:3] == (1, 0, 2)
+    assert mapping[63] is None
+    assert parse_register_map("") == tuple(range(64))
+    for bad in ("0", "x=1", "64=0", "0=64", "0=a"):
+        with pytest.raises(ValueError, match="register map"):
+            parse_register_map(bad)
 
 
 def test_di_1_follows_the_program_as_part_present() -> None:

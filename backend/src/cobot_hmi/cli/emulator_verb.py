@@ -16,6 +16,15 @@ def _rpi_range(text: str) -> tuple[int, int]:
     return low, high
 
 
+def _register_map(text: str) -> tuple[int | None, ...]:
+    from cobot_hmi.emulator.robot.robot_io import parse_register_map
+
+    try:
+        return parse_register_map(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     parser = subparsers.add_parser(
         "emulator",
@@ -65,6 +74,14 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         default=0.0,
         metavar="MS",
         help="refresh joint/TCP values every MS (100 as the real controller; default 0: always)",
+    )
+    robot.add_argument(
+        "--register-map",
+        type=_register_map,
+        default=None,
+        metavar="OUT=IN,...",
+        help="bit output register OUT copies bit input register IN (default: n copies n; "
+        "OUT=- keeps OUT off)",
     )
     robot.add_argument(
         "--control-port",
@@ -125,6 +142,7 @@ def _run(args: argparse.Namespace) -> int:
                 collaborative=args.collaborative,
                 idle_behaviour=idle,
                 kinematic_refresh_ms=args.kinematic_refresh_ms,
+                register_map=args.register_map,
             )
         )
         robot = simulated

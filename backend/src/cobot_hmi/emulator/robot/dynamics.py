@@ -16,7 +16,7 @@ import random
 from collections.abc import Sequence
 from typing import Final
 
-from cobot_hmi.emulator.robot.kinematics import Kinematics, Transform, axis_z, cross
+from cobot_hmi.emulator.robot.kinematics import Kinematics, Transform
 from cobot_hmi.emulator.robot.models import RobotModel, Vector3
 
 GRAVITY_M_S2: Final = 9.80665
@@ -38,31 +38,59 @@ def joint_torques(
     acceleration_deg_s2: Sequence[float],
     payload_kg: float = 0.0,
 ) -> tuple[float, ...]:
-    """Torque (N·m) each joint's motor gives to hold and move the arm as it is moving."""
-    masses = [link.mass_kg for link in model.links]
-    centres = [
-        _point_in_base(frame, link.com_m)
+    """Torque (N·m) each joint's motor gives to hold and move the arm as it is moving.
+
+    Joint i moves links i..6 and the payload. With suffix sums over those bodies of the mass M,
+    the first moment S = Σ m·c and the second moment Q = Σ m·c·cᵀ, the gravity torque about the
+    axis z through p is ``z · ((S − M·p) × (0, 0, −g))`` and the point masses' inertia about it
+    is ``Σ m·|c − p|² − Σ m·(z·(c − p))²``, both expanded so one pass over the bodies serves
+    every joint.
+    """
+    bodies: list[tuple[float, Vector3]] = [
+        (link.mass_kg, _point_in_base(frame, link.com_m))
         for frame, link in zip(kin.joint_frames, model.links, strict=True)
     ]
     if payload_kg > 0.0:
-        masses.append(payload_kg)
-        centres.append((kin.tcp[3], kin.tcp[7], kin.tcp[11]))
+        # The payload moves with the last link: fold it into link 6's sums.
+        bodies.append((payload_kg, (kin.tcp[3], kin.tcp[7], kin.tcp[11])))
+    count = len(model.joints)
+    mass = 0.0
+    sx = sy = sz = 0.0
+    qxx = qyy = qzz = qxy = qxz = qyz = 0.0
+    sums: list[tuple[float, ...]] = [()] * count
+    for i in range(len(bodies) - 1, -1, -1):
+        m, (cx, cy, cz) = bodies[i]
+        mass += m
+        sx, sy, sz = sx + m * cx, sy + m * cy, sz + m * cz
+        qxx, qyy, qzz = qxx + m * cx * cx, qyy + m * cy * cy, qzz + m * cz * cz
+        qxy, qxz, qyz = qxy + m * cx * cy, qxz + m * cx * cz, qyz + m * cy * cz
+        if i < count:
+            sums[i] = (mass, sx, sy, sz, qxx, qyy, qzz, qxy, qxz, qyz)
     torques: list[float] = []
     for i, (frame, spec) in enumerate(zip(kin.joint_frames, model.joints, strict=True)):
-        axis = axis_z(frame)
-        origin = (frame[3], frame[7], frame[11])
-        gravity_nm = 0.0
-        inertia_kg_m2 = spec.reflected_inertia_kg_m2
-        # Link i is the first the joint moves; the payload (index 6) moves with every joint.
-        for mass, centre in zip(masses[i:], centres[i:], strict=True):
-            r = (centre[0] - origin[0], centre[1] - origin[1], centre[2] - origin[2])
-            weight = (0.0, 0.0, -mass * GRAVITY_M_S2)
-            moment = cross(r, weight)
-            gravity_nm += axis[0] * moment[0] + axis[1] * moment[1] + axis[2] * moment[2]
-            along = r[0] * axis[0] + r[1] * axis[1] + r[2] * axis[2]
-            inertia_kg_m2 += mass * max(0.0, r[0] ** 2 + r[1] ** 2 + r[2] ** 2 - along * along)
+        mass, sx, sy, sz, qxx, qyy, qzz, qxy, qxz, qyz = sums[i]
+        zx, zy, zz = frame[2], frame[6], frame[10]
+        px, py, pz = frame[3], frame[7], frame[11]
+        # First moment about p: S − M·p; its cross product with (0, 0, −g), dotted with z.
+        rx, ry = sx - mass * px, sy - mass * py
+        gravity_nm = GRAVITY_M_S2 * (zx * ry - zy * rx)
+        # Σ m|c − p|² and Σ m(z·(c − p))² from the moments.
+        trace_q = qxx + qyy + qzz
+        s_dot_p = sx * px + sy * py + sz * pz
+        p_sq = px * px + py * py + pz * pz
+        radial = trace_q - 2.0 * s_dot_p + mass * p_sq
+        zqz = (
+            zx * zx * qxx
+            + zy * zy * qyy
+            + zz * zz * qzz
+            + 2.0 * (zx * zy * qxy + zx * zz * qxz + zy * zz * qyz)
+        )
+        z_dot_s = zx * sx + zy * sy + zz * sz
+        z_dot_p = zx * px + zy * py + zz * pz
+        axial = zqz - 2.0 * z_dot_p * z_dot_s + mass * z_dot_p * z_dot_p
+        inertia_kg_m2 = spec.reflected_inertia_kg_m2 + max(0.0, radial - axial)
         torques.append(
-            -gravity_nm
+            gravity_nm
             + inertia_kg_m2 * math.radians(acceleration_deg_s2[i])
             + spec.viscous_friction_nm_s_deg * velocity_deg_s[i]
         )

@@ -13,6 +13,7 @@ joints take a few microseconds this way, and the model needs no numeric library.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from typing import Final, NamedTuple
@@ -146,13 +147,16 @@ def forward(
     """Compose the chain base → link 1 → … → link 6 → tool."""
     frames: list[Transform] = []
     current = IDENTITY
-    for spec, q_deg in zip(model.joints, joints_deg, strict=True):
-        current = compose(
-            compose(current, from_rpy(spec.origin_xyz_m, spec.origin_rpy_rad)),
-            rot_z(math.radians(q_deg)),
-        )
+    for origin, q_deg in zip(_origins(model), joints_deg, strict=True):
+        current = compose(compose(current, origin), rot_z(math.radians(q_deg)))
         frames.append(current)
     return Kinematics(tuple(frames), compose(current, tool))
+
+
+@functools.cache
+def _origins(model: RobotModel) -> tuple[Transform, ...]:
+    """The model's constant joint-origin transforms, computed once."""
+    return tuple(from_rpy(spec.origin_xyz_m, spec.origin_rpy_rad) for spec in model.joints)
 
 
 def position_mm(t: Transform) -> Vector3:

@@ -52,6 +52,30 @@ def validate_register_map(register_map: Sequence[int | None]) -> tuple[int | Non
     return tuple(register_map)
 
 
+def parse_register_map(text: str) -> tuple[int | None, ...]:
+    """A register map from ``"OUT=IN,OUT=-"`` changes to the identity (``-``: always off).
+
+    ``"0=1,1=0,63=-"`` swaps registers 0 and 1 and switches output register 63 off; ``ValueError``
+    with a reason for anything else.
+    """
+    mapping: list[int | None] = list(identity_register_map())
+    for item in filter(None, (part.strip() for part in text.split(","))):
+        out_text, sep, in_text = item.partition("=")
+        if not sep or not out_text.strip().isdigit():
+            raise ValueError(f"register map: {item!r} is not OUT=IN or OUT=-")
+        out = int(out_text)
+        if out >= len(mapping):
+            raise ValueError(f"register map: no bit output register {out}")
+        source = in_text.strip()
+        if source == "-":
+            mapping[out] = None
+        elif source.isdigit():
+            mapping[out] = int(source)
+        else:
+            raise ValueError(f"register map: {item!r} is not OUT=IN or OUT=-")
+    return validate_register_map(mapping)
+
+
 def _checked_value(f: Field, where: str, value: object) -> bool | int | float:
     kind = f.value_kind
     if kind == "bool":
