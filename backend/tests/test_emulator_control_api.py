@@ -4,12 +4,16 @@ shows, and that a bad request gets a 4xx with a reason while nothing changes."""
 from __future__ import annotations
 
 import asyncio
+import signal
+import sys
 from collections.abc import AsyncIterator
 
+import httpx
 import pytest
 
 from cobot_hmi.codec import frame_from_json
 from cobot_hmi.generated.frames import RobotState
+from conftest import free_tcp_port
 from emulator_harness import Emulator, running_emulator
 
 SETTABLE = ("controlbox_di", "tool_di", "analog_input_type")
@@ -155,3 +159,42 @@ async def test_valid_commands_answer_the_robot_view(emulator: Emulator) -> None:
     )
     frame = (await emulator.api.get("/status")).json()["frame"]
     assert frame["tool_offset_position"] == [0.0, 0.0, 100.0]
+
+
+async def test_the_emulator_verb_serves_the_control_api(robot_host: str) -> None:
+    """``cobot-hmi emulator`` as a user runs it: the simulated robot and its control API."""
+    control_port = free_tcp_port(robot_host)
+    process = await asyncio.create_subprocess_exec(
+        sys.executable,
+        "-m",
+        "cobot_hmi.cli",
+        "emulator",
+        "--host",
+        robot_host,
+        "--tcp-port",
+        str(free_tcp_port(robot_host)),
+        "--control-port",
+        str(control_port),
+        "--model",
+        "M0609",
+        "--kinematic-refresh-ms",
+        "100",
+        stdout=asyncio.subprocess.PIPE,
+        stderr=asyncio.subprocess.PIPE,
+    )
+    try:
+        assert process.stdout is not None
+        banner = await asyncio.wait_for(process.stdout.readline(), 20)
+        assert f"control API http://{robot_host}:{control_port}".encode() in banner
+        async with httpx.AsyncClient(base_url=f"http://{robot_host}:{control_port}") as api:
+            status = (await api.get("/status")).json()
+            assert status["robot"]["model"] == "M0609"
+            assert status["robot"]["kinematic_refresh_ms"] == 100.0
+            answer = await api.post("/estop")
+            assert answer.json()["robot"]["robot_state_name"] == "EMERGENCY_STOP"
+    finally:
+        if process.returncode is None:
+            process.send_signal(signal.SIGTERM)
+        code = await asyncio.wait_for(process.wait(), 20)
+        await process.communicate()
+    assert code == 0
