@@ -23,7 +23,7 @@ import logging
 import math
 import socket
 import time
-from collections.abc import Awaitable, Callable, Generator, Mapping, Sequence
+from collections.abc import Callable, Generator, Mapping, Sequence
 from typing import Final, Protocol
 
 import orjson
@@ -358,15 +358,3 @@ class ControlApiServer:
             await self._task
         self._server = None
         self._task = None
-
-
-async def run_with_control_api(
-    app: FastAPI, host: str, port: int, body: Callable[[], Awaitable[None]]
-) -> None:
-    """Serve the control API while ``body`` runs; stop it afterwards whatever happens."""
-    server = ControlApiServer(app, host, port)
-    await server.start()
-    try:
-        await body()
-    finally:
-        await server.stop()

@@ -32,6 +32,7 @@ from cobot_hmi.emulator.robot.kinematics import (
 from cobot_hmi.emulator.robot.models import Vector3, model_by_name
 from cobot_hmi.emulator.robot.robot_io import RobotIO
 from cobot_hmi.emulator.robot.states import (
+    Phase,
     RobotCommandError,
     StateMachine,
     StateTimings,
@@ -363,7 +364,7 @@ class SimulatedRobot:
             "model": self.model.name,
             "phase": machine.phase.value,
             "robot_state": state,
-            "forced_state": state if machine.phase.value == "forced" else None,
+            "forced_state": state if machine.phase is Phase.FORCED else None,
             "program_running": machine.program_running,
             "collaborative": machine.collaborative,
             "teach_button_pressed": machine.teach_button_pressed,
