@@ -1,0 +1,60 @@
+// Scenario 1: live data. The state badge shows STANDALONE_RUNNING, the joint plots grow, and
+// the frame age stays small.
+import { expect, screenshot, test } from "../support/fixtures";
+
+const JOINT_PLOTS = [
+  "plot-joint-position",
+  "plot-joint-velocity",
+  "plot-joint-motor-current",
+  "plot-joint-motor-temperature",
+  "plot-joint-torque",
+  "plot-joint-external-torque",
+];
+
+test("the panel shows the running robot live", async ({ page }, testInfo) => {
+  await page.goto("/");
+  await expect(page.getByTestId("robot-state")).toHaveText("STANDALONE_RUNNING");
+  await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
+  await expect(page.getByTestId("flag-servo-on")).toHaveAttribute("data-state", "on");
+  await expect(page.getByTestId("flag-emergency-stopped")).toHaveAttribute("data-state", "off");
+
+  // Every joint plot grows: more points, and its newest sample moves on in time.
+  const plotState = () =>
+    page.evaluate((ids) => {
+      return ids.map((id) => {
+        const el = document.querySelector(`[data-testid="${id}"]`) as (HTMLElement & { data?: { x?: unknown[] }[] }) | null;
+        const xs = el?.data?.[0]?.x ?? [];
+        const last = xs.length > 0 ? xs[xs.length - 1] : null;
+        return { id, points: Number(el?.dataset.points ?? "0"), last: last === null ? null : String(last) };
+      });
+    }, JOINT_PLOTS);
+  await expect.poll(async () => (await plotState()).every((p) => p.points > 0), { message: "every joint plot has points" }).toBe(true);
+  const before = await plotState();
+  await page.waitForTimeout(1500);
+  await expect
+    .poll(
+      async () => {
+        const after = await plotState();
+        return after.filter((p, i) => {
+          const earlier = before[i]!;
+          return p.last !== null && p.last !== earlier.last && p.points >= earlier.points;
+        }).map((p) => p.id);
+      },
+      { message: "every joint plot appended newer samples" },
+    )
+    .toEqual(JOINT_PLOTS);
+
+  // The frame age stays small over a few seconds (the display calls a frame stale after 1 s).
+  const ages: number[] = [];
+  for (let i = 0; i < 10; i++) {
+    const age = await page.getByTestId("frame-age").getAttribute("data-age-ms");
+    ages.push(Number(age));
+    await page.waitForTimeout(300);
+  }
+  testInfo.annotations.push({ type: "frame ages (ms)", description: ages.join(", ") });
+  expect(Math.max(...ages), `frame ages ${ages.join(", ")} ms`).toBeLessThan(500);
+  await expect(page.getByTestId("frame-age")).toContainText("ms");
+  await expect(page.getByTestId("robot-state")).toHaveText("STANDALONE_RUNNING");
+
+  await screenshot(page, testInfo, "panel");
+});

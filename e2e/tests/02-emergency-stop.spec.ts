@@ -1,0 +1,41 @@
+// Scenario 2: an emergency stop turns the badge EMERGENCY_STOP and lights the ES flag within
+// 1 s; a reset brings standby back.
+import { expect, noteWhen, screenshot, seenAt, test } from "../support/fixtures";
+
+test("an emergency stop shows within 1 s and a reset brings standby back", async ({ page, robot }, testInfo) => {
+  await page.goto("/");
+  const badge = page.getByTestId("robot-state");
+  const esFlag = page.getByTestId("flag-emergency-stopped");
+  await expect(badge).toHaveText("STANDALONE_RUNNING");
+  await expect(esFlag).toHaveAttribute("data-state", "off");
+  await noteWhen(page, "badge", "robot-state", { text: "EMERGENCY_STOP" });
+  await noteWhen(page, "flag", "flag-emergency-stopped", { attribute: ["data-state", "on"] });
+
+  const pressed_ms = Date.now();
+  await robot.estop();
+  await expect(badge).toHaveText("EMERGENCY_STOP");
+  await expect(esFlag).toHaveAttribute("data-state", "on");
+  // Measured in the page: when the badge and the flag changed, from the moment the stop was
+  // pressed (the request to the emulator included).
+  const badge_ms = (await seenAt(page, "badge"))! - pressed_ms;
+  const flag_ms = (await seenAt(page, "flag"))! - pressed_ms;
+  testInfo.annotations.push({ type: "emergency stop shown after (ms)", description: `badge ${badge_ms}, flag ${flag_ms}` });
+  expect(badge_ms).toBeLessThanOrEqual(1000);
+  expect(flag_ms).toBeLessThanOrEqual(1000);
+  await expect(page.getByTestId("flag-servo-on")).toHaveAttribute("data-state", "off");
+  await expect(badge).toHaveAttribute("data-colours", /red/);
+  await screenshot(page, testInfo, "emergency-stop");
+
+  // The kiosk shows it too, in large letters.
+  const kiosk = await page.context().newPage();
+  await kiosk.goto("/kiosk");
+  await expect(kiosk.getByTestId("robot-state")).toHaveText("EMERGENCY_STOP");
+  await expect(kiosk.getByTestId("kiosk-estop")).toBeVisible();
+  await screenshot(kiosk, testInfo, "kiosk-emergency-stop");
+  await kiosk.close();
+
+  await robot.reset();
+  await expect(badge).toHaveText("STANDALONE_STANDBY");
+  await expect(esFlag).toHaveAttribute("data-state", "off");
+  await expect(page.getByTestId("flag-servo-on")).toHaveAttribute("data-state", "on");
+});
