@@ -9,7 +9,7 @@ PY := $(VENV)/bin/python
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: test demo lint typecheck pytest codegen venv clean system-deps frontend-test frontend-build peers
+.PHONY: test demo lint typecheck pytest codegen venv clean system-deps frontend-test frontend-build peers e2e
 
 # Debian packages the tests use: tshark reads our captures, chromium runs the browser tests.
 # Installed only when missing (needs root, as on a fresh CI machine).
@@ -20,6 +20,13 @@ system-deps:
 	if [ -n "$$missing" ]; then \
 	  echo "installing Debian packages:$$missing"; \
 	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing >/dev/null; \
+	fi
+	@# docker-compose.yml is checked with `compose config` (no engine): the client needs compose.
+	@if command -v docker >/dev/null && ! docker compose version >/dev/null 2>&1 \
+	  && ! command -v docker-compose >/dev/null; then \
+	  echo "installing Debian packages: docker-compose (client only)"; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+	    --no-install-recommends docker-compose >/dev/null; \
 	fi
 
 venv: $(STAMP)
@@ -45,7 +52,7 @@ pytest: $(STAMP) system-deps peers
 	cd backend && status=0 && { ../$(BIN)/pytest $(PYTEST_ARGS) || status=$$?; } && \
 	  if [ $$status -eq 5 ]; then echo "pytest collected no tests: failing"; fi && exit $$status
 
-test: lint typecheck pytest frontend-test
+test: lint typecheck pytest frontend-test e2e
 
 # Independent EtherNet/IP peers from npm (st-ethernet-ip's IO.Scanner) for backend/tests.
 PEERS_STAMP := backend/tests/peers/node_modules/.installed-stamp
@@ -68,6 +75,23 @@ frontend-test: $(FRONTEND_STAMP)
 
 frontend-build: $(FRONTEND_STAMP)
 	cd frontend && npm run build
+
+# The built frontend the service serves: rebuilt when a source is newer than the build.
+FRONTEND_DIST := frontend/dist/index.html
+$(FRONTEND_DIST): $(FRONTEND_STAMP) frontend/index.html frontend/vite.config.ts frontend/tsconfig.json \
+    $(shell find frontend/src -type f 2>/dev/null)
+	cd frontend && npm run build
+
+# End to end (e2e/): Playwright with Debian's Chromium (never a downloaded browser) against the
+# real emulator and service, which its webServer starts on loopback. E2E_ARGS narrows the run.
+E2E_STAMP := e2e/node_modules/.installed-stamp
+$(E2E_STAMP): e2e/package-lock.json e2e/package.json
+	@command -v npm >/dev/null || { echo "npm missing: install Node.js >= 20.19"; exit 1; }
+	cd e2e && PLAYWRIGHT_SKIP_BROWSER_DOWNLOAD=1 npm ci --no-audit --no-fund
+	touch $@
+
+e2e: $(STAMP) system-deps $(FRONTEND_DIST) $(E2E_STAMP)
+	cd e2e && npm run --silent typecheck && npx playwright test $(E2E_ARGS)
 
 codegen: $(STAMP)
 	$(BIN)/cobot-hmi codegen

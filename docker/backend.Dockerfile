@@ -1,0 +1,30 @@
+# The HMI service serving the built frontend (the panel at /, the kiosk at /kiosk) on port 8000.
+# Built from the repository root: docker build -f docker/backend.Dockerfile .
+
+# Stage 1: the frontend, built with Node (nothing of it is needed at run time but dist/).
+FROM node:20-bookworm-slim AS frontend
+WORKDIR /src/frontend
+COPY frontend/package.json frontend/package-lock.json ./
+RUN npm ci --no-audit --no-fund
+COPY frontend/ ./
+RUN npm run build
+
+# Stage 2: the Python service and the built frontend.
+FROM python:3.11-slim-bookworm
+ENV PYTHONDONTWRITEBYTECODE=1 PYTHONUNBUFFERED=1 PIP_NO_CACHE_DIR=1 PIP_DISABLE_PIP_VERSION_CHECK=1
+WORKDIR /app
+COPY backend/pyproject.toml /app/backend/
+COPY backend/src /app/backend/src
+RUN pip install /app/backend \
+    && useradd --system --create-home --home-dir /var/lib/cobot-hmi hmi
+COPY --from=frontend /src/frontend/dist /app/frontend/dist
+
+# Settings come from COBOT_HMI_* variables (docker-compose.yml sets them); these are defaults.
+ENV COBOT_HMI_HOST=0.0.0.0 \
+    COBOT_HMI_PORT=8000 \
+    COBOT_HMI_STATE_DIR=/var/lib/cobot-hmi \
+    COBOT_HMI_FRONTEND_DIR=/app/frontend/dist
+USER hmi
+VOLUME ["/var/lib/cobot-hmi"]
+EXPOSE 8000/tcp 2222/udp
+CMD ["cobot-hmi", "serve"]
