@@ -18,6 +18,7 @@ VERB_MODULES = (
     "cobot_hmi.cli.codec_verbs",
     "cobot_hmi.cli.emulator_verb",
     "cobot_hmi.cli.scanner_verbs",
+    "cobot_hmi.cli.service_verbs",
 )
 """Modules whose ``register`` adds verbs; a new verb goes in one of them or in a new module."""
 

@@ -1,0 +1,92 @@
+"""Layer: service. The FastAPI application: routes over a ``Service``, the built frontend at ``/``.
+
+``create_app(service)`` wires the routers; the app's lifespan starts and stops the service, so
+``uvicorn`` runs the whole thing. The frontend (``frontend/dist``) is served when it exists:
+a file under it by its path, anything else that is not API an ``index.html`` (the single-page
+app routes ``/kiosk`` and friends itself).
+"""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from pathlib import Path
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import FileResponse, JSONResponse, Response
+from starlette.exceptions import HTTPException as StarletteHTTPException
+
+from cobot_hmi import __version__
+from cobot_hmi.service import routes_auth, routes_log, routes_read, routes_stream, routes_write
+from cobot_hmi.service.errors import ApiError
+from cobot_hmi.service.runtime import Service
+
+_API_PREFIXES = ("api/", "healthz", "readyz", "metrics", "docs", "openapi.json", "redoc")
+
+
+def create_app(service: Service, *, manage_lifecycle: bool = True) -> FastAPI:
+    """The ASGI app. With ``manage_lifecycle`` its lifespan starts and stops ``service``."""
+
+    @asynccontextmanager
+    async def lifespan(_: FastAPI) -> AsyncIterator[None]:
+        if manage_lifecycle:
+            await service.start()
+        try:
+            yield
+        finally:
+            if manage_lifecycle:
+                await service.stop()
+
+    app = FastAPI(
+        title="cobot-hmi",
+        version=__version__,
+        summary="Live frames, writes, control, login and audit for a Doosan cobot over "
+        "EtherNet/IP class 1. See docs/api.md.",
+        lifespan=lifespan,
+    )
+    app.state.service = service
+    app.add_middleware(routes_stream.TransportAbortMiddleware)
+
+    @app.exception_handler(ApiError)
+    async def api_error(_: Request, error: ApiError) -> Response:
+        return JSONResponse({"detail": error.detail}, error.status, headers=error.headers)
+
+    @app.exception_handler(RequestValidationError)
+    async def invalid_request(_: Request, error: RequestValidationError) -> Response:
+        first = error.errors()[0] if error.errors() else {}
+        location = [str(p) for p in first.get("loc", ()) if p not in ("body", "query")]
+        return JSONResponse(
+            {
+                "detail": {
+                    "reason": str(first.get("msg", "invalid request")),
+                    "field": ".".join(location) or None,
+                }
+            },
+            422,
+        )
+
+    for module in (routes_read, routes_auth, routes_write, routes_log, routes_stream):
+        app.include_router(module.router)
+    _serve_frontend(app, service.settings.frontend_path)
+    return app
+
+
+def _serve_frontend(app: FastAPI, root: Path) -> None:
+    root = root.resolve()
+
+    @app.get("/{path:path}", include_in_schema=False)
+    async def frontend(path: str) -> Response:
+        if path.startswith(_API_PREFIXES):
+            raise StarletteHTTPException(404)
+        index = root / "index.html"
+        if not index.is_file():
+            return JSONResponse(
+                {"detail": {"reason": f"no built frontend at {root} (npm run build)"}}, 404
+            )
+        candidate = (root / path).resolve()
+        if path and candidate.is_relative_to(root) and candidate.is_file():
+            return FileResponse(candidate)
+        if Path(path).suffix and not path.endswith(".html"):
+            raise StarletteHTTPException(404)  # a missing asset, not a page
+        return FileResponse(index, headers={"Cache-Control": "no-cache"})

@@ -1,0 +1,150 @@
+"""Layer: service. Who holds control of the robot's outputs: one session at a time.
+
+Taking control switches the O→T run/idle header to run with an image seeded from the robot's
+own actual outputs (its last frame), so the takeover changes nothing on the robot until
+someone writes (bumpless). Releasing goes back to idle. Control ends with the holder's logout,
+session expiry, last WebSocket, or the connection's loss (a reconnected originator starts idle,
+so keeping a holder would claim a run that is not happening).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import time
+from dataclasses import dataclass
+
+from cobot_hmi.scanner.originator import ConnectionState, NotConnectedError, ReadOnlyError
+from cobot_hmi.service.auth import Session
+from cobot_hmi.service.errors import conflict
+from cobot_hmi.service.hub import Hub
+from cobot_hmi.service.link import RobotLink
+from cobot_hmi.service.store import AuditEntry, Store
+from cobot_hmi.service.users import Role
+from cobot_hmi.service.writes import FRAME_ECHOED
+
+
+@dataclass(frozen=True, slots=True)
+class Holder:
+    session_id: str
+    user: str
+    since: float
+    client: str | None
+
+    def to_json(self) -> dict[str, object]:
+        return {"user": self.user, "since": self.since}
+
+
+class Control:
+    """The control token and its changes (audited, announced as ``control`` events)."""
+
+    def __init__(self, link: RobotLink, store: Store, hub: Hub, *, input_only: bool) -> None:
+        self._link = link
+        self._store = store
+        self._hub = hub
+        self._input_only = input_only
+        self.holder: Holder | None = None
+        self.lock = asyncio.Lock()
+        """Held by take, release and every write: they never interleave."""
+
+    def status(self) -> dict[str, object]:
+        return {"holder": None if self.holder is None else self.holder.to_json()}
+
+    def holds(self, session: Session) -> bool:
+        return self.holder is not None and self.holder.session_id == session.id
+
+    def refusal_to_write(self) -> str | None:
+        """Why nobody could write now (connection or mode), or ``None``."""
+        if self._input_only:
+            return "read-only mode: the service holds an input-only connection"
+        state = self._link.state
+        if state is not ConnectionState.CONNECTED:
+            reason = self._link.reason
+            return f"not connected to the robot ({state.value}{': ' + reason if reason else ''})"
+        return None
+
+    async def take(self, session: Session, client: str | None) -> dict[str, object]:
+        async with self.lock:
+            holder = self.holder
+            if holder is not None and holder.session_id != session.id:
+                await self._audit(session.user.name, client, "control.take", "refused", "held")
+                raise conflict(f"control is held by {holder.user}")
+            refusal = self.refusal_to_write()
+            if refusal is None and holder is None:
+                refusal = await self._go_run()
+            if refusal is not None:
+                await self._audit(session.user.name, client, "control.take", "refused", refusal)
+                raise conflict(refusal)
+            if holder is None:
+                self.holder = Holder(session.id, session.user.name, time.time(), client)
+                await self._audit(session.user.name, client, "control.take", "granted", None)
+                self._announce("taken")
+            return self.status()
+
+    async def _go_run(self) -> str | None:
+        """Seed the image from the robot's actual outputs, then run. A refusal, or ``None``."""
+        latest = self._hub.latest
+        image = self._link.command
+        if latest is not None:
+            frame = latest[2]
+            image = image._replace(**{name: getattr(frame, name) for name in FRAME_ECHOED})
+        try:
+            await self._link.set_command(image)
+            await self._link.set_run(True)
+        except ReadOnlyError:
+            return "read-only mode: the service holds an input-only connection"
+        except NotConnectedError as error:
+            return f"not connected to the robot ({error})"
+        return None
+
+    async def release(self, session: Session, client: str | None) -> dict[str, object]:
+        """The holder (or an admin) gives control back; O→T goes idle."""
+        async with self.lock:
+            holder = self.holder
+            if holder is None:
+                return self.status()
+            if holder.session_id != session.id and session.user.role < Role.ADMIN:
+                await self._audit(session.user.name, client, "control.release", "refused", "held")
+                raise conflict(f"control is held by {holder.user}, not by you")
+            reason = "released" if holder.session_id == session.id else "released by an admin"
+            await self._end(session.user.name, client, reason)
+            return self.status()
+
+    async def drop(self, reason: str, *, session_id: str | None = None) -> None:
+        """End control without a request: logout, expiry, disconnect, connection loss.
+
+        With ``session_id`` only that session's control ends.
+        """
+        async with self.lock:
+            holder = self.holder
+            if holder is None or (session_id is not None and holder.session_id != session_id):
+                return
+            await self._end(holder.user, holder.client, reason)
+
+    async def _end(self, user: str, client: str | None, reason: str) -> None:
+        self.holder = None
+        with contextlib.suppress(NotConnectedError, ReadOnlyError):
+            await self._link.set_run(False)  # without a connection nothing runs anyway
+        await self._audit(user, client, "control.release", "released", reason)
+        self._announce(reason)
+
+    def _announce(self, reason: str) -> None:
+        self._hub.publish_event(
+            {"kind": "control", "time": time.time(), **self.status(), "reason": reason}
+        )
+
+    async def _audit(
+        self, user: str, client: str | None, action: str, outcome: str, reason: str | None
+    ) -> None:
+        await self._store.add_audit(
+            AuditEntry(
+                user=user,
+                client=client,
+                action=action,
+                fields=[],
+                before=None,
+                requested=None,
+                outcome=outcome,
+                reason=reason,
+            )
+        )

@@ -1,0 +1,122 @@
+"""Layer: service. ``WS /api/v1/stream``: hello, batched frames at the asked rate, events.
+
+The handshake may carry the session (cookie, bearer header, or ``?token=``); control held by
+that session ends when its last stream closes. A refusal after the handshake is a close with
+an application code: 4400 (bad ``rate``) or 4401 (login required), the reason in the close.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import math
+import socket
+from collections.abc import Callable
+from typing import Final
+
+from fastapi import APIRouter, WebSocket
+from starlette.types import ASGIApp, Receive, Scope, Send
+
+from cobot_hmi.service.deps import client_address, get_service, session_token
+
+router = APIRouter()
+
+ABORT_KEY: Final = "cobot_hmi.abort_transport"
+CLOSE_BAD_REQUEST: Final = 4400
+CLOSE_LOGIN_REQUIRED: Final = 4401
+CLOSE_STALLED: Final = 4408
+SEND_BUFFER_BYTES: Final = 128 * 1024
+"""Kernel send buffer per stream connection (Linux doubles it): ~1 s of frames at 10 ms."""
+
+
+class TransportAbortMiddleware:
+    """Puts the server transport's ``abort`` in the WebSocket scope (uvicorn).
+
+    A client that stopped reading cannot be sent a close frame (it would wait behind the full
+    send buffer forever) and ``transport.close()`` waits for that buffer to drain: only an
+    abort (RST) frees the connection. ASGI has no abort, so this reaches for uvicorn's
+    protocol object, which is the ``send`` callable's owner; elsewhere it adds nothing and
+    a stalled client is sent a close instead.
+    """
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] == "websocket":
+            transport = getattr(getattr(send, "__self__", None), "transport", None)
+            abort = getattr(transport, "abort", None)
+            if callable(abort):
+                scope = {**scope, ABORT_KEY: abort}
+            _limit_send_buffer(transport)
+        await self.app(scope, receive, send)
+
+
+def _limit_send_buffer(transport: object) -> None:
+    """Cap the kernel's send buffer of a stream connection.
+
+    Linux grows a socket's send buffer up to megabytes: for a client that reads slowly that is
+    many seconds of frames, old before they are read, and the bounded per-client queue (which
+    drops the oldest frames and says so) would never come into play. Capped, a slow client is
+    at most about a second behind and then loses old frames instead.
+    """
+    get_extra_info = getattr(transport, "get_extra_info", None)
+    sock = get_extra_info("socket") if callable(get_extra_info) else None
+    if sock is not None:
+        with contextlib.suppress(OSError):
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER_BYTES)
+
+
+def _parse_rate(text: str | None) -> float | None:
+    if text is None or text == "":
+        return None
+    rate = float(text)  # ValueError for junk
+    if not (math.isfinite(rate) and rate > 0):
+        raise ValueError(f"rate must be a positive number of Hz, got {text}")
+    return rate
+
+
+@router.websocket("/api/v1/stream")
+async def stream(websocket: WebSocket) -> None:
+    service = get_service(websocket)
+    session = service.sessions.get(session_token(websocket))
+    await websocket.accept()
+    if service.settings.view_requires_login and session is None:
+        await websocket.close(CLOSE_LOGIN_REQUIRED, "login required")
+        return
+    try:
+        rate_hz = _parse_rate(websocket.query_params.get("rate"))
+    except ValueError as error:
+        await websocket.close(CLOSE_BAD_REQUEST, f"bad rate: {error}"[:120])
+        return
+
+    abort_transport: Callable[[], None] | None = websocket.scope.get(ABORT_KEY)
+
+    async def abort(reason: str) -> None:
+        if abort_transport is not None:
+            abort_transport()
+            return
+        with contextlib.suppress(Exception):
+            async with asyncio.timeout(1.0):
+                await websocket.close(CLOSE_STALLED, reason)
+
+    hello = await service.hello(rate_hz)
+    client = service.hub.add_client(
+        websocket.send_text,
+        abort,
+        rate_hz,
+        hello,
+        session_id=session.id if session is not None else None,
+        client=f"{client_address(websocket)}:{websocket.client.port if websocket.client else 0}",
+    )
+    service.websocket_opened(session)
+    try:
+        while True:
+            message = await websocket.receive()
+            if message["type"] == "websocket.disconnect":
+                break
+            # Client messages carry nothing yet; they are read (and dropped) so the
+            # connection's receive side never backs up.
+    finally:
+        await service.hub.remove_client(client)
+        service.websocket_closed(session)

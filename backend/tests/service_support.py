@@ -1,0 +1,159 @@
+"""Helpers for the service tests: the emulator's target in-process, the service on uvicorn on
+a free port of its own loopback address, users, login and waiting for conditions.
+
+Everything runs over real sockets: the emulator's EtherNet/IP target on ``robot_host``, the
+service's originator (on its own thread) receiving T→O on ``plc_host``, HTTP and WebSocket
+on ``plc_host`` too.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+from collections.abc import AsyncIterator, Callable, Generator
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import httpx
+import uvicorn
+
+from cobot_hmi.emulator.faults import TargetFaults
+from cobot_hmi.emulator.process_image import IdleBehaviour, ProcessImage
+from cobot_hmi.emulator.settings import TargetSettings
+from cobot_hmi.emulator.static_robot import StaticRobot
+from cobot_hmi.emulator.target import Target
+from cobot_hmi.service.app import create_app
+from cobot_hmi.service.runtime import Service
+from cobot_hmi.service.server import uvicorn_config
+from cobot_hmi.service.settings import ServiceSettings
+from cobot_hmi.service.users import Role, UsersFile
+from conftest import free_tcp_port
+
+DEADLINE_S = 10.0
+OPERATOR = ("olivia", "olivia-password")
+OPERATOR_2 = ("oscar", "oscar-password")
+VIEWER = ("victor", "victor-password")
+ADMIN = ("ada", "ada-password-1")
+
+
+async def eventually(check: Callable[[], object], timeout_s: float = DEADLINE_S) -> None:
+    """Wait until ``check()`` is truthy (a generous functional deadline, not a timing figure)."""
+    loop = asyncio.get_running_loop()
+    end = loop.time() + timeout_s
+    while not check():
+        assert loop.time() < end, "condition not reached in time"
+        await asyncio.sleep(0.02)
+
+
+class QuietServer(uvicorn.Server):
+    """uvicorn without its signal handlers: the test process owns its signals."""
+
+    @contextlib.contextmanager
+    def capture_signals(self) -> Generator[None, None, None]:
+        yield
+
+
+@contextlib.asynccontextmanager
+async def emulator(
+    robot_host: str,
+    robot: ProcessImage | None = None,
+    *,
+    tcp_port: int = 0,
+    faults: TargetFaults | None = None,
+) -> AsyncIterator[Target]:
+    target = Target(
+        TargetSettings(host=robot_host, tcp_port=tcp_port),
+        robot if robot is not None else StaticRobot(IdleBehaviour.HOLD),
+        faults=faults,
+    )
+    await target.start()
+    try:
+        yield target
+    finally:
+        await target.stop()
+
+
+def service_settings(
+    robot_host: str, robot_tcp_port: int, plc_host: str, state_dir: Path, **overrides: Any
+) -> ServiceSettings:
+    settings = ServiceSettings(
+        robot_host=robot_host,
+        robot_tcp_port=robot_tcp_port,
+        local_host=plc_host,
+        host=plc_host,
+        port=free_tcp_port(plc_host),
+        state_dir=state_dir,
+        frontend_dir=state_dir / "no-frontend",
+        ws_batch_ms=50.0,
+        write_timeout_ms=2000.0,
+        # RPI × 128 before either side declares the connection lost: the machine is shared and
+        # busy, and these tests are about the service, not about the watchdog.
+        timeout_multiplier=5,
+    )
+    return replace(settings, **overrides)
+
+
+def add_users(settings: ServiceSettings) -> None:
+    users = UsersFile(settings.users_path)
+    for (name, password), role in (
+        (OPERATOR, Role.OPERATOR),
+        (OPERATOR_2, Role.OPERATOR),
+        (VIEWER, Role.VIEWER),
+        (ADMIN, Role.ADMIN),
+    ):
+        users.add(name, role, password)
+
+
+@dataclass
+class Running:
+    service: Service
+    settings: ServiceSettings
+
+    @property
+    def base_url(self) -> str:
+        return f"http://{self.settings.host}:{self.settings.port}"
+
+    @property
+    def ws_url(self) -> str:
+        return f"ws://{self.settings.host}:{self.settings.port}/api/v1/stream"
+
+    def client(self, token: str | None = None) -> httpx.AsyncClient:
+        headers = {"Authorization": f"Bearer {token}"} if token else {}
+        return httpx.AsyncClient(base_url=self.base_url, headers=headers, timeout=DEADLINE_S)
+
+    async def metrics(self) -> str:
+        async with self.client() as client:
+            return (await client.get("/metrics")).text
+
+    async def login(self, user: tuple[str, str]) -> str:
+        async with self.client() as client:
+            answer = await client.post(
+                "/api/v1/auth/login", json={"username": user[0], "password": user[1]}
+            )
+        assert answer.status_code == 200, answer.text
+        token: str = answer.json()["token"]
+        return token
+
+
+@contextlib.asynccontextmanager
+async def running_service(
+    settings: ServiceSettings, *, wait_connected: bool = True
+) -> AsyncIterator[Running]:
+    """The service on uvicorn in this event loop (its originator on its own thread)."""
+    await asyncio.to_thread(add_users, settings)  # scrypt: keep the emulator's loop free
+    service = Service(settings)
+    server = QuietServer(uvicorn_config(create_app(service), settings, log_level="warning"))
+    task = asyncio.create_task(server.serve())
+    try:
+        await eventually(lambda: server.started or task.done())
+        if task.done():
+            await task
+        running = Running(service, settings)
+        if wait_connected:
+            assert await service.link.wait_connected(DEADLINE_S)
+            await eventually(lambda: service.hub.latest is not None)
+        yield running
+    finally:
+        server.should_exit = True
+        await task

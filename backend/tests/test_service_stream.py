@@ -1,0 +1,267 @@
+"""``WS /api/v1/stream`` against the emulator over real sockets: hello, batched frames, rates
+(server-side decimation), status and events, a slow and a stalled client next to a fast one,
+and control released when its holder's stream closes."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import socket
+from collections.abc import AsyncIterator
+from pathlib import Path
+from typing import Any
+
+import orjson
+import pytest
+from websockets.asyncio.client import ClientConnection, connect
+from websockets.exceptions import ConnectionClosed
+
+from cobot_hmi.emulator.target import Target
+from conftest import _next_host as next_host
+from service_support import (
+    OPERATOR,
+    Running,
+    emulator,
+    eventually,
+    running_service,
+    service_settings,
+)
+
+pytestmark = pytest.mark.timeout(120)
+
+
+@pytest.fixture
+async def target(robot_host: str) -> AsyncIterator[Target]:
+    async with emulator(robot_host) as target:
+        yield target
+
+
+@pytest.fixture
+async def hmi(
+    target: Target, robot_host: str, plc_host: str, tmp_path: Path
+) -> AsyncIterator[Running]:
+    settings = service_settings(
+        robot_host,
+        target.tcp_port,
+        plc_host,
+        tmp_path,
+        ws_queue_frames=20,
+        # Stalled: one send stuck this long. A slow reader still drains the send buffer
+        # within a fraction of it; a client that stopped reading never does.
+        ws_stall_timeout_s=2.0,
+        status_interval_s=0.5,
+    )
+    async with running_service(settings) as running:
+        yield running
+
+
+class Recorder:
+    """Reads a stream (optionally slowly) and keeps every message."""
+
+    def __init__(self, connection: ClientConnection, delay_s: float = 0.0) -> None:
+        self.connection = connection
+        self.delay_s = delay_s
+        self.messages: list[Any] = []
+        self.closed: ConnectionClosed | None = None
+        self.task = asyncio.create_task(self._read())
+
+    async def _read(self) -> None:
+        try:
+            async for text in self.connection:
+                self.messages.append(orjson.loads(text))
+                if self.delay_s:
+                    await asyncio.sleep(self.delay_s)
+        except ConnectionClosed as closed:
+            self.closed = closed
+
+    def of(self, kind: str) -> list[Any]:
+        return [m for m in self.messages if m["type"] == kind]
+
+    @property
+    def frames(self) -> list[Any]:
+        return [f for m in self.of("frames") for f in m["frames"]]
+
+    async def close(self) -> None:
+        await self.connection.close()
+        with contextlib.suppress(asyncio.CancelledError):
+            await asyncio.wait_for(self.task, 5)
+
+
+@contextlib.asynccontextmanager
+async def recorder(url: str, delay_s: float = 0.0, **options: Any) -> AsyncIterator[Recorder]:
+    async with connect(url, **options) as connection:
+        reading = Recorder(connection, delay_s)
+        try:
+            yield reading
+        finally:
+            await reading.close()
+
+
+def receive_buffer_socket(host: str, port: int, size: int) -> socket.socket:
+    """A connected TCP socket with a fixed receive buffer (no autotuning up to megabytes),
+    so that a client that lags behind shows within seconds."""
+    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, size)
+    sock.connect((host, port))
+    return sock
+
+
+async def cut_off(sock: socket.socket) -> bool:
+    """Whether the server closed or reset ``sock`` (read what the kernel still holds first)."""
+    loop = asyncio.get_running_loop()
+    try:
+        for _ in range(10_000):
+            if not await asyncio.wait_for(loop.sock_recv(sock, 65536), 5):
+                return True
+    except ConnectionResetError:
+        return True
+    return False
+
+
+async def test_hello_batches_rates_status(hmi: Running) -> None:
+    async with (
+        recorder(hmi.ws_url) as full,
+        recorder(hmi.ws_url + "?rate=10") as decimated,
+    ):
+        await eventually(lambda: len(full.frames) >= 150 and len(full.of("status")) >= 1)
+    hello = full.messages[0]
+    assert hello["type"] == "hello"
+    assert hello["layout_version"] == 1
+    assert hello["connection"]["state"] == "connected"
+    assert hello["control"] == {"holder": None}
+    assert hello["rate_hz"] is None
+    assert decimated.messages[0]["rate_hz"] == 10.0
+    seqs = [f["seq"] for f in full.frames]
+    assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))  # every frame, in order
+    assert len(full.frames) / len(full.of("frames")) > 1.5  # batched: several per message
+    first = full.frames[0]
+    assert set(first) == {"seq", "t", "frame"}
+    assert first["frame"]["robot_state_name"] == "STANDALONE_STANDBY"
+    assert not full.of("dropped")
+    # Decimated on the server to about a tenth of the frames: one per 100 ms slot on average
+    # (single gaps follow the frames' own receive jitter).
+    share = len(decimated.frames) / len(full.frames)
+    assert 0.03 < share < 0.25, share
+    times = [f["t"] for f in decimated.frames]
+    mean_gap_s = (times[-1] - times[0]) / (len(times) - 1)
+    assert 0.08 < mean_gap_s < 0.13, mean_gap_s
+    status = full.of("status")[0]
+    assert status["connection"]["state"] == "connected"
+    metrics = await hmi.metrics()
+    assert "cobot_hmi_ws_clients 0.0" in metrics or "cobot_hmi_ws_clients" in metrics
+
+
+async def test_bad_rate_and_login_required(
+    hmi: Running, target: Target, robot_host: str, tmp_path: Path
+) -> None:
+    async with connect(hmi.ws_url + "?rate=-3") as connection:
+        with pytest.raises(ConnectionClosed) as closed:
+            await connection.recv()
+    assert closed.value.rcvd is not None
+    assert closed.value.rcvd.code == 4400
+    assert "rate" in closed.value.rcvd.reason
+    settings = service_settings(
+        robot_host,
+        target.tcp_port,
+        next_host(),
+        tmp_path / "b",
+        view_requires_login=True,
+        input_only=True,  # the first service owns the outputs already
+    )
+    async with running_service(settings) as locked:
+        async with connect(locked.ws_url) as connection:
+            with pytest.raises(ConnectionClosed) as closed:
+                await connection.recv()
+        assert closed.value.rcvd is not None
+        assert closed.value.rcvd.code == 4401
+        token = await locked.login(OPERATOR)
+        async with connect(locked.ws_url + f"?token={token}") as connection:
+            assert orjson.loads(await connection.recv())["type"] == "hello"
+
+
+async def test_slow_and_stalled_clients_do_not_hurt_a_fast_one(hmi: Running) -> None:
+    service = hmi.service
+    host, port = hmi.settings.host, hmi.settings.port
+    # The stalled client: a raw WebSocket handshake, then it never reads again.
+    loop = asyncio.get_running_loop()
+    stalled = receive_buffer_socket(host, port, 4096)
+    stalled.setblocking(False)
+    try:
+        await loop.sock_sendall(
+            stalled,
+            (
+                f"GET /api/v1/stream HTTP/1.1\r\nHost: {host}:{port}\r\nUpgrade: websocket\r\n"
+                "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+                "Sec-WebSocket-Version: 13\r\n\r\n"
+            ).encode(),
+        )
+        head = await loop.sock_recv(stalled, 200)
+        assert head.startswith(b"HTTP/1.1 101")
+        slow_socket = receive_buffer_socket(host, port, 64 * 1024)
+        async with (
+            recorder(hmi.ws_url) as fast,
+            recorder(hmi.ws_url, delay_s=0.08, sock=slow_socket, max_queue=1) as slow,
+        ):
+            await eventually(lambda: service.hub.stalled_disconnects >= 1, timeout_s=30)
+            await eventually(lambda: len(slow.of("dropped")) >= 2, timeout_s=30)
+            await eventually(lambda: len(service.hub.clients) == 2)
+            fast_count = len(fast.frames)
+            await eventually(lambda: len(fast.frames) > fast_count + 50)
+        # The fast client lost nothing and was never told of a drop.
+        seqs = [f["seq"] for f in fast.frames]
+        assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))
+        assert not fast.of("dropped")
+        # The slow one lost old frames and was told exactly how many, before the next frames.
+        missing = told = 0
+        last_seq: int | None = None
+        for message in slow.messages:
+            if message["type"] == "dropped":
+                told += message["count"]
+            elif message["type"] == "frames":
+                first = message["frames"][0]["seq"]
+                if last_seq is not None:
+                    missing += first - last_seq - 1
+                last_seq = message["frames"][-1]["seq"]
+        assert told > 0
+        assert missing == told
+        # The stalled one was cut off: its socket is reset or closed.
+        assert await cut_off(stalled)
+    finally:
+        stalled.close()
+    # Nothing of this reached the cyclic connection or the broadcast loop.
+    assert service.link.state.value == "connected"
+    assert service.hub.frames_lost_in_hub == 0
+    metrics = await hmi.metrics()
+    assert "cobot_hmi_ws_stalled_disconnects_total 1.0" in metrics
+    assert "cobot_hmi_ws_dropped_frames_total 0.0" not in metrics
+
+
+async def test_events_and_holder_disconnect_release_control(hmi: Running) -> None:
+    token = await hmi.login(OPERATOR)
+    async with recorder(hmi.ws_url) as watcher:
+        holder_stream = await connect(
+            hmi.ws_url, additional_headers={"Authorization": f"Bearer {token}"}
+        )
+        try:
+            assert orjson.loads(await holder_stream.recv())["type"] == "hello"
+            async with hmi.client(token) as client:
+                assert (await client.post("/api/v1/control/take")).status_code == 200
+                write = await client.patch("/api/v1/command", json={"tool_do": {"2": True}})
+                assert write.status_code == 200
+        finally:
+            await holder_stream.close()
+        await eventually(lambda: hmi.service.control.holder is None)
+        await eventually(lambda: len(watcher.of("event")) >= 3)
+    events = [m["event"] for m in watcher.of("event")]
+    control = [e for e in events if e["kind"] == "control"]
+    assert control[0]["holder"]["user"] == OPERATOR[0]
+    assert control[-1] == {
+        "kind": "control",
+        "time": control[-1]["time"],
+        "holder": None,
+        "reason": "holder disconnected",
+    }
+    writes = [e for e in events if e["kind"] == "write"]
+    assert writes[0]["fields"] == ["tool_do.2"]
+    assert writes[0]["outcome"] == "confirmed"
+    assert hmi.service.link.run is False
