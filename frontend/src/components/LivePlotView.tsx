@@ -3,9 +3,9 @@
  * animation-frame tick. React holds only its configuration (window, pause, picked signals);
  * samples never pass through React state.
  */
-import { useEffect, useRef, useState } from "react";
+import { memo, useEffect, useRef, useState } from "react";
 import { plotlyBackend } from "../lib/plotlyAdapter";
-import { LivePlot, traceColour, type PlotTheme } from "../lib/plotting";
+import { DEFAULT_PLOT_HEIGHT_PX, LivePlot, traceColour, type PlotTheme } from "../lib/plotting";
 import { DEFAULT_WINDOW_MS, WINDOWS_MS, tracesOf, type PlotSpec } from "../lib/plots";
 import { useRuntime } from "./runtimeContext";
 
@@ -17,7 +17,7 @@ interface Props {
   readonly height_px?: number;
 }
 
-export function LivePlotView({ spec, theme, readOnly = false, height_px }: Props) {
+export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly = false, height_px }: Props) {
   const { live, coordinator } = useRuntime();
   const container = useRef<HTMLDivElement | null>(null);
   const plotRef = useRef<LivePlot | null>(null);
@@ -124,7 +124,13 @@ export function LivePlotView({ spec, theme, readOnly = false, height_px }: Props
           ))}
         </div>
       )}
-      <div className="plot__area" ref={container} data-testid={spec.id} data-points="0" />
+      <div
+        className="plot__area"
+        ref={container}
+        data-testid={spec.id}
+        data-points="0"
+        style={{ height: `${height_px ?? DEFAULT_PLOT_HEIGHT_PX}px` }}
+      />
     </figure>
   );
-}
+});

@@ -23,6 +23,9 @@ export const plotlyBackend: PlotBackend = {
   restyle(el, update, indices) {
     ignore(Plotly.restyle(el, update as never, indices));
   },
+  relayout(el, update) {
+    ignore(Plotly.relayout(el, update as never));
+  },
   purge(el) {
     Plotly.purge(el);
   },

@@ -22,11 +22,14 @@ export interface PlotBackend {
   react(el: HTMLElement, data: object[], layout: object, config: object): void;
   extendTraces(el: HTMLElement, update: { x: Datum[][]; y: Datum[][] }, indices: number[], maxPoints: number): void;
   restyle(el: HTMLElement, update: object, indices: number[]): void;
+  relayout(el: HTMLElement, update: object): void;
   purge(el: HTMLElement): void;
 }
 
-/** Buckets per window: two points each, so a trace holds at most 800 points in any window. */
-export const BUCKETS_PER_WINDOW = 400;
+/** Buckets per window: two points each, so a trace holds at most 600 points in any window. */
+export const BUCKETS_PER_WINDOW = 300;
+
+export const DEFAULT_PLOT_HEIGHT_PX = 240;
 
 export type PlotTheme = "light" | "dark";
 
@@ -124,6 +127,9 @@ export class LivePlot {
     this.paused = paused;
     // Resuming redraws the whole window from the ring, which kept buffering meanwhile.
     if (!paused) this.needsRebuild = true;
+    // Hover only on a paused plot: values streaming by cannot be read anyway, and a live plot
+    // redraws faster without its hover layer.
+    else if (this.el !== null && !this.options.readOnly) this.backend.relayout(this.el, { hovermode: "x" });
     this.mark();
   }
 
@@ -221,6 +227,7 @@ export class LivePlot {
       line: { width: 1.5, color: traceColour(i), dash: trace.axis === "y2" ? "dot" : "solid" },
       connectgaps: false,
       hoverinfo: this.options.readOnly ? "skip" : "x+y+name",
+      hoverlabel: { namelength: -1 },
     };
   }
 
@@ -234,18 +241,20 @@ export class LivePlot {
     const layout: Record<string, unknown> = {
       uirevision: `${this.spec.id}:${this.revision}`,
       autosize: true,
-      height: this.options.height_px ?? 240,
+      height: this.options.height_px ?? DEFAULT_PLOT_HEIGHT_PX,
       margin: { l: 64, r: twoAxes ? 64 : 16, t: 8, b: 36 },
       showlegend: false,
       paper_bgcolor: dark ? "#12161b" : "#ffffff",
       plot_bgcolor: dark ? "#12161b" : "#ffffff",
       font: { color: fg, size: 11 },
-      hovermode: this.options.readOnly ? false : "x",
-      xaxis: { type: "date", autorange: true, gridcolor: grid },
+      hovermode: this.options.readOnly || !this.paused ? false : "x",
+      // "allow": Plotly otherwise measures every tick label on every redraw (a quarter of its time).
+      xaxis: { type: "date", autorange: true, gridcolor: grid, ticklabeloverflow: "allow" },
       yaxis: {
         autorange: true,
         gridcolor: grid,
         zeroline: false,
+        ticklabeloverflow: "allow",
         title: { text: y1 === undefined ? "" : axisTitle(y1) },
       },
     };
@@ -256,6 +265,7 @@ export class LivePlot {
         side: "right",
         zeroline: false,
         showgrid: false,
+        ticklabeloverflow: "allow",
         title: { text: axisTitle(y2) },
       };
     }
@@ -291,13 +301,26 @@ export class PlotCoordinator {
   private readonly plots: LivePlot[] = [];
   private readonly scheduler: FrameScheduler;
   private handle: number | null = null;
-  private next = 0;
+  /** Browser time before which no plot is updated (duty-cycle pacing). */
+  private nextAllowed_ms = -Infinity;
   /** Work per animation frame before the remaining plots wait for the next one. */
-  budget_ms = 10;
+  budget_ms = 8;
+  /**
+   * Share of the main thread plot updates may take. A Plotly redraw of a plot costs several
+   * milliseconds; after an update of c ms the coordinator rests c·(1 − duty)/duty ms, so the page
+   * keeps producing frames (and stays responsive) however slow the machine, and plots refresh as
+   * often as that allows — often on a fast machine, less often on a slow one.
+   */
+  maxDuty = 0.4;
+  /** A plot on screen is not redrawn more often than this (no point beyond the eye's need). */
+  minInterval_ms = 50;
   /** Plots out of view are refreshed this often. */
   offscreenInterval_ms = 1000;
   ticks = 0;
   plotUpdates = 0;
+  /** Time spent in plot updates (Plotly included), for the benchmark. */
+  updateTime_ms = 0;
+  updateTimeMax_ms = 0;
 
   constructor(scheduler: FrameScheduler = browserScheduler) {
     this.scheduler = scheduler;
@@ -310,6 +333,17 @@ export class PlotCoordinator {
   remove(plot: LivePlot): void {
     const i = this.plots.indexOf(plot);
     if (i >= 0) this.plots.splice(i, 1);
+  }
+
+  /** Per-plot figures, for the UI benchmark and the console. */
+  stats(): { id: string; updates: number; points: number; onScreen: boolean; paused: boolean }[] {
+    return this.plots.map((p) => ({
+      id: p.spec.id,
+      updates: p.updates,
+      points: p.points,
+      onScreen: p.onScreen,
+      paused: p.isPaused,
+    }));
   }
 
   start(): void {
@@ -326,23 +360,39 @@ export class PlotCoordinator {
     this.handle = null;
   }
 
-  /** One animation frame: update plots round-robin until the budget is spent. */
+  /** The plot that waited longest among those due for an update, or null. */
+  private due(now: number): LivePlot | null {
+    let best: LivePlot | null = null;
+    for (const plot of this.plots) {
+      if (!plot.hasWork()) continue;
+      const interval = plot.onScreen ? this.minInterval_ms : this.offscreenInterval_ms;
+      if (now - plot.lastUpdate_ms < interval) continue;
+      if (best === null || plot.lastUpdate_ms < best.lastUpdate_ms) best = plot;
+    }
+    return best;
+  }
+
+  /** One animation frame: update the most overdue plots until the budget is spent. */
   tick(): void {
     this.ticks++;
-    const n = this.plots.length;
-    if (n === 0) return;
     const start = this.scheduler.now();
-    for (let k = 0; k < n; k++) {
-      const index = (this.next + k) % n;
-      const plot = this.plots[index] as LivePlot;
-      if (!plot.hasWork()) continue;
+    if (start < this.nextAllowed_ms) return;
+    for (;;) {
       const now = this.scheduler.now();
-      if (!plot.onScreen && now - plot.lastUpdate_ms < this.offscreenInterval_ms) continue;
-      if (plot.update(now)) this.plotUpdates++;
-      if (this.scheduler.now() - start >= this.budget_ms) {
-        this.next = (index + 1) % n;
-        return;
+      const plot = this.due(now);
+      if (plot === null) return;
+      if (!plot.update(now)) {
+        // Nothing to draw after all (e.g. only an open bucket): do not pick it again this frame.
+        plot.lastUpdate_ms = now;
+        continue;
       }
+      const end = this.scheduler.now();
+      const spent = end - now;
+      this.plotUpdates++;
+      this.updateTime_ms += spent;
+      if (spent > this.updateTimeMax_ms) this.updateTimeMax_ms = spent;
+      this.nextAllowed_ms = end + (spent * (1 - this.maxDuty)) / this.maxDuty;
+      if (end - start >= this.budget_ms || end < this.nextAllowed_ms) return;
     }
   }
 }

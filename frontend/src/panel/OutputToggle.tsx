@@ -3,6 +3,7 @@
  * backend confirms, then the robot's actual state; the command being sent beside it; a refusal
  * or timeout reason next to it.
  */
+import { memo } from "react";
 import type { CommandFieldName } from "../generated/layout";
 import { writeKey } from "../lib/writes";
 import { useWrites, useWriteView } from "./writeContext";
@@ -22,7 +23,16 @@ interface Props {
   readonly compact?: boolean;
 }
 
-export function OutputToggle({ field, index, label, testId, actual, command, kind, compact = false }: Props) {
+export const OutputToggle = memo(function OutputToggle({
+  field,
+  index,
+  label,
+  testId,
+  actual,
+  command,
+  kind,
+  compact = false,
+}: Props) {
   const writes = useWrites();
   const key = writeKey(field, index);
   const view = useWriteView(key, actual);
@@ -72,4 +82,4 @@ export function OutputToggle({ field, index, label, testId, actual, command, kin
       )}
     </div>
   );
-}
+});

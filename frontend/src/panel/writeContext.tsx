@@ -123,17 +123,21 @@ export function WriteProvider({ user, live, children }: { user: User | null; liv
   );
 
   const blockReason = blockReasonOf(user, live);
-  const api: WriteApi = {
-    tracker,
-    user,
-    canWrite: blockReason === null,
-    blockReason,
-    command,
-    confirmRegisters,
-    setConfirmRegisters,
-    write,
-    refreshCommand,
-  };
+  // Stable unless something a control shows changed: controls are memoized on it.
+  const api: WriteApi = useMemo(
+    () => ({
+      tracker,
+      user,
+      canWrite: blockReason === null,
+      blockReason,
+      command,
+      confirmRegisters,
+      setConfirmRegisters,
+      write,
+      refreshCommand,
+    }),
+    [tracker, user, blockReason, command, confirmRegisters, setConfirmRegisters, write, refreshCommand],
+  );
 
   const answer = (ok: boolean) => {
     confirm?.resolve(ok);

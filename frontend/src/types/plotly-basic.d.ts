@@ -15,6 +15,7 @@ declare module "plotly.js-basic-dist-min" {
       maxPoints?: number,
     ): Promise<HTMLElement>;
     restyle(el: HTMLElement, update: Record<string, unknown>, indices?: number[]): Promise<HTMLElement>;
+    relayout(el: HTMLElement, update: Record<string, unknown>): Promise<HTMLElement>;
     purge(el: HTMLElement): void;
     Plots: { resize(el: HTMLElement): Promise<void> };
   }

@@ -1,0 +1,273 @@
+// UI benchmark of issue 6 (see bench/ui). Starts `cobot-hmi demo` on fresh loopback addresses,
+// opens the built panel in Debian's headless Chromium with every joint plot in view, and for
+// `--seconds` (60) measures:
+//   - rendered frames/s (requestAnimationFrame callbacks, i.e. frames the page produced),
+//   - long tasks (> 50 ms, PerformanceObserver 'longtask'),
+//   - JS heap after a forced GC at 10 s and at the end,
+//   - frames received over the WebSocket (every frame: no client gaps, no drops) and plot updates.
+// Targets: >= 30 rendered frames/s while receiving every frame at RPI 10 ms; heap at the end
+// within 10 % of the heap at 10 s. Only loopback addresses are used.
+import { spawn } from "node:child_process";
+import { mkdtempSync, rmSync } from "node:fs";
+import { createRequire } from "node:module";
+import net from "node:net";
+import { tmpdir } from "node:os";
+import { dirname, join, resolve } from "node:path";
+import { fileURLToPath } from "node:url";
+
+const root = resolve(dirname(fileURLToPath(import.meta.url)), "..");
+const require = createRequire(join(root, "frontend", "package.json"));
+const { chromium } = require("playwright-core");
+
+const TARGET_FPS = 30;
+const TARGET_HEAP_GROWTH = 0.1;
+const HEAP_FIRST_S = 10;
+
+function option(name, fallback) {
+  const i = process.argv.indexOf(`--${name}`);
+  return i >= 0 && process.argv[i + 1] !== undefined ? Number(process.argv[i + 1]) : fallback;
+}
+const seconds = option("seconds", 60);
+const rpiMs = option("rpi-ms", 10);
+const width = option("width", 1600);
+const height = option("height", 1300);
+
+function freePort(host) {
+  return new Promise((resolvePort, reject) => {
+    const server = net.createServer();
+    server.once("error", reject);
+    server.listen(0, host, () => {
+      const { port } = server.address();
+      server.close(() => resolvePort(port));
+    });
+  });
+}
+
+const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+
+async function waitReady(url, deadlineMs) {
+  const end = Date.now() + deadlineMs;
+  while (Date.now() < end) {
+    try {
+      const r = await fetch(url);
+      if (r.status === 200) return;
+    } catch {
+      // not up yet
+    }
+    await sleep(200);
+  }
+  throw new Error(`${url} not ready within ${deadlineMs} ms`);
+}
+
+// 127.<a>.<b>.x: <a> from the process id keeps concurrent runs apart (as the tests do).
+const a = (process.pid % 200) + 20;
+const b = 200 + (process.pid % 50);
+const serviceHost = `127.${a}.${b}.1`;
+const robotHost = `127.${a}.${b}.2`;
+const httpPort = await freePort(serviceHost);
+const controlPort = await freePort(robotHost);
+const stateDir = mkdtempSync(join(tmpdir(), "cobot-hmi-bench-ui-"));
+const base = `http://${serviceHost}:${httpPort}`;
+
+const demo = spawn(
+  join(root, ".venv", "bin", "cobot-hmi"),
+  [
+    "demo",
+    "--robot-host", robotHost,
+    "--local-host", serviceHost,
+    "--host", serviceHost,
+    "--port", String(httpPort),
+    "--control-port", String(controlPort),
+    "--rpi-ms", String(rpiMs),
+    "--state-dir", stateDir,
+    "--frontend-dir", join(root, "frontend", "dist"),
+  ],
+  { detached: true, stdio: ["ignore", "ignore", "pipe"] },
+);
+let demoLog = "";
+demo.stderr.on("data", (d) => {
+  demoLog = (demoLog + d.toString()).slice(-4000);
+});
+
+async function stopDemo() {
+  if (demo.exitCode !== null || demo.pid === undefined) return;
+  const exited = new Promise((r) => demo.once("exit", r));
+  try {
+    process.kill(-demo.pid, "SIGINT"); // Ctrl-C: the service sends its Forward Close first
+  } catch {
+    return;
+  }
+  const done = await Promise.race([exited.then(() => true), sleep(10_000).then(() => false)]);
+  if (!done) {
+    try {
+      process.kill(-demo.pid, "SIGKILL");
+    } catch {
+      // gone
+    }
+    await exited;
+  }
+}
+
+let browser;
+let exitCode = 0;
+try {
+  await waitReady(`${base}/readyz`, 30_000);
+  browser = await chromium.launch({
+    executablePath: "/usr/bin/chromium",
+    args: [
+      "--no-sandbox",
+      "--disable-gpu",
+      "--disable-background-networking",
+      "--disable-component-update",
+      "--no-first-run",
+    ],
+  });
+  const page = await browser.newPage({ viewport: { width, height } });
+  page.on("pageerror", (e) => console.error("page error:", e.message));
+  await page.addInitScript(() => {
+    const bench = { frames: 0, longTasks: [] };
+    window.__bench = bench;
+    const loop = () => {
+      bench.frames++;
+      requestAnimationFrame(loop);
+    };
+    requestAnimationFrame(loop);
+    try {
+      new PerformanceObserver((list) => {
+        for (const e of list.getEntries()) bench.longTasks.push({ at: e.startTime, ms: e.duration });
+      }).observe({ type: "longtask", buffered: true });
+    } catch {
+      // no long-task support: reported as such
+      bench.longTasks = null;
+    }
+  });
+  const cdp = await page.context().newCDPSession(page);
+  const heapMb = async () => {
+    await cdp.send("HeapProfiler.collectGarbage");
+    const { usedSize } = await cdp.send("Runtime.getHeapUsage");
+    return usedSize / 1e6;
+  };
+  const sample = () =>
+    page.evaluate(() => {
+      const rt = window.__cobotHmi;
+      return {
+        now: performance.now(),
+        frames: window.__bench.frames,
+        longTasks: window.__bench.longTasks,
+        received: rt?.live.framesReceived ?? 0,
+        clientGaps: rt?.live.clientGaps ?? 0,
+        dropped: rt?.live.dropped ?? 0,
+        plots: rt?.coordinator.stats() ?? [],
+        plotUpdates: rt?.coordinator.plotUpdates ?? 0,
+        updateTime_ms: rt?.coordinator.updateTime_ms ?? 0,
+        updateTimeMax_ms: rt?.coordinator.updateTimeMax_ms ?? 0,
+      };
+    });
+
+  await page.goto(`${base}/`);
+  await page.waitForFunction(
+    () => Number(document.querySelector('[data-testid="plot-joint-position"]')?.getAttribute("data-points") ?? 0) > 0,
+    null,
+    { timeout: 30_000 },
+  );
+  const jointIds = [
+    "plot-joint-position",
+    "plot-joint-velocity",
+    "plot-joint-motor-current",
+    "plot-joint-motor-temperature",
+    "plot-joint-torque",
+    "plot-joint-external-torque",
+  ];
+  const inView = await page.evaluate((ids) => {
+    return ids.map((id) => {
+      const r = document.querySelector(`[data-testid="${id}"]`)?.getBoundingClientRect();
+      return r !== undefined && r.top >= 0 && r.bottom <= window.innerHeight && r.height > 0;
+    });
+  }, jointIds);
+  const statusBefore = await (await fetch(`${base}/api/v1/status`)).json();
+
+  const t0 = await sample();
+  await sleep(HEAP_FIRST_S * 1000);
+  const heap10 = await heapMb();
+  const t10 = await sample();
+  await sleep(Math.max(0, seconds - HEAP_FIRST_S) * 1000);
+  const tEnd = await sample();
+  const heapEnd = await heapMb();
+  const statusAfter = await (await fetch(`${base}/api/v1/status`)).json();
+
+  const span = (x, y) => (y.now - x.now) / 1000;
+  const fpsAll = (tEnd.frames - t0.frames) / span(t0, tEnd);
+  const fpsSteady = (tEnd.frames - t10.frames) / span(t10, tEnd);
+  const receivedPerS = (tEnd.received - t0.received) / span(t0, tEnd);
+  const clientGaps = tEnd.clientGaps - t0.clientGaps;
+  const dropped = tEnd.dropped - t0.dropped;
+  const longTasks = tEnd.longTasks === null ? null : tEnd.longTasks.filter((t) => t.at >= t0.now);
+  const longTotal = longTasks === null ? null : longTasks.reduce((s, t) => s + t.ms, 0);
+  const longMax = longTasks === null ? null : longTasks.reduce((m, t) => Math.max(m, t.ms), 0);
+  const heapGrowth = (heapEnd - heap10) / heap10;
+  const robotGaps = statusAfter.connection.gaps - statusBefore.connection.gaps;
+  const plotRates = tEnd.plots.map((p) => {
+    const before = t0.plots.find((q) => q.id === p.id);
+    return { id: p.id, updates_per_s: (p.updates - (before?.updates ?? 0)) / span(t0, tEnd), points: p.points, onScreen: p.onScreen };
+  });
+
+  const updates = tEnd.plotUpdates - t0.plotUpdates;
+  const updateMean_ms = updates > 0 ? (tEnd.updateTime_ms - t0.updateTime_ms) / updates : null;
+  const secondsMeasured = span(t0, tEnd);
+  console.log(
+    `bench/ui: panel ${width}x${height} in headless Chromium, RPI ${rpiMs} ms, ${secondsMeasured.toFixed(1)} s, ` +
+      `joint plots in view: ${inView.filter(Boolean).length}/${jointIds.length}`,
+  );
+  console.log(`  rendered frames/s   ${fpsAll.toFixed(1)} over the run, ${fpsSteady.toFixed(1)} from ${HEAP_FIRST_S} s on`);
+  console.log(
+    `  long tasks          ${longTasks === null ? "not supported" : `${longTasks.length} (total ${longTotal.toFixed(0)} ms, longest ${longMax.toFixed(0)} ms)`}`,
+  );
+  console.log(`  JS heap             ${heap10.toFixed(2)} MB at ${HEAP_FIRST_S} s, ${heapEnd.toFixed(2)} MB at ${secondsMeasured.toFixed(0)} s (${(heapGrowth * 100).toFixed(1)} %)`);
+  console.log(
+    `  frames received     ${receivedPerS.toFixed(1)}/s over the WebSocket, missed here ${clientGaps}, dropped by the server ${dropped}; ` +
+      `robot link gaps ${robotGaps}, interval mean ${statusAfter.connection.interval_mean_ms?.toFixed(2)} ms`,
+  );
+  console.log(
+    `  plot updates        ${(updates / secondsMeasured).toFixed(1)}/s in all, ${updateMean_ms === null ? "—" : updateMean_ms.toFixed(1)} ms each on average (Plotly included), longest ${tEnd.updateTimeMax_ms.toFixed(0)} ms`,
+  );
+  for (const p of plotRates) {
+    console.log(`  ${p.id.padEnd(30)} ${p.updates_per_s.toFixed(1).padStart(5)} updates/s, ${p.points} points/trace${p.onScreen ? "" : " (out of view)"}`);
+  }
+  const everyFrame = clientGaps === 0 && dropped === 0 && receivedPerS >= 0.9 * (1000 / rpiMs);
+  const fpsOk = fpsSteady >= TARGET_FPS;
+  const heapOk = Math.abs(heapGrowth) <= TARGET_HEAP_GROWTH;
+  console.log(
+    `  targets: >= ${TARGET_FPS} frames/s ${fpsOk ? "MET" : "MISSED"}; every frame received ${everyFrame ? "MET" : "MISSED"}; ` +
+      `heap within ${TARGET_HEAP_GROWTH * 100} % ${heapOk ? "MET" : "MISSED"}`,
+  );
+  console.log(
+    JSON.stringify({
+      seconds: secondsMeasured,
+      rpi_ms: rpiMs,
+      fps_run: fpsAll,
+      fps_steady: fpsSteady,
+      long_tasks: longTasks?.length ?? null,
+      long_tasks_total_ms: longTotal,
+      long_task_max_ms: longMax,
+      heap_mb_10s: heap10,
+      heap_mb_end: heapEnd,
+      heap_growth: heapGrowth,
+      received_per_s: receivedPerS,
+      client_gaps: clientGaps,
+      dropped,
+      robot_gaps: robotGaps,
+      plot_updates_per_s: updates / secondsMeasured,
+      plot_update_mean_ms: updateMean_ms,
+      plots: plotRates,
+    }),
+  );
+} catch (error) {
+  console.error("bench/ui failed:", error instanceof Error ? error.message : error);
+  console.error(demoLog);
+  exitCode = 1;
+} finally {
+  await browser?.close();
+  await stopDemo();
+  rmSync(stateDir, { recursive: true, force: true });
+}
+process.exit(exitCode);
