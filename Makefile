@@ -96,8 +96,10 @@ e2e: $(STAMP) system-deps $(FRONTEND_DIST) $(E2E_STAMP)
 codegen: $(STAMP)
 	$(BIN)/cobot-hmi codegen
 
-demo: $(STAMP)
-	@echo "make demo arrives with the emulator and the backend service (issues 3-5)."; exit 1
+# The emulator at 127.0.0.2 and the service on http://127.0.0.1:8000 serving the built frontend
+# (built first, through npm ci, when the frontend exists); Ctrl-C stops both.
+demo: $(STAMP) $(if $(wildcard frontend/package.json),$(FRONTEND_DIST))
+	$(BIN)/cobot-hmi demo
 
 clean:
 	rm -rf $(VENV) backend/.pytest_cache backend/.mypy_cache backend/.ruff_cache

@@ -199,6 +199,7 @@ def _demo(args: argparse.Namespace) -> int:
         str(args.robot_tcp_port),
         "--udp-port",
         str(args.robot_udp_port),
+        "--verbose",  # its connection log shows the Forward Close on Ctrl-C
     ]
     if args.control_port is not None:
         command += ["--control-port", str(args.control_port)]
