@@ -52,7 +52,10 @@ test("the panel shows the running robot live", async ({ page }, testInfo) => {
     await page.waitForTimeout(300);
   }
   testInfo.annotations.push({ type: "frame ages (ms)", description: ages.join(", ") });
-  expect(Math.max(...ages), `frame ages ${ages.join(", ")} ms`).toBeLessThan(500);
+  // Small: never old enough to be called stale, and typically a few batches (50 ms) old.
+  const sorted = [...ages].sort((a, b) => a - b);
+  expect(Math.max(...ages), `frame ages ${ages.join(", ")} ms`).toBeLessThan(1000);
+  expect(sorted[Math.floor(sorted.length / 2)], `median of ${ages.join(", ")} ms`).toBeLessThan(300);
   await expect(page.getByTestId("frame-age")).toContainText("ms");
   await expect(page.getByTestId("robot-state")).toHaveText("STANDALONE_RUNNING");
 

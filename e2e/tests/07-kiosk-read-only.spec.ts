@@ -4,6 +4,8 @@ import { expect, screenshot, Service, test } from "../support/fixtures";
 import { baseURL, settings } from "../support/settings";
 
 test("the kiosk has no write control anywhere", async ({ page }, testInfo) => {
+  const requests: string[] = [];
+  page.on("request", (r) => requests.push(`${r.method()} ${new URL(r.url()).pathname}`));
   await page.goto("/kiosk");
   const kiosk = page.getByTestId("kiosk");
   await expect(kiosk).toBeVisible();
@@ -22,6 +24,12 @@ test("the kiosk has no write control anywhere", async ({ page }, testInfo) => {
   await expect(page.getByTestId("login-username")).toHaveCount(0);
   await expect(page.getByTestId("take-control")).toHaveCount(0);
   await expect(page.getByText(/log in|take control/i)).toHaveCount(0);
+
+  // It only ever reads: no request but GET (the WebSocket's upgrade is a GET too), and never
+  // to the login, control or command endpoints.
+  await page.waitForTimeout(2000);
+  expect(requests.filter((r) => !r.startsWith("GET "))).toEqual([]);
+  expect(requests.filter((r) => /\/api\/v1\/(auth|control|command)/.test(r))).toEqual([]);
 
   await screenshot(page, testInfo, "kiosk");
 });
