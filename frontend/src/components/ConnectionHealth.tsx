@@ -15,9 +15,8 @@ export function ConnectionHealth({ live, compact = false }: Props) {
   const c = live.connection;
   const reason =
     live.socket !== "open"
-      ? live.socket === "connecting"
-        ? "connecting to the HMI service…"
-        : "no connection to the HMI service"
+      ? (live.closeReason ??
+        (live.socket === "connecting" ? "connecting to the HMI service…" : "no connection to the HMI service"))
       : c !== null && c.state !== "connected"
         ? `robot link ${c.state}${c.reason !== null ? `: ${c.reason}` : ""}`
         : null;
@@ -61,7 +60,11 @@ export function ConnectionHealth({ live, compact = false }: Props) {
           </div>
         )}
       </dl>
-      {reason !== null && !compact && <div className="health__reason">{reason}</div>}
+      {reason !== null && (
+        <div className="health__reason" data-testid="connection-reason">
+          {reason}
+        </div>
+      )}
     </div>
   );
 }

@@ -77,7 +77,16 @@ function Kiosk() {
 }
 
 export function KioskApp() {
-  const runtime = useMemo(() => createLiveRuntime(KIOSK_PLOTS, { rate_hz: KIOSK_RATE_HZ }), []);
+  // Where viewing needs a login, a kiosk is opened as /kiosk?token=… (a viewer's token): the
+  // token goes into the stream's handshake; there is still no login form and no write here.
+  const runtime = useMemo(
+    () =>
+      createLiveRuntime(KIOSK_PLOTS, {
+        rate_hz: KIOSK_RATE_HZ,
+        token: new URLSearchParams(window.location.search).get("token"),
+      }),
+    [],
+  );
   useEffect(() => {
     runtime.start();
     return () => runtime.stop();

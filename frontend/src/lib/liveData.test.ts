@@ -54,6 +54,22 @@ describe("LiveData", () => {
     expect(snap.health).toBe("connected");
   });
 
+  it("publishes at once when the robot state or a flag changes", () => {
+    const live = new LiveData(JOINT_PLOTS, { capacity: 16 });
+    let published = 0;
+    live.subscribe(() => published++);
+    const f1 = { ...frame(1), emergency_stopped: false } as Frame;
+    live.handle({ type: "frames", frames: [{ seq: 1, t: 1, frame: f1 }] });
+    expect(published).toBe(1); // the first frame
+    live.handle({ type: "frames", frames: [{ seq: 2, t: 1.01, frame: { ...f1 } as Frame }] });
+    expect(published).toBe(1); // nothing a badge shows changed: wait for the periodic publish
+    live.handle({ type: "frames", frames: [{ seq: 3, t: 1.02, frame: { ...f1, emergency_stopped: true } as Frame }] });
+    expect(published).toBe(2);
+    expect(live.getSnapshot().frame?.emergency_stopped).toBe(true);
+    live.handle({ type: "frames", frames: [{ seq: 4, t: 1.03, frame: { ...f1, emergency_stopped: true, robot_state: 0 } as Frame }] });
+    expect(published).toBe(3);
+  });
+
   it("turns stale after a second without frames, and remembers since when", () => {
     const clock = { t: 1_000_000 };
     const live = new LiveData(JOINT_PLOTS, { capacity: 16, now: () => clock.t });

@@ -9,6 +9,7 @@
  */
 import { LAYOUT_VERSION, type Frame } from "../generated/layout";
 import { connectionHealth, type Health, type SocketState } from "./health";
+import { FLAG_FIELDS, isFlagField } from "./layoutInfo";
 import { ChannelMap, type PlotSpec } from "./plots";
 import type { ConnectionStatus, ControlStatus, ServerMessage, StreamEvent } from "./protocol";
 import { SampleRing } from "./ringBuffer";
@@ -39,6 +40,8 @@ export interface LiveSnapshot {
   /** the backend speaks another layout version than this build */
   readonly layoutMismatch: number | null;
   readonly rate_hz: number | null;
+  /** Why the service closed the stream last, if it said so. */
+  readonly closeReason: string | null;
 }
 
 export interface LiveDataOptions {
@@ -48,6 +51,15 @@ export interface LiveDataOptions {
 }
 
 type Listener = () => void;
+
+const FLAG_NAMES = FLAG_FIELDS.map((f) => f.name).filter(isFlagField);
+
+/** Whether the robot state or any flag differs between two frames (null: no frame before). */
+export function signalsChanged(before: Frame | null, after: Frame): boolean {
+  if (before === null) return true;
+  if (before.robot_state !== after.robot_state) return true;
+  return FLAG_NAMES.some((name) => before[name] !== after[name]);
+}
 
 export class LiveData {
   readonly channels: ChannelMap;
@@ -68,6 +80,7 @@ export class LiveData {
   private layoutMismatch: number | null = null;
   private rate_hz: number | null = null;
   private staleSince_ms: number | null = null;
+  private closeReason: string | null = null;
   private current: LiveSnapshot;
   private timer: ReturnType<typeof setInterval> | null = null;
   framesReceived = 0;
@@ -111,6 +124,12 @@ export class LiveData {
     this.publish();
   }
 
+  setCloseReason(reason: string | null): void {
+    if (reason === this.closeReason) return;
+    this.closeReason = reason;
+    this.publish();
+  }
+
   handle(message: ServerMessage): void {
     switch (message.type) {
       case "hello":
@@ -121,9 +140,13 @@ export class LiveData {
         this.lastSeq = null;
         this.publish();
         return;
-      case "frames":
+      case "frames": {
+        const before = this.frame;
         for (const stamped of message.frames) this.addFrame(stamped.seq, stamped.t, stamped.frame);
+        // A state or flag change is shown at once, not at the next periodic publish.
+        if (this.frame !== null && before !== this.frame && signalsChanged(before, this.frame)) this.publish();
         return;
+      }
       case "dropped":
         this.dropped += message.count;
         return;
@@ -223,6 +246,7 @@ export class LiveData {
       events: this.events,
       layoutMismatch: this.layoutMismatch,
       rate_hz: this.rate_hz,
+      closeReason: this.closeReason,
     };
   }
 }

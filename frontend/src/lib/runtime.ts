@@ -18,13 +18,16 @@ export interface LiveRuntime {
 export interface RuntimeOptions {
   /** Frames per second wanted from the backend; undefined: every frame. */
   readonly rate_hz?: number;
+  /** A session token for the stream's handshake (a kiosk of a site where viewing needs a login). */
+  readonly token?: string | null;
 }
 
 export function createLiveRuntime(plots: readonly PlotSpec[], options: RuntimeOptions = {}): LiveRuntime {
   const live = new LiveData(plots);
-  const stream = new StreamClient(() => streamUrl(window.location, options.rate_hz), {
+  const stream = new StreamClient(() => streamUrl(window.location, options.rate_hz, options.token), {
     onMessage: (m) => live.handle(m),
     onSocketState: (s) => live.setSocketState(s),
+    onCloseReason: (r) => live.setCloseReason(r),
   });
   const coordinator = new PlotCoordinator();
   return {

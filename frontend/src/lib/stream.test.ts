@@ -1,7 +1,7 @@
 import { afterEach, beforeEach, describe, expect, it, vi } from "vitest";
 import type { SocketState } from "./health";
 import type { ServerMessage } from "./protocol";
-import { StreamClient, streamUrl, type SocketLike } from "./stream";
+import { StreamClient, closeReason, streamUrl, type SocketLike } from "./stream";
 
 class FakeSocket implements SocketLike {
   onopen: ((ev: unknown) => void) | null = null;
@@ -19,8 +19,8 @@ class FakeSocket implements SocketLike {
   send(message: object | string): void {
     this.onmessage?.({ data: typeof message === "string" ? message : JSON.stringify(message) });
   }
-  drop(): void {
-    this.onclose?.({ code: 1006 });
+  drop(code = 1006, reason = ""): void {
+    this.onclose?.({ code, reason });
   }
 }
 
@@ -64,6 +64,7 @@ describe("StreamClient", () => {
   it("builds the stream URL of the page's origin", () => {
     expect(streamUrl({ protocol: "http:", host: "h:8000" })).toBe("ws://h:8000/api/v1/stream");
     expect(streamUrl({ protocol: "https:", host: "h" }, 20)).toBe("wss://h/api/v1/stream?rate=20");
+    expect(streamUrl({ protocol: "http:", host: "h" }, undefined, "a b")).toBe("ws://h/api/v1/stream?token=a+b");
   });
 
   it("parses messages and skips bad ones without stopping", () => {
@@ -104,6 +105,34 @@ describe("StreamClient", () => {
     expect(states).toContain("open");
     expect(states.at(-1)).toBe("closed");
     client.stop();
+  });
+
+  it("reports the service's close codes in words and keeps retrying", () => {
+    const reasons: (string | null)[] = [];
+    const sockets: FakeSocket[] = [];
+    const client = new StreamClient(
+      () => "ws://h/api/v1/stream",
+      { onMessage: () => undefined, onSocketState: () => undefined, onCloseReason: (r) => reasons.push(r) },
+      {
+        random: () => 0,
+        socketFactory: (url) => {
+          const socket = new FakeSocket(url);
+          sockets.push(socket);
+          return socket;
+        },
+      },
+    );
+    client.start();
+    (sockets[0] as FakeSocket).drop(4401, "login required");
+    expect(reasons.at(-1)).toBe("the service requires a login to view: login required");
+    vi.advanceTimersByTime(10_000);
+    (sockets[1] as FakeSocket).open();
+    expect(reasons.at(-1)).toBeNull();
+    (sockets[1] as FakeSocket).drop(4400);
+    expect(reasons.at(-1)).toContain("rate");
+    (sockets.at(-1) as FakeSocket).drop(1006);
+    client.stop();
+    expect(closeReason(1000, "")).toBeNull();
   });
 
   it("applies jitter from the random source", () => {

@@ -25,7 +25,22 @@ export type SocketFactory = (url: string) => SocketLike;
 export interface StreamCallbacks {
   onMessage(message: ServerMessage): void;
   onSocketState(state: SocketState): void;
+  /** Why the service closed the socket, in words (close codes of docs/api.md), or null. */
+  onCloseReason?(reason: string | null): void;
   onBadMessage?(): void;
+}
+
+/** The service's own close codes (docs/api.md, WebSocket). */
+export const CLOSE_BAD_RATE = 4400;
+export const CLOSE_LOGIN_REQUIRED = 4401;
+
+/** A person's words for why the service closed the stream (null: an ordinary close). */
+export function closeReason(code: number | undefined, reason: string | undefined): string | null {
+  const detail = reason !== undefined && reason !== "" ? `: ${reason}` : "";
+  if (code === CLOSE_LOGIN_REQUIRED) return `the service requires a login to view${detail}`;
+  if (code === CLOSE_BAD_RATE) return `the service refused the stream rate${detail}`;
+  if (code !== undefined && code >= 4000) return `the service closed the stream (${code})${detail}`;
+  return null;
 }
 
 export interface StreamOptions {
@@ -39,10 +54,17 @@ export interface StreamOptions {
 export const DEFAULT_SILENCE_TIMEOUT_MS = 5000;
 
 /** ws(s)://host/api/v1/stream[?rate=HZ] for the page's own origin. */
-export function streamUrl(location: { protocol: string; host: string }, rate_hz?: number): string {
+export function streamUrl(
+  location: { protocol: string; host: string },
+  rate_hz?: number,
+  token?: string | null,
+): string {
   const scheme = location.protocol === "https:" ? "wss" : "ws";
-  const query = rate_hz === undefined ? "" : `?rate=${encodeURIComponent(String(rate_hz))}`;
-  return `${scheme}://${location.host}/api/v1/stream${query}`;
+  const query = new URLSearchParams();
+  if (rate_hz !== undefined) query.set("rate", String(rate_hz));
+  if (token !== undefined && token !== null && token !== "") query.set("token", token);
+  const q = query.toString();
+  return `${scheme}://${location.host}/api/v1/stream${q === "" ? "" : `?${q}`}`;
 }
 
 export class StreamClient {
@@ -104,6 +126,7 @@ export class StreamClient {
     this.socket = socket;
     socket.onopen = () => {
       if (this.socket !== socket) return;
+      this.callbacks.onCloseReason?.(null);
       this.callbacks.onSocketState("open");
       this.armSilence();
     };
@@ -124,10 +147,11 @@ export class StreamClient {
     socket.onerror = () => {
       // onclose follows; nothing to do here.
     };
-    socket.onclose = () => {
+    socket.onclose = (ev) => {
       if (this.socket !== socket) return;
       this.socket = null;
       this.clearSilence();
+      this.callbacks.onCloseReason?.(closeReason(ev.code, ev.reason));
       this.callbacks.onSocketState("closed");
       this.scheduleRetry();
     };
