@@ -12,23 +12,34 @@ losses), starting at room temperature.
 from __future__ import annotations
 
 import math
-import random
 from collections.abc import Sequence
 from typing import Final
 
-from cobot_hmi.emulator.robot.kinematics import Kinematics, Transform
-from cobot_hmi.emulator.robot.models import RobotModel, Vector3
+from cobot_hmi.emulator.robot.kinematics import Kinematics
+from cobot_hmi.emulator.robot.models import RobotModel
 
 GRAVITY_M_S2: Final = 9.80665
 
 
-def _point_in_base(frame: Transform, local: Vector3) -> Vector3:
-    x, y, z = local
-    return (
-        frame[0] * x + frame[1] * y + frame[2] * z + frame[3],
-        frame[4] * x + frame[5] * y + frame[6] * z + frame[7],
-        frame[8] * x + frame[9] * y + frame[10] * z + frame[11],
-    )
+_CONSTANTS: dict[int, tuple[RobotModel, tuple[tuple[float, ...], ...]]] = {}
+"""Per model (by identity, the model kept so its id is never reused): each joint's link mass,
+centre of mass, reflected inertia and friction, read once instead of per frame."""
+
+
+def _constants(model: RobotModel) -> tuple[tuple[float, ...], ...]:
+    entry = _CONSTANTS.get(id(model))
+    if entry is None or entry[0] is not model:
+        values = tuple(
+            (
+                link.mass_kg,
+                *link.com_m,
+                spec.reflected_inertia_kg_m2,
+                spec.viscous_friction_nm_s_deg,
+            )
+            for link, spec in zip(model.links, model.joints, strict=True)
+        )
+        entry = _CONSTANTS[id(model)] = (model, values)
+    return entry[1]
 
 
 def joint_torques(
@@ -46,31 +57,33 @@ def joint_torques(
     is ``Σ m·|c − p|² − Σ m·(z·(c − p))²``, both expanded so one pass over the bodies serves
     every joint.
     """
-    bodies: list[tuple[float, Vector3]] = [
-        (link.mass_kg, _point_in_base(frame, link.com_m))
-        for frame, link in zip(kin.joint_frames, model.links, strict=True)
-    ]
-    if payload_kg > 0.0:
-        # The payload moves with the last link: fold it into link 6's sums.
-        bodies.append((payload_kg, (kin.tcp[3], kin.tcp[7], kin.tcp[11])))
-    count = len(model.joints)
     mass = 0.0
     sx = sy = sz = 0.0
     qxx = qyy = qzz = qxy = qxz = qyz = 0.0
-    sums: list[tuple[float, ...]] = [()] * count
-    for i in range(len(bodies) - 1, -1, -1):
-        m, (cx, cy, cz) = bodies[i]
+    if payload_kg > 0.0:
+        # The payload moves with the last link: fold it into link 6's sums.
+        m, cx, cy, cz = payload_kg, kin.tcp[3], kin.tcp[7], kin.tcp[11]
         mass += m
         sx, sy, sz = sx + m * cx, sy + m * cy, sz + m * cz
         qxx, qyy, qzz = qxx + m * cx * cx, qyy + m * cy * cy, qzz + m * cz * cz
         qxy, qxz, qyz = qxy + m * cx * cy, qxz + m * cx * cz, qyz + m * cy * cz
-        if i < count:
-            sums[i] = (mass, sx, sy, sz, qxx, qyy, qzz, qxy, qxz, qyz)
-    torques: list[float] = []
-    for i, (frame, spec) in enumerate(zip(kin.joint_frames, model.joints, strict=True)):
-        mass, sx, sy, sz, qxx, qyy, qzz, qxy, qxz, qyz = sums[i]
-        zx, zy, zz = frame[2], frame[6], frame[10]
-        px, py, pz = frame[3], frame[7], frame[11]
+    frames = kin.joint_frames
+    constants = _constants(model)
+    count = len(constants)
+    torques = [0.0] * count
+    radians = math.radians
+    # From the last link to the first: the sums then hold exactly the bodies joint i moves.
+    for i in range(count - 1, -1, -1):
+        m, lx, ly, lz, reflected_inertia_kg_m2, friction_nm_s_deg = constants[i]
+        f00, f01, zx, px, f10, f11, zy, py, f20, f21, zz, pz = frames[i]
+        # The link's centre of mass in the base frame (its frame's z column is the joint axis).
+        cx = f00 * lx + f01 * ly + zx * lz + px
+        cy = f10 * lx + f11 * ly + zy * lz + py
+        cz = f20 * lx + f21 * ly + zz * lz + pz
+        mass += m
+        sx, sy, sz = sx + m * cx, sy + m * cy, sz + m * cz
+        qxx, qyy, qzz = qxx + m * cx * cx, qyy + m * cy * cy, qzz + m * cz * cz
+        qxy, qxz, qyz = qxy + m * cx * cy, qxz + m * cx * cz, qyz + m * cy * cz
         # First moment about p: S − M·p; its cross product with (0, 0, −g), dotted with z.
         rx, ry = sx - mass * px, sy - mass * py
         gravity_nm = GRAVITY_M_S2 * (zx * ry - zy * rx)
@@ -88,22 +101,22 @@ def joint_torques(
         z_dot_s = zx * sx + zy * sy + zz * sz
         z_dot_p = zx * px + zy * py + zz * pz
         axial = zqz - 2.0 * z_dot_p * z_dot_s + mass * z_dot_p * z_dot_p
-        inertia_kg_m2 = spec.reflected_inertia_kg_m2 + max(0.0, radial - axial)
-        torques.append(
+        inertia_kg_m2 = reflected_inertia_kg_m2 + max(0.0, radial - axial)
+        torques[i] = (
             gravity_nm
-            + inertia_kg_m2 * math.radians(acceleration_deg_s2[i])
-            + spec.viscous_friction_nm_s_deg * velocity_deg_s[i]
+            + inertia_kg_m2 * radians(acceleration_deg_s2[i])
+            + friction_nm_s_deg * velocity_deg_s[i]
         )
     return tuple(torques)
 
 
 def motor_currents(
-    model: RobotModel, torques_nm: Sequence[float], rng: random.Random, noise_a: float
+    model: RobotModel, torques_nm: Sequence[float], noise_a: Sequence[float]
 ) -> tuple[float, ...]:
-    """Motor current (A): torque over the joint's torque constant, plus Gaussian noise."""
+    """Motor current (A): torque over the joint's torque constant, plus the given noise."""
     return tuple(
-        torque / spec.torque_per_amp_nm + rng.gauss(0.0, noise_a)
-        for torque, spec in zip(torques_nm, model.joints, strict=True)
+        torque / spec.torque_per_amp_nm + noise
+        for torque, spec, noise in zip(torques_nm, model.joints, noise_a, strict=True)
     )
 
 

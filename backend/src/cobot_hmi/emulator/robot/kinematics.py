@@ -13,7 +13,6 @@ joints take a few microseconds this way, and the model needs no numeric library.
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Sequence
 from typing import Final, NamedTuple
@@ -144,19 +143,55 @@ class Kinematics(NamedTuple):
 def forward(
     model: RobotModel, joints_deg: Sequence[float], tool: Transform = IDENTITY
 ) -> Kinematics:
-    """Compose the chain base → link 1 → … → link 6 → tool."""
+    """Compose the chain base → link 1 → … → link 6 → tool.
+
+    Each step is ``current · origin · Rz(q)``, written out: the rotation about z only mixes the
+    first two columns, so it costs a few products instead of a second full composition (this runs
+    for every produced frame).
+    """
     frames: list[Transform] = []
-    current = IDENTITY
+    r00, r01, r02, px, r10, r11, r12, py, r20, r21, r22, pz = IDENTITY
+    cos, sin, radians = math.cos, math.sin, math.radians
     for origin, q_deg in zip(_origins(model), joints_deg, strict=True):
-        current = compose(compose(current, origin), rot_z(math.radians(q_deg)))
-        frames.append(current)
-    return Kinematics(tuple(frames), compose(current, tool))
+        o00, o01, o02, ox, o10, o11, o12, oy, o20, o21, o22, oz = origin
+        # current · origin
+        a00 = r00 * o00 + r01 * o10 + r02 * o20
+        a01 = r00 * o01 + r01 * o11 + r02 * o21
+        a02 = r00 * o02 + r01 * o12 + r02 * o22
+        a10 = r10 * o00 + r11 * o10 + r12 * o20
+        a11 = r10 * o01 + r11 * o11 + r12 * o21
+        a12 = r10 * o02 + r11 * o12 + r12 * o22
+        a20 = r20 * o00 + r21 * o10 + r22 * o20
+        a21 = r20 * o01 + r21 * o11 + r22 * o21
+        a22 = r20 * o02 + r21 * o12 + r22 * o22
+        px, py, pz = (
+            r00 * ox + r01 * oy + r02 * oz + px,
+            r10 * ox + r11 * oy + r12 * oz + py,
+            r20 * ox + r21 * oy + r22 * oz + pz,
+        )
+        # · Rz(q)
+        q = radians(q_deg)
+        c, s = cos(q), sin(q)
+        r00, r01, r02 = a00 * c + a01 * s, a01 * c - a00 * s, a02
+        r10, r11, r12 = a10 * c + a11 * s, a11 * c - a10 * s, a12
+        r20, r21, r22 = a20 * c + a21 * s, a21 * c - a20 * s, a22
+        frames.append((r00, r01, r02, px, r10, r11, r12, py, r20, r21, r22, pz))
+    flange = frames[-1]
+    return Kinematics(tuple(frames), flange if tool is IDENTITY else compose(flange, tool))
 
 
-@functools.cache
+_ORIGINS: dict[int, tuple[RobotModel, tuple[Transform, ...]]] = {}
+"""Joint origins by model identity (the model is kept, so its id is never reused). Not
+``functools.cache``: hashing a model hashes every nested spec, on every call."""
+
+
 def _origins(model: RobotModel) -> tuple[Transform, ...]:
     """The model's constant joint-origin transforms, computed once."""
-    return tuple(from_rpy(spec.origin_xyz_m, spec.origin_rpy_rad) for spec in model.joints)
+    entry = _ORIGINS.get(id(model))
+    if entry is None or entry[0] is not model:
+        entry = (model, tuple(from_rpy(j.origin_xyz_m, j.origin_rpy_rad) for j in model.joints))
+        _ORIGINS[id(model)] = entry
+    return entry[1]
 
 
 def position_mm(t: Transform) -> Vector3:

@@ -17,7 +17,6 @@ Names and counts come from the layout (``field_by_name``), never typed again her
 from __future__ import annotations
 
 import math
-import random
 from collections.abc import Mapping, Sequence
 from typing import Final
 
@@ -123,6 +122,12 @@ class RobotIO:
             name: _zeros(field_by_name(Direction.T_TO_O, name)) for name in SETTABLE_INPUTS
         }
         self.owner_in_run = False
+        # Frame parts built once and kept until what they come from changes (not per frame).
+        self._controlbox_di: dict[bool, tuple[bool, ...]] = {}
+        self._tool_di: tuple[bool, ...] | None = None
+        self._analog_input_type: tuple[int, ...] | None = None
+        self._registers_of: CommandImage | None = None
+        self._registers: tuple[bool, ...] = ()
 
     def consume_command(self, image: CommandImage) -> None:
         """A connection owner in run (or an explicit write) commands the outputs."""
@@ -165,25 +170,41 @@ class RobotIO:
                 staged.append((name, index, _checked_value(f, f"{name}[{index}]", value)))
         for name, index, value in staged:
             self.inputs[name][index] = value
+        self._controlbox_di.clear()
+        self._tool_di = self._analog_input_type = None
 
     # ------------------------------------------------------------------ frame parts
 
     def controlbox_di(self, part_present: bool) -> tuple[bool, ...]:
-        values = [bool(v) for v in self.inputs["controlbox_di"]]
-        values[PART_PRESENT_DI_INDEX] = part_present
-        return tuple(values)
+        cached = self._controlbox_di.get(part_present)
+        if cached is None:
+            values = [bool(v) for v in self.inputs["controlbox_di"]]
+            values[PART_PRESENT_DI_INDEX] = part_present
+            cached = self._controlbox_di[part_present] = tuple(values)
+        return cached
 
     def tool_di(self) -> tuple[bool, ...]:
-        return tuple(bool(v) for v in self.inputs["tool_di"])
+        if self._tool_di is None:
+            self._tool_di = tuple(bool(v) for v in self.inputs["tool_di"])
+        return self._tool_di
 
     def analog_input_type(self) -> tuple[int, ...]:
-        return tuple(int(v) for v in self.inputs["analog_input_type"])
+        if self._analog_input_type is None:
+            self._analog_input_type = tuple(int(v) for v in self.inputs["analog_input_type"])
+        return self._analog_input_type
 
-    def analog_input(self, rng: random.Random) -> tuple[float, ...]:
-        return tuple(
-            float(v) + rng.gauss(0.0, self.analog_noise) for v in self.inputs["analog_input"]
-        )
+    def analog_input(self, noise: Sequence[float]) -> tuple[float, ...]:
+        """The analog inputs plus ``noise`` (one value each, of ``analog_noise`` deviation)."""
+        return tuple(float(v) + n for v, n in zip(self.inputs["analog_input"], noise, strict=True))
+
+    @property
+    def analog_input_count(self) -> int:
+        return len(self.inputs["analog_input"])
 
     def bit_output_registers(self) -> tuple[bool, ...]:
-        registers = self.applied.bit_input_registers
-        return tuple(False if m is None else registers[m] for m in self.register_map)
+        applied = self.applied
+        if applied is not self._registers_of:
+            registers = applied.bit_input_registers
+            self._registers = tuple(False if m is None else registers[m] for m in self.register_map)
+            self._registers_of = applied
+        return self._registers

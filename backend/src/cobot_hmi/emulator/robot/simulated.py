@@ -22,6 +22,7 @@ from cobot_hmi.codec import CommandImage
 from cobot_hmi.emulator.process_image import IdleBehaviour
 from cobot_hmi.emulator.robot.dynamics import MotorThermal, joint_torques, motor_currents
 from cobot_hmi.emulator.robot.kinematics import (
+    Kinematics,
     Transform,
     euler_zyz_deg,
     forward,
@@ -30,8 +31,10 @@ from cobot_hmi.emulator.robot.kinematics import (
     tcp_velocity,
 )
 from cobot_hmi.emulator.robot.models import Vector3, model_by_name
+from cobot_hmi.emulator.robot.noise import GaussianNoise
 from cobot_hmi.emulator.robot.robot_io import RobotIO
 from cobot_hmi.emulator.robot.states import (
+    Flags,
     Phase,
     RobotCommandError,
     StateMachine,
@@ -101,6 +104,7 @@ class SimulatedRobot:
         s = self.settings
         self.model = model_by_name(s.model)
         self._rng = random.Random(s.seed)
+        self._noise = GaussianNoise(self._rng)
         self._states = StateMachine(
             start_s or 0.0,
             s.timings,
@@ -125,6 +129,11 @@ class SimulatedRobot:
         self._started = start_s is not None
         self._now_s = start_s or 0.0
         self._monitoring: Monitoring | None = None
+        self._kinematics: (
+            tuple[JointSample, Transform, float, Kinematics, tuple[float, ...]] | None
+        ) = None
+        """The last motion sample, tool and payload with their kinematics and torques: an arm at
+        rest (a dwell, a stop, standby) needs them computed once, not every frame."""
         self._monitoring_at_s = -math.inf
         self._frame: Frame | None = None
         self._frame_at_s: float | None = None
@@ -161,39 +170,53 @@ class SimulatedRobot:
             self._moving = False
             self._monitoring = None
 
-    def _refresh_monitoring(self) -> Monitoring:
+    def _kinematics_now(self) -> tuple[Kinematics, tuple[float, ...]]:
+        motion, tool, payload_kg = self._motion, self._tool, self.settings.payload_kg
+        cached = self._kinematics
+        if (
+            cached is not None
+            and cached[1] is tool
+            and cached[2] == payload_kg
+            and cached[0] == motion
+        ):
+            return cached[3], cached[4]
+        position, velocity, acceleration = motion
+        kin = forward(self.model, position, tool)
+        torques = joint_torques(self.model, kin, velocity, acceleration, payload_kg)
+        self._kinematics = (motion, tool, payload_kg, kin, torques)
+        return kin, torques
+
+    def _refresh_monitoring(self, flags: Flags) -> Monitoring:
         s = self.settings
-        position, velocity, acceleration = self._motion
-        kin = forward(self.model, position, self._tool)
-        torques = joint_torques(self.model, kin, velocity, acceleration, s.payload_kg)
-        if self._states.flags().servo_on:
-            currents = motor_currents(self.model, torques, self._rng, s.current_noise_a)
+        position, velocity, _ = self._motion
+        kin, torques = self._kinematics_now()
+        noise = self._noise.take
+        joints = len(torques)
+        if flags.servo_on:
+            currents = motor_currents(self.model, torques, noise(joints, s.current_noise_a))
         else:
-            currents = (0.0,) * len(torques)  # brakes hold the arm; the drives carry no current
+            currents = (0.0,) * joints  # brakes hold the arm; the drives carry no current
         self._currents_a = currents
         linear, angular = tcp_velocity(kin, velocity)
-        gauss = self._rng.gauss
         return Monitoring(
             joint_position=position,
             joint_velocity=velocity,
             joint_motor_current=currents,
             joint_motor_temperature=tuple(self._thermal.temperatures_c),
             joint_torque=torques,
-            joint_external_torque=tuple(
-                gauss(0.0, s.external_torque_noise_nm) for _ in self.model.joints
-            ),
+            joint_external_torque=noise(joints, s.external_torque_noise_nm),
             tcp_position=position_mm(kin.tcp),
             tcp_orientation=euler_zyz_deg(kin.tcp),
             tcp_velocity=linear,
             tcp_angular_velocity=angular,
-            external_force=tuple(gauss(0.0, s.external_force_noise_n) for _ in range(3)),
-            external_moment=tuple(gauss(0.0, s.external_moment_noise_nm) for _ in range(3)),
+            external_force=noise(3, s.external_force_noise_n),
+            external_moment=noise(3, s.external_moment_noise_nm),
         )
 
-    def _monitoring_now(self) -> Monitoring:
+    def _monitoring_now(self, flags: Flags) -> Monitoring:
         refresh_s = self.settings.kinematic_refresh_ms / 1000.0
         if self._monitoring is None or self._now_s - self._monitoring_at_s >= refresh_s:
-            self._monitoring = self._refresh_monitoring()
+            self._monitoring = self._refresh_monitoring(flags)
             self._monitoring_at_s = self._now_s
         return self._monitoring
 
@@ -204,18 +227,19 @@ class SimulatedRobot:
         self._advance(now_s)
         if self._frame is not None and self._frame_at_s == self._now_s:
             return self._frame  # several connections producing at the same instant
-        m = self._monitoring_now()
         flags = self._states.flags()
-        applied = self._io.applied
+        m = self._monitoring_now(flags)
+        io = self._io
+        applied = io.applied
         s = self.settings
         frame = Frame(
-            controlbox_di=self._io.controlbox_di(self._runner.part_present),
+            controlbox_di=io.controlbox_di(self._runner.part_present),
             controlbox_do=applied.controlbox_do,
-            analog_input_type=self._io.analog_input_type(),
+            analog_input_type=io.analog_input_type(),
             analog_output_type=applied.analog_output_type,
-            analog_input=self._io.analog_input(self._rng),
+            analog_input=io.analog_input(self._noise.take(io.analog_input_count, io.analog_noise)),
             analog_output=applied.analog_output,
-            tool_di=self._io.tool_di(),
+            tool_di=io.tool_di(),
             tool_do=applied.tool_do,
             controller_version=self._controller_version,
             robot_state=self._states.state(),
@@ -238,7 +262,7 @@ class SimulatedRobot:
             tool_offset_orientation=s.tool_offset_orientation_deg,
             external_force=m.external_force,
             external_moment=m.external_moment,
-            bit_output_registers=self._io.bit_output_registers(),
+            bit_output_registers=io.bit_output_registers(),
         )
         self._frame, self._frame_at_s = frame, self._now_s
         return frame
