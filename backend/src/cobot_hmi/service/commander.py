@@ -101,7 +101,8 @@ class Commander:
                 plan.values(plan.image),
                 "pending",
                 None,
-            )
+            ),
+            fsync=False,  # the outcome's fsync below covers it (see ``store``)
         )
         after_seq = self._hub.seq
         try:

@@ -1,0 +1,212 @@
+"""Shared by ``bench/fanout`` and ``bench/write_latency``: the emulator and the service as their
+own processes on fresh loopback addresses, CPU accounting from /proc, Prometheus parsing.
+
+Never a fixed address: each run picks 127.<random>.<random>.x pairs, so a bench can run next to
+tests and other benches on the same machine.
+"""
+
+from __future__ import annotations
+
+import os
+import random
+import re
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+import urllib.request
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+from cobot_hmi.service.users import Role, UsersFile
+
+CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
+BENCH_USER = ("bench", "bench-password")
+
+
+def process_cpu_s(pid: int) -> float:
+    """User + system CPU seconds of a process (all its threads), from /proc."""
+    with open(f"/proc/{pid}/stat") as stat:
+        fields = stat.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / CLOCK_TICKS
+
+
+def own_cpu_s() -> float:
+    times = os.times()
+    return times.user + times.system
+
+
+def free_port(host: str, kind: int = socket.SOCK_STREAM) -> int:
+    with socket.socket(socket.AF_INET, kind) as s:
+        s.bind((host, 0))
+        port: int = s.getsockname()[1]
+        return port
+
+
+def loopback_pair() -> tuple[str, str]:
+    """Two fresh loopback addresses: the robot's and the service's."""
+    a, b = random.randint(100, 250), random.randint(0, 250)
+    return f"127.{a}.{b}.2", f"127.{a}.{b}.3"
+
+
+@dataclass
+class Stack:
+    robot_host: str
+    service_host: str
+    http_port: int
+    emulator: subprocess.Popen[bytes]
+    service: subprocess.Popen[bytes]
+    state_dir: Path
+
+    @property
+    def base_url(self) -> str:
+        return f"http://{self.service_host}:{self.http_port}"
+
+    @property
+    def ws_url(self) -> str:
+        return f"ws://{self.service_host}:{self.http_port}/api/v1/stream"
+
+    def get(self, path: str) -> bytes:
+        with urllib.request.urlopen(self.base_url + path, timeout=5) as answer:
+            data: bytes = answer.read()
+            return data
+
+
+def _cli(*args: str, log: Path) -> subprocess.Popen[bytes]:
+    with log.open("wb") as out:
+        return subprocess.Popen(
+            [sys.executable, "-m", "cobot_hmi.cli", *args],
+            stdout=out,
+            stderr=subprocess.STDOUT,
+        )
+
+
+def _wait(
+    check: Callable[[], bool],
+    what: str,
+    process: subprocess.Popen[bytes],
+    timeout_s: float,
+) -> None:
+    end = time.monotonic() + timeout_s
+    while time.monotonic() < end:
+        if process.poll() is not None:
+            raise SystemExit(f"{what}: the process exited ({process.returncode})")
+        try:
+            if check():
+                return
+        except OSError:
+            pass
+        time.sleep(0.1)
+    raise SystemExit(f"{what}: not ready within {timeout_s:.0f} s")
+
+
+def _accepts(host: str, port: int) -> bool:
+    with socket.create_connection((host, port), 0.5):
+        return True
+
+
+@contextmanager
+def stack(rpi_ms: float, *service_args: str) -> Iterator[Stack]:
+    """The emulator and the service, each its own process; stopped (SIGINT) at the end."""
+    robot_host, service_host = loopback_pair()
+    tcp_port, http_port = free_port(robot_host), free_port(service_host)
+    with tempfile.TemporaryDirectory(prefix="cobot-bench-") as directory:
+        state = Path(directory)
+        UsersFile(state / "users.json").add(BENCH_USER[0], Role.OPERATOR, BENCH_USER[1])
+        emulator = _cli(
+            "emulator",
+            "--host",
+            robot_host,
+            "--tcp-port",
+            str(tcp_port),
+            "--control-port",
+            "0",
+            log=state / "emulator.log",
+        )
+        service: subprocess.Popen[bytes] | None = None
+        try:
+            _wait(lambda: _accepts(robot_host, tcp_port), "emulator", emulator, 15)
+            service = _cli(
+                "serve",
+                "--robot",
+                robot_host,
+                "--robot-tcp-port",
+                str(tcp_port),
+                "--local-host",
+                service_host,
+                "--host",
+                service_host,
+                "--port",
+                str(http_port),
+                "--rpi-ms",
+                str(rpi_ms),
+                "--state-dir",
+                str(state),
+                *service_args,
+                log=state / "service.log",
+            )
+            running = Stack(
+                robot_host, service_host, http_port, emulator, service, state
+            )
+            _wait(
+                lambda: b'"ready":true' in running.get("/readyz"),
+                "service",
+                service,
+                20,
+            )
+            yield running
+        finally:
+            for process in (service, emulator):
+                if process is not None and process.poll() is None:
+                    process.send_signal(2)  # SIGINT: a clean stop (Forward Close)
+                    try:
+                        process.wait(10)
+                    except subprocess.TimeoutExpired:
+                        process.kill()
+                        process.wait()
+
+
+_SAMPLE = re.compile(r"^(?P<name>[a-z_]+)(?:\{(?P<labels>[^}]*)\})? (?P<value>\S+)$")
+
+
+def metrics(text: str) -> dict[tuple[str, str], float]:
+    """Prometheus text → {(name, labels): value}."""
+    out: dict[tuple[str, str], float] = {}
+    for line in text.splitlines():
+        match = _SAMPLE.match(line)
+        if match:
+            out[(match["name"], match["labels"] or "")] = float(match["value"])
+    return out
+
+
+def histogram_quantile(
+    before: dict[tuple[str, str], float],
+    after: dict[tuple[str, str], float],
+    name: str,
+    q: float,
+) -> tuple[float, int]:
+    """The ``q`` quantile (seconds, linear within its bucket) of the observations between two
+    scrapes of histogram ``name``, and how many there were."""
+    buckets = []
+    for (metric, labels), value in after.items():
+        if metric == name + "_bucket":
+            bound_text = labels.split('"')[1]
+            bound = float("inf") if bound_text == "+Inf" else float(bound_text)
+            buckets.append((bound, value - before.get((metric, labels), 0.0)))
+    buckets.sort()
+    total = buckets[-1][1]
+    if total <= 0:
+        return float("nan"), 0
+    rank = q * total
+    previous_bound, previous_count = 0.0, 0.0
+    for bound, count in buckets:
+        if count >= rank:
+            if bound == float("inf"):
+                return previous_bound, int(total)
+            share = (rank - previous_count) / max(count - previous_count, 1e-9)
+            return previous_bound + share * (bound - previous_bound), int(total)
+        previous_bound, previous_count = bound, count
+    return previous_bound, int(total)
