@@ -259,14 +259,20 @@ def main() -> int:
     closed = [r.closed for r in records if r.closed]
     latencies = sorted(x for r in records for x in r.latencies_s)
     ratio = load.p99_s / baseline.p99_s if baseline.p99_s else float("nan")
+
+    def total(name: str) -> float:
+        return final.get(("cobot_hmi_" + name, ""), 0.0)
+
     print(
-        f"bench/fanout: RPI {args.rpi_ms:g} ms, {args.clients} clients at full rate + 1 never reading"
+        f"bench/fanout: RPI {args.rpi_ms:g} ms, {args.clients} clients at full rate "
+        "+ 1 never reading"
     )
     print(
         f"  baseline ({baseline.seconds:.0f} s without clients, half before and half after "
         f"the load): receive interval p50 "
         f"{baseline.p50_s * 1e3:.2f} ms, p99 {baseline.p99_s * 1e3:.2f} ms "
-        f"({baseline.intervals} intervals); service CPU {baseline.cpu_percent(baseline.service_cpu_s):.1f} %"
+        f"({baseline.intervals} intervals); service CPU "
+        f"{baseline.cpu_percent(baseline.service_cpu_s):.1f} %"
     )
     print(
         f"  load ({load.seconds:.0f} s): frames produced {load.frames_produced}; per client "
@@ -305,10 +311,10 @@ def main() -> int:
         f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f})"
     )
     print(
-        f"  service totals: ws frames sent {final.get(('cobot_hmi_ws_frames_sent_total', ''), 0):.0f}, "
-        f"ws dropped {final.get(('cobot_hmi_ws_dropped_frames_total', ''), 0):.0f}, "
-        f"hub frames lost {final.get(('cobot_hmi_hub_frames_lost_total', ''), 0):.0f}, "
-        f"T→O gaps {final.get(('cobot_hmi_frame_gaps_total', ''), 0):.0f}"
+        f"  service totals: ws frames sent {total('ws_frames_sent_total'):.0f}, "
+        f"ws dropped {total('ws_dropped_frames_total'):.0f}, "
+        f"hub frames lost {total('hub_frames_lost_total'):.0f}, "
+        f"T→O gaps {total('frame_gaps_total'):.0f}"
     )
     lossless = missing == 0 and told == 0 and not closed
     ok = lossless and ratio <= 1.2
