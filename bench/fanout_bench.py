@@ -159,9 +159,7 @@ class Phase:
 
 async def measure(running: Stack, seconds: float, watch_stall: bool = False) -> Phase:
     loop = asyncio.get_running_loop()
-    before = metrics(
-        (await loop.run_in_executor(None, running.get, "/metrics")).decode()
-    )
+    before = metrics((await loop.run_in_executor(None, running.get, "/metrics")).decode())
     service0 = process_cpu_s(running.service.pid)
     emulator0 = process_cpu_s(running.emulator.pid)
     bench0 = own_cpu_s()
@@ -170,23 +168,16 @@ async def measure(running: Stack, seconds: float, watch_stall: bool = False) -> 
     while (elapsed := time.monotonic() - started) < seconds:
         await asyncio.sleep(min(1.0, seconds - elapsed))
         if watch_stall and stalled_at is None:
-            now = metrics(
-                (await loop.run_in_executor(None, running.get, "/metrics")).decode()
-            )
+            now = metrics((await loop.run_in_executor(None, running.get, "/metrics")).decode())
             if now.get(("cobot_hmi_ws_stalled_disconnects_total", ""), 0.0) >= 1:
                 stalled_at = time.monotonic() - started
     wall = time.monotonic() - started
-    after = metrics(
-        (await loop.run_in_executor(None, running.get, "/metrics")).decode()
-    )
-    status = orjson.loads(
-        await loop.run_in_executor(None, running.get, "/api/v1/status")
-    )
+    after = metrics((await loop.run_in_executor(None, running.get, "/metrics")).decode())
+    status = orjson.loads(await loop.run_in_executor(None, running.get, "/api/v1/status"))
     p99, count = histogram_quantile(before, after, HISTOGRAM, 0.99)
     p50, _ = histogram_quantile(before, after, HISTOGRAM, 0.50)
     produced = (
-        after[("cobot_hmi_hub_frames_total", "")]
-        - before[("cobot_hmi_hub_frames_total", "")]
+        after[("cobot_hmi_hub_frames_total", "")] - before[("cobot_hmi_hub_frames_total", "")]
     )
     return Phase(
         seconds=wall,
@@ -318,9 +309,7 @@ def main() -> int:
     )
     lossless = missing == 0 and told == 0 and not closed
     ok = lossless and ratio <= 1.2
-    print(
-        f"  targets: fast clients lose nothing: {lossless}; ratio ≤ 1.2: {ratio <= 1.2}"
-    )
+    print(f"  targets: fast clients lose nothing: {lossless}; ratio ≤ 1.2: {ratio <= 1.2}")
     return 0 if ok else 1
 
 

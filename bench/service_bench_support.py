@@ -148,9 +148,7 @@ def stack(rpi_ms: float, *service_args: str) -> Iterator[Stack]:
                 *service_args,
                 log=state / "service.log",
             )
-            running = Stack(
-                robot_host, service_host, http_port, emulator, service, state
-            )
+            running = Stack(robot_host, service_host, http_port, emulator, service, state)
             _wait(
                 lambda: b'"ready":true' in running.get("/readyz"),
                 "service",

@@ -27,9 +27,7 @@ def percentile(values: list[float], share: float) -> float:
     return ordered[min(len(ordered) - 1, int(len(ordered) * share))]
 
 
-async def patch(
-    client: httpx.AsyncClient, body: object, notes: list[str]
-) -> httpx.Response:
+async def patch(client: httpx.AsyncClient, body: object, notes: list[str]) -> httpx.Response:
     """One write; if control was lost (the connection dropped on a busy machine), note it,
     wait for the connection, take control again and retry once."""
     answer = await client.patch("/api/v1/command", json=body)
@@ -95,9 +93,7 @@ def main() -> int:
     target_ms = 2 * args.rpi_ms + 10
     client = figures["client_ms"]
     p95 = percentile(client, 0.95)
-    print(
-        f"bench/write_latency: {len(client)} confirmed writes at RPI {args.rpi_ms:g} ms"
-    )
+    print(f"bench/write_latency: {len(client)} confirmed writes at RPI {args.rpi_ms:g} ms")
     print(
         f"  request → confirmed (client): p50 {percentile(client, 0.50):6.2f} ms  "
         f"p95 {p95:6.2f} ms  max {max(client):6.2f} ms  mean {statistics.fmean(client):6.2f} ms"
@@ -120,9 +116,7 @@ def main() -> int:
     )
     for note in figures["notes"]:
         print(f"  note: control lost and taken again: {note}")
-    print(
-        f"  load average at the end: {os.getloadavg()[0]:.2f} (on {os.cpu_count()} CPUs)"
-    )
+    print(f"  load average at the end: {os.getloadavg()[0]:.2f} (on {os.cpu_count()} CPUs)")
     print(f"  RPI {args.rpi_ms:g} ms; target p95 ≤ 2 RPI + 10 ms = {target_ms:g} ms")
     verdict = "met" if p95 <= target_ms else "NOT met"
     print(f"  target {verdict}: p95 {p95:.2f} ms vs {target_ms:g} ms")
