@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
+import pty
 import re
+import select
 import stat
 import subprocess
 import sys
@@ -243,3 +246,47 @@ def test_login_throttle_slows_repeated_failures() -> None:
     assert throttle.retry_after_s(("user:bob", "client:127.0.0.2")) == 0
     throttle.succeeded(keys)
     assert throttle.retry_after_s(keys) == 0
+
+
+def _on_a_terminal(args: list[str], dialogue: list[tuple[str, str]]) -> tuple[int, str]:
+    """Run ``cobot-hmi ARGS`` on a pseudo-terminal; answer each (prompt, answer) in turn."""
+    pid, fd = pty.fork()
+    if pid == 0:  # the child: exec at once
+        os.execv(sys.executable, [sys.executable, "-m", "cobot_hmi.cli", *args])
+    output = b""
+    answered = 0
+    try:
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:
+            ready, _, _ = select.select([fd], [], [], 0.5)
+            if not ready:
+                continue
+            try:
+                chunk = os.read(fd, 1024)
+            except OSError:  # the child closed the terminal
+                break
+            if not chunk:
+                break
+            output += chunk
+            if answered < len(dialogue) and output.count(dialogue[answered][0].encode()) > sum(
+                1 for prompt, _ in dialogue[:answered] if prompt == dialogue[answered][0]
+            ):
+                os.write(fd, dialogue[answered][1].encode() + b"\n")
+                answered += 1
+    finally:
+        os.close(fd)
+        _, status = os.waitpid(pid, 0)
+    return os.waitstatus_to_exitcode(status), output.decode(errors="replace")
+
+
+def test_users_add_verb_prompts_twice(tmp_path: Path) -> None:
+    args = ["users", "add", "erin", "--role", "viewer", "--state-dir", str(tmp_path)]
+    prompt = "password for erin:"
+    code, output = _on_a_terminal(args, [(prompt, "erin-password"), ("again:", "erin-password")])
+    assert code == 0, output
+    assert "password for erin:" in output
+    assert "erin-password" not in output  # not echoed
+    assert UsersFile(tmp_path / "users.json").authenticate("erin", "erin-password") is not None
+    code, output = _on_a_terminal(args, [(prompt, "erin-password"), ("again:", "different-one")])
+    assert code == 2
+    assert "the passwords differ" in output

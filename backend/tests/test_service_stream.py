@@ -7,6 +7,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import socket
+import time
 from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
@@ -16,6 +17,7 @@ import pytest
 from websockets.asyncio.client import ClientConnection, connect
 from websockets.exceptions import ConnectionClosed
 
+from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot
 from cobot_hmi.emulator.target import Target
 from conftest import _next_host as next_host
 from service_support import (
@@ -265,3 +267,37 @@ async def test_events_and_holder_disconnect_release_control(hmi: Running) -> Non
     assert writes[0]["fields"] == ["tool_do.2"]
     assert writes[0]["outcome"] == "confirmed"
     assert hmi.service.link.run is False
+
+
+async def test_robot_state_and_flag_events_from_the_simulated_robot(
+    robot_host: str, plc_host: str, tmp_path: Path
+) -> None:
+    robot = SimulatedRobot(RobotSettings(autostart_program=False))
+    async with emulator(robot_host, robot) as target:
+        settings = service_settings(robot_host, target.tcp_port, plc_host, tmp_path)
+        async with running_service(settings) as hmi, recorder(hmi.ws_url) as stream:
+            await eventually(
+                lambda: (
+                    hmi.service.hub.latest is not None
+                    and hmi.service.hub.latest[2].robot_state == 13
+                )  # STANDALONE_STANDBY
+            )
+            robot.estop(time.time())
+
+            def seen(kind: str, **fields: object) -> bool:
+                return any(
+                    m["event"]["kind"] == kind
+                    and all(m["event"].get(k) == v for k, v in fields.items())
+                    for m in stream.of("event")
+                )
+
+            await eventually(lambda: seen("robot_state", to_name="EMERGENCY_STOP"))
+            await eventually(lambda: seen("flag", flag="emergency_stopped", value=True))
+            await eventually(lambda: seen("flag", flag="servo_on", value=False))
+            robot.reset(time.time())
+            await eventually(lambda: seen("flag", flag="emergency_stopped", value=False))
+            await hmi.service.store.flush_events()
+            page = await hmi.service.store.events_page("flag", 20, 0)
+            flags = {(i["data"]["flag"], i["data"]["value"]) for i in page.items}  # type: ignore[index]
+            assert ("emergency_stopped", True) in flags
+            assert ("emergency_stopped", False) in flags
