@@ -94,3 +94,18 @@ export function analogUnit(field: FieldInfo, typeValue: number | null | undefine
 export function fieldTitle(field: FieldInfo): string {
   return field.description;
 }
+
+/**
+ * A person's name for a "field.index" key of the API's audit and events ("controlbox_do.2" →
+ * "DO 3"), from the layout's channel labels; the key itself when the layout has no label for it.
+ */
+export function keyLabel(key: string): string {
+  const dot = key.lastIndexOf(".");
+  if (dot < 0) return key;
+  const name = key.slice(0, dot);
+  const index = Number(key.slice(dot + 1));
+  const field = O2T_FIELDS.get(name) ?? T2O_FIELDS.get(name);
+  const label = Number.isInteger(index) ? field?.channels[index] : undefined;
+  if (label === undefined) return key;
+  return name === "bit_input_registers" ? `bit input ${label}` : label;
+}

@@ -18,7 +18,7 @@ describe("classifyWriteResponse", () => {
     });
     expect(
       classifyWriteResponse(422, { detail: { field: "analog_output.0", reason: "outside 4–20 mA" } }),
-    ).toEqual({ kind: "refused", reason: "analog_output.0: outside 4–20 mA" });
+    ).toEqual({ kind: "refused", reason: "outside 4–20 mA" });
     expect(classifyWriteResponse(409, { detail: { reason: "control not held" } })).toEqual({
       kind: "refused",
       reason: "control not held",

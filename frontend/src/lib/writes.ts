@@ -50,9 +50,10 @@ function reasonOf(body: unknown, fallback: string): string {
     const detail = (body as { detail: unknown }).detail;
     if (typeof detail === "string") return detail;
     if (typeof detail === "object" && detail !== null) {
-      const d = detail as { reason?: unknown; field?: unknown; msg?: unknown };
+      // The reason is shown next to the control it is about, so the field name is not repeated.
+      const d = detail as { reason?: unknown; msg?: unknown };
       const reason = typeof d.reason === "string" ? d.reason : typeof d.msg === "string" ? d.msg : null;
-      if (reason !== null) return typeof d.field === "string" ? `${d.field}: ${reason}` : reason;
+      if (reason !== null) return reason;
     }
     if (Array.isArray(detail)) {
       // FastAPI's own request-validation shape: [{"loc": […], "msg": "…"}].

@@ -6,6 +6,7 @@
 import { useEffect, useMemo, useState } from "react";
 import { auditCsvUrl, eventsCsvUrl, getAudit, getEvents } from "../lib/api";
 import { formatTimestamp } from "../lib/health";
+import { keyLabel } from "../lib/layoutInfo";
 import { EVENT_KINDS, roleAtLeast, type AuditItem, type EventItem, type Page, type StreamEvent, type User } from "../lib/protocol";
 
 const PAGE = 100;
@@ -31,10 +32,26 @@ function describe(kind: string, data: Record<string, unknown>): string {
       return `${holder?.user ?? "nobody"} holds control${data.reason ? ` (${s(data.reason)})` : ""}`;
     }
     case "write":
-      return `${s(data.user)}: ${s(data.fields)} → ${s(data.outcome)}${data.reason ? ` (${s(data.reason)})` : ""}`;
+      return `${s(data.user)}: ${labels(data.fields)} → ${s(data.outcome)}${data.reason ? ` (${s(data.reason)})` : ""}`;
     default:
       return JSON.stringify(data);
   }
+}
+
+/** ["controlbox_do.2"] → "DO 3"; anything else as JSON. */
+function labels(fields: unknown): string {
+  if (Array.isArray(fields) && fields.every((f) => typeof f === "string")) return fields.map(keyLabel).join(", ");
+  return fields === null || fields === undefined ? "—" : JSON.stringify(fields);
+}
+
+/** {"controlbox_do.2": true} → "DO 3 = true"; anything else as JSON. */
+function values(v: unknown): string {
+  if (typeof v === "object" && v !== null && !Array.isArray(v)) {
+    return Object.entries(v as Record<string, unknown>)
+      .map(([k, x]) => `${keyLabel(k)} = ${typeof x === "object" ? JSON.stringify(x) : String(x)}`)
+      .join(", ");
+  }
+  return short(v);
 }
 
 function fromStream(e: StreamEvent, i: number): Row {
@@ -216,9 +233,9 @@ export function AuditView({ user, liveEvents }: { readonly user: User | null; re
                 <td>{i.user ?? ""}</td>
                 <td>{i.client ?? ""}</td>
                 <td>{i.action}</td>
-                <td>{short(i.fields)}</td>
-                <td>{short(i.before)}</td>
-                <td>{short(i.requested)}</td>
+                <td title={short(i.fields)}>{labels(i.fields)}</td>
+                <td title={short(i.before)}>{values(i.before)}</td>
+                <td title={short(i.requested)}>{values(i.requested)}</td>
                 <td>{i.outcome}</td>
                 <td>{i.reason ?? ""}</td>
               </tr>
