@@ -29,6 +29,7 @@ function option(name, fallback) {
 }
 const seconds = option("seconds", 60);
 const rpiMs = option("rpi-ms", 10);
+const kioskSeconds = option("kiosk-seconds", 60);
 const width = option("width", 1600);
 const height = option("height", 1300);
 
@@ -261,6 +262,51 @@ try {
       plots: plotRates,
     }),
   );
+
+  // The kiosk (a secondary figure: it runs for days): its frames/s and heap the same way.
+  if (kioskSeconds > 0) {
+    await page.close();
+    const kiosk = await browser.newPage({ viewport: { width: 1920, height: 1080 } });
+    kiosk.on("pageerror", (e) => console.error("kiosk page error:", e.message));
+    await kiosk.addInitScript(() => {
+      const bench = { frames: 0 };
+      window.__bench = bench;
+      const loop = () => {
+        bench.frames++;
+        requestAnimationFrame(loop);
+      };
+      requestAnimationFrame(loop);
+    });
+    const kcdp = await kiosk.context().newCDPSession(kiosk);
+    const kheap = async () => {
+      await kcdp.send("HeapProfiler.collectGarbage");
+      const { usedSize } = await kcdp.send("Runtime.getHeapUsage");
+      return usedSize / 1e6;
+    };
+    await kiosk.goto(`${base}/kiosk`);
+    await kiosk.waitForFunction(
+      () => Number(document.querySelector('[data-testid="plot-joint-position"]')?.getAttribute("data-points") ?? 0) > 0,
+      null,
+      { timeout: 30_000 },
+    );
+    // Heap every 10 s: a one-off comparison of two points is noisy (Plotly's text-measure cache
+    // fills and resets, JIT warm-up); the series shows whether it levels off.
+    const k0 = await kiosk.evaluate(() => ({ now: performance.now(), frames: window.__bench.frames }));
+    const series = [];
+    for (let t = 10; t <= kioskSeconds; t += 10) {
+      await sleep(10_000);
+      series.push(await kheap());
+    }
+    const k1 = await kiosk.evaluate(() => ({ now: performance.now(), frames: window.__bench.frames }));
+    const kHeap10 = series[0];
+    const kHeapEnd = series.at(-1);
+    const kGrowth = (kHeapEnd - kHeap10) / kHeap10;
+    console.log(
+      `  kiosk (1920x1080, ${((k1.now - k0.now) / 1000).toFixed(1)} s): ${((k1.frames - k0.frames) / ((k1.now - k0.now) / 1000)).toFixed(1)} frames/s, ` +
+        `JS heap ${kHeap10.toFixed(2)} MB at ${HEAP_FIRST_S} s, ${kHeapEnd.toFixed(2)} MB at the end (${(kGrowth * 100).toFixed(1)} %); ` +
+        `every 10 s: ${series.map((h) => h.toFixed(1)).join(" ")} MB`,
+    );
+  }
 } catch (error) {
   console.error("bench/ui failed:", error instanceof Error ? error.message : error);
   console.error(demoLog);
