@@ -181,34 +181,91 @@ async def test_bad_rate_and_login_required(
             assert orjson.loads(await connection.recv())["type"] == "hello"
 
 
+async def raw_stream(host: str, port: int, receive_buffer_bytes: int) -> socket.socket:
+    """A WebSocket opened by hand (handshake only): the test decides how it is read."""
+    loop = asyncio.get_running_loop()
+    sock = receive_buffer_socket(host, port, receive_buffer_bytes)
+    sock.setblocking(False)
+    await loop.sock_sendall(
+        sock,
+        (
+            f"GET /api/v1/stream HTTP/1.1\r\nHost: {host}:{port}\r\nUpgrade: websocket\r\n"
+            "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+            "Sec-WebSocket-Version: 13\r\n\r\n"
+        ).encode(),
+    )
+    head = b""
+    while b"\r\n\r\n" not in head:  # byte by byte: nothing after the headers is consumed
+        head += await loop.sock_recv(sock, 1)
+    assert head.startswith(b"HTTP/1.1 101"), head
+    return sock
+
+
+def ws_text_messages(buffer: bytearray) -> list[Any]:
+    """Take the complete server frames (unmasked, unfragmented) off ``buffer``; their JSON."""
+    messages = []
+    while len(buffer) >= 2:
+        opcode, length, start = buffer[0] & 0x0F, buffer[1] & 0x7F, 2
+        if length == 126:
+            length, start = int.from_bytes(buffer[2:4], "big"), 4
+        elif length == 127:
+            length, start = int.from_bytes(buffer[2:10], "big"), 10
+        if len(buffer) < start + length:
+            break
+        payload = bytes(buffer[start : start + length])
+        del buffer[: start + length]
+        if opcode == 1:
+            messages.append(orjson.loads(payload))
+    return messages
+
+
+class SlowReader:
+    """Reads a raw stream at a steady ``bytes_per_s``, below what the server sends at full rate:
+    it keeps reading (it is not stalled) but falls further and further behind."""
+
+    def __init__(self, sock: socket.socket, bytes_per_s: int) -> None:
+        self.sock = sock
+        self.bytes_per_s = bytes_per_s
+        self.messages: list[Any] = []
+        self.task = asyncio.create_task(self._read())
+
+    async def _read(self) -> None:
+        loop = asyncio.get_running_loop()
+        buffer = bytearray()
+        chunk = self.bytes_per_s // 50
+        while True:
+            data = await loop.sock_recv(self.sock, chunk)
+            if not data:
+                return
+            buffer += data
+            self.messages.extend(ws_text_messages(buffer))
+            await asyncio.sleep(0.02)
+
+    def of(self, kind: str) -> list[Any]:
+        return [m for m in self.messages if m["type"] == kind]
+
+    async def stop(self) -> None:
+        self.task.cancel()
+        with contextlib.suppress(asyncio.CancelledError, OSError):
+            await self.task
+
+
 async def test_slow_and_stalled_clients_do_not_hurt_a_fast_one(hmi: Running) -> None:
     service = hmi.service
     host, port = hmi.settings.host, hmi.settings.port
-    # The stalled client: a raw WebSocket handshake, then it never reads again.
-    loop = asyncio.get_running_loop()
-    stalled = receive_buffer_socket(host, port, 4096)
-    stalled.setblocking(False)
+    # Full rate is ~270 kB/s of JSON (100 frames/s). The stalled client never reads after its
+    # handshake; the slow one reads 100 kB/s, steadily.
+    stalled = await raw_stream(host, port, 4096)
+    slow_socket = await raw_stream(host, port, 16 * 1024)
+    slow = SlowReader(slow_socket, 100_000)
     try:
-        await loop.sock_sendall(
-            stalled,
-            (
-                f"GET /api/v1/stream HTTP/1.1\r\nHost: {host}:{port}\r\nUpgrade: websocket\r\n"
-                "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
-                "Sec-WebSocket-Version: 13\r\n\r\n"
-            ).encode(),
-        )
-        head = await loop.sock_recv(stalled, 200)
-        assert head.startswith(b"HTTP/1.1 101")
-        slow_socket = receive_buffer_socket(host, port, 64 * 1024)
-        async with (
-            recorder(hmi.ws_url) as fast,
-            recorder(hmi.ws_url, delay_s=0.08, sock=slow_socket, max_queue=1) as slow,
-        ):
+        async with recorder(hmi.ws_url) as fast:
             await eventually(lambda: service.hub.stalled_disconnects >= 1, timeout_s=30)
             await eventually(lambda: len(slow.of("dropped")) >= 2, timeout_s=30)
-            await eventually(lambda: len(service.hub.clients) == 2)
+            assert len(service.hub.clients) == 2  # the slow one is still there
             fast_count = len(fast.frames)
             await eventually(lambda: len(fast.frames) > fast_count + 50)
+        await slow.stop()
         # The fast client lost nothing and was never told of a drop.
         seqs = [f["seq"] for f in fast.frames]
         assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))
@@ -229,7 +286,9 @@ async def test_slow_and_stalled_clients_do_not_hurt_a_fast_one(hmi: Running) -> 
         # The stalled one was cut off: its socket is reset or closed.
         assert await cut_off(stalled)
     finally:
+        await slow.stop()
         stalled.close()
+        slow_socket.close()
     # Nothing of this reached the cyclic connection or the broadcast loop.
     assert service.link.state.value == "connected"
     assert service.hub.frames_lost_in_hub == 0
