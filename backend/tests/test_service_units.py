@@ -277,3 +277,35 @@ async def test_store_audit_and_events(tmp_path: Path) -> None:
     finally:
         await store.close()
     assert command_to_json(zero_command())  # the codec's JSON form is what the store keeps
+
+
+async def test_each_frame_is_serialized_once_whatever_the_clients(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import cobot_hmi.service.hub as hub_module
+    from cobot_hmi.codec import frame_to_json as real
+
+    calls = 0
+
+    def counting(frame: Any) -> dict[str, object]:
+        nonlocal calls
+        calls += 1
+        return real(frame)
+
+    monkeypatch.setattr(hub_module, "frame_to_json", counting)
+    hub = Hub(batch_s=0.05, queue_frames=1000, stall_timeout_s=5.0)
+    sinks = [_Sink() for _ in range(6)]
+    for i, sink in enumerate(sinks):  # three rate groups: every frame, 50 Hz, 20 Hz
+        hub.add_client(sink.send, _noop_abort, (None, 50.0, 20.0)[i % 3], {"type": "hello"})
+    for i in range(50):
+        hub.on_frame(zero_frame(), 1000.0 + i * 0.01, i)
+        if i % 5 == 4:
+            hub.tick()
+    for _ in range(20):
+        await asyncio.sleep(0)
+    assert calls == 50  # once per frame, not once per client or per group
+    counts = [sum(len(m["frames"]) for m in s.messages if m["type"] == "frames") for s in sinks]
+    assert counts[0] == counts[3] == 50
+    assert counts[1] == counts[4] < 50
+    assert counts[2] == counts[5] < counts[1]
+    await hub.close()
