@@ -162,6 +162,7 @@ try {
         plotUpdates: rt?.coordinator.plotUpdates ?? 0,
         updateTime_ms: rt?.coordinator.updateTime_ms ?? 0,
         updateTimeMax_ms: rt?.coordinator.updateTimeMax_ms ?? 0,
+        duty: rt?.coordinator.maxDuty ?? null,
       };
     });
 
@@ -229,7 +230,7 @@ try {
       `robot link gaps ${robotGaps}, interval mean ${statusAfter.connection.interval_mean_ms?.toFixed(2)} ms`,
   );
   console.log(
-    `  plot updates        ${(updates / secondsMeasured).toFixed(1)}/s in all, ${updateMean_ms === null ? "—" : updateMean_ms.toFixed(1)} ms each on average (Plotly included), longest ${tEnd.updateTimeMax_ms.toFixed(0)} ms`,
+    `  plot updates        ${(updates / secondsMeasured).toFixed(1)}/s in all, ${updateMean_ms === null ? "—" : updateMean_ms.toFixed(1)} ms each on average (Plotly included), longest ${tEnd.updateTimeMax_ms.toFixed(0)} ms, duty ${tEnd.duty?.toFixed(2)}`,
   );
   for (const p of plotRates) {
     console.log(`  ${p.id.padEnd(30)} ${p.updates_per_s.toFixed(1).padStart(5)} updates/s, ${p.points} points/trace${p.onScreen ? "" : " (out of view)"}`);

@@ -153,6 +153,27 @@ describe("PlotCoordinator", () => {
     expect(coordinator.updateTime_ms / (clock.now - 1000)).toBeLessThanOrEqual(0.6);
   });
 
+  it("adapts the duty to the frame rate the page reaches", () => {
+    const clock = { now: 0 };
+    const scheduler: FrameScheduler = { now: () => clock.now, request: () => 1, cancel: () => undefined };
+    const coordinator = new PlotCoordinator(scheduler);
+    const initial = coordinator.maxDuty;
+    for (let i = 0; i < 300; i++) {
+      clock.now += 1000 / 60; // 60 frames/s: room for more plot work
+      coordinator.tick();
+    }
+    expect(coordinator.maxDuty).toBeGreaterThan(initial);
+    expect(coordinator.maxDuty).toBeLessThanOrEqual(coordinator.maxDutyLimit);
+    for (let i = 0; i < 600; i++) {
+      clock.now += 1000 / 25; // 25 frames/s: below the target, back off
+      coordinator.tick();
+    }
+    expect(coordinator.maxDuty).toBe(coordinator.minDuty);
+    clock.now += 5000; // a hidden tab: no rate learnt from the pause
+    coordinator.tick();
+    expect(coordinator.frameInterval_ms).toBeCloseTo(40, 0);
+  });
+
   it("fits several cheap updates into one frame's budget", () => {
     const clock = { now: 0 };
     const scheduler: FrameScheduler = { now: () => clock.now, request: () => 1, cancel: () => undefined };

@@ -312,6 +312,17 @@ export class PlotCoordinator {
    * often as that allows — often on a fast machine, less often on a slow one.
    */
   maxDuty = 0.4;
+  /**
+   * The duty adapts between these bounds to the frame rate the page actually reaches: up while
+   * frames come faster than `targetFps` with a margin, down as they near it. A fast machine
+   * refreshes plots more often; a slow or busy one keeps its frame rate.
+   */
+  minDuty = 0.2;
+  maxDutyLimit = 0.7;
+  targetFps = 30;
+  /** Smoothed time between animation frames (ms). */
+  frameInterval_ms = 1000 / 60;
+  private lastTick_ms: number | null = null;
   /** A plot on screen is not redrawn more often than this (no point beyond the eye's need). */
   minInterval_ms = 50;
   /** Plots out of view are refreshed this often. */
@@ -360,6 +371,18 @@ export class PlotCoordinator {
     this.handle = null;
   }
 
+  private adaptDuty(now: number): void {
+    const last = this.lastTick_ms;
+    this.lastTick_ms = now;
+    // A gap over a second is a hidden tab or a stopped loop, not a frame rate.
+    if (last === null || now - last > 1000) return;
+    this.frameInterval_ms = 0.9 * this.frameInterval_ms + 0.1 * (now - last);
+    if (this.ticks % 30 !== 0) return;
+    const fps = 1000 / this.frameInterval_ms;
+    if (fps > this.targetFps * 1.4) this.maxDuty = Math.min(this.maxDutyLimit, this.maxDuty + 0.05);
+    else if (fps < this.targetFps * 1.15) this.maxDuty = Math.max(this.minDuty, this.maxDuty - 0.05);
+  }
+
   /** The plot that waited longest among those due for an update, or null. */
   private due(now: number): LivePlot | null {
     let best: LivePlot | null = null;
@@ -376,6 +399,7 @@ export class PlotCoordinator {
   tick(): void {
     this.ticks++;
     const start = this.scheduler.now();
+    this.adaptDuty(start);
     if (start < this.nextAllowed_ms) return;
     for (;;) {
       const now = this.scheduler.now();
