@@ -1,5 +1,5 @@
 /** The robot-state badge: the layout's name, pendant colours (alternating for two), description as tooltip. */
-import type { CSSProperties } from "react";
+import { Fragment, type CSSProperties } from "react";
 import { stateBadge } from "../lib/stateBadge";
 
 interface Props {
@@ -17,6 +17,8 @@ export function StateBadge({ value, stale, size }: Props) {
     "--badge-fg-0": first?.text,
     "--badge-bg-1": second?.background,
     "--badge-fg-1": second?.text,
+    // Lets the kiosk size the longest names (28 characters) to the screen's width.
+    "--name-length": Math.max(badge.name.length, 12),
   } as CSSProperties;
   const classes = ["state-badge", `state-badge--${size}`];
   if (badge.alternating) classes.push("state-badge--alternating");
@@ -35,7 +37,14 @@ export function StateBadge({ value, stale, size }: Props) {
       role="status"
       aria-label={`Robot state ${badge.name}${stale ? " (stale)" : ""}: ${badge.description}`}
     >
-      {badge.name}
+      {badge.name.split("_").map((part, i) => (
+        // A line may break after an underscore (long names on narrow screens), never inside a word.
+        <Fragment key={i}>
+          {i > 0 && "_"}
+          {i > 0 && <wbr />}
+          {part}
+        </Fragment>
+      ))}
     </div>
   );
 }
