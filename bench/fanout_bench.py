@@ -2,18 +2,20 @@
 reads, against the service holding a class 1 connection at RPI 10 ms.
 
 The emulator and the service run as their own processes on fresh loopback addresses; the
-clients run in this process. Two phases in the same run:
+clients run in this process. Two conditions in the same run, alternating ``--cycles`` times so
+that both see the same machine (other processes' load drifts):
 
-1. baseline: no WebSocket client for ``--baseline-seconds``;
-2. load: ``--clients`` clients reading every frame plus one raw WebSocket that never reads, for
-   ``--seconds``.
+1. baseline: no WebSocket client, ``--baseline-seconds`` in all;
+2. load: ``--clients`` clients reading every frame, ``--seconds`` in all, plus one raw
+   WebSocket that never reads (opened at the first load phase, kept until the end).
 
 The cyclic interval is the receive interval of consecutive T→O frames in the service (the
 ``cobot_hmi_frame_receive_interval_seconds`` histogram, 0.25 ms buckets, taken between two
-scrapes of /metrics at each phase's start and end); its p99 under load is divided by its p99
-at baseline. Printed: frames delivered per client against frames produced, drops (frames a
-client never saw, ``dropped`` notices), what happened to the never-reading client, the p99s
-and their ratio, and the CPU % of the service, the emulator and this process.
+scrapes of /metrics at each phase's start and end, summed per condition); its p99 under load
+is divided by its p99 at baseline. Printed: frames delivered per client against frames
+produced, drops (frames a client never saw, ``dropped`` notices), what happened to the
+never-reading client, the p99s and their ratio, and the CPU % of the service, the emulator and
+this process.
 Targets: fast clients lose nothing; the p99 ratio stays ≤ 1.2.
 """
 
@@ -21,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import functools
 import os
 import socket
 import statistics
@@ -198,28 +201,70 @@ async def measure(running: Stack, seconds: float, watch_stall: bool = False) -> 
     )
 
 
-async def run(
-    args: argparse.Namespace, running: Stack
-) -> tuple[Phase, Phase, Phase, list[ClientRecord], bool, dict[tuple[str, str], float]]:
-    before = await measure(running, args.baseline_seconds / 2)
+async def load_phase(
+    args: argparse.Namespace, running: Stack, watch_stall: bool
+) -> tuple[Phase, list[ClientRecord]]:
+    """``--clients`` fast clients streaming for one share of ``--seconds``, then closed."""
     stop = asyncio.Event()
     records = [ClientRecord() for _ in range(args.clients)]
     tasks = [asyncio.create_task(fast_client(running.ws_url, r, stop)) for r in records]
-    staller = await never_reading_client(running.service_host, running.http_port)
     try:
         for _ in range(100):  # every client connected and streaming
             if all(r.frames for r in records):
                 break
             await asyncio.sleep(0.1)
-        load = await measure(running, args.seconds, watch_stall=True)
+        load = await measure(running, args.seconds / args.cycles, watch_stall=watch_stall)
     finally:
         stop.set()
         await asyncio.gather(*tasks, return_exceptions=True)
+    return load, records
+
+
+async def run(args: argparse.Namespace, running: Stack) -> Results:
+    """Baseline and load phases alternate (``--cycles`` times each), so both see the same
+    machine: other processes' load drifts, and a ratio from two distant windows would
+    measure that drift."""
+    baselines: list[Phase] = []
+    loads: list[Phase] = []
+    records: list[list[ClientRecord]] = []
+    staller: socket.socket | None = None
+    stalled_after_s: float | None = None
+    for _ in range(args.cycles):
+        baselines.append(await measure(running, args.baseline_seconds / args.cycles))
+        if staller is None:  # one never-reading client, from the first load phase on
+            staller = await never_reading_client(running.service_host, running.http_port)
+        load, cycle_records = await load_phase(args, running, stalled_after_s is None)
+        if stalled_after_s is None and load.stalled_at_s is not None:
+            stalled_after_s = sum(p.seconds for p in loads) + load.stalled_at_s
+        loads.append(load)
+        records.append(cycle_records)
+    assert staller is not None
     cut = await socket_was_cut(staller)
     staller.close()
-    after = await measure(running, args.baseline_seconds / 2)
     final = metrics(running.get("/metrics").decode())
-    return before, load, after, records, cut, final
+    return Results(
+        functools.reduce(Phase.merged, baselines),
+        functools.reduce(Phase.merged, loads),
+        baselines,
+        loads,
+        records,
+        cut,
+        stalled_after_s,
+        final,
+    )
+
+
+@dataclass
+class Results:
+    baseline: Phase
+    load: Phase
+    baselines: list[Phase]
+    loads: list[Phase]
+    records: list[list[ClientRecord]]
+    """Per load phase, per client."""
+    staller_cut: bool
+    stalled_after_s: float | None
+    final: dict[tuple[str, str], float]
 
 
 def fmt_ms(value: float | None) -> str:
@@ -230,25 +275,29 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--rpi-ms", type=float, default=10.0)
     parser.add_argument("--clients", type=int, default=50)
-    parser.add_argument("--seconds", type=float, default=30.0)
+    parser.add_argument("--seconds", type=float, default=30.0, help="with clients, in all")
     parser.add_argument(
-        "--baseline-seconds",
-        type=float,
-        default=20.0,
-        help="without clients, half before",
+        "--baseline-seconds", type=float, default=20.0, help="without clients, in all"
+    )
+    parser.add_argument("--cycles", type=int, default=3, help="baseline/load alternations")
+    parser.add_argument(
+        "--robot-niceness",
+        type=int,
+        default=-10,
+        help="nice value of the emulator (a real robot is its own machine; 0: same as the rest)",
     )
     args = parser.parse_args()
 
-    with stack(args.rpi_ms) as running:
-        before, load, after, records, cut, final = asyncio.run(run(args, running))
-    baseline = before.merged(after)
-
-    frames = [r.frames for r in records]
-    missing = sum(r.missing for r in records)
-    told = sum(r.dropped_told for r in records)
-    disorder = sum(r.seqs_out_of_order for r in records)
-    closed = [r.closed for r in records if r.closed]
-    latencies = sorted(x for r in records for x in r.latencies_s)
+    with stack(args.rpi_ms, robot_niceness=args.robot_niceness) as running:
+        results = asyncio.run(run(args, running))
+    baseline, load, final = results.baseline, results.load, results.final
+    every = [r for cycle in results.records for r in cycle]
+    per_client = [sum(cycle[i].frames for cycle in results.records) for i in range(args.clients)]
+    missing = sum(r.missing for r in every)
+    told = sum(r.dropped_told for r in every)
+    disorder = sum(r.seqs_out_of_order for r in every)
+    closed = [r.closed for r in every if r.closed]
+    latencies = sorted(x for r in every for x in r.latencies_s)
     ratio = load.p99_s / baseline.p99_s if baseline.p99_s else float("nan")
 
     def total(name: str) -> float:
@@ -256,22 +305,35 @@ def main() -> int:
 
     print(
         f"bench/fanout: RPI {args.rpi_ms:g} ms, {args.clients} clients at full rate "
-        "+ 1 never reading"
+        f"+ 1 never reading; {args.cycles} alternations of "
+        f"{args.baseline_seconds / args.cycles:g} s without and "
+        f"{args.seconds / args.cycles:g} s with clients; emulator at nice {args.robot_niceness}"
     )
     print(
-        f"  baseline ({baseline.seconds:.0f} s without clients, half before and half after "
-        f"the load): receive interval p50 "
+        f"  without clients ({baseline.seconds:.0f} s): receive interval p50 "
         f"{baseline.p50_s * 1e3:.2f} ms, p99 {baseline.p99_s * 1e3:.2f} ms "
         f"({baseline.intervals} intervals); service CPU "
         f"{baseline.cpu_percent(baseline.service_cpu_s):.1f} %"
     )
     print(
-        f"  load ({load.seconds:.0f} s): frames produced {load.frames_produced}; per client "
-        f"min {min(frames)} / mean {statistics.fmean(frames):.0f} / max {max(frames)} frames"
+        f"  with clients ({load.seconds:.0f} s): receive interval p50 {load.p50_s * 1e3:.2f} ms, "
+        f"p99 {load.p99_s * 1e3:.2f} ms ({load.intervals} intervals)"
+    )
+    print(f"  p99 ratio with / without clients: {ratio:.3f} (target ≤ 1.2)")
+    print(
+        "  per phase p99 (ms), without: "
+        + ", ".join(f"{p.p99_s * 1e3:.2f}" for p in results.baselines)
+        + "; with: "
+        + ", ".join(f"{p.p99_s * 1e3:.2f}" for p in results.loads)
+    )
+    print(
+        f"  frames produced while clients streamed {load.frames_produced}; delivered per client "
+        f"min {min(per_client)} / mean {statistics.fmean(per_client):.0f} / "
+        f"max {max(per_client)}"
     )
     print(
         f"  fast clients: frames missed {missing}, dropped notices {told}, out of order "
-        f"{disorder}, closed {len(closed)}"
+        f"{disorder}, closed by the server {len(closed)}"
     )
     if latencies:
         print(
@@ -279,31 +341,23 @@ def main() -> int:
             f"p50 {latencies[len(latencies) // 2] * 1e3:.1f} ms, "
             f"p99 {latencies[int(len(latencies) * 0.99)] * 1e3:.1f} ms"
         )
-    stalled = final.get(("cobot_hmi_ws_stalled_disconnects_total", ""), 0.0)
-    when = f" after {load.stalled_at_s:.0f} s" if load.stalled_at_s is not None else ""
+    stalled = total("ws_stalled_disconnects_total")
+    after = results.stalled_after_s
+    when = f" after {after:.0f} s" if after is not None else ""
     print(
         f"  never-reading client: disconnected by the service{when}: {bool(stalled)}; "
-        f"its socket reset/closed: {cut}"
+        f"its socket reset/closed: {results.staller_cut}"
     )
     print(
-        f"  receive interval under load: p50 {load.p50_s * 1e3:.2f} ms, p99 "
-        f"{load.p99_s * 1e3:.2f} ms ({load.intervals} intervals)"
-    )
-    print(f"  p99 ratio load / baseline: {ratio:.3f} (target ≤ 1.2)")
-    print(
-        f"  originator's own window p99 (last 2048 intervals) at the end of each phase: "
-        f"before {fmt_ms(before.originator_p99_ms)}, load {fmt_ms(load.originator_p99_ms)}, "
-        f"after {fmt_ms(after.originator_p99_ms)}"
-    )
-    print(
-        f"  CPU under load: service {load.cpu_percent(load.service_cpu_s):.1f} %, emulator "
+        f"  CPU with clients: service {load.cpu_percent(load.service_cpu_s):.1f} %, emulator "
         f"{load.cpu_percent(load.emulator_cpu_s):.1f} %, clients (this process) "
-        f"{load.cpu_percent(load.bench_cpu_s):.1f} %  (100 % = one core; "
+        f"{load.cpu_percent(load.bench_cpu_s):.1f} %; without: service "
+        f"{baseline.cpu_percent(baseline.service_cpu_s):.1f} %  (100 % = one core; "
         f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f})"
     )
     print(
         f"  service totals: ws frames sent {total('ws_frames_sent_total'):.0f}, "
-        f"ws dropped {total('ws_dropped_frames_total'):.0f}, "
+        f"ws dropped {total('ws_dropped_frames_total'):.0f} (the never-reading client's), "
         f"hub frames lost {total('hub_frames_lost_total'):.0f}, "
         f"T→O gaps {total('frame_gaps_total'):.0f}"
     )
