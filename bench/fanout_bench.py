@@ -286,9 +286,13 @@ def main() -> int:
         default=-10,
         help="nice value of the emulator (a real robot is its own machine; 0: same as the rest)",
     )
+    parser.add_argument(
+        "--cyclic-niceness", type=int, default=0, help="the service's cyclic_niceness setting"
+    )
     args = parser.parse_args()
 
-    with stack(args.rpi_ms, robot_niceness=args.robot_niceness) as running:
+    service_args = ["--cyclic-niceness", str(args.cyclic_niceness)]
+    with stack(args.rpi_ms, *service_args, robot_niceness=args.robot_niceness) as running:
         results = asyncio.run(run(args, running))
     baseline, load, final = results.baseline, results.load, results.final
     every = [r for cycle in results.records for r in cycle]
@@ -307,7 +311,8 @@ def main() -> int:
         f"bench/fanout: RPI {args.rpi_ms:g} ms, {args.clients} clients at full rate "
         f"+ 1 never reading; {args.cycles} alternations of "
         f"{args.baseline_seconds / args.cycles:g} s without and "
-        f"{args.seconds / args.cycles:g} s with clients; emulator at nice {args.robot_niceness}"
+        f"{args.seconds / args.cycles:g} s with clients; emulator at nice "
+        f"{args.robot_niceness}, service cyclic thread at nice {args.cyclic_niceness}"
     )
     print(
         f"  without clients ({baseline.seconds:.0f} s): receive interval p50 "

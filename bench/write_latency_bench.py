@@ -85,15 +85,24 @@ def main() -> int:
     parser.add_argument("--rpi-ms", type=float, default=10.0)
     parser.add_argument("--writes", type=int, default=200)
     parser.add_argument("--register-writes", type=int, default=50)
+    parser.add_argument(
+        "--robot-niceness",
+        type=int,
+        default=-10,
+        help="nice value of the emulator (a real robot is its own machine; 0: same as the rest)",
+    )
     args = parser.parse_args()
 
-    with stack(args.rpi_ms) as running:
+    with stack(args.rpi_ms, robot_niceness=args.robot_niceness) as running:
         figures = asyncio.run(run(running.base_url, args.writes, args.register_writes))
 
     target_ms = 2 * args.rpi_ms + 10
     client = figures["client_ms"]
     p95 = percentile(client, 0.95)
-    print(f"bench/write_latency: {len(client)} confirmed writes at RPI {args.rpi_ms:g} ms")
+    print(
+        f"bench/write_latency: {len(client)} confirmed writes at RPI {args.rpi_ms:g} ms "
+        f"(emulator at nice {args.robot_niceness})"
+    )
     print(
         f"  request → confirmed (client): p50 {percentile(client, 0.50):6.2f} ms  "
         f"p95 {p95:6.2f} ms  max {max(client):6.2f} ms  mean {statistics.fmean(client):6.2f} ms"

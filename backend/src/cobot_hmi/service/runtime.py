@@ -45,7 +45,10 @@ class Service:
             on_events=self._store_events,
         )
         self.link = RobotLink(
-            settings.originator_settings(), on_frame=self.hub.on_frame, on_state=self._on_state
+            settings.originator_settings(),
+            on_frame=self.hub.on_frame,
+            on_state=self._on_state,
+            niceness=settings.cyclic_niceness,
         )
         self.control = Control(self.link, self.store, self.hub, input_only=settings.input_only)
         self.commander = Commander(

@@ -68,6 +68,12 @@ class ServiceSettings:
     request_t2o_port: int | None = field(
         default=None, metadata=_meta("ask the robot to send T→O to this UDP port")
     )
+    cyclic_niceness: int = field(
+        default=0,
+        metadata=_meta(
+            "nice value of the cyclic I/O thread; below 0 raises its priority (CAP_SYS_NICE)"
+        ),
+    )
     # --- the web service
     host: str = field(default="127.0.0.1", metadata=_meta("HTTP bind address"))
     port: int = field(default=8000, metadata=_meta("HTTP port"))
@@ -137,6 +143,8 @@ class ServiceSettings:
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0):
                 raise SettingsError(f"{name}: must be a positive number, got {value}")
+        if not -20 <= self.cyclic_niceness <= 19:
+            raise SettingsError(f"cyclic_niceness: -20–19, got {self.cyclic_niceness}")
         if not 0 <= self.timeout_multiplier <= 7:
             raise SettingsError(f"timeout_multiplier: 0–7, got {self.timeout_multiplier}")
         if self.ws_queue_frames < 1:
