@@ -391,12 +391,13 @@ async def test_audit_and_events_pages_and_csv(hmi: Running) -> None:
         assert item["user"] == OPERATOR[0]
         assert item["client"].startswith("127.")  # the caller's address
         assert item["before"] == {"controlbox_do.3": False}
-        answer = await client.get("/api/v1/audit?format=csv&limit=10")
+        answer = await client.get("/api/v1/audit?format=csv&limit=100000")  # the UI export
         assert answer.headers["content-type"].startswith("text/csv")
         rows = list(csv.DictReader(io.StringIO(answer.text)))
         assert len(rows) == 6
         assert rows[-1]["action"] == "control.take"
         assert (await client.get("/api/v1/audit?limit=0")).status_code == 422
+        assert (await client.get("/api/v1/audit?limit=100001")).status_code == 422
         await hmi.service.store.flush_events()
         events = (await client.get("/api/v1/events?limit=100")).json()
         kinds = {item["kind"] for item in events["items"]}

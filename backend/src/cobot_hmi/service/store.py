@@ -66,7 +66,8 @@ AUDIT_COLUMNS: Final = (
 )
 _AUDIT_JSON: Final = frozenset({"fields", "before", "requested"})
 EVENT_COLUMNS: Final = ("id", "time", "kind", "data")
-MAX_PAGE: Final = 1000
+MAX_PAGE: Final = 100_000
+"""Largest ``limit`` of one page (a CSV export takes everything in one)."""
 
 
 @dataclass(frozen=True, slots=True)
