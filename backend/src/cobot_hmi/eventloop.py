@@ -8,11 +8,14 @@ every wait up to the next whole millisecond), so a 2 ms RPI would jitter by up t
 the kernel's timer slack instead. It handles a few dozen sockets, which is all either role
 opens. :func:`sleep_until` sleeps to an absolute loop time, so a periodic sender keeps a
 drift-free schedule (``deadline += period``) instead of accumulating ``sleep(period)`` errors.
+
+:func:`freeze_startup_heap` keeps the cyclic garbage collector from stalling such a schedule.
 """
 
 from __future__ import annotations
 
 import asyncio
+import gc
 import selectors
 
 
@@ -38,3 +41,19 @@ async def sleep_until(deadline: float) -> None:
 def _wake(future: asyncio.Future[None]) -> None:
     if not future.done():
         future.set_result(None)
+
+
+def freeze_startup_heap() -> None:
+    """Exempt every object alive now from the cyclic garbage collector's full collections.
+
+    Call once, after start-up, in a process that holds class 1 timing. A full (generation 2)
+    collection walks every tracked object of the process: with FastAPI, uvicorn and the rest
+    imported, some 50 000 of them, 15-30 ms during which nothing else runs, about the whole
+    watchdog of a 2 ms RPI connection (RPI × 16 = 32 ms). What exists after start-up (modules,
+    classes, the app) lives as long as the process, so walking it again finds nothing;
+    ``gc.freeze`` moves it to a permanent generation the collector no longer visits, and later
+    collections only walk what was made since. Reference counting still frees everything else
+    at once, and new cycles are still collected.
+    """
+    gc.collect()
+    gc.freeze()

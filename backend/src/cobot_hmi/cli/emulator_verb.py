@@ -105,7 +105,7 @@ def _run(args: argparse.Namespace) -> int:
     from cobot_hmi.emulator.settings import TargetSettings
     from cobot_hmi.emulator.static_robot import StaticRobot
     from cobot_hmi.emulator.target import Target
-    from cobot_hmi.eventloop import precise_event_loop
+    from cobot_hmi.eventloop import freeze_startup_heap, precise_event_loop
 
     logging.basicConfig(
         level=logging.INFO if args.verbose else logging.WARNING,
@@ -167,6 +167,7 @@ def _run(args: argparse.Namespace) -> int:
                 + (f", control API http://{args.host}:{control.port}" if control else ""),
                 flush=True,
             )
+            freeze_startup_heap()
             await stop.wait()
         finally:
             if control is not None:

@@ -108,7 +108,7 @@ def _scan(args: argparse.Namespace) -> int:
     from dataclasses import asdict
 
     from cobot_hmi.codec import Frame, dumps, frame_to_json
-    from cobot_hmi.eventloop import precise_event_loop
+    from cobot_hmi.eventloop import freeze_startup_heap, precise_event_loop
     from cobot_hmi.scanner.originator import ConnectionState, Originator, OriginatorSettings
 
     cfg, o2t, t2o = args.instances
@@ -148,6 +148,7 @@ def _scan(args: argparse.Namespace) -> int:
         for sig in (signal.SIGINT, signal.SIGTERM):
             loop.add_signal_handler(sig, stop.set)
         end = loop.time() + args.seconds if args.seconds is not None else None
+        freeze_startup_heap()
         await originator.start()
         try:
             while not stop.is_set():

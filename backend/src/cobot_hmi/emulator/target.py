@@ -44,7 +44,6 @@ from cobot_hmi.enip.cpf import CpfItem, ItemType, Sockaddr, decode_sockaddr, soc
 from cobot_hmi.enip.errors import EnipError
 from cobot_hmi.enip.identity import IdentityInfo
 from cobot_hmi.enip.status import ExtendedStatus, GeneralStatus
-from cobot_hmi.eventloop import sleep_until
 
 log = logging.getLogger(__name__)
 
@@ -109,7 +108,6 @@ class Target:
         self._server: asyncio.Server | None = None
         self._udp: asyncio.DatagramTransport | None = None
         self._t2o_cache: tuple[object, bytes] | None = None
-        self._closing: set[asyncio.Task[None]] = set()
         self.tcp_port = settings.tcp_port
         self.udp_port = settings.udp_port
 
@@ -147,14 +145,11 @@ class Target:
         if self._server is not None:
             await self._server.wait_closed()
             self._server = None
-        tasks = [t for conn in self._by_o2t.values() for t in conn.tasks]
-        for task in tasks:
-            task.cancel()
-        await asyncio.gather(*tasks, return_exceptions=True)
+        for conn in self._by_o2t.values():
+            conn.cancel_timers()
         if self._udp is not None:
             self._udp.close()
             self._udp = None
-        await asyncio.gather(*self._closing, return_exceptions=True)
 
     async def drop_sessions(self) -> None:
         """Close every TCP session (class 1 connections carry on: they live on UDP)."""
@@ -323,8 +318,11 @@ class Target:
             last_rx=loop.time(),
         )
         self._by_o2t[o2t_id] = conn
-        conn.tasks.append(loop.create_task(self._produce(conn), name=f"t2o-{t2o_id:08x}"))
-        conn.tasks.append(loop.create_task(self._watchdog(conn), name=f"wd-{o2t_id:08x}"))
+        # The first T→O packet at once, then every RPI; the watchdog from the open on.
+        conn.t2o_deadline, conn.t2o_epoch_s = loop.time(), time.time()
+        conn.producer = loop.call_at(conn.t2o_deadline, self._produce, conn)
+        watchdog_at = conn.last_rx + conn.timeout_s
+        conn.watchdog = loop.call_at(watchdog_at, self._watchdog, conn, watchdog_at)
         log.info(
             "%s connection open: O→T 0x%08X T→O 0x%08X to %s:%d", kind, o2t_id, t2o_id, *conn.peer
         )
@@ -374,12 +372,7 @@ class Target:
         if self._by_o2t.pop(conn.o2t_id, None) is None:
             return
         log.info("%s connection 0x%08X closed: %s", conn.kind, conn.o2t_id, reason)
-        current = asyncio.current_task()
-        for task in conn.tasks:
-            if task is not current:
-                task.cancel()
-                self._closing.add(task)
-                task.add_done_callback(self._closing.discard)
+        conn.cancel_timers()
         if idle and conn.kind is ConnectionKind.OWNER and conn.run:
             conn.run = False
             self.process_image.outputs_idle(time.time())
@@ -402,27 +395,44 @@ class Target:
         self._t2o_cache = (frame, data)
         return data
 
-    async def _produce(self, conn: IoConnection) -> None:
+    def _produce(self, conn: IoConnection) -> None:
+        """One RPI tick of a connection: send its T→O packet, then prepare the next one.
+
+        A plain timer callback, not a task: one pass of the event loop per packet. The frame is
+        computed between packets, for the instant it is due (the robot model takes the time as an
+        argument), so the packet leaves as soon as the loop wakes, whatever the model costs; a
+        command or a state change in between makes the model compute it again at send time.
+        """
+        if conn.producer is None:
+            return  # closed meanwhile
+        try:
+            self._send_t2o(conn)
+        except Exception:  # a robot bug must not stop the connection's heartbeat
+            self.counters.internal_errors += 1
+            log.exception("T→O production failed")
+        if conn.producer is None:
+            return
         loop = asyncio.get_running_loop()
         period_s = conn.t2o_rpi_us / 1e6
-        deadline = loop.time()
-        while True:
+        deadline = conn.t2o_deadline + period_s
+        now = loop.time()
+        if deadline < now - period_s:
+            deadline = now  # far behind (a stalled loop): resynchronise, never burst
+        conn.t2o_deadline = deadline
+        conn.t2o_epoch_s = time.time() + (deadline - now)
+        conn.producer = loop.call_at(deadline, self._produce, conn)
+        if all(c.t2o_deadline >= deadline for c in self._by_o2t.values() if c.producer):
             try:
-                self._send_t2o(conn)
-            except Exception:  # a robot bug must not stop the connection's heartbeat
+                self._t2o_data(conn.t2o_epoch_s)
+            except Exception:
                 self.counters.internal_errors += 1
                 log.exception("T→O production failed")
-            deadline += period_s
-            now = loop.time()
-            if deadline < now - period_s:
-                deadline = now  # far behind (a stalled loop): resynchronise, never burst
-            await sleep_until(deadline)
 
     def _send_t2o(self, conn: IoConnection) -> None:
         faults = self.faults
         if faults.t2o_silent or self._udp is None:
             return
-        data = self._t2o_data(time.time())
+        data = self._t2o_data(conn.t2o_epoch_s)
         conn.t2o_encap_seq = (conn.t2o_encap_seq + 1) & 0xFFFFFFFF
         conn.t2o_cip_seq = (conn.t2o_cip_seq + 1) & 0xFFFF
         packet = io.encode_io(conn.t2o_id, conn.t2o_encap_seq, conn.t2o_cip_seq, data)
@@ -446,14 +456,24 @@ class Target:
         if self._udp is not None:
             self._udp.sendto(packet, peer)
 
-    async def _watchdog(self, conn: IoConnection) -> None:
+    def _watchdog(self, conn: IoConnection, armed_for: float) -> None:
+        """Armed for the last O→T packet's time + the timeout; re-armed while packets come.
+
+        Fired more than an O→T RPI late, the loop itself stalled (a busy machine) and O→T
+        packets may be waiting in the socket, unread: the verdict waits one more RPI, after the
+        loop has read its sockets again."""
+        if conn.watchdog is None:
+            return
         loop = asyncio.get_running_loop()
+        now = loop.time()
         timeout_s = conn.timeout_s
-        while True:
-            deadline = conn.last_rx + timeout_s
-            if loop.time() >= deadline:
-                break
-            await sleep_until(deadline)
+        deadline = conn.last_rx + timeout_s
+        rpi_s = conn.o2t_rpi_us / 1e6
+        if now - armed_for > rpi_s:
+            deadline = max(deadline, now + rpi_s)
+        if now < deadline:
+            conn.watchdog = loop.call_at(deadline, self._watchdog, conn, deadline)
+            return
         self.counters.watchdog_timeouts += 1
         self._close(conn, f"watchdog: no O→T for {timeout_s * 1e3:.0f} ms (0x0203)")
 

@@ -48,7 +48,7 @@ from cobot_hmi.enip.connection_manager import (
 from cobot_hmi.enip.cpf import CpfItem, ItemType, Sockaddr, decode_sockaddr, sockaddr_item
 from cobot_hmi.enip.encapsulation import ENIP_TCP_PORT, ENIP_UDP_PORT
 from cobot_hmi.enip.errors import EnipError
-from cobot_hmi.eventloop import sleep_until
+from cobot_hmi.scanner.o2t_schedule import O2TSchedule
 from cobot_hmi.scanner.session import EnipSession, SessionError
 from cobot_hmi.scanner.stats import IntervalWindow
 
@@ -160,6 +160,7 @@ class _Link:
     last_frame_at: float | None = None
     """Loop time of the last new frame."""
     last_rx: float = 0.0
+    o2t: O2TSchedule | None = None
 
 
 class _UdpEndpoint(asyncio.DatagramProtocol):
@@ -195,7 +196,6 @@ class Originator:
         self._session: EnipSession | None = None
         self._link: _Link | None = None
         self._supervisor: asyncio.Task[None] | None = None
-        self._link_tasks: list[asyncio.Task[None]] = []
         self._lost: asyncio.Future[str] | None = None
         self._first_frame: asyncio.Future[None] | None = None
         self._connected_event = asyncio.Event()
@@ -214,6 +214,7 @@ class Originator:
         self.stale = 0
         self.foreign = 0
         self.frames = 0
+        self._o2t_sends_closed = (0, 0)
 
     # ------------------------------------------------------------------ public interface
 
@@ -261,6 +262,15 @@ class Originator:
             interval_p50_ms=figures.p50_ms,
             rpi_us=link.t2o_api_us if link is not None else None,
         )
+
+    def o2t_sends(self) -> tuple[int, int]:
+        """O→T packets sent so far (all connections): (with a T→O arrival, by the timer)."""
+        with_t2o, by_timer = self._o2t_sends_closed
+        link = self._link
+        if link is not None and link.o2t is not None:
+            with_t2o += link.o2t.sent_with_t2o
+            by_timer += link.o2t.sent_by_timer
+        return with_t2o, by_timer
 
     def set_run(self, run: bool) -> None:
         if self.settings.input_only:
@@ -416,10 +426,15 @@ class Originator:
         self._window.clear()
         self._lost = loop.create_future()
         self._first_frame = loop.create_future()
-        self._link_tasks = [
-            loop.create_task(self._send_loop(self._link), name="o2t"),
-            loop.create_task(self._watchdog(self._link), name="t2o-watchdog"),
-        ]
+        link = self._link
+        # O→T from now on, at the RPI; with the T→O arrivals when both share it (o2t_schedule).
+        link.o2t = O2TSchedule(
+            link.o2t_api_us / 1e6,
+            lambda: self._send_o2t(link),
+            follow_t2o=link.o2t_api_us == link.t2o_api_us,
+            on_timer=lambda now, lag_s: self._check_t2o_silence(link, now, lag_s),
+        )
+        link.o2t.start()
         first_timeout_s = max(s.first_frame_timeout_s, self._timeout_s(self._link))
         waits: list[asyncio.Future[Any]] = [self._first_frame, self._lost]
         done, _ = await asyncio.wait(
@@ -458,11 +473,14 @@ class Originator:
         return connection_timeout_us(link.t2o_api_us, self.settings.timeout_multiplier) / 1e6
 
     async def _teardown(self, *, forward_close: bool) -> None:
-        tasks, self._link_tasks = self._link_tasks, []
-        for task in tasks:
-            task.cancel()
-        await asyncio.gather(*tasks, return_exceptions=True)
         link, self._link = self._link, None
+        if link is not None and link.o2t is not None:
+            link.o2t.stop()
+            with_t2o, by_timer = self._o2t_sends_closed
+            self._o2t_sends_closed = (
+                with_t2o + link.o2t.sent_with_t2o,
+                by_timer + link.o2t.sent_by_timer,
+            )
         for future in (self._lost, self._first_frame):
             if future is not None and not future.done():
                 future.cancel()
@@ -495,18 +513,6 @@ class Originator:
                 await session.close()
 
     # ------------------------------------------------------------------ class 1
-
-    async def _send_loop(self, link: _Link) -> None:
-        loop = asyncio.get_running_loop()
-        period_s = link.o2t_api_us / 1e6
-        deadline = loop.time()
-        while True:
-            self._send_o2t(link)
-            deadline += period_s
-            now = loop.time()
-            if deadline < now - period_s:
-                deadline = now  # the loop stalled: resynchronise rather than burst
-            await sleep_until(deadline)
 
     def _send_o2t(self, link: _Link) -> None:
         udp = self._udp
@@ -541,14 +547,17 @@ class Originator:
                 if wanted <= count and not future.done():
                     future.set_result(None)
 
-    async def _watchdog(self, link: _Link) -> None:
-        loop = asyncio.get_running_loop()
+    def _check_t2o_silence(self, link: _Link, now: float, lag_s: float) -> None:
+        """The watchdog (ethernetip.md "Forward Open": RPI × (4 << multiplier)). Checked at each
+        O→T timer wake-up: the timer only fires when T→O is not carrying O→T along, so a steady
+        T→O stream costs no wake-up of its own for it.
+
+        A timer firing more than an RPI late means this loop itself stalled (a busy machine):
+        T→O packets may be waiting in the socket, unread. The verdict waits for a timer on time,
+        which comes after the loop has read its sockets again."""
         timeout_s = self._timeout_s(link)
-        while True:
-            deadline = link.last_rx + timeout_s
-            if loop.time() >= deadline:
-                break
-            await sleep_until(deadline)
+        if now - link.last_rx < timeout_s or lag_s > link.o2t_api_us / 1e6:
+            return
         if self._lost is not None and not self._lost.done():
             self._lost.set_result(
                 f"no T→O for {timeout_s * 1e3:.0f} ms (RPI {link.t2o_api_us / 1e3:g} ms × "
@@ -589,6 +598,8 @@ class Originator:
             if ahead > 1:
                 self.gaps += ahead - 1
         link.last_t2o_cip_seq = packet.cip_seq
+        if link.o2t is not None:
+            link.o2t.t2o_arrived(now)  # the slot's O→T first: this wake-up may carry it
         try:
             frame = decode_frame(payload)
         except CodecError:
