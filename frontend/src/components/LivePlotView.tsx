@@ -68,7 +68,18 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
   };
 
   return (
-    <figure className={`plot plot--${theme}`}>
+    <figure
+      className={`plot plot--${theme}`}
+      onPointerEnter={readOnly ? undefined : () => plotRef.current?.setPointerInside(true)}
+      onPointerLeave={
+        readOnly
+          ? undefined
+          : (e) => {
+              // A zoom drag covers the page with Plotly's drag layer: that is no leaving.
+              if (e.buttons === 0) plotRef.current?.setPointerInside(false);
+            }
+      }
+    >
       <figcaption className="plot__header">
         <span className="plot__title">{spec.title}</span>
         {!readOnly && (

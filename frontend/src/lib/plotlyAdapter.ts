@@ -26,6 +26,17 @@ export const plotlyBackend: PlotBackend = {
   relayout(el, update) {
     ignore(Plotly.relayout(el, update as never));
   },
+  zoomedAxes(el) {
+    const layout = (el as HTMLElement & { layout?: Record<string, unknown> }).layout ?? {};
+    const zoomed: Record<string, readonly unknown[]> = {};
+    for (const axis of ["xaxis", "yaxis", "yaxis2"]) {
+      const a = layout[axis] as { autorange?: unknown; range?: unknown } | undefined;
+      if (a !== undefined && a.autorange === false && Array.isArray(a.range) && a.range.length === 2) {
+        zoomed[axis] = a.range as unknown[];
+      }
+    }
+    return zoomed;
+  },
   purge(el) {
     Plotly.purge(el);
   },

@@ -5,13 +5,16 @@ import { SampleRing } from "./ringBuffer";
 
 type Call = { op: string; args: unknown[] };
 
-function fakeBackend(): PlotBackend & { calls: Call[] } {
+function fakeBackend(): PlotBackend & { calls: Call[]; zoom: Record<string, unknown[]> } {
   const calls: Call[] = [];
+  const zoom: Record<string, unknown[]> = {};
   const rec = (op: string) => (...args: unknown[]) => {
     calls.push({ op, args });
   };
   return {
     calls,
+    zoom,
+    zoomedAxes: () => zoom,
     newPlot: rec("newPlot"),
     react: rec("react"),
     extendTraces: rec("extendTraces"),
@@ -75,10 +78,16 @@ describe("LivePlot", () => {
     plot.update(0);
     plot.setPaused(true);
     expect(el.dataset.paused).toBe("true");
-    expect(backend.calls.at(-1)).toEqual({ op: "relayout", args: [el, { hovermode: "x" }] });
+    // Pausing redraws once, interactive, with hover.
+    const paused = backend.calls.at(-1)!;
+    expect(paused.op).toBe("react");
+    expect((paused.args[2] as { hovermode: unknown }).hovermode).toBe("x");
+    expect((paused.args[3] as { staticPlot?: boolean }).staticPlot).toBeUndefined();
+    const n = backend.calls.length;
     for (let t = 0; t < 5000; t += 10) push(2_000_000 + t);
     expect(plot.hasWork()).toBe(false);
     expect(plot.update(1)).toBe(false);
+    expect(backend.calls).toHaveLength(n);
     expect(ring.size).toBe(500);
     plot.setPaused(false);
     plot.update(2);
@@ -108,6 +117,36 @@ describe("LivePlot", () => {
     for (let t = 0; t < 5000 * 10; t += 10) push(t);
     plot.update(1);
     expect(backend.calls.at(-1)!.op).toBe("react");
+  });
+
+  it("is a static picture until the pointer is on it, interactive while it is", () => {
+    const { backend, plot, el, push } = setup();
+    plot.update(0);
+    const config = () => backend.calls.filter((c) => c.op === "react").at(-1)!.args[3] as { staticPlot?: boolean };
+    expect(config().staticPlot).toBe(true);
+    push(1);
+    plot.setPointerInside(true); // redraws at once
+    expect(config().staticPlot).toBeUndefined();
+    expect(el.dataset.interactive).toBe("true");
+    plot.setPointerInside(false);
+    expect(config().staticPlot).toBe(true);
+    expect(el.dataset.interactive).toBe("false");
+  });
+
+  it("keeps a person's zoom when it turns static, and drops it for a new window length", () => {
+    const { backend, plot } = setup();
+    plot.update(0);
+    plot.setPointerInside(true);
+    backend.zoom.xaxis = [100, 200]; // the person zoomed while data streamed
+    plot.setPointerInside(false);
+    const layout = backend.calls.at(-1)!.args[2] as { xaxis: { autorange: boolean; range: number[] } };
+    expect(layout.xaxis.autorange).toBe(false);
+    expect(layout.xaxis.range).toEqual([100, 200]);
+    plot.setWindow(30_000);
+    plot.update(1);
+    const fresh = backend.calls.at(-1)!.args[2] as { xaxis: { autorange: boolean; range?: number[] } };
+    expect(fresh.xaxis.autorange).toBe(true);
+    expect(fresh.xaxis.range).toBeUndefined();
   });
 
   it("signal picking restyles one trace", () => {

@@ -23,6 +23,8 @@ export interface PlotBackend {
   extendTraces(el: HTMLElement, update: { x: Datum[][]; y: Datum[][] }, indices: number[], maxPoints: number): void;
   restyle(el: HTMLElement, update: object, indices: number[]): void;
   relayout(el: HTMLElement, update: object): void;
+  /** The axes a person zoomed or panned (autorange off) and their ranges now. */
+  zoomedAxes(el: HTMLElement): Readonly<Record<string, readonly unknown[]>>;
   purge(el: HTMLElement): void;
 }
 
@@ -68,9 +70,12 @@ export class LivePlot {
   private readSeq = 0;
   private needsRebuild = true;
   private paused = false;
+  private pointerInside = false;
   private visible: boolean[];
   private tzShift_ms = 0;
   private revision = 0;
+  /** `revision` of the last drawing: a rebuild within the same revision keeps the zoom. */
+  private drawnRevision = -1;
   /** Points in each trace now (all traces have the same count). */
   points = 0;
   /** Browser time of the last update (performance.now()). */
@@ -127,10 +132,28 @@ export class LivePlot {
     this.paused = paused;
     // Resuming redraws the whole window from the ring, which kept buffering meanwhile.
     if (!paused) this.needsRebuild = true;
-    // Hover only on a paused plot: values streaming by cannot be read anyway, and a live plot
-    // redraws faster without its hover layer.
-    else if (this.el !== null && !this.options.readOnly) this.backend.relayout(this.el, { hovermode: "x" });
+    // Pausing redraws once, interactive with hover (see `interactive`), frozen from then on.
+    else if (this.el !== null) this.rebuild(this.el);
     this.mark();
+  }
+
+  /**
+   * The pointer entered or left the plot. A live plot is a static picture (no zoom layer, no
+   * hover) while nobody points at it — a Plotly redraw costs markedly less so — and becomes
+   * interactive as soon as the pointer is on it, so a person can zoom while data streams;
+   * `uirevision` keeps that zoom when it turns static again.
+   */
+  setPointerInside(inside: boolean): void {
+    if (inside === this.pointerInside) return;
+    const before = this.interactive;
+    this.pointerInside = inside;
+    // At once, not at the next tick: the person may start dragging a zoom box right away.
+    if (this.interactive !== before && !this.paused && this.el !== null) this.rebuild(this.el);
+  }
+
+  /** Interactive (zoom, pan, mode bar; hover too when paused), or a static picture. */
+  get interactive(): boolean {
+    return !this.options.readOnly && (this.paused || this.pointerInside);
   }
 
   setTraceVisible(index: number, visible: boolean): void {
@@ -191,7 +214,11 @@ export class LivePlot {
       y: chunk?.ys[i] ?? [],
     }));
     this.points = Math.min(this.maxPoints, (chunk?.buckets ?? 0) * POINTS_PER_BUCKET);
-    this.backend.react(el, data, this.layout(), this.config());
+    // `uirevision` keeps a zoom across a redraw, but not across a change of config (Plotly
+    // starts over then, as when the plot turns static or interactive): carry it explicitly.
+    const zoom = this.drawnRevision === this.revision ? this.backend.zoomedAxes(el) : {};
+    this.drawnRevision = this.revision;
+    this.backend.react(el, data, this.layout(zoom), this.config());
     this.updates++;
     this.mark();
   }
@@ -201,6 +228,7 @@ export class LivePlot {
     this.el.dataset.points = String(this.points);
     this.el.dataset.paused = this.paused ? "true" : "false";
     this.el.dataset.windowMs = String(this.window_ms);
+    this.el.dataset.interactive = this.interactive ? "true" : "false";
   }
 
   private newBucketer(): MinMaxBucketer {
@@ -231,7 +259,7 @@ export class LivePlot {
     };
   }
 
-  private layout(): object {
+  private layout(zoom: Readonly<Record<string, readonly unknown[]>> = {}): object {
     const dark = this.options.theme === "dark";
     const fg = dark ? "#d8dde3" : "#222";
     const grid = dark ? "#2f3740" : "#e3e3e3";
@@ -247,7 +275,8 @@ export class LivePlot {
       paper_bgcolor: dark ? "#12161b" : "#ffffff",
       plot_bgcolor: dark ? "#12161b" : "#ffffff",
       font: { color: fg, size: 11 },
-      hovermode: this.options.readOnly || !this.paused ? false : "x",
+      // Hover only on a paused plot: values streaming by cannot be read anyway.
+      hovermode: this.paused && this.interactive ? "x" : false,
       // "allow": Plotly otherwise measures every tick label on every redraw (a quarter of its time).
       xaxis: { type: "date", autorange: true, gridcolor: grid, ticklabeloverflow: "allow" },
       yaxis: {
@@ -269,11 +298,17 @@ export class LivePlot {
         title: { text: axisTitle(y2) },
       };
     }
+    for (const [axis, range] of Object.entries(zoom)) {
+      const current = layout[axis];
+      if (typeof current === "object" && current !== null) {
+        layout[axis] = { ...current, autorange: false, range: [...range] };
+      }
+    }
     return layout;
   }
 
   private config(): object {
-    if (this.options.readOnly) {
+    if (!this.interactive) {
       return { staticPlot: true, displayModeBar: false, responsive: true };
     }
     return {
