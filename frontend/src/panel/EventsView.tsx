@@ -3,7 +3,7 @@
  * filtered by kind; audit: write attempts and control changes (operators), filtered by action.
  * CSV export goes through the API.
  */
-import { useEffect, useMemo, useState } from "react";
+import { memo, useEffect, useMemo, useState } from "react";
 import { auditCsvUrl, eventsCsvUrl, getAudit, getEvents } from "../lib/api";
 import { formatTimestamp } from "../lib/health";
 import { keyLabel } from "../lib/layoutInfo";
@@ -64,7 +64,14 @@ function fromApi(item: EventItem): Row {
   return { key: `api-${item.id}`, time: item.time, kind: item.kind, data };
 }
 
-export function EventsView({ user, liveEvents }: { readonly user: User | null; readonly liveEvents: readonly StreamEvent[] }) {
+// Memoized: the panel re-renders with every live snapshot; these only when events or the user change.
+export const EventsView = memo(function EventsView({
+  user,
+  liveEvents,
+}: {
+  readonly user: User | null;
+  readonly liveEvents: readonly StreamEvent[];
+}) {
   const [kind, setKind] = useState("");
   const [history, setHistory] = useState<Page<EventItem> | null>(null);
   const [error, setError] = useState<string | null>(null);
@@ -151,14 +158,20 @@ export function EventsView({ user, liveEvents }: { readonly user: User | null; r
       </div>
     </div>
   );
-}
+});
 
 function short(v: unknown): string {
   if (v === null || v === undefined) return "";
   return typeof v === "string" ? v : JSON.stringify(v);
 }
 
-export function AuditView({ user, liveEvents }: { readonly user: User | null; readonly liveEvents: readonly StreamEvent[] }) {
+export const AuditView = memo(function AuditView({
+  user,
+  liveEvents,
+}: {
+  readonly user: User | null;
+  readonly liveEvents: readonly StreamEvent[];
+}) {
   const [page, setPage] = useState<Page<AuditItem> | null>(null);
   const [action, setAction] = useState("");
   const [error, setError] = useState<string | null>(null);
@@ -252,4 +265,4 @@ export function AuditView({ user, liveEvents }: { readonly user: User | null; re
       </div>
     </div>
   );
-}
+});
