@@ -279,7 +279,7 @@ def main() -> int:
     parser.add_argument(
         "--baseline-seconds", type=float, default=20.0, help="without clients, in all"
     )
-    parser.add_argument("--cycles", type=int, default=3, help="baseline/load alternations")
+    parser.add_argument("--cycles", type=int, default=6, help="baseline/load alternations")
     parser.add_argument(
         "--robot-niceness",
         type=int,

@@ -8,7 +8,7 @@ app routes ``/kiosk`` and friends itself).
 
 from __future__ import annotations
 
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
 from pathlib import Path
 
@@ -25,13 +25,21 @@ from cobot_hmi.service.runtime import Service
 _API_PREFIXES = ("api/", "healthz", "readyz", "metrics", "docs", "openapi.json", "redoc")
 
 
-def create_app(service: Service, *, manage_lifecycle: bool = True) -> FastAPI:
-    """The ASGI app. With ``manage_lifecycle`` its lifespan starts and stops ``service``."""
+def create_app(
+    service: Service,
+    *,
+    manage_lifecycle: bool = True,
+    on_started: Callable[[], None] | None = None,
+) -> FastAPI:
+    """The ASGI app. With ``manage_lifecycle`` its lifespan starts and stops ``service``;
+    ``on_started`` runs once the service has started (process-wide tuning)."""
 
     @asynccontextmanager
     async def lifespan(_: FastAPI) -> AsyncIterator[None]:
         if manage_lifecycle:
             await service.start()
+        if on_started is not None:
+            on_started()
         try:
             yield
         finally:

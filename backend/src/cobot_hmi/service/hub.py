@@ -3,12 +3,14 @@
 The work is split so that nothing a client does can reach the cyclic connection:
 
 - ``Hub.on_frame`` is the originator's callback. It runs on the cyclic connection's own thread
-  and does O(1) work: a counter, one ``deque.append`` and, only while a write waits for its
-  confirmation, one ``call_soon_threadsafe``. It never serializes, never touches a client.
-- ``Hub.run`` (the broadcast loop, on the web event loop) wakes every ``batch_s``, drains the
-  new frames, serializes each frame ONCE, then builds one message per rate group (clients
-  asking the same ``?rate=``) from those pieces and hands the same text to each client of the
-  group. A client's ``offer`` is a deque append: O(1) per client per tick.
+  and does O(1) work: a counter, one ``deque.append``, on every ``frames_per_batch``-th frame a
+  ``call_soon_threadsafe`` to wake the broadcast loop, and one more while a write waits for its
+  confirmation. It never serializes, never touches a client.
+- ``Hub.run`` (the broadcast loop, on the web event loop) wakes after every
+  ``frames_per_batch`` frames (``batch_s`` of them), drains the new frames, serializes each
+  frame ONCE, then builds one message per rate group (clients asking the same ``?rate=``) from
+  those pieces and hands the same text to each client of the group. A client's ``offer`` is a
+  deque append: O(1) per client per tick.
 - Each client has its own bounded queue (in frames) and its own sender task. A slow client's
   queue overflows: its oldest frame messages are dropped, counted, and it is told with a
   ``dropped`` message before its next frames. A stalled client (one send stuck for
@@ -193,9 +195,12 @@ class Hub:
         batch_s: float,
         queue_frames: int,
         stall_timeout_s: float,
+        frames_per_batch: int = 1,
         on_events: Callable[[list[Event]], None] | None = None,
     ) -> None:
         self.batch_s = batch_s
+        self.frames_per_batch = max(1, frames_per_batch)
+        self._batch_wake: asyncio.Event | None = None
         self.queue_frames = queue_frames
         self.stall_timeout_s = stall_timeout_s
         self._on_events = on_events
@@ -233,6 +238,10 @@ class Hub:
             item = (self._seq, received_at, frame)
         self._inbox.append(item)
         self.latest = item
+        loop = self._loop
+        if loop is not None and item[0] % self.frames_per_batch == 0:
+            with contextlib.suppress(RuntimeError):  # the loop closed during shutdown
+                loop.call_soon_threadsafe(self._wake_batch)
         if self._waiters and not self._wake_scheduled and self._loop is not None:
             self._wake_scheduled = True
             with contextlib.suppress(RuntimeError):  # the loop closed during shutdown
@@ -424,20 +433,29 @@ class Hub:
                 task.add_done_callback(self._background.discard)
 
     async def run(self) -> None:
-        """The broadcast loop: ``tick`` every ``batch_s`` until cancelled."""
-        self._loop = asyncio.get_running_loop()
-        next_tick = time.monotonic()
+        """The broadcast loop until cancelled: a ``tick`` every ``frames_per_batch`` frames,
+        or every ``batch_s`` while no frames come (status, stall checks).
+
+        Ticking right after a frame, not on a free-running timer, puts the burst of work a
+        tick causes (serializing, every client's send, the clients' own reading on the same
+        host) in the quiet time before the next frame: it never coincides with a receive.
+        """
+        loop = asyncio.get_running_loop()
+        self._loop = loop
+        self._batch_wake = asyncio.Event()
         while True:
-            next_tick += self.batch_s
-            delay = next_tick - time.monotonic()
-            if delay < 0:  # fell behind (a busy machine): do not burst to catch up
-                next_tick = time.monotonic()
-                delay = 0
-            await asyncio.sleep(delay)
+            with contextlib.suppress(TimeoutError):
+                async with asyncio.timeout(self.batch_s * 2):
+                    await self._batch_wake.wait()
+            self._batch_wake.clear()
             try:
                 self.tick()
             except Exception:  # a bug here must not end the stream for everyone
                 log.exception("broadcast tick failed")
+
+    def _wake_batch(self) -> None:
+        if self._batch_wake is not None:
+            self._batch_wake.set()
 
     def interval_histogram(self) -> list[tuple[float, int]]:
         """Cumulative (upper bound s, count) pairs, ``inf`` last, for Prometheus."""

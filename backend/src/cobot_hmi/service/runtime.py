@@ -42,6 +42,7 @@ class Service:
             batch_s=settings.ws_batch_ms / 1000,
             queue_frames=settings.ws_queue_frames,
             stall_timeout_s=settings.ws_stall_timeout_s,
+            frames_per_batch=round(settings.ws_batch_ms / settings.rpi_ms),
             on_events=self._store_events,
         )
         self.link = RobotLink(
