@@ -3,8 +3,9 @@ modules; never the scanner or the service.
 
 The robot's EtherNet/IP adapter (issue 3, "The target"): the encapsulation server on TCP 44818
 (``encap_server``), the Connection Manager (Forward Open, Large Forward Open, Forward Close),
-the explicit objects (``objects``), and the class 1 engine on UDP 2222: one producer per
-connection on a drift-free RPI schedule, O→T consumed by connection ID, run/idle applied to the
+the explicit objects (``objects``), and the class 1 engine on UDP 2222 (``cyclic_socket``): one
+producer per connection on a drift-free RPI schedule, O→T consumed by connection ID (read at the
+producer's ticks while one produces at a short RPI), run/idle applied to the
 :class:`ProcessImage`, and a watchdog per connection.
 """
 
@@ -25,6 +26,7 @@ from cobot_hmi.emulator.connections import (
     admit,
 )
 from cobot_hmi.emulator.counters import TargetCounters
+from cobot_hmi.emulator.cyclic_socket import CyclicSocket
 from cobot_hmi.emulator.encap_server import EncapSession, SessionContext
 from cobot_hmi.emulator.faults import TargetFaults
 from cobot_hmi.emulator.objects import handle_object_request
@@ -46,6 +48,11 @@ from cobot_hmi.enip.identity import IdentityInfo
 from cobot_hmi.enip.status import ExtendedStatus, GeneralStatus
 
 log = logging.getLogger(__name__)
+
+TICK_READ_MAX_RPI_US = 10_000
+"""While a connection produces T→O at this RPI or shorter, O→T is read at its ticks, not as it
+arrives (``cyclic_socket``): one wake-up per cycle instead of two, commands applied at most one
+RPI after they arrived, and seen in the very T→O packet that tick sends."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -72,19 +79,6 @@ class ConnectionInfo:
     o2t_interval_max_ms: float | None = None
 
 
-class _UdpEndpoint(asyncio.DatagramProtocol):
-    def __init__(self, target: Target) -> None:
-        self.target = target
-
-    def datagram_received(self, data: bytes, addr: tuple[str, int]) -> None:
-        self.target._o2t_received(data, addr)
-
-    def error_received(self, exc: Exception) -> None:
-        # ICMP port unreachable after a T→O packet: the originator is gone; its watchdog
-        # (here, the O→T one) decides, not the error.
-        log.debug("UDP error: %s", exc)
-
-
 class Target:
     """The EtherNet/IP target. ``await start()`` binds the sockets, ``await stop()`` closes
     every connection, session and socket."""
@@ -106,7 +100,7 @@ class Target:
         self._sessions: set[EncapSession] = set()
         self._session_tasks: set[asyncio.Task[None]] = set()
         self._server: asyncio.Server | None = None
-        self._udp: asyncio.DatagramTransport | None = None
+        self._udp: CyclicSocket | None = None
         self._t2o_cache: tuple[object, bytes] | None = None
         self.tcp_port = settings.tcp_port
         self.udp_port = settings.udp_port
@@ -114,18 +108,16 @@ class Target:
     # ------------------------------------------------------------------ lifecycle
 
     async def start(self) -> None:
-        loop = asyncio.get_running_loop()
-        transport, _ = await loop.create_datagram_endpoint(
-            lambda: _UdpEndpoint(self), local_addr=(self.settings.host, self.settings.udp_port)
-        )
-        self._udp = transport
-        self.udp_port = transport.get_extra_info("sockname")[1]
+        udp = CyclicSocket(self.settings.host, self.settings.udp_port, self._o2t_received)
+        udp.watch(True)
+        self._udp = udp
+        self.udp_port = udp.port
         try:
             self._server = await asyncio.start_server(
                 self._client_connected, self.settings.host, self.settings.tcp_port
             )
         except OSError:
-            transport.close()
+            udp.close()
             self._udp = None
             raise
         self.tcp_port = self._server.sockets[0].getsockname()[1]
@@ -323,6 +315,7 @@ class Target:
         conn.producer = loop.call_at(conn.t2o_deadline, self._produce, conn)
         watchdog_at = conn.last_rx + conn.timeout_s
         conn.watchdog = loop.call_at(watchdog_at, self._watchdog, conn, watchdog_at)
+        self._update_udp_watch()
         log.info(
             "%s connection open: O→T 0x%08X T→O 0x%08X to %s:%d", kind, o2t_id, t2o_id, *conn.peer
         )
@@ -373,6 +366,7 @@ class Target:
             return
         log.info("%s connection 0x%08X closed: %s", conn.kind, conn.o2t_id, reason)
         conn.cancel_timers()
+        self._update_udp_watch()
         if idle and conn.kind is ConnectionKind.OWNER and conn.run:
             conn.run = False
             self.process_image.outputs_idle(time.time())
@@ -382,6 +376,21 @@ class Target:
                 self._close(other, "the last non-listen-only connection closed", idle=idle)
 
     # ------------------------------------------------------------------ class 1 engine
+
+    def _update_udp_watch(self) -> None:
+        udp = self._udp
+        if udp is not None:
+            udp.watch(
+                not any(
+                    c.producer is not None and c.t2o_rpi_us <= TICK_READ_MAX_RPI_US
+                    for c in self._by_o2t.values()
+                )
+            )
+
+    def _read_due_o2t(self) -> None:
+        udp = self._udp
+        if udp is not None and not udp.watching:
+            udp.drain()
 
     def _t2o_data(self, now_s: float) -> bytes:
         frame = self.process_image.produce_frame(now_s)
@@ -405,6 +414,9 @@ class Target:
         """
         if conn.producer is None:
             return  # closed meanwhile
+        self._read_due_o2t()
+        if conn.producer is None:
+            return
         try:
             self._send_t2o(conn)
         except Exception:  # a robot bug must not stop the connection's heartbeat
@@ -450,11 +462,11 @@ class Target:
                 faults.t2o_delay_ms / 1e3, self._sendto, packet, conn.peer
             )
         else:
-            self._udp.sendto(packet, conn.peer)
+            self._sendto(packet, conn.peer)
 
     def _sendto(self, packet: bytes, peer: tuple[str, int]) -> None:
-        if self._udp is not None:
-            self._udp.sendto(packet, peer)
+        if self._udp is not None and not self._udp.sendto(packet, peer):
+            self.counters.t2o_send_errors += 1
 
     def _watchdog(self, conn: IoConnection, armed_for: float) -> None:
         """Armed for the last O→T packet's time + the timeout; re-armed while packets come.
@@ -462,6 +474,7 @@ class Target:
         Fired more than an O→T RPI late, the loop itself stalled (a busy machine) and O→T
         packets may be waiting in the socket, unread: the verdict waits one more RPI, after the
         loop has read its sockets again."""
+        self._read_due_o2t()
         if conn.watchdog is None:
             return
         loop = asyncio.get_running_loop()
@@ -477,7 +490,8 @@ class Target:
         self.counters.watchdog_timeouts += 1
         self._close(conn, f"watchdog: no O→T for {timeout_s * 1e3:.0f} ms (0x0203)")
 
-    def _o2t_received(self, data: bytes, addr: tuple[str, int]) -> None:
+    def _o2t_received(self, data: bytes, addr: tuple[str, int], arrived: float) -> None:
+        """One O→T datagram, ``arrived`` at that loop time (the kernel's receive time)."""
         counters = self.counters
         try:
             packet = io.decode_io(data)
@@ -494,7 +508,7 @@ class Target:
             return
         if conn.kind is not ConnectionKind.OWNER:
             conn.last_o2t_encap_seq = packet.encap_seq
-            conn.last_rx = asyncio.get_running_loop().time()
+            conn.last_rx = max(conn.last_rx, arrived)
             conn.packets_in += 1
             return
         payload = packet.payload
@@ -502,7 +516,7 @@ class Target:
             counters.udp_malformed += 1
             return
         conn.last_o2t_encap_seq = packet.encap_seq
-        conn.last_rx = asyncio.get_running_loop().time()
+        conn.last_rx = max(conn.last_rx, arrived)
         conn.packets_in += 1
         if packet.cip_seq == conn.last_o2t_cip_seq:
             conn.duplicates += 1

@@ -1,0 +1,111 @@
+"""Layer: emulator (socket I/O). Imports ``cobot_hmi.enip`` only.
+
+The target's UDP socket for class 1 packets (UDP 2222): a plain non-blocking socket with the
+kernel's receive timestamps, read either when it becomes readable (``watch(True)``, the event
+loop wakes for every packet) or by ``drain()`` from the target's own RPI tick.
+
+Why both: a producing target wakes every RPI anyway to send T→O. If every O→T packet woke it
+again, each cycle would cost two wake-ups, and a wake-up (a context switch into cold caches)
+costs more CPU than everything the packet asks for. So while a connection produces at a short
+RPI, the target reads O→T at its next tick instead, the way a controller picks up its inputs
+once per cycle. Nothing is lost by reading later: every packet carries the time the kernel
+received it (``SO_TIMESTAMPNS``), and that time, not the time of reading, feeds the watchdog
+and the O→T interval figures.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import socket
+import struct
+import time
+from collections.abc import Callable
+from typing import Final
+
+from cobot_hmi.enip.io import MAX_DATAGRAM
+
+log = logging.getLogger(__name__)
+
+_SO_TIMESTAMPNS: Final = getattr(socket, "SO_TIMESTAMPNS", None)
+_SCM_TIMESTAMPNS: Final = getattr(socket, "SCM_TIMESTAMPNS", _SO_TIMESTAMPNS)
+_TIMESPEC: Final = struct.Struct("@ll")
+_ANCILLARY_SIZE: Final = socket.CMSG_SPACE(_TIMESPEC.size)
+_RECEIVE_SIZE: Final = MAX_DATAGRAM + 1
+"""A longer datagram arrives truncated to this and is still seen as too long."""
+DRAIN_LIMIT: Final = 1024
+"""Datagrams read per call at most, so a flood cannot hold the loop."""
+
+PacketHandler = Callable[[bytes, tuple[str, int], float], None]
+"""``(data, source address, loop time the kernel received it)``."""
+
+
+class CyclicSocket:
+    def __init__(self, host: str, port: int, on_packet: PacketHandler) -> None:
+        self._loop = asyncio.get_running_loop()
+        self._on_packet = on_packet
+        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            sock.setblocking(False)
+            if _SO_TIMESTAMPNS is not None:
+                sock.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
+            sock.bind((host, port))
+        except OSError:
+            sock.close()
+            raise
+        self._sock: socket.socket | None = sock
+        self.port: int = sock.getsockname()[1]
+        self.watching = False
+
+    def watch(self, on: bool) -> None:
+        """Read every packet as it arrives (True), or only through ``drain`` (False)."""
+        sock = self._sock
+        if sock is None or on == self.watching:
+            return
+        if on:
+            self._loop.add_reader(sock.fileno(), self.drain)
+        else:
+            self._loop.remove_reader(sock.fileno())
+        self.watching = on
+
+    def drain(self) -> None:
+        """Hand every datagram waiting in the socket to ``on_packet``."""
+        sock = self._sock
+        if sock is None:
+            return
+        loop_minus_epoch = self._loop.time() - time.time()
+        for _ in range(DRAIN_LIMIT):
+            try:
+                data, ancillary, _flags, addr = sock.recvmsg(_RECEIVE_SIZE, _ANCILLARY_SIZE)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError as error:  # an ICMP error reported on the socket: not a packet
+                log.debug("UDP receive error: %s", error)
+                continue
+            arrived = None
+            for level, kind, value in ancillary:
+                if level == socket.SOL_SOCKET and kind == _SCM_TIMESTAMPNS:
+                    seconds, nanoseconds = _TIMESPEC.unpack_from(value)
+                    arrived = seconds + nanoseconds * 1e-9 + loop_minus_epoch
+            self._on_packet(data, addr, self._loop.time() if arrived is None else arrived)
+
+    def sendto(self, data: bytes, addr: tuple[str, int]) -> bool:
+        """Whether the packet left (a full buffer or an unreachable peer loses it)."""
+        sock = self._sock
+        if sock is None:
+            return False
+        try:
+            sock.sendto(data, addr)
+        except OSError as error:
+            log.debug("UDP send to %s:%d failed: %s", *addr, error)
+            return False
+        return True
+
+    def close(self) -> None:
+        self.watch(False)
+        sock, self._sock = self._sock, None
+        if sock is not None:
+            sock.close()
+
+
+__all__ = ["DRAIN_LIMIT", "CyclicSocket"]
