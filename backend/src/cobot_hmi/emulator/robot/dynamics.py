@@ -87,6 +87,10 @@ def joint_torques(
         # First moment about p: S − M·p; its cross product with (0, 0, −g), dotted with z.
         rx, ry = sx - mass * px, sy - mass * py
         gravity_nm = GRAVITY_M_S2 * (zx * ry - zy * rx)
+        acceleration = acceleration_deg_s2[i]
+        if not acceleration:  # no inertia term to work out (at rest, cruising)
+            torques[i] = gravity_nm + friction_nm_s_deg * velocity_deg_s[i]
+            continue
         # Σ m|c − p|² and Σ m(z·(c − p))² from the moments.
         trace_q = qxx + qyy + qzz
         s_dot_p = sx * px + sy * py + sz * pz
@@ -104,7 +108,7 @@ def joint_torques(
         inertia_kg_m2 = reflected_inertia_kg_m2 + max(0.0, radial - axial)
         torques[i] = (
             gravity_nm
-            + inertia_kg_m2 * radians(acceleration_deg_s2[i])
+            + inertia_kg_m2 * radians(acceleration)
             + friction_nm_s_deg * velocity_deg_s[i]
         )
     return tuple(torques)
@@ -147,6 +151,10 @@ class MotorThermal:
         """Advance ``dt_s`` seconds under ``currents_a`` (exact for a constant current)."""
         if dt_s > 0.0:
             keep = math.exp(-dt_s / self.time_constant_s)
-            for i, target in enumerate(self.steady_state_c(currents_a)):
-                self.temperatures_c[i] = target + (self.temperatures_c[i] - target) * keep
+            self.temperatures_c = [
+                target + (temperature - target) * keep
+                for temperature, target in zip(
+                    self.temperatures_c, self.steady_state_c(currents_a), strict=True
+                )
+            ]
         return tuple(self.temperatures_c)

@@ -198,15 +198,6 @@ def position_mm(t: Transform) -> Vector3:
     return (t[3] * 1000.0, t[7] * 1000.0, t[11] * 1000.0)
 
 
-def axis_z(t: Transform) -> Vector3:
-    """The frame's z axis in base coordinates: the joint axis for a joint frame."""
-    return (t[2], t[6], t[10])
-
-
-def cross(a: Vector3, b: Vector3) -> Vector3:
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
 def tcp_velocity(kin: Kinematics, joint_velocity_deg_s: Sequence[float]) -> tuple[Vector3, Vector3]:
     """The TCP's linear velocity (mm/s) and angular velocity (degree/s) in the base frame.
 
@@ -220,10 +211,15 @@ def tcp_velocity(kin: Kinematics, joint_velocity_deg_s: Sequence[float]) -> tupl
         if qd_deg == 0.0:
             continue
         qd = math.radians(qd_deg)
-        z = axis_z(frame)
-        lx, ly, lz = cross(z, (px - frame[3], py - frame[7], pz - frame[11]))
-        vx, vy, vz = vx + lx * qd, vy + ly * qd, vz + lz * qd
-        wx, wy, wz = wx + z[0] * qd, wy + z[1] * qd, wz + z[2] * qd
+        zx, zy, zz = frame[2], frame[6], frame[10]  # the joint's axis: its frame's z
+        rx, ry, rz = px - frame[3], py - frame[7], pz - frame[11]
+        # z × r, written out: this runs for every produced frame.
+        vx, vy, vz = (
+            vx + (zy * rz - zz * ry) * qd,
+            vy + (zz * rx - zx * rz) * qd,
+            vz + (zx * ry - zy * rx) * qd,
+        )
+        wx, wy, wz = wx + zx * qd, wy + zy * qd, wz + zz * qd
     return (
         (vx * 1000.0, vy * 1000.0, vz * 1000.0),
         (math.degrees(wx), math.degrees(wy), math.degrees(wz)),

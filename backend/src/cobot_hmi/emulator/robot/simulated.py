@@ -22,6 +22,7 @@ from cobot_hmi.codec import CommandImage
 from cobot_hmi.emulator.process_image import IdleBehaviour
 from cobot_hmi.emulator.robot.dynamics import MotorThermal, joint_torques, motor_currents
 from cobot_hmi.emulator.robot.kinematics import (
+    IDENTITY,
     Kinematics,
     Transform,
     euler_zyz_deg,
@@ -78,6 +79,12 @@ class RobotSettings:
     analog_input_noise: float = 0.005
 
 
+def _tool_transform(position_mm: Sequence[float], orientation_deg: Sequence[float]) -> Transform:
+    """The tool offset; exactly ``IDENTITY`` for none, which ``forward`` then skips."""
+    tool = from_euler_zyz_deg(position_mm, orientation_deg)
+    return IDENTITY if tool == IDENTITY else tool
+
+
 class Monitoring(NamedTuple):
     """The frame's joint and TCP values, refreshed together (every frame or every 100 ms)."""
 
@@ -119,9 +126,7 @@ class SimulatedRobot:
             s.thermal_time_constant_s,
             s.temperature_rise_at_rated_current_c,
         )
-        self._tool: Transform = from_euler_zyz_deg(
-            s.tool_offset_position_mm, s.tool_offset_orientation_deg
-        )
+        self._tool = _tool_transform(s.tool_offset_position_mm, s.tool_offset_orientation_deg)
         self._controller_version = ControllerVersion(*s.controller_version)
         self._motion: JointSample = at_rest(self.model.demo_waypoints_deg[0])
         self._moving = False
@@ -137,6 +142,8 @@ class SimulatedRobot:
         self._monitoring_at_s = -math.inf
         self._frame: Frame | None = None
         self._frame_at_s: float | None = None
+        self._state_and_flags = self._states.state_and_flags()
+        """Worked out at every ``_advance``: what the frame reports."""
 
     # ------------------------------------------------------------------ simulation
 
@@ -145,17 +152,20 @@ class SimulatedRobot:
             self._started = True
             self._now_s = now_s
             self._states.restart(now_s)
+        states = self._states
         dt_s = now_s - self._now_s
         if dt_s <= 0.0:
-            self._states.update(self._now_s)
+            states.update(self._now_s)
+            self._state_and_flags = states.state_and_flags()
             return
-        self._states.update(now_s)
-        if self._states.motion_allowed():
+        states.update(now_s)
+        state, flags = self._state_and_flags = states.state_and_flags()
+        if states.motion_allowed(state):
             self._motion = self._runner.advance(self._motion.position, dt_s)
             self._moving = True
         else:
             self._stop_if_moving()
-        if not self._states.flags().servo_on:
+        if not flags.servo_on:
             self._currents_a = (0.0,) * len(self._currents_a)
         self._thermal.update(self._currents_a, dt_s)
         self._now_s = now_s
@@ -227,7 +237,7 @@ class SimulatedRobot:
         self._advance(now_s)
         if self._frame is not None and self._frame_at_s == self._now_s:
             return self._frame  # several connections producing at the same instant
-        flags = self._states.flags()
+        state, flags = self._state_and_flags
         m = self._monitoring_now(flags)
         io = self._io
         applied = io.applied
@@ -242,7 +252,7 @@ class SimulatedRobot:
             tool_di=io.tool_di(),
             tool_do=applied.tool_do,
             controller_version=self._controller_version,
-            robot_state=self._states.state(),
+            robot_state=state,
             servo_on=flags.servo_on,
             safety_stopped=flags.safety_stopped,
             emergency_stopped=flags.emergency_stopped,
@@ -375,7 +385,7 @@ class SimulatedRobot:
         angles = (float(orientation_deg[0]), float(orientation_deg[1]), float(orientation_deg[2]))
         self.settings.tool_offset_position_mm = position
         self.settings.tool_offset_orientation_deg = angles
-        self._tool = from_euler_zyz_deg(position, angles)
+        self._tool = _tool_transform(position, angles)
         self._monitoring = None
 
     # ------------------------------------------------------------------ introspection

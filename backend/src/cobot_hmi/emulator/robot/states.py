@@ -162,8 +162,12 @@ class StateMachine:
         )
 
     def flags(self) -> Flags:
+        return self.state_and_flags()[1]
+
+    def state_and_flags(self) -> tuple[int, Flags]:
+        """``state()`` and ``flags()`` together (the state worked out once)."""
         state = self.state()
-        return Flags(
+        return state, Flags(
             servo_on=state not in _SERVO_OFF_STATES,
             safety_stopped=state == RobotState.INTERRUPTED,
             emergency_stopped=state == RobotState.EMERGENCY_STOP,
@@ -171,9 +175,9 @@ class StateMachine:
             power_button_pressed=self.power_button_pressed,
         )
 
-    def motion_allowed(self) -> bool:
-        """Whether the program moves the arm now."""
-        return self.program_running and self.state() in MOTION_STATES
+    def motion_allowed(self, state: int | None = None) -> bool:
+        """Whether the program moves the arm now (``state``: ``state()``, if already known)."""
+        return self.program_running and (self.state() if state is None else state) in MOTION_STATES
 
     # ------------------------------------------------------------------ commands
 
