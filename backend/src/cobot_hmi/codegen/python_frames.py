@@ -148,7 +148,7 @@ def frames_module() -> str:
         "import struct",
         "from collections.abc import Sequence",
         "from enum import IntEnum",
-        "from operator import itemgetter",
+        "from operator import attrgetter, itemgetter",
         "from typing import Final, NamedTuple",
         "",
         "from cobot_hmi.codec_errors import FrameSizeError",
@@ -199,12 +199,23 @@ def frames_module() -> str:
         '"""``_INTS[w][v]``: the ``w`` low bits of ``v`` as 0/1 codes, bit 0 first."""',
         "",
         "",
+        "_PACKED: Final[dict[object, int]] = {",
+        "    bits: v for table in _BITS for v, bits in enumerate(table)",
+        "}",
+        '"""Every tuple of up to 8 booleans (or 0/1) to its bits as an int, bit 0 first."""',
+        "",
+        "",
         "def _pack_bits(bits: Sequence[bool | int], shift: int) -> int:",
-        "    word = 0",
-        "    for i, bit in enumerate(bits):",
-        "        if bit:",
-        "            word |= 1 << (i + shift)",
-        "    return word",
+        "    try:",
+        "        word = _PACKED.get(bits)  # one look-up for the usual tuple of booleans",
+        "    except TypeError:  # unhashable (a list)",
+        "        word = None",
+        "    if word is None:",
+        "        word = 0",
+        "        for i, bit in enumerate(bits):",
+        "            if bit:",
+        "                word |= 1 << i",
+        "    return word << shift",
         "",
     ]
     for assembly in ASSEMBLIES:
@@ -217,8 +228,15 @@ def frames_module() -> str:
             f"{tag.upper()}_SIZE: Final = {assembly.size_bytes}",
             f"{tag.upper()}_COUNTS: Final = {{",
         ]
-        out += [f"    {quoted(f.name)}: {f.count}," for f in assembly.fields if not f.scalar]
+        arrays = [f for f in assembly.fields if not f.scalar]
+        out += [f"    {quoted(f.name)}: {f.count}," for f in arrays]
         out += ["}", ""]
+        out += [
+            f"_{tag.upper()}_ARRAYS: Final = attrgetter("
+            + ", ".join(quoted(f.name) for f in arrays)
+            + ")",
+            f"_{tag.upper()}_ARRAY_COUNTS: Final = {tuple(f.count for f in arrays)!r}",
+        ]
         elements, constants = _decode_elements(assembly)
         out += constants
         size = assembly.size_bytes
@@ -255,12 +273,13 @@ def frames_module() -> str:
             "",
             f"def encode_{tag}({var}: {cls}) -> bytes:",
             f'    """The {assembly.size_bytes} wire bytes of ``{var}``; reserved bits are zero."""',
-            f"    for name, count in {tag.upper()}_COUNTS.items():",
-            f"        if len(getattr({var}, name)) != count:",
-            "            raise ValueError(",
-            f'                f"{{name}} has {{len(getattr({var}, name))}} values, "',
-            '                f"expected {count}"',
-            "            )",
+            f"    if tuple(map(len, _{tag.upper()}_ARRAYS({var}))) != _{tag.upper()}_ARRAY_COUNTS:",
+            f"        for name, count in {tag.upper()}_COUNTS.items():",
+            f"            if len(getattr({var}, name)) != count:",
+            "                raise ValueError(",
+            f'                    f"{{name}} has {{len(getattr({var}, name))}} values, "',
+            '                    f"expected {count}"',
+            "                )",
             f"    return {tag.upper()}_STRUCT.pack(",
         ]
         out += [f"        {arg}," for arg in _encode_args(assembly, var)]

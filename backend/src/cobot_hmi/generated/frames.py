@@ -9,7 +9,7 @@ from __future__ import annotations
 import struct
 from collections.abc import Sequence
 from enum import IntEnum
-from operator import itemgetter
+from operator import attrgetter, itemgetter
 from typing import Final, NamedTuple
 
 from cobot_hmi.codec_errors import FrameSizeError
@@ -149,12 +149,23 @@ _INTS: Final = tuple(
 """``_INTS[w][v]``: the ``w`` low bits of ``v`` as 0/1 codes, bit 0 first."""
 
 
+_PACKED: Final[dict[object, int]] = {
+    bits: v for table in _BITS for v, bits in enumerate(table)
+}
+"""Every tuple of up to 8 booleans (or 0/1) to its bits as an int, bit 0 first."""
+
+
 def _pack_bits(bits: Sequence[bool | int], shift: int) -> int:
-    word = 0
-    for i, bit in enumerate(bits):
-        if bit:
-            word |= 1 << (i + shift)
-    return word
+    try:
+        word = _PACKED.get(bits)  # one look-up for the usual tuple of booleans
+    except TypeError:  # unhashable (a list)
+        word = None
+    if word is None:
+        word = 0
+        for i, bit in enumerate(bits):
+            if bit:
+                word |= 1 << i
+    return word << shift
 
 
 T2O_STRUCT: Final = struct.Struct("<BBBBB3x2f2fB1xB1x3B1x1B1xB1x6f6f6f6f6f6f3f3f3f3f3f3f3f3fBBBBBBBB")
@@ -187,6 +198,8 @@ T2O_COUNTS: Final = {
     "bit_output_registers": 64,
 }
 
+_T2O_ARRAYS: Final = attrgetter("controlbox_di", "controlbox_do", "analog_input_type", "analog_output_type", "analog_input", "analog_output", "tool_di", "tool_do", "controller_version", "joint_position", "joint_velocity", "joint_motor_current", "joint_motor_temperature", "joint_torque", "joint_external_torque", "tcp_position", "tcp_orientation", "tcp_velocity", "tcp_angular_velocity", "tool_offset_position", "tool_offset_orientation", "external_force", "external_moment", "bit_output_registers")
+_T2O_ARRAY_COUNTS: Final = (16, 16, 2, 2, 2, 2, 6, 6, 3, 6, 6, 6, 6, 6, 6, 3, 3, 3, 3, 3, 3, 3, 3, 64)
 _T2O_RUN_0: Final = itemgetter(slice(5, 7), slice(7, 9))
 _T2O_RUN_1: Final = itemgetter(slice(16, 22), slice(22, 28), slice(28, 34), slice(34, 40), slice(40, 46), slice(46, 52), slice(52, 55), slice(55, 58), slice(58, 61), slice(61, 64), slice(64, 67), slice(67, 70), slice(70, 73), slice(73, 76))
 
@@ -223,12 +236,13 @@ def decode_t2o(data: bytes | bytearray | memoryview) -> Frame:
 
 def encode_t2o(frame: Frame) -> bytes:
     """The 284 wire bytes of ``frame``; reserved bits are zero."""
-    for name, count in T2O_COUNTS.items():
-        if len(getattr(frame, name)) != count:
-            raise ValueError(
-                f"{name} has {len(getattr(frame, name))} values, "
-                f"expected {count}"
-            )
+    if tuple(map(len, _T2O_ARRAYS(frame))) != _T2O_ARRAY_COUNTS:
+        for name, count in T2O_COUNTS.items():
+            if len(getattr(frame, name)) != count:
+                raise ValueError(
+                    f"{name} has {len(getattr(frame, name))} values, "
+                    f"expected {count}"
+                )
     return T2O_STRUCT.pack(
         _pack_bits(frame.controlbox_di[0:8], 0),
         _pack_bits(frame.controlbox_di[8:16], 0),
@@ -315,6 +329,9 @@ O2T_COUNTS: Final = {
     "bit_input_registers": 64,
 }
 
+_O2T_ARRAYS: Final = attrgetter("controlbox_do", "tool_do", "analog_output_type", "analog_output", "bit_input_registers")
+_O2T_ARRAY_COUNTS: Final = (16, 6, 2, 2, 64)
+
 
 def decode_o2t(data: bytes | bytearray | memoryview) -> CommandImage:
     """Decode an O→T command image, which is exactly 20 bytes."""
@@ -335,12 +352,13 @@ def decode_o2t(data: bytes | bytearray | memoryview) -> CommandImage:
 
 def encode_o2t(image: CommandImage) -> bytes:
     """The 20 wire bytes of ``image``; reserved bits are zero."""
-    for name, count in O2T_COUNTS.items():
-        if len(getattr(image, name)) != count:
-            raise ValueError(
-                f"{name} has {len(getattr(image, name))} values, "
-                f"expected {count}"
-            )
+    if tuple(map(len, _O2T_ARRAYS(image))) != _O2T_ARRAY_COUNTS:
+        for name, count in O2T_COUNTS.items():
+            if len(getattr(image, name)) != count:
+                raise ValueError(
+                    f"{name} has {len(getattr(image, name))} values, "
+                    f"expected {count}"
+                )
     return O2T_STRUCT.pack(
         _pack_bits(image.controlbox_do[0:8], 0),
         _pack_bits(image.controlbox_do[8:16], 0),
