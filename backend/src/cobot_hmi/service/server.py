@@ -7,12 +7,12 @@ signal, which the CLI turns into its exit status.
 
 from __future__ import annotations
 
-import gc
 import sys
 from typing import Any, Final
 
 import uvicorn
 
+from cobot_hmi.eventloop import freeze_startup_heap
 from cobot_hmi.service.app import create_app
 from cobot_hmi.service.runtime import Service
 from cobot_hmi.service.settings import ServiceSettings
@@ -40,19 +40,6 @@ def uvicorn_config(app: Any, settings: ServiceSettings, **overrides: Any) -> uvi
 def prepare_process() -> None:
     """Process-wide settings for a service process (not for a library import)."""
     sys.setswitchinterval(SWITCH_INTERVAL_S)
-
-
-def freeze_startup_heap() -> None:
-    """Exempt what start-up made from the garbage collector's full collections.
-
-    A full collection walks every tracked object while holding the GIL: with FastAPI, uvicorn
-    and the app loaded, tens of thousands of them, 15–30 ms during which the cyclic thread
-    cannot receive a frame: a spike in the interval p99 every few seconds of WebSocket work.
-    What exists after start-up lives as long as the process; ``gc.freeze`` moves it out of the
-    collector's way (reference counting still frees everything else at once).
-    """
-    gc.collect()
-    gc.freeze()
 
 
 async def serve(settings: ServiceSettings) -> None:
