@@ -8,7 +8,7 @@
 // Targets: >= 30 rendered frames/s while receiving every frame at RPI 10 ms; heap at the end
 // within 10 % of the heap at 10 s. Only loopback addresses are used.
 import { spawn } from "node:child_process";
-import { mkdtempSync, rmSync } from "node:fs";
+import { mkdtempSync, rmSync, writeFileSync } from "node:fs";
 import { createRequire } from "node:module";
 import net from "node:net";
 import { tmpdir } from "node:os";
@@ -32,6 +32,12 @@ const rpiMs = option("rpi-ms", 10);
 const kioskSeconds = option("kiosk-seconds", 60);
 const width = option("width", 1600);
 const height = option("height", 1300);
+// Diagnosis: write heap snapshots at 10 s and at the end into this directory (takes seconds each).
+const snapshotIdx = process.argv.indexOf("--heap-snapshots");
+const snapshotDir = snapshotIdx >= 0 ? process.argv[snapshotIdx + 1] : undefined;
+// Diagnosis: a CPU profile of the page from 10 s to the end into this file (.cpuprofile).
+const profileIdx = process.argv.indexOf("--cpu-profile");
+const profileFile = profileIdx >= 0 ? process.argv[profileIdx + 1] : undefined;
 
 function freePort(host) {
   return new Promise((resolvePort, reject) => {
@@ -148,6 +154,15 @@ try {
     const { usedSize } = await cdp.send("Runtime.getHeapUsage");
     return usedSize / 1e6;
   };
+  const snapshot = async (name) => {
+    if (snapshotDir === undefined) return;
+    const chunks = [];
+    const onChunk = (e) => chunks.push(e.chunk);
+    cdp.on("HeapProfiler.addHeapSnapshotChunk", onChunk);
+    await cdp.send("HeapProfiler.takeHeapSnapshot", { reportProgress: false });
+    cdp.off("HeapProfiler.addHeapSnapshotChunk", onChunk);
+    writeFileSync(join(snapshotDir, `${name}.heapsnapshot`), chunks.join(""));
+  };
   const sample = () =>
     page.evaluate(() => {
       const rt = window.__cobotHmi;
@@ -191,10 +206,21 @@ try {
   const t0 = await sample();
   await sleep(HEAP_FIRST_S * 1000);
   const heap10 = await heapMb();
+  await snapshot("panel-10s");
+  if (profileFile !== undefined) {
+    await cdp.send("Profiler.enable");
+    await cdp.send("Profiler.setSamplingInterval", { interval: 200 });
+    await cdp.send("Profiler.start");
+  }
   const t10 = await sample();
   await sleep(Math.max(0, seconds - HEAP_FIRST_S) * 1000);
   const tEnd = await sample();
+  if (profileFile !== undefined) {
+    const { profile } = await cdp.send("Profiler.stop");
+    writeFileSync(profileFile, JSON.stringify(profile));
+  }
   const heapEnd = await heapMb();
+  await snapshot("panel-end");
   const statusAfter = await (await fetch(`${base}/api/v1/status`)).json();
 
   const span = (x, y) => (y.now - x.now) / 1000;

@@ -5,8 +5,8 @@
  */
 import { memo, useEffect, useRef, useState } from "react";
 import { plotlyBackend } from "../lib/plotlyAdapter";
-import { DEFAULT_PLOT_HEIGHT_PX, LivePlot, traceColour, type PlotTheme } from "../lib/plotting";
-import { DEFAULT_WINDOW_MS, WINDOWS_MS, tracesOf, type PlotSpec } from "../lib/plots";
+import { DEFAULT_PLOT_HEIGHT_PX, LivePlot, plotMargin, traceColour, type PlotTheme } from "../lib/plotting";
+import { DEFAULT_WINDOW_MS, WINDOWS_MS, axisTitles, tracesOf, type PlotSpec } from "../lib/plots";
 import { useRuntime } from "./runtimeContext";
 
 interface Props {
@@ -24,6 +24,12 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
   const [paused, setPaused] = useState(false);
   const [window_ms, setWindow] = useState(DEFAULT_WINDOW_MS);
   const traces = tracesOf(spec);
+  const titles = axisTitles(spec);
+  const margin = plotMargin(titles.y2 !== null);
+  const height = height_px ?? DEFAULT_PLOT_HEIGHT_PX;
+  // The axis titles (with the layout's units) sit in the plot's margins, centred on the plotting
+  // area; drawn here rather than by Plotly (see the layout in lib/plotting.ts).
+  const titleTop = `${margin.t + (height - margin.t - margin.b) / 2}px`;
   const [visible, setVisible] = useState<boolean[]>(() => traces.map(() => true));
 
   useEffect(() => {
@@ -135,13 +141,17 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
           ))}
         </div>
       )}
-      <div
-        className="plot__area"
-        ref={container}
-        data-testid={spec.id}
-        data-points="0"
-        style={{ height: `${height_px ?? DEFAULT_PLOT_HEIGHT_PX}px` }}
-      />
+      <div className="plot__frame">
+        <div className="plot__area" ref={container} data-testid={spec.id} data-points="0" style={{ height: `${height}px` }} />
+        <span className="plot__axis-title plot__axis-title--y" data-testid={`${spec.id}-axis-y`} style={{ top: titleTop }}>
+          {titles.y}
+        </span>
+        {titles.y2 !== null && (
+          <span className="plot__axis-title plot__axis-title--y2" data-testid={`${spec.id}-axis-y2`} style={{ top: titleTop }}>
+            {titles.y2}
+          </span>
+        )}
+      </div>
     </figure>
   );
 });

@@ -88,6 +88,13 @@ export function axisTitle(series: PlotSeries): string {
   return unit === "" ? series.label : `${series.label} [${unit}]`;
 }
 
+/** The titles of a plot's y axes (right axis only for a plot with two series). */
+export function axisTitles(spec: PlotSpec): { readonly y: string; readonly y2: string | null } {
+  const y1 = spec.series.find((s) => s.axis === "y");
+  const y2 = spec.series.find((s) => s.axis === "y2");
+  return { y: y1 === undefined ? "" : axisTitle(y1), y2: y2 === undefined ? null : axisTitle(y2) };
+}
+
 /** The plot window lengths a person can choose. */
 export const WINDOWS_MS: readonly { readonly label: string; readonly ms: number }[] = [
   { label: "10 s", ms: 10_000 },

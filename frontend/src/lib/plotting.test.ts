@@ -1,6 +1,6 @@
 import { describe, expect, it } from "vitest";
 import { LivePlot, PlotCoordinator, type FrameScheduler, type PlotBackend } from "./plotting";
-import { ChannelMap, JOINT_PLOTS, TCP_PLOTS, axisTitle, tracesOf } from "./plots";
+import { ChannelMap, JOINT_PLOTS, TCP_PLOTS, axisTitle, axisTitles, tracesOf } from "./plots";
 import { SampleRing } from "./ringBuffer";
 
 type Call = { op: string; args: unknown[] };
@@ -48,6 +48,16 @@ describe("plot definitions", () => {
     const velocity = TCP_PLOTS.find((p) => p.id === "plot-tcp-velocity")!;
     expect(velocity.series.map(axisTitle)).toEqual(["linear [mm/s]", "angular [degree/s]"]);
     expect(tracesOf(velocity)).toHaveLength(6);
+    expect(axisTitles(spec)).toEqual({ y: "position [degree]", y2: null });
+    expect(axisTitles(velocity)).toEqual({ y: "linear [mm/s]", y2: "angular [degree/s]" });
+  });
+
+  it("leaves the axis titles to the view (a Plotly axis title re-measures every tick label)", () => {
+    const { backend, plot } = setup();
+    plot.update(0);
+    const layout = backend.calls.at(-1)!.args[2] as Record<string, { title?: unknown }>;
+    expect(layout.yaxis?.title).toBeUndefined();
+    expect(layout.yaxis2).toBeUndefined();
   });
 });
 

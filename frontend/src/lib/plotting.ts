@@ -11,7 +11,7 @@
  * small `PlotBackend` interface (src/lib/plotlyAdapter.ts in the app, a fake in tests).
  */
 import { bucketWidthMs, MinMaxBucketer, POINTS_PER_BUCKET } from "./decimate";
-import { axisTitle, tracesOf, type PlotSpec, type TraceInfo } from "./plots";
+import { tracesOf, type PlotSpec, type TraceInfo } from "./plots";
 import type { SampleRing } from "./ringBuffer";
 import type { ChannelMap } from "./plots";
 
@@ -32,6 +32,18 @@ export interface PlotBackend {
 export const BUCKETS_PER_WINDOW = 300;
 
 export const DEFAULT_PLOT_HEIGHT_PX = 240;
+
+/** Plot margins (px) around the plotting area; the view places the axis titles in them. */
+export interface PlotMargin {
+  readonly l: number;
+  readonly r: number;
+  readonly t: number;
+  readonly b: number;
+}
+
+export function plotMargin(twoAxes: boolean): PlotMargin {
+  return { l: 64, r: twoAxes ? 64 : 16, t: 8, b: 36 };
+}
 
 export type PlotTheme = "light" | "dark";
 
@@ -264,19 +276,21 @@ export class LivePlot {
     const fg = dark ? "#d8dde3" : "#222";
     const grid = dark ? "#2f3740" : "#e3e3e3";
     const twoAxes = this.spec.series.some((s) => s.axis === "y2");
-    const y1 = this.spec.series.find((s) => s.axis === "y");
-    const y2 = this.spec.series.find((s) => s.axis === "y2");
     const layout: Record<string, unknown> = {
       uirevision: `${this.spec.id}:${this.revision}`,
       autosize: true,
       height: this.options.height_px ?? DEFAULT_PLOT_HEIGHT_PX,
-      margin: { l: 64, r: twoAxes ? 64 : 16, t: 8, b: 36 },
+      margin: plotMargin(twoAxes),
       showlegend: false,
       paper_bgcolor: dark ? "#12161b" : "#ffffff",
       plot_bgcolor: dark ? "#12161b" : "#ffffff",
       font: { color: fg, size: 11 },
       // Hover only on a paused plot: values streaming by cannot be read anyway.
       hovermode: this.paused && this.interactive ? "x" : false,
+      // No Plotly axis titles: the view draws them (axisTitles in plots.ts) beside the plot. With a
+      // title, Plotly measures every tick label against it on every redraw and caches each
+      // measurement under the label's pixel position: with autoranged axes the labels keep
+      // moving, and its text-measurement cache grew by hundreds of entries a minute.
       // "allow": Plotly otherwise measures every tick label on every redraw (a quarter of its time).
       xaxis: { type: "date", autorange: true, gridcolor: grid, ticklabeloverflow: "allow" },
       yaxis: {
@@ -284,10 +298,9 @@ export class LivePlot {
         gridcolor: grid,
         zeroline: false,
         ticklabeloverflow: "allow",
-        title: { text: y1 === undefined ? "" : axisTitle(y1) },
       },
     };
-    if (y2 !== undefined) {
+    if (twoAxes) {
       layout.yaxis2 = {
         autorange: true,
         overlaying: "y",
@@ -295,7 +308,6 @@ export class LivePlot {
         zeroline: false,
         showgrid: false,
         ticklabeloverflow: "allow",
-        title: { text: axisTitle(y2) },
       };
     }
     for (const [axis, range] of Object.entries(zoom)) {
