@@ -16,9 +16,9 @@ import math
 import random
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Final, NamedTuple
+from typing import Final
 
-from cobot_hmi.codec import CommandImage
+from cobot_hmi.codec import CommandImage, zero_frame
 from cobot_hmi.emulator.process_image import IdleBehaviour
 from cobot_hmi.emulator.robot.dynamics import MotorThermal, joint_torques, motor_currents
 from cobot_hmi.emulator.robot.kinematics import (
@@ -85,21 +85,9 @@ def _tool_transform(position_mm: Sequence[float], orientation_deg: Sequence[floa
     return IDENTITY if tool == IDENTITY else tool
 
 
-class Monitoring(NamedTuple):
-    """The frame's joint and TCP values, refreshed together (every frame or every 100 ms)."""
-
-    joint_position: tuple[float, ...]
-    joint_velocity: tuple[float, ...]
-    joint_motor_current: tuple[float, ...]
-    joint_motor_temperature: tuple[float, ...]
-    joint_torque: tuple[float, ...]
-    joint_external_torque: tuple[float, ...]
-    tcp_position: tuple[float, ...]
-    tcp_orientation: tuple[float, ...]
-    tcp_velocity: tuple[float, ...]
-    tcp_angular_velocity: tuple[float, ...]
-    external_force: tuple[float, ...]
-    external_moment: tuple[float, ...]
+Monitoring = Frame
+"""The joint and TCP values, refreshed together (every frame or every 100 ms), carried in a
+``Frame`` whose other fields stay zero: the layout's names are declared once, not again here."""
 
 
 class SimulatedRobot:
@@ -208,7 +196,7 @@ class SimulatedRobot:
             currents = (0.0,) * joints  # brakes hold the arm; the drives carry no current
         self._currents_a = currents
         linear, angular = tcp_velocity(kin, velocity)
-        return Monitoring(
+        return zero_frame()._replace(
             joint_position=position,
             joint_velocity=velocity,
             joint_motor_current=currents,
