@@ -254,6 +254,25 @@ O2T_ASSEMBLY: Final = Assembly(
 )
 ASSEMBLIES: Final = (T2O_ASSEMBLY, O2T_ASSEMBLY)
 
+
+@dataclass(frozen=True, slots=True)
+class ConnectionPoints:
+    """The robot's default connection points (assembly instances) for class 1 connections.
+
+    Exclusive owner: configuration → O→T → T→O; input-only sends its O→T to the heartbeat
+    point, listen-only to its own (ethernetip.md "Input-only"). Every one is a setting on both
+    sides, in case a controller version numbers them otherwise.
+    """
+
+    configuration: int = 151
+    o2t: int = O2T_ASSEMBLY.default_instance
+    t2o: int = T2O_ASSEMBLY.default_instance
+    input_only: int = 198
+    listen_only: int = 199
+
+
+CONNECTION_POINTS: Final = ConnectionPoints()
+
 ANALOG_OUTPUT_RANGES: Final = {"current": (4.0, 20.0, "mA"), "voltage": (0.0, 10.0, "V")}
 """Valid setpoint range (low, high, unit) of an analog output for each type coding."""
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import argparse
 
+from cobot_hmi.layout import CONNECTION_POINTS, O2T_ASSEMBLY, T2O_ASSEMBLY
+
 
 def _rpi_range(text: str) -> tuple[int, int]:
     try:
@@ -37,13 +39,19 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     parser.add_argument("--host", default="127.0.0.2", help="address to bind (default 127.0.0.2)")
     parser.add_argument("--tcp-port", type=int, default=44818)
     parser.add_argument("--udp-port", type=int, default=2222)
-    parser.add_argument("--config-instance", type=int, default=151)
-    parser.add_argument("--o2t-instance", type=int, default=150)
-    parser.add_argument("--t2o-instance", type=int, default=100)
-    parser.add_argument("--input-only-instance", type=int, default=198)
-    parser.add_argument("--listen-only-instance", type=int, default=199)
-    parser.add_argument("--o2t-size", type=int, default=20, help="O→T data bytes (default 20)")
-    parser.add_argument("--t2o-size", type=int, default=284, help="T→O data bytes (default 284)")
+    points = CONNECTION_POINTS
+    parser.add_argument("--config-instance", type=int, default=points.configuration)
+    parser.add_argument("--o2t-instance", type=int, default=points.o2t)
+    parser.add_argument("--t2o-instance", type=int, default=points.t2o)
+    parser.add_argument("--input-only-instance", type=int, default=points.input_only)
+    parser.add_argument("--listen-only-instance", type=int, default=points.listen_only)
+    for option, arrow, assembly in (("o2t", "O→T", O2T_ASSEMBLY), ("t2o", "T→O", T2O_ASSEMBLY)):
+        parser.add_argument(
+            f"--{option}-size",
+            type=int,
+            default=assembly.size_bytes,
+            help=f"{arrow} data bytes (default {assembly.size_bytes})",
+        )
     parser.add_argument(
         "--rpi-range-ms",
         type=_rpi_range,

@@ -8,6 +8,11 @@ import argparse
 import contextlib
 from collections.abc import Callable
 
+from cobot_hmi.layout import CONNECTION_POINTS, O2T_ASSEMBLY, T2O_ASSEMBLY
+
+_DEFAULT_INSTANCES = (CONNECTION_POINTS.configuration, CONNECTION_POINTS.o2t, CONNECTION_POINTS.t2o)
+_DEFAULT_SIZES = (O2T_ASSEMBLY.size_bytes, T2O_ASSEMBLY.size_bytes)
+
 
 def _int_list(count: int, what: str) -> Callable[[str], tuple[int, ...]]:
     def parse(text: str) -> tuple[int, ...]:
@@ -51,18 +56,18 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     scan.add_argument(
         "--instances",
         type=_int_list(3, "cfg,o2t,t2o"),
-        default=(151, 150, 100),
+        default=_DEFAULT_INSTANCES,
         metavar="CFG,O2T,T2O",
-        help="assembly instances (default 151,150,100)",
+        help="assembly instances (default {},{},{})".format(*_DEFAULT_INSTANCES),
     )
     scan.add_argument(
         "--sizes",
         type=_int_list(2, "o2t,t2o"),
-        default=(20, 284),
+        default=_DEFAULT_SIZES,
         metavar="O2T,T2O",
-        help="data sizes in bytes (default 20,284)",
+        help="data sizes in bytes (default {},{})".format(*_DEFAULT_SIZES),
     )
-    scan.add_argument("--heartbeat-instance", type=int, default=198)
+    scan.add_argument("--heartbeat-instance", type=int, default=CONNECTION_POINTS.input_only)
     scan.add_argument("--multiplier", type=int, default=2, help="timeout multiplier (2: RPI×16)")
     scan.add_argument("--large", action="store_true", help="use a Large Forward Open")
     scan.add_argument("--stats", action="store_true", help="one line of statistics per second")

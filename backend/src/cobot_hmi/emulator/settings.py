@@ -13,6 +13,7 @@ from cobot_hmi.codec import O2T_SIZE, T2O_SIZE
 from cobot_hmi.emulator.process_image import IdleBehaviour
 from cobot_hmi.enip.encapsulation import ENIP_TCP_PORT, ENIP_UDP_PORT
 from cobot_hmi.enip.identity import IdentityInfo
+from cobot_hmi.layout import CONNECTION_POINTS
 
 
 def default_identity() -> IdentityInfo:
@@ -35,11 +36,11 @@ class TargetSettings:
     tcp_port: int = ENIP_TCP_PORT
     """0 picks a free port (tests), read back from ``Target.tcp_port``."""
     udp_port: int = ENIP_UDP_PORT
-    config_instance: int = 151
-    o2t_instance: int = 150
-    t2o_instance: int = 100
-    input_only_instance: int = 198
-    listen_only_instance: int = 199
+    config_instance: int = CONNECTION_POINTS.configuration
+    o2t_instance: int = CONNECTION_POINTS.o2t
+    t2o_instance: int = CONNECTION_POINTS.t2o
+    input_only_instance: int = CONNECTION_POINTS.input_only
+    listen_only_instance: int = CONNECTION_POINTS.listen_only
     o2t_size: int = O2T_SIZE
     t2o_size: int = T2O_SIZE
     heartbeat_sizes: tuple[int, ...] = (0, 2, 6)

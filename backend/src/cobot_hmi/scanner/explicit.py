@@ -17,6 +17,8 @@ from typing import Any
 from pycomm3 import CIPDriver, CommError
 
 from cobot_hmi.codec import CodecError, Frame, decode_frame
+from cobot_hmi.enip.encapsulation import ENIP_TCP_PORT
+from cobot_hmi.layout import CONNECTION_POINTS
 
 GET_ATTRIBUTE_SINGLE = 0x0E
 CLASS_ASSEMBLY = 0x04
@@ -110,7 +112,11 @@ def list_identity(host: str, port: int = 44818) -> dict[str, Any]:
 
 
 def probe(
-    host: str, port: int = 44818, *, o2t_instance: int = 150, t2o_instance: int = 100
+    host: str,
+    port: int = ENIP_TCP_PORT,
+    *,
+    o2t_instance: int = CONNECTION_POINTS.o2t,
+    t2o_instance: int = CONNECTION_POINTS.t2o,
 ) -> ProbeResult:
     """Identity, both assembly sizes and one T→O frame, read explicitly."""
     identity = list_identity(host, port)

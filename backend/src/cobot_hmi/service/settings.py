@@ -20,9 +20,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Final
 
+from cobot_hmi.layout import CONNECTION_POINTS, O2T_ASSEMBLY, T2O_ASSEMBLY
+
 if TYPE_CHECKING:
     from cobot_hmi.scanner.originator import OriginatorSettings
 
+O2T_SIZE: Final = O2T_ASSEMBLY.size_bytes
+T2O_SIZE: Final = T2O_ASSEMBLY.size_bytes
 ENV_PREFIX: Final = "COBOT_HMI_"
 CONFIG_ENV: Final = "COBOT_HMI_CONFIG"
 
@@ -57,14 +61,21 @@ class ServiceSettings:
         default=False, metadata=_meta("read-only: an input-only connection, never owns outputs")
     )
     large_forward_open: bool = field(default=False, metadata=_meta("use Large Forward Open (0x5B)"))
-    config_instance: int = field(default=151, metadata=_meta("configuration assembly instance"))
-    o2t_instance: int = field(default=150, metadata=_meta("O→T (command) assembly instance"))
-    t2o_instance: int = field(default=100, metadata=_meta("T→O (robot frame) assembly instance"))
-    heartbeat_instance: int = field(
-        default=198, metadata=_meta("input-only heartbeat connection point")
+    config_instance: int = field(
+        default=CONNECTION_POINTS.configuration, metadata=_meta("configuration assembly instance")
     )
-    o2t_size: int = field(default=20, metadata=_meta("O→T data size, bytes"))
-    t2o_size: int = field(default=284, metadata=_meta("T→O data size, bytes"))
+    o2t_instance: int = field(
+        default=CONNECTION_POINTS.o2t, metadata=_meta("O→T (command) assembly instance")
+    )
+    t2o_instance: int = field(
+        default=CONNECTION_POINTS.t2o, metadata=_meta("T→O (robot frame) assembly instance")
+    )
+    heartbeat_instance: int = field(
+        default=CONNECTION_POINTS.input_only,
+        metadata=_meta("input-only heartbeat connection point"),
+    )
+    o2t_size: int = field(default=O2T_SIZE, metadata=_meta("O→T data size, bytes"))
+    t2o_size: int = field(default=T2O_SIZE, metadata=_meta("T→O data size, bytes"))
     request_t2o_port: int | None = field(
         default=None, metadata=_meta("ask the robot to send T→O to this UDP port")
     )
@@ -331,10 +342,14 @@ def add_arguments(parser: argparse.ArgumentParser, *, only: tuple[str, ...] | No
             "--instances",
             default=argparse.SUPPRESS,
             metavar="CFG,O2T,T2O",
-            help="assembly instances, e.g. 151,150,100",
+            help="assembly instances, e.g. "
+            f"{CONNECTION_POINTS.configuration},{CONNECTION_POINTS.o2t},{CONNECTION_POINTS.t2o}",
         )
         parser.add_argument(
-            "--sizes", default=argparse.SUPPRESS, metavar="O2T,T2O", help="e.g. 20,284"
+            "--sizes",
+            default=argparse.SUPPRESS,
+            metavar="O2T,T2O",
+            help=f"e.g. {O2T_SIZE},{T2O_SIZE}",
         )
 
 
