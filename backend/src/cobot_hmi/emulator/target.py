@@ -1,9 +1,9 @@
-"""Layer: emulator (asyncio I/O). Imports the codec, ``cobot_hmi.enip`` and the emulator's own
-modules; never the scanner or the service.
+"""Layer: emulator (asyncio I/O). Imports the codec, ``cobot_hmi.enip``, the emulator's own
+modules and the runtime support (``udp_endpoint``); never the scanner or the service.
 
 The robot's EtherNet/IP adapter (issue 3, "The target"): the encapsulation server on TCP 44818
 (``encap_server``), the Connection Manager (Forward Open, Large Forward Open, Forward Close),
-the explicit objects (``objects``), and the class 1 engine on UDP 2222 (``cyclic_socket``): one
+the explicit objects (``objects``), and the class 1 engine on UDP 2222 (``udp_endpoint``): one
 producer per connection on a drift-free RPI schedule, O→T consumed by connection ID (read at the
 producer's ticks while one produces at a short RPI), run/idle applied to the
 :class:`ProcessImage`, and a watchdog per connection.
@@ -26,7 +26,6 @@ from cobot_hmi.emulator.connections import (
     admit,
 )
 from cobot_hmi.emulator.counters import TargetCounters
-from cobot_hmi.emulator.cyclic_socket import CyclicSocket
 from cobot_hmi.emulator.encap_server import EncapSession, SessionContext
 from cobot_hmi.emulator.faults import TargetFaults
 from cobot_hmi.emulator.objects import handle_object_request
@@ -46,12 +45,13 @@ from cobot_hmi.enip.cpf import CpfItem, ItemType, Sockaddr, decode_sockaddr, soc
 from cobot_hmi.enip.errors import EnipError
 from cobot_hmi.enip.identity import IdentityInfo
 from cobot_hmi.enip.status import ExtendedStatus, GeneralStatus
+from cobot_hmi.udp_endpoint import UdpEndpoint
 
 log = logging.getLogger(__name__)
 
 TICK_READ_MAX_RPI_US = 10_000
 """While a connection produces T→O at this RPI or shorter, O→T is read at its ticks, not as it
-arrives (``cyclic_socket``): one wake-up per cycle instead of two, commands applied at most one
+arrives (``udp_endpoint``): one wake-up per cycle instead of two, commands applied at most one
 RPI after they arrived, and seen in the very T→O packet that tick sends."""
 
 
@@ -100,7 +100,7 @@ class Target:
         self._sessions: set[EncapSession] = set()
         self._session_tasks: set[asyncio.Task[None]] = set()
         self._server: asyncio.Server | None = None
-        self._udp: CyclicSocket | None = None
+        self._udp: UdpEndpoint | None = None
         self._t2o_cache: tuple[object, bytes] | None = None
         self.tcp_port = settings.tcp_port
         self.udp_port = settings.udp_port
@@ -108,7 +108,13 @@ class Target:
     # ------------------------------------------------------------------ lifecycle
 
     async def start(self) -> None:
-        udp = CyclicSocket(self.settings.host, self.settings.udp_port, self._o2t_received)
+        udp = UdpEndpoint(
+            self.settings.host,
+            self.settings.udp_port,
+            self._o2t_received,
+            receive_size=io.MAX_DATAGRAM + 1,
+            kernel_timestamps=True,
+        )
         udp.watch(True)
         self._udp = udp
         self.udp_port = udp.port

@@ -1,5 +1,6 @@
-"""Layer: scanner (asyncio I/O, the originator role). Imports the codec, ``cobot_hmi.enip``
-and the scanner's own modules; never the emulator or the service.
+"""Layer: scanner (asyncio I/O, the originator role). Imports the codec, ``cobot_hmi.enip``, the
+scanner's own modules and the runtime support (``udp_endpoint``); never the emulator or the
+service.
 
 The backend's class 1 connection to the robot, held as a PLC holds it (issue 3, "The
 originator"): RegisterSession, Forward Open (exclusive owner, or input-only as a read-only
@@ -51,6 +52,7 @@ from cobot_hmi.enip.errors import EnipError
 from cobot_hmi.scanner.o2t_schedule import O2TSchedule
 from cobot_hmi.scanner.session import EnipSession, SessionError
 from cobot_hmi.scanner.stats import IntervalWindow
+from cobot_hmi.udp_endpoint import UdpEndpoint
 
 log = logging.getLogger(__name__)
 
@@ -163,17 +165,6 @@ class _Link:
     o2t: O2TSchedule | None = None
 
 
-class _UdpEndpoint(asyncio.DatagramProtocol):
-    def __init__(self, owner: Originator) -> None:
-        self.owner = owner
-
-    def datagram_received(self, data: bytes, addr: tuple[str, int]) -> None:
-        self.owner._t2o_received(data)
-
-    def error_received(self, exc: Exception) -> None:
-        log.debug("UDP error: %s", exc)
-
-
 class Originator:
     def __init__(
         self,
@@ -192,7 +183,7 @@ class Originator:
         self.command: CommandImage = zero_command()
         self._command_bytes = encode_command(self.command)
         self._rng = random.Random()
-        self._udp: asyncio.DatagramTransport | None = None
+        self._udp: UdpEndpoint | None = None
         self._session: EnipSession | None = None
         self._link: _Link | None = None
         self._supervisor: asyncio.Task[None] | None = None
@@ -358,12 +349,13 @@ class Originator:
             return
         s = self.settings
         try:
-            transport, _ = await asyncio.get_running_loop().create_datagram_endpoint(
-                lambda: _UdpEndpoint(self), local_addr=(s.local_host, s.udp_port)
+            udp = UdpEndpoint(
+                s.local_host, s.udp_port, self._t2o_received, receive_size=io.MAX_DATAGRAM + 1
             )
         except OSError as error:
             raise OSError(f"cannot bind UDP {s.local_host}:{s.udp_port}: {error}") from None
-        self._udp = transport
+        udp.watch(True)  # T→O wakes us: the O→T of the cycle leaves from that wake-up
+        self._udp = udp
 
     async def _connect_once(self) -> None:
         s = self.settings
@@ -535,11 +527,8 @@ class Originator:
             packet = io.encode_io(link.o2t_id, link.o2t_encap_seq, link.o2t_cip_seq, b"", 0)
         else:
             packet = io.encode_io(link.o2t_id, link.o2t_encap_seq, link.o2t_cip_seq, b"")
-        try:
-            udp.sendto(packet, link.o2t_addr)
-        except OSError as error:
-            log.debug("O→T send failed: %s", error)
-            return
+        if not udp.sendto(packet, link.o2t_addr):
+            return  # logged by the endpoint; the next slot tries again
         self.packets_out += 1
         if self._sent_waiters:
             count = self.packets_out
@@ -564,7 +553,9 @@ class Originator:
                 f"{4 << self.settings.timeout_multiplier}): connection timed out"
             )
 
-    def _t2o_received(self, data: bytes) -> None:
+    def _t2o_received(self, data: bytes, addr: tuple[str, int], arrived: float) -> None:
+        """One T→O datagram (``arrived``: the loop time it was read, as the application sees
+        it)."""
         link = self._link
         try:
             packet = io.decode_io(data)
@@ -583,7 +574,7 @@ class Originator:
             self.stale += 1
             return
         link.last_t2o_encap_seq = packet.encap_seq
-        now = asyncio.get_running_loop().time()
+        now = arrived
         link.last_rx = now
         self.packets_in += 1
         last_cip = link.last_t2o_cip_seq
