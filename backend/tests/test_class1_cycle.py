@@ -1,12 +1,14 @@
 """The class 1 cycle's machinery (one wake-up per cycle where possible), functionally: the O→T
 schedule (sent with T→O arrivals when due, its own timer otherwise, never stopping), the target
-reading O→T at its ticks or as it arrives depending on the RPI, and both watchdogs surviving a
-stall of the event loop itself. Deadlines are generous: nothing here asserts a timing figure.
+reading O→T at its ticks or as it arrives depending on the RPI, packets read late keeping their
+arrival time, and both watchdogs surviving a stall of the event loop itself. Deadlines are
+generous: nothing here asserts a timing figure.
 """
 
 from __future__ import annotations
 
 import asyncio
+import socket
 import time
 from collections.abc import AsyncIterator, Callable
 
@@ -19,6 +21,7 @@ from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import TICK_READ_MAX_RPI_US, Target
 from cobot_hmi.scanner.o2t_schedule import O2TSchedule
 from cobot_hmi.scanner.originator import ConnectionState, Originator, OriginatorSettings
+from cobot_hmi.udp_endpoint import UdpEndpoint
 
 DEADLINE_S = 5.0
 
@@ -180,3 +183,30 @@ async def test_both_watchdogs_wait_out_a_stall_of_their_own_loop(
         assert len(target.connections()) == 1
     finally:
         await originator.stop()
+
+
+# --------------------------------------------------------------------------- UDP endpoint
+
+
+async def test_packets_read_later_keep_the_time_they_arrived(plc_host: str) -> None:
+    """Read only at a tick, two packets 20 ms apart still show 20 ms between them: the time
+    handed on is the kernel's receive time (the watchdog and O→T intervals rely on it)."""
+    received: list[tuple[bytes, float]] = []
+    endpoint = UdpEndpoint(
+        plc_host,
+        0,
+        lambda data, addr, arrived: received.append((data, arrived)),
+        receive_size=1501,
+        kernel_timestamps=True,
+    )
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sender:
+            sender.sendto(b"first", (plc_host, endpoint.port))
+            await asyncio.sleep(0.02)
+            sender.sendto(b"second", (plc_host, endpoint.port))
+        await asyncio.sleep(0.01)
+        endpoint.drain()  # both at once, as a producer's tick reads them
+    finally:
+        endpoint.close()
+    assert [data for data, _ in received] == [b"first", b"second"]
+    assert received[1][1] - received[0][1] >= 0.015

@@ -22,16 +22,28 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import platform
 import socket
 import struct
+import sys
 import time
 from collections.abc import Callable
 from typing import Final
 
 log = logging.getLogger(__name__)
 
-_SO_TIMESTAMPNS: Final = getattr(socket, "SO_TIMESTAMPNS", None)
-_SCM_TIMESTAMPNS: Final = getattr(socket, "SCM_TIMESTAMPNS", _SO_TIMESTAMPNS)
+_LINUX_GENERIC_SO_TIMESTAMPNS: Final = 35
+"""``SO_TIMESTAMPNS`` (and ``SCM_TIMESTAMPNS``) in Linux's asm-generic socket.h, which these
+architectures use; Python's ``socket`` module does not export the name."""
+_SO_TIMESTAMPNS: Final[int | None] = getattr(
+    socket,
+    "SO_TIMESTAMPNS",
+    _LINUX_GENERIC_SO_TIMESTAMPNS
+    if sys.platform == "linux"
+    and platform.machine() in ("x86_64", "i686", "aarch64", "armv7l", "riscv64")
+    else None,
+)
+_SCM_TIMESTAMPNS: Final = _SO_TIMESTAMPNS
 _TIMESPEC: Final = struct.Struct("@ll")
 _ANCILLARY_SIZE: Final = socket.CMSG_SPACE(_TIMESPEC.size)
 DRAIN_LIMIT: Final = 1024
