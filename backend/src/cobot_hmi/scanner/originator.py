@@ -219,10 +219,14 @@ class Originator:
     async def stop(self) -> None:
         self._stopping = True
         task, self._supervisor = self._supervisor, None
-        if task is not None:
+        # Cancel until the supervisor has really ended: on Python 3.11 ``asyncio.wait_for`` can
+        # swallow a cancellation that lands as its inner awaitable completes (fixed in 3.12),
+        # and a single cancel() would then leave stop() waiting for ever.
+        while task is not None and not task.done():
             task.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await task
+            await asyncio.wait({task}, timeout=0.5)
+        if task is not None and not task.cancelled() and task.exception() is not None:
+            log.warning("supervisor ended with %r", task.exception())
         await self._teardown(forward_close=True)
         if self._udp is not None:
             self._udp.close()
@@ -324,7 +328,7 @@ class Originator:
     async def _supervise(self) -> None:
         s = self.settings
         backoff_s = s.backoff_initial_s
-        while True:
+        while not self._stopping:
             self._set_state(ConnectionState.CONNECTING, self.reason)
             try:
                 await self._ensure_udp()

@@ -33,6 +33,9 @@ log = logging.getLogger(__name__)
 
 _T = TypeVar("_T")
 
+_JOIN_TIMEOUT_S = 10.0
+"""How long stopping waits for the cyclic thread (Forward Close takes at most ~2 s)."""
+
 FrameCallback = Callable[[Frame, float, int], None]
 StateCallback = Callable[[ConnectionState, str | None], None]
 
@@ -119,7 +122,9 @@ class RobotLink:
         if loop is not None and stopping is not None and not loop.is_closed():
             with contextlib.suppress(RuntimeError):
                 loop.call_soon_threadsafe(stopping.set)
-        await asyncio.get_running_loop().run_in_executor(None, thread.join)
+        await asyncio.get_running_loop().run_in_executor(None, thread.join, _JOIN_TIMEOUT_S)
+        if thread.is_alive():  # a daemon thread: it cannot keep the process alive
+            log.error("the cyclic thread did not end within %.0f s", _JOIN_TIMEOUT_S)
 
     # ------------------------------------------------------------ reads
 
