@@ -27,6 +27,8 @@ from enum import StrEnum
 from typing import Any
 
 from cobot_hmi.codec import (
+    O2T_SIZE,
+    T2O_SIZE,
     CodecError,
     CommandImage,
     Frame,
@@ -49,6 +51,7 @@ from cobot_hmi.enip.connection_manager import (
 from cobot_hmi.enip.cpf import CpfItem, ItemType, Sockaddr, decode_sockaddr, sockaddr_item
 from cobot_hmi.enip.encapsulation import ENIP_TCP_PORT, ENIP_UDP_PORT
 from cobot_hmi.enip.errors import EnipError
+from cobot_hmi.layout import CONNECTION_POINTS
 from cobot_hmi.scanner.o2t_schedule import O2TSchedule
 from cobot_hmi.scanner.session import EnipSession, SessionError
 from cobot_hmi.scanner.stats import IntervalWindow
@@ -87,12 +90,12 @@ class OriginatorSettings:
     """Connection timeout = RPI × (4 << multiplier): 2 → RPI × 16."""
     input_only: bool = False
     large_forward_open: bool = False
-    config_instance: int = 151
-    o2t_instance: int = 150
-    t2o_instance: int = 100
-    heartbeat_instance: int = 198
-    o2t_size: int = 20
-    t2o_size: int = 284
+    config_instance: int = CONNECTION_POINTS.configuration
+    o2t_instance: int = CONNECTION_POINTS.o2t
+    t2o_instance: int = CONNECTION_POINTS.t2o
+    heartbeat_instance: int = CONNECTION_POINTS.input_only
+    o2t_size: int = O2T_SIZE
+    t2o_size: int = T2O_SIZE
     request_t2o_port: int | None = None
     """Ask for T→O on this local port (a Sockaddr Info 0x8001 item) instead of 2222."""
     heartbeat_o2t_size: int = 0
