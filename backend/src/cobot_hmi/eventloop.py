@@ -7,8 +7,8 @@ every wait up to the next whole millisecond), so a 2 ms RPI would jitter by up t
 ``select()`` takes its timeout in microseconds: a loop built on ``SelectSelector`` wakes within
 the kernel's timer slack instead, which the loop's thread sets to 1 µs (Linux's default, 50 µs,
 would be jitter for nothing). It handles a few dozen sockets, which is all either role opens.
-:func:`sleep_until` sleeps to an absolute loop time, so a periodic sender keeps a drift-free
-schedule (``deadline += period``) instead of accumulating ``sleep(period)`` errors.
+Periodic senders schedule absolute loop times (``loop.call_at(deadline)``, ``deadline +=
+period``), so they stay drift-free instead of accumulating ``sleep(period)`` errors.
 
 :func:`freeze_startup_heap` keeps the cyclic garbage collector from stalling such a schedule.
 """
@@ -44,25 +44,6 @@ def _tighten_timer_slack() -> None:
         libc.prctl(_PR_SET_TIMERSLACK, ctypes.c_ulong(_TIMER_SLACK_NS), 0, 0, 0)
     except (OSError, AttributeError):
         pass
-
-
-async def sleep_until(deadline: float) -> None:
-    """Sleep until ``loop.time()`` reaches ``deadline`` (returns at once if it has)."""
-    loop = asyncio.get_running_loop()
-    if deadline <= loop.time():
-        await asyncio.sleep(0)
-        return
-    future: asyncio.Future[None] = loop.create_future()
-    handle = loop.call_at(deadline, _wake, future)
-    try:
-        await future
-    finally:
-        handle.cancel()
-
-
-def _wake(future: asyncio.Future[None]) -> None:
-    if not future.done():
-        future.set_result(None)
 
 
 def freeze_startup_heap() -> None:
