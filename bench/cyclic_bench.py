@@ -229,6 +229,12 @@ def main() -> int:
     parser.add_argument("--seconds", type=float, default=20.0)
     parser.add_argument("--poll-seconds", type=float, default=10.0)
     parser.add_argument(
+        "--kinematic-refresh-ms",
+        type=float,
+        default=None,
+        help="pass to the emulator (default: the emulator's default, fresh values every frame)",
+    )
+    parser.add_argument(
         "--paced-seconds",
         type=float,
         default=5.0,
@@ -251,6 +257,11 @@ def main() -> int:
         str(tcp_port),
         "--control-port",
         str(control_port),
+        *(
+            ["--kinematic-refresh-ms", str(args.kinematic_refresh_ms)]
+            if args.kinematic_refresh_ms is not None
+            else []
+        ),
     ]
     emulator = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
     try:
@@ -293,7 +304,13 @@ def report(
     rpi_ms = args.rpi_ms
     print(
         f"bench/cyclic: RPI {rpi_ms} ms, {args.seconds:g} s class 1, "
-        f"{args.poll_seconds:g} s polling, simulated robot; "
+        f"{args.poll_seconds:g} s polling, simulated robot"
+        + (
+            f" (kinematic refresh {args.kinematic_refresh_ms:g} ms)"
+            if args.kinematic_refresh_ms is not None
+            else ""
+        )
+        + "; "
         f"load average {loads[0]} before, {loads[1]} after (2 cores: compare latency only when low)"
     )
     for name in ("t2o", "o2t"):
