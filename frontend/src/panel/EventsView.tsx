@@ -9,6 +9,29 @@ import { formatTimestamp } from "../lib/health";
 import { keyLabel } from "../lib/layoutInfo";
 import { EVENT_KINDS, roleAtLeast, type AuditItem, type EventItem, type Page, type StreamEvent, type User } from "../lib/protocol";
 
+/** A table filter: "all" (the empty value) or one of ``options``. */
+function FilterSelect(props: {
+  label: string;
+  testId: string;
+  value: string;
+  options: readonly string[];
+  onChange: (value: string) => void;
+}) {
+  return (
+    <label>
+      {props.label}{" "}
+      <select data-testid={props.testId} value={props.value} onChange={(e) => props.onChange(e.target.value)}>
+        <option value="">all</option>
+        {props.options.map((option) => (
+          <option key={option} value={option}>
+            {option}
+          </option>
+        ))}
+      </select>
+    </label>
+  );
+}
+
 const PAGE = 100;
 
 interface Row {
@@ -110,17 +133,7 @@ export const EventsView = memo(function EventsView({
   return (
     <div className="table-view">
       <div className="table-view__bar">
-        <label>
-          kind{" "}
-          <select data-testid="events-kind-filter" value={kind} onChange={(e) => setKind(e.target.value)}>
-            <option value="">all</option>
-            {EVENT_KINDS.map((k) => (
-              <option key={k} value={k}>
-                {k}
-              </option>
-            ))}
-          </select>
-        </label>
+        <FilterSelect label="kind" testId="events-kind-filter" value={kind} options={EVENT_KINDS} onChange={setKind} />
         <span className="table-view__source">
           {history !== null ? `${history.total} in the log` : "live events since this page opened (log in as an operator for the history)"}
         </span>
@@ -207,17 +220,7 @@ export const AuditView = memo(function AuditView({
   return (
     <div className="table-view">
       <div className="table-view__bar">
-        <label>
-          action{" "}
-          <select data-testid="audit-action-filter" value={action} onChange={(e) => setAction(e.target.value)}>
-            <option value="">all</option>
-            {actions.map((a) => (
-              <option key={a} value={a}>
-                {a}
-              </option>
-            ))}
-          </select>
-        </label>
+        <FilterSelect label="action" testId="audit-action-filter" value={action} options={actions} onChange={setAction} />
         <span className="table-view__source">{page !== null ? `${page.total} in the log, newest ${PAGE} shown` : "loading…"}</span>
         <a data-testid="audit-csv" href={auditCsvUrl()} download>
           Export CSV
