@@ -122,9 +122,10 @@ class Control:
             await self._end(holder.user, holder.client, reason)
 
     async def _end(self, user: str, client: str | None, reason: str) -> None:
-        self.holder = None
+        # Idle first, then let go: nobody may see "no one holds control" while O→T still runs.
         with contextlib.suppress(NotConnectedError, ReadOnlyError):
             await self._link.set_run(False)  # without a connection nothing runs anyway
+        self.holder = None
         await self._audit(user, client, "control.release", "released", reason)
         self._announce(reason)
 
