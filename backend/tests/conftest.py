@@ -12,9 +12,14 @@ import itertools
 import logging
 import os
 import socket
-from collections.abc import Iterator
+from collections.abc import AsyncIterator, Iterator
 
 import pytest
+
+from cobot_hmi.emulator.process_image import IdleBehaviour
+from cobot_hmi.emulator.settings import TargetSettings
+from cobot_hmi.emulator.static_robot import StaticRobot
+from cobot_hmi.emulator.target import Target
 
 # 127.<a>.<b>.<c>: <a> from the process id keeps concurrent pytest runs apart.
 _PROCESS_OCTET = 10 + os.getpid() % 200
@@ -73,3 +78,21 @@ def _no_leaked_tasks() -> Iterator[None]:
     finally:
         logger.removeHandler(handler)
     assert not handler.messages, f"test leaked asyncio tasks: {handler.messages}"
+
+
+@pytest.fixture
+def robot() -> StaticRobot:
+    """A robot standing still whose outputs clear when the owner goes idle (the default of the
+    class 1 tests; a module that needs another robot defines its own ``robot``)."""
+    return StaticRobot(IdleBehaviour.CLEAR)
+
+
+@pytest.fixture
+async def target(robot_host: str, robot: StaticRobot) -> AsyncIterator[Target]:
+    """Our EtherNet/IP target on its own loopback address, TCP port picked by the kernel."""
+    emulator = Target(TargetSettings(host=robot_host, tcp_port=0), robot)
+    await emulator.start()
+    try:
+        yield emulator
+    finally:
+        await emulator.stop()

@@ -10,13 +10,11 @@ from __future__ import annotations
 import asyncio
 import socket
 import time
-from collections.abc import AsyncIterator, Callable
+from collections.abc import Callable
 
 import pytest
 
 from cobot_hmi.codec import command_from_json
-from cobot_hmi.emulator.process_image import IdleBehaviour
-from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import TICK_READ_MAX_RPI_US, Target
 from cobot_hmi.scanner.o2t_schedule import O2TSchedule
@@ -106,21 +104,6 @@ async def test_schedule_ignores_t2o_when_the_rpis_differ() -> None:
 
 
 # --------------------------------------------------------------------------- target and scanner
-
-
-@pytest.fixture
-def robot() -> StaticRobot:
-    return StaticRobot(IdleBehaviour.CLEAR)
-
-
-@pytest.fixture
-async def target(robot_host: str, robot: StaticRobot) -> AsyncIterator[Target]:
-    emulator = Target(TargetSettings(host=robot_host, tcp_port=0), robot)
-    await emulator.start()
-    try:
-        yield emulator
-    finally:
-        await emulator.stop()
 
 
 async def held(

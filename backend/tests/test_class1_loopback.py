@@ -16,8 +16,6 @@ from collections.abc import AsyncIterator, Awaitable, Callable
 import pytest
 
 from cobot_hmi.codec import Frame, command_from_json, encode_command
-from cobot_hmi.emulator.process_image import IdleBehaviour
-from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
 from cobot_hmi.enip import epath, io
@@ -50,21 +48,6 @@ async def eventually(check: Callable[[], bool], timeout_s: float = DEADLINE_S) -
     while not check():
         assert loop.time() < end, "condition not reached in time"
         await asyncio.sleep(0.01)
-
-
-@pytest.fixture
-def robot() -> StaticRobot:
-    return StaticRobot(IdleBehaviour.CLEAR)
-
-
-@pytest.fixture
-async def target(robot_host: str, robot: StaticRobot) -> AsyncIterator[Target]:
-    emulator = Target(TargetSettings(host=robot_host, tcp_port=0), robot)
-    await emulator.start()
-    try:
-        yield emulator
-    finally:
-        await emulator.stop()
 
 
 Factory = Callable[..., Awaitable[Originator]]
