@@ -36,24 +36,12 @@ import time
 import urllib.request
 from typing import Any
 
+from proc_stats import own_cpu_s, process_cpu_s
+
 from cobot_hmi.codec import Frame, decode_frame
 from cobot_hmi.eventloop import freeze_startup_heap, precise_event_loop
 from cobot_hmi.scanner.explicit import ExplicitReader
 from cobot_hmi.scanner.originator import ConnectionState, Originator, OriginatorSettings
-
-CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
-
-
-def process_cpu_s(pid: int) -> float:
-    """User + system CPU seconds of a process, from /proc."""
-    with open(f"/proc/{pid}/stat") as stat:
-        fields = stat.read().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / CLOCK_TICKS
-
-
-def own_cpu_s() -> float:
-    times = os.times()
-    return times.user + times.system
 
 
 def wakeups(pid: int) -> int:

@@ -31,12 +31,11 @@ import time
 from dataclasses import dataclass, field
 
 import orjson
+from proc_stats import own_cpu_s, process_cpu_s
 from service_bench_support import (
     Stack,
     histogram_quantile,
     metrics,
-    own_cpu_s,
-    process_cpu_s,
     stack,
 )
 from websockets.asyncio.client import connect

@@ -7,7 +7,6 @@ tests and other benches on the same machine.
 
 from __future__ import annotations
 
-import os
 import random
 import re
 import socket
@@ -23,20 +22,7 @@ from pathlib import Path
 
 from cobot_hmi.service.users import Role, UsersFile
 
-CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
 BENCH_USER = ("bench", "bench-password")
-
-
-def process_cpu_s(pid: int) -> float:
-    """User + system CPU seconds of a process (all its threads), from /proc."""
-    with open(f"/proc/{pid}/stat") as stat:
-        fields = stat.read().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / CLOCK_TICKS
-
-
-def own_cpu_s() -> float:
-    times = os.times()
-    return times.user + times.system
 
 
 def free_port(host: str, kind: int = socket.SOCK_STREAM) -> int:
