@@ -13,30 +13,39 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Final
+from typing import Final, NamedTuple
 
-from cobot_hmi.emulator.robot.kinematics import Kinematics
+from cobot_hmi.emulator.robot.kinematics import RAD_PER_DEG, Kinematics
 from cobot_hmi.emulator.robot.models import RobotModel
 
 GRAVITY_M_S2: Final = 9.80665
 
 
-_CONSTANTS: dict[int, tuple[RobotModel, tuple[tuple[float, ...], ...]]] = {}
-"""Per model (by identity, the model kept so its id is never reused): each joint's link mass,
-centre of mass, reflected inertia and friction, read once instead of per frame."""
+class _ModelConstants(NamedTuple):
+    joints: tuple[tuple[float, float, float, float, float, float], ...]
+    """Each joint's link mass, centre of mass (x, y, z), reflected inertia and friction."""
+    torque_per_amp_nm: tuple[float, ...]
 
 
-def _constants(model: RobotModel) -> tuple[tuple[float, ...], ...]:
+_CONSTANTS: dict[int, tuple[RobotModel, _ModelConstants]] = {}
+"""Per model (by identity, the model kept so its id is never reused): the joint and link figures
+the per-frame functions need, read once instead of per frame."""
+
+
+def _constants(model: RobotModel) -> _ModelConstants:
     entry = _CONSTANTS.get(id(model))
     if entry is None or entry[0] is not model:
-        values = tuple(
-            (
-                link.mass_kg,
-                *link.com_m,
-                spec.reflected_inertia_kg_m2,
-                spec.viscous_friction_nm_s_deg,
-            )
-            for link, spec in zip(model.links, model.joints, strict=True)
+        values = _ModelConstants(
+            tuple(
+                (
+                    link.mass_kg,
+                    *link.com_m,
+                    spec.reflected_inertia_kg_m2,
+                    spec.viscous_friction_nm_s_deg,
+                )
+                for link, spec in zip(model.links, model.joints, strict=True)
+            ),
+            tuple(spec.torque_per_amp_nm for spec in model.joints),
         )
         entry = _CONSTANTS[id(model)] = (model, values)
     return entry[1]
@@ -68,10 +77,9 @@ def joint_torques(
         qxx, qyy, qzz = qxx + m * cx * cx, qyy + m * cy * cy, qzz + m * cz * cz
         qxy, qxz, qyz = qxy + m * cx * cy, qxz + m * cx * cz, qyz + m * cy * cz
     frames = kin.joint_frames
-    constants = _constants(model)
+    constants = _constants(model).joints
     count = len(constants)
     torques = [0.0] * count
-    radians = math.radians
     # From the last link to the first: the sums then hold exactly the bodies joint i moves.
     for i in range(count - 1, -1, -1):
         m, lx, ly, lz, reflected_inertia_kg_m2, friction_nm_s_deg = constants[i]
@@ -105,10 +113,12 @@ def joint_torques(
         z_dot_s = zx * sx + zy * sy + zz * sz
         z_dot_p = zx * px + zy * py + zz * pz
         axial = zqz - 2.0 * z_dot_p * z_dot_s + mass * z_dot_p * z_dot_p
-        inertia_kg_m2 = reflected_inertia_kg_m2 + max(0.0, radial - axial)
+        beyond_kg_m2 = radial - axial
+        # max(0.0, x) and math.radians, written out (same values, no calls).
+        inertia_kg_m2 = reflected_inertia_kg_m2 + (beyond_kg_m2 if beyond_kg_m2 > 0.0 else 0.0)
         torques[i] = (
             gravity_nm
-            + inertia_kg_m2 * radians(acceleration)
+            + inertia_kg_m2 * (acceleration * RAD_PER_DEG)
             + friction_nm_s_deg * velocity_deg_s[i]
         )
     return tuple(torques)
@@ -119,8 +129,12 @@ def motor_currents(
 ) -> tuple[float, ...]:
     """Motor current (A): torque over the joint's torque constant, plus the given noise."""
     return tuple(
-        torque / spec.torque_per_amp_nm + noise
-        for torque, spec, noise in zip(torques_nm, model.joints, noise_a, strict=True)
+        [
+            torque / torque_per_amp_nm + noise
+            for torque, torque_per_amp_nm, noise in zip(
+                torques_nm, _constants(model).torque_per_amp_nm, noise_a, strict=True
+            )
+        ]
     )
 
 
@@ -138,7 +152,7 @@ class MotorThermal:
         self.room_temperature_c = room_temperature_c
         self.time_constant_s = time_constant_s
         self.rise_at_rated_current_c = rise_at_rated_current_c
-        self.temperatures_c = [room_temperature_c] * len(model.joints)
+        self.temperatures_c: tuple[float, ...] = (room_temperature_c,) * len(model.joints)
 
     def steady_state_c(self, currents_a: Sequence[float]) -> tuple[float, ...]:
         """The temperature each motor would settle at if these currents lasted."""
@@ -151,10 +165,15 @@ class MotorThermal:
         """Advance ``dt_s`` seconds under ``currents_a`` (exact for a constant current)."""
         if dt_s > 0.0:
             keep = math.exp(-dt_s / self.time_constant_s)
-            self.temperatures_c = [
-                target + (temperature - target) * keep
-                for temperature, target in zip(
-                    self.temperatures_c, self.steady_state_c(currents_a), strict=True
-                )
-            ]
-        return tuple(self.temperatures_c)
+            room_c, rise_c = self.room_temperature_c, self.rise_at_rated_current_c
+            # steady_state_c inlined (it runs every step): target + (temperature − target)·keep.
+            self.temperatures_c = tuple(
+                [
+                    (target_c := room_c + rise_c * (current / rated) ** 2)
+                    + (temperature - target_c) * keep
+                    for temperature, current, rated in zip(
+                        self.temperatures_c, currents_a, self.rated_current_a, strict=True
+                    )
+                ]
+            )
+        return self.temperatures_c

@@ -29,6 +29,11 @@ IDENTITY: Final[Transform] = (1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 
 GIMBAL_LOCK_SIN: Final = 1e-9
 """Below this |sin B| the Z-Y-Z angles A and C are not separable (see ``euler_zyz_deg``)."""
 
+RAD_PER_DEG: Final = math.pi / 180.0
+DEG_PER_RAD: Final = 180.0 / math.pi
+"""The factors ``math.radians`` and ``math.degrees`` multiply by (CPython's ``degToRad`` and
+``radToDeg``): multiplying by them gives the same bits without a function call per value."""
+
 
 def compose(a: Transform, b: Transform) -> Transform:
     """``a · b``."""
@@ -122,7 +127,7 @@ def euler_zyz_deg(t: Transform) -> Vector3:
         # R = Rz(A ± C)·Ry(B): read the combined angle from the first column and set C = 0.
         c = 0.0
         a = math.atan2(t[4], t[0]) if r22 > 0 else math.atan2(-t[4], -t[0])
-    return (math.degrees(a), math.degrees(b), math.degrees(c))
+    return (a * DEG_PER_RAD, b * DEG_PER_RAD, c * DEG_PER_RAD)
 
 
 def rotation_angle_deg(a: Transform, b: Transform) -> float:
@@ -147,14 +152,27 @@ def forward(
 
     Each step is ``current · origin · Rz(q)``, written out: the rotation about z only mixes the
     first two columns, so it costs a few products instead of a second full composition (this runs
-    for every produced frame).
+    for every produced frame). The first ``current · origin`` (identity · J1's origin) is the same
+    every time: ``_chain`` works it out once, with the same arithmetic.
     """
+    first, next_origins = _chain(model)
     frames: list[Transform] = []
-    r00, r01, r02, px, r10, r11, r12, py, r20, r21, r22, pz = IDENTITY
-    cos, sin, radians = math.cos, math.sin, math.radians
-    for origin, q_deg in zip(_origins(model), joints_deg, strict=True):
+    append = frames.append
+    cos, sin = math.cos, math.sin
+    # a = current · origin of this joint.
+    a00, a01, a02, px, a10, a11, a12, py, a20, a21, a22, pz = first
+    for q_deg, origin in zip(joints_deg, next_origins, strict=True):
+        # r = a · Rz(q): the third column stays a's.
+        q = q_deg * RAD_PER_DEG  # = math.radians(q_deg), bit for bit, without the call
+        c, s = cos(q), sin(q)
+        r00, r01, r02 = a00 * c + a01 * s, a01 * c - a00 * s, a02
+        r10, r11, r12 = a10 * c + a11 * s, a11 * c - a10 * s, a12
+        r20, r21, r22 = a20 * c + a21 * s, a21 * c - a20 * s, a22
+        append((r00, r01, r02, px, r10, r11, r12, py, r20, r21, r22, pz))
+        if origin is None:
+            break  # the flange
         o00, o01, o02, ox, o10, o11, o12, oy, o20, o21, o22, oz = origin
-        # current · origin
+        # The next joint's a = r · its origin.
         a00 = r00 * o00 + r01 * o10 + r02 * o20
         a01 = r00 * o01 + r01 * o11 + r02 * o21
         a02 = r00 * o02 + r01 * o12 + r02 * o22
@@ -169,28 +187,27 @@ def forward(
             r10 * ox + r11 * oy + r12 * oz + py,
             r20 * ox + r21 * oy + r22 * oz + pz,
         )
-        # · Rz(q)
-        q = radians(q_deg)
-        c, s = cos(q), sin(q)
-        r00, r01, r02 = a00 * c + a01 * s, a01 * c - a00 * s, a02
-        r10, r11, r12 = a10 * c + a11 * s, a11 * c - a10 * s, a12
-        r20, r21, r22 = a20 * c + a21 * s, a21 * c - a20 * s, a22
-        frames.append((r00, r01, r02, px, r10, r11, r12, py, r20, r21, r22, pz))
     flange = frames[-1]
     return Kinematics(tuple(frames), flange if tool is IDENTITY else compose(flange, tool))
 
 
-_ORIGINS: dict[int, tuple[RobotModel, tuple[Transform, ...]]] = {}
-"""Joint origins by model identity (the model is kept, so its id is never reused). Not
-``functools.cache``: hashing a model hashes every nested spec, on every call."""
+_Chain = tuple[Transform, tuple[Transform | None, ...]]
+
+_CHAINS: dict[int, tuple[RobotModel, _Chain]] = {}
+"""Per model, by identity (the model is kept, so its id is never reused): identity · J1's origin,
+and each next joint's origin (None after J6). Not ``functools.cache``: hashing a model hashes
+every nested spec, on every call."""
 
 
-def _origins(model: RobotModel) -> tuple[Transform, ...]:
+def _chain(model: RobotModel) -> _Chain:
     """The model's constant joint-origin transforms, computed once."""
-    entry = _ORIGINS.get(id(model))
+    entry = _CHAINS.get(id(model))
     if entry is None or entry[0] is not model:
-        entry = (model, tuple(from_rpy(j.origin_xyz_m, j.origin_rpy_rad) for j in model.joints))
-        _ORIGINS[id(model)] = entry
+        origins = [from_rpy(j.origin_xyz_m, j.origin_rpy_rad) for j in model.joints]
+        # compose() does forward's arithmetic in forward's order: identity · origin, bit for bit.
+        first = compose(IDENTITY, origins[0])
+        entry = (model, (first, (*origins[1:], None)))
+        _CHAINS[id(model)] = entry
     return entry[1]
 
 
@@ -205,14 +222,15 @@ def tcp_velocity(kin: Kinematics, joint_velocity_deg_s: Sequence[float]) -> tupl
     adds ``z_i × (p_tcp − p_i)·q̇_i`` to the linear and ``z_i·q̇_i`` to the angular velocity), so it
     equals the pose's numerically differentiated rate of change; a test checks that.
     """
-    px, py, pz = kin.tcp[3], kin.tcp[7], kin.tcp[11]
+    tcp = kin.tcp
+    px, py, pz = tcp[3], tcp[7], tcp[11]
     vx = vy = vz = wx = wy = wz = 0.0
     for frame, qd_deg in zip(kin.joint_frames, joint_velocity_deg_s, strict=True):
         if qd_deg == 0.0:
             continue
-        qd = math.radians(qd_deg)
-        zx, zy, zz = frame[2], frame[6], frame[10]  # the joint's axis: its frame's z
-        rx, ry, rz = px - frame[3], py - frame[7], pz - frame[11]
+        qd = qd_deg * RAD_PER_DEG
+        _, _, zx, fx, _, _, zy, fy, _, _, zz, fz = frame  # the joint's axis: its frame's z
+        rx, ry, rz = px - fx, py - fy, pz - fz
         # z × r, written out: this runs for every produced frame.
         vx, vy, vz = (
             vx + (zy * rz - zz * ry) * qd,
@@ -222,5 +240,5 @@ def tcp_velocity(kin: Kinematics, joint_velocity_deg_s: Sequence[float]) -> tupl
         wx, wy, wz = wx + zx * qd, wy + zy * qd, wz + zz * qd
     return (
         (vx * 1000.0, vy * 1000.0, vz * 1000.0),
-        (math.degrees(wx), math.degrees(wy), math.degrees(wz)),
+        (wx * DEG_PER_RAD, wy * DEG_PER_RAD, wz * DEG_PER_RAD),
     )

@@ -24,13 +24,15 @@ class GaussianNoise:
 
     def __init__(self, rng: random.Random, size: int = TABLE_SIZE) -> None:
         self._random = rng.random
+        self._size = size
         self._unit = [rng.gauss(0.0, 1.0) for _ in range(size)]
-        self._scaled: dict[float, list[float]] = {}
+        self._scaled: dict[float, tuple[float, ...]] = {}
+        """Tables as tuples: a slice of one is already the tuple ``take`` returns."""
 
     def take(self, count: int, sigma: float) -> tuple[float, ...]:
         """``count`` values of standard deviation ``sigma``."""
         table = self._scaled.get(sigma)
         if table is None:
-            table = self._scaled[sigma] = [z * sigma for z in self._unit]
-        start = int(self._random() * (len(table) - count))
-        return tuple(table[start : start + count])
+            table = self._scaled[sigma] = tuple([z * sigma for z in self._unit])
+        start = int(self._random() * (self._size - count))
+        return table[start : start + count]

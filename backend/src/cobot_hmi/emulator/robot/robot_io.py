@@ -126,6 +126,7 @@ class RobotIO:
         self._controlbox_di: dict[bool, tuple[bool, ...]] = {}
         self._tool_di: tuple[bool, ...] | None = None
         self._analog_input_type: tuple[int, ...] | None = None
+        self._analog_input: tuple[float, ...] | None = None
         self._registers_of: CommandImage | None = None
         self._registers: tuple[bool, ...] = ()
 
@@ -171,7 +172,7 @@ class RobotIO:
         for name, index, value in staged:
             self.inputs[name][index] = value
         self._controlbox_di.clear()
-        self._tool_di = self._analog_input_type = None
+        self._tool_di = self._analog_input_type = self._analog_input = None
 
     # ------------------------------------------------------------------ frame parts
 
@@ -195,7 +196,10 @@ class RobotIO:
 
     def analog_input(self, noise: Sequence[float]) -> tuple[float, ...]:
         """The analog inputs plus ``noise`` (one value each, of ``analog_noise`` deviation)."""
-        return tuple(float(v) + n for v, n in zip(self.inputs["analog_input"], noise, strict=True))
+        values = self._analog_input
+        if values is None:
+            values = self._analog_input = tuple(float(v) for v in self.inputs["analog_input"])
+        return tuple([v + n for v, n in zip(values, noise, strict=True)])
 
     @property
     def analog_input_count(self) -> int:

@@ -18,7 +18,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Final
 
-from cobot_hmi.codec import CommandImage, zero_frame
+from cobot_hmi.codec import CommandImage
 from cobot_hmi.emulator.process_image import IdleBehaviour
 from cobot_hmi.emulator.robot.dynamics import MotorThermal, joint_torques, motor_currents
 from cobot_hmi.emulator.robot.kinematics import (
@@ -85,9 +85,11 @@ def _tool_transform(position_mm: Sequence[float], orientation_deg: Sequence[floa
     return IDENTITY if tool == IDENTITY else tool
 
 
-Monitoring = Frame
-"""The joint and TCP values, refreshed together (every frame or every 100 ms), carried in a
-``Frame`` whose other fields stay zero: the layout's names are declared once, not again here."""
+Monitoring = tuple[tuple[float, ...], ...]
+"""The joint and TCP values, refreshed together (every frame or every 100 ms): in the order
+``produce_frame`` unpacks them into ``Frame`` fields of the same names. A plain tuple, not a
+``Frame`` of its own: building a second frame per frame and copying fields out of it cost more
+than the rest of ``produce_frame``."""
 
 
 class SimulatedRobot:
@@ -195,20 +197,22 @@ class SimulatedRobot:
         else:
             currents = (0.0,) * joints  # brakes hold the arm; the drives carry no current
         self._currents_a = currents
+        external_torque = noise(joints, s.external_torque_noise_nm)
         linear, angular = tcp_velocity(kin, velocity)
-        return zero_frame()._replace(
-            joint_position=position,
-            joint_velocity=velocity,
-            joint_motor_current=currents,
-            joint_motor_temperature=tuple(self._thermal.temperatures_c),
-            joint_torque=torques,
-            joint_external_torque=noise(joints, s.external_torque_noise_nm),
-            tcp_position=position_mm(kin.tcp),
-            tcp_orientation=euler_zyz_deg(kin.tcp),
-            tcp_velocity=linear,
-            tcp_angular_velocity=angular,
-            external_force=noise(3, s.external_force_noise_n),
-            external_moment=noise(3, s.external_moment_noise_nm),
+        # Noise drawn in this order (currents, external torque, force, moment): the seed's frames.
+        return (
+            position,
+            velocity,
+            currents,
+            self._thermal.temperatures_c,
+            torques,
+            external_torque,
+            position_mm(kin.tcp),
+            euler_zyz_deg(kin.tcp),
+            linear,
+            angular,
+            noise(3, s.external_force_noise_n),
+            noise(3, s.external_moment_noise_nm),
         )
 
     def _monitoring_now(self, flags: Flags) -> Monitoring:
@@ -226,7 +230,20 @@ class SimulatedRobot:
         if self._frame is not None and self._frame_at_s == self._now_s:
             return self._frame  # several connections producing at the same instant
         state, flags = self._state_and_flags
-        m = self._monitoring_now(flags)
+        (
+            joint_position,
+            joint_velocity,
+            joint_motor_current,
+            joint_motor_temperature,
+            joint_torque,
+            joint_external_torque,
+            tcp_position,
+            tcp_orientation,
+            tcp_linear_velocity,
+            tcp_angular_velocity,
+            external_force,
+            external_moment,
+        ) = self._monitoring_now(flags)
         io = self._io
         applied = io.applied
         s = self.settings
@@ -246,20 +263,20 @@ class SimulatedRobot:
             emergency_stopped=flags.emergency_stopped,
             direct_teach_button_pressed=flags.direct_teach_button_pressed,
             power_button_pressed=flags.power_button_pressed,
-            joint_position=m.joint_position,
-            joint_velocity=m.joint_velocity,
-            joint_motor_current=m.joint_motor_current,
-            joint_motor_temperature=m.joint_motor_temperature,
-            joint_torque=m.joint_torque,
-            joint_external_torque=m.joint_external_torque,
-            tcp_position=m.tcp_position,
-            tcp_orientation=m.tcp_orientation,
-            tcp_velocity=m.tcp_velocity,
-            tcp_angular_velocity=m.tcp_angular_velocity,
+            joint_position=joint_position,
+            joint_velocity=joint_velocity,
+            joint_motor_current=joint_motor_current,
+            joint_motor_temperature=joint_motor_temperature,
+            joint_torque=joint_torque,
+            joint_external_torque=joint_external_torque,
+            tcp_position=tcp_position,
+            tcp_orientation=tcp_orientation,
+            tcp_velocity=tcp_linear_velocity,
+            tcp_angular_velocity=tcp_angular_velocity,
             tool_offset_position=s.tool_offset_position_mm,
             tool_offset_orientation=s.tool_offset_orientation_deg,
-            external_force=m.external_force,
-            external_moment=m.external_moment,
+            external_force=external_force,
+            external_moment=external_moment,
             bit_output_registers=io.bit_output_registers(),
         )
         self._frame, self._frame_at_s = frame, self._now_s

@@ -108,6 +108,9 @@ class StateMachine:
         self.power_button_pressed = False
         self.collaborative = collaborative
         self.program_running = False
+        self._outputs_of: tuple[object, ...] = ()
+        self._outputs: tuple[int, Flags] = (RobotState.INITIALIZING, Flags(*(False,) * 5))
+        """``state_and_flags``'s last answer and the attributes it was worked out from."""
 
     # ------------------------------------------------------------------ time
 
@@ -165,15 +168,34 @@ class StateMachine:
         return self.state_and_flags()[1]
 
     def state_and_flags(self) -> tuple[int, Flags]:
-        """``state()`` and ``flags()`` together (the state worked out once)."""
-        state = self.state()
-        return state, Flags(
-            servo_on=state not in _SERVO_OFF_STATES,
-            safety_stopped=state == RobotState.INTERRUPTED,
-            emergency_stopped=state == RobotState.EMERGENCY_STOP,
-            direct_teach_button_pressed=self.teach_button_pressed,
-            power_button_pressed=self.power_button_pressed,
+        """``state()`` and ``flags()`` together (the state worked out once).
+
+        Asked for every produced frame, and they change only with the attributes they are made
+        of: the last answer is kept with those attributes and given again while they are equal.
+        """
+        inputs = (
+            self.phase,
+            self.forced_state,
+            self.teach_button_pressed,
+            self.power_button_pressed,
+            self.collaborative,
+            self.program_running,
         )
+        if inputs == self._outputs_of:
+            return self._outputs
+        state = self.state()
+        self._outputs_of = inputs
+        self._outputs = (
+            state,
+            Flags(
+                servo_on=state not in _SERVO_OFF_STATES,
+                safety_stopped=state == RobotState.INTERRUPTED,
+                emergency_stopped=state == RobotState.EMERGENCY_STOP,
+                direct_teach_button_pressed=self.teach_button_pressed,
+                power_button_pressed=self.power_button_pressed,
+            ),
+        )
+        return self._outputs
 
     def motion_allowed(self, state: int | None = None) -> bool:
         """Whether the program moves the arm now (``state``: ``state()``, if already known)."""

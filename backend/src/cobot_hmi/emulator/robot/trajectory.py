@@ -70,10 +70,12 @@ class JointMove:
 
     def sample(self, t_s: float) -> JointSample:
         s, sd, sdd = self.profile(t_s)
+        delta = self.delta_deg
+        # tuple([...]) rather than tuple(generator): this runs for every produced frame.
         return JointSample(
-            tuple(q0 + d * s for q0, d in zip(self.start_deg, self.delta_deg, strict=True)),
-            tuple(d * sd for d in self.delta_deg),
-            tuple(d * sdd for d in self.delta_deg),
+            tuple([q0 + d * s for q0, d in zip(self.start_deg, delta, strict=True)]),
+            tuple([d * sd for d in delta]),
+            tuple([d * sdd for d in delta]),
         )
 
 
@@ -174,8 +176,14 @@ class ProgramRunner:
 
     def advance(self, position: Sequence[float], dt_s: float) -> JointSample:
         """Run the program for ``dt_s`` seconds from ``position`` (where the robot is now)."""
-        current = tuple(position)
         remaining = max(0.0, dt_s)
+        move = self.move
+        if move is not None and self.step_elapsed_s + remaining < move.duration_s:
+            # Still inside the planned move (most calls): the loop's first pass, without its
+            # bookkeeping. A move is only ever planned for the current (waypoint) step.
+            self.step_elapsed_s += remaining
+            return move.sample(self.step_elapsed_s)
+        current = tuple(position)
         for _ in range(_MAX_STEPS_PER_ADVANCE):
             duration = self._step_duration(current)
             if self.step_elapsed_s + remaining < duration:
