@@ -39,6 +39,12 @@ $(STAMP): backend/pyproject.toml
 	python3 -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip
 	$(BIN)/pip install -q -e 'backend[dev]'
+	@# The cyclic pump (backend/src/cobot_hmi/native) is C, loaded with ctypes: a compiler and
+	@# libc's headers build it (Python's headers are not needed).
+	@command -v cc >/dev/null && [ -e /usr/include/stdio.h ] \
+	  || { echo "installing Debian packages: gcc libc6-dev"; apt-get update -qq \
+	       && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq gcc libc6-dev >/dev/null; }
+	$(PY) -m cobot_hmi.native
 	touch $@
 
 lint: $(STAMP)

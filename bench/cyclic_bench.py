@@ -122,10 +122,9 @@ async def run_class1(  # noqa: PLR0917
 ) -> dict[str, Any]:
     arrivals: list[float] = []
     losses: list[str] = []
-    loop = asyncio.get_running_loop()
 
     def on_frame(frame: Frame, received_at: float, seq: int) -> None:
-        arrivals.append(loop.time())
+        arrivals.append(received_at)  # the kernel's receive time (frames are read in batches)
 
     def on_state(state: ConnectionState, reason: str | None) -> None:
         if state in (ConnectionState.LOST, ConnectionState.REFUSED):
@@ -141,20 +140,19 @@ async def run_class1(  # noqa: PLR0917
         if not await originator.wait_connected(10):
             raise SystemExit(f"no connection: {originator.state} {originator.reason}")
         await asyncio.sleep(1.0)  # warm-up
-        before, sends_before = originator.stats(), originator.o2t_sends()
+        before, pump_before = originator.stats(), originator.pump_counters()
         arrivals.clear()
         losses.clear()
         meter = Meter(emulator_pid)
         await asyncio.sleep(seconds)
         figures = meter.figures(len(arrivals))
-        after, sends_after = originator.stats(), originator.o2t_sends()
+        after, pump_after = originator.stats(), originator.pump_counters()
         status = await asyncio.to_thread(fetch_status, robot_host, control_port)
     finally:
         await originator.stop()
     intervals_ms = [(b - a) * 1e3 for a, b in itertools.pairwise(arrivals)]
     connections = status["connections"]
     connection = connections[0] if connections else {}
-    with_t2o, by_timer = (b - a for a, b in zip(sends_before, sends_after, strict=True))
     return {
         "t2o": {
             "packets": after.packets_in - before.packets_in,
@@ -170,9 +168,12 @@ async def run_class1(  # noqa: PLR0917
             "p99_ms": connection.get("o2t_interval_p99_ms"),
             "max_ms": connection.get("o2t_interval_max_ms"),
             "note": "gaps/intervals measured by the emulator over its current connection",
-            "sent_with_t2o": with_t2o,
-            "sent_by_timer": by_timer,
         },
+        "scanner_pump": {
+            "wakeups": pump_after["wakeups"] - pump_before["wakeups"],
+            "max_late_ms": pump_after["max_late_ns"] / 1e6,
+        },
+        "emulator_pump": status.get("pump", {}),
         "losses": losses,
         "frames": len(arrivals),
         **figures,
@@ -308,11 +309,10 @@ def report(
             f"{fmt(d['p50_ms'], ' ms')}  p99 {fmt(d['p99_ms'], ' ms')}  "
             f"max {fmt(d['max_ms'], ' ms')}"
         )
-    o2t = class1["o2t"]
-    sent = max(o2t["sent_with_t2o"] + o2t["sent_by_timer"], 1)
+    pump = class1["scanner_pump"]
     print(
-        f"  O→T sent from the T→O arrival's wake-up {100 * o2t['sent_with_t2o'] / sent:.1f} %, "
-        f"by its own timer {100 * o2t['sent_by_timer'] / sent:.1f} %"
+        f"  scanner's cyclic pump: {pump['wakeups'] / max(class1['frames'], 1):.2f} wake-ups per "
+        f"frame, latest O→T send {pump['max_late_ms']:.3f} ms after its due time (since start)"
     )
     losses = class1["losses"]
     print(f"  connection losses {len(losses)}" + (f": {'; '.join(losses)}" if losses else ""))

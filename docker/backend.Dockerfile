@@ -15,7 +15,11 @@ ENV PYTHONDONTWRITEBYTECODE=1 PYTHONUNBUFFERED=1 PIP_NO_CACHE_DIR=1 PIP_DISABLE_
 WORKDIR /app
 COPY backend/pyproject.toml /app/backend/
 COPY backend/src /app/backend/src
-RUN pip install /app/backend \
+# The cyclic pump (cobot_hmi/native) is C: built here with gcc, which is removed again.
+RUN apt-get update && apt-get install -y --no-install-recommends gcc libc6-dev \
+    && pip install /app/backend \
+    && python -m cobot_hmi.native \
+    && apt-get purge -y gcc libc6-dev && apt-get autoremove -y && rm -rf /var/lib/apt/lists/* \
     && useradd --system --create-home --home-dir /var/lib/cobot-hmi hmi
 COPY --from=frontend /src/frontend/dist /app/frontend/dist
 

@@ -1,8 +1,9 @@
-"""The class 1 cycle's machinery (one wake-up per cycle where possible), functionally: the O→T
-schedule (sent with T→O arrivals when due, its own timer otherwise, never stopping), the target
-reading O→T at its ticks or as it arrives depending on the RPI, packets read late keeping their
-arrival time, and both watchdogs surviving a stall of the event loop itself. Deadlines are
-generous: nothing here asserts a timing figure.
+"""The class 1 cycle's machinery (packets built ahead, sent by the cyclic pump, our own
+wake-ups once per batch), functionally: the O→T stream (one packet per RPI from the pump, several
+per wake-up of ours, changes rebuilt into the next packet with unbroken sequence numbers), the
+target reading O→T at its wake-ups or as it arrives depending on the RPI, packets read late
+keeping their arrival time, and both watchdogs surviving a stall of the event loop itself.
+Deadlines are generous: nothing here asserts a timing figure.
 """
 
 from __future__ import annotations
@@ -17,7 +18,8 @@ import pytest
 from cobot_hmi.codec import command_from_json
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import TICK_READ_MAX_RPI_US, Target
-from cobot_hmi.scanner.o2t_schedule import O2TSchedule
+from cobot_hmi.enip import io
+from cobot_hmi.scanner.o2t_stream import O2TStream
 from cobot_hmi.scanner.originator import ConnectionState, Originator, OriginatorSettings
 from cobot_hmi.udp_endpoint import UdpEndpoint
 
@@ -32,75 +34,89 @@ async def eventually(check: Callable[[], bool], timeout_s: float = DEADLINE_S) -
         await asyncio.sleep(0.01)
 
 
-# --------------------------------------------------------------------------- O→T schedule
+# --------------------------------------------------------------------------- O→T stream
 
 
-async def test_schedule_sends_at_once_then_every_slot_without_t2o() -> None:
-    sent: list[float] = []
-    loop = asyncio.get_running_loop()
-    schedule = O2TSchedule(0.01, lambda: sent.append(loop.time()), follow_t2o=True)
-    schedule.start()
+class Receiver:
+    """A UDP endpoint collecting ``(data, arrival loop time)``."""
+
+    def __init__(self, host: str) -> None:
+        self.packets: list[tuple[bytes, float]] = []
+        self.endpoint = UdpEndpoint(
+            host, 0, lambda data, addr, at: self.packets.append((data, at)), receive_size=1501
+        )
+        self.endpoint.watch(True)
+        self.addr = (host, self.endpoint.port)
+
+    def close(self) -> None:
+        self.endpoint.close()
+
+
+def sequences(packets: list[tuple[bytes, float]]) -> list[tuple[int, int | None, bytes]]:
+    decoded = [io.decode_io(data) for data, _ in packets]
+    return [(p.encap_seq, p.cip_seq, p.payload) for p in decoded]
+
+
+async def test_stream_sends_at_once_then_every_rpi_waking_once_per_batch(
+    plc_host: str, robot_host: str
+) -> None:
+    """At RPI 2 ms the packets leave from the pump: one each RPI, while we wake only for the
+    fallback timer (no T→O here), several packets per wake-up."""
+    receiver = Receiver(robot_host)
+    sender = UdpEndpoint(plc_host, 0, lambda *_: None, receive_size=1501)
+    stream = O2TStream(
+        sender, 7, receiver.addr, 0.002, lambda e, c: io.encode_io(7, e, c, b"\x00" * 20, 1)
+    )
     try:
-        assert len(sent) == 1, "the first packet leaves at once"
-        await eventually(lambda: len(sent) >= 11)
-        assert schedule.sent_by_timer == len(sent)
-        assert schedule.sent_with_t2o == 0
+        stream.start()
+        await eventually(lambda: len(receiver.packets) >= 1, 1.0)
+        await eventually(lambda: len(receiver.packets) >= 100)
+        stream.stop()
+        await asyncio.sleep(0.05)
+        count = len(receiver.packets)
+        await asyncio.sleep(0.05)
+        assert len(receiver.packets) == count, "stopped: the queued packets were taken back"
     finally:
-        schedule.stop()
-    count = len(sent)
-    await asyncio.sleep(0.05)
-    assert len(sent) == count, "stopped: nothing more"
+        sender.close()
+        receiver.close()
+    seqs = sequences(receiver.packets)
+    assert [e for e, _, _ in seqs] == list(range(1, count + 1)), "one per slot, none skipped"
+    assert stream.timer_wakeups * 4 <= count, "several packets per wake-up of ours"
+    arrivals = [at for _, at in receiver.packets]
+    span_s = arrivals[-1] - arrivals[0]
+    assert span_s >= (count - 1) * 0.002 * 0.5, "paced at the RPI, not sent in bursts"
 
 
-async def test_schedule_rides_on_t2o_arrivals_and_falls_back_when_they_stop() -> None:
-    """T→O at the same RPI carries O→T (one wake-up per cycle); when T→O stops, the timer goes
-    on alone; each slot sends one packet whichever way, so the rate stays the RPI's."""
-    period_s = 0.01
-    loop = asyncio.get_running_loop()
-    sent: list[float] = []
-    schedule = O2TSchedule(period_s, lambda: sent.append(loop.time()), follow_t2o=True)
-    arrivals = 0
-    handle: asyncio.TimerHandle | None = None
-    first_s = loop.time() + period_s * 0.3
-
-    def t2o() -> None:  # a producer's drift-free schedule, as the target keeps
-        nonlocal arrivals, handle
-        arrivals += 1
-        schedule.t2o_arrived(loop.time())
-        if arrivals < 60:
-            handle = loop.call_at(first_s + arrivals * period_s, t2o)
-
-    schedule.start()
-    handle = loop.call_at(first_s, t2o)
+async def test_rebuild_puts_the_change_in_the_next_packet_with_the_same_numbers(
+    plc_host: str, robot_host: str
+) -> None:
+    """A change takes back every packet built ahead and builds it again: the sequence numbers
+    run on without a gap or a repeat, and once a packet carries the change every later one does."""
+    receiver = Receiver(robot_host)
+    sender = UdpEndpoint(plc_host, 0, lambda *_: None, receive_size=1501)
+    payload = [b"old!"]
+    stream = O2TStream(
+        sender, 9, receiver.addr, 0.002, lambda e, c: io.encode_io(9, e, c, payload[0], 1)
+    )
     try:
-        await eventually(lambda: arrivals >= 60)
-        assert schedule.sent_with_t2o >= 10, "slots went out with T→O arrivals"
-        start_s, count = loop.time(), len(sent)
-        # Slots stay one packet each: no burst with the arrivals, none skipped.
-        assert count <= arrivals + 5
-        with_t2o = schedule.sent_with_t2o
-        await eventually(lambda: len(sent) >= count + 10)  # T→O stopped: the timer carries on
-        assert schedule.sent_with_t2o == with_t2o
-        assert loop.time() - start_s >= 9 * period_s * 0.9
+        stream.start()
+        await eventually(lambda: len(receiver.packets) >= 20)
+        payload[0] = b"new!"
+        stream.rebuild()
+        await eventually(lambda: any(d.endswith(b"new!") for d, _ in receiver.packets))
+        await eventually(lambda: len(receiver.packets) >= 60)
+        stream.stop()
     finally:
-        if handle is not None:
-            handle.cancel()
-        schedule.stop()
-
-
-async def test_schedule_ignores_t2o_when_the_rpis_differ() -> None:
-    loop = asyncio.get_running_loop()
-    sent: list[float] = []
-    schedule = O2TSchedule(0.01, lambda: sent.append(loop.time()), follow_t2o=False)
-    schedule.start()
-    try:
-        for _ in range(20):
-            schedule.t2o_arrived(loop.time())
-            await asyncio.sleep(0.003)
-        assert schedule.sent_with_t2o == 0
-        assert len(sent) >= 3
-    finally:
-        schedule.stop()
+        sender.close()
+        receiver.close()
+    seqs = sequences(receiver.packets)
+    encaps = [e for e, _, _ in seqs]
+    assert encaps == list(range(1, len(encaps) + 1))
+    cips = [c for _, c, _ in seqs]
+    assert cips == list(range(1, len(cips) + 1))
+    payloads = [p[-4:] for _, _, p in seqs]
+    first_new = payloads.index(b"new!")
+    assert all(p == b"new!" for p in payloads[first_new:])
 
 
 # --------------------------------------------------------------------------- target and scanner
@@ -133,8 +149,6 @@ async def test_commands_reach_the_robot_whichever_way_o2t_is_read(
         await eventually(
             lambda: originator.latest is not None and originator.latest[0].controlbox_do[3]
         )
-        # Both directions share the RPI: O→T soon goes out with the T→O arrivals.
-        await eventually(lambda: originator.o2t_sends()[0] > 0)
         assert originator.state is ConnectionState.CONNECTED
         (info,) = target.connections()
         assert info.run is True
@@ -180,7 +194,6 @@ async def test_packets_read_later_keep_the_time_they_arrived(plc_host: str) -> N
         0,
         lambda data, addr, arrived: received.append((data, arrived)),
         receive_size=1501,
-        kernel_timestamps=True,
     )
     try:
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sender:

@@ -1,56 +1,64 @@
-"""Layer: runtime support for the I/O layers (emulator, scanner). Imports nothing of the project.
+"""Layer: runtime support for the I/O layers (emulator, scanner). Imports only ``native``.
 
-The UDP socket of a class 1 endpoint (UDP 2222 on either side): a plain non-blocking socket read
-either when it becomes readable (``watch(True)``: the event loop wakes for every packet) or by
-``drain()`` from the owner's own RPI tick, optionally with the kernel's receive timestamps.
+The UDP socket of a class 1 endpoint (UDP 2222 on either side) and its cyclic pump
+(``native/cyclic_pump.c``): a C thread that sends the datagrams queued with :meth:`send_at` at
+their due times and reads the socket into a ring with the kernel's receive time of each
+datagram (``SO_TIMESTAMPNS``). Python hands over whole datagrams, built by ``cobot_hmi.enip``;
+the pump only keeps time.
+
+Why: each wake-up of a Python thread costs far more CPU than the packet it serves (a context
+switch into a cold interpreter: 60-100 µs on a shared VM, against a few µs to build or decode a
+packet), and a class 1 endpoint at RPI 2 ms has a packet to send every 2 ms. With the pump, the
+owner wakes once per *batch*: it queues the next few RPIs' packets ahead and reads what arrived
+meanwhile, with the time each arrived, so nothing is measured late for being read late.
+
+Reading (``watch``):
+
+- ``watch(True)``: the pump reads each datagram as it arrives and wakes the owner's event loop
+  for it (``batch_s`` 0), or at most every ``batch_s`` while datagrams keep coming;
+- ``watch(False)``: the pump reads the socket at its own send wake-ups only and never wakes the
+  owner, who reads by calling :meth:`drain` from its own timer (a target producing at a short
+  RPI, as a controller reads its inputs once per cycle).
 
 Why not asyncio's datagram transport: it receives every datagram into a 256 KiB buffer and then
-shrinks it. glibc serves that size with ``mmap`` and the shrink with ``munmap``, so each packet
-costs two system calls and a page fault (two faults per cycle measured on the scanner with
-``perf stat``); here the buffer is the largest class 1 packet.
-
-Why ``drain``: a producing target wakes every RPI anyway to send T→O. If every O→T packet woke
-it again, each cycle would cost two wake-ups, and a wake-up (a context switch into cold caches)
-costs more CPU than everything the packet asks for. So while a connection produces at a short
-RPI, the target reads O→T at its next tick instead, the way a controller picks up its inputs
-once per cycle. Nothing is lost by reading later: with ``kernel_timestamps`` every packet carries
-the time the kernel received it (``SO_TIMESTAMPNS``), and that time, not the time of reading, is
-what the owner sees.
+shrinks it (two system calls and a page fault per packet, measured with ``perf stat``).
 """
 
 from __future__ import annotations
 
 import asyncio
+import ctypes
 import logging
-import platform
 import socket
 import struct
-import sys
-import time
 from collections.abc import Callable
 from typing import Final
 
+from cobot_hmi.native import cyclic_pump_library
+
 log = logging.getLogger(__name__)
 
-_LINUX_GENERIC_SO_TIMESTAMPNS: Final = 35
-"""``SO_TIMESTAMPNS`` (and ``SCM_TIMESTAMPNS``) in Linux's asm-generic socket.h, which these
-architectures use; Python's ``socket`` module does not export the name."""
-_SO_TIMESTAMPNS: Final[int | None] = getattr(
-    socket,
-    "SO_TIMESTAMPNS",
-    _LINUX_GENERIC_SO_TIMESTAMPNS
-    if sys.platform == "linux"
-    and platform.machine() in ("x86_64", "i686", "aarch64", "armv7l", "riscv64")
-    else None,
-)
-_SCM_TIMESTAMPNS: Final = _SO_TIMESTAMPNS
-_TIMESPEC: Final = struct.Struct("@ll")
-_ANCILLARY_SIZE: Final = socket.CMSG_SPACE(_TIMESPEC.size)
-DRAIN_LIMIT: Final = 1024
-"""Datagrams read per call at most, so a flood cannot hold the loop."""
+_SO_TIMESTAMPNS: Final = getattr(socket, "SO_TIMESTAMPNS", 35)
+"""Linux's ``SO_TIMESTAMPNS`` (asm-generic socket.h; Python's ``socket`` module lacks the name)."""
+TAKE_BATCH: Final = 64
+"""Datagrams moved out of the pump's ring per call."""
+RING_SLOTS: Final = 256
+"""Received datagrams the pump holds between two reads of its owner (a full ring drops the
+oldest: 0.5 s of packets at RPI 2 ms)."""
+QUEUE_SLOTS: Final = 256
+"""Datagrams queued ahead at most."""
+NEVER_NS: Final = 1 << 62
+BATCH_PERIOD_S: Final = 0.010
+"""How often an owner wakes while its connection runs at a shorter RPI: the packets of the next
+``BATCH_PERIOD_S`` are queued ahead, and what arrived meanwhile is read at once. 10 ms: one
+wake-up per 5 packets at RPI 2 ms; nothing a person watching the data can see."""
 
 PacketHandler = Callable[[bytes, tuple[str, int], float], None]
 """``(data, source address, loop time the kernel received it)``."""
+
+
+class QueueFullError(RuntimeError):
+    """More datagrams queued ahead than the pump holds."""
 
 
 class UdpEndpoint:
@@ -61,77 +69,103 @@ class UdpEndpoint:
         on_packet: PacketHandler,
         *,
         receive_size: int,
-        kernel_timestamps: bool = False,
+        kernel_timestamps: bool = True,
+        on_batch: Callable[[], None] | None = None,
     ) -> None:
         """``receive_size``: one more than the longest datagram the owner accepts (a longer one
-        then arrives truncated to it, still too long)."""
+        then arrives as exactly this long, still too long). Every datagram carries the kernel's
+        receive time; ``kernel_timestamps`` False uses the pump's read time instead.
+        ``on_batch``: called after a ``drain`` that handed on at least one datagram."""
         self._loop = asyncio.get_running_loop()
         self._on_packet = on_packet
+        self._on_batch = on_batch
         self._receive_size = receive_size
-        option: int | None = _SO_TIMESTAMPNS if kernel_timestamps else None
-        self._timestamps = option is not None
+        lib = cyclic_pump_library()
+        self._lib = lib
         sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
             sock.setblocking(False)
-            if option is not None:
-                sock.setsockopt(socket.SOL_SOCKET, option, 1)
+            if kernel_timestamps:
+                sock.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
             sock.bind((host, port))
         except OSError:
             sock.close()
             raise
+        pump = lib.pump_new(sock.fileno(), QUEUE_SLOTS, receive_size, RING_SLOTS, receive_size)
+        if not pump or lib.pump_start(pump) != 0:
+            if pump:
+                lib.pump_free(pump)
+            sock.close()
+            raise OSError("cannot start the cyclic pump thread")
         self._sock: socket.socket | None = sock
+        self._pump: int | None = pump
+        self._notify_fd: int = lib.pump_notify_fd(pump)
         self.port: int = sock.getsockname()[1]
         self.watching = False
+        self._buffer = bytearray(TAKE_BATCH * receive_size)
+        self._buffer_c = (ctypes.c_char * len(self._buffer)).from_buffer(self._buffer)
+        self._lens = (ctypes.c_int32 * TAKE_BATCH)()
+        self._stamps = (ctypes.c_int64 * TAKE_BATCH)()
+        self._ips = (ctypes.c_uint32 * TAKE_BATCH)()
+        self._ports = (ctypes.c_uint16 * TAKE_BATCH)()
+        self._hosts: dict[int, str] = {}
+        self._addresses: dict[tuple[str, int], tuple[int, int]] = {}
+        self._first_due = ctypes.c_int64()
 
-    def watch(self, on: bool) -> None:
-        """Read every packet as it arrives (True), or only through ``drain`` (False)."""
-        sock = self._sock
-        if sock is None or on == self.watching:
+    # ------------------------------------------------------------------ receiving
+
+    def watch(self, on: bool, batch_s: float = 0.0) -> None:
+        """Wake the owner for arriving datagrams (True: at once, or at most every ``batch_s``),
+        or never (False: the owner calls ``drain``)."""
+        pump = self._pump
+        if pump is None:
             return
         if on:
-            self._loop.add_reader(sock.fileno(), self.drain)
+            self._lib.pump_configure(pump, 0 if batch_s else 1, round(batch_s * 1e9))
+            if not self.watching:
+                self._loop.add_reader(self._notify_fd, self.drain)
         else:
-            self._loop.remove_reader(sock.fileno())
+            self._lib.pump_configure(pump, 0, NEVER_NS)
+            if self.watching:
+                self._loop.remove_reader(self._notify_fd)
         self.watching = on
 
     def drain(self) -> None:
-        """Hand every datagram waiting in the socket to ``on_packet``."""
-        sock = self._sock
-        if sock is None:
-            return
-        if not self._timestamps:
-            self._drain_plain(sock)
-            return
-        loop_minus_epoch = self._loop.time() - time.time()
-        for _ in range(DRAIN_LIMIT):
-            try:
-                data, ancillary, _flags, addr = sock.recvmsg(self._receive_size, _ANCILLARY_SIZE)
-            except (BlockingIOError, InterruptedError):
-                return
-            except OSError as error:  # an ICMP error reported on the socket: not a packet
-                log.debug("UDP receive error: %s", error)
-                continue
-            arrived = None
-            for level, kind, value in ancillary:
-                if level == socket.SOL_SOCKET and kind == _SCM_TIMESTAMPNS:
-                    seconds, nanoseconds = _TIMESPEC.unpack_from(value)
-                    arrived = seconds + nanoseconds * 1e-9 + loop_minus_epoch
-            self._on_packet(data, addr, self._loop.time() if arrived is None else arrived)
+        """Hand every datagram received so far to ``on_packet``, in arrival order."""
+        lib, on_packet = self._lib, self._on_packet
+        buffer, lens, stamps, ips, ports = (
+            self._buffer,
+            self._lens,
+            self._stamps,
+            self._ips,
+            self._ports,
+        )
+        hosts = self._hosts
+        handed = 0
+        while (pump := self._pump) is not None:
+            count = lib.pump_take(
+                pump, 1, self._buffer_c, len(buffer), lens, stamps, ips, ports, TAKE_BATCH
+            )
+            offset = 0
+            for i in range(count):
+                length = lens[i]
+                data = bytes(buffer[offset : offset + length])
+                offset += length
+                ip = ips[i]
+                host = hosts.get(ip)
+                if host is None:
+                    host = hosts[ip] = socket.inet_ntoa(struct.pack("!I", ip))
+                on_packet(data, (host, ports[i]), stamps[i] * 1e-9)
+            handed += count
+            if count < TAKE_BATCH:
+                break
+        if handed and self._on_batch is not None:
+            self._on_batch()
 
-    def _drain_plain(self, sock: socket.socket) -> None:
-        size, time_now, on_packet = self._receive_size, self._loop.time, self._on_packet
-        for _ in range(DRAIN_LIMIT):
-            try:
-                data, addr = sock.recvfrom(size)
-            except (BlockingIOError, InterruptedError):
-                return
-            except OSError as error:
-                log.debug("UDP receive error: %s", error)
-                continue
-            on_packet(data, addr, time_now())
+    # ------------------------------------------------------------------ sending
 
     def sendto(self, data: bytes, addr: tuple[str, int]) -> bool:
-        """Whether the packet left (a full buffer or an unreachable peer loses it)."""
+        """Send now; whether the packet left (a full buffer or an unreachable peer loses it)."""
         sock = self._sock
         if sock is None:
             return False
@@ -142,11 +176,56 @@ class UdpEndpoint:
             return False
         return True
 
+    def send_at(self, due: float, data: bytes, addr: tuple[str, int], tag: int) -> None:
+        """Queue ``data`` to leave at loop time ``due`` (``time.monotonic``), under ``tag`` (the
+        owner's name for a stream of packets, for ``cancel`` and ``queued``)."""
+        pump = self._pump
+        if pump is None:
+            return
+        address = self._addresses.get(addr)
+        if address is None:
+            ip = struct.unpack("!I", socket.inet_aton(addr[0]))[0]
+            address = self._addresses[addr] = (ip, addr[1])
+        result = self._lib.pump_queue(
+            pump, round(due * 1e9), address[0], address[1], data, len(data), tag
+        )
+        if result == -1:
+            raise QueueFullError(f"{QUEUE_SLOTS} datagrams already queued")
+        if result != 0:
+            raise ValueError(f"a {len(data)}-byte datagram does not fit a queue slot")
+
+    def cancel(self, tag: int, from_due: float = 0.0) -> tuple[int, float | None]:
+        """Take back the datagrams of ``tag`` (-1: all) not sent yet and due at or after
+        ``from_due``: how many, and the earliest one's due time."""
+        pump = self._pump
+        if pump is None:
+            return 0, None
+        first = self._first_due
+        count: int = self._lib.pump_cancel(pump, tag, round(from_due * 1e9), ctypes.byref(first))
+        return count, (first.value * 1e-9 if count else None)
+
+    def queued(self, tag: int) -> int:
+        """How many datagrams of ``tag`` wait to be sent."""
+        pump = self._pump
+        return 0 if pump is None else int(self._lib.pump_queued(pump, tag))
+
+    def counters(self) -> dict[str, int]:
+        """The pump's: sent, send errors, received, ring overflows, wake-ups, and the latest a
+        queued datagram left after its due time (ns)."""
+        values = (ctypes.c_int64 * 6)()
+        if self._pump is not None:
+            self._lib.pump_counters(self._pump, values)
+        names = ("sent", "send_errors", "received", "ring_overflows", "wakeups", "max_late_ns")
+        return dict(zip(names, values, strict=True))
+
     def close(self) -> None:
         self.watch(False)
+        pump, self._pump = self._pump, None
+        if pump is not None:
+            self._lib.pump_free(pump)  # stops and joins the thread first
         sock, self._sock = self._sock, None
         if sock is not None:
             sock.close()
 
 
-__all__ = ["DRAIN_LIMIT", "PacketHandler", "UdpEndpoint"]
+__all__ = ["BATCH_PERIOD_S", "PacketHandler", "QueueFullError", "UdpEndpoint"]

@@ -77,18 +77,21 @@ class IoConnection:
     last_o2t_at: float | None = None
     o2t_intervals_ms: deque[float] = field(default_factory=lambda: deque(maxlen=16_384))
     """Recent O→T arrival intervals (new data only), for the status API and the bench."""
-    t2o_deadline: float = 0.0
-    """Loop time the next T→O packet is due (a drift-free schedule: + RPI each packet)."""
-    t2o_epoch_s: float = 0.0
-    """Epoch seconds of that instant: the time the robot's frame for it describes."""
-    producer: asyncio.TimerHandle | None = None
+    t2o_last_due: float = 0.0
+    """Loop time the last T→O packet handed to the cyclic pump is due (a drift-free schedule:
+    + RPI each packet)."""
+    t2o_last_kind: str = "none"
+    """What became of that packet: "sent" (queued as built), "corrupt" (queued cut short by the
+    corrupt fault), "dropped" (the drop fault kept it back) or "none"."""
+    producing: bool = True
+    """False once closed: nothing more is queued for it."""
     watchdog: asyncio.TimerHandle | None = None
 
     def cancel_timers(self) -> None:
-        for handle in (self.producer, self.watchdog):
-            if handle is not None:
-                handle.cancel()
-        self.producer = self.watchdog = None
+        self.producing = False
+        if self.watchdog is not None:
+            self.watchdog.cancel()
+        self.watchdog = None
 
     @property
     def timeout_s(self) -> float:

@@ -58,6 +58,10 @@ class EmulatorTarget(Protocol):
 
     async def drop_sessions(self) -> None: ...
 
+    def process_image_changed(self) -> None: ...
+
+    def pump_counters(self) -> dict[str, int]: ...
+
 
 class ControlError(Exception):
     """A refused request: HTTP ``status``, a ``reason`` and, for a bad value, the ``field``."""
@@ -187,6 +191,7 @@ def create_control_app(
                 "faults": dataclasses.asdict(target.faults),
                 "plc_command": command_to_json(robot.command_image()),
                 "target_counters": _snapshot(counters) if counters is not None else None,
+                "pump": target.pump_counters(),
             }
         )
 
@@ -196,6 +201,7 @@ def create_control_app(
         async def handler(request: Request) -> Response:
             data = await _body(request, required=needs_body)
             apply(data, clock())
+            target.process_image_changed()  # in the very next T→O packet, not one built before
             return _json_response({"robot": robot_view()})
 
         handler.__name__ = "post_" + path.strip("/").replace("-", "_")

@@ -27,7 +27,6 @@ class TargetCounters:
     t2o_sent: int = 0
     t2o_dropped: int = 0
     t2o_corrupted: int = 0
-    t2o_send_errors: int = 0
     internal_errors: int = 0
 
     def as_dict(self) -> dict[str, int]:

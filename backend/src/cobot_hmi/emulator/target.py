@@ -3,10 +3,11 @@ modules and the runtime support (``udp_endpoint``); never the scanner or the ser
 
 The robot's EtherNet/IP adapter (issue 3, "The target"): the encapsulation server on TCP 44818
 (``encap_server``), the Connection Manager (Forward Open, Large Forward Open, Forward Close),
-the explicit objects (``objects``), and the class 1 engine on UDP 2222 (``udp_endpoint``): one
-producer per connection on a drift-free RPI schedule, O→T consumed by connection ID (read at the
-producer's ticks while one produces at a short RPI), run/idle applied to the
-:class:`ProcessImage`, and a watchdog per connection.
+the explicit objects (``objects``), and the class 1 engine on UDP 2222 (``udp_endpoint``): T→O
+packets built ahead on each connection's drift-free RPI schedule and handed to the cyclic pump,
+which sends each at its due time; O→T consumed by connection ID (read at our wake-ups while a
+connection produces at a short RPI), run/idle applied to the :class:`ProcessImage`, and a
+watchdog per connection.
 """
 
 from __future__ import annotations
@@ -45,14 +46,18 @@ from cobot_hmi.enip.cpf import CpfItem, ItemType, Sockaddr, decode_sockaddr, soc
 from cobot_hmi.enip.errors import EnipError
 from cobot_hmi.enip.identity import IdentityInfo
 from cobot_hmi.enip.status import ExtendedStatus, GeneralStatus
-from cobot_hmi.udp_endpoint import UdpEndpoint
+from cobot_hmi.udp_endpoint import BATCH_PERIOD_S, UdpEndpoint
 
 log = logging.getLogger(__name__)
 
-TICK_READ_MAX_RPI_US = 10_000
-"""While a connection produces T→O at this RPI or shorter, O→T is read at its ticks, not as it
-arrives (``udp_endpoint``): one wake-up per cycle instead of two, commands applied at most one
-RPI after they arrived, and seen in the very T→O packet that tick sends."""
+TICK_READ_MAX_RPI_US = round(BATCH_PERIOD_S * 1e6)
+"""While a connection produces T→O at a shorter RPI, we wake once per ``BATCH_PERIOD_S`` (not
+per packet): each wake-up reads the O→T packets that came meanwhile (with their kernel receive
+times) and builds the next batch of T→O packets, each for the instant it is due. At this RPI or
+longer we wake once per packet, and O→T is read as it arrives."""
+HORIZON_MARGIN_S = 0.001
+"""How far past the next wake-up T→O is built ahead: a wake-up that comes up to this late still
+finds the pump with a packet to send."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -102,6 +107,8 @@ class Target:
         self._server: asyncio.Server | None = None
         self._udp: UdpEndpoint | None = None
         self._t2o_cache: tuple[object, bytes] | None = None
+        self._ticker: asyncio.Handle | None = None
+        self._wake_period_s: float | None = None
         self.tcp_port = settings.tcp_port
         self.udp_port = settings.udp_port
 
@@ -145,6 +152,9 @@ class Target:
             self._server = None
         for conn in self._by_o2t.values():
             conn.cancel_timers()
+        if self._ticker is not None:
+            self._ticker.cancel()
+            self._ticker = None
         if self._udp is not None:
             self._udp.close()
             self._udp = None
@@ -175,6 +185,11 @@ class Target:
             )
             for c in self._by_o2t.values()
         ]
+
+    def pump_counters(self) -> dict[str, int]:
+        """The class 1 socket's cyclic pump (``UdpEndpoint.counters``): T→O packets sent and
+        send errors, O→T received, its wake-ups, the latest send behind its due time."""
+        return self._udp.counters() if self._udp is not None else {}
 
     async def _client_connected(
         self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter
@@ -253,6 +268,7 @@ class Target:
         except CodecError:
             return GeneralStatus.INVALID_ATTRIBUTE_VALUE
         self.process_image.consume_command(image, time.time())
+        self.process_image_changed()
         return GeneralStatus.SUCCESS
 
     # ------------------------------------------------------------------ Connection Manager
@@ -316,12 +332,12 @@ class Target:
             last_rx=loop.time(),
         )
         self._by_o2t[o2t_id] = conn
-        # The first T→O packet at once, then every RPI; the watchdog from the open on.
-        conn.t2o_deadline, conn.t2o_epoch_s = loop.time(), time.time()
-        conn.producer = loop.call_at(conn.t2o_deadline, self._produce, conn)
+        # The first T→O packet at once (after this reply is written), then every RPI; the
+        # watchdog from the open on.
+        conn.t2o_last_due = loop.time() - conn.t2o_rpi_us / 1e6
         watchdog_at = conn.last_rx + conn.timeout_s
         conn.watchdog = loop.call_at(watchdog_at, self._watchdog, conn, watchdog_at)
-        self._update_udp_watch()
+        self._update_schedule()
         log.info(
             "%s connection open: O→T 0x%08X T→O 0x%08X to %s:%d", kind, o2t_id, t2o_id, *conn.peer
         )
@@ -372,10 +388,13 @@ class Target:
             return
         log.info("%s connection 0x%08X closed: %s", conn.kind, conn.o2t_id, reason)
         conn.cancel_timers()
-        self._update_udp_watch()
+        if self._udp is not None:
+            self._udp.cancel(conn.o2t_id)  # what was built ahead for it does not go out
+        self._update_schedule()
         if idle and conn.kind is ConnectionKind.OWNER and conn.run:
             conn.run = False
             self.process_image.outputs_idle(time.time())
+            self.process_image_changed()
         if conn.produces and not any(c.produces for c in self._by_o2t.values()):
             # Listen-only connections follow the data they listen to (CIP: 0x0119).
             for other in list(self._by_o2t.values()):
@@ -383,15 +402,23 @@ class Target:
 
     # ------------------------------------------------------------------ class 1 engine
 
-    def _update_udp_watch(self) -> None:
+    def _update_schedule(self) -> None:
+        """The connections changed: how often we wake, and whether O→T wakes us."""
+        producing = [c.t2o_rpi_us for c in self._by_o2t.values() if c.producing]
+        shortest_us = min(producing, default=None)
         udp = self._udp
         if udp is not None:
-            udp.watch(
-                not any(
-                    c.producer is not None and c.t2o_rpi_us <= TICK_READ_MAX_RPI_US
-                    for c in self._by_o2t.values()
-                )
-            )
+            udp.watch(shortest_us is None or shortest_us >= TICK_READ_MAX_RPI_US)
+        if shortest_us is None:
+            self._wake_period_s = None
+            if self._ticker is not None:
+                self._ticker.cancel()
+                self._ticker = None
+            return
+        self._wake_period_s = max(shortest_us / 1e6, BATCH_PERIOD_S)
+        if self._ticker is not None:
+            self._ticker.cancel()
+        self._ticker = asyncio.get_running_loop().call_soon(self._tick)
 
     def _read_due_o2t(self) -> None:
         udp = self._udp
@@ -410,69 +437,104 @@ class Target:
         self._t2o_cache = (frame, data)
         return data
 
-    def _produce(self, conn: IoConnection) -> None:
-        """One RPI tick of a connection: send its T→O packet, then prepare the next one.
+    def _tick(self) -> None:
+        """One wake-up of the class 1 engine: read the O→T that came meanwhile, then build every
+        connection's T→O packets up to the next wake-up (plus a margin) and queue them.
 
-        A plain timer callback, not a task: one pass of the event loop per packet. The frame is
-        computed between packets, for the instant it is due (the robot model takes the time as an
-        argument), so the packet leaves as soon as the loop wakes, whatever the model costs; a
-        command or a state change in between makes the model compute it again at send time.
-        """
-        if conn.producer is None:
-            return  # closed meanwhile
-        self._read_due_o2t()
-        if conn.producer is None:
+        A plain timer callback, not a task. Each packet's frame is computed for the instant it
+        is due (the robot model takes the time as an argument), in due order across
+        connections, so the model only ever moves forward. The next wake-up is the last queued
+        packet's due time: at RPIs of ``BATCH_PERIOD_S`` or longer, one packet ahead, as a
+        controller prepares the next cycle's data."""
+        self._ticker = None
+        period_s = self._wake_period_s
+        if period_s is None or self._udp is None:
             return
+        self._read_due_o2t()
+        loop = asyncio.get_running_loop()
+        now = loop.time()
+        horizon = now + period_s + HORIZON_MARGIN_S
         try:
-            self._send_t2o(conn)
-        except Exception:  # a robot bug must not stop the connection's heartbeat
+            self._queue_t2o_until(horizon, now)
+        except Exception:  # a robot bug must not stop the connections' heartbeat
             self.counters.internal_errors += 1
             log.exception("T→O production failed")
-        if conn.producer is None:
-            return
-        loop = asyncio.get_running_loop()
-        period_s = conn.t2o_rpi_us / 1e6
-        deadline = conn.t2o_deadline + period_s
-        now = loop.time()
-        if deadline < now - period_s:
-            deadline = now  # far behind (a stalled loop): resynchronise, never burst
-        conn.t2o_deadline = deadline
-        conn.t2o_epoch_s = time.time() + (deadline - now)
-        conn.producer = loop.call_at(deadline, self._produce, conn)
-        if all(c.t2o_deadline >= deadline for c in self._by_o2t.values() if c.producer):
-            try:
-                self._t2o_data(conn.t2o_epoch_s)
-            except Exception:
-                self.counters.internal_errors += 1
-                log.exception("T→O production failed")
+        last_dues = [c.t2o_last_due for c in self._by_o2t.values() if c.producing]
+        if last_dues:
+            wake_at = max(now + period_s / 2, min(last_dues))
+            self._ticker = loop.call_at(wake_at, self._tick)
 
-    def _send_t2o(self, conn: IoConnection) -> None:
+    def _queue_t2o_until(self, horizon: float, now: float) -> None:
+        """Queue each producing connection's packets due up to ``horizon``, earliest first."""
+        producers = [c for c in self._by_o2t.values() if c.producing]
+        epoch_minus_loop = time.time() - now
+        while producers:
+            conn = min(producers, key=lambda c: c.t2o_last_due + c.t2o_rpi_us / 1e6)
+            period_s = conn.t2o_rpi_us / 1e6
+            due = conn.t2o_last_due + period_s
+            if due > horizon:
+                return
+            if due < now - period_s:
+                due = now  # far behind (a stalled loop): resynchronise, never burst
+            conn.t2o_last_due = due
+            self._queue_t2o(conn, due, due + epoch_minus_loop, rebuild=False)
+
+    def _queue_t2o(self, conn: IoConnection, due: float, epoch_s: float, *, rebuild: bool) -> None:
+        """Build the T→O packet due at loop time ``due`` (the frame for ``epoch_s``) and hand it
+        to the pump. ``rebuild``: the packet replaces one taken back (same sequence numbers,
+        same fault verdict; the fault draws and counters were made when it was first built)."""
         faults = self.faults
-        if faults.t2o_silent or self._udp is None:
+        udp = self._udp
+        if udp is None:
             return
-        data = self._t2o_data(conn.t2o_epoch_s)
-        conn.t2o_encap_seq = (conn.t2o_encap_seq + 1) & 0xFFFFFFFF
-        conn.t2o_cip_seq = (conn.t2o_cip_seq + 1) & 0xFFFF
+        if faults.t2o_silent and not rebuild:
+            conn.t2o_last_kind = "none"
+            return
+        data = self._t2o_data(epoch_s)
+        if not rebuild:
+            conn.t2o_encap_seq = (conn.t2o_encap_seq + 1) & 0xFFFFFFFF
+            conn.t2o_cip_seq = (conn.t2o_cip_seq + 1) & 0xFFFF
         packet = io.encode_io(conn.t2o_id, conn.t2o_encap_seq, conn.t2o_cip_seq, data)
-        if faults.t2o_drop_percent and self._rng.random() * 100.0 < faults.t2o_drop_percent:
+        if rebuild:
+            kind = conn.t2o_last_kind
+        elif faults.t2o_drop_percent and self._rng.random() * 100.0 < faults.t2o_drop_percent:
             self.counters.t2o_dropped += 1
-            return
-        if faults.t2o_corrupt_count > 0:
+            kind = "dropped"
+        elif faults.t2o_corrupt_count > 0:
             faults.t2o_corrupt_count -= 1
             self.counters.t2o_corrupted += 1
-            packet = packet[: len(packet) // 2]  # truncated: the length fields no longer hold
-        conn.packets_out += 1
-        self.counters.t2o_sent += 1
-        if faults.t2o_delay_ms > 0:
-            asyncio.get_running_loop().call_later(
-                faults.t2o_delay_ms / 1e3, self._sendto, packet, conn.peer
-            )
+            kind = "corrupt"
         else:
-            self._sendto(packet, conn.peer)
+            kind = "sent"
+        conn.t2o_last_kind = kind
+        if kind == "dropped":
+            return
+        if kind == "corrupt":
+            packet = packet[: len(packet) // 2]  # truncated: the length fields no longer hold
+        if not rebuild:
+            conn.packets_out += 1
+            self.counters.t2o_sent += 1
+        udp.send_at(due + faults.t2o_delay_ms / 1e3, packet, conn.peer, conn.o2t_id)
 
-    def _sendto(self, packet: bytes, peer: tuple[str, int]) -> None:
-        if self._udp is not None and not self._udp.sendto(packet, peer):
-            self.counters.t2o_send_errors += 1
+    def process_image_changed(self) -> None:
+        """The robot changed outside the cycle (a command applied, a control API action): take
+        back each connection's last packet built ahead, if it has not left, and build it again.
+
+        Only the last: the model has moved on to its instant, so earlier packets cannot be
+        built again, and they describe instants before the change anyway. At RPIs of
+        ``BATCH_PERIOD_S`` or longer the last is the only one: the change is in the next
+        packet."""
+        udp = self._udp
+        if udp is None:
+            return
+        epoch_minus_loop = time.time() - asyncio.get_running_loop().time()
+        for conn in self._by_o2t.values():
+            if not conn.producing or conn.t2o_last_kind not in ("sent", "corrupt"):
+                continue
+            due = conn.t2o_last_due
+            count, _ = udp.cancel(conn.o2t_id, due + self.faults.t2o_delay_ms / 1e3)
+            if count:
+                self._queue_t2o(conn, due, due + epoch_minus_loop, rebuild=True)
 
     def _watchdog(self, conn: IoConnection, armed_for: float) -> None:
         """Armed for the last O→T packet's time + the timeout; re-armed while packets come.
@@ -544,10 +606,12 @@ class Target:
             if command != conn.last_applied:
                 conn.last_applied = command
                 self.process_image.consume_command(decode_command(command), time.time())
+                self.process_image_changed()
         elif conn.run:
             conn.run = False
             conn.last_applied = None
             self.process_image.outputs_idle(time.time())
+            self.process_image_changed()
 
 
 def _interval_figures(

@@ -5,8 +5,9 @@ service.
 The backend's class 1 connection to the robot, held as a PLC holds it (issue 3, "The
 originator"): RegisterSession, Forward Open (exclusive owner, or input-only as a read-only
 mode), T→O received on UDP 2222 of the local address, O→T sent from the same socket at the RPI
-on a drift-free schedule with the run/idle header, a watchdog on T→O silence, reconnection with
-backoff, and Forward Close + UnRegisterSession on shutdown.
+on a drift-free schedule with the run/idle header (``o2t_stream``: built ahead, sent by the cyclic
+pump), a watchdog on T→O silence, reconnection with backoff, and Forward Close +
+UnRegisterSession on shutdown.
 
 Bumpless takeover: every connection starts **idle**, and its command image is seeded from the
 robot's actual outputs in the first T→O frame (and the bit input registers from an explicit
@@ -52,10 +53,10 @@ from cobot_hmi.enip.cpf import CpfItem, ItemType, Sockaddr, decode_sockaddr, soc
 from cobot_hmi.enip.encapsulation import ENIP_TCP_PORT, ENIP_UDP_PORT
 from cobot_hmi.enip.errors import EnipError
 from cobot_hmi.layout import CONNECTION_POINTS
-from cobot_hmi.scanner.o2t_schedule import O2TSchedule
+from cobot_hmi.scanner.o2t_stream import O2TStream
 from cobot_hmi.scanner.session import EnipSession, SessionError
 from cobot_hmi.scanner.stats import IntervalWindow
-from cobot_hmi.udp_endpoint import UdpEndpoint
+from cobot_hmi.udp_endpoint import BATCH_PERIOD_S, UdpEndpoint
 
 log = logging.getLogger(__name__)
 
@@ -105,6 +106,10 @@ class OriginatorSettings:
     tcp_timeout_s: float = 5.0
     first_frame_timeout_s: float = 2.0
     """How long after a Forward Open the first T→O frame may take (at least the watchdog)."""
+    t2o_batch_s: float = 0.020
+    """At RPIs shorter than ``BATCH_PERIOD_S`` (10 ms), how often we wake for T→O at most: the
+    frames of each batch are read together, each with the kernel's receive time. The O→T side
+    does not wait for it (a change goes into the next packet at once)."""
 
     @property
     def udp_port(self) -> int:
@@ -158,14 +163,13 @@ class _Link:
     t2o_api_us: int
     o2t_addr: tuple[str, int]
     path: bytes
-    o2t_encap_seq: int = 0
-    o2t_cip_seq: int = 0
     last_t2o_encap_seq: int | None = None
     last_t2o_cip_seq: int | None = None
     last_frame_at: float | None = None
     """Loop time of the last new frame."""
     last_rx: float = 0.0
-    o2t: O2TSchedule | None = None
+    """Loop time the kernel received the last accepted T→O packet."""
+    o2t: O2TStream | None = None
 
 
 class Originator:
@@ -193,14 +197,14 @@ class Originator:
         self._lost: asyncio.Future[str] | None = None
         self._first_frame: asyncio.Future[None] | None = None
         self._connected_event = asyncio.Event()
-        self._sent_waiters: list[tuple[int, asyncio.Future[None]]] = []
         self._explicit_bits: tuple[bool, ...] | None = None
         self._seeded = False
         self._stopping = False
         self._window = IntervalWindow()
         self._connected_since: float | None = None
         self.packets_in = 0
-        self.packets_out = 0
+        self._packets_out_closed = 0
+        """O→T packets sent by endpoints closed since (a stop and a start)."""
         self.gaps = 0
         self.duplicates = 0
         self.late = 0
@@ -208,7 +212,6 @@ class Originator:
         self.stale = 0
         self.foreign = 0
         self.frames = 0
-        self._o2t_sends_closed = (0, 0)
 
     # ------------------------------------------------------------------ public interface
 
@@ -232,6 +235,7 @@ class Originator:
             log.warning("supervisor ended with %r", task.exception())
         await self._teardown(forward_close=True)
         if self._udp is not None:
+            self._packets_out_closed += self._udp.counters()["sent"]
             self._udp.close()
             self._udp = None
         self._set_state(ConnectionState.IDLE, None)
@@ -261,43 +265,52 @@ class Originator:
             rpi_us=link.t2o_api_us if link is not None else None,
         )
 
-    def o2t_sends(self) -> tuple[int, int]:
-        """O→T packets sent so far (all connections): (with a T→O arrival, by the timer)."""
-        with_t2o, by_timer = self._o2t_sends_closed
-        link = self._link
-        if link is not None and link.o2t is not None:
-            with_t2o += link.o2t.sent_with_t2o
-            by_timer += link.o2t.sent_by_timer
-        return with_t2o, by_timer
+    @property
+    def packets_out(self) -> int:
+        """O→T packets that left (counted by the cyclic pump as it sends them)."""
+        udp = self._udp
+        return self._packets_out_closed + (udp.counters()["sent"] if udp is not None else 0)
+
+    def pump_counters(self) -> dict[str, int]:
+        """The cyclic pump's counters (``UdpEndpoint.counters``), zeros without an endpoint."""
+        udp = self._udp
+        return udp.counters() if udp is not None else {}
 
     def set_run(self, run: bool) -> None:
         if self.settings.input_only:
             raise ReadOnlyError("input-only connection: the outputs belong to another owner")
         if self.state is not ConnectionState.CONNECTED:
             raise NotConnectedError(f"not connected ({self.state}: {self.reason or 'no reason'})")
-        self.run = run
+        if run != self.run:
+            self.run = run
+            self._rebuild_o2t()
 
     def set_command(self, image: CommandImage) -> int:
         """Put ``image`` on the wire; returns the ``packets_out`` count after which it has
         gone out (see :meth:`wait_sent`)."""
         self.command = image
         self._command_bytes = encode_command(image)
+        # Every packet not sent yet is built again with the image: the next one out has it.
+        self._rebuild_o2t()
         return self.packets_out + 1
 
+    def _rebuild_o2t(self) -> None:
+        link = self._link
+        if link is not None and link.o2t is not None:
+            link.o2t.rebuild()
+
     async def wait_sent(self, packets_out: int, timeout_s: float) -> bool:
-        if self.packets_out >= packets_out:
-            return True
-        future: asyncio.Future[None] = asyncio.get_running_loop().create_future()
-        entry = (packets_out, future)
-        self._sent_waiters.append(entry)
-        try:
-            await asyncio.wait_for(future, timeout_s)
-            return True
-        except TimeoutError:
-            return False
-        finally:
-            with contextlib.suppress(ValueError):
-                self._sent_waiters.remove(entry)
+        """Whether ``packets_out`` O→T packets have left within ``timeout_s``. The pump sends
+        without waking us, so this looks again every half RPI (only while someone waits)."""
+        loop = asyncio.get_running_loop()
+        end = loop.time() + timeout_s
+        link = self._link
+        step_s = max(0.001, (link.o2t_api_us if link is not None else 10_000) / 2e6)
+        while self.packets_out < packets_out:
+            if loop.time() >= end:
+                return False
+            await asyncio.sleep(min(step_s, max(0.0, end - loop.time())))
+        return True
 
     async def wait_connected(self, timeout_s: float) -> bool:
         if self.state is ConnectionState.CONNECTED:
@@ -357,11 +370,17 @@ class Originator:
         s = self.settings
         try:
             udp = UdpEndpoint(
-                s.local_host, s.udp_port, self._t2o_received, receive_size=io.MAX_DATAGRAM + 1
+                s.local_host,
+                s.udp_port,
+                self._t2o_received,
+                receive_size=io.MAX_DATAGRAM + 1,
+                on_batch=self._t2o_batch_read,
             )
         except OSError as error:
             raise OSError(f"cannot bind UDP {s.local_host}:{s.udp_port}: {error}") from None
-        udp.watch(True)  # T→O wakes us: the O→T of the cycle leaves from that wake-up
+        # T→O wakes us as it comes, or once per batch at RPIs shorter than the batch period
+        # (each packet keeps the kernel's receive time either way).
+        udp.watch(True, self._t2o_batch_s)
         self._udp = udp
 
     async def _connect_once(self) -> None:
@@ -426,11 +445,15 @@ class Originator:
         self._lost = loop.create_future()
         self._first_frame = loop.create_future()
         link = self._link
-        # O→T from now on, at the RPI; with the T→O arrivals when both share it (o2t_schedule).
-        link.o2t = O2TSchedule(
+        assert self._udp is not None
+        # O→T from now on, at the RPI, built ahead into the cyclic pump (o2t_stream).
+        link.o2t = O2TStream(
+            self._udp,
+            link.o2t_id,
+            link.o2t_addr,
             link.o2t_api_us / 1e6,
-            lambda: self._send_o2t(link),
-            follow_t2o=link.o2t_api_us == link.t2o_api_us,
+            lambda encap_seq, cip_seq: self._o2t_packet(link, encap_seq, cip_seq),
+            wake_period_s=self._t2o_batch_s,
             on_timer=lambda now, lag_s: self._check_t2o_silence(link, now, lag_s),
         )
         link.o2t.start()
@@ -468,6 +491,11 @@ class Originator:
         host = self.settings.local_host
         return None if host in ("0.0.0.0", "") else host
 
+    @property
+    def _t2o_batch_s(self) -> float:
+        s = self.settings
+        return s.t2o_batch_s if s.rpi_us < BATCH_PERIOD_S * 1e6 else 0.0
+
     def _timeout_s(self, link: _Link) -> float:
         return connection_timeout_us(link.t2o_api_us, self.settings.timeout_multiplier) / 1e6
 
@@ -475,11 +503,6 @@ class Originator:
         link, self._link = self._link, None
         if link is not None and link.o2t is not None:
             link.o2t.stop()
-            with_t2o, by_timer = self._o2t_sends_closed
-            self._o2t_sends_closed = (
-                with_t2o + link.o2t.sent_with_t2o,
-                by_timer + link.o2t.sent_by_timer,
-            )
         for future in (self._lost, self._first_frame):
             if future is not None and not future.done():
                 future.cancel()
@@ -513,40 +536,29 @@ class Originator:
 
     # ------------------------------------------------------------------ class 1
 
-    def _send_o2t(self, link: _Link) -> None:
-        udp = self._udp
-        if udp is None:
-            return
-        link.o2t_encap_seq = (link.o2t_encap_seq + 1) & 0xFFFFFFFF
-        link.o2t_cip_seq = (link.o2t_cip_seq + 1) & 0xFFFF
+    def _o2t_packet(self, link: _Link, encap_seq: int, cip_seq: int) -> bytes:
+        """The O→T datagram with these sequence numbers: the command image with the run/idle
+        header, or an input-only connection's heartbeat."""
         s = self.settings
         if not s.input_only:
-            packet = io.encode_io(
-                link.o2t_id,
-                link.o2t_encap_seq,
-                link.o2t_cip_seq,
-                self._command_bytes,
-                io.RUN_BIT if self.run else 0,
+            return io.encode_io(
+                link.o2t_id, encap_seq, cip_seq, self._command_bytes, io.RUN_BIT if self.run else 0
             )
-        elif s.heartbeat_o2t_size == 0:
-            packet = io.encode_heartbeat(link.o2t_id, link.o2t_encap_seq)
-        elif s.heartbeat_o2t_size == 6:
-            packet = io.encode_io(link.o2t_id, link.o2t_encap_seq, link.o2t_cip_seq, b"", 0)
-        else:
-            packet = io.encode_io(link.o2t_id, link.o2t_encap_seq, link.o2t_cip_seq, b"")
-        if not udp.sendto(packet, link.o2t_addr):
-            return  # logged by the endpoint; the next slot tries again
-        self.packets_out += 1
-        if self._sent_waiters:
-            count = self.packets_out
-            for wanted, future in self._sent_waiters:
-                if wanted <= count and not future.done():
-                    future.set_result(None)
+        if s.heartbeat_o2t_size == 0:
+            return io.encode_heartbeat(link.o2t_id, encap_seq)
+        if s.heartbeat_o2t_size == 6:
+            return io.encode_io(link.o2t_id, encap_seq, cip_seq, b"", 0)
+        return io.encode_io(link.o2t_id, encap_seq, cip_seq, b"")
+
+    def _t2o_batch_read(self) -> None:
+        link = self._link
+        if link is not None and link.o2t is not None:
+            link.o2t.t2o_read()
 
     def _check_t2o_silence(self, link: _Link, now: float, lag_s: float) -> None:
         """The watchdog (ethernetip.md "Forward Open": RPI × (4 << multiplier)). Checked at each
-        O→T timer wake-up: the timer only fires when T→O is not carrying O→T along, so a steady
-        T→O stream costs no wake-up of its own for it.
+        fallback wake-up of the O→T stream: that timer only fires when T→O stopped waking us, so
+        a steady T→O stream costs no wake-up of its own for it.
 
         A timer firing more than an RPI late means this loop itself stalled (a busy machine):
         T→O packets may be waiting in the socket, unread. The verdict waits for a timer on time,
@@ -561,8 +573,7 @@ class Originator:
             )
 
     def _t2o_received(self, data: bytes, addr: tuple[str, int], arrived: float) -> None:
-        """One T→O datagram (``arrived``: the loop time it was read, as the application sees
-        it)."""
+        """One T→O datagram (``arrived``: the loop time the kernel received it)."""
         link = self._link
         try:
             packet = io.decode_io(data)
@@ -596,14 +607,13 @@ class Originator:
             if ahead > 1:
                 self.gaps += ahead - 1
         link.last_t2o_cip_seq = packet.cip_seq
-        if link.o2t is not None:
-            link.o2t.t2o_arrived(now)  # the slot's O→T first: this wake-up may carry it
         try:
             frame = decode_frame(payload)
         except CodecError:
             self.malformed += 1
             return
-        received_at = time.time()
+        # Epoch seconds the kernel received it (read in batches, so not "now").
+        received_at = now + (time.time() - time.monotonic())
         previous = link.last_frame_at
         link.last_frame_at = now
         if previous is not None:
@@ -633,6 +643,7 @@ class Originator:
         )
         self._command_bytes = encode_command(self.command)
         self._seeded = True
+        self._rebuild_o2t()
         if self._first_frame is not None and not self._first_frame.done():
             self._first_frame.set_result(None)
 
