@@ -69,13 +69,18 @@ def joint_torques(
     mass = 0.0
     sx = sy = sz = 0.0
     qxx = qyy = qzz = qxy = qxz = qyz = 0.0
+    # Q only feeds the inertia term: without any acceleration (at rest, cruising) skip its sums.
+    # (m·c_x·c_y is (m·c_x)·c_y as Python evaluates it, so m·c is worked out once per body.)
+    any_acceleration = any(acceleration_deg_s2)
     if payload_kg > 0.0:
         # The payload moves with the last link: fold it into link 6's sums.
         m, cx, cy, cz = payload_kg, kin.tcp[3], kin.tcp[7], kin.tcp[11]
         mass += m
-        sx, sy, sz = sx + m * cx, sy + m * cy, sz + m * cz
-        qxx, qyy, qzz = qxx + m * cx * cx, qyy + m * cy * cy, qzz + m * cz * cz
-        qxy, qxz, qyz = qxy + m * cx * cy, qxz + m * cx * cz, qyz + m * cy * cz
+        mcx, mcy, mcz = m * cx, m * cy, m * cz
+        sx, sy, sz = sx + mcx, sy + mcy, sz + mcz
+        if any_acceleration:
+            qxx, qyy, qzz = qxx + mcx * cx, qyy + mcy * cy, qzz + mcz * cz
+            qxy, qxz, qyz = qxy + mcx * cy, qxz + mcx * cz, qyz + mcy * cz
     frames = kin.joint_frames
     constants = _constants(model).joints
     count = len(constants)
@@ -89,9 +94,11 @@ def joint_torques(
         cy = f10 * lx + f11 * ly + zy * lz + py
         cz = f20 * lx + f21 * ly + zz * lz + pz
         mass += m
-        sx, sy, sz = sx + m * cx, sy + m * cy, sz + m * cz
-        qxx, qyy, qzz = qxx + m * cx * cx, qyy + m * cy * cy, qzz + m * cz * cz
-        qxy, qxz, qyz = qxy + m * cx * cy, qxz + m * cx * cz, qyz + m * cy * cz
+        mcx, mcy, mcz = m * cx, m * cy, m * cz
+        sx, sy, sz = sx + mcx, sy + mcy, sz + mcz
+        if any_acceleration:
+            qxx, qyy, qzz = qxx + mcx * cx, qyy + mcy * cy, qzz + mcz * cz
+            qxy, qxz, qyz = qxy + mcx * cy, qxz + mcx * cz, qyz + mcy * cz
         # First moment about p: S − M·p; its cross product with (0, 0, −g), dotted with z.
         rx, ry = sx - mass * px, sy - mass * py
         gravity_nm = GRAVITY_M_S2 * (zx * ry - zy * rx)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Final, NamedTuple
 
 from cobot_hmi.emulator.robot.models import RobotModel
@@ -48,6 +48,15 @@ class JointMove:
     duration_s: float
     peak_rate_per_s: float
     """Peak of ds/dt, where s runs from 0 to 1 over the move."""
+    cruise: tuple[tuple[float, ...], tuple[float, ...]] = field(
+        init=False, repr=False, compare=False
+    )
+    """Velocity and acceleration at the peak rate: the same for every sample of the cruise, so
+    worked out once (with the very products ``sample`` would compute)."""
+
+    def __post_init__(self) -> None:
+        velocity = tuple([d * self.peak_rate_per_s for d in self.delta_deg])
+        object.__setattr__(self, "cruise", (velocity, tuple([d * 0.0 for d in self.delta_deg])))
 
     @property
     def target_deg(self) -> tuple[float, ...]:
@@ -72,10 +81,13 @@ class JointMove:
         s, sd, sdd = self.profile(t_s)
         delta = self.delta_deg
         # tuple([...]) rather than tuple(generator): this runs for every produced frame.
+        position = tuple([q0 + d * s for q0, d in zip(self.start_deg, delta, strict=True)])
+        if sd == self.peak_rate_per_s and sdd == 0.0:
+            # Cruising. ``profile`` never yields −0.0, so equal rates mean equal products.
+            velocity, acceleration = self.cruise
+            return JointSample(position, velocity, acceleration)
         return JointSample(
-            tuple([q0 + d * s for q0, d in zip(self.start_deg, delta, strict=True)]),
-            tuple([d * sd for d in delta]),
-            tuple([d * sdd for d in delta]),
+            position, tuple([d * sd for d in delta]), tuple([d * sdd for d in delta])
         )
 
 
