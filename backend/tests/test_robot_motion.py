@@ -11,7 +11,13 @@ import pytest
 
 from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot, StateTimings
 from cobot_hmi.emulator.robot.dynamics import joint_torques
-from cobot_hmi.emulator.robot.kinematics import forward
+from cobot_hmi.emulator.robot.kinematics import (
+    euler_zyz_deg,
+    forward,
+    from_euler_zyz_deg,
+    position_mm,
+    tcp_velocity,
+)
 from cobot_hmi.emulator.robot.models import M0609, M1013, RobotModel
 from cobot_hmi.emulator.robot.trajectory import DEMO_STEPS, ProgramRunner, plan_move
 from cobot_hmi.generated.frames import Frame, RobotState
@@ -261,6 +267,29 @@ def test_tool_offset_appears_in_the_frame_and_moves_the_tcp() -> None:
     # Home: the flange points down, so a 200 mm tool lowers the TCP by 200 mm.
     assert with_tool.tcp_position[2] == pytest.approx(plain.tcp_position[2] - 200)
     assert with_tool.tcp_orientation[0] == pytest.approx(plain.tcp_orientation[0] - 90)
+
+
+def test_each_monitoring_value_lands_in_its_own_frame_field() -> None:
+    # produce_frame builds the Frame positionally (for speed): values of the same shape must not
+    # trade places. Recompute each from the frame's own joint values and compare.
+    robot = running_robot(tool_offset_position_mm=(0.0, 0.0, 100.0))
+    frame = next(
+        f for f in (robot.produce_frame(1.0 + i * 0.01) for i in range(300)) if f.joint_velocity[1]
+    )
+    kin = forward(M1013, frame.joint_position, from_euler_zyz_deg((0.0, 0.0, 100.0), (0, 0, 0)))
+    assert frame.tcp_position == pytest.approx(position_mm(kin.tcp), abs=1e-9)
+    assert frame.tcp_orientation == pytest.approx(euler_zyz_deg(kin.tcp), abs=1e-9)
+    linear, angular = tcp_velocity(kin, frame.joint_velocity)
+    assert frame.tcp_velocity == pytest.approx(linear, abs=1e-9)
+    assert frame.tcp_angular_velocity == pytest.approx(angular, abs=1e-9)
+    for torque, current, spec in zip(
+        frame.joint_torque, frame.joint_motor_current, M1013.joints, strict=True
+    ):
+        assert current == pytest.approx(torque / spec.torque_per_amp_nm, abs=0.1)
+    assert all(20.0 < t < 30.0 for t in frame.joint_motor_temperature)
+    assert frame.tool_offset_position == (0.0, 0.0, 100.0)
+    assert frame.tool_offset_orientation == (0.0, 0.0, 0.0)
+    assert frame.robot_state == RobotState.STANDALONE_RUNNING and frame.servo_on
 
 
 def test_m0609_is_selectable() -> None:
