@@ -182,10 +182,7 @@ class UdpEndpoint:
         pump = self._pump
         if pump is None:
             return
-        address = self._addresses.get(addr)
-        if address is None:
-            ip = struct.unpack("!I", socket.inet_aton(addr[0]))[0]
-            address = self._addresses[addr] = (ip, addr[1])
+        address = self._address(addr)
         result = self._lib.pump_queue(
             pump, round(due * 1e9), address[0], address[1], data, len(data), tag
         )
@@ -193,6 +190,74 @@ class UdpEndpoint:
             raise QueueFullError(f"{QUEUE_SLOTS} datagrams already queued")
         if result != 0:
             raise ValueError(f"a {len(data)}-byte datagram does not fit a queue slot")
+
+    def _address(self, addr: tuple[str, int]) -> tuple[int, int]:
+        address = self._addresses.get(addr)
+        if address is None:
+            ip = struct.unpack("!I", socket.inet_aton(addr[0]))[0]
+            address = self._addresses[addr] = (ip, addr[1])
+        return address
+
+    def send_every(  # noqa: PLR0917
+        self,
+        tag: int,
+        first_due: float,
+        period_s: float,
+        data: bytes,
+        addr: tuple[str, int],
+        counter32: tuple[int, int] | None,
+        counter16: tuple[int, int] | None = None,
+    ) -> None:
+        """Send ``data`` every ``period_s`` from loop time ``first_due`` on (a periodic stream
+        under ``tag``, replacing one with the same tag), without waking us. ``counter32`` and
+        ``counter16``: ``(offset, first value)`` of a little-endian counter the pump writes
+        into each packet and raises by one after it."""
+        pump = self._pump
+        if pump is None:
+            return
+        ip, port = self._address(addr)
+        off32, first32 = counter32 if counter32 is not None else (-1, 0)
+        off16, first16 = counter16 if counter16 is not None else (-1, 0)
+        result = self._lib.pump_periodic_start(
+            pump,
+            tag,
+            round(first_due * 1e9),
+            round(period_s * 1e9),
+            ip,
+            port,
+            data,
+            len(data),
+            off32,
+            first32 & 0xFFFFFFFF,
+            off16,
+            first16 & 0xFFFF,
+        )
+        if result == -1:
+            raise QueueFullError("every periodic stream of the pump is in use")
+        if result != 0:
+            raise ValueError(f"a {len(data)}-byte periodic datagram does not fit its counters")
+
+    def replace_periodic(self, tag: int, data: bytes) -> bool:
+        """The periodic stream ``tag`` sends ``data`` from its next packet on (its counters go
+        on); False when there is no such stream."""
+        pump = self._pump
+        if pump is None:
+            return False
+        result = self._lib.pump_periodic_data(pump, tag, data, len(data))
+        if result == -2:
+            raise ValueError(f"a {len(data)}-byte periodic datagram does not fit its counters")
+        return bool(result == 0)
+
+    def stop_periodic(self, tag: int) -> tuple[int, int] | None:
+        """Stop the periodic stream ``tag``: the counters its next packet would have carried,
+        or None when there was no such stream."""
+        pump = self._pump
+        if pump is None:
+            return None
+        next32, next16 = ctypes.c_uint32(), ctypes.c_uint16()
+        if self._lib.pump_periodic_stop(pump, tag, ctypes.byref(next32), ctypes.byref(next16)):
+            return None
+        return next32.value, next16.value
 
     def cancel(self, tag: int, from_due: float = 0.0) -> tuple[int, float | None]:
         """Take back the datagrams of ``tag`` (-1: all) not sent yet and due at or after

@@ -444,8 +444,8 @@ class Target:
         A plain timer callback, not a task. Each packet's frame is computed for the instant it
         is due (the robot model takes the time as an argument), in due order across
         connections, so the model only ever moves forward. The next wake-up is the last queued
-        packet's due time: at RPIs of ``BATCH_PERIOD_S`` or longer, one packet ahead, as a
-        controller prepares the next cycle's data."""
+        packet's due time (half an RPI before, in batches): at RPIs of ``BATCH_PERIOD_S`` or
+        longer, one packet ahead, as a controller prepares the next cycle's data."""
         self._ticker = None
         period_s = self._wake_period_s
         if period_s is None or self._udp is None:
@@ -459,10 +459,15 @@ class Target:
         except Exception:  # a robot bug must not stop the connections' heartbeat
             self.counters.internal_errors += 1
             log.exception("T→O production failed")
-        last_dues = [c.t2o_last_due for c in self._by_o2t.values() if c.producing]
-        if last_dues:
-            wake_at = max(now + period_s / 2, min(last_dues))
-            self._ticker = loop.call_at(wake_at, self._tick)
+        producing = [c for c in self._by_o2t.values() if c.producing]
+        if producing:
+            first = min(producing, key=lambda c: c.t2o_last_due)
+            wake_at = first.t2o_last_due
+            if period_s > first.t2o_rpi_us / 1e6:
+                # Batches: wake while the last packet still waits in the pump, so its queue
+                # never runs empty (an empty pump would wake for O→T, then for our new batch).
+                wake_at -= first.t2o_rpi_us / 2e6
+            self._ticker = loop.call_at(max(now + period_s / 2, wake_at), self._tick)
 
     def _queue_t2o_until(self, horizon: float, now: float) -> None:
         """Queue each producing connection's packets due up to ``horizon``, earliest first."""

@@ -22,6 +22,12 @@ from cobot_hmi.enip.errors import (
 
 _PREFIX: Final = struct.Struct("<HHHIIHH")  # count, 0x8002, 8, conn id, encap seq, 0x00B1, length
 PREFIX_SIZE: Final = _PREFIX.size  # 18
+ENCAP_SEQ_OFFSET: Final = 10
+"""Where the encapsulation sequence number (UDINT) sits: after the item count, the Sequenced
+Address item's type and length, and the connection ID."""
+CIP_SEQ_OFFSET: Final = PREFIX_SIZE
+"""Where the CIP sequence count (UINT) sits, in a packet that has one: first in the Connected
+Data item."""
 _WITH_HEADER: Final = struct.Struct("<HHHIIHHHI")
 _WITHOUT_HEADER: Final = struct.Struct("<HHHIIHHH")
 _SEQ: Final = struct.Struct("<H")

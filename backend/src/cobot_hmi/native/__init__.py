@@ -111,6 +111,25 @@ def cyclic_pump_library() -> ctypes.CDLL:
             ],
         ),
         "pump_counters": (None, [pump, POINTER(c_int64)]),
+        "pump_periodic_start": (
+            c_int,
+            [
+                pump,
+                c_int64,
+                c_int64,
+                c_int64,
+                c_uint32,
+                c_uint16,
+                ctypes.c_char_p,
+                c_int,
+                c_int,
+                c_uint32,
+                c_int,
+                c_uint16,
+            ],
+        ),
+        "pump_periodic_data": (c_int, [pump, c_int64, ctypes.c_char_p, c_int]),
+        "pump_periodic_stop": (c_int, [pump, c_int64, POINTER(c_uint32), POINTER(c_uint16)]),
         "pump_now_ns": (c_int64, []),
     }
     for name, (restype, argtypes) in signatures.items():

@@ -9,6 +9,10 @@
  *   - send queue: datagrams Python built ahead of time, each with the CLOCK_MONOTONIC instant
  *     it is due; the thread sleeps until the earliest one (1 us timer slack) and sends it.
  *     Python can take back what has not left yet (pump_cancel) when the data changes.
+ *   - periodic streams: one datagram sent every period from a template whose two counters (a
+ *     32-bit and a 16-bit little-endian field at offsets Python gives) rise by one per packet;
+ *     Python replaces the template when the data changes (pump_periodic_data), without waking
+ *     for each packet.
  *   - receive ring: at every wake-up the thread reads every datagram waiting in the socket,
  *     with the kernel's receive time (SO_TIMESTAMPNS, turned into CLOCK_MONOTONIC), into a ring
  *     Python empties with pump_take. Nothing is lost by reading late: the receive time travels
@@ -51,6 +55,23 @@ typedef struct {
     int32_t len;
 } ring_meta;
 
+#define PERIODIC_MAX 8
+
+typedef struct {
+    int active;
+    int64_t tag;
+    int64_t due_ns;
+    int64_t period_ns;
+    uint32_t ip;
+    uint16_t port;
+    int32_t len;
+    int32_t off32; /* -1: no such counter */
+    int32_t off16;
+    uint32_t count32; /* the values of the next packet */
+    uint16_t count16;
+    uint8_t *data;
+} periodic;
+
 enum { C_SENT, C_SEND_ERRORS, C_RECEIVED, C_RING_OVERFLOWS, C_WAKEUPS, C_MAX_LATE_NS, C_COUNT };
 
 typedef struct pump {
@@ -67,6 +88,7 @@ typedef struct pump {
     send_slot *queue;
     uint8_t *queue_data;
     int queued;
+    periodic periodics[PERIODIC_MAX];
 
     int ring_cap;
     int ring_bytes;
@@ -118,6 +140,15 @@ pump *pump_new(int fd, int queue_cap, int queue_bytes, int ring_cap, int ring_by
         return NULL;
     }
     for (int i = 0; i < queue_cap; i++) p->queue[i].len = -1;
+    for (int i = 0; i < PERIODIC_MAX; i++) {
+        p->periodics[i].data = malloc((size_t)queue_bytes);
+        if (!p->periodics[i].data) {
+            for (int j = 0; j < i; j++) free(p->periodics[j].data);
+            close(p->kick_fd); close(p->notify_fd);
+            free(p->queue); free(p->queue_data); free(p->ring); free(p->ring_data); free(p);
+            return NULL;
+        }
+    }
     pthread_mutex_init(&p->lock, NULL);
     return p;
 }
@@ -188,24 +219,56 @@ static int earliest(pump *p) {
     return best;
 }
 
+static void send_one(pump *p, const uint8_t *data, int32_t len, uint32_t ip, uint16_t port,
+                     int64_t due_ns, int64_t now) {
+    struct sockaddr_in to = {0};
+    to.sin_family = AF_INET;
+    to.sin_addr.s_addr = htonl(ip);
+    to.sin_port = htons(port);
+    ssize_t sent = sendto(p->fd, data, (size_t)len, MSG_DONTWAIT, (struct sockaddr *)&to, sizeof to);
+    if (sent < 0) {
+        p->counters[C_SEND_ERRORS]++;
+    } else {
+        p->counters[C_SENT]++;
+        int64_t late = now - due_ns;
+        if (late > p->counters[C_MAX_LATE_NS]) p->counters[C_MAX_LATE_NS] = late;
+    }
+}
+
+static void put_le(uint8_t *at, uint32_t value, int bytes) {
+    for (int b = 0; b < bytes; b++) at[b] = (uint8_t)(value >> (8 * b));
+}
+
+static void send_periodic_due(pump *p, int64_t now) {
+    for (int i = 0; i < PERIODIC_MAX; i++) {
+        periodic *s = &p->periodics[i];
+        if (!s->active || s->due_ns > now) continue;
+        if (s->off32 >= 0) put_le(s->data + s->off32, s->count32, 4);
+        if (s->off16 >= 0) put_le(s->data + s->off16, s->count16, 2);
+        send_one(p, s->data, s->len, s->ip, s->port, s->due_ns, now);
+        s->count32++;
+        s->count16++;
+        s->due_ns += s->period_ns;
+        if (s->due_ns < now - s->period_ns) s->due_ns = now; /* stalled: resynchronise, no burst */
+    }
+}
+
+static int64_t periodic_next(pump *p) {
+    int64_t next = NEVER;
+    for (int i = 0; i < PERIODIC_MAX; i++) {
+        if (p->periodics[i].active && p->periodics[i].due_ns < next) next = p->periodics[i].due_ns;
+    }
+    return next;
+}
+
 static void send_due(pump *p, int64_t now) {
+    send_periodic_due(p, now);
     for (;;) {
         int i = earliest(p);
         if (i < 0 || p->queue[i].due_ns > now) return;
         send_slot *s = &p->queue[i];
-        struct sockaddr_in to = {0};
-        to.sin_family = AF_INET;
-        to.sin_addr.s_addr = htonl(s->ip);
-        to.sin_port = htons(s->port);
-        ssize_t sent = sendto(p->fd, p->queue_data + (size_t)i * (size_t)p->queue_bytes,
-                              (size_t)s->len, MSG_DONTWAIT, (struct sockaddr *)&to, sizeof to);
-        if (sent < 0) {
-            p->counters[C_SEND_ERRORS]++;
-        } else {
-            p->counters[C_SENT]++;
-            int64_t late = now - s->due_ns;
-            if (late > p->counters[C_MAX_LATE_NS]) p->counters[C_MAX_LATE_NS] = late;
-        }
+        send_one(p, p->queue_data + (size_t)i * (size_t)p->queue_bytes, s->len, s->ip, s->port,
+                 s->due_ns, now);
         s->len = -1;
         p->queued--;
     }
@@ -219,9 +282,10 @@ static void *run(void *arg) {
         int64_t now = mono_ns();
         send_due(p, now);
         drain_socket(p);
-        int64_t next = NEVER;
+        int64_t next = periodic_next(p);
         int i = earliest(p);
-        if (i >= 0) next = p->queue[i].due_ns;
+        if (i >= 0 && p->queue[i].due_ns < next) next = p->queue[i].due_ns;
+        int sending = next != NEVER;
         if (p->ring_count > 0 && !p->notified) {
             int64_t notify_at = p->last_notify_ns + p->notify_interval_ns;
             if (notify_at <= now) {
@@ -236,7 +300,7 @@ static void *run(void *arg) {
         }
         p->sleeping_until = next;
         /* With nothing to send there are no send wake-ups to read at: read as datagrams come. */
-        int watch_socket = p->read_on_readable || i < 0;
+        int watch_socket = p->read_on_readable || !sending;
         pthread_mutex_unlock(&p->lock);
 
         struct pollfd fds[2] = {{p->kick_fd, POLLIN, 0}, {p->fd, POLLIN, 0}};
@@ -283,6 +347,7 @@ void pump_free(pump *p) {
     pthread_mutex_destroy(&p->lock);
     close(p->kick_fd);
     close(p->notify_fd);
+    for (int i = 0; i < PERIODIC_MAX; i++) free(p->periodics[i].data);
     free(p->queue); free(p->queue_data); free(p->ring); free(p->ring_data); free(p);
 }
 
@@ -393,4 +458,82 @@ void pump_counters(pump *p, int64_t *out) {
     pthread_mutex_lock(&p->lock);
     memcpy(out, p->counters, sizeof p->counters);
     pthread_mutex_unlock(&p->lock);
+}
+
+/* Start (or restart) the periodic stream `tag`: `data` every `period_ns` from `first_due_ns` to
+ * `ip`:`port`, with the 32-bit counter at `off32` and the 16-bit one at `off16` (little-endian,
+ * -1: none) starting at `first32` and `first16` and rising by one per packet. 0, -1 when every
+ * stream is taken, -2 when the datagram is longer than a slot or a counter lies outside it. */
+int pump_periodic_start(pump *p, int64_t tag, int64_t first_due_ns, int64_t period_ns, uint32_t ip,
+                        uint16_t port, const uint8_t *data, int len, int off32, uint32_t first32,
+                        int off16, uint16_t first16) {
+    if (len < 0 || len > p->queue_bytes || off32 + 4 > len || off16 + 2 > len || period_ns <= 0)
+        return -2;
+    pthread_mutex_lock(&p->lock);
+    int slot = -1;
+    for (int i = 0; i < PERIODIC_MAX; i++) {
+        if (p->periodics[i].active && p->periodics[i].tag == tag) { slot = i; break; }
+        if (!p->periodics[i].active && slot < 0) slot = i;
+    }
+    if (slot < 0) {
+        pthread_mutex_unlock(&p->lock);
+        return -1;
+    }
+    periodic *s = &p->periodics[slot];
+    memcpy(s->data, data, (size_t)len);
+    s->len = len;
+    s->tag = tag;
+    s->due_ns = first_due_ns;
+    s->period_ns = period_ns;
+    s->ip = ip;
+    s->port = port;
+    s->off32 = off32;
+    s->off16 = off16;
+    s->count32 = first32;
+    s->count16 = first16;
+    s->active = 1;
+    int wake = first_due_ns < p->sleeping_until;
+    if (wake) p->sleeping_until = first_due_ns;
+    pthread_mutex_unlock(&p->lock);
+    if (wake) kick(p);
+    return 0;
+}
+
+/* The periodic stream `tag` sends `data` from its next packet on (its counters go on rising).
+ * 0, -1 when there is no such stream, -2 when the datagram does not fit. */
+int pump_periodic_data(pump *p, int64_t tag, const uint8_t *data, int len) {
+    pthread_mutex_lock(&p->lock);
+    for (int i = 0; i < PERIODIC_MAX; i++) {
+        periodic *s = &p->periodics[i];
+        if (s->active && s->tag == tag) {
+            if (len < 0 || len > p->queue_bytes || s->off32 + 4 > len || s->off16 + 2 > len) {
+                pthread_mutex_unlock(&p->lock);
+                return -2;
+            }
+            memcpy(s->data, data, (size_t)len);
+            s->len = len;
+            pthread_mutex_unlock(&p->lock);
+            return 0;
+        }
+    }
+    pthread_mutex_unlock(&p->lock);
+    return -1;
+}
+
+/* Stop the periodic stream `tag`; the counters its next packet would have carried go to
+ * *next32 and *next16. 0, or -1 when there is no such stream. */
+int pump_periodic_stop(pump *p, int64_t tag, uint32_t *next32, uint16_t *next16) {
+    pthread_mutex_lock(&p->lock);
+    for (int i = 0; i < PERIODIC_MAX; i++) {
+        periodic *s = &p->periodics[i];
+        if (s->active && s->tag == tag) {
+            s->active = 0;
+            *next32 = s->count32;
+            *next16 = s->count16;
+            pthread_mutex_unlock(&p->lock);
+            return 0;
+        }
+    }
+    pthread_mutex_unlock(&p->lock);
+    return -1;
 }

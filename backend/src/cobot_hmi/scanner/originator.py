@@ -453,6 +453,7 @@ class Originator:
             link.o2t_addr,
             link.o2t_api_us / 1e6,
             lambda encap_seq, cip_seq: self._o2t_packet(link, encap_seq, cip_seq),
+            has_cip_seq=not (s.input_only and s.heartbeat_o2t_size == 0),
             wake_period_s=self._t2o_batch_s,
             on_timer=lambda now, lag_s: self._check_t2o_silence(link, now, lag_s),
         )
