@@ -108,6 +108,7 @@ class Target:
         self._udp: UdpEndpoint | None = None
         self._t2o_cache: tuple[object, bytes] | None = None
         self._ticker: asyncio.Handle | None = None
+        self._tick_due = 0.0
         self._wake_period_s: float | None = None
         self.tcp_port = settings.tcp_port
         self.udp_port = settings.udp_port
@@ -335,8 +336,6 @@ class Target:
         # The first T→O packet at once (after this reply is written), then every RPI; the
         # watchdog from the open on.
         conn.t2o_last_due = loop.time() - conn.t2o_rpi_us / 1e6
-        watchdog_at = conn.last_rx + conn.timeout_s
-        conn.watchdog = loop.call_at(watchdog_at, self._watchdog, conn, watchdog_at)
         self._update_schedule()
         log.info(
             "%s connection open: O→T 0x%08X T→O 0x%08X to %s:%d", kind, o2t_id, t2o_id, *conn.peer
@@ -411,13 +410,16 @@ class Target:
             udp.watch(shortest_us is None or shortest_us >= TICK_READ_MAX_RPI_US)
         if shortest_us is None:
             self._wake_period_s = None
+            self._arm_watchdogs()  # input-only and listen-only connections still watch O→T
             if self._ticker is not None:
                 self._ticker.cancel()
                 self._ticker = None
             return
         self._wake_period_s = max(shortest_us / 1e6, BATCH_PERIOD_S)
+        self._arm_watchdogs()
         if self._ticker is not None:
             self._ticker.cancel()
+        self._tick_due = asyncio.get_running_loop().time()
         self._ticker = asyncio.get_running_loop().call_soon(self._tick)
 
     def _read_due_o2t(self) -> None:
@@ -453,6 +455,9 @@ class Target:
         self._read_due_o2t()
         loop = asyncio.get_running_loop()
         now = loop.time()
+        for conn in list(self._by_o2t.values()):
+            if conn.watchdog is None and conn.producing and self._tick_watches(conn):
+                self._watchdog_verdict(conn, now, now - self._tick_due)
         horizon = now + period_s + HORIZON_MARGIN_S
         try:
             self._queue_t2o_until(horizon, now)
@@ -467,7 +472,8 @@ class Target:
                 # Batches: wake while the last packet still waits in the pump, so its queue
                 # never runs empty (an empty pump would wake for O→T, then for our new batch).
                 wake_at -= first.t2o_rpi_us / 2e6
-            self._ticker = loop.call_at(max(now + period_s / 2, wake_at), self._tick)
+            self._tick_due = max(now + period_s / 2, wake_at)
+            self._ticker = loop.call_at(self._tick_due, self._tick)
 
     def _queue_t2o_until(self, horizon: float, now: float) -> None:
         """Queue each producing connection's packets due up to ``horizon``, earliest first."""
@@ -541,27 +547,56 @@ class Target:
             if count:
                 self._queue_t2o(conn, due, due + epoch_minus_loop, rebuild=True)
 
-    def _watchdog(self, conn: IoConnection, armed_for: float) -> None:
-        """Armed for the last O→T packet's time + the timeout; re-armed while packets come.
+    def _tick_watches(self, conn: IoConnection) -> bool:
+        """Whether our batch wake-ups check this connection's watchdog (no timer of its own):
+        while O→T is read at them, if its timeout spans two of them or more."""
+        period_s = self._wake_period_s
+        udp = self._udp
+        return (
+            udp is not None
+            and not udp.watching
+            and period_s is not None
+            and conn.timeout_s >= 2 * period_s
+        )
 
-        Fired more than an O→T RPI late, the loop itself stalled (a busy machine) and O→T
-        packets may be waiting in the socket, unread: the verdict waits one more RPI, after the
-        loop has read its sockets again."""
-        self._read_due_o2t()
-        if conn.watchdog is None:
-            return
+    def _arm_watchdogs(self) -> None:
+        """A timer for each connection the batch wake-ups do not watch."""
         loop = asyncio.get_running_loop()
-        now = loop.time()
+        for conn in self._by_o2t.values():
+            if conn.watchdog is None and conn.producing and not self._tick_watches(conn):
+                deadline = conn.last_rx + conn.timeout_s
+                conn.watchdog = loop.call_at(deadline, self._watchdog, conn, deadline)
+
+    def _watchdog(self, conn: IoConnection, armed_for: float) -> None:
+        """Armed for the last O→T packet's time + the timeout; re-armed while packets come
+        (unless the batch wake-ups took the watch over meanwhile)."""
+        conn.watchdog = None
+        self._read_due_o2t()
+        if not conn.producing or self._tick_watches(conn):
+            return
+        now = asyncio.get_running_loop().time()
+        deadline = self._watchdog_verdict(conn, now, now - armed_for)
+        if deadline is not None:
+            conn.watchdog = asyncio.get_running_loop().call_at(
+                deadline, self._watchdog, conn, deadline
+            )
+
+    def _watchdog_verdict(self, conn: IoConnection, now: float, lag_s: float) -> float | None:
+        """Close the connection if no O→T came for its timeout; else when to look again.
+
+        Looking more than an O→T RPI late, the loop itself stalled (a busy machine) and O→T
+        packets may be waiting, unread: the verdict waits one more RPI, after the loop has read
+        its sockets again."""
         timeout_s = conn.timeout_s
         deadline = conn.last_rx + timeout_s
         rpi_s = conn.o2t_rpi_us / 1e6
-        if now - armed_for > rpi_s:
+        if lag_s > rpi_s:
             deadline = max(deadline, now + rpi_s)
         if now < deadline:
-            conn.watchdog = loop.call_at(deadline, self._watchdog, conn, deadline)
-            return
+            return deadline
         self.counters.watchdog_timeouts += 1
         self._close(conn, f"watchdog: no O→T for {timeout_s * 1e3:.0f} ms (0x0203)")
+        return None
 
     def _o2t_received(self, data: bytes, addr: tuple[str, int], arrived: float) -> None:
         """One O→T datagram, ``arrived`` at that loop time (the kernel's receive time)."""
