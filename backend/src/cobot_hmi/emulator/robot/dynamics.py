@@ -173,14 +173,14 @@ class MotorThermal:
         if dt_s > 0.0:
             keep = math.exp(-dt_s / self.time_constant_s)
             room_c, rise_c = self.room_temperature_c, self.rise_at_rated_current_c
-            # steady_state_c inlined (it runs every step): target + (temperature − target)·keep.
-            self.temperatures_c = tuple(
-                [
-                    (target_c := room_c + rise_c * (current / rated) ** 2)
-                    + (temperature - target_c) * keep
-                    for temperature, current, rated in zip(
-                        self.temperatures_c, currents_a, self.rated_current_a, strict=True
-                    )
-                ]
-            )
+            # steady_state_c inlined, as a plain loop (this runs every step; a comprehension costs
+            # more for six values): target + (temperature − target)·keep.
+            temperatures_c: list[float] = []
+            append = temperatures_c.append
+            for temperature, current, rated in zip(
+                self.temperatures_c, currents_a, self.rated_current_a, strict=True
+            ):
+                target_c = room_c + rise_c * (current / rated) ** 2
+                append(target_c + (temperature - target_c) * keep)
+            self.temperatures_c = tuple(temperatures_c)
         return self.temperatures_c
