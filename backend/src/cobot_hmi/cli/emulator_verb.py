@@ -79,9 +79,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     robot.add_argument(
         "--kinematic-refresh-ms",
         type=float,
-        default=0.0,
+        default=100.0,
         metavar="MS",
-        help="refresh joint/TCP values every MS (100 as the real controller; default 0: always)",
+        help="refresh the monitoring values (joints, TCP, currents, analog inputs) every MS: "
+        "default 100, as the real controller does whatever the RPI (assembly.md); 0: every frame",
     )
     robot.add_argument(
         "--register-map",

@@ -22,6 +22,13 @@ class IdleBehaviour(StrEnum):
 
 
 class ProcessImage(Protocol):
+    @property
+    def data_period_s(self) -> float:
+        """How often the robot's data changes by itself at most (a controller refreshing its
+        monitoring values on a period); 0 when every instant differs. The target then reads
+        it once per wake-up rather than once per packet."""
+        ...
+
     def produce_frame(self, now_s: float) -> Frame:
         """The T→O frame to send now (``now_s``: epoch seconds)."""
         ...

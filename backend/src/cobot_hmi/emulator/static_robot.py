@@ -8,6 +8,8 @@ static frame; the simulated robot (``emulator/robot/``) replaces it.
 
 from __future__ import annotations
 
+import math
+
 from cobot_hmi.codec import CommandImage, Frame, zero_command, zero_frame
 from cobot_hmi.emulator.process_image import IdleBehaviour
 from cobot_hmi.generated.frames import ControllerVersion, RobotState
@@ -51,6 +53,10 @@ class StaticRobot:
             analog_output=command.analog_output,
             bit_output_registers=command.bit_input_registers,
         )
+
+    @property
+    def data_period_s(self) -> float:
+        return math.inf  # it changes only when commanded
 
     def produce_frame(self, now_s: float) -> Frame:
         return self._frame

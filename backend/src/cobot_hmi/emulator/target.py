@@ -479,6 +479,10 @@ class Target:
         """Queue each producing connection's packets due up to ``horizon``, earliest first."""
         producers = [c for c in self._by_o2t.values() if c.producing]
         epoch_minus_loop = time.time() - now
+        # A robot whose data refreshes on its own period (the real controller's monitoring
+        # values: about every 100 ms) is read once per wake-up, its I/O and state at most one
+        # wake-up late; one whose every instant differs, once per packet.
+        tick_data = self._t2o_data(now + epoch_minus_loop) if self._reads_per_tick() else None
         while producers:
             conn = min(producers, key=lambda c: c.t2o_last_due + c.t2o_rpi_us / 1e6)
             period_s = conn.t2o_rpi_us / 1e6
@@ -488,12 +492,24 @@ class Target:
             if due < now - period_s:
                 due = now  # far behind (a stalled loop): resynchronise, never burst
             conn.t2o_last_due = due
-            self._queue_t2o(conn, due, due + epoch_minus_loop, rebuild=False)
+            self._queue_t2o(conn, due, due + epoch_minus_loop, rebuild=False, data=tick_data)
 
-    def _queue_t2o(self, conn: IoConnection, due: float, epoch_s: float, *, rebuild: bool) -> None:
-        """Build the T→O packet due at loop time ``due`` (the frame for ``epoch_s``) and hand it
-        to the pump. ``rebuild``: the packet replaces one taken back (same sequence numbers,
-        same fault verdict; the fault draws and counters were made when it was first built)."""
+    def _reads_per_tick(self) -> bool:
+        return self.process_image.data_period_s > 0
+
+    def _queue_t2o(
+        self,
+        conn: IoConnection,
+        due: float,
+        epoch_s: float,
+        *,
+        rebuild: bool,
+        data: bytes | None = None,
+    ) -> None:
+        """Build the T→O packet due at loop time ``due`` (the frame for ``epoch_s``, unless
+        ``data`` is given) and hand it to the pump. ``rebuild``: the packet replaces one taken
+        back (same sequence numbers, same fault verdict; the fault draws and counters were made
+        when it was first built)."""
         faults = self.faults
         udp = self._udp
         if udp is None:
@@ -501,7 +517,8 @@ class Target:
         if faults.t2o_silent and not rebuild:
             conn.t2o_last_kind = "none"
             return
-        data = self._t2o_data(epoch_s)
+        if data is None:
+            data = self._t2o_data(epoch_s)
         if not rebuild:
             conn.t2o_encap_seq = (conn.t2o_encap_seq + 1) & 0xFFFFFFFF
             conn.t2o_cip_seq = (conn.t2o_cip_seq + 1) & 0xFFFF

@@ -64,7 +64,9 @@ class RobotSettings:
     register_map: tuple[int | None, ...] | None = None
     """Bit output register n ← bit input register ``register_map[n]``; None = identity."""
     kinematic_refresh_ms: float = 0.0
-    """0: monitoring values are fresh in every frame; 100: as often as the real controller."""
+    """0: monitoring values are fresh in every frame; 100: as often as the real controller
+    ("monitoring values refresh about every 100 ms, whatever the RPI": assembly.md; the emulator
+    verb's default)."""
     room_temperature_c: float = 25.0
     thermal_time_constant_s: float = 180.0
     temperature_rise_at_rated_current_c: float = 40.0
@@ -131,6 +133,10 @@ class SimulatedRobot:
         rest (a dwell, a stop, standby) needs them computed once, not every frame."""
         self._monitoring_at_s = -math.inf
         self._frame: Frame | None = None
+        self._frame_sent: Frame | None = None
+        """The last frame produced, kept across changes: an equal new one is replaced by it."""
+        self._analog_noise: tuple[float, ...] = ()
+        self._analog_at_s = -math.inf
         self._frame_at_s: float | None = None
         self._state_and_flags = self._states.state_and_flags()
         """Worked out at every ``_advance``: what the frame reports."""
@@ -224,6 +230,11 @@ class SimulatedRobot:
 
     # ------------------------------------------------------------------ ProcessImage
 
+    @property
+    def data_period_s(self) -> float:
+        """The monitoring refresh period (0: fresh values at every instant)."""
+        return self.settings.kinematic_refresh_ms / 1000.0
+
     def produce_frame(self, now_s: float) -> Frame:
         """The T→O frame to send now."""
         self._advance(now_s)
@@ -247,7 +258,7 @@ class SimulatedRobot:
         io = self._io
         applied = io.applied
         s = self.settings
-        analog_input = io.analog_input(self._noise.take(io.analog_input_count, io.analog_noise))
+        analog_input = self._analog_input_now()
         # Positional, in the layout's field order (the comment names each field): a call with
         # thirty keywords costs about 2 µs more, and this runs for every produced frame. A test
         # (test_robot_motion) checks that values of the same shape stay in their own fields.
@@ -283,8 +294,22 @@ class SimulatedRobot:
             external_moment,  # external_moment
             io.bit_output_registers(),  # bit_output_registers
         )
-        self._frame, self._frame_at_s = frame, self._now_s
+        previous = self._frame_sent
+        if previous is not None and frame == previous:
+            frame = previous  # nothing changed: the same object, so the target reuses its bytes
+        self._frame = self._frame_sent = frame
+        self._frame_at_s = self._now_s
         return frame
+
+    def _analog_input_now(self) -> tuple[float, ...]:
+        """The analog inputs with their noise: drawn each frame when monitoring values are, and
+        with them when those refresh on a period (``kinematic_refresh_ms``), as the controller
+        reports its monitoring data."""
+        io = self._io
+        if self.settings.kinematic_refresh_ms <= 0 or self._monitoring_at_s != self._analog_at_s:
+            self._analog_noise = self._noise.take(io.analog_input_count, io.analog_noise)
+            self._analog_at_s = self._monitoring_at_s
+        return io.analog_input(self._analog_noise)
 
     def consume_command(self, image: CommandImage, now_s: float) -> None:
         """A connection owner in run (or an explicit Set_Attribute_Single) commands the outputs."""
