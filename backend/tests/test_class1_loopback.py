@@ -263,6 +263,40 @@ async def test_originator_counts_gaps_and_malformed(scanner: Factory, target: Ta
     assert originator.state is ConnectionState.CONNECTED
 
 
+async def test_t2o_runs_on_unbroken_between_the_pumps_stream_and_packet_by_packet(
+    scanner: Factory, target: Target, robot: StaticRobot
+) -> None:
+    """T→O leaves as a periodic stream of the pump while the robot's data holds still between
+    wake-ups; a per-packet fault (here a delay) switches to packets built one by one, clearing
+    it switches back. Across both switches the sequence numbers run on: no gap, no repeat, no
+    packet out of order, and the connection's count matches what arrived."""
+    originator = await scanner(rpi_us=2_000)
+    assert await originator.wait_connected(DEADLINE_S)
+    (conn,) = target._by_o2t.values()
+    await eventually(lambda: conn.t2o_streaming)
+    for _ in range(2):
+        before = originator.stats().packets_in
+        target.faults.t2o_delay_ms = 0.5
+        await eventually(lambda: not conn.t2o_streaming)
+        await eventually(lambda b=before: originator.stats().packets_in >= b + 50)
+        target.faults.t2o_delay_ms = 0.0
+        await eventually(lambda: conn.t2o_streaming)
+        # A change to the robot's data goes into the stream.
+        image = command_from_json({"tool_do": {"0": True}}, base=robot.command_image())
+        robot.consume_command(image, 0.0)
+        target.process_image_changed()
+        await eventually(lambda: originator.latest is not None and originator.latest[0].tool_do[0])
+        robot.consume_command(command_from_json({"tool_do": {"0": False}}, base=image), 0.0)
+        target.process_image_changed()
+        await eventually(
+            lambda: originator.latest is not None and not originator.latest[0].tool_do[0]
+        )
+    stats = originator.stats()
+    assert (stats.gaps, stats.duplicates, stats.stale, stats.malformed) == (0, 0, 0, 0)
+    (info,) = target.connections()
+    assert info.packets_out >= stats.packets_in > 100
+
+
 # --------------------------------------------------------------------------- refusals
 
 REFUSALS = [

@@ -248,16 +248,24 @@ class UdpEndpoint:
             raise ValueError(f"a {len(data)}-byte periodic datagram does not fit its counters")
         return bool(result == 0)
 
-    def stop_periodic(self, tag: int) -> tuple[int, int] | None:
-        """Stop the periodic stream ``tag``: the counters its next packet would have carried,
-        or None when there was no such stream."""
+    def periodic_next(self, tag: int, *, stop: bool = False) -> tuple[int, int, float] | None:
+        """The periodic stream ``tag``'s next packet: its 32-bit and 16-bit counters and its
+        due loop time; ``stop`` ends the stream (that packet is not sent). None when there is
+        no such stream."""
         pump = self._pump
         if pump is None:
             return None
-        next32, next16 = ctypes.c_uint32(), ctypes.c_uint16()
-        if self._lib.pump_periodic_stop(pump, tag, ctypes.byref(next32), ctypes.byref(next16)):
+        next32, next16, due_ns = ctypes.c_uint32(), ctypes.c_uint16(), ctypes.c_int64()
+        found = self._lib.pump_periodic_next(
+            pump, tag, int(stop), ctypes.byref(next32), ctypes.byref(next16), ctypes.byref(due_ns)
+        )
+        if found != 0:
             return None
-        return next32.value, next16.value
+        return next32.value, next16.value, due_ns.value * 1e-9
+
+    def stop_periodic(self, tag: int) -> tuple[int, int, float] | None:
+        """Stop the periodic stream ``tag`` (see ``periodic_next``)."""
+        return self.periodic_next(tag, stop=True)
 
     def cancel(self, tag: int, from_due: float = 0.0) -> tuple[int, float | None]:
         """Take back the datagrams of ``tag`` (-1: all) not sent yet and due at or after

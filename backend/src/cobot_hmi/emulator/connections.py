@@ -83,6 +83,15 @@ class IoConnection:
     t2o_last_kind: str = "none"
     """What became of that packet: "sent" (queued as built), "corrupt" (queued cut short by the
     corrupt fault), "dropped" (the drop fault kept it back) or "none"."""
+    t2o_streaming: bool = False
+    """T→O goes out as a periodic stream of the cyclic pump (the robot's data unchanged between
+    our wake-ups and no per-packet fault active), not packet by packet from the queue."""
+    t2o_stream_data: bytes | None = None
+    """The frame bytes the stream sends."""
+    t2o_stream_first_seq: int = 0
+    """The encapsulation sequence number of the stream's first packet."""
+    t2o_stream_counted: int = 0
+    """Packets of the stream already added to ``packets_out``."""
     producing: bool = True
     """False once closed: nothing more is queued for it."""
     watchdog: asyncio.TimerHandle | None = None

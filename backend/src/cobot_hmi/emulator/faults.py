@@ -24,6 +24,12 @@ class TargetFaults:
     refuse_next_forward_open: int | None = None
     """Refuse the next Forward Open with this extended status (general status 0x01)."""
 
+    def per_packet(self) -> bool:
+        """Whether a fault decides packet by packet (so T→O cannot be a periodic stream)."""
+        return bool(
+            self.t2o_drop_percent or self.t2o_delay_ms or self.t2o_silent or self.t2o_corrupt_count
+        )
+
     def reset(self) -> None:
         self.t2o_drop_percent = 0.0
         self.t2o_delay_ms = 0.0

@@ -46,7 +46,7 @@ from cobot_hmi.enip.cpf import CpfItem, ItemType, Sockaddr, decode_sockaddr, soc
 from cobot_hmi.enip.errors import EnipError
 from cobot_hmi.enip.identity import IdentityInfo
 from cobot_hmi.enip.status import ExtendedStatus, GeneralStatus
-from cobot_hmi.udp_endpoint import BATCH_PERIOD_S, UdpEndpoint
+from cobot_hmi.udp_endpoint import BATCH_PERIOD_S, QueueFullError, UdpEndpoint
 
 log = logging.getLogger(__name__)
 
@@ -167,6 +167,9 @@ class Target:
         await asyncio.gather(*self._session_tasks, return_exceptions=True)
 
     def connections(self) -> list[ConnectionInfo]:
+        """A snapshot of every connection (the counts of streamed packets brought up to date,
+        in ``counters`` too)."""
+        self._sync_streamed()
         return [
             ConnectionInfo(
                 c.o2t_id,
@@ -386,6 +389,8 @@ class Target:
         if self._by_o2t.pop(conn.o2t_id, None) is None:
             return
         log.info("%s connection 0x%08X closed: %s", conn.kind, conn.o2t_id, reason)
+        if conn.t2o_streaming:
+            self._stop_stream(conn)
         conn.cancel_timers()
         if self._udp is not None:
             self._udp.cancel(conn.o2t_id)  # what was built ahead for it does not go out
@@ -464,9 +469,12 @@ class Target:
         except Exception:  # a robot bug must not stop the connections' heartbeat
             self.counters.internal_errors += 1
             log.exception("T→O production failed")
-        producing = [c for c in self._by_o2t.values() if c.producing]
-        if producing:
-            first = min(producing, key=lambda c: c.t2o_last_due)
+        queued = [c for c in self._by_o2t.values() if c.producing and not c.t2o_streaming]
+        if any(c.producing for c in self._by_o2t.values()) and not queued:
+            self._tick_due = now + period_s  # streams only: the pump needs nothing from us
+            self._ticker = loop.call_at(self._tick_due, self._tick)
+        elif queued:
+            first = min(queued, key=lambda c: c.t2o_last_due)
             wake_at = first.t2o_last_due
             if period_s > first.t2o_rpi_us / 1e6:
                 # Batches: wake while the last packet still waits in the pump, so its queue
@@ -483,6 +491,13 @@ class Target:
         # values: about every 100 ms) is read once per wake-up, its I/O and state at most one
         # wake-up late; one whose every instant differs, once per packet.
         tick_data = self._t2o_data(now + epoch_minus_loop) if self._reads_per_tick() else None
+        streamable = tick_data is not None and not self.faults.per_packet()
+        for conn in producers:
+            if streamable and tick_data is not None:
+                self._stream_t2o(conn, tick_data, now)
+            elif conn.t2o_streaming:
+                self._stop_stream(conn)
+        producers = [c for c in producers if not c.t2o_streaming]
         while producers:
             conn = min(producers, key=lambda c: c.t2o_last_due + c.t2o_rpi_us / 1e6)
             period_s = conn.t2o_rpi_us / 1e6
@@ -493,6 +508,70 @@ class Target:
                 due = now  # far behind (a stalled loop): resynchronise, never burst
             conn.t2o_last_due = due
             self._queue_t2o(conn, due, due + epoch_minus_loop, rebuild=False, data=tick_data)
+
+    def _stream_t2o(self, conn: IoConnection, data: bytes, now: float) -> None:
+        """T→O of ``conn`` as a periodic stream of the pump carrying ``data``: started after
+        the last packet queued (the sequence numbers run on), or given the new data."""
+        udp = self._udp
+        if udp is None:
+            return
+        if conn.t2o_streaming:
+            if data is not conn.t2o_stream_data:
+                udp.replace_periodic(conn.o2t_id, io.encode_io(conn.t2o_id, 0, 0, data))
+                conn.t2o_stream_data = data
+            return
+        period_s = conn.t2o_rpi_us / 1e6
+        first_due = max(conn.t2o_last_due + period_s, now - period_s)
+        first_seq = (conn.t2o_encap_seq + 1) & 0xFFFFFFFF
+        try:
+            udp.send_every(
+                conn.o2t_id,
+                first_due,
+                period_s,
+                io.encode_io(conn.t2o_id, 0, 0, data),
+                conn.peer,
+                (io.ENCAP_SEQ_OFFSET, first_seq),
+                (io.CIP_SEQ_OFFSET, (conn.t2o_cip_seq + 1) & 0xFFFF),
+            )
+        except QueueFullError:
+            return  # every stream of the pump is taken: this one stays packet by packet
+        conn.t2o_streaming = True
+        conn.t2o_stream_data = data
+        conn.t2o_stream_first_seq = first_seq
+        conn.t2o_stream_counted = 0
+        conn.t2o_last_kind = "streamed"
+
+    def _count_streamed(self, conn: IoConnection, next_seq: int) -> None:
+        sent = (next_seq - conn.t2o_stream_first_seq) & 0xFFFFFFFF
+        delta = sent - conn.t2o_stream_counted
+        conn.t2o_stream_counted = sent
+        conn.packets_out += delta
+        self.counters.t2o_sent += delta
+
+    def _stop_stream(self, conn: IoConnection) -> None:
+        """Back to packet by packet: the queue goes on where the stream stopped."""
+        udp = self._udp
+        conn.t2o_streaming = False
+        conn.t2o_stream_data = None
+        state = udp.stop_periodic(conn.o2t_id) if udp is not None else None
+        if state is None:
+            return
+        next_seq, next_cip, next_due = state
+        self._count_streamed(conn, next_seq)
+        conn.t2o_encap_seq = (next_seq - 1) & 0xFFFFFFFF
+        conn.t2o_cip_seq = (next_cip - 1) & 0xFFFF
+        conn.t2o_last_due = next_due - conn.t2o_rpi_us / 1e6
+        conn.t2o_last_kind = "none"
+
+    def _sync_streamed(self) -> None:
+        udp = self._udp
+        if udp is None:
+            return
+        for conn in self._by_o2t.values():
+            if conn.t2o_streaming:
+                state = udp.periodic_next(conn.o2t_id)
+                if state is not None:
+                    self._count_streamed(conn, state[0])
 
     def _reads_per_tick(self) -> bool:
         return self.process_image.data_period_s > 0
@@ -555,8 +634,12 @@ class Target:
         udp = self._udp
         if udp is None:
             return
-        epoch_minus_loop = time.time() - asyncio.get_running_loop().time()
+        now = asyncio.get_running_loop().time()
+        epoch_minus_loop = time.time() - now
         for conn in self._by_o2t.values():
+            if conn.t2o_streaming:
+                self._stream_t2o(conn, self._t2o_data(now + epoch_minus_loop), now)
+                continue
             if not conn.producing or conn.t2o_last_kind not in ("sent", "corrupt"):
                 continue
             due = conn.t2o_last_due

@@ -129,7 +129,10 @@ def cyclic_pump_library() -> ctypes.CDLL:
             ],
         ),
         "pump_periodic_data": (c_int, [pump, c_int64, ctypes.c_char_p, c_int]),
-        "pump_periodic_stop": (c_int, [pump, c_int64, POINTER(c_uint32), POINTER(c_uint16)]),
+        "pump_periodic_next": (
+            c_int,
+            [pump, c_int64, c_int, POINTER(c_uint32), POINTER(c_uint16), POINTER(c_int64)],
+        ),
         "pump_now_ns": (c_int64, []),
     }
     for name, (restype, argtypes) in signatures.items():

@@ -520,16 +520,19 @@ int pump_periodic_data(pump *p, int64_t tag, const uint8_t *data, int len) {
     return -1;
 }
 
-/* Stop the periodic stream `tag`; the counters its next packet would have carried go to
- * *next32 and *next16. 0, or -1 when there is no such stream. */
-int pump_periodic_stop(pump *p, int64_t tag, uint32_t *next32, uint16_t *next16) {
+/* The periodic stream `tag`'s next packet: its counters and due time into *next32, *next16 and
+ * *next_due_ns; with `stop`, the stream ends (that packet is not sent). 0, or -1 when there is
+ * no such stream. */
+int pump_periodic_next(pump *p, int64_t tag, int stop, uint32_t *next32, uint16_t *next16,
+                       int64_t *next_due_ns) {
     pthread_mutex_lock(&p->lock);
     for (int i = 0; i < PERIODIC_MAX; i++) {
         periodic *s = &p->periodics[i];
         if (s->active && s->tag == tag) {
-            s->active = 0;
+            if (stop) s->active = 0;
             *next32 = s->count32;
             *next16 = s->count16;
+            *next_due_ns = s->due_ns;
             pthread_mutex_unlock(&p->lock);
             return 0;
         }
