@@ -274,15 +274,18 @@ async def test_t2o_runs_on_unbroken_between_the_pumps_stream_and_packet_by_packe
     assert await originator.wait_connected(DEADLINE_S)
     (conn,) = target._by_o2t.values()
     await eventually(lambda: conn.t2o_streaming)
+
     def arrived() -> int:
         return originator.stats().packets_in
 
     for _ in range(2):
-        wanted = arrived() + 50
+
+        def fifty_more(wanted: int = arrived() + 50) -> bool:
+            return arrived() >= wanted
+
         target.faults.t2o_delay_ms = 0.5
         await eventually(lambda: not conn.t2o_streaming)
-        while arrived() < wanted:
-            await asyncio.sleep(0.01)
+        await eventually(fifty_more)
         target.faults.t2o_delay_ms = 0.0
         await eventually(lambda: conn.t2o_streaming)
         # A change to the robot's data goes into the stream.
