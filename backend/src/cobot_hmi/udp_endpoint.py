@@ -2,7 +2,8 @@
 
 The UDP socket of a class 1 endpoint (UDP 2222 on either side) and its cyclic pump
 (``native/cyclic_pump.c``): a C thread that sends the datagrams queued with :meth:`send_at` at
-their due times and reads the socket into a ring with the kernel's receive time of each
+their due times, sends periodic streams (:meth:`send_every`: a template whose two counters it
+raises per packet), and reads the socket into a ring with the kernel's receive time of each
 datagram (``SO_TIMESTAMPNS``). Python hands over whole datagrams, built by ``cobot_hmi.enip``;
 the pump only keeps time.
 
@@ -108,7 +109,8 @@ class UdpEndpoint:
         self._stamps = (ctypes.c_int64 * TAKE_BATCH)()
         self._ips = (ctypes.c_uint32 * TAKE_BATCH)()
         self._ports = (ctypes.c_uint16 * TAKE_BATCH)()
-        self._hosts: dict[int, str] = {}
+        self._view = memoryview(self._buffer)
+        self._sources: dict[int, tuple[str, int]] = {}
         self._addresses: dict[tuple[str, int], tuple[int, int]] = {}
         self._first_due = ctypes.c_int64()
 
@@ -132,35 +134,35 @@ class UdpEndpoint:
 
     def drain(self) -> None:
         """Hand every datagram received so far to ``on_packet``, in arrival order."""
-        lib, on_packet = self._lib, self._on_packet
-        buffer, lens, stamps, ips, ports = (
-            self._buffer,
-            self._lens,
-            self._stamps,
-            self._ips,
-            self._ports,
-        )
-        hosts = self._hosts
+        lib, on_packet, view = self._lib, self._on_packet, self._view
+        buffer_c, size = self._buffer_c, len(self._buffer)
+        lens, stamps, ips, ports = self._lens, self._stamps, self._ips, self._ports
         handed = 0
         while (pump := self._pump) is not None:
-            count = lib.pump_take(
-                pump, 1, self._buffer_c, len(buffer), lens, stamps, ips, ports, TAKE_BATCH
-            )
-            offset = 0
-            for i in range(count):
-                length = lens[i]
-                data = bytes(buffer[offset : offset + length])
-                offset += length
-                ip = ips[i]
-                host = hosts.get(ip)
-                if host is None:
-                    host = hosts[ip] = socket.inet_ntoa(struct.pack("!I", ip))
-                on_packet(data, (host, ports[i]), stamps[i] * 1e-9)
-            handed += count
+            count = lib.pump_take(pump, 1, buffer_c, size, lens, stamps, ips, ports, TAKE_BATCH)
+            if count:
+                # Whole arrays out of ctypes at once (indexing them one by one costs more).
+                offset = 0
+                for length, stamp, ip, port in zip(
+                    lens[:count], stamps[:count], ips[:count], ports[:count], strict=True
+                ):
+                    data = bytes(view[offset : offset + length])
+                    offset += length
+                    on_packet(data, self._source(ip, port), stamp * 1e-9)
+                handed += count
             if count < TAKE_BATCH:
                 break
         if handed and self._on_batch is not None:
             self._on_batch()
+
+    def _source(self, ip: int, port: int) -> tuple[str, int]:
+        key = ip << 16 | port
+        source = self._sources.get(key)
+        if source is None:
+            source = (socket.inet_ntoa(struct.pack("!I", ip)), port)
+            if len(self._sources) < 4096:  # a flood of forged sources must not grow it forever
+                self._sources[key] = source
+        return source
 
     # ------------------------------------------------------------------ sending
 
@@ -299,6 +301,7 @@ class UdpEndpoint:
         sock, self._sock = self._sock, None
         if sock is not None:
             sock.close()
+        self._view.release()
 
 
 __all__ = ["BATCH_PERIOD_S", "PacketHandler", "QueueFullError", "UdpEndpoint"]

@@ -51,10 +51,11 @@ from cobot_hmi.udp_endpoint import BATCH_PERIOD_S, QueueFullError, UdpEndpoint
 log = logging.getLogger(__name__)
 
 TICK_READ_MAX_RPI_US = round(BATCH_PERIOD_S * 1e6)
-"""While a connection produces T→O at a shorter RPI, we wake once per ``BATCH_PERIOD_S`` (not
-per packet): each wake-up reads the O→T packets that came meanwhile (with their kernel receive
-times) and builds the next batch of T→O packets, each for the instant it is due. At this RPI or
-longer we wake once per packet, and O→T is read as it arrives."""
+"""While a connection produces T→O at a shorter RPI, we wake once per
+``TargetSettings.batch_period_s`` (not per packet): each wake-up reads the O→T packets that came
+meanwhile (with their kernel receive times) and builds the next batch of T→O packets (or hands
+the pump new data for its periodic stream). At this RPI or longer we wake once per packet, and
+O→T is read as it arrives."""
 HORIZON_MARGIN_S = 0.001
 """How far past the next wake-up T→O is built ahead: a wake-up that comes up to this late still
 finds the pump with a packet to send."""
@@ -420,7 +421,11 @@ class Target:
                 self._ticker.cancel()
                 self._ticker = None
             return
-        self._wake_period_s = max(shortest_us / 1e6, BATCH_PERIOD_S)
+        self._wake_period_s = (
+            shortest_us / 1e6
+            if shortest_us >= TICK_READ_MAX_RPI_US
+            else max(shortest_us / 1e6, self.settings.batch_period_s)
+        )
         self._arm_watchdogs()
         if self._ticker is not None:
             self._ticker.cancel()
@@ -649,14 +654,15 @@ class Target:
 
     def _tick_watches(self, conn: IoConnection) -> bool:
         """Whether our batch wake-ups check this connection's watchdog (no timer of its own):
-        while O→T is read at them, if its timeout spans two of them or more."""
+        while O→T is read at them, if its timeout spans one of them or more (a verdict then
+        comes at most one wake-up late)."""
         period_s = self._wake_period_s
         udp = self._udp
         return (
             udp is not None
             and not udp.watching
             and period_s is not None
-            and conn.timeout_s >= 2 * period_s
+            and conn.timeout_s >= period_s
         )
 
     def _arm_watchdogs(self) -> None:

@@ -169,6 +169,8 @@ class _Link:
     """Loop time of the last new frame."""
     last_rx: float = 0.0
     """Loop time the kernel received the last accepted T→O packet."""
+    last_payload: tuple[bytes, Frame] | None = None
+    """The last T→O payload decoded, and its frame."""
     o2t: O2TStream | None = None
 
 
@@ -608,11 +610,18 @@ class Originator:
             if ahead > 1:
                 self.gaps += ahead - 1
         link.last_t2o_cip_seq = packet.cip_seq
-        try:
-            frame = decode_frame(payload)
-        except CodecError:
-            self.malformed += 1
-            return
+        decoded = link.last_payload
+        if decoded is not None and payload == decoded[0]:
+            # The same bytes as the last frame (a robot refreshes its monitoring values about
+            # every 100 ms, whatever the RPI): the same immutable Frame, decoded once.
+            frame = decoded[1]
+        else:
+            try:
+                frame = decode_frame(payload)
+            except CodecError:
+                self.malformed += 1
+                return
+            link.last_payload = (payload, frame)
         # Epoch seconds the kernel received it (read in batches, so not "now").
         received_at = now + (time.time() - time.monotonic())
         previous = link.last_frame_at
