@@ -166,13 +166,10 @@ static void kick(pump *p) {
 static void drain_socket(pump *p) {
     int64_t mono_minus_real = mono_ns() - clock_ns(CLOCK_REALTIME);
     for (int n = 0; n < 1024; n++) {
-        int slot;
-        if (p->ring_count == p->ring_cap) {
-            p->ring_head = (p->ring_head + 1) % p->ring_cap;
-            p->ring_count--;
-            p->counters[C_RING_OVERFLOWS]++;
-        }
-        slot = (p->ring_head + p->ring_count) % p->ring_cap;
+        /* The next slot; in a full ring that is the oldest one's, given up only once a
+         * datagram has really come (recvmsg leaves the buffer alone when nothing has). */
+        int full = p->ring_count == p->ring_cap;
+        int slot = (p->ring_head + p->ring_count) % p->ring_cap;
         struct sockaddr_in from;
         struct iovec iov = {p->ring_data + (size_t)slot * (size_t)p->ring_bytes, (size_t)p->ring_bytes};
         union { struct cmsghdr align; char buf[CMSG_SPACE(sizeof(struct timespec))]; } control;
@@ -205,7 +202,12 @@ static void drain_socket(pump *p) {
         /* A datagram longer than the slot arrives cut to it (MSG_TRUNC): report it one byte too
          * long, so the owner sees it as oversized rather than as a shorter valid packet. */
         m->len = (msg.msg_flags & MSG_TRUNC) ? p->ring_bytes : (int32_t)got;
-        p->ring_count++;
+        if (full) {
+            p->ring_head = (p->ring_head + 1) % p->ring_cap;
+            p->counters[C_RING_OVERFLOWS]++;
+        } else {
+            p->ring_count++;
+        }
         p->counters[C_RECEIVED]++;
     }
 }

@@ -1,0 +1,177 @@
+"""The cyclic pump (``native/cyclic_pump.c``) through ``UdpEndpoint``, over real sockets on
+loopback: the send queue (due order, taking back), periodic streams (counters written and raised
+per packet, wrapping; a new template from the next packet; where a stopped stream would have
+gone on), the receive ring (kernel receive times, a datagram too long for its slot still seen
+as too long, a full ring keeping the newest) and batched wake-ups. Deadlines are generous:
+nothing here asserts a timing figure.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import socket
+import struct
+from collections.abc import AsyncIterator, Callable
+
+import pytest
+
+from cobot_hmi.native import build
+from cobot_hmi.udp_endpoint import RING_SLOTS, UdpEndpoint
+
+DEADLINE_S = 5.0
+Received = list[tuple[bytes, tuple[str, int], float]]
+
+
+async def eventually(check: Callable[[], bool], timeout_s: float = DEADLINE_S) -> None:
+    loop = asyncio.get_running_loop()
+    end = loop.time() + timeout_s
+    while not check():
+        assert loop.time() < end, "condition not reached in time"
+        await asyncio.sleep(0.005)
+
+
+@pytest.fixture
+async def pair(plc_host: str, robot_host: str) -> AsyncIterator[tuple[UdpEndpoint, Received]]:
+    """A sending endpoint and what a watching endpoint on another address receives."""
+    received: Received = []
+    receiver = UdpEndpoint(
+        robot_host, 0, lambda d, a, t: received.append((d, a, t)), receive_size=64
+    )
+    receiver.watch(True)
+    sender = UdpEndpoint(plc_host, 0, lambda *_: None, receive_size=64)
+    sender.peer = (robot_host, receiver.port)  # type: ignore[attr-defined]
+    try:
+        yield sender, received
+    finally:
+        sender.close()
+        receiver.close()
+
+
+def test_the_library_builds() -> None:
+    assert build().name == "libcyclic_pump.so"
+
+
+async def test_queued_datagrams_leave_in_due_order_and_can_be_taken_back(
+    pair: tuple[UdpEndpoint, Received],
+) -> None:
+    sender, received = pair
+    peer = sender.peer  # type: ignore[attr-defined]
+    now = asyncio.get_running_loop().time()
+    for label, delay_s in ((b"c", 0.06), (b"a", 0.02), (b"b", 0.04), (b"x", 0.5), (b"y", 0.6)):
+        sender.send_at(now + delay_s, label, peer, tag=7 if label in b"xy" else 1)
+    assert sender.queued(7) == 2
+    count, first_due = sender.cancel(7)
+    assert count == 2
+    assert first_due == pytest.approx(now + 0.5, abs=1e-6)
+    await eventually(lambda: len(received) == 3)
+    assert [d for d, _, _ in received] == [b"a", b"b", b"c"]
+    await asyncio.sleep(0.7)
+    assert len(received) == 3, "what was taken back never left"
+    assert sender.counters()["sent"] == 3
+
+
+async def test_a_periodic_stream_raises_its_counters_per_packet_and_wraps(
+    pair: tuple[UdpEndpoint, Received],
+) -> None:
+    sender, received = pair
+    peer = sender.peer  # type: ignore[attr-defined]
+    template = bytes(4) + b"data" + bytes(2)
+    now = asyncio.get_running_loop().time()
+    sender.send_every(3, now, 0.002, template, peer, (0, 0xFFFFFFFE), (8, 0xFFFE))
+    await eventually(lambda: len(received) >= 4)
+    sender.replace_periodic(3, bytes(4) + b"DATA" + bytes(2))
+    await eventually(lambda: any(b"DATA" in d for d, _, _ in received))
+    count_before = len(received)
+    state = sender.stop_periodic(3)
+    assert state is not None
+    next32, next16, next_due = state
+    await asyncio.sleep(0.02)
+    packets = [d for d, _, _ in received]
+    assert len(packets) <= count_before + 1, "stopped"
+    counters = [struct.unpack_from("<I", p)[0] for p in packets]
+    assert counters[:3] == [0xFFFFFFFE, 0xFFFFFFFF, 0]
+    assert [struct.unpack_from("<H", p, 8)[0] for p in packets[:3]] == [0xFFFE, 0xFFFF, 0]
+    assert counters == [(0xFFFFFFFE + i) & 0xFFFFFFFF for i in range(len(packets))]
+    assert next32 == (counters[-1] + 1) & 0xFFFFFFFF
+    assert next16 == (0xFFFE + len(packets)) & 0xFFFF
+    assert next_due >= now + len(packets) * 0.002 - 1e-6
+    first_new = next(i for i, p in enumerate(packets) if b"DATA" in p)
+    assert all(b"DATA" in p for p in packets[first_new:]), "the new template from then on"
+    assert sender.stop_periodic(3) is None
+
+
+async def test_a_stream_template_must_hold_its_counters(
+    pair: tuple[UdpEndpoint, Received],
+) -> None:
+    sender, _ = pair
+    peer = sender.peer  # type: ignore[attr-defined]
+    now = asyncio.get_running_loop().time()
+    with pytest.raises(ValueError, match="does not fit"):
+        sender.send_every(4, now, 0.01, b"abc", peer, (0, 1))
+    sender.send_every(4, now + 10, 0.01, bytes(8), peer, (4, 1))
+    with pytest.raises(ValueError, match="does not fit"):
+        sender.replace_periodic(4, bytes(6))
+    assert sender.replace_periodic(5, bytes(8)) is False, "no such stream"
+
+
+async def test_a_full_ring_keeps_the_newest_with_their_sources_and_times(
+    plc_host: str,
+) -> None:
+    received: Received = []
+    endpoint = UdpEndpoint(plc_host, 0, lambda d, a, t: received.append((d, a, t)), receive_size=64)
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sender:
+            sender.bind((plc_host, 0))
+            sender.sendto(bytes(100), (plc_host, endpoint.port))  # longer than a slot
+            for i in range(RING_SLOTS + 9):
+                sender.sendto(struct.pack("<I", i), (plc_host, endpoint.port))
+                if i % 32 == 31:
+                    await asyncio.sleep(0.005)  # let the pump keep up with the socket
+            source = sender.getsockname()
+        await eventually(lambda: endpoint.counters()["received"] == RING_SLOTS + 10)
+        endpoint.drain()
+        overflows = endpoint.counters()["ring_overflows"]
+    finally:
+        endpoint.close()
+    assert len(received) == RING_SLOTS, "a full ring drops the oldest"
+    assert [struct.unpack("<I", d)[0] for d, _, _ in received] == list(range(9, RING_SLOTS + 9))
+    assert all(addr == source for _, addr, _ in received)
+    times = [t for _, _, t in received]
+    assert times == sorted(times)
+    assert overflows == 10
+
+
+async def test_a_datagram_too_long_for_the_slot_is_seen_too_long(plc_host: str) -> None:
+    received: Received = []
+    endpoint = UdpEndpoint(plc_host, 0, lambda d, a, t: received.append((d, a, t)), receive_size=64)
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sender:
+            sender.sendto(bytes(100), (plc_host, endpoint.port))
+        await eventually(lambda: endpoint.counters()["received"] == 1)
+        endpoint.drain()
+    finally:
+        endpoint.close()
+    assert len(received[0][0]) == 64, "cut to the slot, so longer than any accepted packet"
+
+
+async def test_watching_in_batches_wakes_the_owner_once_per_batch(plc_host: str) -> None:
+    received: Received = []
+    batches: list[int] = []
+    endpoint = UdpEndpoint(
+        plc_host,
+        0,
+        lambda d, a, t: received.append((d, a, t)),
+        receive_size=64,
+        on_batch=lambda: batches.append(len(received)),
+    )
+    endpoint.watch(True, 0.05)
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sender:
+            for i in range(20):
+                sender.sendto(bytes([i]), (plc_host, endpoint.port))
+                await asyncio.sleep(0.001)
+        await eventually(lambda: len(received) == 20)
+    finally:
+        endpoint.close()
+    assert len(batches) <= 3, f"20 datagrams in {len(batches)} wake-ups"
+    assert [d[0] for d, _, _ in received] == list(range(20))
