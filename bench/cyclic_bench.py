@@ -172,6 +172,7 @@ async def run_class1(  # noqa: PLR0917
         "scanner_pump": {
             "wakeups": pump_after["wakeups"] - pump_before["wakeups"],
             "max_late_ms": pump_after["max_late_ns"] / 1e6,
+            "realtime": bool(pump_after.get("realtime")),
         },
         "emulator_pump": status.get("pump", {}),
         "losses": losses,
@@ -317,9 +318,13 @@ def report(
             f"max {fmt(d['max_ms'], ' ms')}"
         )
     pump = class1["scanner_pump"]
+    emulator_pump = class1["emulator_pump"]
     print(
-        f"  scanner's cyclic pump: {pump['wakeups'] / max(class1['frames'], 1):.2f} wake-ups per "
-        f"frame, latest O→T send {pump['max_late_ms']:.3f} ms after its due time (since start)"
+        f"  cyclic pumps: scanner {pump['wakeups'] / max(class1['frames'], 1):.2f} wake-ups per "
+        f"frame, latest O→T send {pump['max_late_ms']:.3f} ms after its due time (since start); "
+        f"latest T→O send {emulator_pump.get('max_late_ns', 0) / 1e6:.3f} ms; real-time priority: "
+        f"scanner {'yes' if pump['realtime'] else 'no'}, "
+        f"emulator {'yes' if emulator_pump.get('realtime') else 'no'}"
     )
     losses = class1["losses"]
     print(f"  connection losses {len(losses)}" + (f": {'; '.join(losses)}" if losses else ""))

@@ -285,12 +285,20 @@ class UdpEndpoint:
         return 0 if pump is None else int(self._lib.pump_queued(pump, tag))
 
     def counters(self) -> dict[str, int]:
-        """The pump's: sent, send errors, received, ring overflows, wake-ups, and the latest a
-        queued datagram left after its due time (ns)."""
-        values = (ctypes.c_int64 * 6)()
+        """The pump's: sent, send errors, received, ring overflows, wake-ups, the latest a
+        datagram left after its due time (ns), and 1 if its thread got real-time priority."""
+        values = (ctypes.c_int64 * 7)()
         if self._pump is not None:
             self._lib.pump_counters(self._pump, values)
-        names = ("sent", "send_errors", "received", "ring_overflows", "wakeups", "max_late_ns")
+        names = (
+            "sent",
+            "send_errors",
+            "received",
+            "ring_overflows",
+            "wakeups",
+            "max_late_ns",
+            "realtime",
+        )
         return dict(zip(names, values, strict=True))
 
     def close(self) -> None:

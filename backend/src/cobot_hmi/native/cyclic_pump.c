@@ -29,6 +29,7 @@
 #include <netinet/in.h>
 #include <poll.h>
 #include <pthread.h>
+#include <sched.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -72,7 +73,21 @@ typedef struct {
     uint8_t *data;
 } periodic;
 
-enum { C_SENT, C_SEND_ERRORS, C_RECEIVED, C_RING_OVERFLOWS, C_WAKEUPS, C_MAX_LATE_NS, C_COUNT };
+enum {
+    C_SENT,
+    C_SEND_ERRORS,
+    C_RECEIVED,
+    C_RING_OVERFLOWS,
+    C_WAKEUPS,
+    C_MAX_LATE_NS,
+    C_REALTIME, /* 1 when the thread runs SCHED_FIFO */
+    C_COUNT
+};
+
+/* Real-time priority of the thread when the system allows it (as a PLC runtime's I/O task):
+ * low among real-time priorities, and the thread sleeps between packets, so it only ever
+ * preempts ordinary work for the microseconds a packet takes. */
+#define PUMP_FIFO_PRIORITY 10
 
 typedef struct pump {
     int fd;
@@ -279,6 +294,9 @@ static void send_due(pump *p, int64_t now) {
 static void *run(void *arg) {
     pump *p = arg;
     prctl(PR_SET_TIMERSLACK, 1000UL, 0, 0, 0); /* wake within 1 us, not Linux's 50 us */
+    struct sched_param priority = {.sched_priority = PUMP_FIFO_PRIORITY};
+    /* Best effort: without the right (CAP_SYS_NICE, RLIMIT_RTPRIO) it stays an ordinary one. */
+    p->counters[C_REALTIME] = pthread_setschedparam(pthread_self(), SCHED_FIFO, &priority) == 0;
     while (p->running) {
         pthread_mutex_lock(&p->lock);
         int64_t now = mono_ns();
@@ -455,7 +473,7 @@ int pump_take(pump *p, int drain_first, uint8_t *buf, int buf_len, int32_t *lens
 }
 
 /* sent, send errors, received, ring overflows, thread wake-ups, latest send behind its due
- * time (ns). */
+ * time (ns), whether the thread runs at real-time priority. */
 void pump_counters(pump *p, int64_t *out) {
     pthread_mutex_lock(&p->lock);
     memcpy(out, p->counters, sizeof p->counters);
