@@ -175,3 +175,29 @@ async def test_watching_in_batches_wakes_the_owner_once_per_batch(plc_host: str)
         endpoint.close()
     assert len(batches) <= 3, f"20 datagrams in {len(batches)} wake-ups"
     assert [d[0] for d, _, _ in received] == list(range(20))
+
+
+async def test_silence_wakes_the_owner_once(plc_host: str) -> None:
+    """Not watching, the owner still hears once that nothing has come for ``silence_s`` (a
+    watchdog's cue), and not again until datagrams have come back and stopped again."""
+    wakeups: list[int] = []
+    received: Received = []
+    endpoint = UdpEndpoint(
+        plc_host,
+        0,
+        lambda d, a, t: received.append((d, a, t)),
+        receive_size=64,
+        on_batch=lambda: wakeups.append(len(received)),
+    )
+    endpoint.watch(False, silence_s=0.03)
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sender:
+            sender.sendto(b"one", (plc_host, endpoint.port))
+            await eventually(lambda: wakeups == [1])
+            await asyncio.sleep(0.1)
+            assert wakeups == [1], "once per silence"
+            sender.sendto(b"two", (plc_host, endpoint.port))
+            await eventually(lambda: wakeups == [1, 2])
+    finally:
+        endpoint.close()
+    assert [d for d, _, _ in received] == [b"one", b"two"]

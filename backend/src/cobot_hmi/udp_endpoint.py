@@ -48,11 +48,11 @@ RING_SLOTS: Final = 256
 oldest: 0.5 s of packets at RPI 2 ms)."""
 QUEUE_SLOTS: Final = 256
 """Datagrams queued ahead at most."""
-NEVER_NS: Final = 1 << 62
 BATCH_PERIOD_S: Final = 0.010
-"""How often an owner wakes while its connection runs at a shorter RPI: the packets of the next
-``BATCH_PERIOD_S`` are queued ahead, and what arrived meanwhile is read at once. 10 ms: one
-wake-up per 5 packets at RPI 2 ms; nothing a person watching the data can see."""
+"""Below this RPI an owner wakes once per batch rather than once per packet (its own batch
+period: ``TargetSettings.batch_period_s``, ``OriginatorSettings.t2o_batch_s``); at it and above,
+once per packet, so the service's default RPI (10 ms) keeps a command one packet away. Also
+the O→T stream's default wake period."""
 
 PacketHandler = Callable[[bytes, tuple[str, int], float], None]
 """``(data, source address, loop time the kernel received it)``."""
@@ -76,7 +76,8 @@ class UdpEndpoint:
         """``receive_size``: one more than the longest datagram the owner accepts (a longer one
         then arrives as exactly this long, still too long). Every datagram carries the kernel's
         receive time; ``kernel_timestamps`` False uses the pump's read time instead.
-        ``on_batch``: called after a ``drain`` that handed on at least one datagram."""
+        ``on_batch``: called after each wake-up ``watch`` asked for (a batch, or a silence),
+        once what came has been handed on."""
         self._loop = asyncio.get_running_loop()
         self._on_packet = on_packet
         self._on_batch = on_batch
@@ -103,6 +104,7 @@ class UdpEndpoint:
         self._notify_fd: int = lib.pump_notify_fd(pump)
         self.port: int = sock.getsockname()[1]
         self.watching = False
+        self._reading = False
         self._buffer = bytearray(TAKE_BATCH * receive_size)
         self._buffer_c = (ctypes.c_char * len(self._buffer)).from_buffer(self._buffer)
         self._lens = (ctypes.c_int32 * TAKE_BATCH)()
@@ -116,28 +118,34 @@ class UdpEndpoint:
 
     # ------------------------------------------------------------------ receiving
 
-    def watch(self, on: bool, batch_s: float = 0.0) -> None:
+    def watch(self, on: bool, batch_s: float = 0.0, *, silence_s: float = 0.0) -> None:
         """Wake the owner for arriving datagrams (True: at once, or at most every ``batch_s``),
-        or never (False: the owner calls ``drain``)."""
+        or not (False: the owner calls ``drain`` from its own timer); either way, once when no
+        datagram has come for ``silence_s`` (0: never), a watchdog's cue. Each such wake-up
+        reads what came, then calls ``on_batch``."""
         pump = self._pump
         if pump is None:
             return
+        silence_ns = round(silence_s * 1e9)
         if on:
-            self._lib.pump_configure(pump, 0 if batch_s else 1, round(batch_s * 1e9))
-            if not self.watching:
-                self._loop.add_reader(self._notify_fd, self.drain)
+            self._lib.pump_configure(pump, 0 if batch_s else 1, round(batch_s * 1e9), silence_ns)
         else:
-            self._lib.pump_configure(pump, 0, NEVER_NS)
-            if self.watching:
-                self._loop.remove_reader(self._notify_fd)
+            self._lib.pump_configure(pump, 0, -1, silence_ns)  # -1: no batch notifications
+        if not self._reading:
+            self._loop.add_reader(self._notify_fd, self._notified)
+            self._reading = True
         self.watching = on
+
+    def _notified(self) -> None:
+        self.drain()
+        if self._on_batch is not None:
+            self._on_batch()
 
     def drain(self) -> None:
         """Hand every datagram received so far to ``on_packet``, in arrival order."""
         lib, on_packet, view = self._lib, self._on_packet, self._view
         buffer_c, size = self._buffer_c, len(self._buffer)
         lens, stamps, ips, ports = self._lens, self._stamps, self._ips, self._ports
-        handed = 0
         while (pump := self._pump) is not None:
             count = lib.pump_take(pump, 1, buffer_c, size, lens, stamps, ips, ports, TAKE_BATCH)
             if count:
@@ -149,11 +157,8 @@ class UdpEndpoint:
                     data = bytes(view[offset : offset + length])
                     offset += length
                     on_packet(data, self._source(ip, port), stamp * 1e-9)
-                handed += count
             if count < TAKE_BATCH:
                 break
-        if handed and self._on_batch is not None:
-            self._on_batch()
 
     def _source(self, ip: int, port: int) -> tuple[str, int]:
         key = ip << 16 | port
@@ -302,7 +307,10 @@ class UdpEndpoint:
         return dict(zip(names, values, strict=True))
 
     def close(self) -> None:
-        self.watch(False)
+        if self._reading:
+            self._loop.remove_reader(self._notify_fd)
+            self._reading = False
+        self.watching = False
         pump, self._pump = self._pump, None
         if pump is not None:
             self._lib.pump_free(pump)  # stops and joins the thread first

@@ -54,11 +54,12 @@ class TargetSettings:
     identity: IdentityInfo = field(default_factory=default_identity)
     seed: int = 0
     """Seed of the random numbers for connection IDs and fault drops."""
-    batch_period_s: float = 0.020
-    """How often the target wakes while a connection runs at an RPI under 10 ms (the controller
-    cycle of the emulated robot): it reads the O→T that came meanwhile and the robot's data
-    once per wake-up, so a command or an event is in T→O at most this much later. At 10 ms
-    and longer it wakes once per packet."""
+    batch_period_s: float = 0.040
+    """How often the target wakes while a connection runs at an RPI under 10 ms (the I/O cycle
+    of the emulated controller): it reads the O→T that came meanwhile and the robot's data once
+    per wake-up, so a command or an event is in T→O at most this much later (each wake-up costs
+    far more CPU than a packet: docs/protocol.md "Timing"). At 10 ms and longer it wakes once
+    per packet. Watchdogs do not wait for it (the pump reports silence)."""
 
     @property
     def o2t_connection_size(self) -> int:

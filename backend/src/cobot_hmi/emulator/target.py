@@ -123,6 +123,7 @@ class Target:
             self._o2t_received,
             receive_size=io.MAX_DATAGRAM + 1,
             kernel_timestamps=True,
+            on_batch=self._o2t_woke_us,
         )
         udp.watch(True)
         self._udp = udp
@@ -412,20 +413,26 @@ class Target:
         producing = [c.t2o_rpi_us for c in self._by_o2t.values() if c.producing]
         shortest_us = min(producing, default=None)
         udp = self._udp
-        if udp is not None:
-            udp.watch(shortest_us is None or shortest_us >= TICK_READ_MAX_RPI_US)
         if shortest_us is None:
+            if udp is not None:
+                udp.watch(True)
             self._wake_period_s = None
             self._arm_watchdogs()  # input-only and listen-only connections still watch O→T
             if self._ticker is not None:
                 self._ticker.cancel()
                 self._ticker = None
             return
+        per_packet = shortest_us >= TICK_READ_MAX_RPI_US
         self._wake_period_s = (
             shortest_us / 1e6
-            if shortest_us >= TICK_READ_MAX_RPI_US
+            if per_packet
             else max(shortest_us / 1e6, self.settings.batch_period_s)
         )
+        if udp is not None:
+            # In batches, the pump wakes us once O→T has been silent for the shortest timeout:
+            # a watchdog verdict then comes at once, not at the next batch.
+            timeouts = [c.timeout_s for c in self._by_o2t.values() if c.producing]
+            udp.watch(per_packet, silence_s=0.0 if per_packet else min(timeouts))
         self._arm_watchdogs()
         if self._ticker is not None:
             self._ticker.cancel()
@@ -652,17 +659,29 @@ class Target:
             if count:
                 self._queue_t2o(conn, due, due + epoch_minus_loop, rebuild=True)
 
+    def _o2t_woke_us(self) -> None:
+        """The pump woke us for O→T (read now): per packet, the watchdog timers do the rest; in
+        batches this is its word that O→T fell silent, so judge the batch-watched connections."""
+        udp = self._udp
+        if udp is None or udp.watching:
+            return
+        now = asyncio.get_running_loop().time()
+        for conn in list(self._by_o2t.values()):
+            if conn.watchdog is None and conn.producing and self._tick_watches(conn):
+                self._watchdog_verdict(conn, now, 0.0)
+
     def _tick_watches(self, conn: IoConnection) -> bool:
         """Whether our batch wake-ups check this connection's watchdog (no timer of its own):
-        while O→T is read at them, if its timeout spans one of them or more (a verdict then
-        comes at most one wake-up late)."""
+        while O→T is read at them, if its timeout spans half of one or more. The pump wakes us
+        when O→T has been silent for the shortest such timeout, so the verdict is not left to
+        the next batch."""
         period_s = self._wake_period_s
         udp = self._udp
         return (
             udp is not None
             and not udp.watching
             and period_s is not None
-            and conn.timeout_s >= period_s
+            and conn.timeout_s >= period_s / 2
         )
 
     def _arm_watchdogs(self) -> None:

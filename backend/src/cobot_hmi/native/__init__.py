@@ -92,7 +92,7 @@ def cyclic_pump_library() -> ctypes.CDLL:
         "pump_start": (c_int, [pump]),
         "pump_stop": (None, [pump]),
         "pump_free": (None, [pump]),
-        "pump_configure": (None, [pump, c_int, c_int64]),
+        "pump_configure": (None, [pump, c_int, c_int64, c_int64]),
         "pump_queue": (c_int, [pump, c_int64, c_uint32, c_uint16, ctypes.c_char_p, c_int, c_int64]),
         "pump_cancel": (c_int, [pump, c_int64, c_int64, POINTER(c_int64)]),
         "pump_queued": (c_int, [pump, c_int64]),

@@ -19,7 +19,9 @@
  *     with the datagram.
  *   - notification: an eventfd Python's event loop watches, written when the ring holds data and
  *     at least `notify_interval` has passed since the last notification, so Python wakes once
- *     per batch of packets instead of once per packet (0: at once).
+ *     per batch of packets instead of once per packet (0: at once); and once when no datagram
+ *     has come for `silence` (a watchdog's cue: Python then looks at once, not at its next
+ *     batch).
  *
  * It knows nothing of EtherNet/IP. Loaded with ctypes (no Python headers needed): the calls
  * below are the whole interface, and each holds the lock for microseconds only.
@@ -114,6 +116,9 @@ typedef struct pump {
 
     int read_on_readable;
     int64_t notify_interval_ns;
+    int64_t silence_ns; /* 0: off */
+    int64_t last_rx_ns; /* receive time of the newest datagram, 0 before the first */
+    int silence_reported;
     int64_t last_notify_ns;
     int notified;
     int64_t sleeping_until;
@@ -212,6 +217,8 @@ static void drain_socket(pump *p) {
         }
         ring_meta *m = &p->ring[slot];
         m->stamp_ns = stamp >= 0 ? stamp : mono_ns();
+        p->last_rx_ns = m->stamp_ns;
+        p->silence_reported = 0;
         m->ip = ntohl(from.sin_addr.s_addr);
         m->port = ntohs(from.sin_port);
         /* A datagram longer than the slot arrives cut to it (MSG_TRUNC): report it one byte too
@@ -306,7 +313,7 @@ static void *run(void *arg) {
         int i = earliest(p);
         if (i >= 0 && p->queue[i].due_ns < next) next = p->queue[i].due_ns;
         int sending = next != NEVER;
-        if (p->ring_count > 0 && !p->notified) {
+        if (p->ring_count > 0 && !p->notified && p->notify_interval_ns >= 0) {
             int64_t notify_at = p->last_notify_ns + p->notify_interval_ns;
             if (notify_at <= now) {
                 uint64_t one = 1;
@@ -316,6 +323,18 @@ static void *run(void *arg) {
                 p->last_notify_ns = now;
             } else if (next == NEVER || next - notify_at > p->notify_interval_ns) {
                 next = notify_at; /* else the next send's wake-up notifies, one wake-up less */
+            }
+        }
+        if (p->silence_ns > 0 && p->last_rx_ns > 0 && !p->silence_reported) {
+            int64_t quiet_until = p->last_rx_ns + p->silence_ns;
+            if (quiet_until <= now) {
+                uint64_t one = 1;
+                ssize_t ignored = write(p->notify_fd, &one, sizeof one);
+                (void)ignored;
+                p->notified = 1;
+                p->silence_reported = 1;
+            } else if (quiet_until < next) {
+                next = quiet_until;
             }
         }
         p->sleeping_until = next;
@@ -373,11 +392,13 @@ void pump_free(pump *p) {
 
 /* Read the socket only at the thread's send wake-ups (0: one wake-up per cycle; as datagrams
  * arrive while nothing is queued) or also whenever a datagram arrives (1); notify Python at most
- * every `notify_interval_ns`. */
-void pump_configure(pump *p, int read_on_readable, int64_t notify_interval_ns) {
+ * every `notify_interval_ns` (negative: never), and once after `silence_ns` without a datagram
+ * (0: never). */
+void pump_configure(pump *p, int read_on_readable, int64_t notify_interval_ns, int64_t silence_ns) {
     pthread_mutex_lock(&p->lock);
     p->read_on_readable = read_on_readable;
     p->notify_interval_ns = notify_interval_ns;
+    p->silence_ns = silence_ns;
     pthread_mutex_unlock(&p->lock);
     kick(p);
 }

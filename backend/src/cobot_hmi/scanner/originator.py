@@ -106,10 +106,11 @@ class OriginatorSettings:
     tcp_timeout_s: float = 5.0
     first_frame_timeout_s: float = 2.0
     """How long after a Forward Open the first T→O frame may take (at least the watchdog)."""
-    t2o_batch_s: float = 0.020
+    t2o_batch_s: float = 0.040
     """At RPIs shorter than ``BATCH_PERIOD_S`` (10 ms), how often we wake for T→O at most: the
-    frames of each batch are read together, each with the kernel's receive time. The O→T side
-    does not wait for it (a change goes into the next packet at once)."""
+    frames of each batch are read together, each with the kernel's receive time. Neither O→T
+    (a change goes into the next packet at once) nor the watchdog (the pump reports silence)
+    waits for it."""
 
     @property
     def udp_port(self) -> int:
@@ -460,6 +461,8 @@ class Originator:
             on_timer=lambda now, lag_s: self._check_t2o_silence(link, now, lag_s),
         )
         link.o2t.start()
+        # The pump wakes us once T→O has been silent for the timeout, whatever the batch.
+        self._udp.watch(True, self._t2o_batch_s, silence_s=self._timeout_s(link))
         first_timeout_s = max(s.first_frame_timeout_s, self._timeout_s(self._link))
         waits: list[asyncio.Future[Any]] = [self._first_frame, self._lost]
         done, _ = await asyncio.wait(
@@ -554,14 +557,18 @@ class Originator:
         return io.encode_io(link.o2t_id, encap_seq, cip_seq, b"")
 
     def _t2o_batch_read(self) -> None:
+        """After each wake-up for T→O (a batch, or the pump's word that T→O fell silent for the
+        connection timeout): push the fallback timer back and look at the watchdog."""
         link = self._link
         if link is not None and link.o2t is not None:
             link.o2t.t2o_read()
+            self._check_t2o_silence(link, asyncio.get_running_loop().time(), 0.0)
 
     def _check_t2o_silence(self, link: _Link, now: float, lag_s: float) -> None:
-        """The watchdog (ethernetip.md "Forward Open": RPI × (4 << multiplier)). Checked at each
-        fallback wake-up of the O→T stream: that timer only fires when T→O stopped waking us, so
-        a steady T→O stream costs no wake-up of its own for it.
+        """The watchdog (ethernetip.md "Forward Open": RPI × (4 << multiplier)). Checked after
+        each T→O wake-up, including the one the pump gives once T→O has been silent for the
+        timeout, and at the O→T stream's fallback timer: a steady T→O stream costs no wake-up of
+        its own for it.
 
         A timer firing more than an RPI late means this loop itself stalled (a busy machine):
         T→O packets may be waiting in the socket, unread. The verdict waits for a timer on time,
