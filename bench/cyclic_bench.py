@@ -35,6 +35,7 @@ import json
 import os
 import random
 import socket
+import statistics
 import subprocess
 import sys
 import time
@@ -257,7 +258,7 @@ def combine_class1(rounds: list[dict[str, Any]]) -> dict[str, Any]:
         values = [d[key] for d in o2t if d[key] is not None]
         return max(values) if values else None
 
-    p50s = sorted(d["p50_ms"] for d in o2t if d["p50_ms"] is not None)
+    p50s = [d["p50_ms"] for d in o2t if d["p50_ms"] is not None]
     return {
         **combine(rounds),
         "t2o": {
@@ -270,7 +271,7 @@ def combine_class1(rounds: list[dict[str, Any]]) -> dict[str, Any]:
         "o2t": {
             "packets": sum(d["packets"] for d in o2t),
             "gaps": sum(d["gaps"] or 0 for d in o2t),
-            "p50_ms": p50s[len(p50s) // 2] if p50s else None,
+            "p50_ms": statistics.median_high(p50s) if p50s else None,
             "p99_ms": worst("p99_ms"),
             "max_ms": worst("max_ms"),
         },
@@ -443,11 +444,7 @@ def report(
         c["cpu_us_per_frame"] / p["cpu_us_per_frame"]
         for c, p in zip(class1["rounds"], polling["rounds"], strict=True)
     ]
-    median_ratio = (
-        sorted(ratios)[len(ratios) // 2]
-        if len(ratios) % 2
-        else (sum(sorted(ratios)[len(ratios) // 2 - 1 : len(ratios) // 2 + 1]) / 2)
-    )
+    median_ratio = statistics.median(ratios)
     print(
         "  CPU per frame, class 1 / polling, round by round: "
         + ", ".join(

@@ -65,7 +65,7 @@ async def test_stream_sends_at_once_then_every_rpi_waking_once_per_batch(
     receiver = Receiver(robot_host)
     sender = UdpEndpoint(plc_host, 0, lambda *_: None, receive_size=1501)
     stream = O2TStream(
-        sender, 7, receiver.addr, 0.002, lambda e, c: io.encode_io(7, e, c, b"\x00" * 20, 1)
+        sender, 7, receiver.addr, 0.002, lambda: io.encode_io(7, 0, 0, b"\x00" * 20, 1)
     )
     try:
         stream.start()
@@ -96,7 +96,7 @@ async def test_rebuild_puts_the_change_in_the_next_packet_with_the_same_numbers(
     sender = UdpEndpoint(plc_host, 0, lambda *_: None, receive_size=1501)
     payload = [b"old!"]
     stream = O2TStream(
-        sender, 9, receiver.addr, 0.002, lambda e, c: io.encode_io(9, e, c, payload[0], 1)
+        sender, 9, receiver.addr, 0.002, lambda: io.encode_io(9, 0, 0, payload[0], 1)
     )
     try:
         stream.start()

@@ -92,12 +92,9 @@ class IoConnection:
     """The encapsulation sequence number of the stream's first packet."""
     t2o_stream_counted: int = 0
     """Packets of the stream already added to ``packets_out``."""
-    producing: bool = True
-    """False once closed: nothing more is queued for it."""
     watchdog: asyncio.TimerHandle | None = None
 
     def cancel_timers(self) -> None:
-        self.producing = False
         if self.watchdog is not None:
             self.watchdog.cancel()
         self.watchdog = None

@@ -410,17 +410,15 @@ class Target:
 
     def _update_schedule(self) -> None:
         """The connections changed: how often we wake, and whether O→T wakes us."""
-        producing = [c.t2o_rpi_us for c in self._by_o2t.values() if c.producing]
-        shortest_us = min(producing, default=None)
+        shortest_us = min((c.t2o_rpi_us for c in self._by_o2t.values()), default=None)
         udp = self._udp
-        if shortest_us is None:
+        if self._ticker is not None:
+            self._ticker.cancel()
+            self._ticker = None
+        if shortest_us is None:  # no connection left
             if udp is not None:
                 udp.watch(True)
             self._wake_period_s = None
-            self._arm_watchdogs()  # input-only and listen-only connections still watch O→T
-            if self._ticker is not None:
-                self._ticker.cancel()
-                self._ticker = None
             return
         per_packet = shortest_us >= TICK_READ_MAX_RPI_US
         self._wake_period_s = (
@@ -431,11 +429,9 @@ class Target:
         if udp is not None:
             # In batches, the pump wakes us once O→T has been silent for the shortest timeout:
             # a watchdog verdict then comes at once, not at the next batch.
-            timeouts = [c.timeout_s for c in self._by_o2t.values() if c.producing]
+            timeouts = (c.timeout_s for c in self._by_o2t.values())
             udp.watch(per_packet, silence_s=0.0 if per_packet else min(timeouts))
         self._arm_watchdogs()
-        if self._ticker is not None:
-            self._ticker.cancel()
         self._tick_due = asyncio.get_running_loop().time()
         self._ticker = asyncio.get_running_loop().call_soon(self._tick)
 
@@ -472,20 +468,19 @@ class Target:
         self._read_due_o2t()
         loop = asyncio.get_running_loop()
         now = loop.time()
-        for conn in list(self._by_o2t.values()):
-            if conn.watchdog is None and conn.producing and self._tick_watches(conn):
-                self._watchdog_verdict(conn, now, now - self._tick_due)
+        self._judge_batch_watched(now, now - self._tick_due)
         horizon = now + period_s + HORIZON_MARGIN_S
         try:
             self._queue_t2o_until(horizon, now)
         except Exception:  # a robot bug must not stop the connections' heartbeat
             self.counters.internal_errors += 1
             log.exception("T→O production failed")
-        queued = [c for c in self._by_o2t.values() if c.producing and not c.t2o_streaming]
-        if any(c.producing for c in self._by_o2t.values()) and not queued:
+        if not self._by_o2t:
+            return
+        queued = [c for c in self._by_o2t.values() if not c.t2o_streaming]
+        if not queued:
             self._tick_due = now + period_s  # streams only: the pump needs nothing from us
-            self._ticker = loop.call_at(self._tick_due, self._tick)
-        elif queued:
+        else:
             first = min(queued, key=lambda c: c.t2o_last_due)
             wake_at = first.t2o_last_due
             if period_s > first.t2o_rpi_us / 1e6:
@@ -493,23 +488,22 @@ class Target:
                 # never runs empty (an empty pump would wake for O→T, then for our new batch).
                 wake_at -= first.t2o_rpi_us / 2e6
             self._tick_due = max(now + period_s / 2, wake_at)
-            self._ticker = loop.call_at(self._tick_due, self._tick)
+        self._ticker = loop.call_at(self._tick_due, self._tick)
 
     def _queue_t2o_until(self, horizon: float, now: float) -> None:
         """Queue each producing connection's packets due up to ``horizon``, earliest first."""
-        producers = [c for c in self._by_o2t.values() if c.producing]
         epoch_minus_loop = time.time() - now
         # A robot whose data refreshes on its own period (the real controller's monitoring
         # values: about every 100 ms) is read once per wake-up, its I/O and state at most one
         # wake-up late; one whose every instant differs, once per packet.
         tick_data = self._t2o_data(now + epoch_minus_loop) if self._reads_per_tick() else None
-        streamable = tick_data is not None and not self.faults.per_packet()
-        for conn in producers:
-            if streamable and tick_data is not None:
-                self._stream_t2o(conn, tick_data, now)
+        stream_data = None if self.faults.per_packet() else tick_data
+        for conn in self._by_o2t.values():
+            if stream_data is not None:
+                self._stream_t2o(conn, stream_data, now)
             elif conn.t2o_streaming:
                 self._stop_stream(conn)
-        producers = [c for c in producers if not c.t2o_streaming]
+        producers = [c for c in self._by_o2t.values() if not c.t2o_streaming]
         while producers:
             conn = min(producers, key=lambda c: c.t2o_last_due + c.t2o_rpi_us / 1e6)
             period_s = conn.t2o_rpi_us / 1e6
@@ -652,7 +646,7 @@ class Target:
             if conn.t2o_streaming:
                 self._stream_t2o(conn, self._t2o_data(now + epoch_minus_loop), now)
                 continue
-            if not conn.producing or conn.t2o_last_kind not in ("sent", "corrupt"):
+            if conn.t2o_last_kind not in ("sent", "corrupt"):
                 continue
             due = conn.t2o_last_due
             count, _ = udp.cancel(conn.o2t_id, due + self.faults.t2o_delay_ms / 1e3)
@@ -665,10 +659,13 @@ class Target:
         udp = self._udp
         if udp is None or udp.watching:
             return
-        now = asyncio.get_running_loop().time()
+        self._judge_batch_watched(asyncio.get_running_loop().time(), 0.0)
+
+    def _judge_batch_watched(self, now: float, lag_s: float) -> None:
+        """The watchdog verdict of each connection our batch wake-ups watch."""
         for conn in list(self._by_o2t.values()):
-            if conn.watchdog is None and conn.producing and self._tick_watches(conn):
-                self._watchdog_verdict(conn, now, 0.0)
+            if conn.watchdog is None and self._tick_watches(conn):
+                self._watchdog_verdict(conn, now, lag_s)
 
     def _tick_watches(self, conn: IoConnection) -> bool:
         """Whether our batch wake-ups check this connection's watchdog (no timer of its own):
@@ -688,7 +685,7 @@ class Target:
         """A timer for each connection the batch wake-ups do not watch."""
         loop = asyncio.get_running_loop()
         for conn in self._by_o2t.values():
-            if conn.watchdog is None and conn.producing and not self._tick_watches(conn):
+            if conn.watchdog is None and not self._tick_watches(conn):
                 deadline = conn.last_rx + conn.timeout_s
                 conn.watchdog = loop.call_at(deadline, self._watchdog, conn, deadline)
 
@@ -697,7 +694,7 @@ class Target:
         (unless the batch wake-ups took the watch over meanwhile)."""
         conn.watchdog = None
         self._read_due_o2t()
-        if not conn.producing or self._tick_watches(conn):
+        if self._by_o2t.get(conn.o2t_id) is not conn or self._tick_watches(conn):
             return
         now = asyncio.get_running_loop().time()
         deadline = self._watchdog_verdict(conn, now, now - armed_for)

@@ -285,11 +285,14 @@ static int64_t periodic_next(pump *p) {
     return next;
 }
 
-static void send_due(pump *p, int64_t now) {
+/* Send what is due; return when the next send is due (NEVER: nothing left). */
+static int64_t send_due(pump *p, int64_t now) {
     send_periodic_due(p, now);
+    int64_t next = periodic_next(p);
     for (;;) {
         int i = earliest(p);
-        if (i < 0 || p->queue[i].due_ns > now) return;
+        if (i < 0) return next;
+        if (p->queue[i].due_ns > now) return p->queue[i].due_ns < next ? p->queue[i].due_ns : next;
         send_slot *s = &p->queue[i];
         send_one(p, p->queue_data + (size_t)i * (size_t)p->queue_bytes, s->len, s->ip, s->port,
                  s->due_ns, now);
@@ -307,11 +310,8 @@ static void *run(void *arg) {
     while (p->running) {
         pthread_mutex_lock(&p->lock);
         int64_t now = mono_ns();
-        send_due(p, now);
+        int64_t next = send_due(p, now);
         drain_socket(p);
-        int64_t next = periodic_next(p);
-        int i = earliest(p);
-        if (i >= 0 && p->queue[i].due_ns < next) next = p->queue[i].due_ns;
         int sending = next != NEVER;
         if (p->ring_count > 0 && !p->notified && p->notify_interval_ns >= 0) {
             int64_t notify_at = p->last_notify_ns + p->notify_interval_ns;

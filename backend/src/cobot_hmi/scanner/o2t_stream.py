@@ -20,9 +20,9 @@ from collections.abc import Callable
 from cobot_hmi.enip import io
 from cobot_hmi.udp_endpoint import BATCH_PERIOD_S, UdpEndpoint
 
-PacketBuilder = Callable[[int, int], bytes]
-"""``(encapsulation sequence number, CIP sequence count)`` → the datagram (the pump overwrites
-both numbers in each packet it sends)."""
+PacketBuilder = Callable[[], bytes]
+"""The datagram as it stands now (the pump writes both sequence numbers into each packet it
+sends, whatever the template carries there)."""
 
 
 class O2TStream:
@@ -71,7 +71,7 @@ class O2TStream:
             self._tag,
             now,
             self.rpi_s,
-            self._build(1, 1),
+            self._build(),
             self._addr,
             (io.ENCAP_SEQ_OFFSET, 1),
             (io.CIP_SEQ_OFFSET, 1) if self._has_cip_seq else None,
@@ -94,7 +94,7 @@ class O2TStream:
     def rebuild(self) -> None:
         """The data changed: the next packet carries the new data."""
         if self._active:
-            self._udp.replace_periodic(self._tag, self._build(0, 0))
+            self._udp.replace_periodic(self._tag, self._build())
 
     def _arm(self, now: float) -> None:
         due = now + 1.5 * self.wake_period_s + self.rpi_s

@@ -455,7 +455,7 @@ class Originator:
             link.o2t_id,
             link.o2t_addr,
             link.o2t_api_us / 1e6,
-            lambda encap_seq, cip_seq: self._o2t_packet(link, encap_seq, cip_seq),
+            lambda: self._o2t_packet(link),
             has_cip_seq=not (s.input_only and s.heartbeat_o2t_size == 0),
             wake_period_s=self._t2o_batch_s,
             on_timer=lambda now, lag_s: self._check_t2o_silence(link, now, lag_s),
@@ -542,19 +542,19 @@ class Originator:
 
     # ------------------------------------------------------------------ class 1
 
-    def _o2t_packet(self, link: _Link, encap_seq: int, cip_seq: int) -> bytes:
-        """The O→T datagram with these sequence numbers: the command image with the run/idle
-        header, or an input-only connection's heartbeat."""
+    def _o2t_packet(self, link: _Link) -> bytes:
+        """The O→T datagram, its sequence numbers left for the pump to write: the command image
+        with the run/idle header, or an input-only connection's heartbeat."""
         s = self.settings
         if not s.input_only:
             return io.encode_io(
-                link.o2t_id, encap_seq, cip_seq, self._command_bytes, io.RUN_BIT if self.run else 0
+                link.o2t_id, 0, 0, self._command_bytes, io.RUN_BIT if self.run else 0
             )
         if s.heartbeat_o2t_size == 0:
-            return io.encode_heartbeat(link.o2t_id, encap_seq)
+            return io.encode_heartbeat(link.o2t_id, 0)
         if s.heartbeat_o2t_size == 6:
-            return io.encode_io(link.o2t_id, encap_seq, cip_seq, b"", 0)
-        return io.encode_io(link.o2t_id, encap_seq, cip_seq, b"")
+            return io.encode_io(link.o2t_id, 0, 0, b"", 0)
+        return io.encode_io(link.o2t_id, 0, 0, b"")
 
     def _t2o_batch_read(self) -> None:
         """After each wake-up for T→O (a batch, or the pump's word that T→O fell silent for the
