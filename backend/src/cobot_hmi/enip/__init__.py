@@ -17,5 +17,6 @@ Modules by responsibility:
 - ``connection_manager``: Forward Open, Large Forward Open, Forward Close, network connection
   parameters, Unconnected Send.
 - ``io``: the class 1 UDP packet (0x8002 + 0x00B1, CIP sequence count, run/idle header).
+- ``sequence``: the class 1 receive rules (new, duplicate, stale, gaps) both roles apply.
 - ``identity``: the Identity object's attributes and the ListIdentity item.
 """
