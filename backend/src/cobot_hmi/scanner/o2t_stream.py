@@ -26,13 +26,12 @@ sends, whatever the template carries there)."""
 
 
 class O2TStream:
-    """One connection's O→T packets, a periodic stream of the pump of ``udp`` under the
-    connection ID as tag."""
+    """One connection's O→T packets, a periodic stream of the pump of ``udp``."""
 
     def __init__(
         self,
         udp: UdpEndpoint,
-        connection_id: int,
+        tag: int,
         addr: tuple[str, int],
         rpi_s: float,
         build: PacketBuilder,
@@ -41,14 +40,17 @@ class O2TStream:
         wake_period_s: float = BATCH_PERIOD_S,
         on_timer: Callable[[float, float], None] | None = None,
     ) -> None:
-        """``has_cip_seq``: the packets carry a CIP sequence count (not a zero-size heartbeat).
+        """``tag``: the stream's name in the pump, unique on ``udp`` (the connection ID when
+        the socket serves one connection; an ``IoPort`` hands out its own, since two targets
+        may choose the same O→T connection ID). ``has_cip_seq``: the packets carry a CIP
+        sequence count (not a zero-size heartbeat).
         ``wake_period_s``: how often T→O wakes us at most. ``on_timer(now, lag_s)``: at each
         fallback wake-up, with how late the timer fired (the watchdog's cue: the timer only
         fires when T→O stopped coming, and a late timer means our own loop stalled)."""
         self.rpi_s = rpi_s
         self.wake_period_s = max(rpi_s, wake_period_s)
         self._udp = udp
-        self._tag = connection_id
+        self._tag = tag
         self._addr = addr
         self._build = build
         self._has_cip_seq = has_cip_seq
@@ -57,6 +59,7 @@ class O2TStream:
         self._timer: asyncio.TimerHandle | None = None
         self._timer_due = 0.0
         self._active = False
+        self._sent_at_stop = 0
         self.timer_wakeups = 0
 
     @property
@@ -78,13 +81,25 @@ class O2TStream:
         )
         self._arm(now)
 
-    def stop(self) -> None:
-        """Nothing more leaves."""
+    @property
+    def sent(self) -> int:
+        """Packets this stream has sent (the pump's own count: its encapsulation sequence
+        number started at 1)."""
+        if not self._active:
+            return self._sent_at_stop
+        following = self._udp.periodic_next(self._tag)
+        return following[0] - 1 if following is not None else 0
+
+    def stop(self) -> int:
+        """Nothing more leaves; how many packets the stream sent."""
+        if self._active:
+            following = self._udp.stop_periodic(self._tag)
+            self._sent_at_stop = following[0] - 1 if following is not None else 0
         self._active = False
         if self._timer is not None:
             self._timer.cancel()
             self._timer = None
-        self._udp.stop_periodic(self._tag)
+        return self._sent_at_stop
 
     def t2o_read(self) -> None:
         """T→O data was just read: push the fallback timer back."""

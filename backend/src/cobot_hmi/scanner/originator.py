@@ -9,10 +9,22 @@ on a drift-free schedule with the run/idle header (``o2t_stream``: built ahead, 
 pump), a watchdog on T→O silence, reconnection with backoff, and Forward Close +
 UnRegisterSession on shutdown.
 
+Any adapter (issue 11, "Scanning any adapter"): the instances and sizes are data; the robot's
+layout is only their default. T→O is decoded to the robot's ``Frame`` only when its size is the
+layout's (and raw mode is not asked for); otherwise each packet's data goes to ``on_data`` as
+bytes. O→T carries the command image when its size is the layout's, else bytes
+(:meth:`Originator.set_o2t_data`), zero-filled to the size.
+
+One socket for many connections: the UDP port is an :class:`~cobot_hmi.scanner.io_port.IoPort`,
+shared by every originator of the process on the same local address, or (without one) the
+originator's own. T→O is accepted on the connection ID we chose from the moment the Forward
+Open leaves, and only from the target's address.
+
 Bumpless takeover: every connection starts **idle**, and its command image is seeded from the
 robot's actual outputs in the first T→O frame (and the bit input registers from an explicit
-read of the O→T assembly where the target allows it), so switching to run changes nothing
-until someone writes. The state is CONNECTED only once that first frame has arrived.
+read of the O→T assembly where the target allows it: that read, done before the Forward Open,
+is also what the first O→T packet carries), so switching to run changes nothing until someone
+writes. The state is CONNECTED only once that first frame has arrived.
 """
 
 from __future__ import annotations
@@ -21,9 +33,10 @@ import asyncio
 import contextlib
 import logging
 import random
+import socket
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any
 
@@ -52,11 +65,13 @@ from cobot_hmi.enip.connection_manager import (
 from cobot_hmi.enip.cpf import CpfItem, ItemType, Sockaddr, decode_sockaddr, sockaddr_item
 from cobot_hmi.enip.encapsulation import ENIP_TCP_PORT, ENIP_UDP_PORT
 from cobot_hmi.enip.errors import EnipError
+from cobot_hmi.enip.sequence import DUPLICATE, STALE, SequenceTracker
 from cobot_hmi.layout import CONNECTION_POINTS
+from cobot_hmi.scanner.io_port import IoPort
 from cobot_hmi.scanner.o2t_stream import O2TStream
 from cobot_hmi.scanner.session import EnipSession, SessionError
 from cobot_hmi.scanner.stats import IntervalWindow
-from cobot_hmi.udp_endpoint import BATCH_PERIOD_S, UdpEndpoint
+from cobot_hmi.udp_endpoint import BATCH_PERIOD_S, QueueFullError
 
 log = logging.getLogger(__name__)
 
@@ -84,7 +99,9 @@ class NotConnectedError(Exception):
 class OriginatorSettings:
     robot_host: str
     tcp_port: int = ENIP_TCP_PORT
-    local_host: str = "0.0.0.0"
+    local_host: str | None = None
+    """The local address of the UDP port and the TCP session. None: the address that routes
+    to the target (so another process may hold UDP 2222 on another address); "0.0.0.0": all."""
     local_udp_port: int = ENIP_UDP_PORT
     rpi_us: int = 10_000
     timeout_multiplier: int = 2
@@ -101,6 +118,16 @@ class OriginatorSettings:
     """Ask for T→O on this local port (a Sockaddr Info 0x8001 item) instead of 2222."""
     heartbeat_o2t_size: int = 0
     """O→T connection size of an input-only connection (targets accept 0, 2 or 6)."""
+    o2t_data: bytes | None = None
+    """The O→T data to start with, zero-filled to ``o2t_size``. None: what an explicit read of
+    the O→T assembly returns (where the target allows it), else zeros."""
+    raw: bool = False
+    """Hand every T→O packet's data to ``on_data`` even when its size is the robot layout's."""
+    api_bounds_us: tuple[int, int] | None = None
+    """The packet intervals (API) a Forward Open reply may grant, inclusive. None: RPI / 2 to
+    RPI × 2. A reply outside is refused (and the connection closed): a target granting 1 µs
+    would have us send a datagram per microsecond, one granting hours would leave a dead
+    connection looking alive."""
     backoff_initial_s: float = 0.1
     backoff_max_s: float = 5.0
     tcp_timeout_s: float = 5.0
@@ -115,6 +142,42 @@ class OriginatorSettings:
     @property
     def udp_port(self) -> int:
         return self.request_t2o_port if self.request_t2o_port is not None else self.local_udp_port
+
+    @property
+    def decodes_frames(self) -> bool:
+        """T→O is the robot's frame (its layout's size, raw mode not asked for)."""
+        return not self.raw and self.t2o_size == T2O_SIZE
+
+    @property
+    def o2t_is_command(self) -> bool:
+        """O→T is the robot's command image (its layout's size, an exclusive owner)."""
+        return not self.input_only and self.o2t_size == O2T_SIZE
+
+    @property
+    def api_range_us(self) -> tuple[int, int]:
+        if self.api_bounds_us is not None:
+            return self.api_bounds_us
+        return self.rpi_us // 2, self.rpi_us * 2
+
+    def initial_o2t_data(self) -> bytes:
+        """``o2t_data`` zero-filled to the O→T size (a ``ValueError`` if it is longer)."""
+        return fit_o2t_data(self.o2t_data or b"", self.o2t_size)
+
+
+def fit_o2t_data(data: bytes, size: int) -> bytes:
+    """``data`` zero-filled to ``size`` bytes; a ``ValueError`` when it is longer."""
+    if len(data) > size:
+        raise ValueError(f"{len(data)} bytes of O→T data exceed the O→T size of {size} bytes")
+    return data.ljust(size, b"\x00")
+
+
+def local_address_to(host_ip: str) -> str:
+    """The local address the kernel's routing table picks to reach ``host_ip`` (a UDP
+    ``connect`` sends nothing)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.connect((host_ip, ENIP_UDP_PORT))
+        address: str = probe.getsockname()[0]
+        return address
 
 
 @dataclass(frozen=True)
@@ -139,7 +202,9 @@ class ConnectionStats:
     stale: int = 0
     """T→O packets older than one already received (out of order), dropped."""
     foreign: int = 0
-    """Datagrams for another connection ID, dropped."""
+    """Datagrams dropped for not being this connection's: its connection ID from another
+    address than the target's (forged), or an unknown connection ID from the target's address
+    (or from anywhere, on a port of the originator's own)."""
     frames: int = 0
     interval_p50_ms: float | None = None
     rpi_us: int | None = None
@@ -147,25 +212,29 @@ class ConnectionStats:
 
 
 class _RefusedError(Exception):
-    def __init__(self, reason: str) -> None:
+    def __init__(self, reason: str, *, opened: bool = False) -> None:
         super().__init__(reason)
         self.reason = reason
+        self.opened = opened
+        """The target did open the connection (we refuse its reply): close it."""
 
 
 @dataclass
 class _Link:
     """One Forward Open's worth of negotiated parameters and sequence state."""
 
-    o2t_id: int
     t2o_id: int
     connection_serial: int
     originator_serial: int
+    path: bytes
+    target_host: str
+    """The target's address: T→O from anywhere else is foreign."""
     o2t_api_us: int
     t2o_api_us: int
-    o2t_addr: tuple[str, int]
-    path: bytes
-    last_t2o_encap_seq: int | None = None
-    last_t2o_cip_seq: int | None = None
+    """Until the reply is read: the RPI asked for."""
+    o2t_id: int = 0
+    o2t_addr: tuple[str, int] = ("0.0.0.0", ENIP_UDP_PORT)
+    sequence: SequenceTracker = field(default_factory=SequenceTracker)
     last_frame_at: float | None = None
     """Loop time of the last new frame."""
     last_rx: float = 0.0
@@ -173,27 +242,48 @@ class _Link:
     last_payload: tuple[bytes, Frame] | None = None
     """The last T→O payload decoded, and its frame."""
     o2t: O2TStream | None = None
+    routed: bool = False
 
 
 class Originator:
+    """One class 1 connection to one target. Several may share an :class:`IoPort` (one UDP
+    socket of their local address) when they run on the port's event loop."""
+
     def __init__(
         self,
         settings: OriginatorSettings,
         *,
         on_frame: Callable[[Frame, float, int], None] | None = None,
         on_state: Callable[[ConnectionState, str | None], None] | None = None,
+        on_data: Callable[[bytes, float, int], None] | None = None,
+        io_port: IoPort | None = None,
     ) -> None:
+        """``on_frame(frame, received_at, seq)``: each new T→O frame when T→O is the robot's
+        layout; ``on_data(payload, received_at, seq)``: each new T→O packet's data otherwise
+        (``settings.decodes_frames``). ``received_at``: epoch seconds the kernel received it;
+        ``seq``: the count of frames so far. ``io_port``: the UDP port to share (None: one of
+        our own, opened on start and closed on stop). A ``ValueError`` when ``o2t_data`` does
+        not fit the O→T size."""
         self.settings = settings
         self.on_frame = on_frame
         self.on_state = on_state
+        self.on_data = on_data
         self.state = ConnectionState.IDLE
         self.reason: str | None = None
         self.latest: tuple[Frame, float] | None = None
+        """The last frame and its epoch receive time (T→O of the robot's layout)."""
+        self.latest_data: tuple[bytes, float] | None = None
+        """The last T→O data and its epoch receive time (T→O of any other size, or raw)."""
         self.run = False
         self.command: CommandImage = zero_command()
-        self._command_bytes = encode_command(self.command)
+        self._o2t_bytes = settings.initial_o2t_data()
+        if settings.o2t_is_command:
+            if settings.o2t_data is not None:
+                self.command = decode_command(self._o2t_bytes)
+            self._o2t_bytes = encode_command(self.command)
         self._rng = random.Random()
-        self._udp: UdpEndpoint | None = None
+        self._port = io_port
+        self._owns_port = io_port is None
         self._session: EnipSession | None = None
         self._link: _Link | None = None
         self._supervisor: asyncio.Task[None] | None = None
@@ -207,7 +297,7 @@ class Originator:
         self._connected_since: float | None = None
         self.packets_in = 0
         self._packets_out_closed = 0
-        """O→T packets sent by endpoints closed since (a stop and a start)."""
+        """O→T packets sent by the streams of connections closed since."""
         self.gaps = 0
         self.duplicates = 0
         self.late = 0
@@ -217,6 +307,11 @@ class Originator:
         self.frames = 0
 
     # ------------------------------------------------------------------ public interface
+
+    @property
+    def io_port(self) -> IoPort | None:
+        """The UDP port the connection uses (None before a start without a shared port)."""
+        return self._port
 
     async def start(self) -> None:
         if self._supervisor is None:
@@ -237,16 +332,17 @@ class Originator:
         if task is not None and not task.cancelled() and task.exception() is not None:
             log.warning("supervisor ended with %r", task.exception())
         await self._teardown(forward_close=True)
-        if self._udp is not None:
-            self._packets_out_closed += self._udp.counters()["sent"]
-            self._udp.close()
-            self._udp = None
+        if self._owns_port and self._port is not None:
+            self._port.close()
         self._set_state(ConnectionState.IDLE, None)
 
     def stats(self) -> ConnectionStats:
         figures = self._window.figures()
-        latest = self.latest
+        latest = self.latest or self.latest_data
         link = self._link
+        port = self._port
+        # On a port of our own, every stray datagram is ours to count.
+        own = port if self._owns_port and port is not None else None
         return ConnectionStats(
             state=self.state,
             reason=self.reason,
@@ -255,29 +351,31 @@ class Originator:
             gaps=self.gaps,
             duplicates=self.duplicates,
             late=self.late,
-            malformed=self.malformed,
+            malformed=self.malformed + (own.malformed if own is not None else 0),
             interval_mean_ms=figures.mean_ms,
             interval_p99_ms=figures.p99_ms,
             interval_max_ms=figures.max_ms,
             last_frame_age_s=time.time() - latest[1] if latest is not None else None,
             connected_since=self._connected_since,
             stale=self.stale,
-            foreign=self.foreign,
+            foreign=self.foreign + (own.foreign if own is not None else 0),
             frames=self.frames,
             interval_p50_ms=figures.p50_ms,
-            rpi_us=link.t2o_api_us if link is not None else None,
+            rpi_us=link.t2o_api_us if link is not None and link.o2t is not None else None,
         )
 
     @property
     def packets_out(self) -> int:
         """O→T packets that left (counted by the cyclic pump as it sends them)."""
-        udp = self._udp
-        return self._packets_out_closed + (udp.counters()["sent"] if udp is not None else 0)
+        link = self._link
+        current = link.o2t.sent if link is not None and link.o2t is not None else 0
+        return self._packets_out_closed + current
 
     def pump_counters(self) -> dict[str, int]:
-        """The cyclic pump's counters (``UdpEndpoint.counters``), zeros without an endpoint."""
-        udp = self._udp
-        return udp.counters() if udp is not None else {}
+        """The cyclic pump's counters (``UdpEndpoint.counters``; the whole port's when it is
+        shared), empty without an open port."""
+        port = self._port
+        return port.udp.counters() if port is not None and port.is_open else {}
 
     def set_run(self, run: bool) -> None:
         if self.settings.input_only:
@@ -288,12 +386,36 @@ class Originator:
             self.run = run
             self._rebuild_o2t()
 
+    @property
+    def o2t_data(self) -> bytes:
+        """The O→T data the next packet carries (after the run/idle header)."""
+        return self._o2t_bytes
+
+    def set_o2t_data(self, data: bytes) -> int:
+        """Put ``data`` (zero-filled to the O→T size) on the wire as it is; returns the
+        ``packets_out`` count after which it has gone out. A ``ValueError`` when it is longer
+        than the O→T size or the connection has no O→T data (input-only)."""
+        s = self.settings
+        if s.input_only:
+            raise ReadOnlyError("input-only connection: it sends no O→T data")
+        fitted = fit_o2t_data(data, s.o2t_size)
+        if s.o2t_is_command:
+            self.command = decode_command(fitted)
+        self._o2t_bytes = fitted
+        self._rebuild_o2t()
+        return self.packets_out + 1
+
     def set_command(self, image: CommandImage) -> int:
         """Put ``image`` on the wire; returns the ``packets_out`` count after which it has
-        gone out (see :meth:`wait_sent`)."""
+        gone out (see :meth:`wait_sent`). A ``ValueError`` when O→T is not the robot's command
+        image (another size: :meth:`set_o2t_data`)."""
+        if not self.settings.o2t_is_command:
+            raise ValueError(
+                f"O→T of {self.settings.o2t_size} bytes is not the robot's command image"
+            )
         self.command = image
-        self._command_bytes = encode_command(image)
-        # Every packet not sent yet is built again with the image: the next one out has it.
+        self._o2t_bytes = encode_command(image)
+        # The pump's stream carries the new image from its next packet on.
         self._rebuild_o2t()
         return self.packets_out + 1
 
@@ -350,12 +472,12 @@ class Originator:
         while not self._stopping:
             self._set_state(ConnectionState.CONNECTING, self.reason)
             try:
-                await self._ensure_udp()
-                await self._connect_once()
+                port = await self._open_port()
+                await self._connect_once(port)
             except _RefusedError as refused:
                 self._set_state(ConnectionState.REFUSED, refused.reason)
-                await self._teardown(forward_close=False)
-            except (OSError, SessionError, EnipError, TimeoutError) as error:
+                await self._teardown(forward_close=refused.opened)
+            except (OSError, SessionError, EnipError, TimeoutError, QueueFullError) as error:
                 self._set_state(ConnectionState.LOST, str(error) or type(error).__name__)
                 await self._teardown(forward_close=True)
             else:
@@ -367,45 +489,55 @@ class Originator:
             await asyncio.sleep(backoff_s)
             backoff_s = min(backoff_s * 2, s.backoff_max_s)
 
-    async def _ensure_udp(self) -> None:
-        if self._udp is not None:
-            return
-        s = self.settings
-        try:
-            udp = UdpEndpoint(
-                s.local_host,
-                s.udp_port,
-                self._t2o_received,
-                receive_size=io.MAX_DATAGRAM + 1,
-                on_batch=self._t2o_batch_read,
-            )
-        except OSError as error:
-            raise OSError(f"cannot bind UDP {s.local_host}:{s.udp_port}: {error}") from None
-        # T→O wakes us as it comes, or once per batch at RPIs shorter than the batch period
-        # (each packet keeps the kernel's receive time either way).
-        udp.watch(True, self._t2o_batch_s)
-        self._udp = udp
+    async def _open_port(self) -> IoPort:
+        """The shared port (opened on first use), or our own on the local address: the one
+        given, or the one that routes to the target."""
+        port = self._port
+        if port is None:
+            s = self.settings
+            host = s.local_host
+            if host is None:
+                host = local_address_to(await self._target_ip())
+            port = self._port = IoPort(host, s.udp_port)
+        await port.open()
+        return port
 
-    async def _connect_once(self) -> None:
+    async def _target_ip(self) -> str:
+        host = self.settings.robot_host
+        try:
+            infos = await asyncio.get_running_loop().getaddrinfo(
+                host, None, family=socket.AF_INET, type=socket.SOCK_DGRAM
+            )
+        except socket.gaierror as error:
+            raise OSError(f"cannot resolve {host}: {error}") from None
+        return str(infos[0][4][0])
+
+    async def _connect_once(self, port: IoPort) -> None:
         s = self.settings
         loop = asyncio.get_running_loop()
-        session = EnipSession(s.robot_host, s.tcp_port, s.tcp_timeout_s, self._source_host)
+        session = EnipSession(s.robot_host, s.tcp_port, s.tcp_timeout_s, _source_host(port))
         self._session = session
         await session.open()
-        self._explicit_bits = await self._read_o2t_bits(session)
+        await self._read_o2t_assembly(session)
 
-        connection_serial = self._rng.getrandbits(16)
-        originator_serial = self._rng.getrandbits(32)
-        t2o_id = self._rng.getrandbits(32) or 1
         o2t_point = s.heartbeat_instance if s.input_only else s.o2t_instance
         o2t_size = s.heartbeat_o2t_size if s.input_only else s.o2t_size + 6
-        path = epath.connection_path(s.config_instance, o2t_point, s.t2o_instance)
+        link = _Link(
+            t2o_id=port.new_connection_id(),
+            connection_serial=self._rng.getrandbits(16),
+            originator_serial=self._rng.getrandbits(32),
+            path=epath.connection_path(s.config_instance, o2t_point, s.t2o_instance),
+            target_host=session.peer_host or await self._target_ip(),
+            o2t_api_us=s.rpi_us,
+            t2o_api_us=s.rpi_us,
+            last_rx=loop.time(),
+        )
         request = ForwardOpenRequest(
             o2t_connection_id=0,
-            t2o_connection_id=t2o_id,
-            connection_serial=connection_serial,
+            t2o_connection_id=link.t2o_id,
+            connection_serial=link.connection_serial,
             vendor_id=ORIGINATOR_VENDOR_ID,
-            originator_serial=originator_serial,
+            originator_serial=link.originator_serial,
             timeout_multiplier=s.timeout_multiplier,
             o2t_rpi_us=s.rpi_us,
             o2t_params=NetworkParams(o2t_size, ConnectionType.POINT_TO_POINT, Priority.SCHEDULED),
@@ -413,46 +545,47 @@ class Originator:
             t2o_params=NetworkParams(
                 s.t2o_size + 2, ConnectionType.POINT_TO_POINT, Priority.SCHEDULED
             ),
-            path=path,
+            path=link.path,
             large=s.large_forward_open,
         )
         extra: list[CpfItem] = []
         if s.request_t2o_port is not None:
-            extra.append(sockaddr_item(ItemType.SOCKADDR_T2O, Sockaddr("0.0.0.0", s.udp_port)))
+            extra.append(sockaddr_item(ItemType.SOCKADDR_T2O, Sockaddr("0.0.0.0", port.udp_port)))
+        self.run = False
+        self._seeded = False
+        self._window.clear()
+        self._lost = loop.create_future()
+        self._first_frame = loop.create_future()
+        self._link = link
+        # A point-to-point T→O connection ID is ours (CIP Vol 1 §3-5.4.1.2): the target may
+        # produce on it as soon as it has opened the connection, before we read its reply.
+        self._route(port, link, silence_s=0.0)
         response, items = await session.request(request.request(), extra)
         if not response.ok:
             with contextlib.suppress(EnipError):
                 decode_failure_reply(response.data)
             raise _RefusedError(f"Forward Open refused: {response.describe()}")
         reply = decode_forward_open_reply(response.data)
-        o2t_addr = (s.robot_host, ENIP_UDP_PORT)
+        self._check_api(reply.o2t_api_us or s.rpi_us, reply.t2o_api_us or s.rpi_us)
+        if reply.t2o_connection_id != link.t2o_id:
+            # Not ours after all (a target choosing it): route the one it produces on.
+            port.unroute(link.t2o_id)
+            link.routed = False
+            link.t2o_id = reply.t2o_connection_id
+            self._route(port, link, silence_s=0.0)
+        link.o2t_id = reply.o2t_connection_id
+        link.o2t_api_us = reply.o2t_api_us or s.rpi_us
+        link.t2o_api_us = reply.t2o_api_us or s.rpi_us
+        link.o2t_addr = (link.target_host, ENIP_UDP_PORT)
         for item in items:
             if item.type_id == ItemType.SOCKADDR_O2T:
                 announced = decode_sockaddr(item.data)
-                host = announced.host if announced.host != "0.0.0.0" else s.robot_host
-                o2t_addr = (host, announced.port)
-        self._link = _Link(
-            o2t_id=reply.o2t_connection_id,
-            t2o_id=reply.t2o_connection_id,
-            connection_serial=connection_serial,
-            originator_serial=originator_serial,
-            o2t_api_us=reply.o2t_api_us or s.rpi_us,
-            t2o_api_us=reply.t2o_api_us or s.rpi_us,
-            o2t_addr=o2t_addr,
-            path=path,
-            last_rx=loop.time(),
-        )
-        self.run = False
-        self._seeded = False
-        self._window.clear()
-        self._lost = loop.create_future()
-        self._first_frame = loop.create_future()
-        link = self._link
-        assert self._udp is not None
+                host = announced.host if announced.host != "0.0.0.0" else link.target_host
+                link.o2t_addr = (host, announced.port)
         # O→T from now on, at the RPI, built ahead into the cyclic pump (o2t_stream).
         link.o2t = O2TStream(
-            self._udp,
-            link.o2t_id,
+            port.udp,
+            port.new_tag(),
             link.o2t_addr,
             link.o2t_api_us / 1e6,
             lambda: self._o2t_packet(link),
@@ -462,8 +595,8 @@ class Originator:
         )
         link.o2t.start()
         # The pump wakes us once T→O has been silent for the timeout, whatever the batch.
-        self._udp.watch(True, self._t2o_batch_s, silence_s=self._timeout_s(link))
-        first_timeout_s = max(s.first_frame_timeout_s, self._timeout_s(self._link))
+        self._route(port, link, silence_s=self._timeout_s(link))
+        first_timeout_s = max(s.first_frame_timeout_s, self._timeout_s(link))
         waits: list[asyncio.Future[Any]] = [self._first_frame, self._lost]
         done, _ = await asyncio.wait(
             waits, timeout=first_timeout_s, return_when=asyncio.FIRST_COMPLETED
@@ -471,31 +604,54 @@ class Originator:
         if self._first_frame not in done:
             raise TimeoutError(
                 f"no T→O frame within {first_timeout_s:.1f} s of the Forward Open "
-                f"(T→O connection 0x{self._link.t2o_id:08X} on UDP {s.udp_port})"
+                f"(T→O connection 0x{link.t2o_id:08X} on UDP {port.local_host}:{port.udp_port})"
             )
         self._connected_since = time.time()
         self._set_state(ConnectionState.CONNECTED, None)
 
-    async def _read_o2t_bits(self, session: EnipSession) -> tuple[bool, ...] | None:
-        """The bit input registers from an explicit read of the O→T assembly, if allowed."""
+    def _route(self, port: IoPort, link: _Link, *, silence_s: float) -> None:
+        port.route(
+            link.t2o_id, link.target_host, self, batch_s=self._t2o_batch_s, silence_s=silence_s
+        )
+        link.routed = True
+
+    def _check_api(self, o2t_api_us: int, t2o_api_us: int) -> None:
+        """Refuse a reply granting packet intervals outside the bounds (the connection is open
+        on the target's side: the refusal closes it)."""
         s = self.settings
+        low_us, high_us = s.api_range_us
+        for direction, api_us in (("O→T", o2t_api_us), ("T→O", t2o_api_us)):
+            if not low_us <= api_us <= high_us:
+                raise _RefusedError(
+                    f"Forward Open reply refused: the target grants a {direction} packet "
+                    f"interval of {api_us} µs for an RPI of {s.rpi_us} µs (accepted: "
+                    f"{low_us}–{high_us} µs)",
+                    opened=True,
+                )
+
+    async def _read_o2t_assembly(self, session: EnipSession) -> None:
+        """Read the O→T assembly's data explicitly where the target allows it (most refuse
+        while another connection owns it): the first O→T packet carries it, and the command
+        image's bit input registers keep it (bumpless takeover). Nothing changes when the read
+        fails, or when ``o2t_data`` was given."""
+        s = self.settings
+        self._explicit_bits = None
+        if s.input_only or s.o2t_data is not None:
+            return
         try:
             response = await session.get_attribute_single(epath.CLASS_ASSEMBLY, s.o2t_instance, 3)
         except EnipError:
-            return None
+            return
         if not response.ok or len(response.data) != s.o2t_size:
-            return None
-        try:
-            return decode_command(response.data).bit_input_registers
-        except CodecError:
-            return None
-
-    @property
-    def _source_host(self) -> str | None:
-        # The target sends T→O to the address our TCP connection comes from (ethernetip.md
-        # "Two stacks on one host"): it must be the address we receive UDP on.
-        host = self.settings.local_host
-        return None if host in ("0.0.0.0", "") else host
+            return
+        if s.o2t_is_command:
+            try:
+                image = decode_command(response.data)
+            except CodecError:
+                return
+            self.command = image
+            self._explicit_bits = image.bit_input_registers
+        self._o2t_bytes = bytes(response.data)
 
     @property
     def _t2o_batch_s(self) -> float:
@@ -507,8 +663,13 @@ class Originator:
 
     async def _teardown(self, *, forward_close: bool) -> None:
         link, self._link = self._link, None
-        if link is not None and link.o2t is not None:
-            link.o2t.stop()
+        port = self._port
+        if link is not None:
+            if link.o2t is not None:
+                self._packets_out_closed += link.o2t.stop()
+            if link.routed and port is not None:
+                port.unroute(link.t2o_id)
+                link.routed = False
         for future in (self._lost, self._first_frame):
             if future is not None and not future.done():
                 future.cancel()
@@ -528,7 +689,8 @@ class Originator:
         s = self.settings
         own = session is None or not session.is_open
         if own:
-            session = EnipSession(s.robot_host, s.tcp_port, 1.0, self._source_host)
+            source = _source_host(self._port) if self._port is not None else None
+            session = EnipSession(s.robot_host, s.tcp_port, 1.0, source)
             await session.open()
         assert session is not None
         try:
@@ -543,26 +705,32 @@ class Originator:
     # ------------------------------------------------------------------ class 1
 
     def _o2t_packet(self, link: _Link) -> bytes:
-        """The O→T datagram, its sequence numbers left for the pump to write: the command image
+        """The O→T datagram, its sequence numbers left for the pump to write: the O→T data
         with the run/idle header, or an input-only connection's heartbeat."""
         s = self.settings
         if not s.input_only:
-            return io.encode_io(
-                link.o2t_id, 0, 0, self._command_bytes, io.RUN_BIT if self.run else 0
-            )
+            return io.encode_io(link.o2t_id, 0, 0, self._o2t_bytes, io.RUN_BIT if self.run else 0)
         if s.heartbeat_o2t_size == 0:
             return io.encode_heartbeat(link.o2t_id, 0)
         if s.heartbeat_o2t_size == 6:
             return io.encode_io(link.o2t_id, 0, 0, b"", 0)
         return io.encode_io(link.o2t_id, 0, 0, b"")
 
-    def _t2o_batch_read(self) -> None:
+    # T2OConsumer: what the IoPort hands us.
+
+    def t2o_batch_read(self) -> None:
         """After each wake-up for T→O (a batch, or the pump's word that T→O fell silent for the
         connection timeout): push the fallback timer back and look at the watchdog."""
         link = self._link
         if link is not None and link.o2t is not None:
             link.o2t.t2o_read()
             self._check_t2o_silence(link, asyncio.get_running_loop().time(), 0.0)
+
+    def t2o_foreign(self) -> None:
+        self.foreign += 1
+
+    def t2o_malformed(self) -> None:
+        self.malformed += 1
 
     def _check_t2o_silence(self, link: _Link, now: float, lag_s: float) -> None:
         """The watchdog (ethernetip.md "Forward Open": RPI × (4 << multiplier)). Checked after
@@ -582,41 +750,40 @@ class Originator:
                 f"{4 << self.settings.timeout_multiplier}): connection timed out"
             )
 
-    def _t2o_received(self, data: bytes, addr: tuple[str, int], arrived: float) -> None:
-        """One T→O datagram (``arrived``: the loop time the kernel received it)."""
+    def t2o_packet(self, packet: io.IoPacket, arrived: float) -> None:
+        """One T→O packet of this connection from the target's address (``arrived``: the loop
+        time the kernel received it)."""
         link = self._link
-        try:
-            packet = io.decode_io(data)
-        except EnipError:
-            self.malformed += 1
-            return
-        if link is None or packet.connection_id != link.t2o_id:
+        if link is None:
             self.foreign += 1
             return
         payload = packet.payload
-        if packet.cip_seq is None or len(payload) < self.settings.t2o_size:
+        s = self.settings
+        if packet.cip_seq is None or len(payload) != s.t2o_size:
             self.malformed += 1
             return
-        last_encap = link.last_t2o_encap_seq
-        if last_encap is not None and io.seq32_newer(packet.encap_seq, last_encap) <= 0:
+        verdict = link.sequence.accept(packet.encap_seq, packet.cip_seq)
+        if verdict is STALE:
             self.stale += 1
             return
-        link.last_t2o_encap_seq = packet.encap_seq
-        now = arrived
-        link.last_rx = now
+        link.last_rx = arrived
         self.packets_in += 1
-        last_cip = link.last_t2o_cip_seq
-        if last_cip is not None:
-            ahead = io.seq16_newer(packet.cip_seq, last_cip)
-            if ahead == 0:
-                self.duplicates += 1
-                return
-            if ahead < 0:
-                self.stale += 1
-                return
-            if ahead > 1:
-                self.gaps += ahead - 1
-        link.last_t2o_cip_seq = packet.cip_seq
+        if verdict is DUPLICATE:
+            self.duplicates += 1
+            return
+        self.gaps += link.sequence.missed
+        # Epoch seconds the kernel received it (read in batches, so not "now").
+        received_at = arrived + (time.time() - time.monotonic())
+        if not s.decodes_frames:
+            self._count_frame(link, arrived)
+            self.latest_data = (payload, received_at)
+            self._first_data()
+            if self.on_data is not None:
+                try:
+                    self.on_data(payload, received_at, self.frames)
+                except Exception:
+                    log.exception("on_data callback failed")
+            return
         decoded = link.last_payload
         if decoded is not None and payload == decoded[0]:
             # The same bytes as the last frame (a robot refreshes its monitoring values about
@@ -629,16 +796,7 @@ class Originator:
                 self.malformed += 1
                 return
             link.last_payload = (payload, frame)
-        # Epoch seconds the kernel received it (read in batches, so not "now").
-        received_at = now + (time.time() - time.monotonic())
-        previous = link.last_frame_at
-        link.last_frame_at = now
-        if previous is not None:
-            interval_s = now - previous
-            self._window.add(interval_s * 1e3)
-            if interval_s > link.t2o_api_us * 1.5e-6:
-                self.late += 1
-        self.frames += 1
+        self._count_frame(link, arrived)
         self.latest = (frame, received_at)
         if not self._seeded:
             self._seed(frame)
@@ -648,21 +806,42 @@ class Originator:
             except Exception:
                 log.exception("on_frame callback failed")
 
-    def _seed(self, frame: Frame) -> None:
-        """Bumpless takeover: the command image becomes what the robot does now."""
-        bits = self._explicit_bits or self.command.bit_input_registers
-        self.command = CommandImage(
-            controlbox_do=frame.controlbox_do,
-            tool_do=frame.tool_do,
-            analog_output_type=frame.analog_output_type,
-            analog_output=frame.analog_output,
-            bit_input_registers=bits,
-        )
-        self._command_bytes = encode_command(self.command)
-        self._seeded = True
-        self._rebuild_o2t()
+    def _count_frame(self, link: _Link, arrived: float) -> None:
+        previous = link.last_frame_at
+        link.last_frame_at = arrived
+        if previous is not None:
+            interval_s = arrived - previous
+            self._window.add(interval_s * 1e3)
+            if interval_s > link.t2o_api_us * 1.5e-6:
+                self.late += 1
+        self.frames += 1
+
+    def _first_data(self) -> None:
         if self._first_frame is not None and not self._first_frame.done():
             self._first_frame.set_result(None)
+
+    def _seed(self, frame: Frame) -> None:
+        """Bumpless takeover: the command image becomes what the robot does now."""
+        self._seeded = True
+        if self.settings.o2t_is_command:
+            bits = self._explicit_bits or self.command.bit_input_registers
+            self.command = CommandImage(
+                controlbox_do=frame.controlbox_do,
+                tool_do=frame.tool_do,
+                analog_output_type=frame.analog_output_type,
+                analog_output=frame.analog_output,
+                bit_input_registers=bits,
+            )
+            self._o2t_bytes = encode_command(self.command)
+            self._rebuild_o2t()
+        self._first_data()
+
+
+def _source_host(port: IoPort) -> str | None:
+    """The TCP session's source address: the target sends T→O to the address our TCP
+    connection comes from (ethernetip.md "Two stacks on one host"): the port's address."""
+    host = port.local_host
+    return None if host in ("0.0.0.0", "") else host
 
 
 __all__ = [
@@ -672,4 +851,6 @@ __all__ = [
     "Originator",
     "OriginatorSettings",
     "ReadOnlyError",
+    "fit_o2t_data",
+    "local_address_to",
 ]

@@ -40,6 +40,8 @@ class EnipSession:
         self.port = port
         self.timeout_s = timeout_s
         self.handle = 0
+        self.peer_host: str | None = None
+        """The target's address as the TCP connection reached it (its T→O comes from there)."""
         self._reader: asyncio.StreamReader | None = None
         self._writer: asyncio.StreamWriter | None = None
         self._lock = asyncio.Lock()
@@ -66,6 +68,8 @@ class EnipSession:
             )
         except (OSError, TimeoutError) as error:
             raise SessionError(f"cannot reach {self.host}:{self.port}: {error}") from None
+        peer = self._writer.get_extra_info("peername") if self._writer is not None else None
+        self.peer_host = str(peer[0]) if peer else None
         reply = await self._transact(
             Command.REGISTER_SESSION, encapsulation.encode_register_session()
         )

@@ -1,0 +1,219 @@
+"""Layer: scanner (asyncio I/O, the originator role). Imports ``cobot_hmi.enip`` and the runtime
+support (``udp_endpoint``); never the codec's frames, the emulator or the service.
+
+The class 1 UDP port of an originator (issue 11, "Many connections, one socket"): one socket on
+UDP 2222 of one local address, shared by every class 1 connection the process holds from that
+address, as a PLC holds its connections to many adapters. A second socket on 2222 of the same
+address cannot work (the kernel hands each datagram to one of them), so the connections are
+told apart by connection ID (CIP Vol 2 §3-6.1: the consumer matches the 0x8002 item's
+connection ID) and, per connection, by the producer's address (the consumer check of CIP Vol 2
+§3-6.1: T→O comes from the target's address; anything else with the same ID is forged).
+
+Every connection's O→T stream goes through the port's cyclic pump (``O2TStream``), each under a
+tag of the port's own (two targets may well choose the same O→T connection ID).
+
+The port keeps the pump's wake-ups right for all of its connections: at most every ``batch_s``
+of the connection that wants the shortest batch (0, one per datagram, as soon as one connection
+runs at an RPI of ``BATCH_PERIOD_S`` or more), and once after the shortest watchdog timeout of
+silence on the whole socket; a single connection falling silent among busy ones is caught at the
+batch wake-ups and at its own O→T stream's fallback timer.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import random
+from dataclasses import dataclass
+from typing import Protocol
+
+from cobot_hmi.enip import io
+from cobot_hmi.enip.encapsulation import ENIP_UDP_PORT
+from cobot_hmi.enip.errors import EnipError
+from cobot_hmi.udp_endpoint import UdpEndpoint
+
+log = logging.getLogger(__name__)
+
+
+class T2OConsumer(Protocol):
+    """What a connection hands the port: where its T→O goes."""
+
+    def t2o_packet(self, packet: io.IoPacket, arrived: float) -> None:
+        """A T→O packet with this connection's ID from the target's address (``arrived``: the
+        loop time the kernel received it)."""
+
+    def t2o_foreign(self) -> None:
+        """A datagram with this connection's ID from another address, or one from the target's
+        address with an unknown connection ID: dropped, counted."""
+
+    def t2o_malformed(self) -> None:
+        """A datagram from the target's address that is no class 1 packet: dropped, counted."""
+
+    def t2o_batch_read(self) -> None:
+        """After each wake-up of the port (a batch read, or the pump's word of silence)."""
+
+
+@dataclass(frozen=True, slots=True)
+class _Route:
+    source_host: str
+    consumer: T2OConsumer
+    batch_s: float
+    silence_s: float
+
+
+class IoPort:
+    """One UDP socket (``local_host``:``udp_port``) and its cyclic pump, shared by every class 1
+    connection of the process from that address. Create, open and use it on the event loop that
+    runs its originators."""
+
+    def __init__(self, local_host: str, udp_port: int = ENIP_UDP_PORT) -> None:
+        self.local_host = local_host
+        self.udp_port = udp_port
+        self.foreign = 0
+        """Datagrams with a connection ID no connection holds, from no target's address."""
+        self.malformed = 0
+        """Datagrams that are no class 1 packet, from no target's address."""
+        self._udp: UdpEndpoint | None = None
+        self._routes: dict[int, _Route] = {}
+        self._by_source: dict[str, list[T2OConsumer]] = {}
+        self._tags = itertools.count(1)
+        self._rng = random.Random()
+        self._watch: tuple[float, float] | None = None
+
+    # ------------------------------------------------------------------ lifetime
+
+    @property
+    def is_open(self) -> bool:
+        return self._udp is not None
+
+    @property
+    def udp(self) -> UdpEndpoint:
+        """The socket and its pump (opened by :meth:`open`)."""
+        if self._udp is None:
+            raise OSError(f"UDP port {self.local_host}:{self.udp_port} is not open")
+        return self._udp
+
+    async def open(self) -> None:
+        """Bind the socket and start the pump (again after a close); an ``OSError`` names the
+        address that cannot be bound."""
+        if self._udp is not None:
+            return
+        try:
+            udp = UdpEndpoint(
+                self.local_host,
+                self.udp_port,
+                self._received,
+                receive_size=io.MAX_DATAGRAM + 1,
+                on_batch=self._batch_read,
+            )
+        except OSError as error:
+            raise OSError(f"cannot bind UDP {self.local_host}:{self.udp_port}: {error}") from None
+        self._udp = udp
+        self._watch = None
+        self._configure()
+
+    def close(self) -> None:
+        """Close the socket; the connections still routed here hear nothing more."""
+        udp, self._udp = self._udp, None
+        if udp is not None:
+            udp.close()
+
+    # ------------------------------------------------------------------ connections
+
+    def new_connection_id(self) -> int:
+        """A T→O connection ID (CIP Vol 1 §3-5.4.1.2: chosen by the originator for a
+        point-to-point T→O) that no connection of this port holds."""
+        while True:
+            connection_id = self._rng.getrandbits(32)
+            if connection_id and connection_id not in self._routes:
+                return connection_id
+
+    def new_tag(self) -> int:
+        """A pump tag for one O→T stream, unique on this port."""
+        return next(self._tags)
+
+    def route(
+        self,
+        t2o_id: int,
+        source_host: str,
+        consumer: T2OConsumer,
+        *,
+        batch_s: float,
+        silence_s: float,
+    ) -> None:
+        """T→O with ``t2o_id`` from ``source_host`` goes to ``consumer`` from now on (before the
+        Forward Open leaves: the first T→O packet may come before its reply is read).
+        ``batch_s``: how often the connection wants its T→O at most (0: at once).
+        ``silence_s``: its watchdog timeout (0: none yet)."""
+        old = self._routes.get(t2o_id)
+        if old is not None and old.consumer is not consumer:
+            raise ValueError(f"T→O connection ID 0x{t2o_id:08X} is routed already")
+        if old is not None:
+            self._forget_source(old)
+        self._routes[t2o_id] = _Route(source_host, consumer, batch_s, silence_s)
+        self._by_source.setdefault(source_host, []).append(consumer)
+        self._configure()
+
+    def unroute(self, t2o_id: int) -> None:
+        """T→O with ``t2o_id`` is foreign again."""
+        route = self._routes.pop(t2o_id, None)
+        if route is not None:
+            self._forget_source(route)
+            self._configure()
+
+    def _forget_source(self, route: _Route) -> None:
+        consumers = self._by_source.get(route.source_host)
+        if consumers is not None:
+            if route.consumer in consumers:
+                consumers.remove(route.consumer)
+            if not consumers:
+                del self._by_source[route.source_host]
+
+    def _configure(self) -> None:
+        """The pump's wake-ups for the connections routed now (only when they change)."""
+        udp = self._udp
+        if udp is None:
+            return
+        routes = self._routes.values()
+        batch_s = min((r.batch_s for r in routes), default=0.0)
+        silence_s = min((r.silence_s for r in routes if r.silence_s > 0), default=0.0)
+        if self._watch != (batch_s, silence_s):
+            self._watch = (batch_s, silence_s)
+            udp.watch(True, batch_s, silence_s=silence_s)
+
+    # ------------------------------------------------------------------ receiving
+
+    def _received(self, data: bytes, addr: tuple[str, int], arrived: float) -> None:
+        try:
+            packet = io.decode_io(data)
+        except EnipError:
+            consumers = self._by_source.get(addr[0])
+            if consumers:
+                consumers[0].t2o_malformed()
+            else:
+                self.malformed += 1
+            return
+        route = self._routes.get(packet.connection_id)
+        if route is not None and route.source_host == addr[0]:
+            route.consumer.t2o_packet(packet, arrived)
+            return
+        if route is not None:
+            # The live connection ID from another address: forged, or a stray (the consumer
+            # check, CIP Vol 2 §3-6.1). Counted on the connection it pretends to be.
+            route.consumer.t2o_foreign()
+            return
+        consumers = self._by_source.get(addr[0])
+        if consumers:
+            consumers[0].t2o_foreign()
+        else:
+            self.foreign += 1
+
+    def _batch_read(self) -> None:
+        for route in list(self._routes.values()):
+            try:
+                route.consumer.t2o_batch_read()
+            except Exception:
+                log.exception("T→O batch callback failed")
+
+
+__all__ = ["IoPort", "T2OConsumer"]
