@@ -164,6 +164,16 @@ def test_partial_image_over_a_base_keeps_the_base() -> None:
         ({"bit_input_registers": {"64": True}}, "index out of range 0–63"),
         ({"tool_do": {"-1": True}}, "not a whole number"),
         ({"tool_do": {"x": True}}, "not a whole number"),
+        # Index keys are ASCII decimal in canonical form: other scripts' digits, superscripts,
+        # signs, spaces and leading zeros are refused, not read as an index.
+        ({"controlbox_do": {"٣": True}}, "not a whole number"),
+        ({"controlbox_do": {"１": True}}, "not a whole number"),
+        ({"controlbox_do": {"²": True}}, "not a whole number"),
+        ({"controlbox_do": {"+3": True}}, "not a whole number"),
+        ({"controlbox_do": {" 3": True}}, "not a whole number"),
+        ({"controlbox_do": {"03": True}}, "index '03' has a leading zero"),
+        ({"controlbox_do": {"00": True}}, "leading zero"),
+        ({"controlbox_do": {"9" * 5000: True}}, "index out of range 0–15"),
         ({"controlbox_do": {"0": 1}}, "expected true or false"),
         ({"analog_output": {"0": math.inf}}, "not a finite number"),
         ({"analog_output": {"1": math.nan}}, "not a finite number"),
@@ -308,3 +318,9 @@ def test_encode_refuses_arrays_of_the_wrong_length() -> None:
 def test_counts_cover_every_array_field() -> None:
     assert set(T2O_COUNTS) == {f.name for f in T2O_ASSEMBLY.fields if not f.scalar}
     assert set(O2T_COUNTS) == {f.name for f in O2T_ASSEMBLY.fields}
+
+
+def test_index_keys_in_canonical_form_are_applied() -> None:
+    image = command_from_json({"controlbox_do": {"0": True, "15": True}, "tool_do": {1: True}})
+    assert image.controlbox_do[0] and image.controlbox_do[15]
+    assert image.tool_do[1] is True

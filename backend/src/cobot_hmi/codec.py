@@ -132,11 +132,35 @@ def _element(f: Field, where: str, value: object) -> bool | int | float:
     return float(value)
 
 
+_MAX_INDEX_DIGITS: Final = 6
+"""Longer index keys are out of range for every field; not converted (a huge digit string
+would cost quadratic time in ``int``)."""
+
+
 def _index(f: Field, key: object) -> int:
-    text = str(key)
-    if not text.isdigit():
-        raise CodecError(f"{f.name}: index {key!r} is not a whole number")
-    index = int(text)
+    """An index-map key: ASCII decimal digits in canonical form, or a Python ``int``.
+
+    ``str.isdigit`` (and ``int``) also accept other scripts' digits ("٣", "１") and
+    superscripts ("²" passes ``isdigit`` but fails ``int``): only ``0``–``9`` are taken. Leading
+    zeros are refused ("03"): otherwise two keys of one JSON object ("3" and "03") could name
+    the same element, and which one won would depend on member order; the audit trail also
+    records the canonical ``name.index`` key, which then always is what the client sent.
+    """
+    if isinstance(key, int) and not isinstance(key, bool):
+        index = key
+        if index < 0:
+            raise CodecError(f"{f.name}: index {key!r} is not a whole number")
+    else:
+        text = key if isinstance(key, str) else None
+        if text is None or not text.isascii() or not text.isdigit():
+            raise CodecError(f"{f.name}: index {key!r} is not a whole number (ASCII digits 0–9)")
+        if len(text) > 1 and text[0] == "0":
+            canonical = text.lstrip("0") or "0"
+            raise CodecError(f"{f.name}: index {key!r} has a leading zero (write {canonical!r})")
+        if len(text) > _MAX_INDEX_DIGITS:
+            shown = text[:_MAX_INDEX_DIGITS] + "…"
+            raise CodecError(f"{f.name}[{shown}]: index out of range 0–{f.count - 1}")
+        index = int(text)
     if index >= f.count:
         raise CodecError(f"{f.name}[{index}]: index out of range 0–{f.count - 1}")
     return index
