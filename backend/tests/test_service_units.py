@@ -6,6 +6,7 @@ from __future__ import annotations
 import asyncio
 import csv
 import io
+import json
 import sqlite3
 from pathlib import Path
 from typing import Any
@@ -16,7 +17,14 @@ import pytest
 from cobot_hmi.codec import command_to_json, zero_command, zero_frame
 from cobot_hmi.service.events import FrameWatcher
 from cobot_hmi.service.hub import Hub, Kind, StreamClient
-from cobot_hmi.service.store import AUDIT_COLUMNS, AuditEntry, Store, to_csv
+from cobot_hmi.service.store import (
+    AUDIT_COLUMNS,
+    EVENT_COLUMNS,
+    AuditEntry,
+    Store,
+    event_csv_rows,
+    to_csv,
+)
 from cobot_hmi.service.writes import (
     FRAME_ECHOED,
     WriteValidationError,
@@ -71,6 +79,11 @@ def test_plan_write_applies_a_partial_image() -> None:
         ),
         ({"analog_output_type": {"0": 0}}, "analog_output.0", "together with the type change"),
         ({"speed": {"0": 1}}, "speed", "unknown field"),
+        # Keys the T→O codec tolerates in a frame are not O→T fields (a 500 before).
+        ({"extra": "00"}, "extra", "unknown field"),
+        ({"robot_state_name": "X"}, "robot_state_name", "unknown field"),
+        # A key str.isdigit() accepts but int() does not (a 500 before).
+        ({"controlbox_do": {"²": True}}, "controlbox_do", ""),
         ({}, None, "nothing to write"),
         ([1, 2], None, "JSON object"),
     ],
@@ -272,11 +285,81 @@ async def test_store_audit_and_events(tmp_path: Path) -> None:
         await store.flush_events()
         events = await store.events_page("flag", 5, 0)
         assert events.total == 25
-        assert [e["data"] for e in events.items][:2] == [{"i": 49}, {"i": 47}]
+        assert [e["i"] for e in events.items][:2] == [49, 47]
+        assert events.items[0]["kind"] == "flag" and events.items[0]["time"] == 49.0
         assert (await store.events_page(None, 1, 0)).total == 50
     finally:
         await store.close()
     assert command_to_json(zero_command())  # the codec's JSON form is what the store keeps
+
+
+async def test_store_events_and_audit_by_robot(tmp_path: Path) -> None:
+    store = Store(tmp_path / "hmi.db")
+    await store.open()
+    try:
+        for robot in ("left", "right", "left"):
+            store.log_event(
+                {"kind": "flag", "time": 1.0, "robot": robot, "flag": "servo_on", "value": True}
+            )
+            await store.add_audit(
+                AuditEntry(
+                    "alice", None, "write", [], None, None, "invalid", "x", robot=robot, origin="t"
+                )
+            )
+        await store.flush_events()
+        left = await store.events_page(None, 10, 0, robot="left")
+        assert left.total == 2
+        assert left.items[0] == {
+            "id": 3,
+            "time": 1.0,
+            "robot": "left",
+            "kind": "flag",
+            "flag": "servo_on",
+            "value": True,
+        }
+        assert (await store.events_page("flag", 10, 0, robot="right")).total == 1
+        assert (await store.events_page("write", 10, 0, robot="right")).total == 0
+        audit = await store.audit_page(10, 0, robot="right")
+        assert audit.total == 1
+        assert audit.items[0]["robot"] == "right" and audit.items[0]["origin"] == "t"
+        rows = list(csv.DictReader(io.StringIO(to_csv(event_csv_rows(left.items), EVENT_COLUMNS))))
+        assert rows[0]["robot"] == "left"
+        assert json.loads(rows[0]["data"]) == {"flag": "servo_on", "value": True}
+    finally:
+        await store.close()
+
+
+async def test_store_migrates_a_database_without_robot_columns(tmp_path: Path) -> None:
+    path = tmp_path / "old.db"
+    with sqlite3.connect(path) as old:  # the schema of the first release
+        old.executescript(
+            "CREATE TABLE audit (id INTEGER PRIMARY KEY AUTOINCREMENT, time REAL NOT NULL,"
+            " user TEXT, client TEXT, action TEXT NOT NULL, fields TEXT NOT NULL, before TEXT,"
+            " requested TEXT, outcome TEXT NOT NULL, reason TEXT);"
+            "CREATE TABLE events (id INTEGER PRIMARY KEY AUTOINCREMENT, time REAL NOT NULL,"
+            " kind TEXT NOT NULL, data TEXT NOT NULL);"
+            "INSERT INTO audit (time, user, action, fields, outcome) VALUES"
+            " (1.0, 'alice', 'control.take', '[]', 'granted');"
+            "INSERT INTO events (time, kind, data) VALUES (2.0, 'flag', '{\"value\": true}');"
+        )
+    old.close()
+    store = Store(path)
+    await store.open()
+    try:
+        audit = await store.audit_page(10, 0)
+        assert audit.total == 1
+        assert audit.items[0]["user"] == "alice" and audit.items[0]["robot"] is None
+        events = await store.events_page(None, 10, 0)
+        assert events.items == [
+            {"id": 1, "time": 2.0, "robot": None, "kind": "flag", "value": True}
+        ]
+        await store.add_audit(
+            AuditEntry("bob", None, "write", [], None, None, "invalid", None, robot="a")
+        )
+        assert (await store.audit_page(10, 0, robot="a")).total == 1
+        assert (await store.audit_page(10, 0)).total == 2
+    finally:
+        await store.close()
 
 
 async def test_each_frame_is_serialized_once_whatever_the_clients(

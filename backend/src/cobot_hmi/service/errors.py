@@ -1,7 +1,8 @@
 """Layer: service. The refusals the service answers with, as ``docs/api.md`` words them.
 
-``detail`` is always an object with ``reason`` (plus ``field`` for 422, ``robot_reports``
-for 504). Imports nothing of the project.
+``detail`` is always an object with ``reason`` and ``field`` (``None`` unless one part of the
+request is at fault), plus ``robot_reports`` for 504 and ``known`` for an unknown robot
+(``service.models.ApiErrorBody``). Imports nothing of the project.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ class ApiError(Exception):
         super().__init__(reason)
         self.status = status
         self.reason = reason
-        self.detail: dict[str, object] = {"reason": reason, **extra}
+        self.detail: dict[str, object] = {"reason": reason, "field": None, **extra}
         self.headers: dict[str, str] = {}
 
 
@@ -30,3 +31,19 @@ def forbidden(reason: str) -> ApiError:
 
 def conflict(reason: str) -> ApiError:
     return ApiError(409, reason)
+
+
+def not_found(reason: str, **extra: object) -> ApiError:
+    return ApiError(404, reason, **extra)
+
+
+class UnknownRobotError(LookupError):
+    """A robot name the settings do not list; the API answers 404 naming the known ones."""
+
+    def __init__(self, name: str, known: list[str]) -> None:
+        self.name = name
+        self.known = list(known)
+        super().__init__(f"unknown robot {name!r}; known: {', '.join(self.known) or 'none'}")
+
+    def to_api_error(self, field: str = "name") -> ApiError:
+        return not_found(str(self), field=field, known=self.known)

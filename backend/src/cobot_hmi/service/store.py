@@ -20,7 +20,7 @@ import csv
 import io
 import sqlite3
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -52,11 +52,26 @@ CREATE TABLE IF NOT EXISTS events (
 CREATE INDEX IF NOT EXISTS events_kind ON events (kind, id);
 """
 
+_ADDED_COLUMNS: Final = (
+    ("audit", "robot", "TEXT"),
+    ("audit", "origin", "TEXT"),
+    ("events", "robot", "TEXT"),
+)
+"""Columns added after the first release: a database from before gets them (``NULL`` in its old
+rows) when it is opened; no row is lost."""
+
+_INDEXES: Final = """
+CREATE INDEX IF NOT EXISTS events_robot ON events (robot, id);
+CREATE INDEX IF NOT EXISTS audit_robot ON audit (robot, id);
+"""
+
 AUDIT_COLUMNS: Final = (
     "id",
     "time",
+    "robot",
     "user",
     "client",
+    "origin",
     "action",
     "fields",
     "before",
@@ -65,7 +80,9 @@ AUDIT_COLUMNS: Final = (
     "reason",
 )
 _AUDIT_JSON: Final = frozenset({"fields", "before", "requested"})
-EVENT_COLUMNS: Final = ("id", "time", "kind", "data")
+EVENT_COLUMNS: Final = ("id", "time", "robot", "kind", "data")
+"""The CSV columns of the event log (``data``: the kind's own fields as JSON text)."""
+_EVENT_KEYS: Final = frozenset({"id", "time", "robot", "kind"})
 MAX_PAGE: Final = 100_000
 """Largest ``limit`` of one page (a CSV export takes everything in one)."""
 
@@ -83,6 +100,10 @@ class AuditEntry:
     outcome: str
     reason: str | None
     time: float = 0.0
+    robot: str | None = None
+    """The robot's name (``None``: not about one robot)."""
+    origin: str | None = None
+    """Which door the request came through (``PATCH /api/v1/robots/{name}/command``, MQTT…)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -98,7 +119,9 @@ class Store:
         self.path = path
         self._executor: ThreadPoolExecutor | None = None
         self._connection: sqlite3.Connection | None = None
-        self._events: asyncio.Queue[tuple[float, str, dict[str, object]]] = asyncio.Queue()
+        self._events: asyncio.Queue[tuple[float, str, str | None, dict[str, object]]] = (
+            asyncio.Queue()
+        )
         self._writer: asyncio.Task[None] | None = None
         self.events_written = 0
         self.event_write_errors = 0
@@ -114,11 +137,16 @@ class Store:
         connection.execute("PRAGMA journal_mode=WAL")
         connection.execute("PRAGMA synchronous=FULL")
         connection.executescript(_SCHEMA)
+        for table, column, kind in _ADDED_COLUMNS:
+            present = {row[1] for row in connection.execute(f"PRAGMA table_info({table})")}
+            if column not in present:
+                connection.execute(f"ALTER TABLE {table} ADD COLUMN {column} {kind}")
+        connection.executescript(_INDEXES)
         self._connection = connection
 
     async def close(self) -> None:
         if self._writer is not None:
-            self._events.put_nowait((0.0, "", {}))  # sentinel: flush and stop
+            self._events.put_nowait((0.0, "", None, {}))  # sentinel: flush and stop
             await self._writer
             self._writer = None
         if self._executor is not None:
@@ -153,12 +181,14 @@ class Store:
     def _add_audit_sync(self, entry: AuditEntry, fsync: bool) -> int:
         with self._synchronous("FULL" if fsync else "NORMAL") as db:
             cursor = db.execute(
-                "INSERT INTO audit (time, user, client, action, fields, before, requested,"
-                " outcome, reason) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                "INSERT INTO audit (time, robot, user, client, origin, action, fields, before,"
+                " requested, outcome, reason) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 (
                     entry.time or time.time(),
+                    entry.robot,
                     entry.user,
                     entry.client,
+                    entry.origin,
                     entry.action,
                     orjson.dumps(list(entry.fields)).decode(),
                     orjson.dumps(entry.before).decode(),
@@ -181,16 +211,18 @@ class Store:
                 "UPDATE audit SET outcome = ?, reason = ? WHERE id = ?", (outcome, reason, row_id)
             )
 
-    async def audit_page(self, limit: int, offset: int) -> Page:
-        """Audit rows, newest first."""
-        return await self._run(self._audit_page_sync, limit, offset)
+    async def audit_page(self, limit: int, offset: int, *, robot: str | None = None) -> Page:
+        """Audit rows, newest first, optionally of one robot."""
+        return await self._run(self._audit_page_sync, limit, offset, robot)
 
-    def _audit_page_sync(self, limit: int, offset: int) -> Page:
+    def _audit_page_sync(self, limit: int, offset: int, robot: str | None) -> Page:
         db = self._db()
-        total = db.execute("SELECT count(*) FROM audit").fetchone()[0]
+        where, params = _where(robot=robot)
+        total = db.execute(f"SELECT count(*) FROM audit {where}", params).fetchone()[0]
         rows = db.execute(
-            f"SELECT {', '.join(AUDIT_COLUMNS)} FROM audit ORDER BY id DESC LIMIT ? OFFSET ?",
-            (limit, offset),
+            f"SELECT {', '.join(AUDIT_COLUMNS)} FROM audit {where} ORDER BY id DESC"
+            " LIMIT ? OFFSET ?",
+            (*params, limit, offset),
         ).fetchall()
         items = []
         for row in rows:
@@ -203,9 +235,23 @@ class Store:
 
     # ----------------------------------------------------------------- events
 
-    def submit_event(self, time_s: float, kind: str, data: dict[str, object]) -> None:
+    def submit_event(
+        self, time_s: float, kind: str, data: dict[str, object], robot: str | None = None
+    ) -> None:
         """Queue an event for the log; never blocks, written within one batch."""
-        self._events.put_nowait((time_s, kind, data))
+        self._events.put_nowait((time_s, kind, robot, data))
+
+    def log_event(self, event: Mapping[str, object]) -> None:
+        """Queue an event as the stream carries it (``kind``, ``time``, ``robot`` and the kind's
+        own fields, ``docs/api.md``)."""
+        time_s = event.get("time")
+        robot = event.get("robot")
+        self.submit_event(
+            float(time_s) if isinstance(time_s, int | float) else time.time(),
+            str(event.get("kind", "")) or "unknown",
+            {k: v for k, v in event.items() if k not in _EVENT_KEYS},
+            robot if isinstance(robot, str) else None,
+        )
 
     async def _write_events(self) -> None:
         stopping = False
@@ -214,11 +260,11 @@ class Store:
             while not self._events.empty():
                 batch.append(self._events.get_nowait())
             rows = []
-            for t, kind, data in batch:
+            for t, kind, robot, data in batch:
                 if not kind:
                     stopping = True
                     continue
-                rows.append((t, kind, orjson.dumps(data).decode()))
+                rows.append((t, robot, kind, orjson.dumps(data).decode()))
             if rows:
                 try:
                     await self._run(self._add_events_sync, rows)
@@ -227,9 +273,9 @@ class Store:
                     # A full disk must not stop the service; the count shows in /metrics.
                     self.event_write_errors += len(rows)
 
-    def _add_events_sync(self, rows: list[tuple[float, str, str]]) -> None:
+    def _add_events_sync(self, rows: list[tuple[float, str | None, str, str]]) -> None:
         with self._synchronous("NORMAL") as db:
-            db.executemany("INSERT INTO events (time, kind, data) VALUES (?, ?, ?)", rows)
+            db.executemany("INSERT INTO events (time, robot, kind, data) VALUES (?, ?, ?, ?)", rows)
 
     async def flush_events(self) -> None:
         """Wait until every event submitted so far is committed (tests, shutdown)."""
@@ -241,20 +287,57 @@ class Store:
                     return
             await asyncio.sleep(0.005)
 
-    async def events_page(self, kind: str | None, limit: int, offset: int) -> Page:
-        """Events, newest first, optionally of one kind."""
-        return await self._run(self._events_page_sync, kind, limit, offset)
+    async def events_page(
+        self, kind: str | None, limit: int, offset: int, *, robot: str | None = None
+    ) -> Page:
+        """Events, newest first, optionally of one kind and one robot. Each item is the event as
+        the stream carries it plus its ``id`` (``event_csv_rows`` gathers the kind's fields)."""
+        return await self._run(self._events_page_sync, kind, limit, offset, robot)
 
-    def _events_page_sync(self, kind: str | None, limit: int, offset: int) -> Page:
+    def _events_page_sync(
+        self, kind: str | None, limit: int, offset: int, robot: str | None
+    ) -> Page:
         db = self._db()
-        where, params = ("WHERE kind = ?", (kind,)) if kind else ("", ())
+        where, params = _where(kind=kind, robot=robot)
         total = db.execute(f"SELECT count(*) FROM events {where}", params).fetchone()[0]
         rows = db.execute(
-            f"SELECT id, time, kind, data FROM events {where} ORDER BY id DESC LIMIT ? OFFSET ?",
+            f"SELECT id, time, robot, kind, data FROM events {where} ORDER BY id DESC"
+            " LIMIT ? OFFSET ?",
             (*params, limit, offset),
         ).fetchall()
-        items = [{"id": r[0], "time": r[1], "kind": r[2], "data": orjson.loads(r[3])} for r in rows]
+        items = []
+        for row_id, time_s, robot_name, kind_name, data in rows:
+            fields = orjson.loads(data)
+            own = fields if isinstance(fields, dict) else {"data": fields}
+            items.append(
+                {
+                    **{k: v for k, v in own.items() if k not in _EVENT_KEYS},
+                    "id": row_id,
+                    "time": time_s,
+                    "robot": robot_name,
+                    "kind": kind_name,
+                }
+            )
         return Page(items, int(total))
+
+
+def _where(**equal: str | None) -> tuple[str, tuple[str, ...]]:
+    """``WHERE a = ? AND …`` for the given columns whose value is not ``None``."""
+    pairs = [(column, value) for column, value in equal.items() if value is not None]
+    if not pairs:
+        return "", ()
+    return "WHERE " + " AND ".join(f"{c} = ?" for c, _ in pairs), tuple(v for _, v in pairs)
+
+
+def event_csv_rows(items: Sequence[dict[str, object]]) -> list[dict[str, object]]:
+    """Events page items as CSV rows: the kind's own fields gathered in ``data``."""
+    return [
+        {
+            **{k: item.get(k) for k in _EVENT_KEYS},
+            "data": {k: v for k, v in item.items() if k not in _EVENT_KEYS},
+        }
+        for item in items
+    ]
 
 
 def to_csv(items: Sequence[dict[str, object]], columns: Sequence[str]) -> str:

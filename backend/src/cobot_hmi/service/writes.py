@@ -85,14 +85,22 @@ def plan_write(body: object, base: CommandImage) -> PlannedWrite:
         raise WriteValidationError(None, "nothing to write: give at least one field")
     paths: list[Path] = []
     for name, value in body.items():
+        if name not in _O2T_NAMES:  # also the frame-only keys the codec tolerates ("extra")
+            known = ", ".join(_O2T_NAMES)
+            raise WriteValidationError(
+                str(name), f"unknown field {name!r}: a write names O→T fields ({known})"
+            )
         try:
             command_from_json({name: value}, base)
+            paths.extend(_paths(name, value))
         except CodecError as error:
             message = str(error)
             match = _INDEX_IN_MESSAGE.match(message)
             field = f"{name}.{match.group(2)}" if match and match.group(1) == name else name
             raise WriteValidationError(field, message) from None
-        paths.extend(_paths(name, value))
+        except (ValueError, TypeError, OverflowError) as error:
+            # Whatever slips past the codec's checks is still this field's fault, never a 500.
+            raise WriteValidationError(name, f"{name}: {error}") from None
     image = command_from_json(body, base)
     touched = {p for p in paths if p[0] in ("analog_output", "analog_output_type")}
     for index in sorted({i for _, i in touched}):

@@ -1,0 +1,542 @@
+"""Layer: service. The API's contract: a Pydantic model for every JSON answer, request body and
+WebSocket message, so ``/openapi.json`` describes all of it (no empty schema) and clients can be
+generated from it.
+
+The frame and command-image models are built from ``cobot_hmi.layout`` at import (one place:
+a field added to the layout appears here, with its count, element type and index pattern).
+The models document and check shapes; the hot path does not go through them: the WebSocket
+fan-out serializes each frame once with orjson (``service.hub``), and the tests validate real
+messages against these models. Imports the layout, the codec's constants and pydantic only.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Annotated, Any, Final, Literal, TypeAlias
+
+from pydantic import BaseModel, ConfigDict, Field, StringConstraints, TypeAdapter, create_model
+
+from cobot_hmi.layout import (
+    LAYOUT_VERSION,
+    O2T_ASSEMBLY,
+    ROBOT_STATES,
+    T2O_ASSEMBLY,
+    UNKNOWN_STATE_NAME,
+    Assembly,
+    flag_fields,
+)
+from cobot_hmi.layout import Field as LayoutField
+
+# --------------------------------------------------------------------------- JSON values
+
+JsonScalar: TypeAlias = bool | int | float | str | None
+Json: TypeAlias = JsonScalar | list[JsonScalar] | dict[str, JsonScalar | list[JsonScalar]]
+"""Any JSON document two levels deep (what an audit row keeps of a malformed body), typed so
+that its schema is never empty."""
+
+ElementValue: TypeAlias = bool | int | float | None
+"""One element of an O→T or T→O field (``null``: a non-finite REAL)."""
+
+
+def index_pattern(count: int) -> str:
+    """A regular expression for the decimal indexes ``0 … count-1`` (ASCII, no leading zeros):
+    the keys of a partial write, so a fuzzer produces only valid ones."""
+    return "^(?:" + "|".join(str(i) for i in range(count)) + ")$"
+
+
+def element_key(name: str, count: int) -> str:
+    """``name.index`` keys as the audit and a 504 answer use them."""
+    return f"^{name}\\.(?:" + "|".join(str(i) for i in range(count)) + ")$"
+
+
+ROBOT_NAME_PATTERN: Final = r"^[a-z0-9][a-z0-9_-]{0,31}$"
+"""A robot's name (settings), as it appears in paths and ``?robot=``."""
+
+RobotName = Annotated[str, StringConstraints(pattern=ROBOT_NAME_PATTERN)]
+
+STATE_NAMES: Final = (*(s.name for s in ROBOT_STATES), UNKNOWN_STATE_NAME)
+RobotStateName = Literal[STATE_NAMES]  # type: ignore[valid-type]
+FLAG_NAMES: Final = tuple(f.name for f in flag_fields())
+FlagName = Literal[FLAG_NAMES]  # type: ignore[valid-type]
+
+
+# --------------------------------------------------------------------------- layout-built
+
+
+class ControllerVersion(BaseModel):
+    """Controller software version (T→O bytes 28–30)."""
+
+    major: int = Field(ge=0, le=255)
+    minor: int = Field(ge=0, le=255)
+    patch: int = Field(ge=0, le=255)
+
+
+def _element_type(f: LayoutField, *, written: bool = False) -> Any:
+    """An element's type; ``written``: as a write gives it (a finite number, never null)."""
+    kind = f.value_kind
+    if kind == "bool":
+        return bool
+    if kind == "int":
+        top = len(f.value_names) - 1 if f.value_names else 255
+        return Annotated[int, Field(ge=0, le=top)]
+    return float if written else float | None  # a non-finite REAL is sent as null
+
+
+def _describe(f: LayoutField) -> str:
+    parts = [f.description]
+    if f.unit:
+        parts.append(f"unit: {f.unit}")
+    if f.value_names:
+        parts.append("coding: " + ", ".join(f"{i} = {n}" for i, n in enumerate(f.value_names)))
+    if f.channels:
+        parts.append(f"index 0 is {f.channels[0]}, index {f.count - 1} is {f.channels[-1]}")
+    return "; ".join(parts)
+
+
+def _full_field(f: LayoutField) -> tuple[Any, Any]:
+    """The whole value of a field as decoded: an array of ``count``, a scalar or a record."""
+    if f.element_names:
+        return ControllerVersion, Field(description=_describe(f))
+    element = _element_type(f)
+    if f.scalar:
+        return element, Field(description=_describe(f))
+    return list[element], Field(  # type: ignore[valid-type]
+        min_length=f.count, max_length=f.count, description=_describe(f)
+    )
+
+
+def _assembly_fields(assembly: Assembly) -> dict[str, Any]:
+    fields: dict[str, Any] = {}
+    for f in assembly.fields:
+        fields[f.name] = _full_field(f)
+        if f.enum:
+            fields[f"{f.name}_name"] = (
+                RobotStateName,
+                Field(description=f"{f.description}: its name ({UNKNOWN_STATE_NAME} if unknown)"),
+            )
+    return fields
+
+
+def _partial_field(f: LayoutField) -> tuple[Any, Any]:
+    """A partial write of a field: a map from index (as text) to the new value."""
+    key: Any = Annotated[str, StringConstraints(pattern=index_pattern(f.count))]
+    value: Any = _element_type(f, written=True)
+    return (
+        dict[key, value],
+        Field(  # absent: unchanged (the schema says no null: a null is refused)
+            default=None,
+            description=f"{_describe(f)}. A map from index to value, e.g. "
+            f'{{"0": …}} writes {f.channels[0] if f.channels else "element 0"}',
+            json_schema_extra={"additionalProperties": False},
+        ),
+    )
+
+
+_STRICT = ConfigDict(extra="forbid")
+
+if TYPE_CHECKING:  # mypy sees plain models; at run time they are built from the layout
+
+    class Frame(BaseModel):
+        robot_state: int
+
+    class CommandImage(BaseModel):
+        pass
+
+    class CommandPatch(BaseModel):
+        pass
+
+else:
+    Frame = create_model(
+        "Frame",
+        __doc__=T2O_ASSEMBLY.description + f" ({T2O_ASSEMBLY.size_bytes} bytes), decoded.",
+        __config__=_STRICT,
+        **_assembly_fields(T2O_ASSEMBLY),
+        extra=(
+            Annotated[str, StringConstraints(pattern="^(?:[0-9a-f]{2})*$")] | None,
+            Field(default=None, description="bytes past the layout's size, hex (rare)"),
+        ),
+    )
+    CommandImage = create_model(
+        "CommandImage",
+        __doc__=O2T_ASSEMBLY.description + f" ({O2T_ASSEMBLY.size_bytes} bytes), whole.",
+        __config__=_STRICT,
+        **_assembly_fields(O2T_ASSEMBLY),
+    )
+    CommandPatch = create_model(
+        "CommandPatch",
+        __doc__="Part of the O→T image to write: per field, a map from index to value. "
+        "Validated whole before anything changes.",
+        __config__=_STRICT,
+        **{f.name: _partial_field(f) for f in O2T_ASSEMBLY.fields},
+    )
+
+COMMAND_PATCH_EXAMPLE: Final[dict[str, dict[str, object]]] = {
+    "controlbox_do": {"2": True},
+    "tool_do": {"0": False},
+    "analog_output": {"0": 12.5},
+    "analog_output_type": {"0": 0},
+    "bit_input_registers": {"40": True},
+}
+"""Index 2 of ``controlbox_do`` is DO 3; index 0 of ``tool_do`` is Tool DO 1."""
+
+_ELEMENT_KEYS: Final = "|".join(
+    f"{f.name}\\.(?:{'|'.join(str(i) for i in range(f.count))})" for f in O2T_ASSEMBLY.fields
+)
+ElementKey = Annotated[str, StringConstraints(pattern=f"^(?:{_ELEMENT_KEYS})$")]
+"""``name.index`` of one O→T element (``controlbox_do.2`` is DO 3)."""
+
+
+# --------------------------------------------------------------------------- errors
+
+
+class ApiErrorBody(BaseModel):
+    """Why a request was refused."""
+
+    reason: str = Field(description="the refusal in words")
+    field: str | None = Field(
+        default=None,
+        description="the part of the request at fault (``analog_output.0``, ``name``, a query "
+        "parameter), when one is",
+    )
+    robot_reports: dict[str, ElementValue] | None = Field(
+        default=None, description="504 only: what the robot's latest frame shows per element"
+    )
+    known: list[str] | None = Field(default=None, description="404 of a robot: the known names")
+
+
+class ApiErrorResponse(BaseModel):
+    """Every error answer: ``{"detail": {"reason": …, "field": …}}``."""
+
+    detail: ApiErrorBody
+
+
+# --------------------------------------------------------------------------- status
+
+
+ConnectionState = Literal["idle", "connecting", "connected", "lost", "refused"]
+Mode = Literal["exclusive_owner", "input_only"]
+
+
+class ConnectionStatus(BaseModel):
+    """A robot's class 1 connection: state, counters, receive interval statistics."""
+
+    state: ConnectionState
+    reason: str | None = Field(description="why the state is what it is, when it is not plain")
+    robot: str = Field(description="the robot's address (host)")
+    mode: Mode
+    rpi_ms: float = Field(description="requested packet interval, ms")
+    packets_in: int = Field(ge=0)
+    packets_out: int = Field(ge=0)
+    gaps: int = Field(ge=0)
+    duplicates: int = Field(ge=0)
+    late: int = Field(ge=0)
+    malformed: int = Field(ge=0)
+    interval_mean_ms: float | None
+    interval_p99_ms: float | None
+    interval_max_ms: float | None
+    last_frame_age_s: float | None
+    stale: bool
+    connected_since: float | None
+
+
+class Holder(BaseModel):
+    user: str
+    since: float = Field(description="when control was taken, s since the epoch")
+
+
+class ControlStatus(BaseModel):
+    """Who holds control of a robot's outputs (``null``: nobody; O→T is idle)."""
+
+    holder: Holder | None
+
+
+class RobotStatus(BaseModel):
+    """``GET …/status``: the connection and control of one robot."""
+
+    connection: ConnectionStatus
+    control: ControlStatus
+
+
+class Identity(BaseModel):
+    """The robot's CIP Identity object (Vol 1 §5A-2), when it was read."""
+
+    vendor_id: int
+    device_type: int
+    product_code: int
+    revision: str = Field(description="major.minor")
+    serial_number: int
+    product_name: str
+
+
+class RobotSummary(BaseModel):
+    """One robot of the cell in ``GET /api/v1/robots``."""
+
+    name: RobotName
+    host: str
+    mode: Mode
+    rpi_ms: float
+    model: str | None = Field(description="the product name from its identity, when known")
+    identity: Identity | None
+    connection: ConnectionState
+    connection_reason: str | None
+    holder: Holder | None = Field(description="who holds control (null: nobody)")
+    robot_state: int | None = Field(description="the latest frame's robot state, if any")
+    robot_state_name: RobotStateName | None
+    default: bool = Field(description="the robot the deprecated single-robot paths answer for")
+
+
+class RobotList(BaseModel):
+    robots: list[RobotSummary]
+
+
+class FrameAnswer(BaseModel):
+    """``GET …/frame``: the newest decoded frame and how old it is."""
+
+    robot: RobotName
+    frame: Frame | None
+    received_at: float | None
+    age_s: float | None
+    stale: bool
+
+
+class CommandState(BaseModel):
+    """``GET …/command``: the O→T image being sent and whether its run/idle header says run."""
+
+    robot: RobotName
+    image: CommandImage
+    run: bool
+
+
+class WriteConfirmed(BaseModel):
+    """``PATCH …/command``: applied, and the robot showed it."""
+
+    outcome: Literal["confirmed"]
+    image: CommandImage
+    latency_ms: float
+
+
+class Health(BaseModel):
+    ok: bool
+    problems: list[str] = Field(
+        default_factory=list, description="why not ok: a dead cyclic thread, a link down too long"
+    )
+
+
+class Ready(BaseModel):
+    ready: bool
+    reason: str | None = None
+    robot: str | None = None
+
+
+# --------------------------------------------------------------------------- events
+
+
+class _EventBase(BaseModel):
+    time: float = Field(description="s since the epoch")
+    robot: str | None = Field(default=None, description="the robot's name")
+    id: int | None = Field(default=None, description="row id in the event log (log pages only)")
+
+
+class ConnectionEvent(_EventBase):
+    kind: Literal["connection"]
+    state: ConnectionState
+    reason: str | None = None
+
+
+class RobotStateEvent(_EventBase):
+    model_config = ConfigDict(populate_by_name=True)
+
+    kind: Literal["robot_state"]
+    from_: int | None = Field(alias="from", description="previous state (null: the first frame)")
+    to: int
+    from_name: RobotStateName | None
+    to_name: RobotStateName
+
+
+class FlagEvent(_EventBase):
+    kind: Literal["flag"]
+    flag: FlagName
+    value: bool
+
+
+WriteOutcomeName = Literal[
+    "confirmed", "timeout", "invalid", "refused", "unauthorized", "forbidden", "pending"
+]
+
+
+class WriteEvent(_EventBase):
+    kind: Literal["write"]
+    user: str | None
+    fields: list[str]
+    outcome: WriteOutcomeName
+    reason: str | None = None
+
+
+class ControlEvent(_EventBase):
+    kind: Literal["control"]
+    holder: Holder | None
+    reason: str | None = None
+
+
+Event = Annotated[
+    ConnectionEvent | RobotStateEvent | FlagEvent | WriteEvent | ControlEvent,
+    Field(discriminator="kind"),
+]
+EventKind = Literal["connection", "robot_state", "flag", "write", "control"]
+
+
+class EventPage(BaseModel):
+    """Events, newest first (each with its log ``id``)."""
+
+    items: list[Event]
+    total: int = Field(ge=0)
+
+
+# --------------------------------------------------------------------------- audit
+
+AuditAction = Literal["write", "control.take", "control.release"]
+AuditOutcome = Literal[
+    "confirmed",
+    "timeout",
+    "invalid",
+    "refused",
+    "unauthorized",
+    "forbidden",
+    "granted",
+    "released",
+    "pending",
+]
+
+
+class AuditRow(BaseModel):
+    """One write attempt or control change."""
+
+    id: int
+    time: float
+    robot: str | None = Field(
+        description="the robot's name (null: rows from before robots had names)"
+    )
+    user: str | None
+    client: str | None = Field(description="the writer's address or client id")
+    origin: str | None = Field(description="which door the request came through (HTTP route, …)")
+    action: AuditAction
+    fields: list[str] = Field(description="``name.index`` keys of the elements touched")
+    before: dict[str, ElementValue] | None
+    requested: Json = Field(description="the requested values (a malformed body: what came)")
+    outcome: AuditOutcome
+    reason: str | None
+
+
+class AuditPage(BaseModel):
+    items: list[AuditRow]
+    total: int = Field(ge=0)
+
+
+# --------------------------------------------------------------------------- WebSocket
+
+
+class FrameItem(BaseModel):
+    seq: int = Field(description="the service's frame counter for this robot: gaps are visible")
+    t: float = Field(description="receive time, s since the epoch")
+    frame: Frame
+
+
+class HelloMessage(BaseModel):
+    type: Literal["hello"]
+    robot: str | None = None
+    layout_version: Literal[LAYOUT_VERSION]  # type: ignore[valid-type]
+    connection: ConnectionStatus
+    control: ControlStatus
+    rate_hz: float | None
+
+
+class FramesMessage(BaseModel):
+    type: Literal["frames"]
+    frames: list[FrameItem]
+
+
+class DroppedMessage(BaseModel):
+    type: Literal["dropped"]
+    count: int = Field(gt=0)
+
+
+class StatusMessage(BaseModel):
+    type: Literal["status"]
+    connection: ConnectionStatus
+
+
+class EventMessage(BaseModel):
+    type: Literal["event"]
+    event: Event
+
+
+StreamMessage = Annotated[
+    HelloMessage | FramesMessage | DroppedMessage | StatusMessage | EventMessage,
+    Field(discriminator="type"),
+]
+STREAM_MESSAGE: Final = TypeAdapter(StreamMessage)
+"""Validates one WebSocket message (tests; never the hot path)."""
+EVENT: Final = TypeAdapter(Event)
+
+
+# --------------------------------------------------------------------------- layout document
+
+
+class FlagDoc(BaseModel):
+    abbreviation: str
+    full_name: str
+
+
+class LayoutFieldDoc(BaseModel):
+    name: str
+    offset: int
+    cip_type: Literal["BOOL", "USINT", "REAL"]
+    count: int
+    first_bit: int | None
+    bit_count: int
+    scalar: bool
+    value_kind: Literal["bool", "int", "float"]
+    unit: str
+    group: str
+    description: str
+    channels: list[str]
+    value_names: list[str] | None = None
+    element_names: list[str] | None = None
+    flag: FlagDoc | None = None
+    enum: str | None = None
+
+
+class AssemblyDoc(BaseModel):
+    name: str
+    direction: Literal["T2O", "O2T"]
+    size_bytes: int
+    default_instance: int
+    description: str
+    fields: list[LayoutFieldDoc]
+
+
+class RobotStateDoc(BaseModel):
+    value: int
+    name: str
+    description: str
+    pendant_colours: list[str]
+    colour_from_table: bool
+
+
+class RangeDoc(BaseModel):
+    low: float
+    high: float
+    unit: str
+
+
+class LayoutDocument(BaseModel):
+    """``GET /api/v1/layout``: the I/O layout every other shape derives from."""
+
+    layout_version: int
+    assemblies: list[AssemblyDoc]
+    robot_states: list[RobotStateDoc]
+    unknown_state_name: str
+    analog_output_ranges: dict[str, RangeDoc]
+
+
+WEBSOCKET_MODELS: Final = (StreamMessage,)
+"""What ``app.openapi`` adds to the components though no HTTP route answers with it."""
