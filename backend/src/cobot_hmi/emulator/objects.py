@@ -1,120 +1,67 @@
-"""Layer: emulator (no I/O here). Imports ``cobot_hmi.enip``.
+"""Layer: emulator (no I/O here). Imports ``cobot_hmi.enip`` and the emulator's own modules.
 
-The explicit (unconnected) side of the target's object model: the Identity object and the
-Assembly object. Each request gets a Message Router response with the proper CIP general
-status; nothing here raises for a bad request (issue 3: "never a dropped socket").
+The target's Message Router (CIP Vol 1 §2-4): every explicit request's path is decoded once by
+``enip.epath`` (any segment width: ``20 06 24 01`` and ``21 00 06 00 25 00 01 00`` name the same
+object) and the request goes to the object its class names: the Identity object
+(``identity``), the Assembly object (``assembly``) or the Connection Manager
+(``connection_manager``). A path that does not decode gets general status 0x04, an unknown
+class 0x05; nothing here raises for a bad request ("never a dropped socket").
 """
 
 from __future__ import annotations
 
-import struct
-from typing import Protocol
-
+from cobot_hmi.emulator.assembly import AssemblyObject
+from cobot_hmi.emulator.connection_manager import ConnectionManager, Reply
+from cobot_hmi.emulator.encap_server import SessionContext
+from cobot_hmi.emulator.identity import handle_identity_request
+from cobot_hmi.emulator.replies import reply
 from cobot_hmi.enip import epath
-from cobot_hmi.enip.cip import MessageRouterRequest, MessageRouterResponse, Service
+from cobot_hmi.enip.cip import MessageRouterRequest, Service
+from cobot_hmi.enip.cpf import CpfItem
 from cobot_hmi.enip.errors import PathError
 from cobot_hmi.enip.identity import IdentityInfo
 from cobot_hmi.enip.status import GeneralStatus
 
-ASSEMBLY_DATA = 3
-ASSEMBLY_SIZE = 4
 
+class MessageRouter:
+    """Routes explicit requests to the target's objects by decoded class."""
 
-class AssemblyAccess(Protocol):
-    def assembly_instances(self) -> tuple[int, ...]:
-        """Instances with data: configuration, O→T and T→O."""
-        ...
+    def __init__(
+        self,
+        identity: IdentityInfo,
+        assembly: AssemblyObject,
+        connection_manager: ConnectionManager,
+    ) -> None:
+        self.identity = identity
+        self.assembly = assembly
+        self.connection_manager = connection_manager
 
-    def assembly_data(self, instance: int) -> bytes:
-        """An instance's data now (attribute 3)."""
-        ...
-
-    def set_assembly_data(self, instance: int, data: bytes) -> int:
-        """Write attribute 3; returns the CIP general status."""
-        ...
-
-
-def _reply(
-    request: MessageRouterRequest, status: int = 0, data: bytes = b""
-) -> MessageRouterResponse:
-    return MessageRouterResponse(request.service, status, (), data)
-
-
-def handle_object_request(
-    request: MessageRouterRequest, identity: IdentityInfo, assemblies: AssemblyAccess
-) -> MessageRouterResponse:
-    try:
-        path = epath.decode_request_path(request.path)
-    except PathError:
-        return _reply(request, GeneralStatus.PATH_SEGMENT_ERROR)
-    if path.class_id == epath.CLASS_IDENTITY:
-        return _identity(request, path, identity)
-    if path.class_id == epath.CLASS_ASSEMBLY:
-        return _assembly(request, path, assemblies)
-    return _reply(request, GeneralStatus.PATH_DESTINATION_UNKNOWN)
-
-
-def _class_attribute(
-    request: MessageRouterRequest,
-    path: epath.RequestPath,
-    revision: int,
-    max_instance: int,
-    instances: int,
-) -> MessageRouterResponse:
-    if request.service != Service.GET_ATTRIBUTE_SINGLE:
-        return _reply(request, GeneralStatus.SERVICE_NOT_SUPPORTED)
-    values = {1: revision, 2: max_instance, 3: instances}
-    if path.attribute not in values:
-        return _reply(request, GeneralStatus.ATTRIBUTE_NOT_SUPPORTED)
-    return _reply(request, data=struct.pack("<H", values[path.attribute]))
-
-
-def _identity(
-    request: MessageRouterRequest, path: epath.RequestPath, identity: IdentityInfo
-) -> MessageRouterResponse:
-    if path.instance == 0:
-        return _class_attribute(request, path, 1, 1, 1)
-    if path.instance != 1:
-        return _reply(request, GeneralStatus.OBJECT_DOES_NOT_EXIST)
-    if request.service == Service.GET_ATTRIBUTES_ALL:
-        return _reply(request, data=identity.encode_attributes_all())
-    if request.service == Service.GET_ATTRIBUTE_SINGLE:
-        if path.attribute is None:
-            return _reply(request, GeneralStatus.PATH_SEGMENT_ERROR)
+    def route(
+        self, request: MessageRouterRequest, items: list[CpfItem], session: SessionContext
+    ) -> Reply:
+        """The response to one request, and any CPF items to add to the reply."""
         try:
-            return _reply(request, data=identity.encode_attribute(path.attribute))
-        except KeyError:
-            return _reply(request, GeneralStatus.ATTRIBUTE_NOT_SUPPORTED)
-    if request.service == Service.SET_ATTRIBUTE_SINGLE:
-        return _reply(request, GeneralStatus.ATTRIBUTE_NOT_SETTABLE)
-    return _reply(request, GeneralStatus.SERVICE_NOT_SUPPORTED)
+            path = epath.decode_request_path(request.path)
+        except PathError as error:
+            return self._unrouted(request, session, GeneralStatus.PATH_SEGMENT_ERROR, str(error))
+        if path.class_id == epath.CLASS_CONNECTION_MANAGER:
+            return self.connection_manager.handle(request, path, items, session, self.route)
+        if path.class_id == epath.CLASS_ASSEMBLY:
+            return self.assembly.handle(request, path), []
+        if path.class_id == epath.CLASS_IDENTITY:
+            return handle_identity_request(request, path, self.identity), []
+        return self._unrouted(
+            request, session, GeneralStatus.PATH_DESTINATION_UNKNOWN, f"class 0x{path.class_id:02X}"
+        )
+
+    def _unrouted(
+        self, request: MessageRouterRequest, session: SessionContext, status: int, detail: str
+    ) -> Reply:
+        """A request no object takes; a Forward Open's service code makes it a refused Forward
+        Open (counted and logged as one) whatever object it was sent to."""
+        if request.service in (Service.FORWARD_OPEN, Service.LARGE_FORWARD_OPEN):
+            return self.connection_manager.refuse(request, session, status, detail)
+        return reply(request, status), []
 
 
-def _assembly(
-    request: MessageRouterRequest, path: epath.RequestPath, assemblies: AssemblyAccess
-) -> MessageRouterResponse:
-    instances = assemblies.assembly_instances()
-    if path.instance == 0:
-        return _class_attribute(request, path, 2, max(instances), len(instances))
-    if path.instance is None:
-        return _reply(request, GeneralStatus.PATH_SEGMENT_ERROR)
-    if path.instance not in instances:
-        return _reply(request, GeneralStatus.OBJECT_DOES_NOT_EXIST)
-    instance = path.instance
-    if request.service == Service.GET_ATTRIBUTES_ALL:
-        return _reply(request, data=assemblies.assembly_data(instance))
-    if request.service == Service.GET_ATTRIBUTE_SINGLE:
-        if path.attribute == ASSEMBLY_DATA:
-            return _reply(request, data=assemblies.assembly_data(instance))
-        if path.attribute == ASSEMBLY_SIZE:
-            size = len(assemblies.assembly_data(instance))
-            return _reply(request, data=struct.pack("<H", size))
-        return _reply(request, GeneralStatus.ATTRIBUTE_NOT_SUPPORTED)
-    if request.service == Service.SET_ATTRIBUTE_SINGLE:
-        if path.attribute == ASSEMBLY_DATA:
-            status = assemblies.set_assembly_data(instance, request.data)
-            return _reply(request, status)
-        if path.attribute == ASSEMBLY_SIZE:
-            return _reply(request, GeneralStatus.ATTRIBUTE_NOT_SETTABLE)
-        return _reply(request, GeneralStatus.ATTRIBUTE_NOT_SUPPORTED)
-    return _reply(request, GeneralStatus.SERVICE_NOT_SUPPORTED)
+__all__ = ["MessageRouter"]

@@ -2,7 +2,7 @@
 
 No sockets, no asyncio, no clocks: bytes in, typed values out, and back. Both roles build on
 it, the target in ``cobot_hmi.emulator`` and the originator in ``cobot_hmi.scanner`` ("one
-protocol core, two roles", style.md). Every decoder raises a subclass of
+protocol core, two roles"). Every decoder raises a subclass of
 :class:`cobot_hmi.enip.errors.EnipError` on malformed bytes, never ``IndexError`` or
 ``struct.error``.
 

@@ -1,9 +1,10 @@
 """Layer: enip (pure). Imports only ``cobot_hmi.enip``.
 
-The Connection Manager's services (ethernetip.md "Forward Open"): Forward Open (0x54) and
-Large Forward Open (0x5B) with their network connection parameters, their success and
-failure replies, Forward Close (0x4E), and the Unconnected Send (0x52) wrapper some originators
-put around them. Only the service data is here; the Message Router header is ``cip``'s.
+The Connection Manager's services (CIP Vol 1 §3-5.4): Forward Open (0x54) and Large Forward
+Open (0x5B) with their network connection parameters, their success and failure replies,
+Forward Close (0x4E), and the Unconnected Send (0x52) wrapper some originators put around them.
+Only the service data is here; the Message Router header is ``cip``'s. The connection paths
+are ``epath``'s, in every width it knows (``connection_path()`` decodes one).
 """
 
 from __future__ import annotations
@@ -17,7 +18,12 @@ from cobot_hmi.enip import epath
 from cobot_hmi.enip.cip import MessageRouterRequest, Service
 from cobot_hmi.enip.errors import EnipError, LengthMismatchError, TruncatedError
 
-CONNECTION_MANAGER_PATH: Final = epath.request_path(epath.CLASS_CONNECTION_MANAGER, 1)
+CONNECTION_MANAGER_INSTANCE: Final = 1
+CONNECTION_MANAGER_PATH: Final = epath.request_path(
+    epath.CLASS_CONNECTION_MANAGER, CONNECTION_MANAGER_INSTANCE
+)
+"""What we send: ``20 06 24 01``; a target accepts any width that decodes to the same object
+(``21 00 06 00 25 00 01 00`` alike: ``epath.decode_request_path``)."""
 
 TRANSPORT_CLASS1_CYCLIC: Final = 0x01
 """Transport type/trigger: class 1, cyclic trigger, client direction."""
@@ -40,7 +46,7 @@ class Priority(IntEnum):
 @dataclass(frozen=True, slots=True)
 class NetworkParams:
     """Network connection parameters. ``size_bytes`` is the connection size: data + 2 for the
-    CIP sequence count + 4 when a 32-bit run/idle header is present (ethernetip.md)."""
+    CIP sequence count + 4 when a 32-bit run/idle header is present (docs/protocol.md)."""
 
     size_bytes: int
     connection_type: ConnectionType = ConnectionType.POINT_TO_POINT
@@ -92,7 +98,7 @@ class NetworkParams:
 
 
 def connection_timeout_us(rpi_us: int, multiplier: int) -> int:
-    """Connection timeout = RPI × (4 << multiplier) (ethernetip.md "Forward Open")."""
+    """Connection timeout = RPI × (4 << multiplier) (CIP Vol 1 §3-5.4.1; docs/protocol.md)."""
     return rpi_us * (4 << multiplier)
 
 
@@ -165,6 +171,10 @@ class ForwardOpenRequest:
 
     def request(self) -> MessageRouterRequest:
         return MessageRouterRequest(self.service, CONNECTION_MANAGER_PATH, self.encode())
+
+    def connection_path(self) -> epath.ConnectionPath:
+        """The decoded connection path; :class:`PathError` when it does not decode."""
+        return epath.decode_connection_path(self.path)
 
 
 def decode_forward_open(data: bytes | bytearray | memoryview, *, large: bool) -> ForwardOpenRequest:
@@ -312,6 +322,10 @@ class ForwardCloseRequest:
 
     def request(self) -> MessageRouterRequest:
         return MessageRouterRequest(Service.FORWARD_CLOSE, CONNECTION_MANAGER_PATH, self.encode())
+
+    def connection_path(self) -> epath.ConnectionPath:
+        """The decoded connection path; :class:`PathError` when it does not decode."""
+        return epath.decode_connection_path(self.path)
 
 
 def decode_forward_close(data: bytes | bytearray | memoryview) -> ForwardCloseRequest:

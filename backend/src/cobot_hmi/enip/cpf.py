@@ -1,6 +1,6 @@
 """Layer: enip (pure). Imports only ``cobot_hmi.enip``.
 
-The Common Packet Format (ethernetip.md "Encapsulation", "Cyclic UDP packets"): an item count
+The Common Packet Format (CIP Vol 2 §2-6; docs/protocol.md): an item count
 then items of (type, length, data). Sockaddr Info items (0x8000 O→T, 0x8001 T→O) carry a
 ``sockaddr_in`` whose fields are big-endian (network order), unlike everything else.
 """

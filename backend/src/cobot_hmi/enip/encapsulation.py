@@ -1,7 +1,7 @@
 """Layer: enip (pure). Imports only ``cobot_hmi.enip``.
 
-The encapsulation layer of EtherNet/IP on TCP 44818 (ethernetip.md "Encapsulation"): a 24-byte
-little-endian header (command, length, session handle, status, sender context, options) and
+The encapsulation layer of EtherNet/IP on TCP 44818 (CIP Vol 2 §2-3, commands §2-4): a
+24-byte little-endian header (command, length, session handle, status, sender context, options) and
 the bodies of RegisterSession and SendRRData / SendUnitData.
 """
 
@@ -20,7 +20,7 @@ MAX_DATA_SIZE: Final = 65511
 
 ENIP_TCP_PORT: Final = 44818
 ENIP_UDP_PORT: Final = 2222
-"""The registered class 1 I/O port (ethernetip.md "Cyclic UDP packets")."""
+"""The registered class 1 I/O port (docs/protocol.md "Cyclic packets, UDP 2222")."""
 
 PROTOCOL_VERSION: Final = 1
 

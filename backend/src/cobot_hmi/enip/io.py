@@ -1,6 +1,6 @@
 """Layer: enip (pure). Imports only ``cobot_hmi.enip``.
 
-The class 1 (cyclic I/O) UDP packet (ethernetip.md "Cyclic UDP packets"): a CPF of exactly two
+The class 1 (cyclic I/O) UDP packet (CIP Vol 2 §3-4; docs/protocol.md): a CPF of exactly two
 items, Sequenced Address 0x8002 (connection ID, encapsulation sequence number) and Connected
 Data 0x00B1 (CIP sequence count, the 32-bit run/idle header where the direction has one, then
 the data). This runs for every datagram, so it uses precompiled structs and returns plain

@@ -1,8 +1,9 @@
 """Layer: enip (pure). Imports nothing of the project.
 
-CIP general status codes and the Connection Manager's extended status codes, with their words
-(ethernetip.md "Forward Open"), and :func:`describe`, which turns a reply's statuses into a
-sentence, including the size a target expected for 0x0127 / 0x0128 / 0x0109.
+CIP general status codes (CIP Vol 1 Appendix B) and the Connection Manager's extended status
+codes (Vol 1 §3-5; docs/protocol.md "Refusals"), with their words, and :func:`describe`, which
+turns a reply's statuses into a sentence, including the size a target expected for 0x0127 /
+0x0128 / 0x0109.
 """
 
 from __future__ import annotations
