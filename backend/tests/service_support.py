@@ -11,7 +11,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 from collections.abc import AsyncIterator, Callable, Generator
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -91,7 +91,7 @@ def service_settings(
         # busy, and these tests are about the service, not about the watchdog.
         timeout_multiplier=5,
     )
-    return replace(settings, **overrides)
+    return settings.replace(**overrides)
 
 
 def add_users(settings: ServiceSettings) -> None:

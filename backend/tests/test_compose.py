@@ -165,7 +165,7 @@ def test_healthchecks(config: dict[str, Any]) -> None:
 
 
 def test_settings_are_real_service_settings(config: dict[str, Any]) -> None:
-    known = {env_name(name) for name in ServiceSettings.__dataclass_fields__}
+    known = {env_name(name) for name in ServiceSettings.model_fields}
     environment = _environment(config["services"]["backend"])
     settings = {key for key in environment if key.startswith("COBOT_HMI_")}
     assert settings, "the backend is configured through COBOT_HMI_* variables"

@@ -44,7 +44,7 @@ def test_defaults() -> None:
     settings = load_settings({}, environ={})
     assert settings.rpi_ms == 10.0
     assert settings.rpi_us == 10_000
-    assert settings.mode == "exclusive_owner"
+    assert settings.robots == []  # none until --robot, COBOT_HMI_ROBOT_HOST or [[robots]]
     assert settings.users_path == settings.state_dir / "users.json"
 
 
@@ -75,7 +75,7 @@ def test_composite_flags_and_booleans() -> None:
     assert (settings.config_instance, settings.o2t_instance, settings.t2o_instance) == (1, 2, 3)
     assert (settings.o2t_size, settings.t2o_size) == (24, 300)
     assert settings.input_only
-    assert settings.mode == "input_only"
+    assert settings.robots == []
     assert settings.rpi_us == 2000
     assert not settings_from_args(
         _parse(["--no-input-only"]), {"COBOT_HMI_INPUT_ONLY": "1"}
@@ -85,10 +85,10 @@ def test_composite_flags_and_booleans() -> None:
 @pytest.mark.parametrize(
     ("environ", "message"),
     [
-        ({"COBOT_HMI_PORT": "eighty"}, "port (from COBOT_HMI_PORT): expected an integer"),
-        ({"COBOT_HMI_PORT": "70000"}, "port: 70000 is not a port number"),
-        ({"COBOT_HMI_RPI_MS": "-1"}, "rpi_ms: must be a positive number"),
-        ({"COBOT_HMI_INPUT_ONLY": "maybe"}, "expected true or false"),
+        ({"COBOT_HMI_PORT": "eighty"}, "port (from COBOT_HMI_PORT): Input should be a valid int"),
+        ({"COBOT_HMI_PORT": "70000"}, "port (from COBOT_HMI_PORT): Input should be less than or"),
+        ({"COBOT_HMI_RPI_MS": "-1"}, "rpi_ms (from COBOT_HMI_RPI_MS): Input should be greater"),
+        ({"COBOT_HMI_INPUT_ONLY": "maybe"}, "Input should be a valid boolean"),
     ],
 )
 def test_bad_values_are_named(environ: dict[str, str], message: str) -> None:

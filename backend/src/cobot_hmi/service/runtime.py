@@ -121,8 +121,8 @@ class Service:
         return {
             "state": stats.state.value,
             "reason": stats.reason,
-            "robot": self.settings.robot_host,
-            "mode": self.settings.mode,
+            "robot": self.settings.default_robot.host,
+            "mode": self.settings.default_robot.mode.replace("-", "_"),
             "rpi_ms": self.settings.rpi_ms,
             "packets_in": stats.packets_in,
             "packets_out": stats.packets_out,

@@ -1,38 +1,120 @@
 """Layer: service. The one settings object of the backend service and how it is loaded.
 
-Precedence, highest first: command-line flags, environment variables ``COBOT_HMI_<NAME>``
-(``COBOT_HMI_RPI_MS=4``), an optional TOML file (``--config FILE`` or ``COBOT_HMI_CONFIG``)
-whose top-level keys are the field names below, then the defaults. Pure: no sockets; imports
-nothing of the project except (lazily) the scanner's settings type.
+``ServiceSettings`` is a pydantic-settings model. Precedence, highest first: command-line
+flags, environment variables ``COBOT_HMI_<NAME>`` (``COBOT_HMI_RPI_MS=4``), an optional TOML
+file (``--config FILE`` or ``COBOT_HMI_CONFIG``) whose top-level keys are the field names
+below, then the defaults. ``load_settings`` layers them; constructing ``ServiceSettings(...)``
+directly reads nothing but its arguments (tests, the demo).
+
+Robots: ``[[robots]]`` tables in the TOML file (or ``COBOT_HMI_ROBOTS`` as a JSON list) name
+any number of robots, each a ``RobotSettings``; ``--robot HOST [--robot-name NAME]`` (or
+``COBOT_HMI_ROBOT_HOST``) is the one-robot shortcut. The robot list comes whole from the
+highest source that gives one (a ``--robot`` flag replaces the file's ``[[robots]]``). The
+top-level connection settings (``rpi_ms``, ``timeout_multiplier``, instances, sizes,
+``input_only`` …) are the defaults of every robot that does not set its own.
+
+Declaring a setting: one field, ``name: type = setting(default, "help", bounds…)``; its flag
+(``--name``, or ``flag=``) and environment variable (``COBOT_HMI_NAME``) are derived. Connection
+settings take default, bounds and help from ``cobot_hmi.connection_params``, shared with the
+emulator and the scanner. Pure: no sockets; imports nothing of the project except the
+connection declarations and (lazily) the scanner's settings type.
 """
 
 from __future__ import annotations
 
 import argparse
-import dataclasses
-import math
 import os
 import tomllib
 import types
 import typing
 from collections.abc import Mapping
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Final
+from typing import TYPE_CHECKING, Annotated, Any, Final, Literal
 
-from cobot_hmi.layout import CONNECTION_POINTS, O2T_ASSEMBLY, T2O_ASSEMBLY
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    ValidationError,
+    model_validator,
+)
+from pydantic_settings import (
+    BaseSettings,
+    EnvSettingsSource,
+    NoDecode,
+    PydanticBaseSettingsSource,
+    SettingsConfigDict,
+    TomlConfigSettingsSource,
+)
+from pydantic_settings import SettingsError as PydanticSettingsError
+from pydantic_settings.sources.utils import parse_env_vars
+
+from cobot_hmi import connection_params as cp
 
 if TYPE_CHECKING:
     from cobot_hmi.scanner.originator import OriginatorSettings
 
-O2T_SIZE: Final = O2T_ASSEMBLY.size_bytes
-T2O_SIZE: Final = T2O_ASSEMBLY.size_bytes
+O2T_SIZE: Final = cp.O2T_SIZE.default
+T2O_SIZE: Final = cp.T2O_SIZE.default
 ENV_PREFIX: Final = "COBOT_HMI_"
 CONFIG_ENV: Final = "COBOT_HMI_CONFIG"
+ROBOT_NAME_PATTERN: Final = r"^[a-z0-9][a-z0-9_-]{0,31}$"
+DEFAULT_ROBOT_NAME: Final = "robot"
+RobotMode = Literal["exclusive-owner", "input-only"]
 
 
 class SettingsError(ValueError):
-    """A setting that cannot be parsed or is out of range; the message names it."""
+    """A setting that cannot be parsed or is out of range; the message names it and its source."""
+
+
+# --------------------------------------------------------------------------- declaring
+
+
+def setting(default: Any, help_text: str, *, flag: str | None = None, **bounds: Any) -> Any:
+    """One setting's declaration: default, help, bounds (``ge=``, ``le=``, ``gt=``, ``pattern=``).
+
+    The flag is ``--name-with-dashes`` unless ``flag`` is given; the environment variable is
+    ``COBOT_HMI_NAME``.
+    """
+    extra: dict[str, Any] | None = {"flag": flag} if flag else None
+    return Field(default, description=help_text, json_schema_extra=extra, **bounds)
+
+
+def connection_setting(param: cp.ConnectionParam[int], *, flag: str | None = None) -> Any:
+    """A setting from the shared connection declaration (``cobot_hmi.connection_params``)."""
+    unit = f", {param.unit}" if param.unit else ""
+    return setting(param.default, param.help + unit, flag=flag, ge=param.minimum, le=param.maximum)
+
+
+def rpi_ms_setting() -> Any:
+    """The RPI in milliseconds (the declaration is in µs: ``connection_params.RPI_US``)."""
+    param = cp.RPI_US
+    assert param.minimum is not None and param.maximum is not None
+    return setting(
+        param.default / 1000,
+        param.help + ", ms",
+        ge=param.minimum / 1000,
+        le=param.maximum / 1000,
+        allow_inf_nan=False,
+    )
+
+
+def _split_commas(value: object) -> object:
+    if isinstance(value, str):
+        return [part.strip() for part in value.split(",") if part.strip()]
+    return value
+
+
+CommaList = Annotated[list[str], NoDecode, BeforeValidator(_split_commas)]
+"""A list setting written ``a,b,c`` in a flag or variable (a list in TOML)."""
+ExpandedPath = Annotated[Path, AfterValidator(Path.expanduser)]
+Seconds = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+Milliseconds = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+Port = Annotated[int, Field(ge=0, le=65535)]
+"""A TCP or UDP port; 0 asks the OS for any free one (the HTTP port in tests)."""
+RobotName = Annotated[str, Field(pattern=ROBOT_NAME_PATTERN)]
 
 
 def _default_state_dir() -> Path:
@@ -40,128 +122,232 @@ def _default_state_dir() -> Path:
     return Path(base) / "cobot-hmi"
 
 
-def _meta(help_text: str, *, flag: str | None = None) -> dict[str, str | None]:
-    return {"help": help_text, "flag": flag}
+# --------------------------------------------------------------------------- one robot
 
 
-@dataclass(frozen=True, slots=True)
-class ServiceSettings:
+class RobotSettings(BaseModel):
+    """One robot of the cell and its class 1 connection (a ``[[robots]]`` table)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    name: RobotName = Field(
+        description="the robot's name in the API and the UI: lower-case letters, digits, _ and -"
+    )
+    host: str = Field(min_length=1, description="robot (target) address")
+    tcp_port: Port = connection_setting(cp.ENIP_TCP_PORT)
+    mode: RobotMode = setting(
+        "exclusive-owner",
+        "exclusive-owner (the service may write) or input-only (read-only, never owns outputs)",
+    )
+    rpi_ms: float = rpi_ms_setting()
+    timeout_multiplier: int = connection_setting(cp.TIMEOUT_MULTIPLIER)
+    config_instance: int = connection_setting(cp.CONFIG_INSTANCE)
+    o2t_instance: int = connection_setting(cp.O2T_INSTANCE)
+    t2o_instance: int = connection_setting(cp.T2O_INSTANCE)
+    heartbeat_instance: int = connection_setting(cp.HEARTBEAT_INSTANCE)
+    o2t_size: int = connection_setting(cp.O2T_SIZE)
+    t2o_size: int = connection_setting(cp.T2O_SIZE)
+    large_forward_open: bool = setting(False, "use Large Forward Open (0x5B)")
+
+    @property
+    def input_only(self) -> bool:
+        return self.mode == "input-only"
+
+    @property
+    def rpi_us(self) -> int:
+        return round(self.rpi_ms * 1000)
+
+    def originator_settings(
+        self, local_host: str | None, udp_port: int, *, request_t2o_port: int | None = None
+    ) -> OriginatorSettings:
+        """The scanner's settings for this robot's class 1 connection."""
+        from cobot_hmi.scanner.originator import OriginatorSettings
+
+        return OriginatorSettings(
+            robot_host=self.host,
+            tcp_port=self.tcp_port,
+            local_host=local_host,
+            local_udp_port=udp_port,
+            rpi_us=self.rpi_us,
+            timeout_multiplier=self.timeout_multiplier,
+            input_only=self.input_only,
+            large_forward_open=self.large_forward_open,
+            config_instance=self.config_instance,
+            o2t_instance=self.o2t_instance,
+            t2o_instance=self.t2o_instance,
+            heartbeat_instance=self.heartbeat_instance,
+            o2t_size=self.o2t_size,
+            t2o_size=self.t2o_size,
+            request_t2o_port=request_t2o_port,
+        )
+
+
+_INHERITED: Final = {
+    # robot setting: the top-level setting that is its default
+    "tcp_port": "robot_tcp_port",
+    "rpi_ms": "rpi_ms",
+    "timeout_multiplier": "timeout_multiplier",
+    "config_instance": "config_instance",
+    "o2t_instance": "o2t_instance",
+    "t2o_instance": "t2o_instance",
+    "heartbeat_instance": "heartbeat_instance",
+    "o2t_size": "o2t_size",
+    "t2o_size": "t2o_size",
+    "large_forward_open": "large_forward_open",
+}
+
+
+# --------------------------------------------------------------------------- the service
+
+
+class ServiceSettings(BaseSettings):
     """Everything ``cobot-hmi serve`` can be told. Field names are the TOML keys."""
 
-    # --- the robot and the class 1 connection (passed to the originator)
-    robot_host: str = field(default="", metadata=_meta("robot (target) address", flag="--robot"))
-    robot_tcp_port: int = field(default=44818, metadata=_meta("robot's EtherNet/IP TCP port"))
-    local_host: str = field(default="0.0.0.0", metadata=_meta("local address receiving T→O (UDP)"))
-    local_udp_port: int = field(default=2222, metadata=_meta("local UDP port receiving T→O"))
-    rpi_ms: float = field(default=10.0, metadata=_meta("requested packet interval, ms"))
-    timeout_multiplier: int = field(
-        default=2, metadata=_meta("connection timeout = RPI × (4 << multiplier)")
-    )
-    input_only: bool = field(
-        default=False, metadata=_meta("read-only: an input-only connection, never owns outputs")
-    )
-    large_forward_open: bool = field(default=False, metadata=_meta("use Large Forward Open (0x5B)"))
-    config_instance: int = field(
-        default=CONNECTION_POINTS.configuration, metadata=_meta("configuration assembly instance")
-    )
-    o2t_instance: int = field(
-        default=CONNECTION_POINTS.o2t, metadata=_meta("O→T (command) assembly instance")
-    )
-    t2o_instance: int = field(
-        default=CONNECTION_POINTS.t2o, metadata=_meta("T→O (robot frame) assembly instance")
-    )
-    heartbeat_instance: int = field(
-        default=CONNECTION_POINTS.input_only,
-        metadata=_meta("input-only heartbeat connection point"),
-    )
-    o2t_size: int = field(default=O2T_SIZE, metadata=_meta("O→T data size, bytes"))
-    t2o_size: int = field(default=T2O_SIZE, metadata=_meta("T→O data size, bytes"))
-    request_t2o_port: int | None = field(
-        default=None, metadata=_meta("ask the robot to send T→O to this UDP port")
-    )
-    cyclic_niceness: int = field(
-        default=0,
-        metadata=_meta(
-            "nice value of the cyclic I/O thread; below 0 raises its priority (CAP_SYS_NICE)"
-        ),
-    )
-    # --- the web service
-    host: str = field(default="127.0.0.1", metadata=_meta("HTTP bind address"))
-    port: int = field(default=8000, metadata=_meta("HTTP port"))
-    state_dir: Path = field(
-        default=_default_state_dir(), metadata=_meta("directory for the users file and database")
-    )
-    users_file: Path | None = field(
-        default=None, metadata=_meta("users file (default: STATE_DIR/users.json)")
-    )
-    database: Path | None = field(
-        default=None, metadata=_meta("SQLite audit/event database (default: STATE_DIR/hmi.db)")
-    )
-    frontend_dir: Path | None = field(
-        default=None, metadata=_meta("built frontend to serve at / (default: frontend/dist)")
-    )
-    view_requires_login: bool = field(
-        default=False, metadata=_meta("reading the API also needs a login")
-    )
-    session_ttl_s: float = field(
-        default=8 * 3600.0, metadata=_meta("a session expires after this long unused, s")
-    )
-    cookie_secure: bool = field(
-        default=False, metadata=_meta("mark the session cookie Secure (behind HTTPS)")
-    )
-    login_free_attempts: int = field(
-        default=3, metadata=_meta("failed logins allowed before slowing down")
-    )
-    login_delay_max_s: float = field(
-        default=30.0, metadata=_meta("longest wait imposed after failed logins, s")
-    )
-    write_timeout_ms: float = field(
-        default=1000.0, metadata=_meta("how long a write waits for the robot to confirm")
-    )
-    stale_after_ms: float = field(
-        default=500.0, metadata=_meta("a frame older than this is flagged stale")
-    )
-    ws_batch_ms: float = field(
-        default=50.0, metadata=_meta("WebSocket broadcast period (frames per message), ms")
-    )
-    ws_queue_frames: int = field(
-        default=400, metadata=_meta("frames a WebSocket client may have queued")
-    )
-    ws_stall_timeout_s: float = field(
-        default=5.0, metadata=_meta("a client whose send is stuck this long is dropped")
-    )
-    status_interval_s: float = field(
-        default=1.0, metadata=_meta("period of WebSocket status messages, s")
+    model_config = SettingsConfigDict(
+        env_prefix=ENV_PREFIX, extra="forbid", frozen=True, case_sensitive=False
     )
 
-    def __post_init__(self) -> None:
-        for name in ("robot_tcp_port", "local_udp_port", "port"):
-            value = getattr(self, name)
-            # Port 0 asks the OS for any free port: useful for the HTTP port in tests.
-            if not 0 <= value <= 65535:
-                raise SettingsError(f"{name}: {value} is not a port number")
-        if self.request_t2o_port is not None and not 1 <= self.request_t2o_port <= 65535:
-            raise SettingsError(f"request_t2o_port: {self.request_t2o_port} is not a port number")
-        for name in (
-            "rpi_ms",
-            "session_ttl_s",
-            "write_timeout_ms",
-            "stale_after_ms",
-            "ws_batch_ms",
-            "ws_stall_timeout_s",
-            "status_interval_s",
-        ):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
-                raise SettingsError(f"{name}: must be a positive number, got {value}")
-        if not -20 <= self.cyclic_niceness <= 19:
-            raise SettingsError(f"cyclic_niceness: -20–19, got {self.cyclic_niceness}")
-        if not 0 <= self.timeout_multiplier <= 7:
-            raise SettingsError(f"timeout_multiplier: 0–7, got {self.timeout_multiplier}")
-        if self.ws_queue_frames < 1:
-            raise SettingsError(f"ws_queue_frames: at least 1, got {self.ws_queue_frames}")
-        if self.login_free_attempts < 0 or self.login_delay_max_s < 0:
-            raise SettingsError("login_free_attempts and login_delay_max_s must not be negative")
+    # --- the robots
+    robots: list[RobotSettings] = Field(
+        default_factory=list,
+        description="the robots ([[robots]] tables; COBOT_HMI_ROBOTS as a JSON list)",
+    )
+    robot_host: str = setting("", "one robot's address (the one-robot shortcut)", flag="--robot")
+    robot_name: RobotName = setting(
+        DEFAULT_ROBOT_NAME, "that robot's name in the API (with --robot)"
+    )
+    # --- every robot's connection, unless its [[robots]] table says otherwise
+    robot_tcp_port: Port = connection_setting(cp.ENIP_TCP_PORT)
+    rpi_ms: float = rpi_ms_setting()
+    timeout_multiplier: int = connection_setting(cp.TIMEOUT_MULTIPLIER)
+    input_only: bool = setting(
+        False, "read-only: input-only connections, never owning outputs (robots' mode)"
+    )
+    large_forward_open: bool = setting(False, "use Large Forward Open (0x5B)")
+    config_instance: int = connection_setting(cp.CONFIG_INSTANCE)
+    o2t_instance: int = connection_setting(cp.O2T_INSTANCE)
+    t2o_instance: int = connection_setting(cp.T2O_INSTANCE)
+    heartbeat_instance: int = connection_setting(cp.HEARTBEAT_INSTANCE)
+    o2t_size: int = connection_setting(cp.O2T_SIZE)
+    t2o_size: int = connection_setting(cp.T2O_SIZE)
+    # --- the service's end of the class 1 connections (one UDP socket for every robot)
+    local_host: str = setting("0.0.0.0", "local address receiving T→O (UDP)")
+    local_udp_port: Port = connection_setting(cp.CLASS1_UDP_PORT)
+    request_t2o_port: Port | None = setting(
+        None, "ask every robot to send T→O to this local UDP port (bound instead of 2222)", ge=1
+    )
+    cyclic_niceness: int = setting(
+        0,
+        "nice value of the cyclic I/O thread; below 0 raises its priority (CAP_SYS_NICE)",
+        ge=-20,
+        le=19,
+    )
+    link_down_unhealthy_s: Seconds = setting(
+        30.0, "/healthz fails when a robot has not been connected for this long, s"
+    )
+    # --- the web service
+    host: str = setting("127.0.0.1", "HTTP bind address")
+    port: Port = setting(8000, "HTTP port")
+    state_dir: ExpandedPath = Field(
+        default_factory=_default_state_dir,
+        description="directory for the users file and database",
+    )
+    users_file: ExpandedPath | None = setting(None, "users file (default: STATE_DIR/users.json)")
+    database: ExpandedPath | None = setting(
+        None, "SQLite audit/event database (default: STATE_DIR/hmi.db)"
+    )
+    frontend_dir: ExpandedPath | None = setting(
+        None, "built frontend to serve at / (default: frontend/dist)"
+    )
+    view_requires_login: bool = setting(False, "reading the API also needs a login")
+    session_ttl_s: Seconds = setting(8 * 3600.0, "a session expires after this long unused, s")
+    cookie_secure: bool = setting(False, "mark the session cookie Secure (behind HTTPS)")
+    login_free_attempts: int = setting(3, "failed logins allowed before slowing down", ge=0)
+    login_delay_max_s: float = setting(
+        30.0, "longest wait imposed after failed logins, s", ge=0, allow_inf_nan=False
+    )
+    write_timeout_ms: Milliseconds = setting(
+        1000.0, "how long a write waits for the robot to confirm, ms"
+    )
+    stale_after_ms: Milliseconds = setting(500.0, "a frame older than this is flagged stale, ms")
+    ws_batch_ms: Milliseconds = setting(50.0, "WebSocket broadcast period (frames per message), ms")
+    ws_queue_frames: int = setting(400, "frames a WebSocket client may have queued", ge=1)
+    ws_stall_timeout_s: Seconds = setting(
+        5.0, "a client whose send is stuck this long is dropped, s"
+    )
+    status_interval_s: Seconds = setting(1.0, "period of WebSocket status messages, s")
+
+    @classmethod
+    def settings_customise_sources(
+        cls,
+        settings_cls: type[BaseSettings],
+        init_settings: PydanticBaseSettingsSource,
+        env_settings: PydanticBaseSettingsSource,
+        dotenv_settings: PydanticBaseSettingsSource,
+        file_secret_settings: PydanticBaseSettingsSource,
+    ) -> tuple[PydanticBaseSettingsSource, ...]:
+        # Only the arguments: ``load_settings`` layers flags, environment and TOML itself, so
+        # that the robot list comes whole from one source and errors name their source.
+        return (init_settings,)
+
+    @model_validator(mode="after")
+    def _resolve_robots(self) -> ServiceSettings:
+        """Fill each robot's unset connection settings from the top level; the shortcut."""
+        # Idempotent: pydantic runs this twice for a settings class (once inside __init__).
+        given = self.robots if "robots" in self.model_fields_set else []
+        if given and self.robot_host:
+            raise ValueError(
+                "give either one robot (robot_host, --robot) or a robot list ([[robots]]), not both"
+            )
+        inherited: dict[str, object] = {key: getattr(self, top) for key, top in _INHERITED.items()}
+        inherited["mode"] = "input-only" if self.input_only else "exclusive-owner"
+        if given:
+            robots = [
+                RobotSettings.model_construct(
+                    _fields_set=robot.model_fields_set,
+                    **{
+                        **{k: v for k, v in inherited.items() if k not in robot.model_fields_set},
+                        **{k: getattr(robot, k) for k in robot.model_fields_set},
+                    },
+                )
+                for robot in given
+            ]
+        elif self.robot_host:
+            robots = [RobotSettings(name=self.robot_name, host=self.robot_host, **inherited)]  # type: ignore[arg-type]
+        else:
+            robots = []
+        seen: dict[str, RobotSettings] = {}
+        addresses: dict[tuple[str, int], str] = {}
+        for robot in robots:
+            if robot.name in seen:
+                raise ValueError(f"robots: the name {robot.name!r} is given twice")
+            seen[robot.name] = robot
+            address = (robot.host, robot.tcp_port)
+            if address in addresses:
+                raise ValueError(
+                    f"robots: {addresses[address]!r} and {robot.name!r} are both "
+                    f"{robot.host}:{robot.tcp_port}"
+                )
+            addresses[address] = robot.name
+        # The resolved list replaces the given one (the model is frozen; this is its making).
+        self.__dict__["robots"] = robots
+        return self
+
+    # ------------------------------------------------------------ derived
+
+    def require_robots(self) -> list[RobotSettings]:
+        """The robots, or ``SettingsError`` when none is given (``serve`` needs one)."""
+        if not self.robots:
+            raise SettingsError(
+                "robot_host: no robot given (--robot HOST, COBOT_HMI_ROBOT_HOST, or [[robots]] "
+                "tables in the TOML file)"
+            )
+        return self.robots
+
+    @property
+    def default_robot(self) -> RobotSettings:
+        """The first robot: the one the deprecated single-robot API paths answer for."""
+        return self.require_robots()[0]
 
     @property
     def users_path(self) -> Path:
@@ -183,87 +369,76 @@ class ServiceSettings:
         return round(self.rpi_ms * 1000)
 
     @property
-    def mode(self) -> str:
-        return "input_only" if self.input_only else "exclusive_owner"
+    def t2o_udp_port(self) -> int:
+        """The local UDP port every robot's T→O comes to."""
+        return self.request_t2o_port if self.request_t2o_port is not None else self.local_udp_port
 
-    def originator_settings(self) -> OriginatorSettings:
-        """The scanner's settings for this service's class 1 connection."""
-        from cobot_hmi.scanner.originator import OriginatorSettings
-
-        if not self.robot_host:
-            raise SettingsError("robot_host: no robot given (--robot HOST or COBOT_HMI_ROBOT_HOST)")
-        return OriginatorSettings(
-            robot_host=self.robot_host,
-            tcp_port=self.robot_tcp_port,
-            local_host=self.local_host,
-            local_udp_port=self.local_udp_port,
-            rpi_us=self.rpi_us,
-            timeout_multiplier=self.timeout_multiplier,
-            input_only=self.input_only,
-            large_forward_open=self.large_forward_open,
-            config_instance=self.config_instance,
-            o2t_instance=self.o2t_instance,
-            t2o_instance=self.t2o_instance,
-            heartbeat_instance=self.heartbeat_instance,
-            o2t_size=self.o2t_size,
-            t2o_size=self.t2o_size,
-            request_t2o_port=self.request_t2o_port,
+    def originator_settings(self, robot: RobotSettings | None = None) -> OriginatorSettings:
+        """The scanner's settings for ``robot``'s connection (default: the first robot)."""
+        robot = robot if robot is not None else self.default_robot
+        return robot.originator_settings(
+            self.local_host, self.local_udp_port, request_t2o_port=self.request_t2o_port
         )
 
-
-_FIELDS: Final = {f.name: f for f in dataclasses.fields(ServiceSettings)}
-_TYPES: Final = typing.get_type_hints(ServiceSettings)
-
-
-def _base_type(name: str) -> tuple[type, bool]:
-    """The field's value type and whether it may be ``None``."""
-    hint = _TYPES[name]
-    if isinstance(hint, types.UnionType):
-        args = [a for a in typing.get_args(hint) if a is not type(None)]
-        return args[0], True
-    return hint, False
+    def replace(self, **changes: object) -> ServiceSettings:
+        """A copy with ``changes``, checked again (robots re-inherit the new defaults)."""
+        given: dict[str, object] = {name: getattr(self, name) for name in self.model_fields_set}
+        if changes.get("robots"):
+            given.pop("robot_host", None)
+        if changes.get("robot_host"):
+            given.pop("robots", None)
+        return type(self).model_validate({**given, **changes})
 
 
-_TRUE: Final = {"1", "true", "yes", "on"}
-_FALSE: Final = {"0", "false", "no", "off"}
+# --------------------------------------------------------------------------- loading
 
-
-def _convert(name: str, value: object, source: str) -> object:
-    """A raw value (TOML value or environment text) as the field's type."""
-    kind, optional = _base_type(name)
-    where = f"{name} (from {source})"
-    if optional and (value is None or value == ""):
-        return None
-    if kind is bool:
-        if isinstance(value, bool):
-            return value
-        text = str(value).strip().lower()
-        if text in _TRUE:
-            return True
-        if text in _FALSE:
-            return False
-        raise SettingsError(f"{where}: expected true or false, got {value!r}")
-    if kind is int:
-        if isinstance(value, bool):
-            raise SettingsError(f"{where}: expected an integer, got {value!r}")
-        try:
-            return int(str(value), 0) if isinstance(value, str) else int(str(value))
-        except ValueError:
-            raise SettingsError(f"{where}: expected an integer, got {value!r}") from None
-    if kind is float:
-        if isinstance(value, bool):
-            raise SettingsError(f"{where}: expected a number, got {value!r}")
-        try:
-            return float(str(value))
-        except ValueError:
-            raise SettingsError(f"{where}: expected a number, got {value!r}") from None
-    if kind is Path:
-        return Path(str(value)).expanduser()
-    return str(value)
+_ROBOT_GROUP: Final = ("robots", "robot_host")
+"""Settings that together say which robots there are: taken from one source only."""
 
 
 def env_name(name: str) -> str:
     return ENV_PREFIX + name.upper()
+
+
+class _EnvironSource(EnvSettingsSource):
+    """pydantic-settings' environment source, over a given mapping instead of ``os.environ``."""
+
+    def __init__(self, environ: Mapping[str, str]) -> None:
+        self._environ = environ
+        super().__init__(ServiceSettings)
+
+    def _load_env_vars(self) -> Mapping[str, str | None]:
+        return parse_env_vars(dict(self._environ), self.case_sensitive, self.env_ignore_empty, None)
+
+
+def _toml_layer(path: Path) -> dict[str, Any]:
+    where = f"config file {path}"
+    try:
+        document = tomllib.loads(path.read_text(encoding="utf-8"))
+        data = TomlConfigSettingsSource(ServiceSettings, toml_file=path)()
+    except OSError as error:
+        raise SettingsError(f"{where}: {error.strerror}") from None
+    except tomllib.TOMLDecodeError as error:
+        raise SettingsError(f"{where}: {error}") from None
+    for key in document:
+        if key not in ServiceSettings.model_fields:
+            raise SettingsError(f"{where}: unknown setting {key!r}")
+    robots = document.get("robots")
+    if robots is not None and not (
+        isinstance(robots, list) and all(isinstance(r, dict) for r in robots)
+    ):
+        raise SettingsError(f"{where}: robots must be [[robots]] tables")
+    return dict(data)
+
+
+def _environment_layer(environ: Mapping[str, str]) -> dict[str, Any]:
+    try:
+        return dict(_EnvironSource(environ)())
+    except PydanticSettingsError as error:
+        # A complex value (COBOT_HMI_ROBOTS) that is not JSON.
+        field = str(error).split('"')[1] if '"' in str(error) else "?"
+        cause = error.__cause__ or error
+        raise SettingsError(f"{field} (from {env_name(field)}): not valid JSON: {cause}") from None
 
 
 def load_settings(
@@ -271,55 +446,122 @@ def load_settings(
     environ: Mapping[str, str] | None = None,
     config_file: Path | None = None,
 ) -> ServiceSettings:
-    """Merge defaults < TOML file < environment < flags into one checked ``ServiceSettings``.
+    """Layer defaults < TOML file < environment < flags into one checked ``ServiceSettings``.
 
-    ``flags`` holds only what was given on the command line (already typed). The TOML file is
-    ``config_file`` if given, else ``$COBOT_HMI_CONFIG`` if set.
+    ``flags`` holds only what was given on the command line. The TOML file is ``config_file``
+    if given, else ``$COBOT_HMI_CONFIG`` if set. The robot list (``[[robots]]``,
+    ``COBOT_HMI_ROBOTS``, or the ``robot_host`` shortcut) comes whole from the highest source
+    that names robots.
     """
     environ = os.environ if environ is None else environ
-    values: dict[str, object] = {}
     path = config_file or (Path(environ[CONFIG_ENV]) if environ.get(CONFIG_ENV) else None)
+    layers: list[tuple[str, dict[str, Any]]] = []  # lowest precedence first
     if path is not None:
-        try:
-            document = tomllib.loads(path.read_text(encoding="utf-8"))
-        except OSError as error:
-            raise SettingsError(f"config file {path}: {error.strerror}") from None
-        except tomllib.TOMLDecodeError as error:
-            raise SettingsError(f"config file {path}: {error}") from None
-        for key, value in document.items():
-            if key not in _FIELDS:
-                raise SettingsError(f"config file {path}: unknown setting {key!r}")
-            values[key] = _convert(key, value, str(path))
-    for name in _FIELDS:
-        text = environ.get(env_name(name))
-        if text is not None:
-            values[name] = _convert(name, text, env_name(name))
-    for name, value in (flags or {}).items():
-        if name not in _FIELDS:
+        layers.append((f"config file {path}", _toml_layer(path)))
+    layers.append(("environment", _environment_layer(environ)))
+    flag_values = dict(flags or {})
+    for name in flag_values:
+        if name not in ServiceSettings.model_fields:
             raise SettingsError(f"unknown setting {name!r}")
-        values[name] = value
+    layers.append(("flags", flag_values))
+
+    robot_layer = None
+    for index, (source, values) in enumerate(layers):
+        given = [key for key in _ROBOT_GROUP if values.get(key)]
+        if len(given) > 1:
+            raise SettingsError(
+                f"{_source_of(source, 'robots')}: give either robot_host or [[robots]], not both"
+            )
+        if given:
+            robot_layer = index
+    merged: dict[str, Any] = {}
+    sources: dict[str, str] = {}
+    for index, (source, values) in enumerate(layers):
+        for key, value in values.items():
+            if key in _ROBOT_GROUP and index != robot_layer:
+                continue
+            merged[key] = value
+            sources[key] = source
     try:
-        return ServiceSettings(**values)  # type: ignore[arg-type]
-    except TypeError as error:  # a flag given with the wrong Python type
-        raise SettingsError(str(error)) from None
+        return ServiceSettings.model_validate(merged)
+    except ValidationError as error:
+        raise SettingsError(_describe(error, sources, merged)) from None
+
+
+def _source_of(source: str, name: str) -> str:
+    if source == "environment":
+        return env_name(name)
+    if source == "flags":
+        info = ServiceSettings.model_fields.get(name)
+        extra = info.json_schema_extra if info is not None else None
+        flag = extra.get("flag") if isinstance(extra, dict) else None
+        return str(flag or "--" + name.replace("_", "-"))
+    return source
+
+
+def _describe(error: ValidationError, sources: Mapping[str, str], given: Mapping[str, Any]) -> str:
+    """Each problem as ``field (from SOURCE): what, got VALUE``; robots by index and name."""
+    lines = []
+    for problem in error.errors(include_url=False):
+        location = problem["loc"]
+        message = str(problem["msg"]).removeprefix("Value error, ")
+        if not location:
+            if message.startswith("robots:"):
+                source = _source_of(sources.get("robots", sources.get("robot_host", "")), "robots")
+                message = f"robots (from {source}):" + message.removeprefix("robots:")
+            lines.append(message)
+            continue
+        top = str(location[0])
+        where = top
+        rest = list(location[1:])
+        first = rest[0] if rest else None
+        if top == "robots" and isinstance(first, int):
+            index = first
+            rest.pop(0)
+            where = f"robots[{index}]"
+            robots = given.get("robots")
+            if isinstance(robots, list) and index < len(robots) and isinstance(robots[index], dict):
+                name = robots[index].get("name")
+                if name is not None:
+                    where += f" ({name})"
+        if rest:
+            where += "." + ".".join(str(part) for part in rest)
+        source = _source_of(sources.get(top, "defaults"), top)
+        if problem["type"] == "extra_forbidden":
+            message = "unknown setting"
+        lines.append(f"{where} (from {source}): {message}, got {problem['input']!r}")
+    return "; ".join(lines)
 
 
 # --------------------------------------------------------------------------- command line
+
+
+def _flag_type(name: str) -> type:
+    """The value type of a setting's flag (``Optional`` and ``Annotated`` stripped)."""
+    hint: Any = ServiceSettings.model_fields[name].annotation
+    if isinstance(hint, types.UnionType) or typing.get_origin(hint) is typing.Union:
+        hint = next(a for a in typing.get_args(hint) if a is not type(None))
+    if typing.get_origin(hint) is list:
+        return str  # a comma-separated list, split by the setting's validator
+    return hint if hint in (bool, int, float, Path) else str
 
 
 def add_arguments(parser: argparse.ArgumentParser, *, only: tuple[str, ...] | None = None) -> None:
     """One flag per setting (``--rpi-ms``), absent from the namespace unless given.
 
     Also ``--config FILE``, ``--instances CFG,O2T,T2O`` and ``--sizes O2T,T2O`` as on
-    ``cobot-hmi scan``. ``only`` limits the flags to some settings (the demo verb).
+    ``cobot-hmi scan``. ``only`` limits the flags to some settings (the ``users`` verb).
+    The robot list (``robots``) is for the TOML file or ``COBOT_HMI_ROBOTS``.
     """
     parser.add_argument("--config", type=Path, default=argparse.SUPPRESS, help="TOML file")
-    for name, f in _FIELDS.items():
-        if only is not None and name not in only:
+    for name, info in ServiceSettings.model_fields.items():
+        if name == "robots" or (only is not None and name not in only):
             continue
-        flag = f.metadata.get("flag") or "--" + name.replace("_", "-")
-        kind, _ = _base_type(name)
-        help_text = f"{f.metadata['help']} (env {env_name(name)}; default {f.default})"
+        extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
+        flag = str(extra.get("flag") or "--" + name.replace("_", "-"))
+        kind = _flag_type(name)
+        default = info.get_default(call_default_factory=True)
+        help_text = f"{info.description} (env {env_name(name)}; default {default})"
         if kind is bool:
             parser.add_argument(
                 flag,
@@ -343,7 +585,7 @@ def add_arguments(parser: argparse.ArgumentParser, *, only: tuple[str, ...] | No
             default=argparse.SUPPRESS,
             metavar="CFG,O2T,T2O",
             help="assembly instances, e.g. "
-            f"{CONNECTION_POINTS.configuration},{CONNECTION_POINTS.o2t},{CONNECTION_POINTS.t2o}",
+            f"{cp.CONFIG_INSTANCE.default},{cp.O2T_INSTANCE.default},{cp.T2O_INSTANCE.default}",
         )
         parser.add_argument(
             "--sizes",
@@ -368,7 +610,7 @@ def settings_from_args(
 ) -> ServiceSettings:
     """``load_settings`` with the flags that ``add_arguments`` parsed into ``args``."""
     given = vars(args)
-    flags = {name: given[name] for name in _FIELDS if name in given}
+    flags = {name: given[name] for name in ServiceSettings.model_fields if name in given}
     if "instances" in given:
         cfg, o2t, t2o = _ints(given["instances"], 3, "--instances")
         flags |= {"config_instance": cfg, "o2t_instance": o2t, "t2o_instance": t2o}
