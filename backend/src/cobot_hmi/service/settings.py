@@ -276,6 +276,46 @@ class ServiceSettings(BaseSettings):
         5.0, "a client whose send is stuck this long is dropped, s"
     )
     status_interval_s: Seconds = setting(1.0, "period of WebSocket status messages, s")
+    # --- security (service/security.py, service/http_limits.py; docs/operations.md "Security")
+    max_body_bytes: int = setting(64 * 1024, "largest request body, bytes (413 above)", ge=1024)
+    allowed_hosts: CommaList = setting(
+        [],
+        "Host names served, comma-separated ('*.example.org' patterns, 'ip' for any IP "
+        "literal, '*' for any); default: IP literals, localhost and this machine's name",
+    )
+    allowed_origins: CommaList = setting(
+        [],
+        "other origins (scheme://host:port) whose pages may write and stream, "
+        "comma-separated; the service's own origin always may",
+    )
+    trusted_proxies: CommaList = setting(
+        [],
+        "reverse proxies (addresses or networks) whose X-Forwarded-For/-Proto are "
+        "believed, comma-separated; none by default",
+    )
+    login_user_delay_max_s: float = setting(
+        4.0,
+        "longest wait a user name's failed logins impose on other addresses, s",
+        ge=0,
+        allow_inf_nan=False,
+    )
+    anonymous_writes_per_s: float = setting(
+        1.0, "refused writes without login allowed per client address, per s", gt=0
+    )
+    anonymous_write_burst: int = setting(
+        20, "refused writes without login a client address may send at once", ge=1
+    )
+    http_max_connections: int = setting(
+        512, "HTTP and WebSocket connections held at once (idle ones give way)", ge=8
+    )
+    http_idle_timeout_s: Seconds = setting(
+        10.0, "a connection must send a complete request head within this, s"
+    )
+    http_keep_alive_s: Seconds = setting(5.0, "an idle keep-alive connection is closed after, s")
+    http_backlog: int = setting(2048, "pending TCP connections the kernel queues", ge=1)
+    http_max_header_bytes: int = setting(
+        16 * 1024, "largest request line and headers, bytes", ge=1024
+    )
 
     @classmethod
     def settings_customise_sources(
