@@ -1,6 +1,10 @@
 """Layer: entry point. The originator's verbs: ``probe`` (explicit reads through pycomm3) and
 ``scan`` (a class 1 connection, one JSON line per frame or per second). Imports the scanner
-lazily, inside the handlers."""
+lazily, inside the handlers.
+
+Both work against any adapter (issue 11): instances and sizes are arguments, the robot's layout
+only their default; data of another size (or with ``--raw``) is printed as hex, and decoded to
+the robot's frame only when it has the layout's size."""
 
 from __future__ import annotations
 
@@ -27,6 +31,13 @@ def _int_list(count: int, what: str) -> Callable[[str], tuple[int, ...]]:
     return parse
 
 
+def _hex_bytes(text: str) -> bytes:
+    try:
+        return bytes.fromhex(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError("expected hexadecimal bytes, e.g. 0102ff") from None
+
+
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     probe = subparsers.add_parser(
         "probe",
@@ -35,17 +46,27 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     probe.add_argument("host")
     probe.add_argument("--port", type=int, default=44818, help="TCP port (default 44818)")
-    probe.add_argument("--o2t-instance", type=int, default=150)
-    probe.add_argument("--t2o-instance", type=int, default=100)
+    probe.add_argument("--o2t-instance", type=int, default=CONNECTION_POINTS.o2t)
+    probe.add_argument("--t2o-instance", type=int, default=CONNECTION_POINTS.t2o)
+    probe.add_argument(
+        "--sizes",
+        type=_int_list(2, "o2t,t2o"),
+        default=None,
+        metavar="O2T,T2O",
+        help="the data sizes expected, in bytes: exit 1 when the adapter reports others",
+    )
+    probe.add_argument("--raw", action="store_true", help="never decode the T→O data as a frame")
     probe.set_defaults(handler=_probe)
 
     scan = subparsers.add_parser(
         "scan",
         help="hold a class 1 connection and print the frames",
         description=(
-            "Hold a class 1 connection (exclusive owner, idle; or --input-only) and print one "
-            "JSON line per frame, or per second with --stats, then a summary. Exit 0 if the "
-            "connection held, 2 if it was refused, 3 if it was lost or never came up."
+            "Hold a class 1 connection (exclusive owner, idle; or --input-only) to any adapter "
+            "and print one JSON line per frame (the robot's frame when T→O has its layout's "
+            "size, else the data as hex), or per second with --stats, then a summary with the "
+            "counters. Exit 0 if the connection held, 2 if it was refused, 3 if it was lost or "
+            "never came up."
         ),
     )
     scan.add_argument("host")
@@ -65,13 +86,37 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         type=_int_list(2, "o2t,t2o"),
         default=_DEFAULT_SIZES,
         metavar="O2T,T2O",
-        help="data sizes in bytes (default {},{})".format(*_DEFAULT_SIZES),
+        help=(
+            "data sizes in bytes, in the Forward Open and in every O→T packet (default {},{}: "
+            "the robot's; T→O of another size is printed as hex)".format(*_DEFAULT_SIZES)
+        ),
+    )
+    scan.add_argument(
+        "--raw", action="store_true", help="print T→O data as hex even at the robot's size"
+    )
+    scan.add_argument(
+        "--o2t-hex",
+        type=_hex_bytes,
+        default=None,
+        metavar="HEX",
+        help="O→T data, zero-filled to the O→T size (default: the assembly's, read first)",
+    )
+    scan.add_argument(
+        "--api-range-us",
+        type=_int_list(2, "min,max"),
+        default=None,
+        metavar="MIN,MAX",
+        help="packet intervals a target may grant (default RPI/2 to RPI×2)",
     )
     scan.add_argument("--heartbeat-instance", type=int, default=CONNECTION_POINTS.input_only)
     scan.add_argument("--multiplier", type=int, default=2, help="timeout multiplier (2: RPI×16)")
     scan.add_argument("--large", action="store_true", help="use a Large Forward Open")
     scan.add_argument("--stats", action="store_true", help="one line of statistics per second")
-    scan.add_argument("--local-host", default="0.0.0.0", help="local address (default all)")
+    scan.add_argument(
+        "--local-host",
+        default=None,
+        help="local address (default: the one that routes to the target; 0.0.0.0: all)",
+    )
     scan.add_argument("--t2o-port", type=int, default=None, help="ask for T→O on this port")
     scan.set_defaults(handler=_scan)
 
@@ -84,7 +129,11 @@ def _probe(args: argparse.Namespace) -> int:
 
     try:
         result = probe(
-            args.host, args.port, o2t_instance=args.o2t_instance, t2o_instance=args.t2o_instance
+            args.host,
+            args.port,
+            o2t_instance=args.o2t_instance,
+            t2o_instance=args.t2o_instance,
+            raw=args.raw,
         )
     except ExplicitError as error:
         print(f"cobot-hmi probe: {error}", file=sys.stderr)
@@ -96,13 +145,24 @@ def _probe(args: argparse.Namespace) -> int:
             str(args.o2t_instance): result.o2t_size,
             str(args.t2o_instance): result.t2o_size,
         },
+        "t2o_data_hex": result.t2o_data.hex(),
         "t2o_frame": frame_to_json(result.frame) if result.frame is not None else None,
     }
+    code = 0
     if result.frame_error:
         out["t2o_frame_error"] = result.frame_error
-        out["t2o_raw"] = result.t2o_data.hex()
+        code = 1
+    if args.sizes is not None:
+        o2t_size, t2o_size = args.sizes
+        # The T→O data read is the size's proof where the size attribute is not served.
+        found_t2o = result.t2o_size if result.t2o_size is not None else len(result.t2o_data)
+        matches = found_t2o == t2o_size and result.o2t_size in (None, o2t_size)
+        out["sizes_expected"] = {str(args.o2t_instance): o2t_size, str(args.t2o_instance): t2o_size}
+        out["sizes_match"] = matches
+        if not matches:
+            code = 1
     sys.stdout.write(dumps(out).decode() + "\n")
-    return 0 if result.frame is not None else 1
+    return code
 
 
 def _scan(args: argparse.Namespace) -> int:
@@ -118,6 +178,13 @@ def _scan(args: argparse.Namespace) -> int:
 
     cfg, o2t, t2o = args.instances
     o2t_size, t2o_size = args.sizes
+    if args.o2t_hex is not None and len(args.o2t_hex) > o2t_size:
+        print(
+            f"cobot-hmi scan: --o2t-hex has {len(args.o2t_hex)} bytes, more than the O→T size "
+            f"of {o2t_size}",
+            file=sys.stderr,
+        )
+        return 1
     settings = OriginatorSettings(
         robot_host=args.host,
         tcp_port=args.port,
@@ -133,6 +200,9 @@ def _scan(args: argparse.Namespace) -> int:
         o2t_size=o2t_size,
         t2o_size=t2o_size,
         request_t2o_port=args.t2o_port,
+        o2t_data=args.o2t_hex,
+        raw=args.raw,
+        api_bounds_us=args.api_range_us,
     )
     out = sys.stdout
     seen: set[ConnectionState] = set()
@@ -142,12 +212,21 @@ def _scan(args: argparse.Namespace) -> int:
             line = {"seq": seq, "received_at": received_at, "frame": frame_to_json(frame)}
             out.write(dumps(line).decode() + "\n")
 
+    def on_data(data: bytes, received_at: float, seq: int) -> None:
+        if not args.stats:
+            line = {"t": received_at, "seq": seq, "data_hex": data.hex()}
+            out.write(dumps(line).decode() + "\n")
+
     def on_state(state: ConnectionState, reason: str | None) -> None:
         seen.add(state)
         print(f"cobot-hmi scan: {state}{': ' + reason if reason else ''}", file=sys.stderr)
 
     async def run() -> int:
-        originator = Originator(settings, on_frame=on_frame, on_state=on_state)
+        try:
+            originator = Originator(settings, on_frame=on_frame, on_state=on_state, on_data=on_data)
+        except ValueError as error:  # --o2t-hex not a command image (CodecError)
+            print(f"cobot-hmi scan: {error}", file=sys.stderr)
+            return 1
         stop = asyncio.Event()
         loop = asyncio.get_running_loop()
         for sig in (signal.SIGINT, signal.SIGTERM):

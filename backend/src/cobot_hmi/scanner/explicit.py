@@ -16,7 +16,7 @@ from typing import Any
 
 from pycomm3 import CIPDriver, CommError
 
-from cobot_hmi.codec import CodecError, Frame, decode_frame
+from cobot_hmi.codec import T2O_SIZE, CodecError, Frame, decode_frame
 from cobot_hmi.enip.encapsulation import ENIP_TCP_PORT
 from cobot_hmi.layout import CONNECTION_POINTS
 
@@ -33,10 +33,12 @@ class ExplicitError(Exception):
 @dataclass(frozen=True)
 class ProbeResult:
     identity: dict[str, Any]
-    o2t_size: int
-    t2o_size: int
+    o2t_size: int | None
+    """The assembly's size attribute (4), None where the adapter does not serve it."""
+    t2o_size: int | None
     t2o_data: bytes
     frame: Frame | None
+    """The data decoded as the robot's frame: only when it is the layout's size."""
     frame_error: str | None
 
 
@@ -117,16 +119,30 @@ def probe(
     *,
     o2t_instance: int = CONNECTION_POINTS.o2t,
     t2o_instance: int = CONNECTION_POINTS.t2o,
+    raw: bool = False,
 ) -> ProbeResult:
-    """Identity, both assembly sizes and one T→O frame, read explicitly."""
+    """Identity, both assembly sizes (where the adapter serves them) and the T→O assembly's
+    data, read explicitly; the data decoded as the robot's frame when it has the layout's size
+    and ``raw`` is not asked for (any other adapter's data stays bytes)."""
     identity = list_identity(host, port)
     with ExplicitReader(host, port) as reader:
-        o2t_size = reader.assembly_size(o2t_instance)
-        t2o_size = reader.assembly_size(t2o_instance)
+        o2t_size = _optional_size(reader, o2t_instance)
+        t2o_size = _optional_size(reader, t2o_instance)
         data = reader.read_assembly(t2o_instance)
-    try:
-        frame: Frame | None = decode_frame(data)
-        error = None
-    except CodecError as codec_error:
-        frame, error = None, str(codec_error)
+    frame: Frame | None = None
+    error = None
+    if not raw and len(data) == T2O_SIZE:
+        try:
+            frame = decode_frame(data)
+        except CodecError as codec_error:
+            error = str(codec_error)
     return ProbeResult(identity, o2t_size, t2o_size, data, frame, error)
+
+
+def _optional_size(reader: ExplicitReader, instance: int) -> int | None:
+    # The size attribute is optional (CIP Vol 1 §5A-5, the Assembly object): many adapters
+    # answer "attribute not supported" and are still fine to scan.
+    try:
+        return reader.assembly_size(instance)
+    except ExplicitError:
+        return None
