@@ -312,7 +312,19 @@ def main() -> int:
         default=5.0,
         help="also poll once per RPI for this long, for context (0: skip)",
     )
+    parser.add_argument(
+        "--robots",
+        default=None,
+        metavar="N[,N…]",
+        help="instead: one originator process holding N connections to N emulators on one UDP "
+        "socket, for each N, with the C pump and the pure-Python one (bench/cyclic_robots.py)",
+    )
     args = parser.parse_args()
+    if args.robots is not None:
+        from cyclic_robots import bench as robots_bench
+
+        robots = [int(n) for n in args.robots.split(",")]
+        return robots_bench(robots, args.rpi_ms, args.seconds)
     rng = random.Random()
     robot_host = f"127.{rng.randint(100, 250)}.{rng.randint(0, 250)}.{rng.randint(2, 250)}"
     plc_host = f"127.{rng.randint(100, 250)}.{rng.randint(0, 250)}.{rng.randint(2, 250)}"

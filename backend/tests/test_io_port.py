@@ -246,10 +246,10 @@ class FakeTarget:
         if request.service == Service.FORWARD_CLOSE:
             self.forward_closes += 1
             close = decode_forward_close(request.data)
-            reply = ForwardCloseReply(
+            closed = ForwardCloseReply(
                 close.connection_serial, close.vendor_id, close.originator_serial
             )
-            return MessageRouterResponse(request.service, data=reply.encode())
+            return MessageRouterResponse(request.service, data=closed.encode())
         assert request.service == Service.FORWARD_OPEN
         fo = decode_forward_open(request.data, large=False)
         self.forward_opens.append(fo)
