@@ -51,6 +51,34 @@ def free_tcp_port(host: str = "127.0.0.1") -> int:
         return port
 
 
+PUMP_IMPLEMENTATIONS = ("native", "python")
+"""The cyclic pump's two implementations (``cobot_hmi.native``, chosen by ``COBOT_HMI_PUMP``)."""
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line(
+        "markers",
+        "both_pumps: run each test once with the native and once with the pure-Python pump",
+    )
+
+
+def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
+    if metafunc.definition.get_closest_marker("both_pumps") is not None:
+        metafunc.parametrize("pump_implementation", PUMP_IMPLEMENTATIONS, indirect=True)
+
+
+@pytest.fixture(autouse=True)
+def pump_implementation(
+    request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch
+) -> str | None:
+    """In a module marked ``both_pumps``, the cyclic pump every endpoint of the test uses
+    (``native`` fails the test if the extension is missing); elsewhere None (the default)."""
+    implementation: str | None = getattr(request, "param", None)
+    if implementation is not None:
+        monkeypatch.setenv("COBOT_HMI_PUMP", implementation)
+    return implementation
+
+
 class _PendingTaskLog(logging.Handler):
     def __init__(self) -> None:
         super().__init__(logging.ERROR)

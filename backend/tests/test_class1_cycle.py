@@ -23,6 +23,7 @@ from cobot_hmi.scanner.o2t_stream import O2TStream
 from cobot_hmi.scanner.originator import ConnectionState, Originator, OriginatorSettings
 from cobot_hmi.udp_endpoint import UdpEndpoint
 
+pytestmark = pytest.mark.both_pumps  # conftest: native and pure-Python pump
 DEADLINE_S = 5.0
 
 

@@ -1,23 +1,28 @@
-"""The cyclic pump (``native/cyclic_pump.c``) through ``UdpEndpoint``, over real sockets on
-loopback: the send queue (due order, taking back), periodic streams (counters written and raised
-per packet, wrapping; a new template from the next packet; where a stopped stream would have
-gone on), the receive ring (kernel receive times, a datagram too long for its slot still seen
-as too long, a full ring keeping the newest) and batched wake-ups. Deadlines are generous:
-nothing here asserts a timing figure.
+"""The cyclic pump through ``UdpEndpoint``, over real sockets on loopback, once with each
+implementation (the C extension and the pure-Python pump, ``both_pumps``): the send queue (due
+order, taking back), periodic streams (counters written and raised per packet, wrapping; a new
+template from the next packet; where a stopped stream would have gone on), the receive ring
+(kernel receive times, a datagram too long for its slot still seen as too long, a full ring
+keeping the newest), batched wake-ups, and closing (a ``with`` block, an endpoint dropped
+unclosed: its thread stops either way). Deadlines are generous: nothing here asserts a timing
+figure.
 """
 
 from __future__ import annotations
 
 import asyncio
+import gc
+import os
 import socket
 import struct
+import threading
 from collections.abc import AsyncIterator, Callable
 
 import pytest
 
-from cobot_hmi.native import build
 from cobot_hmi.udp_endpoint import RING_SLOTS, UdpEndpoint
 
+pytestmark = pytest.mark.both_pumps  # conftest: native and pure-Python pump
 DEADLINE_S = 5.0
 Received = list[tuple[bytes, tuple[str, int], float]]
 
@@ -47,8 +52,43 @@ async def pair(plc_host: str, robot_host: str) -> AsyncIterator[tuple[UdpEndpoin
         receiver.close()
 
 
-def test_the_library_builds() -> None:
-    assert build().name == "libcyclic_pump.so"
+def pump_threads() -> int:
+    """Pump threads alive in this process: the C ones by their kernel name, the Python ones by
+    their thread name."""
+    native = 0
+    for task in os.listdir("/proc/self/task"):
+        try:
+            with open(f"/proc/self/task/{task}/comm") as comm:
+                native += comm.read().strip() == "cyclic-pump"
+        except FileNotFoundError:  # ended meanwhile
+            pass
+    return native + sum(1 for t in threading.enumerate() if t.name == "cyclic-pump")
+
+
+async def test_each_endpoint_runs_the_pump_asked_for_and_closing_stops_it(
+    plc_host: str, pump_implementation: str
+) -> None:
+    before = pump_threads()
+    with UdpEndpoint(plc_host, 0, lambda *_: None, receive_size=64) as endpoint:
+        endpoint.watch(True)
+        assert endpoint.implementation == pump_implementation
+        assert pump_threads() == before + 1
+    await eventually(lambda: pump_threads() == before)
+    assert endpoint.counters()["sent"] == 0, "closed: neutral figures"
+    endpoint.close()  # again: nothing
+
+
+async def test_an_endpoint_dropped_unclosed_stops_its_thread(plc_host: str) -> None:
+    before = pump_threads()
+    endpoint = UdpEndpoint(plc_host, 0, lambda *_: None, receive_size=64)
+    endpoint.watch(True, silence_s=0.01)  # the loop watches it: still no strong reference
+    port = endpoint.port
+    assert pump_threads() == before + 1
+    del endpoint
+    gc.collect()
+    await eventually(lambda: pump_threads() == before)
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind((plc_host, port))  # and its socket is closed: the port is free again
 
 
 async def test_queued_datagrams_leave_in_due_order_and_can_be_taken_back(

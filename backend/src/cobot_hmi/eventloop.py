@@ -1,14 +1,20 @@
-"""Layer: runtime support for the I/O layers (emulator, scanner, service). Imports nothing of
-the project.
+"""Layer: runtime support for the I/O layers (emulator, scanner, service) and the pure-Python
+cyclic pump (``native.pure``). Imports nothing of the project.
 
-Class 1 traffic runs on a schedule of a few milliseconds. The default asyncio loop on Linux
-waits in ``epoll_wait``, whose timeout has a resolution of one millisecond (CPython rounds
-every wait up to the next whole millisecond), so a 2 ms RPI would jitter by up to 1 ms.
-``select()`` takes its timeout in microseconds: a loop built on ``SelectSelector`` wakes within
-the kernel's timer slack instead, which the loop's thread sets to 1 µs (Linux's default, 50 µs,
-would be jitter for nothing). It handles a few dozen sockets, which is all either role opens.
-Periodic senders schedule absolute loop times (``loop.call_at(deadline)``, ``deadline +=
-period``), so they stay drift-free instead of accumulating ``sleep(period)`` errors.
+Every event loop of the product waits in ``epoll_wait``: no ceiling on file descriptor numbers
+(``select()`` refuses any fd above 1023, and a service with a thousand clients and log files
+has such fds; the loop's thread would die of "filedescriptor out of range"). But epoll's
+timeout is in whole milliseconds (CPython rounds every wait up to the next one), and the class
+1 owners' timers (a batch at 40 ms, a packet built each RPI at 10 ms and longer) would then fire
+up to 1 ms late. :class:`PreciseEpollSelector` keeps the microseconds: a ``timerfd`` (Linux's
+timer as a file descriptor, nanosecond resolution) in the same epoll set, armed for each wait
+with its exact timeout, wakes the wait on time; epoll's own, rounded-up timeout only backs it.
+One ``timerfd_settime`` call per wait (through ctypes: Python 3.11's ``os`` lacks timerfd)
+against a wake-up of 60-100 µs is nothing. The loop's thread also gets a 1 µs timer slack
+(Linux's default, 50 µs, would be jitter for nothing). Periodic senders schedule absolute loop
+times (``loop.call_at(deadline)``, ``deadline += period``), so they stay drift-free instead of
+accumulating ``sleep(period)`` errors. The packets themselves are timed by the cyclic pump's own
+thread (``native``), not by this loop.
 
 :func:`freeze_startup_heap` keeps the cyclic garbage collector from stalling such a schedule.
 """
@@ -16,17 +22,216 @@ period``), so they stay drift-free instead of accumulating ``sleep(period)`` err
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import ctypes
 import gc
+import os
+import select
 import selectors
 import sys
+from collections.abc import Iterator, Mapping
+from typing import TYPE_CHECKING, Any, Final
+
+if TYPE_CHECKING:
+    from _typeshed import FileDescriptorLike
+
+_CLOCK_MONOTONIC: Final = 1  # linux/time.h: asyncio's loop.time() is time.monotonic()
+_TFD_FLAGS: Final = os.O_NONBLOCK | os.O_CLOEXEC  # TFD_NONBLOCK, TFD_CLOEXEC (linux/timerfd.h)
+
+
+class _Timespec(ctypes.Structure):
+    _fields_ = (("tv_sec", ctypes.c_long), ("tv_nsec", ctypes.c_long))
+
+
+class _Itimerspec(ctypes.Structure):
+    _fields_ = (("it_interval", _Timespec), ("it_value", _Timespec))
+
+
+class _Timerfd:
+    """A one-shot CLOCK_MONOTONIC timerfd, armed with a relative timeout."""
+
+    def __init__(self) -> None:
+        libc = ctypes.CDLL(None, use_errno=True)
+        self._create = libc.timerfd_create
+        self._create.argtypes = (ctypes.c_int, ctypes.c_int)
+        self._create.restype = ctypes.c_int
+        self._settime = libc.timerfd_settime
+        self._settime.argtypes = (
+            ctypes.c_int,
+            ctypes.c_int,
+            ctypes.POINTER(_Itimerspec),
+            ctypes.c_void_p,
+        )
+        self._settime.restype = ctypes.c_int
+        fd = self._create(_CLOCK_MONOTONIC, _TFD_FLAGS)
+        if fd < 0:
+            raise OSError(ctypes.get_errno(), "timerfd_create")
+        self.fd: int = fd
+        self._spec = _Itimerspec()
+        self._value = self._spec.it_value
+        self.armed = False
+
+    def arm(self, timeout_ns: int) -> None:
+        """Fire once, ``timeout_ns`` from now (at least 1 ns: 0 would disarm it)."""
+        self._value.tv_sec, self._value.tv_nsec = divmod(max(timeout_ns, 1), 1_000_000_000)
+        self._settime(self.fd, 0, self._spec, None)
+        self.armed = True
+
+    def disarm(self) -> None:
+        self._value.tv_sec = self._value.tv_nsec = 0
+        self._settime(self.fd, 0, self._spec, None)
+        self.armed = False
+
+    def consume(self) -> None:
+        """It fired: read the expiry count, or it would stay readable."""
+        self.armed = False
+        with contextlib.suppress(BlockingIOError):
+            os.read(self.fd, 8)
+
+    def close(self) -> None:
+        os.close(self.fd)
+
+
+def _new_timerfd() -> _Timerfd | None:
+    if sys.platform != "linux":
+        return None
+    try:
+        return _Timerfd()
+    except (OSError, AttributeError):  # no timerfd: epoll's millisecond rounding it is
+        return None
+
+
+def _fd(fileobj: FileDescriptorLike) -> int:
+    fd = fileobj if isinstance(fileobj, int) else int(fileobj.fileno())
+    if fd < 0:
+        raise ValueError(f"invalid file descriptor: {fd}")
+    return fd
+
+
+class _KeyMap(Mapping["FileDescriptorLike", selectors.SelectorKey]):
+    """The selector's keys by file object or descriptor (``BaseSelector.get_map``)."""
+
+    def __init__(self, keys: dict[int, selectors.SelectorKey]) -> None:
+        self._keys = keys
+
+    def __len__(self) -> int:
+        return len(self._keys)
+
+    def __iter__(self) -> Iterator[FileDescriptorLike]:
+        return iter(self._keys)
+
+    def __getitem__(self, fileobj: FileDescriptorLike) -> selectors.SelectorKey:
+        return self._keys[_fd(fileobj)]
+
+
+class PreciseEpollSelector(selectors.BaseSelector):
+    """An epoll selector whose timeouts keep their microseconds (see the module's docstring).
+    Without timerfd (not Linux) it waits with epoll's millisecond rounding."""
+
+    def __init__(self) -> None:
+        self._epoll = select.epoll()
+        self._keys: dict[int, selectors.SelectorKey] = {}
+        self._map = _KeyMap(self._keys)
+        self._timer = _new_timerfd()
+        self._timer_fd = -1
+        if self._timer is not None:
+            self._timer_fd = self._timer.fd
+            self._epoll.register(self._timer_fd, select.EPOLLIN)
+
+    @staticmethod
+    def _mask(events: int) -> int:
+        if not events or events & ~(selectors.EVENT_READ | selectors.EVENT_WRITE):
+            raise ValueError(f"invalid events: {events!r}")
+        mask = 0
+        if events & selectors.EVENT_READ:
+            mask |= select.EPOLLIN
+        if events & selectors.EVENT_WRITE:
+            mask |= select.EPOLLOUT
+        return mask
+
+    def register(
+        self, fileobj: FileDescriptorLike, events: int, data: Any = None
+    ) -> selectors.SelectorKey:
+        fd = _fd(fileobj)
+        mask = self._mask(events)
+        if fd in self._keys:
+            raise KeyError(f"{fileobj!r} (FD {fd}) is already registered")
+        self._epoll.register(fd, mask)
+        key = self._keys[fd] = selectors.SelectorKey(fileobj, fd, events, data)
+        return key
+
+    def unregister(self, fileobj: FileDescriptorLike) -> selectors.SelectorKey:
+        fd = _fd(fileobj)
+        try:
+            key = self._keys.pop(fd)
+        except KeyError:
+            raise KeyError(f"{fileobj!r} is not registered") from None
+        # Closed before it was unregistered: epoll forgot it already.
+        with contextlib.suppress(OSError):
+            self._epoll.unregister(fd)
+        return key
+
+    def modify(
+        self, fileobj: FileDescriptorLike, events: int, data: Any = None
+    ) -> selectors.SelectorKey:
+        fd = _fd(fileobj)
+        try:
+            key = self._keys[fd]
+        except KeyError:
+            raise KeyError(f"{fileobj!r} is not registered") from None
+        if events != key.events:
+            self._epoll.modify(fd, self._mask(events))
+        key = self._keys[fd] = key._replace(events=events, data=data)
+        return key
+
+    def get_map(self) -> Mapping[FileDescriptorLike, selectors.SelectorKey]:
+        return self._map
+
+    def select(self, timeout: float | None = None) -> list[tuple[selectors.SelectorKey, int]]:
+        timer = self._timer
+        if timeout is None:
+            wait_s = -1.0
+            if timer is not None and timer.armed:
+                timer.disarm()  # a stale expiry would wake the endless wait for nothing
+        elif timeout <= 0:
+            wait_s = 0.0
+        else:
+            wait_s = timeout  # epoll rounds it up to whole ms: the timer (exact) comes first
+            if timer is not None:
+                timer.arm(round(timeout * 1e9))
+        keys = self._keys
+        try:
+            fd_events = self._epoll.poll(wait_s, len(keys) + 1)
+        except InterruptedError:
+            return []
+        ready: list[tuple[selectors.SelectorKey, int]] = []
+        for fd, event in fd_events:
+            key = keys.get(fd)
+            if key is None:
+                if fd == self._timer_fd and timer is not None:
+                    timer.consume()
+                continue
+            events = 0
+            if event & ~select.EPOLLIN:
+                events |= selectors.EVENT_WRITE
+            if event & ~select.EPOLLOUT:
+                events |= selectors.EVENT_READ
+            ready.append((key, events & key.events))
+        return ready
+
+    def close(self) -> None:
+        self._keys.clear()
+        self._epoll.close()
+        if self._timer is not None:
+            self._timer.close()
+            self._timer = None
 
 
 def precise_event_loop() -> asyncio.AbstractEventLoop:
-    """A new event loop whose timers fire with sub-millisecond precision. Create it in the
-    thread that runs it: that thread's timer slack is tightened too."""
+    """A new epoll event loop whose timers fire with sub-millisecond precision. Create it in
+    the thread that runs it: that thread's timer slack is tightened too."""
     _tighten_timer_slack()
-    return asyncio.SelectorEventLoop(selectors.SelectSelector())
+    return asyncio.SelectorEventLoop(PreciseEpollSelector())
 
 
 _PR_SET_TIMERSLACK = 29  # linux/prctl.h

@@ -1,7 +1,9 @@
 """Layer: runtime support for the I/O layers (emulator, scanner). Imports only ``native``.
 
 The UDP socket of a class 1 endpoint (UDP 2222 on either side) and its cyclic pump
-(``native/cyclic_pump.c``): a C thread that sends the datagrams queued with :meth:`send_at` at
+(``native``: the C thread of ``native/cyclic_pump.c``, or its pure-Python twin when the
+extension cannot be loaded or ``COBOT_HMI_PUMP=python``; ``implementation`` says which): a
+thread that sends the datagrams queued with :meth:`send_at` at
 their due times, sends periodic streams (:meth:`send_every`: a template whose two counters it
 raises per packet), and reads the socket into a ring with the kernel's receive time of each
 datagram (``SO_TIMESTAMPNS``). Python hands over whole datagrams, built by ``cobot_hmi.enip``;
@@ -21,6 +23,10 @@ Reading (``watch``):
   owner, who reads by calling :meth:`drain` from its own timer (a target producing at a short
   RPI, as a controller reads its inputs once per cycle).
 
+Closing: :meth:`close` (or leaving a ``with`` block) stops and joins the pump's thread and closes
+the socket; an endpoint dropped without either is closed by its finalizer (the event loop's
+reader holds only a weak reference to it), so no thread outlives its endpoint.
+
 Why not asyncio's datagram transport: it receives every datagram into a 256 KiB buffer and then
 shrinks it (two system calls and a page fault per packet, measured with ``perf stat``).
 """
@@ -28,14 +34,16 @@ shrinks it (two system calls and a page fault per packet, measured with ``perf s
 from __future__ import annotations
 
 import asyncio
-import ctypes
+import contextlib
 import logging
 import socket
 import struct
+import weakref
 from collections.abc import Callable
+from types import TracebackType
 from typing import Final
 
-from cobot_hmi.native import cyclic_pump_library
+from cobot_hmi.native import Implementation, PumpLike, pump_class
 
 log = logging.getLogger(__name__)
 
@@ -82,39 +90,38 @@ class UdpEndpoint:
         self._on_packet = on_packet
         self._on_batch = on_batch
         self._receive_size = receive_size
-        lib = cyclic_pump_library()
-        self._lib = lib
+        pump_type, implementation = pump_class()
+        self.implementation: Implementation = implementation
         sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         try:
             sock.setblocking(False)
             if kernel_timestamps:
                 sock.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
             sock.bind((host, port))
-        except OSError:
+            pump = pump_type(sock.fileno(), QUEUE_SLOTS, receive_size, RING_SLOTS, receive_size)
+        except (OSError, ValueError):
             sock.close()
             raise
-        pump = lib.pump_new(sock.fileno(), QUEUE_SLOTS, receive_size, RING_SLOTS, receive_size)
-        if not pump or lib.pump_start(pump) != 0:
-            if pump:
-                lib.pump_free(pump)
-            sock.close()
-            raise OSError("cannot start the cyclic pump thread")
         self._sock: socket.socket | None = sock
-        self._pump: int | None = pump
-        self._notify_fd: int = lib.pump_notify_fd(pump)
+        self._pump: PumpLike | None = pump
+        self._notify_fd: int = pump.notify_fd()
         self.port: int = sock.getsockname()[1]
         self.watching = False
         self._reading = False
-        self._buffer = bytearray(TAKE_BATCH * receive_size)
-        self._buffer_c = (ctypes.c_char * len(self._buffer)).from_buffer(self._buffer)
-        self._lens = (ctypes.c_int32 * TAKE_BATCH)()
-        self._stamps = (ctypes.c_int64 * TAKE_BATCH)()
-        self._ips = (ctypes.c_uint32 * TAKE_BATCH)()
-        self._ports = (ctypes.c_uint16 * TAKE_BATCH)()
-        self._view = memoryview(self._buffer)
         self._sources: dict[int, tuple[str, int]] = {}
         self._addresses: dict[tuple[str, int], tuple[int, int]] = {}
-        self._first_due = ctypes.c_int64()
+        self._finalizer = weakref.finalize(self, _release, pump, sock, self._loop, self._notify_fd)
+
+    def __enter__(self) -> UdpEndpoint:
+        return self
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        error: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None:
+        self.close()
 
     # ------------------------------------------------------------------ receiving
 
@@ -128,11 +135,12 @@ class UdpEndpoint:
             return
         silence_ns = round(silence_s * 1e9)
         if on:
-            self._lib.pump_configure(pump, 0 if batch_s else 1, round(batch_s * 1e9), silence_ns)
+            pump.configure(not batch_s, round(batch_s * 1e9), silence_ns)
         else:
-            self._lib.pump_configure(pump, 0, -1, silence_ns)  # -1: no batch notifications
+            pump.configure(False, -1, silence_ns)  # -1: no batch notifications
         if not self._reading:
-            self._loop.add_reader(self._notify_fd, self._notified)
+            # A weak reference: the loop must not keep a dropped endpoint (and its thread) alive.
+            self._loop.add_reader(self._notify_fd, _notified, weakref.ref(self))
             self._reading = True
         self.watching = on
 
@@ -143,21 +151,12 @@ class UdpEndpoint:
 
     def drain(self) -> None:
         """Hand every datagram received so far to ``on_packet``, in arrival order."""
-        lib, on_packet, view = self._lib, self._on_packet, self._view
-        buffer_c, size = self._buffer_c, len(self._buffer)
-        lens, stamps, ips, ports = self._lens, self._stamps, self._ips, self._ports
+        on_packet, source = self._on_packet, self._source
         while (pump := self._pump) is not None:
-            count = lib.pump_take(pump, 1, buffer_c, size, lens, stamps, ips, ports, TAKE_BATCH)
-            if count:
-                # Whole arrays out of ctypes at once (indexing them one by one costs more).
-                offset = 0
-                for length, stamp, ip, port in zip(
-                    lens[:count], stamps[:count], ips[:count], ports[:count], strict=True
-                ):
-                    data = bytes(view[offset : offset + length])
-                    offset += length
-                    on_packet(data, self._source(ip, port), stamp * 1e-9)
-            if count < TAKE_BATCH:
+            taken = pump.take(True, TAKE_BATCH)
+            for data, ip, port, stamp_ns in taken:
+                on_packet(data, source(ip, port), stamp_ns * 1e-9)
+            if len(taken) < TAKE_BATCH:
                 break
 
     def _source(self, ip: int, port: int) -> tuple[str, int]:
@@ -190,9 +189,7 @@ class UdpEndpoint:
         if pump is None:
             return
         address = self._address(addr)
-        result = self._lib.pump_queue(
-            pump, round(due * 1e9), address[0], address[1], data, len(data), tag
-        )
+        result = pump.queue(round(due * 1e9), address[0], address[1], data, tag)
         if result == -1:
             raise QueueFullError(f"{QUEUE_SLOTS} datagrams already queued")
         if result != 0:
@@ -225,15 +222,13 @@ class UdpEndpoint:
         ip, port = self._address(addr)
         off32, first32 = counter32 if counter32 is not None else (-1, 0)
         off16, first16 = counter16 if counter16 is not None else (-1, 0)
-        result = self._lib.pump_periodic_start(
-            pump,
+        result = pump.periodic_start(
             tag,
             round(first_due * 1e9),
             round(period_s * 1e9),
             ip,
             port,
             data,
-            len(data),
             off32,
             first32 & 0xFFFFFFFF,
             off16,
@@ -250,7 +245,7 @@ class UdpEndpoint:
         pump = self._pump
         if pump is None:
             return False
-        result = self._lib.pump_periodic_data(pump, tag, data, len(data))
+        result = pump.periodic_data(tag, data)
         if result == -2:
             raise ValueError(f"a {len(data)}-byte periodic datagram does not fit its counters")
         return bool(result == 0)
@@ -262,13 +257,11 @@ class UdpEndpoint:
         pump = self._pump
         if pump is None:
             return None
-        next32, next16, due_ns = ctypes.c_uint32(), ctypes.c_uint16(), ctypes.c_int64()
-        found = self._lib.pump_periodic_next(
-            pump, tag, int(stop), ctypes.byref(next32), ctypes.byref(next16), ctypes.byref(due_ns)
-        )
-        if found != 0:
+        state = pump.periodic_next(tag, stop)
+        if state is None:
             return None
-        return next32.value, next16.value, due_ns.value * 1e-9
+        next32, next16, due_ns = state
+        return next32, next16, due_ns * 1e-9
 
     def stop_periodic(self, tag: int) -> tuple[int, int, float] | None:
         """Stop the periodic stream ``tag`` (see ``periodic_next``)."""
@@ -280,21 +273,19 @@ class UdpEndpoint:
         pump = self._pump
         if pump is None:
             return 0, None
-        first = self._first_due
-        count: int = self._lib.pump_cancel(pump, tag, round(from_due * 1e9), ctypes.byref(first))
-        return count, (first.value * 1e-9 if count else None)
+        count, first_due_ns = pump.cancel(tag, round(from_due * 1e9))
+        return count, (first_due_ns * 1e-9 if count else None)
 
     def queued(self, tag: int) -> int:
         """How many datagrams of ``tag`` wait to be sent."""
         pump = self._pump
-        return 0 if pump is None else int(self._lib.pump_queued(pump, tag))
+        return 0 if pump is None else pump.queued(tag)
 
     def counters(self) -> dict[str, int]:
         """The pump's: sent, send errors, received, ring overflows, wake-ups, the latest a
         datagram left after its due time (ns), and 1 if its thread got real-time priority."""
-        values = (ctypes.c_int64 * 7)()
-        if self._pump is not None:
-            self._lib.pump_counters(self._pump, values)
+        pump = self._pump
+        values = (0,) * 7 if pump is None else pump.counters()
         names = (
             "sent",
             "send_errors",
@@ -307,17 +298,36 @@ class UdpEndpoint:
         return dict(zip(names, values, strict=True))
 
     def close(self) -> None:
-        if self._reading:
-            self._loop.remove_reader(self._notify_fd)
-            self._reading = False
+        """Stop the pump's thread (joined), then close the socket. Idempotent."""
+        self._reading = False
         self.watching = False
-        pump, self._pump = self._pump, None
-        if pump is not None:
-            self._lib.pump_free(pump)  # stops and joins the thread first
-        sock, self._sock = self._sock, None
-        if sock is not None:
-            sock.close()
-        self._view.release()
+        self._pump = None
+        self._sock = None
+        self._finalizer()
+
+
+def _notified(endpoint_ref: weakref.ref[UdpEndpoint]) -> None:
+    endpoint = endpoint_ref()
+    if endpoint is not None:
+        endpoint._notified()
+
+
+def _release(
+    pump: PumpLike, sock: socket.socket, loop: asyncio.AbstractEventLoop, notify_fd: int
+) -> None:
+    """Close an endpoint's pump and socket: from ``close``, or as the finalizer of one dropped
+    unclosed (which must not hold the endpoint)."""
+    try:
+        running: asyncio.AbstractEventLoop | None = asyncio.get_running_loop()
+    except RuntimeError:
+        running = None
+    if running is loop or not loop.is_running():
+        loop.remove_reader(notify_fd)  # nothing when it was not watched or the loop is closed
+    else:  # dropped on another thread: the loop's own thread unregisters it
+        with contextlib.suppress(RuntimeError):  # closed meanwhile: nothing to unregister
+            loop.call_soon_threadsafe(loop.remove_reader, notify_fd)
+    pump.close()  # stops and joins the thread first
+    sock.close()
 
 
 __all__ = ["BATCH_PERIOD_S", "PacketHandler", "QueueFullError", "UdpEndpoint"]

@@ -1,145 +1,128 @@
-"""Layer: runtime support. Imports nothing of the project.
+"""Layer: runtime support. Imports only ``eventloop`` (through ``pure``).
 
-The cyclic pump (``cyclic_pump.c``): a C thread that sends the datagrams the class 1 path queued
-at their due times and reads the socket into a ring, so that Python wakes once per batch instead
-of once per packet (why, and the interface: the C file's header). Loaded with :mod:`ctypes`, so
-building needs a C compiler and libc's headers, not Python's: ``make venv`` builds it; if the
-library is missing or older than its source, the first import builds it (next to the source, or
-in the user's cache directory when the package directory is read-only).
+The cyclic pump: a thread per class 1 UDP socket that sends the datagrams its owner queued at
+their due times and periodic streams, and reads the socket into a ring with kernel receive
+times, so that Python wakes once per batch instead of once per packet (why, and the design:
+``cyclic_pump.c``'s header; docs/protocol.md, "Timing").
 
-``python -m cobot_hmi.native`` builds it and prints where it is.
+Two implementations of one interface (:class:`PumpLike`, typed by ``_cyclic_pump.pyi``):
+
+- ``native``: the C thread, the extension module ``_cyclic_pump`` that setuptools compiles when
+  the package is built (``backend/setup.py``): a wheel carries it compiled, and nothing is
+  compiled or written at import time;
+- ``python``: :mod:`cobot_hmi.native.pure`, the same thread in Python, slower and dearer per
+  packet (its docstring says how much).
+
+:func:`pump_class` picks one for each new endpoint from ``COBOT_HMI_PUMP``: ``native`` (the
+extension, an error if it cannot be loaded), ``python`` (the pure path, for tests and benches),
+or unset / ``auto`` (the extension, else the pure path with a warning in the log saying why).
+``python -m cobot_hmi.native`` prints which one loads and why.
 """
 
 from __future__ import annotations
 
-import ctypes
+import importlib
+import logging
 import os
-import shutil
-import subprocess
-import tempfile
-from ctypes import POINTER, c_int, c_int32, c_int64, c_uint16, c_uint32, c_void_p
 from functools import cache
-from pathlib import Path
+from types import TracebackType
+from typing import Final, Literal, Protocol, Self
 
-SOURCE = Path(__file__).with_name("cyclic_pump.c")
-LIBRARY_NAME = "libcyclic_pump.so"
-CFLAGS = ("-O2", "-Wall", "-Wextra", "-shared", "-fPIC")
+from cobot_hmi.native import pure
 
+log = logging.getLogger(__name__)
 
-class NativeBuildError(RuntimeError):
-    """The pump could not be built: no C compiler, or it refused the source."""
-
-
-def _candidates() -> list[Path]:
-    cache_home = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    return [SOURCE.with_name(LIBRARY_NAME), cache_home / "cobot-hmi" / LIBRARY_NAME]
+ENV_VAR: Final = "COBOT_HMI_PUMP"
+Implementation = Literal["native", "python"]
 
 
-def _fresh(library: Path) -> bool:
-    try:
-        return library.stat().st_mtime >= SOURCE.stat().st_mtime
-    except OSError:
-        return False
+class PumpUnavailableError(RuntimeError):
+    """``COBOT_HMI_PUMP=native`` and the extension cannot be loaded."""
 
 
-def build() -> Path:
-    """Compile the pump if no fresh build exists; return the library's path."""
-    for library in _candidates():
-        if _fresh(library):
-            return library
-    compiler = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
-    if compiler is None:
-        raise NativeBuildError(
-            "no C compiler to build the cyclic pump: apt-get install -y gcc libc6-dev "
-            "(make venv does it)"
-        )
-    errors: list[str] = []
-    for library in _candidates():
-        try:
-            library.parent.mkdir(parents=True, exist_ok=True)
-            # Built under a temporary name and renamed: processes starting together (tests,
-            # an emulator and a service) never load a half-written file.
-            handle, partial = tempfile.mkstemp(suffix=".so", dir=library.parent)
-            os.close(handle)
-        except OSError as error:
-            errors.append(f"{library.parent}: {error}")
-            continue
-        try:
-            result = subprocess.run(
-                [compiler, *CFLAGS, "-o", partial, str(SOURCE), "-lpthread"],
-                capture_output=True,
-                text=True,
-                check=False,
-            )
-            if result.returncode != 0:
-                raise NativeBuildError(f"building the cyclic pump failed:\n{result.stderr}")
-            os.replace(partial, library)
-            return library
-        finally:
-            if os.path.exists(partial):
-                os.unlink(partial)
-    raise NativeBuildError("nowhere to write the cyclic pump: " + "; ".join(errors))
+class PumpLike(Protocol):
+    """The pump's interface (documented in ``cyclic_pump.h``; times in CLOCK_MONOTONIC ns,
+    addresses and ports as host-order integers)."""
+
+    def __init__(
+        self, fd: int, queue_cap: int, queue_bytes: int, ring_cap: int, ring_bytes: int
+    ) -> None: ...
+    def close(self) -> None: ...
+    def __enter__(self) -> Self: ...
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        error: BaseException | None,
+        traceback: TracebackType | None,
+    ) -> None: ...
+    def notify_fd(self) -> int: ...
+    def configure(
+        self, read_on_readable: bool, notify_interval_ns: int, silence_ns: int
+    ) -> None: ...
+    def queue(self, due_ns: int, ip: int, port: int, data: bytes, tag: int) -> int: ...
+    def cancel(self, tag: int, from_ns: int) -> tuple[int, int]: ...
+    def queued(self, tag: int) -> int: ...
+    def take(self, drain_first: bool, max_count: int) -> list[tuple[bytes, int, int, int]]: ...
+    def counters(self) -> tuple[int, int, int, int, int, int, int]: ...
+    def periodic_start(  # noqa: PLR0917
+        self,
+        tag: int,
+        first_due_ns: int,
+        period_ns: int,
+        ip: int,
+        port: int,
+        data: bytes,
+        off32: int,
+        first32: int,
+        off16: int,
+        first16: int,
+    ) -> int: ...
+    def periodic_data(self, tag: int, data: bytes) -> int: ...
+    def periodic_next(self, tag: int, stop: bool) -> tuple[int, int, int] | None: ...
 
 
 @cache
-def cyclic_pump_library() -> ctypes.CDLL:
-    """The pump's functions with their C signatures (built first if needed)."""
-    lib = ctypes.CDLL(str(build()))
-    pump = c_void_p
-    signatures: dict[str, tuple[type | None, list[type]]] = {
-        "pump_new": (pump, [c_int, c_int, c_int, c_int, c_int]),
-        "pump_notify_fd": (c_int, [pump]),
-        "pump_start": (c_int, [pump]),
-        "pump_stop": (None, [pump]),
-        "pump_free": (None, [pump]),
-        "pump_configure": (None, [pump, c_int, c_int64, c_int64]),
-        "pump_queue": (c_int, [pump, c_int64, c_uint32, c_uint16, ctypes.c_char_p, c_int, c_int64]),
-        "pump_cancel": (c_int, [pump, c_int64, c_int64, POINTER(c_int64)]),
-        "pump_queued": (c_int, [pump, c_int64]),
-        "pump_take": (
-            c_int,
-            [
-                pump,
-                c_int,
-                c_void_p,
-                c_int,
-                POINTER(c_int32),
-                POINTER(c_int64),
-                POINTER(c_uint32),
-                POINTER(c_uint16),
-                c_int,
-            ],
-        ),
-        "pump_counters": (None, [pump, POINTER(c_int64)]),
-        "pump_periodic_start": (
-            c_int,
-            [
-                pump,
-                c_int64,
-                c_int64,
-                c_int64,
-                c_uint32,
-                c_uint16,
-                ctypes.c_char_p,
-                c_int,
-                c_int,
-                c_uint32,
-                c_int,
-                c_uint16,
-            ],
-        ),
-        "pump_periodic_data": (c_int, [pump, c_int64, ctypes.c_char_p, c_int]),
-        "pump_periodic_next": (
-            c_int,
-            [pump, c_int64, c_int, POINTER(c_uint32), POINTER(c_uint16), POINTER(c_int64)],
-        ),
-        "pump_now_ns": (c_int64, []),
-    }
-    for name, (restype, argtypes) in signatures.items():
-        function = getattr(lib, name)
-        function.restype = restype
-        function.argtypes = argtypes
-    return lib
+def load_native() -> tuple[type[PumpLike] | None, str]:
+    """The extension's pump class, or None and why it cannot be loaded (once per process)."""
+    try:
+        module = importlib.import_module("cobot_hmi.native._cyclic_pump")
+    except ImportError as error:
+        return None, f"{type(error).__name__}: {error}"
+    pump: type[PumpLike] = module.Pump
+    return pump, f"extension {module.__file__}"
 
 
-__all__ = ["LIBRARY_NAME", "NativeBuildError", "build", "cyclic_pump_library"]
+@cache
+def _warn_fallback(reason: str) -> None:
+    log.warning(
+        "cyclic pump: the C extension cannot be loaded (%s); using the pure-Python pump, "
+        "which keeps a 10 ms RPI but costs more CPU and times short RPIs less evenly "
+        "(reinstall the package from a platform wheel or with a C compiler: docs/protocol.md)",
+        reason,
+    )
+
+
+def pump_class() -> tuple[type[PumpLike], Implementation]:
+    """The pump implementation ``COBOT_HMI_PUMP`` asks for (see the module's docstring)."""
+    choice = os.environ.get(ENV_VAR, "auto").strip().lower() or "auto"
+    if choice == "python":
+        return pure.Pump, "python"
+    if choice not in {"auto", "native"}:
+        raise ValueError(f"{ENV_VAR}={choice!r}: expected native, python or auto")
+    native, reason = load_native()
+    if native is not None:
+        return native, "native"
+    if choice == "native":
+        raise PumpUnavailableError(f"{ENV_VAR}=native but the extension cannot be loaded: {reason}")
+    _warn_fallback(reason)
+    return pure.Pump, "python"
+
+
+__all__ = [
+    "ENV_VAR",
+    "Implementation",
+    "PumpLike",
+    "PumpUnavailableError",
+    "load_native",
+    "pump_class",
+]

@@ -23,8 +23,15 @@
  *     has come for `silence` (a watchdog's cue: Python then looks at once, not at its next
  *     batch).
  *
- * It knows nothing of EtherNet/IP. Loaded with ctypes (no Python headers needed): the calls
- * below are the whole interface, and each holds the lock for microseconds only.
+ * It knows nothing of EtherNet/IP, nor of Python: cyclic_pump.h is the whole interface, which
+ * _cyclic_pump_module.c wraps as the extension module cobot_hmi.native._cyclic_pump and
+ * backend/tests/native/tsan_harness.c drives under ThreadSanitizer.
+ *
+ * Thread safety, by construction: every field the thread and the callers share is read and
+ * written under `lock` (each call holds it for microseconds only), except `running`, a C11
+ * atomic, and the fields fixed at pump_new (sizes, buffers' addresses, file descriptors).
+ * Starting and stopping the thread take `life`, a second lock, so that two concurrent
+ * pump_stop calls join it once; `lock` is never held while joining.
  */
 #define _GNU_SOURCE
 #include <errno.h>
@@ -32,6 +39,7 @@
 #include <poll.h>
 #include <pthread.h>
 #include <sched.h>
+#include <stdatomic.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -40,6 +48,8 @@
 #include <sys/socket.h>
 #include <time.h>
 #include <unistd.h>
+
+#include "cyclic_pump.h"
 
 #define NEVER INT64_MAX
 
@@ -75,30 +85,21 @@ typedef struct {
     uint8_t *data;
 } periodic;
 
-enum {
-    C_SENT,
-    C_SEND_ERRORS,
-    C_RECEIVED,
-    C_RING_OVERFLOWS,
-    C_WAKEUPS,
-    C_MAX_LATE_NS,
-    C_REALTIME, /* 1 when the thread runs SCHED_FIFO */
-    C_COUNT
-};
 
 /* Real-time priority of the thread when the system allows it (as a PLC runtime's I/O task):
  * low among real-time priorities, and the thread sleeps between packets, so it only ever
  * preempts ordinary work for the microseconds a packet takes. */
 #define PUMP_FIFO_PRIORITY 10
 
-typedef struct pump {
+struct pump {
     int fd;
     int kick_fd;
     int notify_fd;
+    pthread_mutex_t life; /* pump_start and pump_stop: thread, thread_started */
     pthread_t thread;
     int thread_started;
-    pthread_mutex_t lock;
-    volatile int running;
+    pthread_mutex_t lock; /* everything below */
+    atomic_int running;
 
     int queue_cap;
     int queue_bytes;
@@ -124,7 +125,7 @@ typedef struct pump {
     int64_t sleeping_until;
 
     int64_t counters[C_COUNT];
-} pump;
+};
 
 static int64_t clock_ns(clockid_t clock) {
     struct timespec t;
@@ -170,6 +171,8 @@ pump *pump_new(int fd, int queue_cap, int queue_bytes, int ring_cap, int ring_by
         }
     }
     pthread_mutex_init(&p->lock, NULL);
+    pthread_mutex_init(&p->life, NULL);
+    atomic_init(&p->running, 0);
     return p;
 }
 
@@ -306,9 +309,15 @@ static void *run(void *arg) {
     prctl(PR_SET_TIMERSLACK, 1000UL, 0, 0, 0); /* wake within 1 us, not Linux's 50 us */
     struct sched_param priority = {.sched_priority = PUMP_FIFO_PRIORITY};
     /* Best effort: without the right (CAP_SYS_NICE, RLIMIT_RTPRIO) it stays an ordinary one. */
-    p->counters[C_REALTIME] = pthread_setschedparam(pthread_self(), SCHED_FIFO, &priority) == 0;
-    while (p->running) {
+    int realtime = pthread_setschedparam(pthread_self(), SCHED_FIFO, &priority) == 0;
+    pthread_mutex_lock(&p->lock);
+    p->counters[C_REALTIME] = realtime;
+    pthread_mutex_unlock(&p->lock);
+    int woke = 0;
+    while (atomic_load(&p->running)) {
         pthread_mutex_lock(&p->lock);
+        p->counters[C_WAKEUPS] += woke;
+        woke = 1;
         int64_t now = mono_ns();
         int64_t next = send_due(p, now);
         drain_socket(p);
@@ -352,7 +361,6 @@ static void *run(void *arg) {
             timeout_p = &timeout;
         }
         int ready = ppoll(fds, watch_socket ? 2 : 1, timeout_p, NULL);
-        p->counters[C_WAKEUPS]++;
         if (ready > 0 && (fds[0].revents & POLLIN)) {
             uint64_t value;
             ssize_t ignored = read(p->kick_fd, &value, sizeof value);
@@ -363,27 +371,39 @@ static void *run(void *arg) {
 }
 
 int pump_start(pump *p) {
-    if (p->thread_started) return 0;
-    p->running = 1;
-    if (pthread_create(&p->thread, NULL, run, p) != 0) {
-        p->running = 0;
-        return -1;
+    int result = 0;
+    pthread_mutex_lock(&p->life);
+    if (!p->thread_started) {
+        atomic_store(&p->running, 1);
+        if (pthread_create(&p->thread, NULL, run, p) == 0) {
+            p->thread_started = 1;
+            /* Named before pump_start returns: ps and /proc/<pid>/task/<tid>/comm show it. */
+            pthread_setname_np(p->thread, "cyclic-pump");
+        } else {
+            atomic_store(&p->running, 0);
+            result = -1;
+        }
     }
-    p->thread_started = 1;
-    return 0;
+    pthread_mutex_unlock(&p->life);
+    return result;
 }
 
 void pump_stop(pump *p) {
-    if (!p->thread_started) return;
-    p->running = 0;
-    kick(p);
-    pthread_join(p->thread, NULL);
-    p->thread_started = 0;
+    pthread_mutex_lock(&p->life);
+    if (p->thread_started) {
+        atomic_store(&p->running, 0);
+        kick(p);
+        pthread_join(p->thread, NULL);
+        p->thread_started = 0;
+    }
+    pthread_mutex_unlock(&p->life);
 }
 
 void pump_free(pump *p) {
+    if (!p) return;
     pump_stop(p);
     pthread_mutex_destroy(&p->lock);
+    pthread_mutex_destroy(&p->life);
     close(p->kick_fd);
     close(p->notify_fd);
     for (int i = 0; i < PERIODIC_MAX; i++) free(p->periodics[i].data);
