@@ -101,7 +101,8 @@ class Emulator:
             await asyncio.sleep(0.005)
 
     async def post(self, path: str, body: object = None, expect: int = 200) -> dict[str, object]:
-        response = await (self.api.post(path) if body is None else self.api.post(path, json=body))
+        # The control API takes JSON only: an empty object when there are no fields.
+        response = await self.api.post(path, json={} if body is None else body)
         assert response.status_code == expect, response.text
         data = response.json()
         assert isinstance(data, dict)

@@ -125,7 +125,7 @@ async def test_commands_refused_in_the_wrong_state_get_409_and_change_nothing(
     # INITIALIZING at first: nothing to reset, no protective stop with the servo off.
     before = await snapshot(emulator)
     for path in ("/reset", "/protective-stop"):
-        response = await emulator.api.post(path)
+        response = await emulator.api.post(path, json={})
         assert response.status_code == 409, response.text
         assert response.json()["detail"]["reason"]
     assert await snapshot(emulator) == before
@@ -190,7 +190,7 @@ async def test_the_emulator_verb_serves_the_control_api(robot_host: str) -> None
             status = (await api.get("/status")).json()
             assert status["robot"]["model"] == "M0609"
             assert status["robot"]["kinematic_refresh_ms"] == 100.0
-            answer = await api.post("/estop")
+            answer = await api.post("/estop", json={})
             assert answer.json()["robot"]["robot_state_name"] == "EMERGENCY_STOP"
     finally:
         if process.returncode is None:

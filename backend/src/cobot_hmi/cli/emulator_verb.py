@@ -4,6 +4,7 @@ SIGTERM. Imports the emulator lazily, inside the handler."""
 from __future__ import annotations
 
 import argparse
+import os
 
 from cobot_hmi.layout import CONNECTION_POINTS, O2T_ASSEMBLY, T2O_ASSEMBLY
 
@@ -60,6 +61,32 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="accepted RPI range in ms (default 1,10000)",
     )
     parser.add_argument("--max-connections", type=int, default=8)
+    hardening = parser.add_argument_group("bounds and discovery (docs/operations.md)")
+    hardening.add_argument(
+        "--max-tcp-sessions",
+        type=int,
+        default=64,
+        metavar="N",
+        help="TCP connections on the encapsulation port at once; more are closed (default 64)",
+    )
+    hardening.add_argument(
+        "--incomplete-message-timeout-s",
+        type=float,
+        default=10.0,
+        metavar="S",
+        help="drop a connection whose message stalls this long (default 10)",
+    )
+    hardening.add_argument(
+        "--no-discovery", action="store_true", help="no ListIdentity/ListServices on UDP 44818"
+    )
+    hardening.add_argument(
+        "--discovery-broadcast",
+        action="append",
+        default=None,
+        metavar="ADDR",
+        help="also answer discovery broadcast to ADDR (repeatable; default: 127.255.255.255 "
+        "for a loopback --host, 255.255.255.255 otherwise, none for 0.0.0.0)",
+    )
     parser.add_argument(
         "--idle",
         choices=("hold", "clear"),
@@ -99,6 +126,13 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="control API port on --host (default 8081; 0 picks a free one)",
     )
     robot.add_argument("--no-control-api", action="store_true", help="serve no control API")
+    robot.add_argument(
+        "--control-token",
+        default=os.environ.get("COBOT_HMI_EMULATOR_CONTROL_TOKEN") or None,
+        metavar="TOKEN",
+        help="require 'Authorization: Bearer TOKEN' on the control API "
+        "(default: $COBOT_HMI_EMULATOR_CONTROL_TOKEN; none: no token)",
+    )
     parser.add_argument("-v", "--verbose", action="store_true", help="log connections")
     parser.set_defaults(handler=_run)
 
@@ -109,6 +143,7 @@ def _run(args: argparse.Namespace) -> int:
     import signal
 
     from cobot_hmi.emulator.control_api import ControlApiServer, create_control_app
+    from cobot_hmi.emulator.discovery import DiscoveryServer
     from cobot_hmi.emulator.process_image import IdleBehaviour, ProcessImage
     from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot
     from cobot_hmi.emulator.settings import TargetSettings
@@ -136,6 +171,13 @@ def _run(args: argparse.Namespace) -> int:
         rpi_max_us=args.rpi_range_ms[1],
         max_connections=args.max_connections,
         idle_behaviour=idle,
+        max_tcp_sessions=args.max_tcp_sessions,
+        incomplete_message_timeout_s=args.incomplete_message_timeout_s,
+        discovery=not args.no_discovery,
+        discovery_broadcast_hosts=(
+            tuple(args.discovery_broadcast) if args.discovery_broadcast is not None else None
+        ),
+        control_token=args.control_token,
     )
 
     simulated: SimulatedRobot | None = None
@@ -164,15 +206,24 @@ def _run(args: argparse.Namespace) -> int:
             loop.add_signal_handler(sig, stop.set)
         await target.start()
         control = None
+        discovery = None
         try:
+            if settings.discovery:
+                discovery = DiscoveryServer(
+                    target, args.host, settings.discovery_port, settings.discovery_broadcast_hosts
+                )
+                await discovery.start()
             if simulated is not None and not args.no_control_api:
                 control = ControlApiServer(
-                    create_control_app(simulated, target), args.host, args.control_port
+                    create_control_app(simulated, target, token=settings.control_token),
+                    args.host,
+                    args.control_port,
                 )
                 await control.start()
             print(
                 f"cobot-hmi emulator: EtherNet/IP target on {args.host} "
                 f"TCP {target.tcp_port} UDP {target.udp_port}"
+                + (f", discovery UDP {discovery.port}" if discovery else "")
                 + (f", control API http://{args.host}:{control.port}" if control else ""),
                 flush=True,
             )
@@ -181,6 +232,8 @@ def _run(args: argparse.Namespace) -> int:
         finally:
             if control is not None:
                 await control.stop()
+            if discovery is not None:
+                discovery.stop()
             await target.stop()
 
     try:

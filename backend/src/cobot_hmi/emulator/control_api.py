@@ -12,6 +12,13 @@ to make the connection misbehave on purpose (drop, delay, silence, corrupt, refu
 A request is validated whole before anything changes: 400 for a body that is not a JSON object,
 422 for a bad field or value, 409 for a command the robot refuses in its current state; the
 error body is ``{"detail": {"reason": …, "field": …}}`` like the product's API.
+
+Guarded against the web pages a tester opens: it listens on the emulator's own address only
+(``ControlApiServer`` binds the host it is given, the CLI gives ``--host``); every request but a
+GET must say ``Content-Type: application/json`` (415 otherwise), which a cross-site form or a
+"no-cors" fetch cannot send without a CORS preflight that this API never grants, so no page can
+inject a fault or press e-stop from the tester's browser; and with a token set every request
+must carry ``Authorization: Bearer <token>`` (401 without one, 403 with a wrong one).
 """
 
 from __future__ import annotations
@@ -19,11 +26,12 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import dataclasses
+import hmac
 import logging
 import math
 import socket
 import time
-from collections.abc import Callable, Generator, Mapping, Sequence
+from collections.abc import Awaitable, Callable, Generator, Mapping, Sequence
 from typing import Final, Protocol
 
 import orjson
@@ -61,6 +69,8 @@ class EmulatorTarget(Protocol):
     def process_image_changed(self) -> None: ...
 
     def pump_counters(self) -> dict[str, int]: ...
+
+    def forward_open_refusals(self) -> Sequence[object]: ...
 
 
 class ControlError(Exception):
@@ -146,16 +156,61 @@ def _number(data: Mapping[str, object], name: str, low: float, high: float) -> f
     return float(value)
 
 
+_SAFE_METHODS: Final = frozenset({"GET", "HEAD"})
+
+
+def _refusal(status: int, reason: str, headers: dict[str, str] | None = None) -> Response:
+    return JSONResponse({"detail": {"reason": reason}}, status_code=status, headers=headers)
+
+
+def guard_request(request: Request, token: str | None) -> Response | None:
+    """The refusal for a request without the token or, unless a GET, not JSON; else ``None``."""
+    if token is not None:
+        given = request.headers.get("authorization", "")
+        scheme, _, credentials = given.partition(" ")
+        if scheme.lower() != "bearer" or not credentials.strip():
+            return _refusal(
+                401,
+                "this control API needs 'Authorization: Bearer <token>'",
+                {"WWW-Authenticate": "Bearer"},
+            )
+        if not hmac.compare_digest(credentials.strip().encode(), token.encode()):
+            return _refusal(403, "wrong control API token")
+    if request.method not in _SAFE_METHODS:
+        media_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
+        if media_type != "application/json":
+            return _refusal(
+                415,
+                f"the control API takes JSON only (Content-Type: application/json), "
+                f"got {media_type or 'no Content-Type'}",
+            )
+    return None
+
+
 def create_control_app(
     robot: SimulatedRobot,
     target: EmulatorTarget,
     clock: Callable[[], float] = time.time,
+    *,
+    token: str | None = None,
 ) -> FastAPI:
-    """The control API over ``robot`` and ``target``; ``clock`` is the target's clock."""
+    """The control API over ``robot`` and ``target``; ``clock`` is the target's clock;
+    ``token``: required as ``Authorization: Bearer <token>`` on every request when given."""
+    if token is not None and not token.strip():
+        raise ValueError("the control API token is empty")
     app = FastAPI(
         title="cobot-hmi emulator control API",
         description="Scenarios and faults for the emulated robot (docs/emulator.md).",
     )
+
+    @app.middleware("http")
+    async def _guard(
+        request: Request, call_next: Callable[[Request], Awaitable[Response]]
+    ) -> Response:
+        refusal = guard_request(request, token)
+        if refusal is not None:
+            return refusal
+        return await call_next(request)
 
     @app.exception_handler(ControlError)
     async def _control_error(_: Request, error: ControlError) -> JSONResponse:
@@ -192,6 +247,7 @@ def create_control_app(
                 "plc_command": command_to_json(robot.command_image()),
                 "target_counters": _snapshot(counters) if counters is not None else None,
                 "pump": target.pump_counters(),
+                "forward_open_refusals": [_snapshot(r) for r in target.forward_open_refusals()],
             }
         )
 

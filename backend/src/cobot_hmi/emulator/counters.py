@@ -28,6 +28,14 @@ class TargetCounters:
     t2o_dropped: int = 0
     t2o_corrupted: int = 0
     internal_errors: int = 0
+    tcp_connections_open: int = 0
+    """A gauge: TCP connections on the encapsulation port now (bounded by max_tcp_sessions)."""
+    tcp_connections_peak: int = 0
+    tcp_sessions_refused: int = 0
+    tcp_sessions_timed_out: int = 0
+    udp_list_identity: int = 0
+    udp_list_services: int = 0
+    udp_discovery_ignored: int = 0
 
     def as_dict(self) -> dict[str, int]:
         return asdict(self)

@@ -1,9 +1,18 @@
 """Layer: emulator (asyncio TCP). Imports ``cobot_hmi.enip``.
 
-One encapsulation session per TCP client on port 44818 (ethernetip.md "Encapsulation"):
+One encapsulation session per TCP client on port 44818 (CIP Vol 2 §2-3, §2-4):
 ListIdentity, ListServices, ListInterfaces, RegisterSession, UnRegisterSession and SendRRData;
 SendUnitData is answered with an error (this target has no class 3 connections). A malformed
 or unknown message is answered with an encapsulation status and counted; the session goes on.
+
+Bounded so that no client can take the process's file descriptors or memory: at most
+``max_tcp_sessions`` connections at once (one more is closed at once and counted), and a message
+whose bytes stop coming (a stalled 65,535-byte message, or a connection that sends nothing) is
+dropped after ``incomplete_message_timeout_s`` and counted. A registered session may idle between
+messages: an originator's session stays open, silent, beside its class 1 connection.
+
+The ListIdentity, ListServices and ListInterfaces replies are built here once, for this TCP
+server and the UDP discovery server (``emulator.discovery``) alike (CIP Vol 2 §2-4).
 """
 
 from __future__ import annotations
@@ -24,6 +33,37 @@ from cobot_hmi.enip.identity import IdentityInfo
 log = logging.getLogger(__name__)
 
 _CAPABILITY_CIP_TCP_AND_UDP = 0x0120  # bit 5: CIP over TCP, bit 8: class 0/1 over UDP
+_LIST_SERVICES_ITEM_TYPE = 0x0100  # "Communications" service (CIP Vol 2 §2-4.6.3)
+
+
+def list_reply(header: EncapHeader, identity: IdentityInfo, address: Sockaddr) -> bytes | None:
+    """The reply to a ListIdentity, ListServices or ListInterfaces request (CIP Vol 2 §2-4.2,
+    §2-4.6, §2-4.3), ``None`` for any other command. ``address`` is what the Identity item
+    announces: the address the request reached and the TCP port."""
+    command = header.command
+    if command == Command.LIST_IDENTITY:
+        item = CpfItem(ItemType.LIST_IDENTITY, identity.encode_list_identity_item(address))
+        body = cpf.encode_items([item])
+    elif command == Command.LIST_SERVICES:
+        service = struct.pack("<HH", 1, _CAPABILITY_CIP_TCP_AND_UDP) + b"Communications\x00\x00"
+        body = cpf.encode_items([CpfItem(_LIST_SERVICES_ITEM_TYPE, service)])
+    elif command == Command.LIST_INTERFACES:
+        body = cpf.encode_items([])
+    else:
+        return None
+    return encapsulation.encode(
+        command, body, session=header.session, status=EncapStatus.SUCCESS, context=header.context
+    )
+
+
+class SessionLimits(Protocol):
+    """The bounds of the TCP server (``TargetSettings``)."""
+
+    @property
+    def max_tcp_sessions(self) -> int: ...
+
+    @property
+    def incomplete_message_timeout_s(self) -> float: ...
 
 
 class SessionContext(Protocol):
@@ -37,6 +77,9 @@ class SessionContext(Protocol):
 class CipHandler(Protocol):
     counters: TargetCounters
     identity: IdentityInfo
+
+    @property
+    def settings(self) -> SessionLimits: ...
 
     def identity_address(self, local_host: str) -> Sockaddr: ...
 
@@ -69,11 +112,24 @@ class EncapSession:
 
     async def run(self) -> None:
         counters = self.handler.counters
+        limits = self.handler.settings
+        if counters.tcp_connections_open >= limits.max_tcp_sessions:
+            counters.tcp_sessions_refused += 1
+            self.writer.transport.abort()  # at once, nothing to flush: the descriptor is freed
+            return
+        counters.tcp_connections_open += 1
+        counters.tcp_connections_peak = max(
+            counters.tcp_connections_peak, counters.tcp_connections_open
+        )
         try:
             while True:
-                head = await self.reader.readexactly(encapsulation.HEADER_SIZE)
-                header = encapsulation.decode_header(head)
-                data = await self.reader.readexactly(header.length)
+                try:
+                    header, data = await self._read_message(limits.incomplete_message_timeout_s)
+                except TimeoutError:
+                    counters.tcp_sessions_timed_out += 1
+                    log.info("TCP session from %s dropped: incomplete message", self.peer_host)
+                    self.writer.transport.abort()
+                    break
                 try:
                     reply = self._handle(header, data)
                 except Exception:  # never let one bad message end the session
@@ -88,9 +144,22 @@ class EncapSession:
         except (asyncio.IncompleteReadError, ConnectionError):
             pass
         finally:
+            counters.tcp_connections_open -= 1
             self.writer.close()
             with contextlib.suppress(ConnectionError, OSError):
                 await self.writer.wait_closed()
+
+    async def _read_message(self, timeout_s: float) -> tuple[EncapHeader, bytes]:
+        """The next whole message. Its bytes must all come within ``timeout_s`` of the first;
+        without a registered session, within ``timeout_s`` of the previous reply (or of the
+        connection), so a connection that only holds a descriptor is dropped too."""
+        reader = self.reader
+        head = await reader.readexactly(1) if self.session_handle else b""
+        async with asyncio.timeout(timeout_s):
+            head += await reader.readexactly(encapsulation.HEADER_SIZE - len(head))
+            header = encapsulation.decode_header(head)
+            data = await reader.readexactly(header.length)
+        return header, data
 
     def close(self) -> None:
         self.writer.close()
@@ -111,21 +180,11 @@ class EncapSession:
             return None
         if command == Command.NOP:
             return None
-        if command == Command.LIST_IDENTITY:
+        if command in (Command.LIST_IDENTITY, Command.LIST_SERVICES, Command.LIST_INTERFACES):
             if data:
                 counters.encapsulation_malformed += 1
             address = self.handler.identity_address(self.local_host)
-            item = CpfItem(
-                ItemType.LIST_IDENTITY,
-                self.handler.identity.encode_list_identity_item(address),
-            )
-            return self._status(header, EncapStatus.SUCCESS, cpf.encode_items([item]))
-        if command == Command.LIST_SERVICES:
-            body = struct.pack("<HH", 1, _CAPABILITY_CIP_TCP_AND_UDP) + b"Communications\x00\x00"
-            items = [CpfItem(0x0100, body)]
-            return self._status(header, EncapStatus.SUCCESS, cpf.encode_items(items))
-        if command == Command.LIST_INTERFACES:
-            return self._status(header, EncapStatus.SUCCESS, cpf.encode_items([]))
+            return list_reply(header, self.handler.identity, address)
         if command == Command.REGISTER_SESSION:
             return self._register(header, data)
         if command == Command.UNREGISTER_SESSION:

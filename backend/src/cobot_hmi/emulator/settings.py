@@ -60,6 +60,26 @@ class TargetSettings:
     per wake-up, so a command or an event is in T→O at most this much later (each wake-up costs
     far more CPU than a packet: docs/protocol.md "Timing"). At 10 ms and longer it wakes once
     per packet. Watchdogs do not wait for it (the pump reports silence)."""
+    max_tcp_sessions: int = 64
+    """TCP connections on the encapsulation port held at once; one more is closed at once and
+    counted (``tcp_sessions_refused``), so idle connections cannot exhaust the process's file
+    descriptors (docs/operations.md "Emulator hardening")."""
+    incomplete_message_timeout_s: float = 10.0
+    """Longest wait for the rest of an encapsulation message once its first byte came, and for
+    the first message of a connection (or the next, while it has no registered session): the
+    connection is then dropped and counted (``tcp_sessions_timed_out``). A registered session
+    may idle between messages as long as it likes (a class 1 connection's session does)."""
+    discovery: bool = True
+    """Answer ListIdentity / ListServices / ListInterfaces on UDP (CIP Vol 2 §2-4.2), unicast
+    and broadcast (``emulator.discovery``)."""
+    discovery_port: int = ENIP_TCP_PORT
+    """UDP port of the discovery server: 44818, as the TCP one (CIP Vol 2 §2-2)."""
+    discovery_broadcast_hosts: tuple[str, ...] | None = None
+    """Broadcast addresses whose datagrams the discovery server also receives (a socket bound to
+    ``host`` gets unicast only). ``None``: 255.255.255.255, and 127.255.255.255 for a loopback
+    ``host``; none for the wildcard host, whose socket gets them all."""
+    control_token: str | None = None
+    """When set, every control API request must carry ``Authorization: Bearer <token>``."""
 
     @property
     def o2t_connection_size(self) -> int:
