@@ -331,3 +331,47 @@ async def test_refusals_are_counted_in_the_control_api_status(
         assert refusal["count"] == 1
         assert "out of connections" in refusal["meaning"]
         assert status["target_counters"]["forward_open_refusals"] == 1
+
+
+UNCONNECTED_SEND = 0x52
+
+
+def unconnected_send_data(message: bytes, route: bytes) -> bytes:
+    """Unconnected Send service data: tick, ticks, message size, message (padded), route path
+    size in words, reserved, route path (CIP Vol 1 §3-5.5)."""
+    pad = b"\x00" * (len(message) % 2)
+    return (
+        struct.pack("<BBH", 0x0A, 0x0E, len(message))
+        + message
+        + pad
+        + bytes((len(route) // 2, 0))
+        + route
+    )
+
+
+async def test_a_forward_open_inside_an_unconnected_send_in_16_bits(
+    target: Target, plc_host: str, udp: socket.socket
+) -> None:
+    """The route (port 1, slot 0) ends here; a route that is not port segments is refused."""
+    client = await RawClient.connect(target, plc_host)
+    try:
+        fo = forward_open_data(assembly_path(16), large=False, serial=9, t2o_id=0x99)
+        message = bytes((FORWARD_OPEN, 4)) + cm_path(16) + fo
+        bad = await client.request(
+            UNCONNECTED_SEND, cm_path(16), unconnected_send_data(message, logical(1, 1, 8))
+        )
+        assert (bad.service, bad.general, bad.additional) == (UNCONNECTED_SEND | 0x80, 1, (0x0315,))
+        assert target.connections() == []
+        reply = await client.request(
+            UNCONNECTED_SEND, cm_path(16), unconnected_send_data(message, bytes.fromhex("0100"))
+        )
+        # The embedded request's reply stands for the Unconnected Send's.
+        assert (reply.service, reply.general) == (FORWARD_OPEN | 0x80, 0)
+        (info,) = target.connections()
+        assert info.t2o_connection_id == 0x99
+        counts = {
+            (r.general_status, r.extended_status): r.count for r in target.forward_open_refusals()
+        }
+        assert counts == {(0x01, 0x0315): 1}
+    finally:
+        await client.close()

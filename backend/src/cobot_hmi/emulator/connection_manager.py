@@ -204,12 +204,35 @@ class ConnectionManager:
             return self._forward_close(request), []
         if request.service == Service.UNCONNECTED_SEND:
             try:
-                inner = cip.decode_request(decode_unconnected_send(request.data).message)
+                send = decode_unconnected_send(request.data)
+                inner = cip.decode_request(send.message)
             except EnipError:
                 return MessageRouterResponse(
                     request.service,
                     GeneralStatus.CONNECTION_FAILURE,
                     (ExtendedStatus.UNCONNECTED_SEND_PARAMETER_ERROR,),
+                ), []
+            try:
+                route_ports = epath.decode_segments(send.route_path)
+            except PathError as error:
+                route_ports = None
+                detail = str(error)
+            else:
+                detail = "a route path of port segments only"
+            if route_ports is None or any(seg.kind != "port" for seg in route_ports):
+                if inner.service in (Service.FORWARD_OPEN, Service.LARGE_FORWARD_OPEN):
+                    return self._refuse(
+                        request,
+                        session,
+                        None,
+                        general=GeneralStatus.CONNECTION_FAILURE,
+                        additional=(ExtendedStatus.INVALID_SEGMENT_IN_PATH,),
+                        detail=f"Unconnected Send route path: {detail}",
+                    )
+                return MessageRouterResponse(
+                    request.service,
+                    GeneralStatus.CONNECTION_FAILURE,
+                    (ExtendedStatus.INVALID_SEGMENT_IN_PATH,),
                 ), []
             # The embedded request's reply stands for the Unconnected Send's (CIP Vol 1
             # §3-5.5.2): this target is the end of the route.
