@@ -3,8 +3,8 @@
 lazily, inside the handlers.
 
 Both work against any adapter (issue 11): instances and sizes are arguments, the robot's layout
-only their default; data of another size (or with ``--raw``) is printed as hex, and decoded to
-the robot's frame only when it has the layout's size."""
+only their default; data shorter than the robot's frame (or with ``--raw``) is printed as hex,
+and decoded to the robot's frame only at the layout's size or longer (appended registers)."""
 
 from __future__ import annotations
 
@@ -64,9 +64,9 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         description=(
             "Hold a class 1 connection (exclusive owner, idle; or --input-only) to any adapter "
             "and print one JSON line per frame (the robot's frame when T→O has its layout's "
-            "size, else the data as hex), or per second with --stats, then a summary with the "
-            "counters. Exit 0 if the connection held, 2 if it was refused, 3 if it was lost or "
-            "never came up."
+            "size or more, else the data as hex), or per second with --stats, then a summary "
+            "with the counters. Exit 0 if the connection held, 2 if it was refused, 3 if it was "
+            "lost or never came up."
         ),
     )
     scan.add_argument("host")
@@ -88,7 +88,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         metavar="O2T,T2O",
         help=(
             "data sizes in bytes, in the Forward Open and in every O→T packet (default {},{}: "
-            "the robot's; T→O of another size is printed as hex)".format(*_DEFAULT_SIZES)
+            "the robot's; shorter T→O is printed as hex)".format(*_DEFAULT_SIZES)
         ),
     )
     scan.add_argument(

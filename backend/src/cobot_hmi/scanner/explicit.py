@@ -38,7 +38,7 @@ class ProbeResult:
     t2o_size: int | None
     t2o_data: bytes
     frame: Frame | None
-    """The data decoded as the robot's frame: only when it is the layout's size."""
+    """The data decoded as the robot's frame: only at the layout's size or longer."""
     frame_error: str | None
 
 
@@ -123,7 +123,7 @@ def probe(
 ) -> ProbeResult:
     """Identity, both assembly sizes (where the adapter serves them) and the T→O assembly's
     data, read explicitly; the data decoded as the robot's frame when it has the layout's size
-    and ``raw`` is not asked for (any other adapter's data stays bytes)."""
+    or more and ``raw`` is not asked for (any other adapter's data stays bytes)."""
     identity = list_identity(host, port)
     with ExplicitReader(host, port) as reader:
         o2t_size = _optional_size(reader, o2t_instance)
@@ -131,7 +131,7 @@ def probe(
         data = reader.read_assembly(t2o_instance)
     frame: Frame | None = None
     error = None
-    if not raw and len(data) == T2O_SIZE:
+    if not raw and len(data) >= T2O_SIZE:
         try:
             frame = decode_frame(data)
         except CodecError as codec_error:

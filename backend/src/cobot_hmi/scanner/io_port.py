@@ -5,9 +5,9 @@ The class 1 UDP port of an originator (issue 11, "Many connections, one socket")
 UDP 2222 of one local address, shared by every class 1 connection the process holds from that
 address, as a PLC holds its connections to many adapters. A second socket on 2222 of the same
 address cannot work (the kernel hands each datagram to one of them), so the connections are
-told apart by connection ID (CIP Vol 2 §3-6.1: the consumer matches the 0x8002 item's
+told apart by connection ID (CIP Vol 2 §3-4: the consumer matches the 0x8002 item's
 connection ID) and, per connection, by the producer's address (the consumer check of CIP Vol 2
-§3-6.1: T→O comes from the target's address; anything else with the same ID is forged).
+§3-4: T→O comes from the target's address; anything else with the same ID is forged).
 
 Every connection's O→T stream goes through the port's cyclic pump (``O2TStream``), each under a
 tag of the port's own (two targets may well choose the same O→T connection ID).
@@ -121,7 +121,7 @@ class IoPort:
     # ------------------------------------------------------------------ connections
 
     def new_connection_id(self) -> int:
-        """A T→O connection ID (CIP Vol 1 §3-5.4.1.2: chosen by the originator for a
+        """A T→O connection ID (CIP Vol 1 §3-5.4.1: chosen by the originator for a
         point-to-point T→O) that no connection of this port holds."""
         while True:
             connection_id = self._rng.getrandbits(32)
@@ -199,7 +199,7 @@ class IoPort:
             return
         if route is not None:
             # The live connection ID from another address: forged, or a stray (the consumer
-            # check, CIP Vol 2 §3-6.1). Counted on the connection it pretends to be.
+            # check, CIP Vol 2 §3-4). Counted on the connection it pretends to be.
             route.consumer.t2o_foreign()
             return
         consumers = self._by_source.get(addr[0])

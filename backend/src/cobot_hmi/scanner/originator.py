@@ -10,9 +10,9 @@ pump), a watchdog on T→O silence, reconnection with backoff, and Forward Close
 UnRegisterSession on shutdown.
 
 Any adapter (issue 11, "Scanning any adapter"): the instances and sizes are data; the robot's
-layout is only their default. T→O is decoded to the robot's ``Frame`` only when its size is the
-layout's (and raw mode is not asked for); otherwise each packet's data goes to ``on_data`` as
-bytes. O→T carries the command image when its size is the layout's, else bytes
+layout is only their default. T→O is decoded to the robot's ``Frame`` only when it has the
+layout's size or more (and raw mode is not asked for); otherwise each packet's data goes to
+``on_data`` as bytes. O→T carries the command image when its size is the layout's, else bytes
 (:meth:`Originator.set_o2t_data`), zero-filled to the size.
 
 One socket for many connections: the UDP port is an :class:`~cobot_hmi.scanner.io_port.IoPort`,
@@ -145,8 +145,10 @@ class OriginatorSettings:
 
     @property
     def decodes_frames(self) -> bool:
-        """T→O is the robot's frame (its layout's size, raw mode not asked for)."""
-        return not self.raw and self.t2o_size == T2O_SIZE
+        """T→O is the robot's frame: its layout's size, or longer (a controller configured to
+        append general-purpose registers: the frame keeps them as ``extra``), and raw mode not
+        asked for."""
+        return not self.raw and self.t2o_size >= T2O_SIZE
 
     @property
     def o2t_is_command(self) -> bool:
@@ -557,7 +559,7 @@ class Originator:
         self._lost = loop.create_future()
         self._first_frame = loop.create_future()
         self._link = link
-        # A point-to-point T→O connection ID is ours (CIP Vol 1 §3-5.4.1.2): the target may
+        # A point-to-point T→O connection ID is ours (CIP Vol 1 §3-5.4.1): the target may
         # produce on it as soon as it has opened the connection, before we read its reply.
         self._route(port, link, silence_s=0.0)
         response, items = await session.request(request.request(), extra)
