@@ -1,5 +1,5 @@
-"""The pure EtherNet/IP packet code: golden bytes written from ethernetip.md, round trips,
-and every decoder raising only ``EnipError`` on garbage."""
+"""The pure EtherNet/IP packet code: golden bytes written from the CIP layouts
+(docs/protocol.md), round trips, and every decoder raising only ``EnipError`` on garbage."""
 
 from __future__ import annotations
 
@@ -51,6 +51,27 @@ def test_forward_open_golden_bytes() -> None:
     assert decoded.o2t_params.priority is Priority.SCHEDULED
     path = epath.decode_connection_path(decoded.path)
     assert (path.class_id, path.config_instance, path.points) == (4, 151, (150, 100))
+
+
+FORWARD_OPEN_16_BIT_GOLDEN = bytes.fromhex(
+    # FORWARD_OPEN_GOLDEN with every segment of its connection path in the 16-bit form
+    "0a0e00000000443322113412feffefbeadde02000000102700001a48102700001e4901"
+    "08"  # path size: 8 words
+    "2100040025009700"  # class 4, configuration instance 151
+    "2d0096002d006400"  # connection points 150 (O→T) and 100 (T→O)
+)
+
+
+def test_a_sixteen_bit_connection_path_decodes_to_the_same_connection() -> None:
+    decoded = connection_manager.decode_forward_open(FORWARD_OPEN_16_BIT_GOLDEN, large=False)
+    assert decoded.path != _forward_open().path  # other bytes, the same meaning
+    assert decoded.connection_path() == _forward_open().connection_path()
+    assert decoded.connection_path().points == (150, 100)
+    assert epath.connection_path(151, 150, 100, width=16) == decoded.path
+    close = ForwardCloseRequest(1, 2, 3, decoded.path)
+    assert connection_manager.decode_forward_close(close.encode()).connection_path() == (
+        decoded.connection_path()
+    )
 
 
 def test_large_forward_open_round_trip() -> None:
