@@ -9,17 +9,25 @@ RUN npm ci --no-audit --no-fund
 COPY frontend/ ./
 RUN npm run build
 
-# Stage 2: the Python service and the built frontend.
+# Stage 2, the wheels: the package's own, a cp311 platform wheel with the cyclic pump compiled by
+# setuptools (gcc, libc's and Python's headers: the image has the latter), and its dependencies'.
+FROM python:3.11-slim-bookworm AS wheel
+ENV PIP_NO_CACHE_DIR=1 PIP_DISABLE_PIP_VERSION_CHECK=1
+RUN apt-get update && apt-get install -y --no-install-recommends gcc libc6-dev \
+    && rm -rf /var/lib/apt/lists/*
+COPY backend/pyproject.toml backend/setup.py /src/backend/
+COPY backend/src /src/backend/src
+RUN pip wheel --wheel-dir /wheels /src/backend
+
+# Stage 3: the Python service and the built frontend.
 FROM python:3.11-slim-bookworm
 ENV PYTHONDONTWRITEBYTECODE=1 PYTHONUNBUFFERED=1 PIP_NO_CACHE_DIR=1 PIP_DISABLE_PIP_VERSION_CHECK=1
 WORKDIR /app
-COPY backend/pyproject.toml /app/backend/
-COPY backend/src /app/backend/src
-# The cyclic pump (cobot_hmi/native) is C: built here with gcc, which is removed again.
-RUN apt-get update && apt-get install -y --no-install-recommends gcc libc6-dev \
-    && pip install /app/backend \
-    && python -m cobot_hmi.native \
-    && apt-get purge -y gcc libc6-dev && apt-get autoremove -y && rm -rf /var/lib/apt/lists/* \
+# The package from its platform wheel (stage "wheel": the cyclic pump compiled there, so this
+# image has no compiler); COBOT_HMI_PUMP=native fails the build if the extension does not load.
+COPY --from=wheel /wheels /wheels
+RUN pip install --no-index --find-links /wheels cobot-hmi && rm -rf /wheels \
+    && COBOT_HMI_PUMP=native python -m cobot_hmi.native \
     && useradd --system --create-home --home-dir /var/lib/cobot-hmi hmi
 COPY --from=frontend /src/frontend/dist /app/frontend/dist
 
