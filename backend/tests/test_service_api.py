@@ -71,12 +71,16 @@ async def test_read_endpoints(hmi: Running) -> None:
         command = (await client.get("/api/v1/command")).json()
         assert command["run"] is False
         assert len(command["image"]["controlbox_do"]) == 16
-        assert (await client.get("/healthz")).json() == {"ok": True}
-        assert (await client.get("/readyz")).json() == {"ready": True}
+        assert (await client.get("/healthz")).json() == {"ok": True, "problems": []}
+        assert (await client.get("/readyz")).json() == {
+            "ready": True,
+            "reason": None,
+            "robot": None,
+        }
         metrics = (await client.get("/metrics")).text
-        assert 'cobot_hmi_connection_state{state="connected"} 1.0' in metrics
-        assert "cobot_hmi_frame_receive_interval_seconds_bucket" in metrics
-        assert 'cobot_hmi_writes_total{outcome="confirmed"}' in metrics
+        assert 'cobot_hmi_connection_state{robot="robot",state="connected"} 1.0' in metrics
+        assert 'cobot_hmi_frame_receive_interval_seconds_bucket{robot="robot",le=' in metrics
+        assert 'cobot_hmi_writes_total{robot="robot",outcome="confirmed"}' in metrics
         assert (await client.get("/docs")).status_code == 200
         openapi = (await client.get("/openapi.json")).json()
         assert "/api/v1/command" in openapi["paths"]
@@ -162,8 +166,13 @@ async def test_roles_gate_audit_and_writes(hmi: Running) -> None:
         assert "operator" in write.json()["detail"]["reason"]
     async with hmi.client(await hmi.login(OPERATOR)) as operator:
         audit = (await operator.get("/api/v1/audit")).json()
-        outcomes = [item["outcome"] for item in audit["items"]]
-        assert outcomes[:2] == ["forbidden", "unauthorized"]
+        # Newest first: the viewer's write and take (through the write pipeline's authorization,
+        # audited); anonymous attempts are refused before any database work (no row).
+        rows = [(item["action"], item["outcome"], item["user"]) for item in audit["items"]]
+        assert rows == [
+            ("write", "forbidden", VIEWER[0]),
+            ("control.take", "forbidden", VIEWER[0]),
+        ]
 
 
 # --------------------------------------------------------------------------- control
@@ -221,7 +230,7 @@ async def test_control_released_on_logout_and_expiry(
         assert hmi.service.link.run is False
         await hmi.service.store.flush_events()
         page = await hmi.service.store.events_page("control", 10, 0)
-        reasons = [item["data"]["reason"] for item in page.items]  # type: ignore[index]
+        reasons = [item["reason"] for item in page.items]
         assert reasons[:4] == ["session expired", "taken", "logged out", "taken"]
 
 
@@ -293,7 +302,9 @@ async def test_write_refusals(hmi: Running, robot: StaticRobot) -> None:
             assert answer.status_code == 422, body
             assert answer.json()["detail"]["field"] == field
             assert answer.json()["detail"]["reason"]
-        garbage = await client.patch("/api/v1/command", content=b"{not json")
+        garbage = await client.patch(
+            "/api/v1/command", content=b"{not json", headers={"Content-Type": "application/json"}
+        )
         assert garbage.status_code == 422
         assert "not JSON" in garbage.json()["detail"]["reason"]
         # Nothing of any invalid request was applied.
@@ -304,7 +315,7 @@ async def test_write_refusals(hmi: Running, robot: StaticRobot) -> None:
         assert outcomes.count("invalid") == 7
         assert outcomes.count("refused") == 2
     metrics = await hmi.metrics()
-    assert 'cobot_hmi_writes_total{outcome="invalid"} 7.0' in metrics
+    assert 'cobot_hmi_writes_total{robot="robot",outcome="invalid"} 7.0' in metrics
 
 
 async def test_write_timeout_reports_what_the_robot_shows(
@@ -369,7 +380,13 @@ async def test_not_connected_refuses_writes(plc_host: str, robot_host: str, tmp_
         assert write.status_code == 409
         assert "not connected" in write.json()["detail"]["reason"]
         frame = (await client.get("/api/v1/frame")).json()
-        assert frame == {"frame": None, "received_at": None, "age_s": None, "stale": True}
+        assert frame == {
+            "robot": "robot",
+            "frame": None,
+            "received_at": None,
+            "age_s": None,
+            "stale": True,
+        }
 
 
 # --------------------------------------------------------------------------- audit, events
@@ -403,7 +420,8 @@ async def test_audit_and_events_pages_and_csv(hmi: Running) -> None:
         kinds = {item["kind"] for item in events["items"]}
         assert {"connection", "robot_state", "control", "write"} <= kinds
         states = (await client.get("/api/v1/events?kind=robot_state")).json()["items"]
-        assert states[-1]["data"]["to_name"] == "STANDALONE_STANDBY"
+        assert states[-1]["to_name"] == "STANDALONE_STANDBY"
+        assert states[-1]["robot"] == "robot"
         connection = (await client.get("/api/v1/events?kind=connection&format=csv")).text
         assert "connected" in connection
 

@@ -133,7 +133,7 @@ async def test_reconnects_after_the_emulator_restarts(
                     assert (await client.get("/readyz")).status_code == 200
         await hmi.service.store.flush_events()
         page = await hmi.service.store.events_page("connection", 100, 0)
-        seen = [item["data"]["state"] for item in reversed(page.items)]  # type: ignore[index]
+        seen = [item["state"] for item in reversed(page.items)]
         first_up = seen.index("connected")
         down = seen.index("lost", first_up)
         assert "connected" in seen[down:]

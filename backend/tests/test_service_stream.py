@@ -1,6 +1,7 @@
 """``WS /api/v1/stream`` against the emulator over real sockets: hello, batched frames, rates
 (server-side decimation), status and events, a slow and a stalled client next to a fast one,
-and control released when its holder's stream closes."""
+and control released when its holder's stream closes. Every message any test receives is
+validated against the contract's model (``service.models.StreamMessage``)."""
 
 from __future__ import annotations
 
@@ -19,6 +20,7 @@ from websockets.exceptions import ConnectionClosed
 
 from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot
 from cobot_hmi.emulator.target import Target
+from cobot_hmi.service.models import STREAM_MESSAGE
 from conftest import _next_host as next_host
 from service_support import (
     OPERATOR,
@@ -64,13 +66,21 @@ class Recorder:
         self.connection = connection
         self.delay_s = delay_s
         self.messages: list[Any] = []
+        self.invalid: list[str] = []
+        """Messages that do not match ``models.StreamMessage`` (the frames' model is built from
+        the layout; the hot path never validates, this does)."""
         self.closed: ConnectionClosed | None = None
         self.task = asyncio.create_task(self._read())
 
     async def _read(self) -> None:
         try:
             async for text in self.connection:
-                self.messages.append(orjson.loads(text))
+                message = orjson.loads(text)
+                self.messages.append(message)
+                try:
+                    STREAM_MESSAGE.validate_python(message)
+                except ValueError as error:
+                    self.invalid.append(f"{str(message)[:200]}: {error}")
                 if self.delay_s:
                     await asyncio.sleep(self.delay_s)
         except ConnectionClosed as closed:
@@ -97,6 +107,7 @@ async def recorder(url: str, delay_s: float = 0.0, **options: Any) -> AsyncItera
             yield reading
         finally:
             await reading.close()
+        assert not reading.invalid, reading.invalid[:3]
 
 
 def receive_buffer_socket(host: str, port: int, size: int) -> socket.socket:
@@ -293,8 +304,8 @@ async def test_slow_and_stalled_clients_do_not_hurt_a_fast_one(hmi: Running) -> 
     assert service.link.state.value == "connected"
     assert service.hub.frames_lost_in_hub == 0
     metrics = await hmi.metrics()
-    assert "cobot_hmi_ws_stalled_disconnects_total 1.0" in metrics
-    assert "cobot_hmi_ws_dropped_frames_total 0.0" not in metrics
+    assert 'cobot_hmi_ws_stalled_disconnects_total{robot="robot"} 1.0' in metrics
+    assert 'cobot_hmi_ws_dropped_frames_total{robot="robot"} 0.0' not in metrics
 
 
 async def test_events_and_holder_disconnect_release_control(hmi: Running) -> None:
@@ -319,6 +330,7 @@ async def test_events_and_holder_disconnect_release_control(hmi: Running) -> Non
     assert control[-1] == {
         "kind": "control",
         "time": control[-1]["time"],
+        "robot": "robot",
         "holder": None,
         "reason": "holder disconnected",
     }
@@ -357,6 +369,6 @@ async def test_robot_state_and_flag_events_from_the_simulated_robot(
             await eventually(lambda: seen("flag", flag="emergency_stopped", value=False))
             await hmi.service.store.flush_events()
             page = await hmi.service.store.events_page("flag", 20, 0)
-            flags = {(i["data"]["flag"], i["data"]["value"]) for i in page.items}  # type: ignore[index]
+            flags = {(i["flag"], i["value"]) for i in page.items}
             assert ("emergency_stopped", True) in flags
             assert ("emergency_stopped", False) in flags

@@ -1,20 +1,26 @@
-"""Layer: service. FastAPI dependencies: the service, the caller's session, role gates.
+"""Layer: service. FastAPI dependencies: the service, the robot a path names, the caller's
+session, role gates.
 
 A session comes from ``Authorization: Bearer <token>`` or the ``cobot_session`` cookie (the
-WebSocket also accepts ``?token=``, since browsers cannot set headers on it).
+WebSocket also accepts ``?token=``, since browsers cannot set headers on it). A robot comes from
+the ``{name}`` of ``/api/v1/robots/{name}/…`` (404 naming the known ones when unknown); the
+deprecated single-robot paths get the first robot of the settings.
 """
 
 from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import Depends, Request
+from fastapi import Depends, Path, Query, Request
 from starlette.requests import HTTPConnection
 
 from cobot_hmi.service.auth import SESSION_COOKIE, Session
-from cobot_hmi.service.errors import forbidden, unauthorized
+from cobot_hmi.service.errors import UnknownRobotError, forbidden, unauthorized
+from cobot_hmi.service.models import ROBOT_NAME_PATTERN
+from cobot_hmi.service.robot import RobotRuntime
 from cobot_hmi.service.runtime import Service
 from cobot_hmi.service.users import Role
+from cobot_hmi.service.write_pipeline import Writer
 
 
 def get_service(connection: HTTPConnection) -> Service:
@@ -49,6 +55,49 @@ ServiceDep = Annotated[Service, Depends(_service)]
 SessionDep = Annotated[Session | None, Depends(current_session)]
 
 
+# The name's pattern is documented, not enforced: any unknown name, well-formed or not, is the
+# same 404 naming the known robots.
+_NAME_SCHEMA = {"pattern": ROBOT_NAME_PATTERN}
+
+
+async def robot_from_path(
+    service: ServiceDep,
+    name: Annotated[
+        str, Path(description="the robot's name from the settings", json_schema_extra=_NAME_SCHEMA)
+    ],
+) -> RobotRuntime:
+    try:
+        return service.robot(name)
+    except UnknownRobotError as error:
+        raise error.to_api_error("name") from None
+
+
+async def default_robot(service: ServiceDep) -> RobotRuntime:
+    """The first robot of the settings: what the deprecated single-robot paths answer for."""
+    return service.default_robot
+
+
+async def robot_filter(
+    service: ServiceDep,
+    robot: Annotated[
+        str | None,
+        Query(description="only this robot's rows", json_schema_extra=_NAME_SCHEMA),
+    ] = None,
+) -> str | None:
+    """``?robot=``: a known robot's name (404 naming the known ones otherwise) or ``None``."""
+    if robot is not None:
+        try:
+            service.robot(robot)
+        except UnknownRobotError as error:
+            raise error.to_api_error("robot") from None
+    return robot
+
+
+RobotDep = Annotated[RobotRuntime, Depends(robot_from_path)]
+DefaultRobotDep = Annotated[RobotRuntime, Depends(default_robot)]
+RobotFilterDep = Annotated[str | None, Depends(robot_filter)]
+
+
 def require(role: Role, session: Session | None) -> Session:
     """The session if its role is at least ``role``; 401 / 403 with a reason otherwise."""
     if session is None:
@@ -77,3 +126,11 @@ OperatorDep = Annotated[Session, Depends(operator)]
 
 def client_address(connection: HTTPConnection) -> str | None:
     return connection.client.host if connection.client is not None else None
+
+
+async def writer(request: Request, session: SessionDep) -> Writer:
+    """Who is writing, for the write pipeline (authorization happens there, audited)."""
+    return Writer.from_session(session, client_address(request))
+
+
+WriterDep = Annotated[Writer, Depends(writer)]

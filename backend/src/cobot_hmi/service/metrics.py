@@ -1,18 +1,27 @@
 """Layer: service. ``GET /metrics`` in the Prometheus text format (0.0.4), written by hand.
 
-Names follow Prometheus conventions (base units: seconds; ``_total`` for counters).
+Names follow Prometheus conventions (base units: seconds; ``_total`` for counters). Everything
+about one robot carries a ``robot`` label (its name); logins, sessions and the event store are
+the service's own. Each metric's HELP and TYPE come once, before all robots' samples.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from cobot_hmi.scanner.originator import ConnectionState, ConnectionStats
 
 if TYPE_CHECKING:
+    from cobot_hmi.service.robot import RobotRuntime
     from cobot_hmi.service.runtime import Service
 
 _PREFIX = "cobot_hmi_"
+
+
+def _escape(value: str) -> str:
+    """A label value as the text format quotes it (backslash, quote, newline escaped)."""
+    return value.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n")
 
 
 class _Writer:
@@ -27,7 +36,7 @@ class _Writer:
         text = "NaN" if value is None else repr(float(value))
         label_text = ""
         if labels:
-            label_text = "{" + ",".join(f'{k}="{v}"' for k, v in labels.items()) + "}"
+            label_text = "{" + ",".join(f'{k}="{_escape(v)}"' for k, v in labels.items()) + "}"
         self.lines.append(f"{_PREFIX}{name}{label_text} {text}")
 
     def one(self, name: str, kind: str, help_text: str, value: float | None) -> None:
@@ -39,72 +48,137 @@ def _ms_to_s(value: float | None) -> float | None:
     return None if value is None else value / 1000
 
 
-def render_metrics(service: Service, stats: ConnectionStats) -> str:
+_WRITE_OUTCOMES = ("confirmed", "timeout", "invalid", "refused", "unauthorized", "forbidden")
+
+
+def render_metrics(service: Service, stats: dict[str, ConnectionStats]) -> str:
+    """The exposition text; ``stats`` by robot name (``link.stats()`` of each, fetched first)."""
     w = _Writer()
+    robots: list[tuple[RobotRuntime, ConnectionStats, dict[str, str]]] = [
+        (robot, stats[name], {"robot": name})
+        for name, robot in service.robots.items()
+        if name in stats
+    ]
+
+    def per_robot(name: str, kind: str, help_text: str, value: Callable[..., float | None]) -> None:
+        w.metric(name, kind, help_text)
+        for robot, robot_stats, label in robots:
+            w.sample(name, value(robot, robot_stats), label)
+
     w.metric("connection_state", "gauge", "1 for the current class 1 connection state")
-    for state in ConnectionState:
-        w.sample("connection_state", 1 if stats.state is state else 0, {"state": state.value})
-    w.one("frames_received_total", "counter", "T→O packets received", stats.packets_in)
-    w.one("packets_sent_total", "counter", "O→T packets sent", stats.packets_out)
-    w.one("frame_gaps_total", "counter", "T→O sequence gaps", stats.gaps)
-    w.one("frame_duplicates_total", "counter", "T→O duplicate sequence counts", stats.duplicates)
-    w.one("frames_late_total", "counter", "T→O packets later than the RPI allows", stats.late)
-    w.one("frames_malformed_total", "counter", "T→O packets that did not decode", stats.malformed)
+    for _, robot_stats, label in robots:
+        for state in ConnectionState:
+            w.sample(
+                "connection_state",
+                1 if robot_stats.state is state else 0,
+                {**label, "state": state.value},
+            )
+    per_robot("frames_received_total", "counter", "T→O packets received", lambda r, s: s.packets_in)
+    per_robot("packets_sent_total", "counter", "O→T packets sent", lambda r, s: s.packets_out)
+    per_robot("frame_gaps_total", "counter", "T→O sequence gaps", lambda r, s: s.gaps)
+    per_robot(
+        "frame_duplicates_total",
+        "counter",
+        "T→O duplicate sequence counts",
+        lambda r, s: s.duplicates,
+    )
+    per_robot(
+        "frames_late_total", "counter", "T→O packets later than the RPI allows", lambda r, s: s.late
+    )
+    per_robot(
+        "frames_malformed_total",
+        "counter",
+        "T→O packets that did not decode",
+        lambda r, s: s.malformed,
+    )
     w.metric("frame_interval_seconds", "gauge", "T→O receive interval (originator's window)")
-    w.sample("frame_interval_seconds", _ms_to_s(stats.interval_mean_ms), {"stat": "mean"})
-    w.sample("frame_interval_seconds", _ms_to_s(stats.interval_p99_ms), {"stat": "p99"})
-    w.sample("frame_interval_seconds", _ms_to_s(stats.interval_max_ms), {"stat": "max"})
-    w.one("last_frame_age_seconds", "gauge", "age of the newest frame", stats.last_frame_age_s)
-    hub = service.hub
+    for _, robot_stats, label in robots:
+        w.sample(
+            "frame_interval_seconds",
+            _ms_to_s(robot_stats.interval_mean_ms),
+            {**label, "stat": "mean"},
+        )
+        w.sample(
+            "frame_interval_seconds",
+            _ms_to_s(robot_stats.interval_p99_ms),
+            {**label, "stat": "p99"},
+        )
+        w.sample(
+            "frame_interval_seconds",
+            _ms_to_s(robot_stats.interval_max_ms),
+            {**label, "stat": "max"},
+        )
+    per_robot(
+        "last_frame_age_seconds",
+        "gauge",
+        "age of the newest frame",
+        lambda r, s: s.last_frame_age_s,
+    )
     w.metric(
         "frame_receive_interval_seconds",
         "histogram",
         "interval between consecutive frames' receive times, since the service started",
     )
-    for bound, count in hub.interval_histogram():
-        le = "+Inf" if bound == float("inf") else f"{bound:.5f}"
-        w.sample("frame_receive_interval_seconds_bucket", count, {"le": le})
-    w.sample("frame_receive_interval_seconds_sum", hub.interval_sum_s)
-    w.sample("frame_receive_interval_seconds_count", hub.interval_count)
-    w.one("hub_frames_total", "counter", "frames handed to the broadcast loop", hub.frames_in)
-    w.one(
+    for robot, _, label in robots:
+        hub = robot.hub
+        for bound, count in hub.interval_histogram():
+            le = "+Inf" if bound == float("inf") else f"{bound:.5f}"
+            w.sample("frame_receive_interval_seconds_bucket", count, {**label, "le": le})
+        w.sample("frame_receive_interval_seconds_sum", hub.interval_sum_s, label)
+        w.sample("frame_receive_interval_seconds_count", hub.interval_count, label)
+    per_robot(
+        "hub_frames_total",
+        "counter",
+        "frames handed to the broadcast loop",
+        lambda r, s: r.hub.frames_in,
+    )
+    per_robot(
         "hub_frames_lost_total",
         "counter",
         "frames lost before broadcasting (the loop fell behind)",
-        hub.frames_lost_in_hub,
+        lambda r, s: r.hub.frames_lost_in_hub,
     )
-    w.one("ws_clients", "gauge", "connected WebSocket clients", len(hub.clients))
-    w.one(
-        "ws_frames_sent_total", "counter", "frames sent to WebSocket clients", hub.frames_sent_total
+    per_robot("ws_clients", "gauge", "connected WebSocket clients", lambda r, s: len(r.hub.clients))
+    per_robot(
+        "ws_frames_sent_total",
+        "counter",
+        "frames sent to WebSocket clients",
+        lambda r, s: r.hub.frames_sent_total,
     )
-    w.one(
+    per_robot(
         "ws_dropped_frames_total",
         "counter",
         "frames dropped for slow WebSocket clients",
-        hub.dropped_frames_total,
+        lambda r, s: r.hub.dropped_frames_total,
     )
-    w.one(
+    per_robot(
         "ws_stalled_disconnects_total",
         "counter",
         "WebSocket clients disconnected because they stopped reading",
-        hub.stalled_disconnects,
+        lambda r, s: r.hub.stalled_disconnects,
     )
-    w.one(
+    per_robot(
         "broadcast_seconds_total",
         "counter",
         "time spent in broadcast ticks (serialization and queueing)",
-        hub.tick_seconds,
+        lambda r, s: r.hub.tick_seconds,
     )
-    w.metric("writes_total", "counter", "PATCH /api/v1/command by outcome")
-    for outcome in ("confirmed", "timeout", "invalid", "refused", "unauthorized", "forbidden"):
-        w.sample("writes_total", service.commander.outcomes[outcome], {"outcome": outcome})
+    w.metric("writes_total", "counter", "writes through the write pipeline by outcome")
+    for robot, _, label in robots:
+        for outcome in _WRITE_OUTCOMES:
+            w.sample(
+                "writes_total", robot.commander.outcomes[outcome], {**label, "outcome": outcome}
+            )
+    per_robot(
+        "control_held",
+        "gauge",
+        "1 while someone holds control",
+        lambda r, s: int(r.control.holder is not None),
+    )
     w.metric("logins_total", "counter", "login attempts by outcome")
     for outcome in ("ok", "failed", "throttled"):
         w.sample("logins_total", service.logins[outcome], {"outcome": outcome})
     w.one("sessions", "gauge", "live login sessions", len(service.sessions))
-    w.one(
-        "control_held", "gauge", "1 while someone holds control", int(bool(service.control.holder))
-    )
     w.one(
         "event_write_errors_total",
         "counter",

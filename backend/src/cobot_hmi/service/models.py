@@ -461,6 +461,7 @@ class DroppedMessage(BaseModel):
 
 class StatusMessage(BaseModel):
     type: Literal["status"]
+    robot: str | None = None
     connection: ConnectionStatus
 
 

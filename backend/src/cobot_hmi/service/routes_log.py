@@ -1,26 +1,49 @@
-"""Layer: service. The audit trail and the event log (operator and above), JSON or CSV."""
+"""Layer: service. The audit trail and the event log (operator and above), JSON or CSV, all robots
+or one (``?robot=NAME``)."""
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Any, Final, Literal
 
 from fastapi import APIRouter, Query, Response
 
 from cobot_hmi.codec import dumps
-from cobot_hmi.service.deps import OperatorDep, ServiceDep
-from cobot_hmi.service.store import AUDIT_COLUMNS, EVENT_COLUMNS, MAX_PAGE, Page, to_csv
+from cobot_hmi.service import models
+from cobot_hmi.service.api_docs import CSV_RESPONSE, LOG, errors
+from cobot_hmi.service.deps import OperatorDep, RobotFilterDep, ServiceDep
+from cobot_hmi.service.store import (
+    AUDIT_COLUMNS,
+    EVENT_COLUMNS,
+    MAX_PAGE,
+    Page,
+    event_csv_rows,
+    to_csv,
+)
 
 router = APIRouter(prefix="/api/v1", tags=["log"])
 
 Limit = Annotated[int, Query(ge=1, le=MAX_PAGE)]
 Offset = Annotated[int, Query(ge=0)]
-Format = Annotated[Literal["json", "csv"], Query()]
+Format = Annotated[Literal["json", "csv"], Query(description="csv: the whole page as CSV")]
+Kind = Annotated[models.EventKind | None, Query(description="only events of this kind")]
+
+
+def _responses(model: type) -> dict[int | str, dict[str, Any]]:
+    return {
+        200: {
+            "model": model,
+            "description": "a page, newest first (format=csv: as CSV, the total in X-Total-Count)",
+            "content": CSV_RESPONSE,
+        },
+        **errors(*LOG),
+    }
 
 
 def _answer(page: Page, columns: tuple[str, ...], fmt: str, name: str) -> Response:
     if fmt == "csv":
+        rows = event_csv_rows(page.items) if name == "events" else page.items
         return Response(
-            to_csv(page.items, columns),
+            to_csv(rows, columns),
             media_type="text/csv; charset=utf-8",
             headers={
                 "Content-Disposition": f'attachment; filename="{name}.csv"',
@@ -32,26 +55,34 @@ def _answer(page: Page, columns: tuple[str, ...], fmt: str, name: str) -> Respon
     )
 
 
-@router.get("/audit", summary="Write attempts and control changes, newest first")
+_AUDIT: Final = "Write attempts and control changes, newest first"
+_EVENTS: Final = "Connection, robot state, flag, write and control events, newest first"
+
+
+@router.get("/audit", summary=_AUDIT, responses=_responses(models.AuditPage))
 async def get_audit(
     service: ServiceDep,
     _: OperatorDep,
+    robot: RobotFilterDep,
+    *,
     limit: Limit = 100,
     offset: Offset = 0,
     format: Format = "json",
 ) -> Response:
-    page = await service.store.audit_page(limit, offset)
+    page = await service.store.audit_page(limit, offset, robot=robot)
     return _answer(page, AUDIT_COLUMNS, format, "audit")
 
 
-@router.get("/events", summary="Connection, robot state, flag, write and control events")
+@router.get("/events", summary=_EVENTS, responses=_responses(models.EventPage))
 async def get_events(
     service: ServiceDep,
     _: OperatorDep,
-    kind: str | None = None,
+    robot: RobotFilterDep,
+    *,
+    kind: Kind = None,
     limit: Limit = 100,
     offset: Offset = 0,
     format: Format = "json",
 ) -> Response:
-    page = await service.store.events_page(kind, limit, offset)
+    page = await service.store.events_page(kind, limit, offset, robot=robot)
     return _answer(page, EVENT_COLUMNS, format, "events")

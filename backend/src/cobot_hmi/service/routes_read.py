@@ -1,19 +1,31 @@
-"""Layer: service. Read-only routes: layout, frame, status, command, health, metrics."""
+"""Layer: service. Read-only routes: the robots, each robot's frame, status and command, the
+layout, health, readiness and metrics.
+
+Per robot under ``/api/v1/robots/{name}/…``; the single-robot paths of the first release
+(``/api/v1/frame``, ``/status``, ``/command``) answer for the first robot and are marked
+deprecated. Answers are serialized with the codec's orjson ``dumps`` (tuples as arrays, NaN as
+null); the ``response_model`` documents their shape.
+"""
 
 from __future__ import annotations
 
 import functools
 import time
 from importlib import resources
+from typing import Any, Final
 
-import orjson
-from fastapi import APIRouter, Response
+from fastapi import APIRouter, Query, Request, Response
 from fastapi.responses import JSONResponse
 
 from cobot_hmi.codec import command_to_json, dumps, frame_to_json
 from cobot_hmi.scanner.originator import ConnectionState
-from cobot_hmi.service.deps import ServiceDep, ViewerDep
+from cobot_hmi.service import models, security
+from cobot_hmi.service.api_docs import PROMETHEUS_CONTENT_TYPE, READ, errors
+from cobot_hmi.service.deps import DefaultRobotDep, RobotDep, ServiceDep, ViewerDep
+from cobot_hmi.service.errors import UnknownRobotError
 from cobot_hmi.service.metrics import render_metrics
+from cobot_hmi.service.robot import RobotRuntime
+from cobot_hmi.service.runtime import Service
 
 router = APIRouter()
 
@@ -25,69 +37,258 @@ class OrjsonResponse(JSONResponse):
         return dumps(content)
 
 
+_DEPRECATED = "Deprecated: answers for the first robot; use /api/v1/robots/{name}/"
+
+
 @functools.cache
 def _layout_bytes() -> bytes:
     return resources.files("cobot_hmi.generated").joinpath("layout.json").read_bytes()
 
 
-@router.get("/api/v1/layout", tags=["read"], summary="The layout document")
+@router.get(
+    "/api/v1/layout",
+    tags=["read"],
+    summary="The layout document",
+    response_model=models.LayoutDocument,
+    responses=errors(401),
+)
 async def get_layout(_: ViewerDep) -> Response:
     return Response(_layout_bytes(), media_type="application/json")
 
 
-@router.get("/api/v1/frame", tags=["read"], summary="The latest decoded frame")
-async def get_frame(service: ServiceDep, _: ViewerDep) -> OrjsonResponse:
-    latest = service.hub.latest
+# --------------------------------------------------------------------------- robots
+
+
+def robot_summary(service: Service, robot: RobotRuntime) -> dict[str, object]:
+    """``models.RobotSummary`` of one robot (no await: plain reads of its parts)."""
+    identity = robot.identity.to_json() if robot.identity is not None else None
+    latest = robot.hub.latest
+    state = latest[2].robot_state if latest is not None else None
+    frame = frame_to_json(latest[2]) if latest is not None else None
+    return {
+        "name": robot.name,
+        "host": robot.settings.host,
+        "mode": robot.mode,
+        "rpi_ms": robot.settings.rpi_ms,
+        "model": identity["product_name"] if identity is not None else None,
+        "identity": identity,
+        "connection": robot.link.state.value,
+        "connection_reason": robot.link.reason,
+        "holder": robot.control.status()["holder"],
+        "robot_state": state,
+        "robot_state_name": frame["robot_state_name"] if frame is not None else None,
+        "default": robot is service.default_robot,
+    }
+
+
+@router.get(
+    "/api/v1/robots",
+    tags=["robots"],
+    summary="The robots of the cell: connection, control and state of each",
+    response_model=models.RobotList,
+    responses=errors(401),
+)
+async def list_robots(service: ServiceDep, _: ViewerDep) -> OrjsonResponse:
+    return OrjsonResponse(
+        {"robots": [robot_summary(service, robot) for robot in service.robots.values()]}
+    )
+
+
+@router.get(
+    "/api/v1/robots/{name}",
+    tags=["robots"],
+    summary="One robot: connection, control and state",
+    response_model=models.RobotSummary,
+    responses=errors(*READ),
+)
+async def get_robot(service: ServiceDep, robot: RobotDep, _: ViewerDep) -> OrjsonResponse:
+    return OrjsonResponse(robot_summary(service, robot))
+
+
+# --------------------------------------------------------------------------- one robot
+
+
+def _frame(service: Service, robot: RobotRuntime) -> dict[str, object]:
+    latest = robot.hub.latest
     if latest is None:
-        return OrjsonResponse({"frame": None, "received_at": None, "age_s": None, "stale": True})
+        return {
+            "robot": robot.name,
+            "frame": None,
+            "received_at": None,
+            "age_s": None,
+            "stale": True,
+        }
     received_at, frame = latest[1], latest[2]
     age_s = max(0.0, time.time() - received_at)
     stale = (
         age_s * 1000 > service.settings.stale_after_ms
-        or service.link.state is not ConnectionState.CONNECTED
+        or robot.link.state is not ConnectionState.CONNECTED
     )
-    return OrjsonResponse(
-        {
-            "frame": frame_to_json(frame),
-            "received_at": received_at,
-            "age_s": age_s,
-            "stale": stale,
+    return {
+        "robot": robot.name,
+        "frame": frame_to_json(frame),
+        "received_at": received_at,
+        "age_s": age_s,
+        "stale": stale,
+    }
+
+
+async def _status(robot: RobotRuntime) -> Any:
+    status = await robot.status()
+    return status.model_dump(mode="json") if isinstance(status, models.RobotStatus) else status
+
+
+def _command(robot: RobotRuntime) -> dict[str, object]:
+    return {
+        "robot": robot.name,
+        "image": command_to_json(robot.link.command),
+        "run": robot.link.run,
+    }
+
+
+_FRAME: Final[dict[str, Any]] = {
+    "tags": ["robots"],
+    "summary": "The robot's latest decoded frame and its age",
+    "response_model": models.FrameAnswer,
+}
+_STATUS: Final[dict[str, Any]] = {
+    "tags": ["robots"],
+    "summary": "The robot's connection state, counters and control",
+    "response_model": models.RobotStatus,
+}
+_COMMAND: Final[dict[str, Any]] = {
+    "tags": ["robots"],
+    "summary": "The O→T image being sent to the robot, run or idle",
+    "response_model": models.CommandState,
+}
+
+
+@router.get("/api/v1/robots/{name}/frame", **_FRAME, responses=errors(*READ))
+async def get_frame(service: ServiceDep, robot: RobotDep, _: ViewerDep) -> OrjsonResponse:
+    return OrjsonResponse(_frame(service, robot))
+
+
+@router.get("/api/v1/robots/{name}/status", **_STATUS, responses=errors(*READ))
+async def get_status(robot: RobotDep, _: ViewerDep) -> OrjsonResponse:
+    return OrjsonResponse(await _status(robot))
+
+
+@router.get("/api/v1/robots/{name}/command", **_COMMAND, responses=errors(*READ))
+async def get_command(robot: RobotDep, _: ViewerDep) -> OrjsonResponse:
+    return OrjsonResponse(_command(robot))
+
+
+@router.get(
+    "/api/v1/frame",
+    **_FRAME,
+    deprecated=True,
+    description=_DEPRECATED + "frame",
+    responses=errors(401),
+)
+async def get_frame_default(
+    service: ServiceDep, robot: DefaultRobotDep, _: ViewerDep
+) -> OrjsonResponse:
+    return OrjsonResponse(_frame(service, robot))
+
+
+@router.get(
+    "/api/v1/status",
+    **_STATUS,
+    deprecated=True,
+    description=_DEPRECATED + "status",
+    responses=errors(401),
+)
+async def get_status_default(robot: DefaultRobotDep, _: ViewerDep) -> OrjsonResponse:
+    return OrjsonResponse(await _status(robot))
+
+
+@router.get(
+    "/api/v1/command",
+    **_COMMAND,
+    deprecated=True,
+    description=_DEPRECATED + "command",
+    responses=errors(401),
+)
+async def get_command_default(robot: DefaultRobotDep, _: ViewerDep) -> OrjsonResponse:
+    return OrjsonResponse(_command(robot))
+
+
+# --------------------------------------------------------------------------- health
+
+
+@router.get(
+    "/healthz",
+    tags=["health"],
+    summary="The process serves, every cyclic thread lives, no link has been down too long",
+    response_model=models.Health,
+    responses={503: {"model": models.Health, "description": "something is wrong: see problems"}},
+)
+async def healthz(service: ServiceDep) -> OrjsonResponse:
+    problems = service.health_problems()
+    return OrjsonResponse({"ok": not problems, "problems": problems}, 503 if problems else 200)
+
+
+def _ready(robot: RobotRuntime) -> tuple[dict[str, object], int]:
+    ready, reason = robot.ready()
+    return {"ready": ready, "reason": reason, "robot": robot.name}, 200 if ready else 503
+
+
+_NOT_READY: Final[dict[int | str, dict[str, Any]]] = {
+    503: {"model": models.Ready, "description": "not connected to the robot"}
+}
+
+
+@router.get(
+    "/readyz",
+    tags=["health"],
+    summary="Connected to the robot (?robot=NAME; default: every robot)",
+    response_model=models.Ready,
+    responses={**_NOT_READY, **errors(404)},
+)
+async def readyz(
+    service: ServiceDep,
+    robot: str | None = Query(default=None, description="one robot's readiness"),
+) -> OrjsonResponse:
+    if robot is not None:
+        try:
+            answer, status = _ready(service.robot(robot))
+        except UnknownRobotError as error:
+            raise error.to_api_error("robot") from None
+        return OrjsonResponse(answer, status)
+    for one in service.robots.values():
+        answer, status = _ready(one)
+        if status != 200:
+            return OrjsonResponse(answer, status)
+    return OrjsonResponse({"ready": True, "reason": None, "robot": None})
+
+
+@router.get(
+    "/api/v1/robots/{name}/readyz",
+    tags=["health"],
+    summary="Connected to this robot",
+    response_model=models.Ready,
+    responses={**_NOT_READY, **errors(404)},
+)
+async def robot_readyz(robot: RobotDep) -> OrjsonResponse:
+    answer, status = _ready(robot)
+    return OrjsonResponse(answer, status)
+
+
+@router.get(
+    "/metrics",
+    tags=["health"],
+    summary="Prometheus metrics, per robot with a robot label",
+    response_class=Response,
+    responses={
+        200: {
+            "description": "Prometheus text exposition format 0.0.4",
+            "content": {PROMETHEUS_CONTENT_TYPE: {"schema": {"type": "string"}}},
         }
+    },
+)
+async def metrics(request: Request, service: ServiceDep) -> Response:
+    stats = {name: await robot.link.stats() for name, robot in service.robots.items()}
+    text = render_metrics(service, stats) + security.render_metrics(
+        request.app.state.security_counters, getattr(request.app.state, "connection_counters", None)
     )
-
-
-@router.get("/api/v1/status", tags=["read"], summary="Connection state, counters and control")
-async def get_status(service: ServiceDep, _: ViewerDep) -> OrjsonResponse:
-    return OrjsonResponse(
-        {"connection": await service.connection_status(), "control": service.control.status()}
-    )
-
-
-@router.get("/api/v1/command", tags=["read"], summary="The O→T image being sent, run or idle")
-async def get_command(service: ServiceDep, _: ViewerDep) -> OrjsonResponse:
-    return OrjsonResponse({"image": command_to_json(service.link.command), "run": service.link.run})
-
-
-@router.get("/healthz", tags=["health"], summary="The process serves")
-async def healthz() -> dict[str, bool]:
-    return {"ok": True}
-
-
-@router.get("/readyz", tags=["health"], summary="Connected to the robot")
-async def readyz(service: ServiceDep) -> Response:
-    state = service.link.state
-    if state is ConnectionState.CONNECTED:
-        return Response(orjson.dumps({"ready": True}), media_type="application/json")
-    reason = service.link.reason
-    text = f"{state.value}{': ' + reason if reason else ''}"
-    return Response(
-        orjson.dumps({"ready": False, "reason": text}),
-        status_code=503,
-        media_type="application/json",
-    )
-
-
-@router.get("/metrics", tags=["health"], summary="Prometheus metrics")
-async def metrics(service: ServiceDep) -> Response:
-    text = render_metrics(service, await service.link.stats())
-    return Response(text, media_type="text/plain; version=0.0.4; charset=utf-8")
+    return Response(text, media_type=PROMETHEUS_CONTENT_TYPE)

@@ -1,8 +1,11 @@
-"""Layer: service. ``WS /api/v1/stream``: hello, batched frames at the asked rate, events.
+"""Layer: service. ``WS /api/v1/robots/{name}/stream``: hello, batched frames at the asked rate,
+status, events (``service.models.StreamMessage``); ``WS /api/v1/stream`` (deprecated) is the
+first robot's.
 
-The handshake may carry the session (cookie, bearer header, or ``?token=``); control held by
-that session ends when its last stream closes. A refusal after the handshake is a close with
-an application code: 4400 (bad ``rate``) or 4401 (login required), the reason in the close.
+The handshake may carry the session (cookie, bearer header, or ``?token=``); control of the
+robot held by that session ends when its last stream to that robot closes. A refusal after the
+handshake is a close with an application code: 4400 (bad ``rate``), 4401 (login required) or
+4404 (unknown robot, the known ones named), the reason in the close.
 """
 
 from __future__ import annotations
@@ -18,12 +21,14 @@ from fastapi import APIRouter, WebSocket
 from starlette.types import ASGIApp, Receive, Scope, Send
 
 from cobot_hmi.service.deps import client_address, get_service, session_token
+from cobot_hmi.service.errors import UnknownRobotError
 
 router = APIRouter()
 
 ABORT_KEY: Final = "cobot_hmi.abort_transport"
 CLOSE_BAD_REQUEST: Final = 4400
 CLOSE_LOGIN_REQUIRED: Final = 4401
+CLOSE_UNKNOWN_ROBOT: Final = 4404
 CLOSE_STALLED: Final = 4408
 SEND_BUFFER_BYTES: Final = 128 * 1024
 """Kernel send buffer per stream connection (Linux doubles it): ~1 s of frames at 10 ms."""
@@ -76,11 +81,26 @@ def _parse_rate(text: str | None) -> float | None:
     return rate
 
 
+@router.websocket("/api/v1/robots/{name}/stream")
+async def robot_stream(websocket: WebSocket, name: str) -> None:
+    await _stream(websocket, name)
+
+
 @router.websocket("/api/v1/stream")
 async def stream(websocket: WebSocket) -> None:
+    """Deprecated: the first robot's stream."""
+    await _stream(websocket, None)
+
+
+async def _stream(websocket: WebSocket, name: str | None) -> None:
     service = get_service(websocket)
     session = service.sessions.get(session_token(websocket))
     await websocket.accept()
+    try:
+        robot = service.default_robot if name is None else service.robot(name)
+    except UnknownRobotError as error:
+        await websocket.close(CLOSE_UNKNOWN_ROBOT, str(error)[:120])
+        return
     if service.settings.view_requires_login and session is None:
         await websocket.close(CLOSE_LOGIN_REQUIRED, "login required")
         return
@@ -100,16 +120,15 @@ async def stream(websocket: WebSocket) -> None:
             async with asyncio.timeout(1.0):
                 await websocket.close(CLOSE_STALLED, reason)
 
-    hello = await service.hello(rate_hz)
-    client = service.hub.add_client(
+    client = robot.hub.add_client(
         websocket.send_text,
         abort,
         rate_hz,
-        hello,
+        await robot.hello(rate_hz),
         session_id=session.id if session is not None else None,
         client=f"{client_address(websocket)}:{websocket.client.port if websocket.client else 0}",
     )
-    service.websocket_opened(session)
+    service.websocket_opened(session, robot)
     try:
         while True:
             message = await websocket.receive()
@@ -118,5 +137,5 @@ async def stream(websocket: WebSocket) -> None:
             # Client messages carry nothing yet; they are read (and dropped) so the
             # connection's receive side never backs up.
     finally:
-        await service.hub.remove_client(client)
-        service.websocket_closed(session)
+        await robot.hub.remove_client(client)
+        service.websocket_closed(session, robot)
