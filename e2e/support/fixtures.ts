@@ -6,7 +6,7 @@
  */
 import { expect, request as playwrightRequest, test as base, type APIRequestContext, type Page, type TestInfo } from "@playwright/test";
 import { readFileSync } from "node:fs";
-import { baseURL, controlURL, emulatorPidFile, settings } from "./settings";
+import { baseURL, control2URL, controlURL, emulatorPidFile, settings } from "./settings";
 
 export interface EmulatorStatus {
   readonly frame: Record<string, unknown> & {
@@ -35,14 +35,16 @@ export class Robot {
 
   /** POST and expect success; returns the JSON answer. */
   async post(path: string, body?: object): Promise<unknown> {
-    const answer = await this.api.post(path, body === undefined ? {} : { data: body });
+    // JSON always, an empty object for no fields: the control API takes JSON only.
+    const answer = await this.api.post(path, { data: body ?? {} });
     expect(answer.status(), `POST ${path}: ${await answer.text()}`).toBe(200);
     return answer.json();
   }
 
   /** POST that may be refused (409: nothing to do in this state); returns the status. */
   async tryPost(path: string, body?: object): Promise<number> {
-    const answer = await this.api.post(path, body === undefined ? {} : { data: body });
+    // JSON always, an empty object for no fields: the control API takes JSON only.
+    const answer = await this.api.post(path, { data: body ?? {} });
     return answer.status();
   }
 
@@ -73,6 +75,15 @@ export class Robot {
   }
 }
 
+/** One robot in `GET /api/v1/robots` (the fields the tests read). */
+export interface RobotListed {
+  readonly name: string;
+  readonly connection: string;
+  readonly holder: { user: string } | null;
+  readonly robot_state_name: string | null;
+  readonly model: string | null;
+}
+
 /** The service's API as a script uses it (bearer token), for setup and for checks. */
 export class Service {
   constructor(readonly api: APIRequestContext) {}
@@ -90,6 +101,13 @@ export class Service {
     const answer = await this.api.get("/api/v1/status");
     expect(answer.status()).toBe(200);
     return answer.json();
+  }
+
+  /** The service's robots as `GET /api/v1/robots` lists them. */
+  async robots(): Promise<RobotListed[]> {
+    const answer = await this.api.get("/api/v1/robots");
+    expect(answer.status(), await answer.text()).toBe(200);
+    return ((await answer.json()) as { robots: RobotListed[] }).robots;
   }
 
   /** Take control, PATCH, release: puts outputs back where a test expects them. */
@@ -145,12 +163,19 @@ export async function loginInPanel(page: Page, user: { name: string; password: s
 
 interface Fixtures {
   robot: Robot;
+  /** The second robot (the M0609); tests that use it put it back to running themselves. */
+  robot2: Robot;
   operatorApi: Service;
 }
 
 export const test = base.extend<Fixtures & { healthyRobot: void }>({
   robot: async ({}, use) => {
     const api = await playwrightRequest.newContext({ baseURL: controlURL });
+    await use(new Robot(api));
+    await api.dispose();
+  },
+  robot2: async ({}, use) => {
+    const api = await playwrightRequest.newContext({ baseURL: control2URL });
     await use(new Robot(api));
     await api.dispose();
   },

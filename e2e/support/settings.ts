@@ -38,11 +38,18 @@ function once(name: string, make: () => string): string {
 }
 
 export const settings = {
-  /** The emulated robot: its EtherNet/IP target (TCP 44818, UDP 2222) and its control API. */
+  /**
+   * The first emulated robot (an M1013, the service's default robot): its name in the service,
+   * its EtherNet/IP target (TCP 44818, UDP 2222) and its control API.
+   */
+  robotName: env("E2E_ROBOT_NAME", "m1013"),
   robotHost: env("E2E_ROBOT_HOST", "127.0.0.3"),
   robotTcpPort: envNumber("E2E_ROBOT_TCP_PORT", 44818),
   robotUdpPort: envNumber("E2E_ROBOT_UDP_PORT", 2222),
   controlPort: envNumber("E2E_CONTROL_PORT", 8081),
+  /** The second emulated robot (an M0609), the same ports on its own address. */
+  robot2Name: env("E2E_ROBOT2_NAME", "m0609"),
+  robot2Host: env("E2E_ROBOT2_HOST", "127.0.0.6"),
   /** The service's own EtherNet/IP address (it receives T→O on UDP 2222 there). */
   localHost: env("E2E_LOCAL_HOST", "127.0.0.4"),
   localUdpPort: envNumber("E2E_LOCAL_UDP_PORT", 2222),
@@ -68,7 +75,11 @@ export const settings = {
 
 export const baseURL = `http://${settings.httpHost}:${settings.httpPort}`;
 export const controlURL = `http://${settings.robotHost}:${settings.controlPort}`;
+export const control2URL = `http://${settings.robot2Host}:${settings.controlPort}`;
 export const emulatorPidFile = path.join(settings.stateDir, "emulator.json");
+export const emulator2PidFile = path.join(settings.stateDir, "emulator2.json");
+/** The service's settings file: its two robots as `[[robots]]` tables. */
+export const serviceConfigFile = path.join(settings.stateDir, "service.toml");
 
 /** The connection timeout the service's Forward Open asks for, in ms. */
 export const connectionTimeoutMs = settings.rpiMs * (4 << settings.timeoutMultiplier);

@@ -1,5 +1,6 @@
 /**
- * The kiosk (`/kiosk`): read-only by construction. Its component tree imports no write control,
+ * The kiosk (`/kiosk?robot=NAME`; without `robot`, the service's default robot): read-only by
+ * construction. Its component tree imports no write control,
  * no REST module and no login (a test walks its imports); it reads the WebSocket only. Dark,
  * readable from three metres, cursor hidden, reconnects by itself, bounded memory, and shifts a
  * few pixels now and then against burn-in without ever hiding the state or an emergency stop.
@@ -15,6 +16,7 @@ import { StaleBanner } from "../components/StaleBanner";
 import { StateBadge } from "../components/StateBadge";
 import { burnInOffset, BURN_IN_PERIOD_MS } from "../lib/burnIn";
 import { JOINT_PLOTS, TCP_PLOTS, type PlotSpec } from "../lib/plots";
+import { robotFromSearch } from "../lib/route";
 import { createLiveRuntime } from "../lib/runtime";
 import "../styles/kiosk.css";
 
@@ -45,6 +47,11 @@ function Kiosk() {
         style={{ transform: `translate(${offset.dx_px}px, ${offset.dy_px}px)` }}
       >
         <header className="kiosk__header">
+          {live.robot !== null && (
+            <div className="kiosk__robot" data-testid="kiosk-robot">
+              {live.robot}
+            </div>
+          )}
           <StateBadge value={frame?.robot_state} stale={stale} size="kiosk" />
           {estop && (
             <div className="kiosk__estop" data-testid="kiosk-estop" role="alert">
@@ -82,6 +89,7 @@ export function KioskApp() {
   const runtime = useMemo(
     () =>
       createLiveRuntime(KIOSK_PLOTS, {
+        robot: robotFromSearch(window.location.search),
         rate_hz: KIOSK_RATE_HZ,
         token: new URLSearchParams(window.location.search).get("token"),
       }),

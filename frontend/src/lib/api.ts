@@ -1,35 +1,40 @@
 /**
- * Layer: REST calls of the panel (docs/api.md). Uses fetch with the session cookie; no React.
+ * Layer: the REST client of the panel and the fleet overview (docs/api.md): openapi-fetch over
+ * the types generated from the service's OpenAPI document (`src/generated/api.ts`), so a path,
+ * a parameter or a body the service does not have fails to compile. Same-origin fetch with the
+ * session cookie; every write carries a JSON content type (the service refuses writes without
+ * one, against cross-site forms). No React.
  *
- * Only the commissioning panel imports this module: the kiosk reads the WebSocket alone, and a
- * test checks that its import graph never reaches this file.
+ * The kiosk never imports this module: it reads the WebSocket alone, and a test checks that its
+ * import graph never reaches this file.
  */
+import createClient, { type Client } from "openapi-fetch";
+import type { paths } from "../generated/api";
 import type { CommandPatch } from "../generated/layout";
-import type { AuditItem, CommandState, ControlStatus, EventItem, Page, User } from "./protocol";
+import type { RobotsAnswer } from "./fleet";
+import { userOf, type AuditPage, type CommandState, type ControlStatus, type EventKind, type EventPage, type User } from "./protocol";
 import type { HttpAnswer } from "./writes";
 
 export const API = "/api/v1";
 
-async function request(method: string, path: string, body?: unknown): Promise<HttpAnswer> {
-  const init: RequestInit = { method, credentials: "same-origin", headers: {} };
-  if (body !== undefined) {
-    init.body = JSON.stringify(body);
-    init.headers = { "Content-Type": "application/json" };
-  }
-  const response = await fetch(`${API}${path}`, init);
-  let parsed: unknown = null;
-  const text = await response.text();
-  if (text !== "") {
-    try {
-      parsed = JSON.parse(text);
-    } catch {
-      parsed = { detail: text };
-    }
-  }
-  return { status: response.status, body: parsed };
+/** On every POST and PATCH, with or without a body: what tells the service it is no form post. */
+const JSON_CONTENT = { "Content-Type": "application/json" } as const;
+
+/** What openapi-fetch gives back, as the status and the parsed body (data or error). */
+interface Fetched {
+  readonly data?: unknown;
+  readonly error?: unknown;
+  readonly response: Response;
 }
 
-/** Reason text of an error answer, for showing next to the control that caused it. */
+function answerOf(result: Fetched): HttpAnswer {
+  return { status: result.response.status, body: result.data ?? result.error ?? null };
+}
+
+/**
+ * The reason of an error answer, for showing next to the control that caused it: the service's
+ * `{"detail": {"reason": …}}`, a plain `{"detail": "…"}`, or the status.
+ */
 export function errorReason(answer: HttpAnswer): string {
   const body = answer.body as { detail?: unknown } | null;
   const detail = body?.detail;
@@ -40,65 +45,89 @@ export function errorReason(answer: HttpAnswer): string {
   return `HTTP ${answer.status}`;
 }
 
-export async function getMe(): Promise<User | null> {
-  const answer = await request("GET", "/auth/me");
-  if (answer.status !== 200) return null;
-  return (answer.body as { user: User | null }).user;
-}
-
-export async function login(username: string, password: string): Promise<HttpAnswer> {
-  return request("POST", "/auth/login", { username, password });
-}
-
-export async function logout(): Promise<HttpAnswer> {
-  return request("POST", "/auth/logout");
-}
-
-export async function takeControl(): Promise<HttpAnswer> {
-  return request("POST", "/control/take");
-}
-
-export async function releaseControl(): Promise<HttpAnswer> {
-  return request("POST", "/control/release");
-}
-
 export function controlOf(answer: HttpAnswer): ControlStatus | null {
   const body = answer.body as ControlStatus | null;
-  return answer.status === 200 && body !== null && "holder" in body ? body : null;
+  return answer.status === 200 && body !== null && typeof body === "object" && "holder" in body ? body : null;
 }
 
-export async function getCommand(): Promise<CommandState | null> {
-  const answer = await request("GET", "/command");
-  return answer.status === 200 ? (answer.body as CommandState) : null;
+/** One page of a log, or why there is none. */
+export type PageAnswer<T> = { readonly ok: true; readonly page: T } | { readonly ok: false; readonly status: number; readonly reason: string };
+
+function pageOf<T>(result: Fetched & { data?: T }): PageAnswer<T> {
+  if (result.data !== undefined && result.response.status === 200) return { ok: true, page: result.data };
+  const answer = answerOf(result);
+  return { ok: false, status: answer.status, reason: errorReason(answer) };
 }
 
-export async function patchCommand(patch: CommandPatch): Promise<HttpAnswer> {
-  return request("PATCH", "/command", patch);
+/** The client reads JSON answers (the logs' CSV is a download link, never fetched here). */
+export type JsonClient = Client<paths, "application/json">;
+
+export class HmiApi {
+  constructor(readonly client: JsonClient) {}
+
+  async me(): Promise<User | null> {
+    const result = await this.client.GET("/api/v1/auth/me");
+    return userOf(result.data?.user);
+  }
+
+  async login(username: string, password: string): Promise<HttpAnswer> {
+    return answerOf(await this.client.POST("/api/v1/auth/login", { body: { username, password } }));
+  }
+
+  async logout(): Promise<HttpAnswer> {
+    return answerOf(await this.client.POST("/api/v1/auth/logout", { headers: JSON_CONTENT }));
+  }
+
+  /** Every robot of the service, in its settings' order (the first is the default robot). */
+  async robots(): Promise<RobotsAnswer> {
+    const result = await this.client.GET("/api/v1/robots");
+    if (result.data !== undefined) return { ok: true, robots: result.data.robots };
+    return { ok: false, reason: errorReason(answerOf(result)) };
+  }
+
+  async takeControl(robot: string): Promise<HttpAnswer> {
+    return answerOf(
+      await this.client.POST("/api/v1/robots/{name}/control/take", { params: { path: { name: robot } }, headers: JSON_CONTENT }),
+    );
+  }
+
+  async releaseControl(robot: string): Promise<HttpAnswer> {
+    return answerOf(
+      await this.client.POST("/api/v1/robots/{name}/control/release", { params: { path: { name: robot } }, headers: JSON_CONTENT }),
+    );
+  }
+
+  async command(robot: string): Promise<CommandState | null> {
+    const result = await this.client.GET("/api/v1/robots/{name}/command", { params: { path: { name: robot } } });
+    return result.data ?? null;
+  }
+
+  async patchCommand(robot: string, patch: CommandPatch): Promise<HttpAnswer> {
+    return answerOf(
+      await this.client.PATCH("/api/v1/robots/{name}/command", { params: { path: { name: robot } }, body: patch }),
+    );
+  }
+
+  async events(robot: string, kind: EventKind | null, limit: number, offset: number): Promise<PageAnswer<EventPage>> {
+    const query = kind === null ? { robot, limit, offset } : { robot, kind, limit, offset };
+    return pageOf(await this.client.GET("/api/v1/events", { params: { query } }));
+  }
+
+  async audit(robot: string, limit: number, offset: number): Promise<PageAnswer<AuditPage>> {
+    return pageOf(await this.client.GET("/api/v1/audit", { params: { query: { robot, limit, offset } } }));
+  }
 }
 
-export async function getEvents(kind: string | null, limit: number, offset: number): Promise<HttpAnswer> {
-  return request("GET", `/events?${eventsQuery(kind, limit, offset)}`);
-}
+/** The page's client: same origin, the session cookie. */
+export const api = new HmiApi(createClient<paths, "application/json">({ credentials: "same-origin" }));
 
-export async function getAudit(limit: number, offset: number): Promise<HttpAnswer> {
-  return request("GET", `/audit?limit=${limit}&offset=${offset}`);
-}
-
-function eventsQuery(kind: string | null, limit: number, offset: number): string {
-  const q = new URLSearchParams({ limit: String(limit), offset: String(offset) });
-  if (kind !== null && kind !== "") q.set("kind", kind);
-  return q.toString();
-}
-
-/** CSV export links (the browser downloads them with the session cookie). */
-export function eventsCsvUrl(kind: string | null): string {
-  const q = new URLSearchParams({ format: "csv", limit: "100000" });
-  if (kind !== null && kind !== "") q.set("kind", kind);
+/** CSV export links of one robot's log (the browser downloads them with the session cookie). */
+export function eventsCsvUrl(robot: string, kind: EventKind | null): string {
+  const q = new URLSearchParams({ robot, format: "csv", limit: "100000" });
+  if (kind !== null) q.set("kind", kind);
   return `${API}/events?${q.toString()}`;
 }
 
-export function auditCsvUrl(): string {
-  return `${API}/audit?format=csv&limit=100000`;
+export function auditCsvUrl(robot: string): string {
+  return `${API}/audit?${new URLSearchParams({ robot, format: "csv", limit: "100000" }).toString()}`;
 }
-
-export type { AuditItem, EventItem, Page };

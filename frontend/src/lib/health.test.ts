@@ -13,6 +13,7 @@ const connected: ConnectionStatus = {
   gaps: 0,
   duplicates: 0,
   late: 0,
+  malformed: 0,
   interval_mean_ms: 10,
   interval_p99_ms: 10.4,
   interval_max_ms: 11,

@@ -3,7 +3,7 @@ import type { Frame } from "../generated/layout";
 import { frameField } from "./layoutInfo";
 import { EVENT_LIMIT, LiveData } from "./liveData";
 import { JOINT_PLOTS } from "./plots";
-import type { ConnectionStatus } from "./protocol";
+import type { ConnectionStatus, ServerMessage } from "./protocol";
 
 const connection = {
   state: "connected",
@@ -31,7 +31,7 @@ describe("LiveData", () => {
     const live = new LiveData(JOINT_PLOTS, { capacity: 128, now: () => clock.t });
     expect(live.channels.channelCount).toBe(6 * frameField("joint_position").count);
     live.setSocketState("open");
-    live.handle({ type: "hello", layout_version: 1, connection, control: { holder: null }, rate_hz: null });
+    live.handle({ type: "hello", robot: "r1", layout_version: 1, connection, control: { holder: null }, rate_hz: null });
     live.handle({
       type: "frames",
       frames: [
@@ -74,7 +74,7 @@ describe("LiveData", () => {
     const clock = { t: 1_000_000 };
     const live = new LiveData(JOINT_PLOTS, { capacity: 16, now: () => clock.t });
     live.setSocketState("open");
-    live.handle({ type: "hello", layout_version: 1, connection, control: { holder: null }, rate_hz: null });
+    live.handle({ type: "hello", robot: "r1", layout_version: 1, connection, control: { holder: null }, rate_hz: null });
     live.handle({ type: "frames", frames: [{ seq: 1, t: 1, frame: frame(1) }] });
     live.publish();
     expect(live.getSnapshot().health).toBe("connected");
@@ -90,7 +90,8 @@ describe("LiveData", () => {
   it("follows connection and control events, and keeps a bounded event list", () => {
     const live = new LiveData(JOINT_PLOTS, { capacity: 16 });
     live.setSocketState("open");
-    live.handle({ type: "hello", layout_version: 99, connection, control: { holder: null }, rate_hz: null });
+    // A service of another layout version: its hello is outside this build's contract on purpose.
+    live.handle({ type: "hello", robot: "r1", layout_version: 99, connection, control: { holder: null }, rate_hz: null } as unknown as ServerMessage);
     expect(live.getSnapshot().layoutMismatch).toBe(99);
     live.handle({ type: "event", event: { kind: "connection", time: 1, state: "lost", reason: "timeout" } });
     expect(live.getSnapshot().connection?.state).toBe("lost");

@@ -42,6 +42,8 @@ export interface LiveSnapshot {
   readonly rate_hz: number | null;
   /** Why the service closed the stream last, if it said so. */
   readonly closeReason: string | null;
+  /** The robot's name as the stream's hello gave it (null: before the hello). */
+  readonly robot: string | null;
 }
 
 export interface LiveDataOptions {
@@ -81,6 +83,7 @@ export class LiveData {
   private rate_hz: number | null = null;
   private staleSince_ms: number | null = null;
   private closeReason: string | null = null;
+  private robot: string | null = null;
   private current: LiveSnapshot;
   private timer: ReturnType<typeof setInterval> | null = null;
   framesReceived = 0;
@@ -136,6 +139,7 @@ export class LiveData {
         this.connection = message.connection;
         this.control = message.control;
         this.rate_hz = message.rate_hz;
+        this.robot = message.robot ?? null;
         this.layoutMismatch = message.layout_version === LAYOUT_VERSION ? null : message.layout_version;
         this.lastSeq = null;
         this.publish();
@@ -152,10 +156,6 @@ export class LiveData {
         return;
       case "status":
         this.connection = message.connection;
-        this.publish();
-        return;
-      case "control":
-        this.control = message.control;
         this.publish();
         return;
       case "event":
@@ -196,19 +196,10 @@ export class LiveData {
 
   private addEvent(event: StreamEvent): void {
     this.events = [event, ...this.events.slice(0, EVENT_LIMIT - 1)];
-    if (event.kind === "control") {
-      const holder = (event as { holder?: unknown }).holder;
-      if (holder === null || (typeof holder === "object" && holder !== undefined)) {
-        this.control = { holder: holder as ControlStatus["holder"] };
-      }
-    }
-    if (event.kind === "connection" && typeof event.state === "string" && this.connection !== null) {
+    if (event.kind === "control") this.control = { holder: event.holder };
+    if (event.kind === "connection" && this.connection !== null) {
       // The event is immediate; the next status (≤ 1 s) brings the rest.
-      this.connection = {
-        ...this.connection,
-        state: event.state as ConnectionStatus["state"],
-        reason: typeof event.reason === "string" ? event.reason : null,
-      };
+      this.connection = { ...this.connection, state: event.state, reason: event.reason ?? null };
     }
   }
 
@@ -247,6 +238,7 @@ export class LiveData {
       layoutMismatch: this.layoutMismatch,
       rate_hz: this.rate_hz,
       closeReason: this.closeReason,
+      robot: this.robot,
     };
   }
 }

@@ -1,79 +1,45 @@
 /**
- * Layer: the shapes of the backend's REST and WebSocket messages (docs/api.md), and a tolerant
- * parser for WebSocket messages. No React, no DOM, no network.
+ * Layer: names for the service's REST and WebSocket shapes, and a tolerant parser for WebSocket
+ * messages. No React, no DOM, no network.
  *
- * Field names of frames and command images are the layout's (generated types); this module only
- * describes the envelopes around them.
+ * Every shape is the service's own, from its OpenAPI document: `src/generated/api.ts` is
+ * generated from it (`make codegen`), and this module only gives the schemas short names. A
+ * frame's fields are the layout's (`src/generated/layout.ts`); a test checks that the OpenAPI
+ * frame and the layout's frame agree.
  */
-import type { CommandImage, Frame } from "../generated/layout";
+import type { components } from "../generated/api";
+import type { Frame } from "../generated/layout";
 
-export type LinkState = "idle" | "connecting" | "connected" | "lost" | "refused";
+type Schemas = components["schemas"];
 
-export interface ConnectionStatus {
-  readonly state: LinkState;
-  readonly reason: string | null;
-  readonly robot: string;
-  readonly mode: "exclusive_owner" | "input_only";
-  readonly rpi_ms: number;
-  readonly packets_in: number;
-  readonly packets_out: number;
-  readonly gaps: number;
-  readonly duplicates: number;
-  readonly late: number;
-  readonly interval_mean_ms: number | null;
-  readonly interval_p99_ms: number | null;
-  readonly interval_max_ms: number | null;
-  readonly last_frame_age_s: number | null;
-  readonly stale: boolean;
-  readonly connected_since: number | null;
-}
+export type ConnectionStatus = Schemas["ConnectionStatus"];
+export type LinkState = ConnectionStatus["state"];
+export type ControlHolder = Schemas["Holder"];
+export type ControlStatus = Schemas["ControlStatus"];
+export type RobotSummary = Schemas["RobotSummary"];
+export type RobotStatus = Schemas["RobotStatus"];
+export type CommandState = Schemas["CommandState"];
+export type ApiErrorBody = Schemas["ApiErrorBody"];
+export type AuditItem = Schemas["AuditRow"];
+export type EventPage = Schemas["EventPage"];
+export type AuditPage = Schemas["AuditPage"];
+/** An event as the log and the WebSocket carry it: kind, time, robot and the kind's own fields. */
+export type StreamEvent = Schemas["EventMessage"]["event"];
+export type EventItem = EventPage["items"][number];
+export type EventKind = StreamEvent["kind"];
+/** A frame with its sequence number and receive time; its fields typed by the layout. */
+export type StampedFrame = Omit<Schemas["FrameItem"], "frame"> & { readonly frame: Frame };
+export type FramesMessage = Omit<Schemas["FramesMessage"], "frames"> & { readonly frames: readonly StampedFrame[] };
+export type ServerMessage = Exclude<Schemas["StreamMessage"], { type: "frames" }> | FramesMessage;
 
-export interface ControlHolder {
-  readonly user: string;
-  readonly since: number;
-}
-
-export interface ControlStatus {
-  readonly holder: ControlHolder | null;
-}
-
-export type EventKind = "connection" | "robot_state" | "flag" | "write" | "control";
-export const EVENT_KINDS: readonly EventKind[] = [
+/** Every event kind, in the order the filter offers them (a test checks none is missing). */
+export const EVENT_KINDS = [
   "connection",
   "robot_state",
   "flag",
   "write",
   "control",
-];
-
-/** An event as the WebSocket sends it: kind, time and the kind's own fields. */
-export interface StreamEvent {
-  readonly kind: EventKind | string;
-  readonly time: number;
-  readonly [key: string]: unknown;
-}
-
-export interface StampedFrame {
-  readonly seq: number;
-  /** received_at on the backend, seconds since the epoch */
-  readonly t: number;
-  readonly frame: Frame;
-}
-
-export type ServerMessage =
-  | {
-      readonly type: "hello";
-      readonly layout_version: number;
-      readonly connection: ConnectionStatus;
-      readonly control: ControlStatus;
-      readonly rate_hz: number | null;
-    }
-  | { readonly type: "frames"; readonly frames: readonly StampedFrame[] }
-  | { readonly type: "dropped"; readonly count: number }
-  | { readonly type: "status"; readonly connection: ConnectionStatus }
-  | { readonly type: "event"; readonly event: StreamEvent }
-  /** Some backends also push control changes as their own message; accepted, never required. */
-  | { readonly type: "control"; readonly control: ControlStatus };
+] as const satisfies readonly EventKind[];
 
 function isObject(v: unknown): v is Record<string, unknown> {
   return typeof v === "object" && v !== null && !Array.isArray(v);
@@ -111,8 +77,6 @@ export function parseServerMessage(text: string): ServerMessage | null {
       return isObject(data.event) && typeof data.event.kind === "string"
         ? (data as unknown as ServerMessage)
         : null;
-    case "control":
-      return isObject(data.control) ? (data as unknown as ServerMessage) : null;
     default:
       return null;
   }
@@ -123,39 +87,15 @@ export interface User {
   readonly role: "viewer" | "operator" | "admin" | string;
 }
 
+/** A user as an auth answer carries it, or null when it is not one. */
+export function userOf(value: unknown): User | null {
+  if (!isObject(value) || typeof value.name !== "string" || typeof value.role !== "string") return null;
+  return { name: value.name, role: value.role };
+}
+
 const ROLE_RANK: Readonly<Record<string, number>> = { viewer: 0, operator: 1, admin: 2 };
 
 export function roleAtLeast(user: User | null, role: "viewer" | "operator" | "admin"): boolean {
   if (user === null) return false;
   return (ROLE_RANK[user.role] ?? -1) >= (ROLE_RANK[role] ?? 99);
-}
-
-export interface CommandState {
-  readonly image: CommandImage;
-  readonly run: boolean;
-}
-
-export interface AuditItem {
-  readonly id: number;
-  readonly time: number;
-  readonly user: string | null;
-  readonly client: string | null;
-  readonly action: string;
-  readonly fields: unknown;
-  readonly before: unknown;
-  readonly requested: unknown;
-  readonly outcome: string;
-  readonly reason: string | null;
-}
-
-export interface EventItem {
-  readonly id: number;
-  readonly time: number;
-  readonly kind: string;
-  readonly data: unknown;
-}
-
-export interface Page<T> {
-  readonly items: readonly T[];
-  readonly total: number;
 }

@@ -1,4 +1,60 @@
-/** Layer: pure routing rule: which face a path shows (no React, no DOM). */
-export function isKioskPath(pathname: string): boolean {
-  return /^\/kiosk\/?$/.test(pathname);
+/**
+ * Layer: pure routing rules (no React, no DOM): which face a path shows, which robot a URL
+ * names, and the links between the faces. The selected robot lives in the URL (`?robot=NAME`)
+ * so that a link opens the same robot (docs/getting-started.md).
+ */
+
+export type Face = "panel" | "kiosk" | "fleet";
+
+/** `/kiosk` is the kiosk, `/fleet` the fleet overview, anything else the panel. */
+export function faceOf(pathname: string): Face {
+  if (/^\/kiosk\/?$/.test(pathname)) return "kiosk";
+  if (/^\/fleet\/?$/.test(pathname)) return "fleet";
+  return "panel";
 }
+
+export function isKioskPath(pathname: string): boolean {
+  return faceOf(pathname) === "kiosk";
+}
+
+/** A robot's name as the service's settings allow it (docs/api.md, robots). */
+export const ROBOT_NAME_PATTERN = /^[a-z0-9][a-z0-9_-]{0,31}$/;
+
+/** The robot a URL's query names (`?robot=NAME`), or null when it names none or an invalid one. */
+export function robotFromSearch(search: string): string | null {
+  const name = new URLSearchParams(search).get("robot");
+  return name !== null && ROBOT_NAME_PATTERN.test(name) ? name : null;
+}
+
+/** `search` with `?robot=` set to `robot` (null: removed); other parameters are kept. */
+export function searchWithRobot(search: string, robot: string | null): string {
+  const query = new URLSearchParams(search);
+  if (robot === null) query.delete("robot");
+  else query.set("robot", robot);
+  const text = query.toString();
+  return text === "" ? "" : `?${text}`;
+}
+
+/**
+ * The robot a page shows: the one its URL names when the service knows it, else the service's
+ * first (default) robot; null while the list is unknown and the URL names none. A name the
+ * service does not know is reported as `unknown`, so the page can say so instead of guessing.
+ */
+export function chooseRobot(
+  wanted: string | null,
+  known: readonly string[] | null,
+): { readonly robot: string | null; readonly unknown: string | null } {
+  if (known === null) return { robot: wanted, unknown: null };
+  if (wanted !== null && known.includes(wanted)) return { robot: wanted, unknown: null };
+  return { robot: known[0] ?? null, unknown: wanted };
+}
+
+export function panelHref(robot: string): string {
+  return `/${searchWithRobot("", robot)}`;
+}
+
+export function kioskHref(robot: string): string {
+  return `/kiosk${searchWithRobot("", robot)}`;
+}
+
+export const FLEET_HREF = "/fleet";

@@ -16,6 +16,8 @@ export interface LiveRuntime {
 }
 
 export interface RuntimeOptions {
+  /** The robot to stream (its name); null or undefined: the service's default robot. */
+  readonly robot?: string | null;
   /** Frames per second wanted from the backend; undefined: every frame. */
   readonly rate_hz?: number;
   /** A session token for the stream's handshake (a kiosk of a site where viewing needs a login). */
@@ -24,7 +26,7 @@ export interface RuntimeOptions {
 
 export function createLiveRuntime(plots: readonly PlotSpec[], options: RuntimeOptions = {}): LiveRuntime {
   const live = new LiveData(plots);
-  const stream = new StreamClient(() => streamUrl(window.location, options.rate_hz, options.token), {
+  const stream = new StreamClient(() => streamUrl(window.location, options.robot ?? null, options.rate_hz, options.token), {
     onMessage: (m) => live.handle(m),
     onSocketState: (s) => live.setSocketState(s),
     onCloseReason: (r) => live.setCloseReason(r),

@@ -62,9 +62,18 @@ describe("StreamClient", () => {
   });
 
   it("builds the stream URL of the page's origin", () => {
-    expect(streamUrl({ protocol: "http:", host: "h:8000" })).toBe("ws://h:8000/api/v1/stream");
-    expect(streamUrl({ protocol: "https:", host: "h" }, 20)).toBe("wss://h/api/v1/stream?rate=20");
-    expect(streamUrl({ protocol: "http:", host: "h" }, undefined, "a b")).toBe("ws://h/api/v1/stream?token=a+b");
+    expect(streamUrl({ protocol: "http:", host: "h:8000" }, null)).toBe("ws://h:8000/api/v1/stream");
+    expect(streamUrl({ protocol: "https:", host: "h" }, null, 20)).toBe("wss://h/api/v1/stream?rate=20");
+    expect(streamUrl({ protocol: "http:", host: "h" }, null, undefined, "a b")).toBe("ws://h/api/v1/stream?token=a+b");
+  });
+
+  it("streams the named robot on its own path", () => {
+    expect(streamUrl({ protocol: "http:", host: "h:8000" }, "cell-2")).toBe("ws://h:8000/api/v1/robots/cell-2/stream");
+    expect(streamUrl({ protocol: "https:", host: "h" }, "m0609", 25, "t")).toBe(
+      "wss://h/api/v1/robots/m0609/stream?rate=25&token=t",
+    );
+    // A name is one path segment whatever it holds (the service's names never need this).
+    expect(streamUrl({ protocol: "http:", host: "h" }, "a/b")).toBe("ws://h/api/v1/robots/a%2Fb/stream");
   });
 
   it("parses messages and skips bad ones without stopping", () => {

@@ -1,5 +1,5 @@
 /**
- * Layer: the WebSocket client of `WS /api/v1/stream` (plain TypeScript, no React).
+ * Layer: the WebSocket client of `WS /api/v1/robots/{name}/stream` (plain TypeScript, no React).
  *
  * Connects, parses messages (bad ones are counted and skipped), and reconnects by itself with
  * exponential backoff and jitter after any close. A watchdog closes a socket that has been
@@ -53,9 +53,13 @@ export interface StreamOptions {
 
 export const DEFAULT_SILENCE_TIMEOUT_MS = 5000;
 
-/** ws(s)://host/api/v1/stream[?rate=HZ] for the page's own origin. */
+/**
+ * ws(s)://host/api/v1/robots/NAME/stream[?rate=HZ&token=…] for the page's own origin; without a
+ * robot, the service's default robot (its first) on `/api/v1/stream`.
+ */
 export function streamUrl(
   location: { protocol: string; host: string },
+  robot: string | null,
   rate_hz?: number,
   token?: string | null,
 ): string {
@@ -64,7 +68,8 @@ export function streamUrl(
   if (rate_hz !== undefined) query.set("rate", String(rate_hz));
   if (token !== undefined && token !== null && token !== "") query.set("token", token);
   const q = query.toString();
-  return `${scheme}://${location.host}/api/v1/stream${q === "" ? "" : `?${q}`}`;
+  const path = robot === null ? "/api/v1/stream" : `/api/v1/robots/${encodeURIComponent(robot)}/stream`;
+  return `${scheme}://${location.host}${path}${q === "" ? "" : `?${q}`}`;
 }
 
 export class StreamClient {

@@ -1,13 +1,13 @@
 /**
- * Events and audit tables. Events: history from the API (operators) or the live stream (anyone),
- * filtered by kind; audit: write attempts and control changes (operators), filtered by action.
- * CSV export goes through the API.
+ * Events and audit tables of the robot shown. Events: history from the API (operators) or the
+ * live stream (anyone), filtered by kind; audit: write attempts and control changes (operators),
+ * filtered by action. CSV export goes through the API.
  */
 import { memo, useEffect, useMemo, useState } from "react";
-import { auditCsvUrl, eventsCsvUrl, getAudit, getEvents } from "../lib/api";
+import { api, auditCsvUrl, eventsCsvUrl } from "../lib/api";
 import { formatTimestamp } from "../lib/health";
 import { keyLabel } from "../lib/layoutInfo";
-import { EVENT_KINDS, roleAtLeast, type AuditItem, type EventItem, type Page, type StreamEvent, type User } from "../lib/protocol";
+import { EVENT_KINDS, roleAtLeast, type AuditPage, type EventKind, type EventPage, type StreamEvent, type User } from "../lib/protocol";
 
 /** A table filter: "all" (the empty value) or one of ``options``. */
 function FilterSelect(props: {
@@ -36,35 +36,29 @@ const PAGE = 100;
 
 interface Row {
   readonly key: string;
-  readonly time: number;
-  readonly kind: string;
-  readonly data: Record<string, unknown>;
+  readonly event: StreamEvent;
 }
 
-function describe(kind: string, data: Record<string, unknown>): string {
+function describe(event: StreamEvent): string {
   const s = (v: unknown) => (v === null || v === undefined ? "—" : typeof v === "object" ? JSON.stringify(v) : String(v));
-  switch (kind) {
+  const because = (reason: string | null | undefined) => (reason ? ` (${reason})` : "");
+  switch (event.kind) {
     case "robot_state":
-      return `${s(data.from_name ?? data.from)} → ${s(data.to_name ?? data.to)}`;
+      return `${s(event.from_name ?? event.from)} → ${s(event.to_name)}`;
     case "flag":
-      return `${s(data.flag)} = ${s(data.value)}`;
+      return `${event.flag} = ${String(event.value)}`;
     case "connection":
-      return `${s(data.state)}${data.reason ? `: ${s(data.reason)}` : ""}`;
-    case "control": {
-      const holder = data.holder as { user?: string } | null | undefined;
-      return `${holder?.user ?? "nobody"} holds control${data.reason ? ` (${s(data.reason)})` : ""}`;
-    }
+      return `${event.state}${event.reason ? `: ${event.reason}` : ""}`;
+    case "control":
+      return `${event.holder?.user ?? "nobody"} holds control${because(event.reason)}`;
     case "write":
-      return `${s(data.user)}: ${labels(data.fields)} → ${s(data.outcome)}${data.reason ? ` (${s(data.reason)})` : ""}`;
-    default:
-      return JSON.stringify(data);
+      return `${s(event.user)}: ${labels(event.fields)} → ${event.outcome}${because(event.reason)}`;
   }
 }
 
-/** ["controlbox_do.2"] → "DO 3"; anything else as JSON. */
-function labels(fields: unknown): string {
-  if (Array.isArray(fields) && fields.every((f) => typeof f === "string")) return fields.map(keyLabel).join(", ");
-  return fields === null || fields === undefined ? "—" : JSON.stringify(fields);
+/** ["controlbox_do.2"] → "DO 3". */
+function labels(fields: readonly string[]): string {
+  return fields.length === 0 ? "—" : fields.map(keyLabel).join(", ");
 }
 
 /** {"controlbox_do.2": true} → "DO 3 = true"; anything else as JSON. */
@@ -77,26 +71,18 @@ function values(v: unknown): string {
   return short(v);
 }
 
-function fromStream(e: StreamEvent, i: number): Row {
-  const { kind, time, ...data } = e;
-  return { key: `live-${time}-${i}`, time, kind, data };
-}
-
-function fromApi(item: EventItem): Row {
-  const data = typeof item.data === "object" && item.data !== null ? (item.data as Record<string, unknown>) : { value: item.data };
-  return { key: `api-${item.id}`, time: item.time, kind: item.kind, data };
-}
-
 // Memoized: the panel re-renders with every live snapshot; these only when events or the user change.
 export const EventsView = memo(function EventsView({
+  robot,
   user,
   liveEvents,
 }: {
+  readonly robot: string;
   readonly user: User | null;
   readonly liveEvents: readonly StreamEvent[];
 }) {
-  const [kind, setKind] = useState("");
-  const [history, setHistory] = useState<Page<EventItem> | null>(null);
+  const [kind, setKind] = useState<EventKind | "">("");
+  const [history, setHistory] = useState<EventPage | null>(null);
   const [error, setError] = useState<string | null>(null);
   const canReadHistory = roleAtLeast(user, "operator");
   const newest = liveEvents[0];
@@ -109,13 +95,14 @@ export const EventsView = memo(function EventsView({
     let cancelled = false;
     // Refetch when the filter changes or a new event arrives (debounced).
     const timer = setTimeout(() => {
-      getEvents(kind === "" ? null : kind, PAGE, 0)
+      api
+        .events(robot, kind === "" ? null : kind, PAGE, 0)
         .then((answer) => {
           if (cancelled) return;
-          if (answer.status === 200) {
-            setHistory(answer.body as Page<EventItem>);
+          if (answer.ok) {
+            setHistory(answer.page);
             setError(null);
-          } else setError(`events: HTTP ${answer.status}`);
+          } else setError(`events: ${answer.reason}`);
         })
         .catch((e: unknown) => !cancelled && setError(String(e)));
     }, 300);
@@ -123,21 +110,27 @@ export const EventsView = memo(function EventsView({
       cancelled = true;
       clearTimeout(timer);
     };
-  }, [canReadHistory, kind, newest]);
+  }, [canReadHistory, kind, newest, robot]);
 
   const rows: Row[] = useMemo(() => {
-    if (history !== null) return history.items.map(fromApi);
-    return liveEvents.filter((e) => kind === "" || e.kind === kind).map(fromStream);
+    if (history !== null) return history.items.map((event, i) => ({ key: `log-${event.id ?? `${event.time}-${i}`}`, event }));
+    return liveEvents.filter((e) => kind === "" || e.kind === kind).map((event, i) => ({ key: `live-${event.time}-${i}`, event }));
   }, [history, liveEvents, kind]);
 
   return (
     <div className="table-view">
       <div className="table-view__bar">
-        <FilterSelect label="kind" testId="events-kind-filter" value={kind} options={EVENT_KINDS} onChange={setKind} />
+        <FilterSelect
+          label="kind"
+          testId="events-kind-filter"
+          value={kind}
+          options={EVENT_KINDS}
+          onChange={(value) => setKind(EVENT_KINDS.find((k) => k === value) ?? "")}
+        />
         <span className="table-view__source">
           {history !== null ? `${history.total} in the log` : "live events since this page opened (log in as an operator for the history)"}
         </span>
-        <a data-testid="events-csv" href={eventsCsvUrl(kind === "" ? null : kind)} download>
+        <a data-testid="events-csv" href={eventsCsvUrl(robot, kind === "" ? null : kind)} download>
           Export CSV
         </a>
         {error !== null && <span className="reason">{error}</span>}
@@ -153,10 +146,10 @@ export const EventsView = memo(function EventsView({
           </thead>
           <tbody>
             {rows.map((row) => (
-              <tr key={row.key} data-kind={row.kind}>
-                <td className="nowrap">{formatTimestamp(row.time)}</td>
-                <td>{row.kind}</td>
-                <td>{describe(row.kind, row.data)}</td>
+              <tr key={row.key} data-kind={row.event.kind}>
+                <td className="nowrap">{formatTimestamp(row.event.time)}</td>
+                <td>{row.event.kind}</td>
+                <td>{describe(row.event)}</td>
               </tr>
             ))}
             {rows.length === 0 && (
@@ -179,13 +172,15 @@ function short(v: unknown): string {
 }
 
 export const AuditView = memo(function AuditView({
+  robot,
   user,
   liveEvents,
 }: {
+  readonly robot: string;
   readonly user: User | null;
   readonly liveEvents: readonly StreamEvent[];
 }) {
-  const [page, setPage] = useState<Page<AuditItem> | null>(null);
+  const [page, setPage] = useState<AuditPage | null>(null);
   const [action, setAction] = useState("");
   const [error, setError] = useState<string | null>(null);
   const allowed = roleAtLeast(user, "operator");
@@ -198,13 +193,14 @@ export const AuditView = memo(function AuditView({
     }
     let cancelled = false;
     const timer = setTimeout(() => {
-      getAudit(PAGE, 0)
+      api
+        .audit(robot, PAGE, 0)
         .then((answer) => {
           if (cancelled) return;
-          if (answer.status === 200) {
-            setPage(answer.body as Page<AuditItem>);
+          if (answer.ok) {
+            setPage(answer.page);
             setError(null);
-          } else setError(`audit: HTTP ${answer.status}`);
+          } else setError(`audit: ${answer.reason}`);
         })
         .catch((e: unknown) => !cancelled && setError(String(e)));
     }, 300);
@@ -212,7 +208,7 @@ export const AuditView = memo(function AuditView({
       cancelled = true;
       clearTimeout(timer);
     };
-  }, [allowed, newestAudited]);
+  }, [allowed, newestAudited, robot]);
 
   if (!allowed) return <p className="hint">Log in as an operator to see the audit log.</p>;
   const actions = [...new Set((page?.items ?? []).map((i) => i.action))].sort();
@@ -222,7 +218,7 @@ export const AuditView = memo(function AuditView({
       <div className="table-view__bar">
         <FilterSelect label="action" testId="audit-action-filter" value={action} options={actions} onChange={setAction} />
         <span className="table-view__source">{page !== null ? `${page.total} in the log, newest ${PAGE} shown` : "loading…"}</span>
-        <a data-testid="audit-csv" href={auditCsvUrl()} download>
+        <a data-testid="audit-csv" href={auditCsvUrl(robot)} download>
           Export CSV
         </a>
         {error !== null && <span className="reason">{error}</span>}

@@ -1,6 +1,8 @@
 /**
- * The commissioning panel (`/`): state, flags, connection health and control always visible in
- * a sticky header; live joint and TCP plots; I/O and registers with writes; events and audit.
+ * The commissioning panel (`/?robot=NAME`): one robot at a time, chosen in the header (the
+ * service's first robot without `?robot=`). State, flags, connection health and control always
+ * visible in a sticky header; live joint and TCP plots; I/O and registers with writes; events
+ * and audit. Switching robot builds a new live pipeline (its own stream) for the new robot.
  */
 import { useCallback, useEffect, useMemo, useState } from "react";
 import { ConnectionHealth } from "../components/ConnectionHealth";
@@ -10,13 +12,15 @@ import { LivePlotView } from "../components/LivePlotView";
 import { RuntimeContext, useLive } from "../components/runtimeContext";
 import { StaleBanner } from "../components/StaleBanner";
 import { StateBadge } from "../components/StateBadge";
-import { getMe } from "../lib/api";
+import { api } from "../lib/api";
 import { ALL_PLOTS, JOINT_PLOTS, TCP_PLOTS } from "../lib/plots";
-import type { ControlStatus, User } from "../lib/protocol";
+import type { ControlStatus, RobotSummary, User } from "../lib/protocol";
+import { chooseRobot, robotFromSearch, searchWithRobot } from "../lib/route";
 import { createLiveRuntime, type LiveRuntime } from "../lib/runtime";
 import { AuditView, EventsView } from "./EventsView";
 import { IoSection } from "./IoSection";
 import { RegistersSection } from "./RegistersSection";
+import { RobotSwitcher } from "./RobotSwitcher";
 import { SessionBar } from "./SessionBar";
 import { WriteProvider, useWrites } from "./writeContext";
 import "../styles/panel.css";
@@ -47,37 +51,39 @@ function WriteBlockedHint() {
   );
 }
 
-function Panel({ runtime }: { runtime: LiveRuntime }) {
+interface PanelProps {
+  readonly robot: string;
+  readonly robots: readonly RobotSummary[] | null;
+  readonly onSelect: (robot: string) => void;
+  readonly user: User | null;
+  readonly onUser: (user: User | null) => void;
+}
+
+function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & { runtime: LiveRuntime }) {
   const live = useLive();
-  const [user, setUser] = useState<User | null>(null);
   const stale = live.health !== "connected";
 
-  useEffect(() => {
-    getMe()
-      .then(setUser)
-      .catch(() => setUser(null));
-  }, []);
-
-  const onUser = useCallback(
+  const onSessionUser = useCallback(
     (next: User | null) => {
-      setUser(next);
+      onUser(next);
       // A new socket carries the new session (control is tied to the holder's socket).
       runtime.stream.restart();
     },
-    [runtime],
+    [runtime, onUser],
   );
   const onControl = useCallback((control: ControlStatus) => runtime.live.setControl(control), [runtime]);
 
   return (
-    <WriteProvider user={user} live={live}>
-      <div className="panel" data-testid="panel" data-stale={stale ? "true" : "false"}>
+    <WriteProvider robot={robot} user={user} live={live}>
+      <div className="panel" data-testid="panel" data-robot={robot} data-stale={stale ? "true" : "false"}>
         <header className="panel-header">
+          <RobotSwitcher robot={robot} robots={robots} onSelect={onSelect} />
           <StateBadge value={live.frame?.robot_state} stale={stale} size="panel" />
           <FlagBadges frame={live.frame} stale={stale} />
           <ConnectionHealth live={live} />
           <div className="panel-header__control">
             <ControlHolder control={live.control} />
-            <SessionBar user={user} control={live.control} onUser={onUser} onControl={onControl} />
+            <SessionBar robot={robot} user={user} control={live.control} onUser={onSessionUser} onControl={onControl} />
           </div>
         </header>
         <StaleBanner live={live} />
@@ -121,11 +127,11 @@ function Panel({ runtime }: { runtime: LiveRuntime }) {
           </section>
           <section id="events">
             <h2>Events</h2>
-            <EventsView user={user} liveEvents={live.events} />
+            <EventsView robot={robot} user={user} liveEvents={live.events} />
           </section>
           <section id="audit">
             <h2>Audit</h2>
-            <AuditView user={user} liveEvents={live.events} />
+            <AuditView robot={robot} user={user} liveEvents={live.events} />
           </section>
         </main>
       </div>
@@ -133,19 +139,113 @@ function Panel({ runtime }: { runtime: LiveRuntime }) {
   );
 }
 
-export function PanelApp() {
-  const runtime = useMemo(() => createLiveRuntime(ALL_PLOTS), []);
+/** One robot's panel: its own live pipeline, started while it is shown. */
+function RobotPanel(props: PanelProps) {
+  const { robot } = props;
+  const runtime = useMemo(() => createLiveRuntime(ALL_PLOTS, { robot }), [robot]);
   useEffect(() => {
     runtime.start();
     window.__cobotHmi = runtime;
     return () => {
       runtime.stop();
-      delete window.__cobotHmi;
+      if (window.__cobotHmi === runtime) delete window.__cobotHmi;
     };
   }, [runtime]);
   return (
     <RuntimeContext.Provider value={runtime}>
-      <Panel runtime={runtime} />
+      <Panel runtime={runtime} {...props} />
     </RuntimeContext.Provider>
+  );
+}
+
+/** Before a robot is known: why not, and the login (where viewing needs one). */
+function NoRobot({ reason, user, onUser }: { reason: string; user: User | null; onUser: (user: User | null) => void }) {
+  return (
+    <div className="panel" data-testid="panel">
+      <header className="panel-header">
+        <p className="hint" data-testid="robots-reason">
+          {reason}
+        </p>
+        <div className="panel-header__control">
+          {user === null && <SessionBar robot="" user={null} control={{ holder: null }} onUser={onUser} onControl={() => undefined} />}
+        </div>
+      </header>
+    </div>
+  );
+}
+
+export function PanelApp() {
+  const [wanted, setWanted] = useState(() => robotFromSearch(window.location.search));
+  const [robots, setRobots] = useState<readonly RobotSummary[] | null>(null);
+  const [robotsError, setRobotsError] = useState<string | null>(null);
+  const [user, setUser] = useState<User | null>(null);
+
+  useEffect(() => {
+    api
+      .me()
+      .then(setUser)
+      .catch(() => setUser(null));
+  }, []);
+
+  // The list of robots: at the start and again after a login or logout (a site may require a
+  // login to view anything).
+  useEffect(() => {
+    let cancelled = false;
+    api
+      .robots()
+      .then((answer) => {
+        if (cancelled) return;
+        if (answer.ok) {
+          setRobots(answer.robots);
+          setRobotsError(null);
+        } else setRobotsError(answer.reason);
+      })
+      .catch((e: unknown) => !cancelled && setRobotsError(String(e)));
+    return () => {
+      cancelled = true;
+    };
+  }, [user]);
+
+  // Back and forward move between robots as they move between pages.
+  useEffect(() => {
+    const onPop = () => setWanted(robotFromSearch(window.location.search));
+    window.addEventListener("popstate", onPop);
+    return () => window.removeEventListener("popstate", onPop);
+  }, []);
+
+  const onSelect = useCallback((next: string) => {
+    window.history.pushState(null, "", `${window.location.pathname}${searchWithRobot(window.location.search, next)}`);
+    setWanted(next);
+  }, []);
+
+  const { robot, unknown } = chooseRobot(wanted, robots?.map((r) => r.name) ?? null);
+
+  // A URL without a robot is given the one shown, so that it can be copied as a link to it.
+  useEffect(() => {
+    if (wanted !== null || robot === null) return;
+    window.history.replaceState(null, "", `${window.location.pathname}${searchWithRobot(window.location.search, robot)}`);
+    setWanted(robot);
+  }, [wanted, robot]);
+
+  if (robot === null) {
+    const reason =
+      unknown !== null
+        ? `The service has no robot "${unknown}".`
+        : robotsError !== null
+          ? `The robots of the service are unknown: ${robotsError}`
+          : robots !== null
+            ? "The service has no robot."
+            : "Asking the service for its robots…";
+    return <NoRobot reason={reason} user={user} onUser={setUser} />;
+  }
+  return (
+    <>
+      {unknown !== null && (
+        <div className="stale-banner" role="alert" data-testid="unknown-robot">
+          The service has no robot "{unknown}"; showing {robot}.
+        </div>
+      )}
+      <RobotPanel key={robot} robot={robot} robots={robots} onSelect={onSelect} user={user} onUser={setUser} />
+    </>
   );
 }

@@ -1,16 +1,19 @@
-/** Login form, the logged-in user, and Take control / Release. */
+/** Login form, the logged-in user, and Take control / Release of the robot shown. */
 import { useState, type FormEvent } from "react";
-import { controlOf, errorReason, login, logout, releaseControl, takeControl } from "../lib/api";
-import { roleAtLeast, type ControlStatus, type User } from "../lib/protocol";
+import { api, controlOf, errorReason } from "../lib/api";
+import { roleAtLeast, userOf, type ControlStatus, type User } from "../lib/protocol";
+import type { HttpAnswer } from "../lib/writes";
 
 interface Props {
+  /** The robot whose control the buttons take and release. */
+  readonly robot: string;
   readonly user: User | null;
   readonly control: ControlStatus;
   readonly onUser: (user: User | null) => void;
   readonly onControl: (control: ControlStatus) => void;
 }
 
-export function SessionBar({ user, control, onUser, onControl }: Props) {
+export function SessionBar({ robot, user, control, onUser, onControl }: Props) {
   const [username, setUsername] = useState("");
   const [password, setPassword] = useState("");
   const [busy, setBusy] = useState(false);
@@ -22,10 +25,10 @@ export function SessionBar({ user, control, onUser, onControl }: Props) {
     setBusy(true);
     setLoginError(null);
     try {
-      const answer = await login(username, password);
+      const answer = await api.login(username, password);
       if (answer.status === 200) {
         setPassword("");
-        onUser((answer.body as { user: User }).user);
+        onUser(userOf((answer.body as { user?: unknown } | null)?.user));
       } else {
         setLoginError(answer.status === 401 ? "wrong user name or password" : errorReason(answer));
       }
@@ -36,7 +39,7 @@ export function SessionBar({ user, control, onUser, onControl }: Props) {
     }
   };
 
-  const controlAction = async (action: () => ReturnType<typeof takeControl>) => {
+  const controlAction = async (action: () => Promise<HttpAnswer>) => {
     setBusy(true);
     setControlError(null);
     try {
@@ -91,12 +94,12 @@ export function SessionBar({ user, control, onUser, onControl }: Props) {
         {user.name} <span className="session__role">({user.role})</span>
       </span>
       {operator && !holding && (
-        <button type="button" className="primary" data-testid="take-control" disabled={busy} onClick={() => void controlAction(takeControl)}>
+        <button type="button" className="primary" data-testid="take-control" disabled={busy} onClick={() => void controlAction(() => api.takeControl(robot))}>
           Take control
         </button>
       )}
       {holding && (
-        <button type="button" data-testid="release-control" disabled={busy} onClick={() => void controlAction(releaseControl)}>
+        <button type="button" data-testid="release-control" disabled={busy} onClick={() => void controlAction(() => api.releaseControl(robot))}>
           Release
         </button>
       )}
@@ -105,7 +108,7 @@ export function SessionBar({ user, control, onUser, onControl }: Props) {
         data-testid="logout"
         disabled={busy}
         onClick={() => {
-          void logout().finally(() => onUser(null));
+          void api.logout().finally(() => onUser(null));
         }}
       >
         Log out

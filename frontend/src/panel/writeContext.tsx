@@ -8,7 +8,7 @@
  */
 import { createContext, useCallback, useContext, useEffect, useMemo, useRef, useState, useSyncExternalStore, type ReactNode } from "react";
 import type { CommandPatch } from "../generated/layout";
-import { getCommand, patchCommand } from "../lib/api";
+import { api as rest } from "../lib/api";
 import type { LiveSnapshot } from "../lib/liveData";
 import { roleAtLeast, type CommandState, type User } from "../lib/protocol";
 import { WriteTracker, performWrite, type WriteValue, type WriteView } from "../lib/writes";
@@ -68,7 +68,17 @@ function readSetting(): boolean {
   }
 }
 
-export function WriteProvider({ user, live, children }: { user: User | null; live: LiveSnapshot; children: ReactNode }) {
+export function WriteProvider({
+  robot,
+  user,
+  live,
+  children,
+}: {
+  robot: string;
+  user: User | null;
+  live: LiveSnapshot;
+  children: ReactNode;
+}) {
   const tracker = useMemo(() => new WriteTracker(), []);
   const [command, setCommand] = useState<CommandState | null>(null);
   const [confirmRegisters, setConfirmRegistersState] = useState(readSetting);
@@ -76,12 +86,13 @@ export function WriteProvider({ user, live, children }: { user: User | null; liv
   const alive = useRef(true);
 
   const refreshCommand = useCallback(() => {
-    getCommand()
+    rest
+      .command(robot)
       .then((c) => {
         if (alive.current && c !== null) setCommand(c);
       })
       .catch(() => undefined);
-  }, []);
+  }, [robot]);
 
   useEffect(() => {
     alive.current = true;
@@ -116,10 +127,10 @@ export function WriteProvider({ user, live, children }: { user: User | null; liv
   const write = useCallback(
     async (keys: readonly string[], values: readonly WriteValue[], patch: CommandPatch, confirmMessage: string | null) => {
       if (confirmMessage !== null && !(await ask(confirmMessage))) return;
-      await performWrite(tracker, keys, values, () => patchCommand(patch));
+      await performWrite(tracker, keys, values, () => rest.patchCommand(robot, patch));
       refreshCommand();
     },
-    [ask, tracker, refreshCommand],
+    [ask, tracker, refreshCommand, robot],
   );
 
   const blockReason = blockReasonOf(user, live);

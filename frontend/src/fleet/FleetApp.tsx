@@ -1,0 +1,79 @@
+/**
+ * The fleet overview (`/fleet`): one tile per robot of the service with its state, its link,
+ * who holds its control, and links to its panel and its kiosk. Read only: it polls
+ * `GET /api/v1/robots` once a second (lib/fleet.ts) and writes nothing.
+ */
+import { useEffect, useMemo, useSyncExternalStore } from "react";
+import { StateBadge } from "../components/StateBadge";
+import { api } from "../lib/api";
+import { FleetPoller, type FleetTile } from "../lib/fleet";
+import "../styles/fleet.css";
+
+function Tile({ tile, stale }: { tile: FleetTile; stale: boolean }) {
+  const live = tile.link === "connected" && !stale;
+  return (
+    <article className={`fleet-tile${live ? "" : " is-stale"}`} data-testid="fleet-tile" data-robot={tile.name} data-link={tile.link}>
+      <header className="fleet-tile__header">
+        <h2>
+          <a href={tile.panelHref} data-testid="fleet-panel-link">
+            {tile.name}
+          </a>
+        </h2>
+        <span className="fleet-tile__robot" data-testid="fleet-model">
+          {tile.model ?? "model not yet known"} · {tile.host}
+          {tile.readOnly ? " · read-only (input only)" : ""}
+        </span>
+      </header>
+      <StateBadge value={tile.stateValue} stale={!live} size="panel" />
+      <dl className="fleet-tile__facts">
+        <div>
+          <dt>link</dt>
+          <dd className={`health--${live ? "connected" : "disconnected"}`} data-testid="fleet-connection" data-state={tile.link}>
+            <span className="health__dot" aria-hidden="true" /> {tile.linkWords}
+          </dd>
+        </div>
+        <div>
+          <dt>control</dt>
+          <dd data-testid="fleet-holder" data-holder={tile.holder ?? ""}>
+            {tile.holder ?? "nobody"}
+          </dd>
+        </div>
+      </dl>
+      <nav className="fleet-tile__links">
+        <a href={tile.panelHref}>Panel</a>
+        <a href={tile.kioskHref} data-testid="fleet-kiosk-link">
+          Kiosk
+        </a>
+      </nav>
+    </article>
+  );
+}
+
+export function FleetApp() {
+  const poller = useMemo(() => new FleetPoller(() => api.robots()), []);
+  useEffect(() => {
+    poller.start();
+    return () => poller.stop();
+  }, [poller]);
+  const fleet = useSyncExternalStore(poller.subscribe, poller.getSnapshot);
+  return (
+    <div className="fleet" data-testid="fleet">
+      <header className="fleet__header">
+        <h1>Fleet</h1>
+        <span className="fleet__count">
+          {fleet.loaded ? `${fleet.tiles.length} robot${fleet.tiles.length === 1 ? "" : "s"}` : "asking the service…"}
+        </span>
+      </header>
+      {fleet.error !== null && (
+        <div className="stale-banner" role="alert" data-testid="fleet-error">
+          {fleet.stale ? "Not current: " : ""}the service did not answer with its robots: {fleet.error}
+        </div>
+      )}
+      <main className="fleet__tiles">
+        {fleet.tiles.map((tile) => (
+          <Tile key={tile.name} tile={tile} stale={fleet.stale} />
+        ))}
+      </main>
+    </div>
+  );
+}

@@ -1,0 +1,131 @@
+/**
+ * Layer: the fleet overview's data (plain TypeScript, no React, no DOM): one tile per robot
+ * from `GET /api/v1/robots`, polled, with the last good answer kept and marked stale when the
+ * service stops answering. Names of robot states come from the generated layout (the tile's
+ * state badge); this module only decides what each tile says.
+ */
+import type { LinkState, RobotSummary } from "./protocol";
+import { kioskHref, panelHref } from "./route";
+
+export interface FleetTile {
+  readonly name: string;
+  readonly host: string;
+  /** The robot's model when the service knows it (from its identity), else null. */
+  readonly model: string | null;
+  readonly readOnly: boolean;
+  /** The robot link's state, and in words with its reason. */
+  readonly link: LinkState;
+  readonly linkWords: string;
+  /** The robot-state value of the newest frame (the badge names it), null without one. */
+  readonly stateValue: number | null;
+  /** Who holds control of this robot's outputs, null: nobody. */
+  readonly holder: string | null;
+  readonly panelHref: string;
+  readonly kioskHref: string;
+}
+
+export function fleetTile(robot: RobotSummary): FleetTile {
+  const link = robot.connection;
+  const reason = robot.connection_reason;
+  return {
+    name: robot.name,
+    host: robot.host,
+    model: robot.model,
+    readOnly: robot.mode === "input_only",
+    link,
+    linkWords: reason !== null && reason !== "" && link !== "connected" ? `${link}: ${reason}` : link,
+    // A state from a link that is down is history: the badge shows NO DATA rather than a stale state.
+    stateValue: link === "connected" ? robot.robot_state : null,
+    holder: robot.holder?.user ?? null,
+    panelHref: panelHref(robot.name),
+    kioskHref: kioskHref(robot.name),
+  };
+}
+
+/** What fetching the list gave: the robots, or why there are none. */
+export type RobotsAnswer =
+  | { readonly ok: true; readonly robots: readonly RobotSummary[] }
+  | { readonly ok: false; readonly reason: string };
+
+export interface FleetSnapshot {
+  /** The tiles of the last good answer (empty before the first one). */
+  readonly tiles: readonly FleetTile[];
+  /** Why the last poll failed, null when it succeeded. */
+  readonly error: string | null;
+  /** The last good answer is older than the newest poll: tiles show what was, not what is. */
+  readonly stale: boolean;
+  /** A first answer (good or bad) has come. */
+  readonly loaded: boolean;
+}
+
+export const FLEET_POLL_MS = 1000;
+
+type Listener = () => void;
+
+/**
+ * Polls `fetchRobots` every `interval_ms` (one request at a time: a slow answer delays the
+ * next poll rather than piling requests up) and publishes snapshots to its subscribers.
+ */
+export class FleetPoller {
+  private readonly fetchRobots: () => Promise<RobotsAnswer>;
+  private readonly interval_ms: number;
+  private readonly listeners = new Set<Listener>();
+  private timer: ReturnType<typeof setTimeout> | null = null;
+  private running = false;
+  private generation = 0;
+  private current: FleetSnapshot = { tiles: [], error: null, stale: false, loaded: false };
+
+  constructor(fetchRobots: () => Promise<RobotsAnswer>, interval_ms = FLEET_POLL_MS) {
+    this.fetchRobots = fetchRobots;
+    this.interval_ms = interval_ms;
+  }
+
+  subscribe = (listener: Listener): (() => void) => {
+    this.listeners.add(listener);
+    return () => {
+      this.listeners.delete(listener);
+    };
+  };
+
+  getSnapshot = (): FleetSnapshot => this.current;
+
+  start(): void {
+    if (this.running) return;
+    this.running = true;
+    void this.poll(++this.generation);
+  }
+
+  stop(): void {
+    this.running = false;
+    this.generation++;
+    if (this.timer !== null) clearTimeout(this.timer);
+    this.timer = null;
+  }
+
+  /** Poll now (e.g. after a login) instead of waiting for the next turn. */
+  refresh(): void {
+    if (!this.running) return;
+    if (this.timer !== null) clearTimeout(this.timer);
+    this.timer = null;
+    void this.poll(++this.generation);
+  }
+
+  private async poll(generation: number): Promise<void> {
+    let answer: RobotsAnswer;
+    try {
+      answer = await this.fetchRobots();
+    } catch (error) {
+      answer = { ok: false, reason: error instanceof Error ? error.message : String(error) };
+    }
+    // A stop or a refresh while this poll was out makes its answer (and its next turn) moot.
+    if (!this.running || generation !== this.generation) return;
+    this.current = answer.ok
+      ? { tiles: answer.robots.map(fleetTile), error: null, stale: false, loaded: true }
+      : { tiles: this.current.tiles, error: answer.reason, stale: this.current.tiles.length > 0, loaded: true };
+    for (const listener of this.listeners) listener();
+    this.timer = setTimeout(() => {
+      this.timer = null;
+      void this.poll(generation);
+    }, this.interval_ms);
+  }
+}

@@ -1,0 +1,50 @@
+// The frontend's API types are generated from the service's OpenAPI document (make codegen):
+// this fails when src/generated/api.ts is not what the committed document gives, and checks
+// (at compile time, `npm run typecheck`) that the contract's frame and command shapes are the
+// layout's, so the two generated files cannot drift apart.
+import { readFileSync } from "node:fs";
+import { describe, expect, expectTypeOf, it } from "vitest";
+import { API_TS_PATH, OPENAPI_PATH, generateApiTs } from "../../scripts/generate-api.mjs";
+import type { components } from "../generated/api";
+import type { CommandImage, CommandPatch, Frame } from "../generated/layout";
+import { EVENT_KINDS, type EventKind } from "./protocol";
+
+type Schemas = components["schemas"];
+
+describe("src/generated/api.ts", () => {
+  const documentText = readFileSync(OPENAPI_PATH, "utf8");
+
+  it("is what docs/openapi.json generates (else run `make codegen`)", async () => {
+    const expected = await generateApiTs(documentText);
+    const current = readFileSync(API_TS_PATH, "utf8");
+    expect(current === expected, "src/generated/api.ts is stale: run `make codegen`").toBe(true);
+  });
+
+  it("changes when the document changes (so the check above can fail)", async () => {
+    const document = JSON.parse(documentText) as { components: { schemas: Record<string, unknown> } };
+    document.components.schemas.StaleCheckProbe = { type: "object", properties: { x: { type: "integer" } } };
+    const changed = await generateApiTs(JSON.stringify(document));
+    expect(changed).not.toBe(await generateApiTs(documentText));
+    expect(changed).toContain("StaleCheckProbe");
+  });
+
+  it("describes no shape as empty (every answer has its schema)", () => {
+    expect(documentText).not.toMatch(/"schema":\s*\{\s*\}/);
+  });
+});
+
+describe("the contract and the layout", () => {
+  it("agree on the frame, the command image and the patch", () => {
+    expectTypeOf<keyof Schemas["Frame"]>().toEqualTypeOf<keyof Frame | "extra">();
+    expectTypeOf<Schemas["Frame"]>().toExtend<Frame>();
+    expectTypeOf<keyof Schemas["CommandImage"]>().toEqualTypeOf<keyof CommandImage>();
+    expectTypeOf<Schemas["CommandImage"]>().toExtend<CommandImage>();
+    expectTypeOf<keyof Schemas["CommandPatch"]>().toEqualTypeOf<keyof CommandPatch>();
+    expectTypeOf<CommandPatch>().toExtend<Schemas["CommandPatch"]>();
+  });
+
+  it("name every event kind in the filter", () => {
+    expectTypeOf<(typeof EVENT_KINDS)[number]>().toEqualTypeOf<EventKind>();
+    expect(new Set(EVENT_KINDS).size).toBe(EVENT_KINDS.length);
+  });
+});

@@ -1,0 +1,52 @@
+import { describe, expect, it } from "vitest";
+import { chooseRobot, faceOf, kioskHref, panelHref, robotFromSearch, searchWithRobot } from "./route";
+
+describe("faceOf", () => {
+  it("routes /kiosk, /fleet and everything else to the panel", () => {
+    expect(faceOf("/kiosk")).toBe("kiosk");
+    expect(faceOf("/kiosk/")).toBe("kiosk");
+    expect(faceOf("/fleet")).toBe("fleet");
+    expect(faceOf("/fleet/")).toBe("fleet");
+    expect(faceOf("/")).toBe("panel");
+    expect(faceOf("/fleety")).toBe("panel");
+    expect(faceOf("/kiosk/fleet")).toBe("panel");
+  });
+});
+
+describe("robot in the URL", () => {
+  it("reads ?robot= and ignores names the service could not have", () => {
+    expect(robotFromSearch("?robot=m1013")).toBe("m1013");
+    expect(robotFromSearch("?token=x&robot=cell_2-b")).toBe("cell_2-b");
+    expect(robotFromSearch("")).toBeNull();
+    expect(robotFromSearch("?robot=")).toBeNull();
+    expect(robotFromSearch("?robot=Upper")).toBeNull();
+    expect(robotFromSearch("?robot=a%2Fb")).toBeNull();
+    expect(robotFromSearch(`?robot=${"a".repeat(33)}`)).toBeNull();
+  });
+
+  it("sets and removes ?robot= keeping the other parameters", () => {
+    expect(searchWithRobot("", "a")).toBe("?robot=a");
+    expect(searchWithRobot("?token=t&robot=a", "b")).toBe("?token=t&robot=b");
+    expect(searchWithRobot("?robot=a", null)).toBe("");
+    expect(searchWithRobot("?token=t&robot=a", null)).toBe("?token=t");
+  });
+
+  it("links the faces to one robot", () => {
+    expect(panelHref("m0609")).toBe("/?robot=m0609");
+    expect(kioskHref("m0609")).toBe("/kiosk?robot=m0609");
+  });
+});
+
+describe("chooseRobot", () => {
+  it("takes the URL's robot before the list is known", () => {
+    expect(chooseRobot("b", null)).toEqual({ robot: "b", unknown: null });
+    expect(chooseRobot(null, null)).toEqual({ robot: null, unknown: null });
+  });
+
+  it("takes the URL's robot when the service knows it, else the default (first) one", () => {
+    expect(chooseRobot("b", ["a", "b"])).toEqual({ robot: "b", unknown: null });
+    expect(chooseRobot(null, ["a", "b"])).toEqual({ robot: "a", unknown: null });
+    expect(chooseRobot("ghost", ["a", "b"])).toEqual({ robot: "a", unknown: "ghost" });
+    expect(chooseRobot("ghost", [])).toEqual({ robot: null, unknown: "ghost" });
+  });
+});
