@@ -68,7 +68,17 @@ class Commander:
                 self.outcomes[outcome] += 1
                 fields = _body_fields(body)
                 await self._store.add_audit(
-                    AuditEntry(user, client, ACTION, fields, None, body, outcome, error.reason)
+                    AuditEntry(
+                        user,
+                        client,
+                        ACTION,
+                        fields,
+                        None,
+                        body,
+                        outcome,
+                        error.reason,
+                        robot=self._link.name,
+                    )
                 )
             raise
 
@@ -101,6 +111,7 @@ class Commander:
                 plan.values(plan.image),
                 "pending",
                 None,
+                robot=self._link.name,
             ),
             fsync=False,  # the outcome's fsync below covers it (see ``store``)
         )

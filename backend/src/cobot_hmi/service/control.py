@@ -147,5 +147,6 @@ class Control:
                 requested=None,
                 outcome=outcome,
                 reason=reason,
+                robot=self._link.name,
             )
         )

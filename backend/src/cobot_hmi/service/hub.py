@@ -197,7 +197,10 @@ class Hub:
         stall_timeout_s: float,
         frames_per_batch: int = 1,
         on_events: Callable[[list[Event]], None] | None = None,
+        robot: str | None = None,
     ) -> None:
+        """``robot``: the name every event of this hub carries (one hub per robot)."""
+        self.robot = robot
         self.batch_s = batch_s
         self.frames_per_batch = max(1, frames_per_batch)
         self._batch_wake: asyncio.Event | None = None
@@ -355,6 +358,9 @@ class Hub:
         self._broadcast_events([event])
 
     def _broadcast_events(self, events: list[Event]) -> None:
+        if self.robot is not None:
+            for event in events:
+                event.setdefault("robot", self.robot)
         if self._on_events is not None:
             self._on_events(events)
         for event in events:

@@ -1,8 +1,13 @@
 """Layer: service. The running service: the parts and their lifecycle, in one object.
 
-``Service`` owns the robot link (the originator on its own thread), the broadcast hub, the
-SQLite store, the users file, the sessions, control and the commander. The FastAPI app
-(``service.app``) is a thin layer of routes over it.
+``Service`` owns the robots (``service.robot.RobotRuntime``: per robot its connection handle,
+hub, control, commander and counters), the one cyclic thread that holds every robot's class 1
+connection (``service.link.CyclicLoop``), the SQLite store, the users file, the sessions and
+the login throttle. The FastAPI app (``service.app``) is a thin layer of routes over it.
+
+Robots are independent: one lost, refused or restarted changes nothing of another; they share
+the store, the sessions and the cyclic thread (whose death is reported and repaired, see
+``link``).
 """
 
 from __future__ import annotations
@@ -12,23 +17,22 @@ import contextlib
 import logging
 import time
 from collections import Counter
-from collections.abc import Coroutine
-from typing import Any
+from typing import Final
 
-from cobot_hmi.scanner.originator import ConnectionState
 from cobot_hmi.service.auth import LoginThrottle, Session, Sessions
 from cobot_hmi.service.commander import Commander
 from cobot_hmi.service.control import Control
-from cobot_hmi.service.events import Event
+from cobot_hmi.service.errors import UnknownRobotError
 from cobot_hmi.service.hub import Hub
-from cobot_hmi.service.link import RobotLink
+from cobot_hmi.service.link import CyclicLoop, RobotLink
+from cobot_hmi.service.robot import RobotRuntime
 from cobot_hmi.service.settings import ServiceSettings
 from cobot_hmi.service.store import Store
 from cobot_hmi.service.users import UsersFile
 
 log = logging.getLogger(__name__)
 
-_SWEEP_INTERVAL_S = 1.0
+_SWEEP_INTERVAL_S: Final = 1.0
 
 
 class Service:
@@ -36,161 +40,172 @@ class Service:
 
     def __init__(self, settings: ServiceSettings) -> None:
         self.settings = settings
+        robot_settings = settings.require_robots()
         self.users = UsersFile(settings.users_path)
         self.store = Store(settings.database_path)
-        self.hub = Hub(
-            batch_s=settings.ws_batch_ms / 1000,
-            queue_frames=settings.ws_queue_frames,
-            stall_timeout_s=settings.ws_stall_timeout_s,
-            frames_per_batch=round(settings.ws_batch_ms / settings.rpi_ms),
-            on_events=self._store_events,
-        )
-        self.link = RobotLink(
-            settings.originator_settings(),
-            on_frame=self.hub.on_frame,
-            on_state=self._on_state,
+        self.cyclic = CyclicLoop(
+            settings.local_host,
+            settings.t2o_udp_port,
             niceness=settings.cyclic_niceness,
+            on_restart=self._on_cyclic_restart,
         )
-        self.control = Control(self.link, self.store, self.hub, input_only=settings.input_only)
-        self.commander = Commander(
-            self.link,
-            self.store,
-            self.hub,
-            self.control,
-            timeout_s=settings.write_timeout_ms / 1000,
+        self.robots: dict[str, RobotRuntime] = {
+            robot.name: RobotRuntime(robot, settings, self.cyclic, self.store)
+            for robot in robot_settings
+        }
+        """Every robot, in the settings' order."""
+        self.default_robot: RobotRuntime = next(iter(self.robots.values()))
+        """The first robot: the one the deprecated single-robot paths answer for."""
+        self.sessions = Sessions(
+            settings.session_ttl_s, self._on_session_end, self.users.user_for_token
         )
-        self.sessions = Sessions(settings.session_ttl_s, self._on_session_end)
-        self.throttle = LoginThrottle(settings.login_free_attempts, settings.login_delay_max_s)
+        self.throttle = LoginThrottle(
+            settings.login_free_attempts,
+            settings.login_delay_max_s,
+            settings.login_user_delay_max_s,
+        )
         self.logins: Counter[str] = Counter()
         self.started_at = time.time()
         self._tasks: list[asyncio.Task[None]] = []
-        self._background: set[asyncio.Task[None]] = set()
-        self._ws_by_session: Counter[str] = Counter()
+        self._ws_by_session: Counter[tuple[str, str]] = Counter()
+
+    def robot(self, name: str) -> RobotRuntime:
+        """The robot called ``name``; ``UnknownRobotError`` naming the known ones."""
+        robot = self.robots.get(name)
+        if robot is None:
+            raise UnknownRobotError(name, list(self.robots))
+        return robot
+
+    # The default robot's parts, for code written before there were several robots.
+
+    @property
+    def link(self) -> RobotLink:
+        return self.default_robot.link
+
+    @property
+    def hub(self) -> Hub:
+        return self.default_robot.hub
+
+    @property
+    def control(self) -> Control:
+        return self.default_robot.control
+
+    @property
+    def commander(self) -> Commander:
+        return self.default_robot.commander
+
+    async def connection_status(self) -> dict[str, object]:
+        return await self.default_robot.connection_status()
+
+    async def hello(self, rate_hz: float | None) -> dict[str, object]:
+        return await self.default_robot.hello(rate_hz)
 
     # ------------------------------------------------------------ lifecycle
 
     async def start(self) -> None:
         await self.store.open()
-        self._tasks.append(asyncio.create_task(self.hub.run(), name="hub"))
-        await self.link.start()
+        for robot in self.robots.values():
+            robot.start()
+        await self.cyclic.start()
         self._tasks.append(asyncio.create_task(self._status_loop(), name="status"))
         self._tasks.append(asyncio.create_task(self._sweep_loop(), name="sessions"))
 
     async def stop(self) -> None:
-        """Release control, close the connection (Forward Close), stop everything else."""
-        with contextlib.suppress(Exception):
-            await self.control.drop("service stopping")
-        await self.link.stop()
+        """Release control, close the connections (Forward Close), stop everything else."""
+        await asyncio.gather(
+            *(robot.release_control("service stopping") for robot in self.robots.values())
+        )
+        await self.cyclic.stop()
         for task in self._tasks:
             task.cancel()
         for task in self._tasks:
             with contextlib.suppress(asyncio.CancelledError):
                 await task
         self._tasks.clear()
-        if self._background:
-            await asyncio.gather(*self._background, return_exceptions=True)
-        await self.hub.close()
+        for robot in self.robots.values():
+            await robot.stop()
         await self.store.close()
 
-    def _spawn(self, coroutine: Coroutine[Any, Any, None], name: str) -> None:
-        """Run a follow-up (control release) on the event loop, tracked until ``stop``."""
-        task = asyncio.get_running_loop().create_task(coroutine, name=name)
-        self._background.add(task)
-        task.add_done_callback(self._background.discard)
+    # ------------------------------------------------------------ health
 
-    # ------------------------------------------------------------ connection
+    def _on_cyclic_restart(self, reason: str) -> None:
+        """The cyclic thread died and is being restarted: an event on every robot's stream."""
+        for robot in self.robots.values():
+            robot.hub.publish_event(
+                {
+                    "kind": "connection",
+                    "time": time.time(),
+                    "state": "lost",
+                    "reason": f"the cyclic I/O thread died and is restarted: {reason}",
+                }
+            )
 
-    def _on_state(self, state: ConnectionState, reason: str | None) -> None:
-        """On the web loop: a connection state change from the originator."""
-        self.hub.publish_event(
-            {"kind": "connection", "time": time.time(), "state": state.value, "reason": reason}
-        )
-        if state is not ConnectionState.CONNECTED:
-            self.hub.reset_interval_baseline()
-            if self.control.holder is not None:
-                self._spawn(self.control.drop(f"connection {state.value}"), "control-drop")
+    def health_problems(self) -> list[str]:
+        """Why the service is not healthy (``/healthz``): empty when it is.
 
-    async def connection_status(self) -> dict[str, object]:
-        stats = await self.link.stats()
-        age = stats.last_frame_age_s
-        stale = (
-            stats.state is not ConnectionState.CONNECTED
-            or age is None
-            or age * 1000 > self.settings.stale_after_ms
-        )
-        return {
-            "state": stats.state.value,
-            "reason": stats.reason,
-            "robot": self.settings.default_robot.host,
-            "mode": self.settings.default_robot.mode.replace("-", "_"),
-            "rpi_ms": self.settings.rpi_ms,
-            "packets_in": stats.packets_in,
-            "packets_out": stats.packets_out,
-            "gaps": stats.gaps,
-            "duplicates": stats.duplicates,
-            "late": stats.late,
-            "malformed": stats.malformed,
-            "interval_mean_ms": stats.interval_mean_ms,
-            "interval_p99_ms": stats.interval_p99_ms,
-            "interval_max_ms": stats.interval_max_ms,
-            "last_frame_age_s": age,
-            "stale": stale,
-            "connected_since": stats.connected_since,
-        }
-
-    async def hello(self, rate_hz: float | None) -> dict[str, object]:
-        from cobot_hmi.layout import LAYOUT_VERSION
-
-        return {
-            "type": "hello",
-            "layout_version": LAYOUT_VERSION,
-            "connection": await self.connection_status(),
-            "control": self.control.status(),
-            "rate_hz": rate_hz,
-        }
+        The cyclic thread down (dead and not yet restarted), or a robot not connected for
+        longer than ``link_down_unhealthy_s`` (lost for good, refused, unreachable).
+        """
+        problems = []
+        bound_s = self.settings.link_down_unhealthy_s
+        if not self.cyclic.alive:
+            down = self.cyclic.down_since
+            since = f" for {time.monotonic() - down:.0f} s" if down is not None else ""
+            death = f" ({self.cyclic.last_death})" if self.cyclic.last_death else ""
+            problems.append(f"the cyclic I/O thread is not running{since}{death}")
+        for robot in self.robots.values():
+            down_for_s = robot.down_for_s()
+            if down_for_s is not None and down_for_s > bound_s:
+                state = robot.link.state.value
+                reason = robot.link.reason
+                problems.append(
+                    f"robot {robot.name}: not connected for {down_for_s:.0f} s "
+                    f"(over {bound_s:g} s): {state}{': ' + reason if reason else ''}"
+                )
+        return problems
 
     async def _status_loop(self) -> None:
         while True:
             await asyncio.sleep(self.settings.status_interval_s)
-            if not self.hub.clients:
-                continue
-            try:
-                self.hub.broadcast_status({"connection": await self.connection_status()})
-            except Exception:
-                log.exception("status broadcast failed")
-
-    # ------------------------------------------------------------ events
-
-    def _store_events(self, events: list[Event]) -> None:
-        for event in events:
-            data = {k: v for k, v in event.items() if k not in ("kind", "time")}
-            self.store.submit_event(float(event["time"]), str(event["kind"]), data)  # type: ignore[arg-type]
+            for robot in self.robots.values():
+                if not robot.hub.clients:
+                    continue
+                try:
+                    robot.hub.broadcast_status(
+                        {"robot": robot.name, "connection": await robot.connection_status()}
+                    )
+                except Exception:
+                    log.exception("status broadcast of %s failed", robot.name)
 
     # ------------------------------------------------------------ sessions
 
     def _on_session_end(self, session: Session, reason: str) -> None:
-        if self.control.holder is not None and self.control.holder.session_id == session.id:
-            self._spawn(self.control.drop(reason, session_id=session.id), "control-drop")
+        for robot in self.robots.values():
+            holder = robot.control.holder
+            if holder is not None and holder.session_id == session.id:
+                robot.spawn(robot.control.drop(reason, session_id=session.id), "control-drop")
 
     async def _sweep_loop(self) -> None:
         while True:
             await asyncio.sleep(_SWEEP_INTERVAL_S)
             self.sessions.sweep()
 
-    def websocket_opened(self, session: Session | None) -> None:
+    def websocket_opened(self, session: Session | None, robot: RobotRuntime | None = None) -> None:
         if session is not None:
-            self._ws_by_session[session.id] += 1
+            self._ws_by_session[(session.id, (robot or self.default_robot).name)] += 1
 
-    def websocket_closed(self, session: Session | None) -> None:
-        """The holder's last WebSocket closing releases control."""
+    def websocket_closed(self, session: Session | None, robot: RobotRuntime | None = None) -> None:
+        """The holder's last WebSocket of a robot closing releases its control of that robot."""
         if session is None:
             return
-        self._ws_by_session[session.id] -= 1
-        if self._ws_by_session[session.id] <= 0:
-            del self._ws_by_session[session.id]
-            holder = self.control.holder
+        robot = robot or self.default_robot
+        key = (session.id, robot.name)
+        self._ws_by_session[key] -= 1
+        if self._ws_by_session[key] <= 0:
+            del self._ws_by_session[key]
+            holder = robot.control.holder
             if holder is not None and holder.session_id == session.id:
-                self._spawn(
-                    self.control.drop("holder disconnected", session_id=session.id),
+                robot.spawn(
+                    robot.control.drop("holder disconnected", session_id=session.id),
                     "control-drop",
                 )
