@@ -3,7 +3,8 @@
 ``serve`` runs the service against a robot (or an emulator). ``demo`` starts the emulator as
 its own process at 127.0.0.2 and the service against it on http://127.0.0.1:8000 with a fresh
 operator password; Ctrl-C stops the service first (Forward Close while the robot still
-listens), then the emulator. ``users add`` manages the users file.
+listens), then the emulator. ``users add`` manages the users file; ``users token`` and
+``revoke`` its long-lived API tokens.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import argparse
 import asyncio
 import contextlib
 import getpass
+import math
 import os
 import signal
 import socket
@@ -78,6 +80,24 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     listing = users_verbs.add_parser("list", help="list users and roles")
     add_arguments(listing, only=("state_dir", "users_file"))
     listing.set_defaults(handler=_users_list)
+    token = users_verbs.add_parser(
+        "token",
+        help="issue a long-lived API token (kiosks, scripts)",
+        description="Issue (or re-issue) the bearer token NAME with ROLE and print it once; "
+        "the users file keeps only its SHA-256. A kiosk opens /kiosk?token=… or sends "
+        "'Authorization: Bearer …'.",
+    )
+    token.add_argument("name")
+    token.add_argument("--role", default="viewer", help="viewer (default), operator or admin")
+    token.add_argument(
+        "--expires-days", type=float, default=None, help="lifetime in days (default: until revoked)"
+    )
+    add_arguments(token, only=("state_dir", "users_file"))
+    token.set_defaults(handler=_users_token)
+    revoke = users_verbs.add_parser("revoke", help="revoke the API token NAME")
+    revoke.add_argument("name")
+    add_arguments(revoke, only=("state_dir", "users_file"))
+    revoke.set_defaults(handler=_users_revoke)
 
 
 def _fail(reason: str) -> int:
@@ -126,11 +146,54 @@ def _users_list(args: argparse.Namespace) -> int:
 
     try:
         settings = settings_from_args(args)
-        users = UsersFile(settings.users_path).users()
+        users_file = UsersFile(settings.users_path)
+        users = users_file.users()
+        tokens = users_file.tokens()
     except (SettingsError, UsersError) as error:
         return _fail(str(error))
     for user in users:
         print(f"{user.name}\t{user.role.label}")
+    for api_token in tokens:
+        expires = (
+            "never"
+            if api_token.expires is None
+            else time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(api_token.expires))
+        )
+        print(f"token:{api_token.name}\t{api_token.role.label}\texpires {expires}")
+    return 0
+
+
+def _users_token(args: argparse.Namespace) -> int:
+    from cobot_hmi.service.settings import SettingsError, settings_from_args
+    from cobot_hmi.service.users import Role, UsersError, UsersFile
+
+    try:
+        settings = settings_from_args(args)
+        role = Role.parse(args.role)
+        days = args.expires_days
+        if days is not None and not (math.isfinite(days) and days > 0):
+            return _fail(f"--expires-days: a positive number of days, got {days}")
+        secret = UsersFile(settings.users_path).add_token(
+            args.name, role, expires_in_s=None if days is None else days * 86400.0
+        )
+    except (SettingsError, UsersError) as error:
+        return _fail(str(error))
+    lifetime = "until revoked" if days is None else f"for {days:g} days"
+    print(f"token:{args.name}: {role.label} {lifetime}, in {settings.users_path}", file=sys.stderr)
+    print(secret)  # alone on stdout, for scripts
+    return 0
+
+
+def _users_revoke(args: argparse.Namespace) -> int:
+    from cobot_hmi.service.settings import SettingsError, settings_from_args
+    from cobot_hmi.service.users import UsersError, UsersFile
+
+    try:
+        settings = settings_from_args(args)
+        UsersFile(settings.users_path).revoke_token(args.name)
+    except (SettingsError, UsersError) as error:
+        return _fail(str(error))
+    print(f"token:{args.name}: revoked", file=sys.stderr)
     return 0
 
 

@@ -29,8 +29,10 @@ def _user_json(user: User) -> dict[str, str]:
 async def login(
     credentials: Credentials, request: Request, response: Response, service: ServiceDep
 ) -> dict[str, object]:
-    keys = (f"user:{credentials.username}", f"client:{client_address(request)}")
-    wait_s = service.throttle.retry_after_s(keys)
+    # The client address is the connection's peer (or, only from a configured trusted proxy,
+    # its X-Forwarded-For: uvicorn's proxy headers, service/server.py).
+    user_name, client = credentials.username, client_address(request)
+    wait_s = service.throttle.retry_after_s(user_name, client)
     if wait_s > 0:
         service.logins["throttled"] += 1
         seconds = math.ceil(wait_s)
@@ -45,10 +47,10 @@ async def login(
     except UsersError as error:
         raise ApiError(503, str(error)) from None
     if user is None:
-        service.throttle.failed(keys)
+        service.throttle.failed(user_name, client)
         service.logins["failed"] += 1
         raise unauthorized("wrong user name or password")
-    service.throttle.succeeded(keys[:1])
+    service.throttle.succeeded(user_name, client)
     service.logins["ok"] += 1
     session = service.sessions.create(user)
     response.set_cookie(

@@ -13,6 +13,7 @@ from typing import Any, Final
 import uvicorn
 
 from cobot_hmi.eventloop import freeze_startup_heap
+from cobot_hmi.service import http_limits
 from cobot_hmi.service.app import create_app
 from cobot_hmi.service.runtime import Service
 from cobot_hmi.service.settings import ServiceSettings
@@ -23,6 +24,10 @@ the cyclic connection's thread for half an RPI; 0.5 ms bounds that delay (see ``
 
 
 def uvicorn_config(app: Any, settings: ServiceSettings, **overrides: Any) -> uvicorn.Config:
+    connection_counters = http_limits.ConnectionCounters()
+    state = getattr(app, "state", None)
+    if state is not None:  # for /metrics
+        state.connection_counters = connection_counters
     options: dict[str, Any] = {
         "host": settings.host,
         "port": settings.port,
@@ -32,6 +37,20 @@ def uvicorn_config(app: Any, settings: ServiceSettings, **overrides: Any) -> uvi
         "timeout_graceful_shutdown": 3,
         "access_log": False,
         "log_level": "info",
+        # Bounds (service/http_limits.py, docs/operations.md "Security"). X-Forwarded-For and
+        # -Proto only from the configured proxies: uvicorn's default trusts 127.0.0.1, which
+        # let any local client forge its address.
+        "proxy_headers": bool(settings.trusted_proxies),
+        "forwarded_allow_ips": list(settings.trusted_proxies),
+        "http": http_limits.bounded_h11_protocol(
+            max_connections=http_limits.connection_cap(settings.http_max_connections),
+            idle_timeout_s=settings.http_idle_timeout_s,
+            counters=connection_counters,
+        ),
+        "backlog": settings.http_backlog,
+        "timeout_keep_alive": settings.http_keep_alive_s,
+        "h11_max_incomplete_event_size": settings.http_max_header_bytes,
+        "ws_max_size": settings.max_body_bytes,
     }
     options.update(overrides)
     return uvicorn.Config(app, **options)

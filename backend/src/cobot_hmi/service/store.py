@@ -18,6 +18,7 @@ import asyncio
 import contextlib
 import csv
 import io
+import os
 import sqlite3
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -133,6 +134,17 @@ class Store:
         self._writer = asyncio.create_task(self._write_events(), name="store-events")
 
     def _open_sync(self) -> None:
+        # The audit trail names users and client addresses: readable by the service's own user
+        # only. Created (or narrowed) to 0600 before SQLite opens it; SQLite gives the -wal and
+        # -shm files the database file's mode.
+        fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o600)
+        try:
+            os.fchmod(fd, 0o600)
+        finally:
+            os.close(fd)
+        for suffix in ("-wal", "-shm"):
+            with contextlib.suppress(FileNotFoundError):
+                os.chmod(f"{self.path}{suffix}", 0o600)
         connection = sqlite3.connect(self.path, check_same_thread=False)
         connection.execute("PRAGMA journal_mode=WAL")
         connection.execute("PRAGMA synchronous=FULL")

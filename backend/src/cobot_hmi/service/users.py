@@ -1,14 +1,22 @@
-"""Layer: service. The users file: names, roles and salted scrypt password hashes.
+"""Layer: service. The users file: names, roles, salted scrypt password hashes, API tokens.
 
-A JSON file ``{"users": {"alice": {"role": "operator", "password": "scrypt$…"}}}``, written
-atomically (temporary file + rename) with mode 0600. The service re-reads it when its
-modification time changes, so ``cobot-hmi users add`` takes effect without a restart. Pure
-file I/O; imports nothing of the project.
+A JSON file ``{"users": {"alice": {"role": "operator", "password": "scrypt$…"}}, "tokens":
+{"kiosk-hall": {"role": "viewer", "sha256": "…", "created": t, "expires": t | null}}}``,
+written atomically (temporary file + rename) with mode 0600. The service re-reads it when its
+modification time changes, so ``cobot-hmi users add`` (or ``token``, ``revoke``) takes effect
+without a restart.
+
+API tokens are long-lived bearer tokens for kiosks and scripts (``cobot-hmi users token``):
+``chmi_`` and 43 random URL-safe characters (256 bits), shown once; the file keeps only their
+SHA-256 (a random 256-bit secret needs no slow hash: nothing can be guessed from its digest).
+A token acts as the pseudo-user ``token:NAME`` with its own role. Pure file I/O; imports
+nothing of the project.
 """
 
 from __future__ import annotations
 
 import base64
+import contextlib
 import functools
 import hashlib
 import hmac
@@ -16,6 +24,7 @@ import json
 import os
 import re
 import secrets
+import time
 from dataclasses import dataclass
 from enum import IntEnum
 from pathlib import Path
@@ -55,6 +64,9 @@ _SALT_BYTES: Final = 16
 _KEY_BYTES: Final = 32
 _NAME_PATTERN: Final = re.compile(r"^[A-Za-z0-9_.@-]{1,64}$")
 MIN_PASSWORD_CHARS: Final = 8
+API_TOKEN_PREFIX: Final = "chmi_"
+TOKEN_USER_PREFIX: Final = "token:"
+"""A token's pseudo-user is ``token:NAME``: ':' is in no user name, so never a real user's."""
 
 
 def _b64(data: bytes) -> str:
@@ -108,6 +120,26 @@ class User:
     role: Role
 
 
+@dataclass(frozen=True, slots=True)
+class ApiToken:
+    """A long-lived bearer token as the users file keeps it (never the token itself)."""
+
+    name: str
+    role: Role
+    sha256: str
+    created: float
+    """Epoch seconds."""
+    expires: float | None
+    """Epoch seconds, or ``None``: until revoked."""
+
+    def expired(self, now: float) -> bool:
+        return self.expires is not None and now >= self.expires
+
+
+def token_digest(token: str) -> str:
+    return hashlib.sha256(token.encode("utf-8")).hexdigest()
+
+
 def check_name(name: str) -> str:
     if not _NAME_PATTERN.fullmatch(name):
         raise UsersError(f"user name {name!r}: 1–64 letters, digits, '_', '.', '@' or '-'")
@@ -121,12 +153,15 @@ class UsersFile:
         self.path = path
         self._stamp: tuple[int, int] | None = None
         self._entries: dict[str, tuple[Role, str]] = {}
+        self._tokens: dict[str, ApiToken] = {}
+        """By name."""
+        self._by_digest: dict[str, ApiToken] = {}
 
     def _load(self) -> dict[str, tuple[Role, str]]:
         try:
             stat = self.path.stat()
         except FileNotFoundError:
-            self._stamp, self._entries = None, {}
+            self._stamp, self._entries, self._tokens, self._by_digest = None, {}, {}, {}
             return self._entries
         stamp = (stat.st_mtime_ns, stat.st_size)
         if stamp == self._stamp:
@@ -136,10 +171,21 @@ class UsersFile:
             entries: dict[str, tuple[Role, str]] = {}
             for name, entry in document["users"].items():
                 entries[name] = (Role.parse(entry["role"]), str(entry["password"]))
+            tokens: dict[str, ApiToken] = {}
+            for name, entry in document.get("tokens", {}).items():
+                expires = entry.get("expires")
+                tokens[name] = ApiToken(
+                    name,
+                    Role.parse(entry["role"]),
+                    str(entry["sha256"]),
+                    float(entry.get("created", 0.0)),
+                    None if expires is None else float(expires),
+                )
         except (OSError, ValueError, KeyError, TypeError, AttributeError) as error:
             # Keep the last good table: a half-edited file must not lock everyone out.
             raise UsersError(f"users file {self.path}: unreadable ({error})") from None
-        self._stamp, self._entries = stamp, entries
+        self._stamp, self._entries, self._tokens = stamp, entries, tokens
+        self._by_digest = {t.sha256: t for t in tokens.values()}
         return entries
 
     def users(self) -> list[User]:
@@ -166,13 +212,65 @@ class UsersFile:
         if name in entries and not replace:
             raise UsersError(f"user {name!r} exists already")
         entries[name] = (role, hash_password(password))
-        self._save(entries)
+        self._save(entries, self._tokens)
         return User(name, role)
 
-    def _save(self, entries: dict[str, tuple[Role, str]]) -> None:
-        document = {
+    # ----------------------------------------------------------------- API tokens
+
+    def tokens(self) -> list[ApiToken]:
+        self._load()
+        return [self._tokens[name] for name in sorted(self._tokens)]
+
+    def add_token(
+        self, name: str, role: Role, *, expires_in_s: float | None, now: float | None = None
+    ) -> str:
+        """A new token ``name`` (replacing one of that name); the token, shown only now."""
+        check_name(name)
+        if expires_in_s is not None and not expires_in_s > 0:
+            raise UsersError("a token's lifetime must be positive")
+        entries = self._load()
+        now = time.time() if now is None else now
+        token = API_TOKEN_PREFIX + secrets.token_urlsafe(32)
+        expires = None if expires_in_s is None else now + expires_in_s
+        tokens = dict(self._tokens)
+        tokens[name] = ApiToken(name, role, token_digest(token), now, expires)
+        self._save(entries, tokens)
+        return token
+
+    def revoke_token(self, name: str) -> None:
+        entries = self._load()
+        if name not in self._tokens:
+            raise UsersError(f"no token named {name!r}")
+        tokens = {n: t for n, t in self._tokens.items() if n != name}
+        self._save(entries, tokens)
+
+    def user_for_token(self, token: str) -> User | None:
+        """The pseudo-user of a live API token (``token:NAME``), or ``None``."""
+        if not token.startswith(API_TOKEN_PREFIX):
+            return None
+        with contextlib.suppress(UsersError):  # unreadable: the last good table stands
+            self._load()
+        entry = self._by_digest.get(token_digest(token))
+        if entry is None or entry.expired(time.time()):
+            return None
+        return User(TOKEN_USER_PREFIX + entry.name, entry.role)
+
+    # ----------------------------------------------------------------- saving
+
+    def _save(self, entries: dict[str, tuple[Role, str]], tokens: dict[str, ApiToken]) -> None:
+        document: dict[str, object] = {
             "users": {n: {"role": r.label, "password": h} for n, (r, h) in sorted(entries.items())}
         }
+        if tokens:
+            document["tokens"] = {
+                t.name: {
+                    "role": t.role.label,
+                    "sha256": t.sha256,
+                    "created": t.created,
+                    "expires": t.expires,
+                }
+                for t in sorted(tokens.values(), key=lambda t: t.name)
+            }
         self.path.parent.mkdir(parents=True, exist_ok=True)
         temporary = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
         fd = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
