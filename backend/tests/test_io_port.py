@@ -59,10 +59,12 @@ async def eventually(check: Callable[[], bool], timeout_s: float = DEADLINE_S) -
 
 async def test_n_connections_to_n_targets_on_one_socket(plc_host: str) -> None:
     """Three emulated robots, one UDP 2222 socket of ours: each connection gets its own T→O
-    (the three targets even choose the same O→T connection IDs, seed 0), and a fault on one
+    (the three targets even choose the same O→T connection IDs), and a fault on one
     shows on that connection only: gaps on the second, a timeout on the third."""
     targets = [
-        Target(TargetSettings(host=next_host(), tcp_port=0), StaticRobot()) for _ in range(3)
+        # The same seed: the three choose the same connection IDs.
+        Target(TargetSettings(host=next_host(), tcp_port=0, seed=7), StaticRobot())
+        for _ in range(3)
     ]
     for target in targets:
         await target.start()
@@ -91,6 +93,7 @@ async def test_n_connections_to_n_targets_on_one_socket(plc_host: str) -> None:
         targets[1].faults.t2o_drop_percent = 30.0
         await eventually(lambda: second.stats().gaps >= 5)
         targets[1].faults.t2o_drop_percent = 0.0
+        assert port.foreign == 0 and port.malformed == 0, "every datagram found its connection"
         targets[2].faults.t2o_silent = True
         await eventually(lambda: third.state is not ConnectionState.CONNECTED)
         assert third.reason is not None and "timed out" in third.reason
@@ -116,7 +119,6 @@ async def test_n_connections_to_n_targets_on_one_socket(plc_host: str) -> None:
         port.close()
         for target in targets:
             await target.stop()
-    assert port.foreign == 0
 
 
 # --------------------------------------------------------------------------- forged T→O

@@ -574,7 +574,14 @@ class Originator:
             port.unroute(link.t2o_id)
             link.routed = False
             link.t2o_id = reply.t2o_connection_id
-            self._route(port, link, silence_s=0.0)
+            try:
+                self._route(port, link, silence_s=0.0)
+            except ValueError:
+                raise _RefusedError(
+                    f"Forward Open reply refused: the target produces on T→O connection ID "
+                    f"0x{link.t2o_id:08X}, which another connection of this port holds",
+                    opened=True,
+                ) from None
         link.o2t_id = reply.o2t_connection_id
         link.o2t_api_us = reply.o2t_api_us or s.rpi_us
         link.t2o_api_us = reply.t2o_api_us or s.rpi_us
