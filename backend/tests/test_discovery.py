@@ -303,3 +303,24 @@ async def test_the_emulator_command_serves_discovery(robot_host: str, plc_host: 
     finally:
         process.terminate()
         await asyncio.wait_for(process.communicate(), 60)
+
+
+async def test_random_datagrams_are_dropped_and_the_server_goes_on(
+    discovery: DiscoveryServer, target: Target, raw: RawClient, robot_host: str
+) -> None:
+    rng = random.Random(11)
+    batch, batches = 20, 15  # small batches: the socket's receive buffer never overflows
+    loop = asyncio.get_running_loop()
+    for done in range(1, batches + 1):
+        for _ in range(batch):
+            # Command byte 0xFF: never a discovery command, whatever follows.
+            raw.send(b"\xff" + rng.randbytes(rng.randrange(0, 120)), robot_host)
+        end = loop.time() + DEADLINE_S
+        while target.counters.udp_discovery_ignored < done * batch:
+            assert loop.time() < end, "the server stopped reading"
+            await asyncio.sleep(0.005)
+    raw.send(list_identity_request(0, b"alive!"), robot_host)
+    reply = encapsulation.decode(await raw.receive(robot_host))
+    assert reply.header.context.endswith(b"alive!")
+    assert target.counters.udp_discovery_ignored == batch * batches
+    assert target.counters.internal_errors == 0
