@@ -16,7 +16,9 @@ from cobot_hmi import __version__
 
 VERB_MODULES = (
     "cobot_hmi.cli.codec_verbs",
+    "cobot_hmi.cli.discovery_verbs",
     "cobot_hmi.cli.emulator_verb",
+    "cobot_hmi.cli.openapi_verb",
     "cobot_hmi.cli.scanner_verbs",
     "cobot_hmi.cli.service_verbs",
 )
