@@ -231,21 +231,32 @@ def test_session_use_renews_it_and_logout_ends_it() -> None:
 
 def test_login_throttle_slows_repeated_failures() -> None:
     throttle = LoginThrottle(free_attempts=2, max_delay_s=4.0)
-    keys = ("user:alice", "client:127.0.0.1")
-    throttle.failed(keys)
-    assert throttle.retry_after_s(keys) == 0
-    throttle.failed(keys)
-    assert 0.9 < throttle.retry_after_s(keys) <= 1.0
-    throttle.failed(keys)
-    assert 1.9 < throttle.retry_after_s(keys) <= 2.0
+    alice = ("alice", "127.0.0.1")
+    throttle.failed(*alice)
+    assert throttle.retry_after_s(*alice) == 0
+    throttle.failed(*alice)
+    assert 0.9 < throttle.retry_after_s(*alice) <= 1.0
+    throttle.failed(*alice)
+    assert 1.9 < throttle.retry_after_s(*alice) <= 2.0
     for _ in range(5):
-        throttle.failed(keys)
-    assert throttle.retry_after_s(keys) <= 4.0
+        throttle.failed(*alice)
+    assert throttle.retry_after_s(*alice) <= 4.0
     # Another user from the same address is slowed too (the address key), a fresh one is not.
-    assert throttle.retry_after_s(("user:bob", "client:127.0.0.1")) > 0
-    assert throttle.retry_after_s(("user:bob", "client:127.0.0.2")) == 0
-    throttle.succeeded(keys)
-    assert throttle.retry_after_s(keys) == 0
+    assert throttle.retry_after_s("bob", "127.0.0.1") > 0
+    assert throttle.retry_after_s("bob", "127.0.0.2") == 0
+    throttle.succeeded(*alice)
+    # A success clears the user name's count, not the address's.
+    assert throttle.retry_after_s("alice", "127.0.0.9") == 0
+    assert throttle.retry_after_s(*alice) > 0
+
+
+def test_login_throttle_bounds_what_one_address_does_to_a_user() -> None:
+    throttle = LoginThrottle(free_attempts=2, max_delay_s=600.0, user_max_delay_s=2.0)
+    for _ in range(12):  # a guesser at 10.0.0.66, failing for alice again and again
+        throttle.failed("alice", "10.0.0.66")
+    assert throttle.retry_after_s("mallory", "10.0.0.66") > 500  # the guesser's address waits
+    assert 0 < throttle.retry_after_s("alice", "10.0.0.7") <= 2.0  # alice, elsewhere, briefly
+    assert throttle.retry_after_s("bob", "10.0.0.7") == 0
 
 
 def _on_a_terminal(args: list[str], dialogue: list[tuple[str, str]]) -> tuple[int, str]:
