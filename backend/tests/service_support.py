@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 from collections.abc import AsyncIterator, Callable, Generator
 from dataclasses import dataclass
 from pathlib import Path
@@ -94,6 +95,17 @@ def service_settings(
     return settings.replace(**overrides)
 
 
+def cell_settings(
+    robots: list[tuple[str, str, int]], plc_host: str, state_dir: Path, **overrides: Any
+) -> ServiceSettings:
+    """Settings for several robots: ``(name, host, tcp_port)`` each, first = the default."""
+    _, first_host, first_port = robots[0]
+    return service_settings(first_host, first_port, plc_host, state_dir).replace(
+        robots=[{"name": name, "host": host, "tcp_port": port} for name, host, port in robots],
+        **overrides,
+    )
+
+
 def add_users(settings: ServiceSettings) -> None:
     users = UsersFile(settings.users_path)
     for (name, password), role in (
@@ -118,6 +130,9 @@ class Running:
     def ws_url(self) -> str:
         return f"ws://{self.settings.host}:{self.settings.port}/api/v1/stream"
 
+    def robot_ws_url(self, name: str) -> str:
+        return f"ws://{self.settings.host}:{self.settings.port}/api/v1/robots/{name}/stream"
+
     def client(self, token: str | None = None) -> httpx.AsyncClient:
         headers = {"Authorization": f"Bearer {token}"} if token else {}
         return httpx.AsyncClient(base_url=self.base_url, headers=headers, timeout=DEADLINE_S)
@@ -136,6 +151,10 @@ class Running:
         return token
 
 
+def _has_frame(robot: Any) -> bool:
+    return robot.hub.latest is not None
+
+
 @contextlib.asynccontextmanager
 async def running_service(
     settings: ServiceSettings, *, wait_connected: bool = True
@@ -151,8 +170,9 @@ async def running_service(
             await task
         running = Running(service, settings)
         if wait_connected:
-            assert await service.link.wait_connected(DEADLINE_S)
-            await eventually(lambda: service.hub.latest is not None)
+            for robot in service.robots.values():
+                assert await robot.link.wait_connected(DEADLINE_S), robot.name
+                await eventually(functools.partial(_has_frame, robot))
         yield running
     finally:
         server.should_exit = True

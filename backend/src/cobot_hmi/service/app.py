@@ -18,8 +18,16 @@ from fastapi.responses import FileResponse, JSONResponse, Response
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from cobot_hmi import __version__
-from cobot_hmi.service import routes_auth, routes_log, routes_read, routes_stream, routes_write
-from cobot_hmi.service.errors import ApiError
+from cobot_hmi.service import (
+    routes_auth,
+    routes_log,
+    routes_read,
+    routes_stream,
+    routes_write,
+    security,
+)
+from cobot_hmi.service.api_docs import openapi_document
+from cobot_hmi.service.errors import ApiError, UnknownRobotError
 from cobot_hmi.service.runtime import Service
 
 _API_PREFIXES = ("api/", "healthz", "readyz", "metrics", "docs", "openapi.json", "redoc")
@@ -49,21 +57,32 @@ def create_app(
     app = FastAPI(
         title="cobot-hmi",
         version=__version__,
-        summary="Live frames, writes, control, login and audit for a Doosan cobot over "
+        summary="Live frames, writes, control, login and audit for Doosan cobots over "
         "EtherNet/IP class 1. See docs/api.md.",
         lifespan=lifespan,
+        # One component per model (no Foo-Input / Foo-Output pairs): the generated client's
+        # names stay the models' names.
+        separate_input_output_schemas=False,
     )
     app.state.service = service
     app.add_middleware(routes_stream.TransportAbortMiddleware)
+    # Body limit, Host/Origin/content-type checks, anonymous write gate, security headers:
+    # outside everything else (service/security.py).
+    security.install(app, security.policy_from_settings(service.settings))
 
     @app.exception_handler(ApiError)
     async def api_error(_: Request, error: ApiError) -> Response:
         return JSONResponse({"detail": error.detail}, error.status, headers=error.headers)
 
+    @app.exception_handler(UnknownRobotError)
+    async def unknown_robot(_: Request, error: UnknownRobotError) -> Response:
+        api = error.to_api_error()
+        return JSONResponse({"detail": api.detail}, api.status)
+
     @app.exception_handler(RequestValidationError)
     async def invalid_request(_: Request, error: RequestValidationError) -> Response:
         first = error.errors()[0] if error.errors() else {}
-        location = [str(p) for p in first.get("loc", ()) if p not in ("body", "query")]
+        location = [str(p) for p in first.get("loc", ()) if p not in ("body", "query", "path")]
         return JSONResponse(
             {
                 "detail": {
@@ -77,6 +96,7 @@ def create_app(
     for module in (routes_read, routes_auth, routes_write, routes_log, routes_stream):
         app.include_router(module.router)
     _serve_frontend(app, service.settings.frontend_path)
+    app.openapi = lambda: openapi_document(app)  # type: ignore[method-assign]
     return app
 
 

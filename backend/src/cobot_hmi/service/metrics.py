@@ -91,6 +91,16 @@ def render_metrics(service: Service, stats: dict[str, ConnectionStats]) -> str:
         "T→O packets that did not decode",
         lambda r, s: s.malformed,
     )
+    per_robot("connects_total", "counter", "times the connection came up", lambda r, s: r.connects)
+    per_robot(
+        "connection_losses_total", "counter", "times a connection was lost", lambda r, s: r.losses
+    )
+    w.metric("cyclic_thread_up", "gauge", "1 while the cyclic I/O thread runs")
+    w.sample("cyclic_thread_up", int(service.cyclic.alive))
+    w.metric(
+        "cyclic_thread_restarts_total", "counter", "times the cyclic I/O thread died and restarted"
+    )
+    w.sample("cyclic_thread_restarts_total", service.cyclic.restarts)
     w.metric("frame_interval_seconds", "gauge", "T→O receive interval (originator's window)")
     for _, robot_stats, label in robots:
         w.sample(

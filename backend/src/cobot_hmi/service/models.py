@@ -14,6 +14,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Annotated, Any, Final, Literal, TypeAlias
 
 from pydantic import BaseModel, ConfigDict, Field, StringConstraints, TypeAdapter, create_model
+from typing_extensions import TypeAliasType
 
 from cobot_hmi.layout import (
     LAYOUT_VERSION,
@@ -28,10 +29,9 @@ from cobot_hmi.layout import Field as LayoutField
 
 # --------------------------------------------------------------------------- JSON values
 
-JsonScalar: TypeAlias = bool | int | float | str | None
-Json: TypeAlias = JsonScalar | list[JsonScalar] | dict[str, JsonScalar | list[JsonScalar]]
-"""Any JSON document two levels deep (what an audit row keeps of a malformed body), typed so
-that its schema is never empty."""
+Json = TypeAliasType("Json", "bool | int | float | str | list[Json] | dict[str, Json] | None")
+"""Any JSON document (what an audit row keeps of a body), typed so that its schema is never
+empty: one recursive component."""
 
 ElementValue: TypeAlias = bool | int | float | None
 """One element of an O→T or T→O field (``null``: a non-finite REAL)."""

@@ -1,0 +1,346 @@
+"""The per-robot API against two emulated robots and the real service on loopback: the robot
+list, per-robot reads, writes and control that stay with their robot, the deprecated
+single-robot paths answering for the first robot, 404s naming the known robots, per-robot
+events, audit and metrics, malformed write bodies answered 422 naming the field and audited,
+and every answer checked against its model in the contract."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import AsyncIterator
+from pathlib import Path
+from typing import Any
+
+import orjson
+import pytest
+from pydantic import BaseModel
+from websockets.asyncio.client import connect
+from websockets.exceptions import ConnectionClosed
+
+from cobot_hmi.emulator.static_robot import StaticRobot
+from cobot_hmi.emulator.target import Target
+from cobot_hmi.service import models
+from conftest import _next_host as next_host
+from service_support import (
+    OPERATOR,
+    OPERATOR_2,
+    Running,
+    cell_settings,
+    emulator,
+    eventually,
+    running_service,
+)
+
+pytestmark = pytest.mark.timeout(180)
+
+JSON = {"Content-Type": "application/json"}
+
+
+@pytest.fixture
+def left_robot() -> StaticRobot:
+    return StaticRobot()
+
+
+@pytest.fixture
+def right_robot() -> StaticRobot:
+    return StaticRobot()
+
+
+@pytest.fixture
+async def cell(
+    robot_host: str,
+    plc_host: str,
+    tmp_path: Path,
+    left_robot: StaticRobot,
+    right_robot: StaticRobot,
+) -> AsyncIterator[tuple[Running, Target, Target]]:
+    async with (
+        emulator(robot_host, left_robot) as left,
+        emulator(next_host(), right_robot) as right,
+    ):
+        settings = cell_settings(
+            [
+                ("left", robot_host, left.tcp_port),
+                ("right", right.settings.host, right.tcp_port),
+            ],
+            plc_host,
+            tmp_path,
+        )
+        async with running_service(settings) as running:
+            yield running, left, right
+
+
+def _valid(model: type[BaseModel], data: Any) -> Any:
+    model.model_validate(data)
+    return data
+
+
+async def test_robot_list_and_per_robot_reads(cell: tuple[Running, Target, Target]) -> None:
+    hmi, left, right = cell
+    async with hmi.client() as client:
+        listing = _valid(models.RobotList, (await client.get("/api/v1/robots")).json())
+        robots = {r["name"]: r for r in listing["robots"]}
+        assert list(robots) == ["left", "right"]
+        assert robots["left"]["host"] == left.settings.host and robots["left"]["default"]
+        assert robots["right"]["host"] == right.settings.host and not robots["right"]["default"]
+        for robot in robots.values():
+            assert robot["connection"] == "connected"
+            assert robot["mode"] == "exclusive_owner"
+            assert robot["holder"] is None
+            assert robot["robot_state_name"] == "STANDALONE_STANDBY"
+        await eventually(lambda: all(r.identity is not None for r in hmi.service.robots.values()))
+        one = _valid(models.RobotSummary, (await client.get("/api/v1/robots/right")).json())
+        assert one["model"] and one["identity"]["product_name"] == one["model"]
+        for name in ("left", "right"):
+            frame = _valid(
+                models.FrameAnswer, (await client.get(f"/api/v1/robots/{name}/frame")).json()
+            )
+            assert frame["robot"] == name and frame["stale"] is False
+            status = _valid(
+                models.RobotStatus, (await client.get(f"/api/v1/robots/{name}/status")).json()
+            )
+            host = left.settings.host if name == "left" else right.settings.host
+            assert status["connection"]["robot"] == host
+            command = _valid(
+                models.CommandState, (await client.get(f"/api/v1/robots/{name}/command")).json()
+            )
+            assert command["robot"] == name and command["run"] is False
+            ready = await client.get(f"/api/v1/robots/{name}/readyz")
+            assert _valid(models.Ready, ready.json()) == {
+                "ready": True,
+                "reason": None,
+                "robot": name,
+            }
+        assert (await client.get("/readyz?robot=right")).json()["robot"] == "right"
+        health = _valid(models.Health, (await client.get("/healthz")).json())
+        assert health == {"ok": True, "problems": []}
+        layout = (await client.get("/api/v1/layout")).json()
+        models.LayoutDocument.model_validate(layout)
+
+
+async def test_unknown_robot_is_a_404_naming_the_known_ones(
+    cell: tuple[Running, Target, Target],
+) -> None:
+    hmi, _, _ = cell
+    token = await hmi.login(OPERATOR)
+    async with hmi.client(token) as client:
+        for method, path in (
+            ("GET", "/api/v1/robots/nope"),
+            ("GET", "/api/v1/robots/nope/frame"),
+            ("GET", "/api/v1/robots/nope/status"),
+            ("GET", "/api/v1/robots/nope/command"),
+            ("GET", "/api/v1/robots/nope/readyz"),
+            ("PATCH", "/api/v1/robots/nope/command"),
+            ("POST", "/api/v1/robots/nope/control/take"),
+            ("POST", "/api/v1/robots/nope/control/release"),
+            ("GET", "/api/v1/robots/NOT%20A%20NAME/frame"),
+        ):
+            body = b'{"tool_do": {"0": true}}' if method == "PATCH" else None
+            answer = await client.request(method, path, content=body, headers=JSON)
+            assert answer.status_code == 404, (method, path)
+            detail = _valid(models.ApiErrorResponse, answer.json())["detail"]
+            assert detail["field"] == "name"
+            assert detail["known"] == ["left", "right"]
+            assert "known: left, right" in detail["reason"]
+        for path in ("/api/v1/audit?robot=nope", "/api/v1/events?robot=nope", "/readyz?robot=x"):
+            answer = await client.get(path)
+            assert answer.status_code == 404, path
+            assert answer.json()["detail"]["field"] == "robot"
+            assert answer.json()["detail"]["known"] == ["left", "right"]
+    with pytest.raises(ConnectionClosed) as closed:
+        async with connect(hmi.robot_ws_url("nope")) as stream:
+            await stream.recv()
+    assert closed.value.rcvd is not None
+    assert closed.value.rcvd.code == 4404
+    assert "known: left, right" in closed.value.rcvd.reason
+    # Nothing of it reached the audit trail: nobody wrote to a robot.
+    assert (await hmi.service.store.audit_page(10, 0)).total == 0
+
+
+async def test_control_and_writes_stay_with_their_robot(
+    cell: tuple[Running, Target, Target], left_robot: StaticRobot, right_robot: StaticRobot
+) -> None:
+    hmi, _, _ = cell
+    olivia, oscar = await hmi.login(OPERATOR), await hmi.login(OPERATOR_2)
+    async with hmi.client(olivia) as left_op, hmi.client(oscar) as right_op:
+        take = await left_op.post("/api/v1/robots/left/control/take")
+        assert _valid(models.ControlStatus, take.json())["holder"]["user"] == OPERATOR[0]
+        # Control of one robot says nothing about the other.
+        take = await right_op.post("/api/v1/robots/right/control/take")
+        assert take.status_code == 200, take.text
+        refused = await left_op.patch(
+            "/api/v1/robots/right/command", json={"controlbox_do": {"2": True}}
+        )
+        assert refused.status_code == 409
+        assert OPERATOR_2[0] in refused.json()["detail"]["reason"]
+        write = await left_op.patch(
+            "/api/v1/robots/left/command", json={"controlbox_do": {"2": True}}
+        )
+        assert write.status_code == 200, write.text
+        confirmed = _valid(models.WriteConfirmed, write.json())
+        assert confirmed["image"]["controlbox_do"][2] is True
+        write = await right_op.patch("/api/v1/robots/right/command", json={"tool_do": {"0": True}})
+        assert write.status_code == 200, write.text
+        # Index 2 is DO 3 on the left robot only; Tool DO 1 on the right one only.
+        assert left_robot.command_image().controlbox_do[2] is True
+        assert left_robot.command_image().tool_do[0] is False
+        assert right_robot.command_image().tool_do[0] is True
+        assert right_robot.command_image().controlbox_do[2] is False
+        robots = {r["name"]: r for r in (await left_op.get("/api/v1/robots")).json()["robots"]}
+        assert robots["left"]["holder"]["user"] == OPERATOR[0]
+        assert robots["right"]["holder"]["user"] == OPERATOR_2[0]
+        release = await right_op.post("/api/v1/robots/right/control/release")
+        assert release.json() == {"holder": None}
+        assert hmi.service.robot("left").control.holder is not None
+
+        # Per-robot audit: rows carry the robot's name and the door; ?robot= filters.
+        audit = (await left_op.get("/api/v1/audit?robot=right")).json()
+        _valid(models.AuditPage, audit)
+        assert {row["robot"] for row in audit["items"]} == {"right"}
+        actions = [(row["action"], row["outcome"]) for row in audit["items"]]
+        assert actions == [
+            ("control.release", "released"),
+            ("write", "confirmed"),
+            ("write", "refused"),  # olivia's, while oscar held the right robot
+            ("control.take", "granted"),
+        ]
+        assert audit["items"][2]["user"] == OPERATOR[0]
+        left_rows = (await left_op.get("/api/v1/audit?robot=left")).json()["items"]
+        assert [(r["action"], r["outcome"]) for r in left_rows] == [
+            ("write", "confirmed"),
+            ("control.take", "granted"),
+        ]
+        assert left_rows[0]["origin"] == "PATCH /api/v1/robots/left/command"
+        assert left_rows[0]["fields"] == ["controlbox_do.2"]
+        everything = (await left_op.get("/api/v1/audit")).json()
+        assert everything["total"] == 6
+
+        # Per-robot events.
+        await hmi.service.store.flush_events()
+        events = (await left_op.get("/api/v1/events?robot=right&limit=1000")).json()
+        _valid(models.EventPage, events)
+        assert {e["robot"] for e in events["items"]} == {"right"}
+        kinds = {e["kind"] for e in events["items"]}
+        assert {"connection", "robot_state", "control", "write"} <= kinds
+        writes = (await left_op.get("/api/v1/events?kind=write&robot=left")).json()["items"]
+        assert [w["fields"] for w in writes] == [["controlbox_do.2"]]
+        csv_text = (await left_op.get("/api/v1/events?robot=left&format=csv")).text
+        assert csv_text.splitlines()[0] == "id,time,robot,kind,data"
+
+    # Per-robot metrics.
+    metrics = await hmi.metrics()
+    for name in ("left", "right"):
+        assert f'cobot_hmi_connection_state{{robot="{name}",state="connected"}} 1.0' in metrics
+        assert f'cobot_hmi_writes_total{{robot="{name}",outcome="confirmed"}} 1.0' in metrics
+    assert 'cobot_hmi_writes_total{robot="right",outcome="refused"} 1.0' in metrics
+    assert 'cobot_hmi_control_held{robot="left"} 1.0' in metrics
+    assert 'cobot_hmi_control_held{robot="right"} 0.0' in metrics
+    # Each metric's HELP and TYPE once, before every robot's samples.
+    assert metrics.count("# TYPE cobot_hmi_frames_received_total counter") == 1
+
+
+async def test_deprecated_single_robot_paths_answer_for_the_first_robot(
+    cell: tuple[Running, Target, Target], left_robot: StaticRobot, right_robot: StaticRobot
+) -> None:
+    hmi, left, _ = cell
+    async with hmi.client(await hmi.login(OPERATOR)) as client:
+        frame = (await client.get("/api/v1/frame")).json()
+        assert frame["robot"] == "left"
+        status = (await client.get("/api/v1/status")).json()
+        assert status["connection"]["robot"] == left.settings.host
+        assert (await client.get("/api/v1/command")).json()["robot"] == "left"
+        assert (await client.post("/api/v1/control/take")).status_code == 200
+        write = await client.patch("/api/v1/command", json={"controlbox_do": {"5": True}})
+        assert write.status_code == 200, write.text
+        assert left_robot.command_image().controlbox_do[5] is True
+        assert right_robot.command_image().controlbox_do[5] is False
+        assert hmi.service.robot("left").control.holder is not None
+        assert hmi.service.robot("right").control.holder is None
+        assert (await client.post("/api/v1/control/release")).json() == {"holder": None}
+        row = (await client.get("/api/v1/audit?limit=2")).json()["items"][1]
+        assert row["robot"] == "left" and row["origin"] == "PATCH /api/v1/command"
+    async with connect(hmi.ws_url) as stream:
+        hello = orjson.loads(await stream.recv())
+    assert models.HelloMessage.model_validate(hello).robot == "left"
+
+
+@pytest.mark.parametrize(
+    ("body", "field"),
+    [
+        (b'{"extra": "00"}', "extra"),  # a frame-only key: a 500 before
+        ('{"controlbox_do": {"²": true}}'.encode(), "controlbox_do"),  # a 500 before
+        (b'{"controlbox_do": {"03": true}}', "controlbox_do"),  # not canonical decimal
+        ('{"controlbox_do": {"٣": true}}'.encode(), "controlbox_do"),  # another script's 3
+        (b'{"controlbox_do": {"16": true}}', "controlbox_do.16"),
+        (b'{"controlbox_do": true}', "controlbox_do"),
+        (b'{"analog_output": {"0": 1e400}}', None),  # not JSON orjson reads (inf)
+        (b'{"robot_state_name": "X"}', "robot_state_name"),
+        (b"[]", None),
+        (b"{}", None),
+        (b"null", None),
+        (b"{", None),
+    ],
+)
+async def test_malformed_write_bodies_are_422_naming_the_field_and_audited(
+    cell: tuple[Running, Target, Target],
+    right_robot: StaticRobot,
+    body: bytes,
+    field: str | None,
+) -> None:
+    hmi, _, _ = cell
+    async with hmi.client(await hmi.login(OPERATOR)) as client:
+        assert (await client.post("/api/v1/robots/right/control/take")).status_code == 200
+        before = (await client.get("/api/v1/robots/right/command")).json()["image"]
+        answer = await client.patch("/api/v1/robots/right/command", content=body, headers=JSON)
+        assert answer.status_code == 422, answer.text
+        detail = _valid(models.ApiErrorResponse, answer.json())["detail"]
+        assert detail["field"] == field
+        assert detail["reason"]
+        # Nothing applied.
+        assert (await client.get("/api/v1/robots/right/command")).json()["image"] == before
+        assert right_robot.command_image().controlbox_do[3] is False
+        rows = (await client.get("/api/v1/audit?robot=right&limit=1")).json()["items"]
+    _valid(models.AuditPage, {"items": rows, "total": 1})
+    (row,) = rows
+    assert (row["action"], row["outcome"], row["user"]) == ("write", "invalid", OPERATOR[0])
+    assert row["reason"] == detail["reason"]
+    assert row["origin"] == "PATCH /api/v1/robots/right/command"
+    metrics = await hmi.metrics()
+    assert 'cobot_hmi_writes_total{robot="right",outcome="invalid"} 1.0' in metrics
+    assert re.search(r'writes_total\{robot="left",outcome="invalid"\} 0\.0', metrics)
+
+
+async def test_each_robot_streams_its_own_frames_and_events(
+    cell: tuple[Running, Target, Target],
+) -> None:
+    hmi, _, _ = cell
+    token = await hmi.login(OPERATOR)
+    messages: dict[str, list[Any]] = {"left": [], "right": []}
+    async with (
+        connect(hmi.robot_ws_url("left")) as left_stream,
+        connect(hmi.robot_ws_url("right")) as right_stream,
+    ):
+        for name, stream in (("left", left_stream), ("right", right_stream)):
+            messages[name].append(orjson.loads(await stream.recv()))
+        async with hmi.client(token) as client:
+            assert (await client.post("/api/v1/robots/right/control/take")).status_code == 200
+        for name, stream in (("left", left_stream), ("right", right_stream)):
+            while not any(m["type"] == "frames" for m in messages[name]) or (
+                name == "right" and not any(m["type"] == "event" for m in messages[name])
+            ):
+                messages[name].append(orjson.loads(await stream.recv()))
+    for name, received in messages.items():
+        for message in received:
+            models.STREAM_MESSAGE.validate_python(message)  # the contract's model
+        assert received[0]["type"] == "hello" and received[0]["robot"] == name
+        events = [m["event"] for m in received if m["type"] == "event"]
+        assert all(e["robot"] == name for e in events)
+    right_control = [
+        m["event"]
+        for m in messages["right"]
+        if m["type"] == "event" and m["event"]["kind"] == "control"
+    ]
+    assert right_control and right_control[0]["holder"]["user"] == OPERATOR[0]
+    assert not any(
+        m["type"] == "event" and m["event"]["kind"] == "control" for m in messages["left"]
+    )
