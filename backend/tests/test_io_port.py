@@ -54,6 +54,78 @@ async def eventually(check: Callable[[], bool], timeout_s: float = DEADLINE_S) -
         await asyncio.sleep(0.01)
 
 
+# --------------------------------------------------------------------------- dispatch
+
+
+class Recorder:
+    """A T2OConsumer keeping what the port hands it."""
+
+    def __init__(self) -> None:
+        self.packets: list[bytes] = []
+        self.foreign = 0
+        self.malformed = 0
+        self.batches = 0
+
+    def t2o_packet(self, packet: io.IoPacket, arrived: float) -> None:
+        self.packets.append(packet.payload)
+
+    def t2o_foreign(self) -> None:
+        self.foreign += 1
+
+    def t2o_malformed(self) -> None:
+        self.malformed += 1
+
+    def t2o_batch_read(self) -> None:
+        self.batches += 1
+
+
+async def test_port_dispatches_by_connection_id_and_source(plc_host: str) -> None:
+    """Each datagram goes where its connection ID and source say: to its connection from the
+    connection's target; counted on that connection as foreign from anywhere else; an unknown
+    ID or garbage from a target's address counted on that target's connection; from nowhere
+    known, on the port."""
+    first_host, second_host, stranger_host = next_host(), next_host(), next_host()
+    port = IoPort(plc_host, 0)
+    await port.open()
+    first, second = Recorder(), Recorder()
+    first_id, second_id = port.new_connection_id(), port.new_connection_id()
+    assert first_id != second_id
+    port.route(first_id, first_host, first, batch_s=0.0, silence_s=0.0)
+    port.route(second_id, second_host, second, batch_s=0.0, silence_s=0.0)
+    with pytest.raises(ValueError, match="routed already"):
+        port.route(first_id, second_host, second, batch_s=0.0, silence_s=0.0)
+    senders = {}
+    try:
+        for host in (first_host, second_host, stranger_host):
+            sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            sender.bind((host, 0))
+            senders[host] = sender
+        to = (plc_host, port.udp.port)
+        senders[first_host].sendto(io.encode_io(first_id, 1, 1, b"one"), to)
+        senders[second_host].sendto(io.encode_io(second_id, 1, 1, b"two"), to)
+        senders[second_host].sendto(io.encode_io(first_id, 2, 2, b"forged"), to)
+        senders[stranger_host].sendto(io.encode_io(first_id, 3, 3, b"forged"), to)
+        senders[first_host].sendto(io.encode_io(0x1234, 1, 1, b"unknown"), to)
+        senders[first_host].sendto(b"garbage", to)
+        senders[stranger_host].sendto(io.encode_io(0x1234, 1, 1, b"unknown"), to)
+        senders[stranger_host].sendto(b"garbage", to)
+        await eventually(lambda: port.malformed == 1)
+        await eventually(lambda: first.foreign == 3)
+        assert second.foreign == 0
+        assert first.packets == [b"one"] and second.packets == [b"two"]
+        assert first.malformed == 1 and second.malformed == 0
+        assert port.foreign == 1
+        assert first.batches >= 1 and second.batches >= 1
+        port.unroute(first_id)
+        senders[first_host].sendto(io.encode_io(first_id, 4, 4, b"late"), to)
+        await eventually(lambda: port.foreign == 2)
+        assert first.packets == [b"one"]
+    finally:
+        for sender in senders.values():
+            sender.close()
+        port.close()
+
+
 # --------------------------------------------------------------------------- N connections
 
 
@@ -68,8 +140,7 @@ async def test_n_connections_to_n_targets_on_one_socket(plc_host: str) -> None:
     ]
     for target in targets:
         await target.start()
-    port = IoPort(plc_host)
-    await port.open()
+    port = IoPort(plc_host)  # opened by the first originator that needs it
     originators: list[Originator] = []
     try:
         for target in targets:
@@ -85,6 +156,7 @@ async def test_n_connections_to_n_targets_on_one_socket(plc_host: str) -> None:
             await originator.start()
         for originator in originators:
             assert await originator.wait_connected(DEADLINE_S)
+        assert port.is_open and port.udp.port == 2222
         o2t_ids = {target.connections()[0].o2t_connection_id for target in targets}
         assert len(o2t_ids) == 1, "the emulators chose the same O→T ID: our tags keep them apart"
         assert {t.connections()[0].peer.split(":")[0] for t in targets} == {plc_host}
