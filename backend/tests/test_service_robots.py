@@ -6,6 +6,7 @@ and every answer checked against its model in the contract."""
 
 from __future__ import annotations
 
+import asyncio
 import re
 from collections.abc import AsyncIterator
 from pathlib import Path
@@ -344,3 +345,47 @@ async def test_each_robot_streams_its_own_frames_and_events(
     assert not any(
         m["type"] == "event" and m["event"]["kind"] == "control" for m in messages["left"]
     )
+
+
+async def test_health_and_readiness_per_robot_with_one_robot_gone(
+    robot_host: str, plc_host: str, tmp_path: Path
+) -> None:
+    ghost_host = next_host()  # nobody answers there: refused every time it is tried
+    async with emulator(robot_host) as left:
+        settings = cell_settings(
+            [("left", robot_host, left.tcp_port), ("ghost", ghost_host, 44818)],
+            plc_host,
+            tmp_path,
+            link_down_unhealthy_s=0.5,
+        )
+        async with running_service(settings, wait_connected=False) as hmi:
+            assert await hmi.service.robot("left").link.wait_connected(30.0)
+            async with hmi.client() as client:
+                left_ready = await client.get("/api/v1/robots/left/readyz")
+                assert left_ready.status_code == 200
+                ghost_ready = await client.get("/api/v1/robots/ghost/readyz")
+                assert ghost_ready.status_code == 503
+                assert _valid(models.Ready, ghost_ready.json())["robot"] == "ghost"
+                assert ghost_ready.json()["reason"]
+                everyone = await client.get("/readyz")
+                assert everyone.status_code == 503 and everyone.json()["robot"] == "ghost"
+                assert (await client.get("/readyz?robot=left")).status_code == 200
+
+                async def unhealthy() -> Any:
+                    answer = await client.get("/healthz")
+                    return answer if answer.status_code == 503 else None
+
+                health = None
+                for _ in range(600):  # the bound is 0.5 s; a generous deadline under load
+                    health = await unhealthy()
+                    if health is not None:
+                        break
+                    await asyncio.sleep(0.05)
+                assert health is not None, "/healthz never reported the robot that is gone"
+                body = _valid(models.Health, health.json())
+                assert body["ok"] is False
+                assert any("ghost" in problem for problem in body["problems"])
+                assert not any("left" in problem for problem in body["problems"])
+                # The other robot keeps streaming and answering.
+                frame = (await client.get("/api/v1/robots/left/frame")).json()
+                assert frame["stale"] is False
