@@ -31,12 +31,14 @@ export function RobotSwitcher({ robot, robots, onSelect }: Props) {
           ))}
         </select>
       </label>
-      <a href={FLEET_HREF} data-testid="fleet-link">
-        Fleet
-      </a>
-      <a href={kioskHref(robot)} data-testid="kiosk-link">
-        Kiosk
-      </a>
+      <div className="robot-switcher__links">
+        <a href={FLEET_HREF} data-testid="fleet-link">
+          Fleet
+        </a>
+        <a href={kioskHref(robot)} data-testid="kiosk-link">
+          Kiosk
+        </a>
+      </div>
     </div>
   );
 }
