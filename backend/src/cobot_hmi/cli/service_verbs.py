@@ -19,11 +19,20 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
-from typing import Final
+from typing import IO, TYPE_CHECKING, Final
 
-DEMO_ROBOT_HOST: Final = "127.0.0.2"
+if TYPE_CHECKING:
+    from cobot_hmi.service.settings import ServiceSettings
+
+DEMO_ROBOTS: Final = (
+    # name, address, model, seed of its noise: two arms, two programs (each model's own).
+    ("m1013", "127.0.0.2", "M1013", 1),
+    ("m0609", "127.0.0.5", "M0609", 2),
+)
+DEMO_ROBOT_HOST: Final = DEMO_ROBOTS[0][1]
 DEMO_HTTP_HOST: Final = "127.0.0.1"
 DEMO_HTTP_PORT: Final = 8000
 DEMO_USER: Final = "operator"
@@ -45,23 +54,52 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
     demo = subparsers.add_parser(
         "demo",
-        help="the emulator at 127.0.0.2 and the service on http://127.0.0.1:8000",
+        help="two emulated robots (127.0.0.2, 127.0.0.5) and the service on http://127.0.0.1:8000",
         description=(
-            "Start the emulator as its own process and the service against it, serving the "
-            "built frontend. Creates (or resets) the operator account and prints its password "
-            "once. Ctrl-C stops both (the service sends its Forward Close first)."
+            "Start emulated robots as processes of their own (an M1013 at 127.0.0.2 and an "
+            "M0609 at 127.0.0.5) and the service against them, serving the built frontend. The "
+            "state (users file, database) lives in a fresh temporary directory unless "
+            "--state-dir is given; the operator's password is printed once. Every address is "
+            "checked first: one that is taken ends the demo with a message. Ctrl-C stops all "
+            "(the service sends its Forward Closes first); the emulators also end when the demo "
+            "is killed."
         ),
     )
-    demo.add_argument("--robot-host", default=DEMO_ROBOT_HOST, help="emulator address")
-    demo.add_argument("--robot-tcp-port", type=int, default=44818, help="emulator TCP port")
-    demo.add_argument("--robot-udp-port", type=int, default=2222, help="emulator UDP port")
-    demo.add_argument("--control-port", type=int, default=None, help="emulator control API port")
+    demo.add_argument(
+        "--robots",
+        type=int,
+        choices=range(1, len(DEMO_ROBOTS) + 1),
+        default=None,
+        help=f"how many robots (default {len(DEMO_ROBOTS)}, or as many as --robot-host gives)",
+    )
+    demo.add_argument(
+        "--robot-host",
+        action="append",
+        default=None,
+        metavar="HOST",
+        help="an emulator's address, once per robot in order (default "
+        + ", ".join(host for _, host, _, _ in DEMO_ROBOTS)
+        + ")",
+    )
+    demo.add_argument("--robot-tcp-port", type=int, default=44818, help="emulators' TCP port")
+    demo.add_argument("--robot-udp-port", type=int, default=2222, help="emulators' UDP port")
+    demo.add_argument(
+        "--control-port",
+        type=int,
+        default=8081,
+        help="emulators' control API port, each on its own address (0: any free port)",
+    )
     demo.add_argument("--local-host", default=DEMO_HTTP_HOST, help="address receiving T→O")
     demo.add_argument("--local-udp-port", type=int, default=2222, help="UDP port receiving T→O")
     demo.add_argument("--host", default=DEMO_HTTP_HOST, help="HTTP bind address")
     demo.add_argument("--port", type=int, default=DEMO_HTTP_PORT, help="HTTP port")
     demo.add_argument("--rpi-ms", type=float, default=10.0, help="RPI, ms")
-    demo.add_argument("--state-dir", type=Path, default=None, help="users file and database")
+    demo.add_argument(
+        "--state-dir",
+        type=Path,
+        default=None,
+        help="users file and database (default: a fresh temporary directory, removed at the end)",
+    )
     demo.add_argument("--frontend-dir", type=Path, default=None, help="built frontend")
     demo.set_defaults(handler=_demo)
 
@@ -111,7 +149,7 @@ def _serve(args: argparse.Namespace) -> int:
 
     try:
         settings = settings_from_args(args)
-        settings.originator_settings()
+        settings.require_robots()
     except SettingsError as error:
         return _fail(str(error))
     prepare_process()
@@ -200,17 +238,120 @@ def _users_revoke(args: argparse.Namespace) -> int:
 # --------------------------------------------------------------------------- demo
 
 
-def _wait_for_tcp(host: str, port: int, process: subprocess.Popen[bytes], timeout_s: float) -> bool:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if process.poll() is not None:
-            return False
+class _DemoError(Exception):
+    """Why the demo cannot start; printed as it is."""
+
+
+def _check_free(host: str, port: int, kind: int, what: str) -> None:
+    """``_DemoError`` when ``host:port`` cannot be bound now (someone else holds it)."""
+    with socket.socket(socket.AF_INET, kind) as probe:
         try:
-            with socket.create_connection((host, port), timeout=0.5):
-                return True
-        except OSError:
-            time.sleep(0.1)
-    return False
+            probe.bind((host, port))
+        except OSError as error:
+            proto = "TCP" if kind == socket.SOCK_STREAM else "UDP"
+            raise _DemoError(
+                f"{what}: {proto} {host}:{port} is taken ({error.strerror}); is another demo or "
+                "emulator running? Stop it, or give other addresses (cobot-hmi demo --help)"
+            ) from None
+
+
+def _bind_http(host: str, port: int) -> socket.socket:
+    """The HTTP listening socket, bound now so nobody takes it between check and serve."""
+    sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        sock.bind((host, port))
+    except OSError as error:
+        sock.close()
+        raise _DemoError(
+            f"the HMI: TCP {host}:{port} is taken ({error.strerror}); is another demo running? "
+            "Stop it, or give another --host/--port"
+        ) from None
+    return sock
+
+
+def _die_with_parent(parent_pid: int) -> None:
+    """In the emulator's process, before exec: end with SIGTERM when the demo ends, even by
+    ``kill -9`` (Linux ``prctl(PR_SET_PDEATHSIG)``, kept across exec)."""
+    import ctypes
+
+    pr_set_pdeathsig = 1
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.prctl(pr_set_pdeathsig, signal.SIGTERM, 0, 0, 0)
+    if os.getppid() != parent_pid:  # the demo died before prctl took effect
+        os._exit(1)
+
+
+def _start_emulator(
+    args: argparse.Namespace, host: str, model: str, seed: int
+) -> subprocess.Popen[bytes]:
+    command = [
+        sys.executable,
+        "-m",
+        "cobot_hmi.cli",
+        "emulator",
+        "--host",
+        host,
+        "--tcp-port",
+        str(args.robot_tcp_port),
+        "--udp-port",
+        str(args.robot_udp_port),
+        "--control-port",
+        str(args.control_port),
+        "--model",
+        model,
+        "--seed",
+        str(seed),
+        "--verbose",  # its connection log shows the Forward Close on Ctrl-C
+    ]
+    parent_pid = os.getpid()
+    # Its own session: the terminal's Ctrl-C reaches only us, so the service can still send
+    # its Forward Close to a live emulator before we stop it.
+    return subprocess.Popen(
+        command,
+        start_new_session=True,
+        stdout=subprocess.PIPE,
+        env=os.environ.copy(),
+        preexec_fn=lambda: _die_with_parent(parent_pid),  # noqa: PLW1509 (no threads yet)
+    )
+
+
+def _wait_ready(process: subprocess.Popen[bytes], host: str, timeout_s: float) -> None:
+    """Until OUR emulator says it serves (another one on the address must not pass for it),
+    then its further output goes to ours."""
+    import selectors
+
+    assert process.stdout is not None
+    stream = process.stdout
+    deadline = time.monotonic() + timeout_s
+    seen = b""
+    with selectors.DefaultSelector() as selector:
+        selector.register(stream, selectors.EVENT_READ)
+        while b"\n" not in seen:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise _DemoError(f"the emulator at {host} did not start in {timeout_s:.0f} s")
+            if not selector.select(remaining):
+                continue
+            chunk = os.read(stream.fileno(), 4096)
+            if not chunk:
+                process.wait()
+                said = seen.decode(errors="replace").strip()
+                raise _DemoError(f"the emulator at {host} did not start: {said or 'it ended'}")
+            seen += chunk
+    line = seen.decode(errors="replace")
+    if "EtherNet/IP target on" not in line:
+        raise _DemoError(f"the emulator at {host} did not start: {line.strip()}")
+    sys.stdout.write(line)
+    sys.stdout.flush()
+    threading.Thread(target=_copy_output, args=(stream,), daemon=True).start()
+
+
+def _copy_output(stream: IO[bytes]) -> None:
+    with contextlib.suppress(OSError, ValueError):
+        while chunk := os.read(stream.fileno(), 4096):
+            sys.stdout.buffer.write(chunk)
+            sys.stdout.flush()
 
 
 def _stop_process(process: subprocess.Popen[bytes], timeout_s: float = 5.0) -> None:
@@ -224,65 +365,104 @@ def _stop_process(process: subprocess.Popen[bytes], timeout_s: float = 5.0) -> N
         process.wait()
 
 
+def _stop_all(processes: list[subprocess.Popen[bytes]]) -> None:
+    for process in processes:
+        _stop_process(process)
+
+
+def _demo_robots(args: argparse.Namespace) -> list[tuple[str, str, str, int]]:
+    hosts: list[str] = args.robot_host or []
+    count = args.robots if args.robots is not None else (len(hosts) or len(DEMO_ROBOTS))
+    if len(hosts) > count:
+        raise _DemoError(f"--robot-host given {len(hosts)} times for {count} robot(s)")
+    robots = []
+    for index, (name, host, model, seed) in enumerate(DEMO_ROBOTS[:count]):
+        robots.append((name, hosts[index] if index < len(hosts) else host, model, seed))
+    return robots
+
+
 def _demo(args: argparse.Namespace) -> int:
-    from cobot_hmi.service.server import prepare_process, serve
+    import tempfile
+
     from cobot_hmi.service.settings import SettingsError, load_settings
+
+    try:
+        robots = _demo_robots(args)
+    except _DemoError as error:
+        return _fail(str(error))
+    with contextlib.ExitStack() as stack:
+        state_dir: Path = args.state_dir
+        if state_dir is None:
+            # Fresh for each demo: two demos on one machine never share (or reset) a password.
+            state_dir = Path(
+                stack.enter_context(tempfile.TemporaryDirectory(prefix="cobot-hmi-demo-"))
+            )
+        flags: dict[str, object] = {
+            "robots": [
+                {"name": name, "host": host, "tcp_port": args.robot_tcp_port}
+                for name, host, _, _ in robots
+            ],
+            "local_host": args.local_host,
+            "local_udp_port": args.local_udp_port,
+            "host": args.host,
+            "port": args.port,
+            "rpi_ms": args.rpi_ms,
+            "state_dir": state_dir,
+        }
+        if args.frontend_dir is not None:
+            flags["frontend_dir"] = args.frontend_dir
+        try:
+            settings = load_settings(flags)
+        except SettingsError as error:
+            return _fail(str(error))
+        try:
+            return _run_demo(args, settings, robots, stack)
+        except _DemoError as error:
+            return _fail(str(error))
+
+
+def _run_demo(
+    args: argparse.Namespace,
+    settings: ServiceSettings,
+    robots: list[tuple[str, str, str, int]],
+    stack: contextlib.ExitStack,
+) -> int:
+    from cobot_hmi.service.server import prepare_process, serve
     from cobot_hmi.service.users import Role, UsersError, UsersFile, generate_password
 
-    flags: dict[str, object] = {
-        "robot_host": args.robot_host,
-        "robot_tcp_port": args.robot_tcp_port,
-        "local_host": args.local_host,
-        "local_udp_port": args.local_udp_port,
-        "host": args.host,
-        "port": args.port,
-        "rpi_ms": args.rpi_ms,
-    }
-    if args.state_dir is not None:
-        flags["state_dir"] = args.state_dir
-    if args.frontend_dir is not None:
-        flags["frontend_dir"] = args.frontend_dir
+    # Every address first: nothing starts, and no password is shown, while one is taken.
+    http_socket = stack.enter_context(_bind_http(args.host, args.port))
+    _check_free(args.local_host, args.local_udp_port, socket.SOCK_DGRAM, "the HMI's T→O port")
+    for name, host, _, _ in robots:
+        what = f"the emulator {name}"
+        _check_free(host, args.robot_tcp_port, socket.SOCK_STREAM, what)
+        _check_free(host, args.robot_udp_port, socket.SOCK_DGRAM, what)
+        if args.control_port:
+            _check_free(host, args.control_port, socket.SOCK_STREAM, f"{what}'s control API")
+    emulators: list[subprocess.Popen[bytes]] = []
+    stack.callback(_stop_all, emulators)
+    for _, host, model, seed in robots:
+        emulators.append(_start_emulator(args, host, model, seed))
+    for (_, host, _, _), process in zip(robots, emulators, strict=True):
+        _wait_ready(process, host, timeout_s=30)
     try:
-        settings = load_settings(flags)
-        if args.state_dir is None:
-            settings = load_settings({**flags, "state_dir": settings.state_dir / "demo"})
         password = generate_password()
         UsersFile(settings.users_path).add(DEMO_USER, Role.OPERATOR, password)
-    except (SettingsError, UsersError) as error:
-        return _fail(str(error))
-
-    command = [
-        sys.executable,
-        "-m",
-        "cobot_hmi.cli",
-        "emulator",
-        "--host",
-        args.robot_host,
-        "--tcp-port",
-        str(args.robot_tcp_port),
-        "--udp-port",
-        str(args.robot_udp_port),
-        "--verbose",  # its connection log shows the Forward Close on Ctrl-C
-    ]
-    if args.control_port is not None:
-        command += ["--control-port", str(args.control_port)]
-    # Its own session: the terminal's Ctrl-C reaches only us, so the service can still send
-    # its Forward Close to a live emulator before we stop it.
-    emulator = subprocess.Popen(command, start_new_session=True, env=os.environ.copy())
-    try:
-        if not _wait_for_tcp(args.robot_host, args.robot_tcp_port, emulator, timeout_s=15):
-            return _fail(f"the emulator did not start on {args.robot_host}:{args.robot_tcp_port}")
-        url = f"http://{args.host}:{args.port}/"
-        print(
-            f"cobot-hmi demo: emulator at {args.robot_host}, HMI at {url}\n"
-            f"  log in as {DEMO_USER!r} with password {password!r} (shown only now)\n"
-            "  Ctrl-C stops both.",
-            flush=True,
-        )
-        prepare_process()
-        with contextlib.suppress(KeyboardInterrupt):
-            asyncio.run(serve(settings))
-    finally:
-        _stop_process(emulator)
+    except UsersError as error:
+        raise _DemoError(str(error)) from None
+    url = f"http://{args.host}:{http_socket.getsockname()[1]}/"
+    cell = ", ".join(f"{name} ({model}) at {host}" for name, host, model, _ in robots)
+    print(
+        f"cobot-hmi demo: {cell}; HMI at {url}\n"
+        f"  log in as {DEMO_USER!r} with password {password!r} (shown only now)\n"
+        f"  state in {settings.state_dir}"
+        + (" (removed at the end)" if args.state_dir is None else "")
+        + "\n  Ctrl-C stops all.",
+        flush=True,
+    )
+    prepare_process()
+    with contextlib.suppress(KeyboardInterrupt):
+        asyncio.run(serve(settings, sockets=[http_socket]))
+    _stop_all(emulators)
     print("cobot-hmi demo: stopped.", flush=True)
     return 0

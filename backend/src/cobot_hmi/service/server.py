@@ -7,6 +7,7 @@ signal, which the CLI turns into its exit status.
 
 from __future__ import annotations
 
+import socket
 import sys
 from typing import Any, Final
 
@@ -61,8 +62,9 @@ def prepare_process() -> None:
     sys.setswitchinterval(SWITCH_INTERVAL_S)
 
 
-async def serve(settings: ServiceSettings) -> None:
-    """Run the service until a signal stops it."""
+async def serve(settings: ServiceSettings, *, sockets: list[socket.socket] | None = None) -> None:
+    """Run the service until a signal stops it; on ``sockets`` (already bound, as the demo
+    binds its HTTP address before it prints a password) instead of binding ``host:port``."""
     service = Service(settings)
     app = create_app(service, on_started=freeze_startup_heap)
-    await uvicorn.Server(uvicorn_config(app, settings)).serve()
+    await uvicorn.Server(uvicorn_config(app, settings)).serve(sockets=sockets)
