@@ -177,7 +177,10 @@ def local_address_to(host_ip: str) -> str:
     """The local address the kernel's routing table picks to reach ``host_ip`` (a UDP
     ``connect`` sends nothing)."""
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-        probe.connect((host_ip, ENIP_UDP_PORT))
+        try:
+            probe.connect((host_ip, ENIP_UDP_PORT))
+        except OSError as error:
+            raise OSError(f"no local address routes to {host_ip}: {error}") from None
         address: str = probe.getsockname()[0]
         return address
 
