@@ -2,7 +2,7 @@
 
 Decode and encode the two assemblies. The per-field work is in ``generated/frames.py``, which
 ``cobot_hmi.codegen`` derives from the layout table with one precompiled ``struct`` per
-assembly; this module adds the size rules of ``shared/spec/assembly.md`` ("Longer frames"),
+assembly; this module adds the size rules of docs/assembly.md ("Reading decisions", longer frames),
 clear errors, and the JSON forms.
 
 JSON has no NaN or infinity: in the serialized form (``dumps``) a non-finite REAL becomes

@@ -3,8 +3,8 @@
 The robot's two EtherNet/IP I/O assemblies, its robot-state enum and its five flags, as data.
 This is the only place in the project where an offset, a field name or a state value is written:
 the codec, the emulator, the frontend's types and ``docs/assembly.md`` all derive from it
-(``cobot_hmi.codegen`` writes the derived files). Source: ``shared/spec/assembly.md``, whose
-"Reading decisions" are encoded here as data, so a reading found wrong against a real
+(``cobot_hmi.codegen`` writes the derived files). The "Reading decisions" of
+docs/assembly.md are encoded here as data, so a reading found wrong against a real
 controller is a one-line fix.
 
 Conventions (CIP): little-endian; ``REAL`` is IEEE-754 binary32; bit *n* of the word at byte
@@ -260,7 +260,7 @@ class ConnectionPoints:
     """The robot's default connection points (assembly instances) for class 1 connections.
 
     Exclusive owner: configuration → O→T → T→O; input-only sends its O→T to the heartbeat
-    point, listen-only to its own (ethernetip.md "Input-only"). Every one is a setting on both
+    point, listen-only to its own (docs/protocol.md; CIP Vol 1 §3-5.4.1.10). Every one is a setting on both
     sides, in case a controller version numbers them otherwise.
     """
 

@@ -76,6 +76,34 @@ def _assembly_md(assembly: Assembly) -> Iterable[str]:
     yield ""
 
 
+READING_DECISIONS = (
+    "## Reading decisions",
+    "",
+    "The robot's I/O table, as exported, lost cell positions where cells were merged. Each "
+    "decision below is data in `layout.py`, so a reading found wrong against a real controller "
+    "is a one-line fix that the emulator, the backend, the frontend and these docs all follow.",
+    "",
+    "- **Tool I/O and AO type bits.** Taken literally the export gives 4 tool inputs at bits "
+    "0–3 and 4 tool outputs at bits 12–15 (its group label sits 8 columns early). The robot has "
+    "6 tool inputs and 6 tool outputs (Doosan's Modbus table: tool DI 1–6, tool DO 1–6), and the "
+    "only reading that puts every label of both rows in a consistent place is: tool DI at bits "
+    "0–5 and tool DO at bits 16–21 of T→O word 24; tool DO at bits 16–21 and AO type at bits "
+    "24–25 of O→T word 0.",
+    "- **Patch version.** Taken literally 4 bits wide (16–19); the same shift explains it, and an "
+    "8-bit field is read.",
+    "- **Flag order.** Doosan's Modbus table orders the flags SO, ES, SS, DTBP, PBP; the robot's "
+    "I/O table says SO, SS, ES, which is followed.",
+    "- **State enum.** Doosan's programming API has an older `ROBOT_STATE` enum (0–15); the I/O "
+    "table's numbering (above) is followed.",
+    "- **Longer frames.** A controller can be configured to send more than 284 bytes (general "
+    "purpose registers after the monitoring block). A decoder accepts a longer T→O frame, decodes "
+    "the first 284 bytes and keeps the rest as raw bytes (`extra`), and rejects a shorter one "
+    "with a clear error.",
+    "",
+)
+"""The reading decisions behind the layout, printed at the end of docs/assembly.md."""
+
+
 def assembly_doc() -> str:
     lines = [
         f"<!-- {HEADER} -->",
@@ -86,9 +114,8 @@ def assembly_doc() -> str:
         "of the word at byte offset *o* is bit *n mod 8* of byte *o + n div 8*. JSON keys of "
         "arrays are 0-based indexes; channels are labelled as the robot labels them.",
         "",
-        "The reading decisions behind this map (tool I/O bits, patch version width, flag order, "
-        "state numbering, longer frames) are in `shared/spec/assembly.md`; the table itself "
-        "lives in `backend/src/cobot_hmi/layout.py`.",
+        "The table itself lives in `backend/src/cobot_hmi/layout.py`; the reading decisions "
+        "behind it are at the end of this page.",
         "",
         "Connection sizes on the wire (protocol notes): O→T data + 2 (CIP sequence count) "
         "+ 4 (run/idle header); T→O data + 2.",
@@ -119,5 +146,5 @@ def assembly_doc() -> str:
     ]
     for coding, (low, high, unit) in ANALOG_OUTPUT_RANGES.items():
         lines.append(f"| {coding} | {low:g} | {high:g} | {unit} |")
-    lines.append("")
+    lines += ["", *READING_DECISIONS]
     return "\n".join(lines)

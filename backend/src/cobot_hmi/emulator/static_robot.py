@@ -1,7 +1,7 @@
 """Layer: emulator. Imports the layout's generated types and the codec.
 
 A robot that stands still: a plausible fixed frame (STANDALONE_STANDBY, servo on, at the pose
-of the published M1013 forward-kinematics check in assembly.md) whose actual outputs follow
+of the published M1013 forward-kinematics check in docs/emulator.md) whose actual outputs follow
 the last command, and whose bit output registers echo the bit input registers. Issue 3 allows a
 static frame; the simulated robot (``emulator/robot/``) replaces it.
 """

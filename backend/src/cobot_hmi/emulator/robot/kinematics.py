@@ -3,7 +3,7 @@
 Forward kinematics by composing the URDF joint transforms, the TCP with a tool offset, Euler
 Z-Y-Z angles as the controller reports them, and the TCP's linear and angular velocity.
 
-Spec (``shared/spec/assembly.md``, "Reference facts for an emulator"): each joint's transform is
+Reference (docs/emulator.md, "Reference facts the model follows"): each joint's transform is
 its origin (translation, then roll-pitch-yaw ``Rz(yaw)·Ry(pitch)·Rx(roll)`` as URDF defines it)
 followed by a rotation about its local z; orientation A, B, C is ``R = Rz(A)·Ry(B)·Rz(C)``.
 
