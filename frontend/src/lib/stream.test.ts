@@ -142,6 +142,7 @@ describe("StreamClient", () => {
     (sockets.at(-1) as FakeSocket).drop(1006);
     client.stop();
     expect(closeReason(1000, "")).toBeNull();
+    expect(closeReason(4404, "unknown robot 'x'; known: a, b")).toBe("the service has no such robot: unknown robot 'x'; known: a, b");
   });
 
   it("applies jitter from the random source", () => {

@@ -33,12 +33,14 @@ export interface StreamCallbacks {
 /** The service's own close codes (docs/api.md, WebSocket). */
 export const CLOSE_BAD_RATE = 4400;
 export const CLOSE_LOGIN_REQUIRED = 4401;
+export const CLOSE_UNKNOWN_ROBOT = 4404;
 
 /** A person's words for why the service closed the stream (null: an ordinary close). */
 export function closeReason(code: number | undefined, reason: string | undefined): string | null {
   const detail = reason !== undefined && reason !== "" ? `: ${reason}` : "";
   if (code === CLOSE_LOGIN_REQUIRED) return `the service requires a login to view${detail}`;
   if (code === CLOSE_BAD_RATE) return `the service refused the stream rate${detail}`;
+  if (code === CLOSE_UNKNOWN_ROBOT) return `the service has no such robot${detail}`;
   if (code !== undefined && code >= 4000) return `the service closed the stream (${code})${detail}`;
   return null;
 }
