@@ -21,6 +21,7 @@ from websockets.exceptions import ConnectionClosed
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
 from cobot_hmi.service import models
+from cobot_hmi.service.write_pipeline import Writer, submit_write, take_control
 from conftest import _next_host as next_host
 from service_support import (
     OPERATOR,
@@ -389,3 +390,42 @@ async def test_health_and_readiness_per_robot_with_one_robot_gone(
                 # The other robot keeps streaming and answering.
                 frame = (await client.get("/api/v1/robots/left/frame")).json()
                 assert frame["stale"] is False
+
+
+async def test_a_non_http_writer_goes_through_the_same_pipeline(
+    cell: tuple[Running, Target, Target], right_robot: StaticRobot
+) -> None:
+    """A later door (an MQTT client, a script) calls ``submit_write`` with a parsed body: the
+    same authorization, validation, audit, confirmation and outcome as HTTP."""
+    hmi, _, _ = cell
+    right = hmi.service.robot("right")
+    token = await hmi.login(OPERATOR)
+    session = hmi.service.sessions.get(token)
+    assert session is not None
+    script = Writer.from_session(session, "script-7")
+    nobody = Writer(None, None, "mqtt-client-1")
+
+    anonymous = await submit_write(right, nobody, {"tool_do": {"0": True}}, origin="mqtt")
+    assert (anonymous.status, anonymous.outcome) == (401, "unauthorized")
+    invalid = await submit_write(right, script, {"tool_do": {"9": True}}, origin="script")
+    assert (invalid.status, invalid.outcome, invalid.field) == (422, "invalid", "tool_do.9")
+    not_holding = await submit_write(right, script, {"tool_do": {"0": True}}, origin="script")
+    assert (not_holding.status, not_holding.outcome) == (409, "refused")
+    assert "/api/v1/robots/right/control/take" in (not_holding.reason or "")
+    taken = models.ControlStatus.model_validate(await take_control(right, script, origin="script"))
+    assert taken.holder is not None and taken.holder.user == OPERATOR[0]
+    done = await submit_write(right, script, {"tool_do": {"0": True}}, origin="script")
+    assert done.ok and done.outcome == "confirmed"
+    models.WriteConfirmed.model_validate(done.answer())
+    assert done.image is not None and done.image["tool_do"] == (True, *[False] * 5)
+    assert right_robot.command_image().tool_do[0] is True
+
+    rows = (await hmi.service.store.audit_page(10, 0, robot="right")).items
+    assert [(r["action"], r["outcome"], r["client"], r["origin"]) for r in rows] == [
+        ("write", "confirmed", "script-7", "script"),
+        ("control.take", "granted", "script-7", None),
+        ("write", "refused", "script-7", "script"),
+        ("write", "invalid", "script-7", "script"),
+        ("write", "unauthorized", "mqtt-client-1", "mqtt"),
+    ]
+    assert rows[3]["requested"] == {"tool_do": {"9": True}}
