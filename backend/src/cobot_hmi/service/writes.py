@@ -1,10 +1,12 @@
-"""Layer: service. What a ``PATCH /api/v1/command`` asks for, checked whole, and how the robot's
-own frame confirms it. Pure: no I/O.
+"""Layer: service. What a write (``service.write_pipeline``) asks for, checked whole, and how the
+robot's own frame confirms it. Pure: no I/O.
 
 Validation goes through ``cobot_hmi.codec.command_from_json`` (known fields, indexes in range,
 booleans for bits, 0/1 for types, finite numbers) one field at a time so that the error names
-the field, then checks each analog output that the request touches (its value or its type)
-against ``layout.ANALOG_OUTPUT_RANGES`` for the type it will have after the request.
+the field (a name that is not an O→T field, or anything the codec's checks let through that
+still cannot be read, is this field's error too, never an exception), then checks each analog
+output that the request touches (its value or its type) against
+``layout.ANALOG_OUTPUT_RANGES`` for the type it will have after the request.
 """
 
 from __future__ import annotations
