@@ -48,6 +48,12 @@ describe("kiosk", () => {
     expect(forbidden).toEqual([]);
   });
 
+  it("the fleet overview imports no write control either (it only reads the robot list)", () => {
+    const files = [...importGraph(join(SRC, "fleet", "FleetApp.tsx"))].map((f) => relative(SRC, f));
+    expect(files).toContain("lib/fleet.ts");
+    expect(files.filter((f) => /^panel\//.test(f))).toEqual([]);
+  });
+
   it("the walker does find the panel's writes (so the check above means something)", () => {
     const files = [...importGraph(join(SRC, "panel", "PanelApp.tsx"))].map((f) => relative(SRC, f));
     expect(files).toContain("lib/writes.ts");
@@ -56,7 +62,9 @@ describe("kiosk", () => {
   });
 
   it("routes /kiosk to the kiosk and everything else to the panel", () => {
-    expect(readFileSync(join(SRC, "main.tsx"), "utf8")).toContain('import("./kiosk/KioskApp")');
+    const main = readFileSync(join(SRC, "main.tsx"), "utf8");
+    expect(main).toContain('import("./kiosk/KioskApp")');
+    expect(main).toContain('import("./fleet/FleetApp")');
     expect(isKioskPath("/kiosk")).toBe(true);
     expect(isKioskPath("/kiosk/")).toBe(true);
     expect(isKioskPath("/")).toBe(false);
