@@ -324,3 +324,88 @@ async def test_random_datagrams_are_dropped_and_the_server_goes_on(
     assert reply.header.context.endswith(b"alive!")
     assert target.counters.udp_discovery_ignored == batch * batches
     assert target.counters.internal_errors == 0
+
+
+# ----------------------------------------------------------------- an independent peer: cpppo
+
+
+async def test_discover_finds_an_independent_adapter(robot_host: str, plc_host: str) -> None:
+    """cpppo's EtherNet/IP server (an adapter written by others) answers our ListIdentity."""
+    process = await asyncio.create_subprocess_exec(
+        sys.executable,
+        "-m",
+        "cpppo.server.enip",
+        "--no-config",
+        "--no-print",
+        "-A",
+        "-a",
+        f"{robot_host}:{DISCOVERY_PORT}",
+        stdout=asyncio.subprocess.PIPE,
+        stderr=asyncio.subprocess.PIPE,
+    )
+    try:
+        assert process.stdout is not None
+        while True:  # it prints its TCP then its UDP address once it listens
+            line = (await asyncio.wait_for(process.stdout.readline(), 120)).decode()
+            assert line, "cpppo's server stopped"
+            if "UDP Server address" in line:
+                break
+        result = await discover([robot_host], timeout_s=DEADLINE_S, local_host=plc_host)
+        [device] = result.devices
+        assert device.address == robot_host
+        assert device.announced.port == DISCOVERY_PORT  # (its address field: 0.0.0.0)
+        assert device.identity.product_name  # cpppo's own (a Logix controller's by default)
+    finally:
+        process.terminate()
+        await asyncio.wait_for(process.communicate(), 60)
+
+
+def _cpppo_fields(output: str, section: str) -> dict[str, str]:
+    """The ``'key': value`` lines of one ``List …`` reply in cpppo's client printout."""
+    fields: dict[str, str] = {}
+    inside = False
+    for line in output.splitlines():
+        if line.startswith(section):
+            inside = True
+        elif inside and line.startswith("}"):
+            break
+        elif inside and ":" in line:
+            key, _, value = line.strip().rstrip(",").partition(":")
+            fields[key.strip().strip("'").rsplit(".", 1)[-1]] = value.strip().strip("'")
+    return fields
+
+
+async def test_an_independent_client_reads_identity_and_services_over_udp(
+    discovery: DiscoveryServer, target: Target, robot_host: str
+) -> None:
+    """cpppo's client (written by others) sends ListIdentity and ListServices over UDP."""
+    process = await asyncio.create_subprocess_exec(
+        sys.executable,
+        "-m",
+        "cpppo.server.enip.client",
+        "-a",
+        f"{robot_host}:{DISCOVERY_PORT}",
+        "-u",
+        "-i",
+        "-s",
+        "-p",
+        "-t",
+        str(DEADLINE_S),
+        stdout=asyncio.subprocess.PIPE,
+        stderr=asyncio.subprocess.PIPE,
+    )
+    stdout, stderr = await asyncio.wait_for(process.communicate(), 120)
+    output = stdout.decode()
+    assert process.returncode == 0, stderr.decode()
+    identity = _cpppo_fields(output, "List Identity")
+    services = _cpppo_fields(output, "List Services")
+    expected = target.identity
+    assert identity["product_name"] == expected.product_name, output
+    assert int(identity["vendor_id"]) == expected.vendor_id
+    assert int(identity["product_code"]) == expected.product_code
+    assert int(identity["serial_number"]) == expected.serial_number
+    assert (identity["sin_addr"], int(identity["sin_port"])) == (robot_host, target.tcp_port)
+    assert services["service_name"] == "Communications"
+    assert int(services["capability"]) == 0x0120
+    assert target.counters.udp_list_identity == 1
+    assert target.counters.udp_list_services == 1
