@@ -178,13 +178,6 @@ def _scan(args: argparse.Namespace) -> int:
 
     cfg, o2t, t2o = args.instances
     o2t_size, t2o_size = args.sizes
-    if args.o2t_hex is not None and len(args.o2t_hex) > o2t_size:
-        print(
-            f"cobot-hmi scan: --o2t-hex has {len(args.o2t_hex)} bytes, more than the O→T size "
-            f"of {o2t_size}",
-            file=sys.stderr,
-        )
-        return 1
     settings = OriginatorSettings(
         robot_host=args.host,
         tcp_port=args.port,
@@ -224,7 +217,7 @@ def _scan(args: argparse.Namespace) -> int:
     async def run() -> int:
         try:
             originator = Originator(settings, on_frame=on_frame, on_state=on_state, on_data=on_data)
-        except ValueError as error:  # --o2t-hex not a command image (CodecError)
+        except ValueError as error:  # --o2t-hex longer than O→T, or not a command image
             print(f"cobot-hmi scan: {error}", file=sys.stderr)
             return 1
         stop = asyncio.Event()
