@@ -1,5 +1,5 @@
-"""Shared by ``bench/fanout`` and ``bench/write_latency``: the emulator and the service as their
-own processes on fresh loopback addresses, CPU accounting from /proc, Prometheus parsing.
+"""Shared by ``bench/fanout`` and ``bench/write_latency``: the emulators (one per robot) and the
+service as their own processes on fresh loopback addresses, Prometheus parsing (per robot).
 
 Never a fixed address: each run picks 127.<random>.<random>.x pairs, so a bench can run next to
 tests and other benches on the same machine.
@@ -7,6 +7,7 @@ tests and other benches on the same machine.
 
 from __future__ import annotations
 
+import functools
 import random
 import re
 import socket
@@ -34,18 +35,33 @@ def free_port(host: str, kind: int = socket.SOCK_STREAM) -> int:
 
 def loopback_pair() -> tuple[str, str]:
     """Two fresh loopback addresses: the robot's and the service's."""
+    robots, service = loopback_cell(1)
+    return robots[0], service
+
+
+def loopback_cell(robots: int) -> tuple[list[str], str]:
+    """Fresh loopback addresses: one per robot, and the service's."""
     a, b = random.randint(100, 250), random.randint(0, 250)
-    return f"127.{a}.{b}.2", f"127.{a}.{b}.3"
+    return [f"127.{a}.{b}.{10 + i}" for i in range(robots)], f"127.{a}.{b}.3"
 
 
 @dataclass
 class Stack:
-    robot_host: str
+    robot_hosts: list[str]
+    robot_names: list[str]
     service_host: str
     http_port: int
-    emulator: subprocess.Popen[bytes]
+    emulators: list[subprocess.Popen[bytes]]
     service: subprocess.Popen[bytes]
     state_dir: Path
+
+    @property
+    def robot_host(self) -> str:
+        return self.robot_hosts[0]
+
+    @property
+    def emulator(self) -> subprocess.Popen[bytes]:
+        return self.emulators[0]
 
     @property
     def base_url(self) -> str:
@@ -53,7 +69,11 @@ class Stack:
 
     @property
     def ws_url(self) -> str:
-        return f"ws://{self.service_host}:{self.http_port}/api/v1/stream"
+        """The first robot's stream."""
+        return self.robot_ws_url(self.robot_names[0])
+
+    def robot_ws_url(self, name: str) -> str:
+        return f"ws://{self.service_host}:{self.http_port}/api/v1/robots/{name}/stream"
 
     def get(self, path: str) -> bytes:
         with urllib.request.urlopen(self.base_url + path, timeout=5) as answer:
@@ -97,38 +117,63 @@ def _accepts(host: str, port: int) -> bool:
         return True
 
 
-@contextmanager
-def stack(rpi_ms: float, *service_args: str, robot_niceness: int = 0) -> Iterator[Stack]:
-    """The emulator and the service, each its own process; stopped (SIGINT) at the end.
+def _ready(running: Stack) -> bool:
+    return all(
+        b'"ready":true' in running.get(f"/api/v1/robots/{name}/readyz")
+        for name in running.robot_names
+    )
 
-    ``robot_niceness`` below 0 runs the emulator at a higher priority: a real robot is its own
+
+@contextmanager
+def stack(
+    rpi_ms: float, *service_args: str, robot_niceness: int = 0, robots: int = 1
+) -> Iterator[Stack]:
+    """``robots`` emulators and the service holding a connection to each, every one its own
+    process; stopped (SIGINT) at the end. The robots are ``[[robots]]`` of a TOML file.
+
+    ``robot_niceness`` below 0 runs the emulators at a higher priority: a real robot is its own
     machine, whose frame timing does not suffer from this host's other processes.
     """
-    robot_host, service_host = loopback_pair()
-    tcp_port, http_port = free_port(robot_host), free_port(service_host)
+    robot_hosts, service_host = loopback_cell(robots)
+    names = [f"r{i + 1}" for i in range(robots)]
+    tcp_ports = [free_port(host) for host in robot_hosts]
+    http_port = free_port(service_host)
     with tempfile.TemporaryDirectory(prefix="cobot-bench-") as directory:
         state = Path(directory)
         UsersFile(state / "users.json").add(BENCH_USER[0], Role.OPERATOR, BENCH_USER[1])
-        emulator = _cli(
-            "emulator",
-            "--host",
-            robot_host,
-            "--tcp-port",
-            str(tcp_port),
-            "--control-port",
-            "0",
-            log=state / "emulator.log",
-            niceness=robot_niceness,
+        config = state / "cell.toml"
+        config.write_text(
+            "".join(
+                f'[[robots]]\nname = "{name}"\nhost = "{host}"\ntcp_port = {port}\n'
+                for name, host, port in zip(names, robot_hosts, tcp_ports, strict=True)
+            ),
+            encoding="utf-8",
         )
+        emulators: list[subprocess.Popen[bytes]] = []
         service: subprocess.Popen[bytes] | None = None
         try:
-            _wait(lambda: _accepts(robot_host, tcp_port), "emulator", emulator, 15)
+            for index, (host, port) in enumerate(zip(robot_hosts, tcp_ports, strict=True)):
+                emulators.append(
+                    _cli(
+                        "emulator",
+                        "--host",
+                        host,
+                        "--tcp-port",
+                        str(port),
+                        "--control-port",
+                        "0",
+                        "--seed",
+                        str(index + 1),
+                        log=state / f"emulator-{index + 1}.log",
+                        niceness=robot_niceness,
+                    )
+                )
+            for host, port, emulator in zip(robot_hosts, tcp_ports, emulators, strict=True):
+                _wait(functools.partial(_accepts, host, port), "emulator", emulator, 15)
             service = _cli(
                 "serve",
-                "--robot",
-                robot_host,
-                "--robot-tcp-port",
-                str(tcp_port),
+                "--config",
+                str(config),
                 "--local-host",
                 service_host,
                 "--host",
@@ -142,16 +187,11 @@ def stack(rpi_ms: float, *service_args: str, robot_niceness: int = 0) -> Iterato
                 *service_args,
                 log=state / "service.log",
             )
-            running = Stack(robot_host, service_host, http_port, emulator, service, state)
-            _wait(
-                lambda: b'"ready":true' in running.get("/readyz"),
-                "service",
-                service,
-                20,
-            )
+            running = Stack(robot_hosts, names, service_host, http_port, emulators, service, state)
+            _wait(lambda: _ready(running), "service", service, 30)
             yield running
         finally:
-            for process in (service, emulator):
+            for process in (service, *emulators):
                 if process is not None and process.poll() is None:
                     process.send_signal(2)  # SIGINT: a clean stop (Forward Close)
                     try:
@@ -174,21 +214,40 @@ def metrics(text: str) -> dict[tuple[str, str], float]:
     return out
 
 
+def labels_of(text: str) -> dict[str, str]:
+    """``a="x",b="y"`` → {"a": "x", "b": "y"} (the values this service writes hold no quotes)."""
+    return dict(re.findall(r'([a-z_]+)="([^"]*)"', text))
+
+
+def value_of(samples: dict[tuple[str, str], float], name: str, robot: str | None = None) -> float:
+    """The sample ``name`` (of ``robot``, when its samples carry a robot label)."""
+    for (metric, labels), value in samples.items():
+        if metric == name and (robot is None or labels_of(labels).get("robot") == robot):
+            return value
+    return 0.0
+
+
 def histogram_quantile(
     before: dict[tuple[str, str], float],
     after: dict[tuple[str, str], float],
     name: str,
     q: float,
+    robot: str | None = None,
 ) -> tuple[float, int]:
     """The ``q`` quantile (seconds, linear within its bucket) of the observations between two
-    scrapes of histogram ``name``, and how many there were."""
+    scrapes of histogram ``name`` (of ``robot`` only, when given), and how many there were."""
     buckets = []
     for (metric, labels), value in after.items():
         if metric == name + "_bucket":
-            bound_text = labels.split('"')[1]
+            fields = labels_of(labels)
+            if robot is not None and fields.get("robot") != robot:
+                continue
+            bound_text = fields["le"]
             bound = float("inf") if bound_text == "+Inf" else float(bound_text)
             buckets.append((bound, value - before.get((metric, labels), 0.0)))
     buckets.sort()
+    if not buckets:
+        return float("nan"), 0
     total = buckets[-1][1]
     if total <= 0:
         return float("nan"), 0
