@@ -12,8 +12,11 @@ from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
 
+import httpx
+import hypothesis
 import orjson
 import pytest
+from hypothesis import strategies as st
 from pydantic import BaseModel
 from websockets.asyncio.client import connect
 from websockets.exceptions import ConnectionClosed
@@ -67,6 +70,8 @@ async def cell(
             ],
             plc_host,
             tmp_path,
+            # No test here is about the confirmation timeout: a busy machine must not fail one.
+            write_timeout_ms=10_000.0,
         )
         async with running_service(settings) as running:
             yield running, left, right
@@ -429,3 +434,78 @@ async def test_a_non_http_writer_goes_through_the_same_pipeline(
         ("write", "unauthorized", "mqtt-client-1", "mqtt"),
     ]
     assert rows[3]["requested"] == {"tool_do": {"9": True}}
+
+
+async def test_writes_generated_from_the_openapi_schema_are_accepted(
+    cell: tuple[Running, Target, Target], right_robot: StaticRobot
+) -> None:
+    """A fuzzer working from ``/openapi.json`` alone produces writes the service takes: every
+    body the ``CommandPatch`` schema allows is confirmed, or refused 422 only for what the schema
+    cannot say (an analog value outside its type's range, an empty body)."""
+    hmi, _, _ = cell
+    token = await hmi.login(OPERATOR)
+    async with hmi.client(token) as client:
+        document = (await client.get("/openapi.json")).json()
+        assert (await client.post("/api/v1/robots/right/control/take")).status_code == 200
+    schema = document["components"]["schemas"]["CommandPatch"]
+    outcomes: list[int] = []
+
+    @hypothesis.settings(
+        max_examples=40,
+        deadline=None,
+        derandomize=True,  # the same bodies every run: no flakes from a lucky draw
+        suppress_health_check=[hypothesis.HealthCheck.too_slow],
+        database=None,
+    )
+    @hypothesis.given(_bodies(schema))
+    def write(body: dict[str, dict[str, Any]]) -> None:
+        with httpx.Client(
+            base_url=hmi.base_url, headers={"Authorization": f"Bearer {token}"}, timeout=30.0
+        ) as http:
+            answer = http.patch("/api/v1/robots/right/command", json=body)
+        outcomes.append(answer.status_code)
+        if answer.status_code == 422:
+            detail = answer.json()["detail"]
+            if body:
+                assert detail["field"].startswith("analog_output."), (body, detail)
+                assert "outside" in detail["reason"], (body, detail)
+            else:
+                assert detail["field"] is None
+            return
+        assert answer.status_code == 200, (body, answer.text)
+        image = models.WriteConfirmed.model_validate(answer.json()).image
+        for name, values in body.items():
+            for index, value in values.items():
+                written = getattr(image, name)[int(index)]
+                assert written == pytest.approx(value), (name, index)
+
+    await asyncio.to_thread(write)  # the service and the emulator keep this event loop
+    assert outcomes.count(200) >= len(outcomes) // 2, outcomes
+    assert right_robot.command_image() == hmi.service.robot("right").link.command
+
+
+def _element(schema: dict[str, Any]) -> st.SearchStrategy[Any]:
+    """Values one JSON schema of the contract allows (its element types only)."""
+    kind = schema["type"]
+    if kind == "boolean":
+        return st.booleans()
+    if kind == "integer":
+        return st.integers(schema.get("minimum", -(2**31)), schema.get("maximum", 2**31))
+    assert kind == "number", schema
+    return st.floats(
+        schema.get("minimum"), schema.get("maximum"), allow_nan=False, allow_infinity=False
+    )
+
+
+def _bodies(schema: dict[str, Any]) -> st.SearchStrategy[dict[str, dict[str, Any]]]:
+    """Bodies the ``CommandPatch`` schema allows, read from the schema alone: each property an
+    object whose keys match its one key pattern and whose values have its element type."""
+    assert schema["additionalProperties"] is False
+    fields = {}
+    for name, field in schema["properties"].items():
+        assert field["type"] == "object" and field["additionalProperties"] is False
+        ((pattern, element),) = field["patternProperties"].items()
+        fields[name] = st.dictionaries(
+            st.from_regex(pattern, fullmatch=True), _element(element), max_size=4
+        )
+    return st.fixed_dictionaries({}, optional=fields)
