@@ -182,6 +182,30 @@ async def test_a_registered_session_may_idle_and_a_slow_whole_message_is_answere
         assert target.counters.tcp_sessions_timed_out == 0
 
 
+async def test_a_registered_session_silent_past_the_inactivity_timeout_is_closed(
+    robot_host: str,
+) -> None:
+    async with running_target(robot_host, session_inactivity_timeout_s=0.5) as target:
+        reader, writer = await asyncio.open_connection(robot_host, target.tcp_port)
+        try:
+            writer.write(
+                encapsulation.encode(
+                    Command.REGISTER_SESSION, encapsulation.encode_register_session()
+                )
+            )
+            head = await asyncio.wait_for(reader.readexactly(28), DEADLINE_S)
+            assert encapsulation.decode_header(head).session
+            # Nothing more: the target closes the session (a clean end of stream).
+            assert await asyncio.wait_for(reader.read(), DEADLINE_S) == b""
+        finally:
+            writer.close()
+            with contextlib.suppress(ConnectionError):
+                await writer.wait_closed()
+        assert target.counters.tcp_sessions_inactive == 1
+        assert target.counters.tcp_sessions_timed_out == 0
+        await eventually(lambda: target.counters.tcp_connections_open == 0, "session closed")
+
+
 # ------------------------------------------------------------------------------ control API
 
 

@@ -77,6 +77,13 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="drop a connection whose message stalls this long (default 10)",
     )
     hardening.add_argument(
+        "--session-inactivity-timeout-s",
+        type=float,
+        default=120.0,
+        metavar="S",
+        help="close a registered session silent this long (default 120; 0: never)",
+    )
+    hardening.add_argument(
         "--no-discovery", action="store_true", help="no ListIdentity/ListServices on UDP 44818"
     )
     hardening.add_argument(
@@ -173,6 +180,7 @@ def _run(args: argparse.Namespace) -> int:
         idle_behaviour=idle,
         max_tcp_sessions=args.max_tcp_sessions,
         incomplete_message_timeout_s=args.incomplete_message_timeout_s,
+        session_inactivity_timeout_s=args.session_inactivity_timeout_s or None,
         discovery=not args.no_discovery,
         discovery_broadcast_hosts=(
             tuple(args.discovery_broadcast) if args.discovery_broadcast is not None else None

@@ -33,6 +33,7 @@ class TargetCounters:
     tcp_connections_peak: int = 0
     tcp_sessions_refused: int = 0
     tcp_sessions_timed_out: int = 0
+    tcp_sessions_inactive: int = 0
     udp_list_identity: int = 0
     udp_list_services: int = 0
     udp_discovery_ignored: int = 0

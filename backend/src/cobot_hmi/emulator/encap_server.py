@@ -9,7 +9,10 @@ Bounded so that no client can take the process's file descriptors or memory: at 
 ``max_tcp_sessions`` connections at once (one more is closed at once and counted), and a message
 whose bytes stop coming (a stalled 65,535-byte message, or a connection that sends nothing) is
 dropped after ``incomplete_message_timeout_s`` and counted. A registered session may idle between
-messages: an originator's session stays open, silent, beside its class 1 connection.
+messages (an originator's session stays open, silent, beside its class 1 connection) up to the
+encapsulation inactivity timeout, 120 s by default as the TCP/IP Interface object's attribute
+13 (CIP Vol 2 Chapter 5); then it is closed and counted, so registered sessions cannot hold
+every place forever either. Class 1 connections live on UDP and go on.
 
 The ListIdentity, ListServices and ListInterfaces replies are built here once, for this TCP
 server and the UDP discovery server (``emulator.discovery``) alike (CIP Vol 2 §2-4).
@@ -64,6 +67,9 @@ class SessionLimits(Protocol):
 
     @property
     def incomplete_message_timeout_s(self) -> float: ...
+
+    @property
+    def session_inactivity_timeout_s(self) -> float | None: ...
 
 
 class SessionContext(Protocol):
@@ -125,6 +131,10 @@ class EncapSession:
             while True:
                 try:
                     header, data = await self._read_message(limits.incomplete_message_timeout_s)
+                except _InactiveError:
+                    counters.tcp_sessions_inactive += 1
+                    log.info("TCP session from %s closed: inactive", self.peer_host)
+                    break
                 except TimeoutError:
                     counters.tcp_sessions_timed_out += 1
                     log.info("TCP session from %s dropped: incomplete message", self.peer_host)
@@ -154,7 +164,13 @@ class EncapSession:
         without a registered session, within ``timeout_s`` of the previous reply (or of the
         connection), so a connection that only holds a descriptor is dropped too."""
         reader = self.reader
-        head = await reader.readexactly(1) if self.session_handle else b""
+        head = b""
+        if self.session_handle:
+            try:
+                async with asyncio.timeout(self.handler.settings.session_inactivity_timeout_s):
+                    head = await reader.readexactly(1)
+            except TimeoutError:
+                raise _InactiveError from None
         async with asyncio.timeout(timeout_s):
             head += await reader.readexactly(encapsulation.HEADER_SIZE - len(head))
             header = encapsulation.decode_header(head)
@@ -260,3 +276,7 @@ class EncapSession:
 
 
 _CLOSE = object()
+
+
+class _InactiveError(Exception):
+    """A registered session sent nothing for the inactivity timeout."""

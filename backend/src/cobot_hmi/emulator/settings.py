@@ -68,7 +68,11 @@ class TargetSettings:
     """Longest wait for the rest of an encapsulation message once its first byte came, and for
     the first message of a connection (or the next, while it has no registered session): the
     connection is then dropped and counted (``tcp_sessions_timed_out``). A registered session
-    may idle between messages as long as it likes (a class 1 connection's session does)."""
+    may idle between messages up to ``session_inactivity_timeout_s``."""
+    session_inactivity_timeout_s: float | None = 120.0
+    """A registered session silent this long is closed and counted (``tcp_sessions_inactive``):
+    the encapsulation inactivity timeout, whose default is the TCP/IP Interface object's
+    attribute 13 (CIP Vol 2 Chapter 5). ``None``: never. Class 1 connections carry on (UDP)."""
     discovery: bool = True
     """Answer ListIdentity / ListServices / ListInterfaces on UDP (CIP Vol 2 §2-4.2), unicast
     and broadcast (``emulator.discovery``)."""
