@@ -413,8 +413,16 @@ async def test_audit_and_events_pages_and_csv(hmi: Running) -> None:
         rows = list(csv.DictReader(io.StringIO(answer.text)))
         assert len(rows) == 6
         assert rows[-1]["action"] == "control.take"
-        assert (await client.get("/api/v1/audit?limit=0")).status_code == 422
-        assert (await client.get("/api/v1/audit?limit=100001")).status_code == 422
+        for query, field in (
+            ("/api/v1/audit?limit=0", "limit"),
+            ("/api/v1/audit?limit=100001", "limit"),
+            ("/api/v1/audit?offset=-1", "offset"),
+            ("/api/v1/audit?format=xml", "format"),
+            ("/api/v1/events?kind=bogus", "kind"),
+        ):
+            answer = await client.get(query)
+            assert answer.status_code == 422, query
+            assert answer.json()["detail"]["field"] == field, query
         await hmi.service.store.flush_events()
         events = (await client.get("/api/v1/events?limit=100")).json()
         kinds = {item["kind"] for item in events["items"]}
