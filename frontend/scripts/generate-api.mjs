@@ -11,6 +11,7 @@ import { readFileSync, writeFileSync } from "node:fs";
 import path from "node:path";
 import { fileURLToPath, pathToFileURL } from "node:url";
 import openapiTS, { astToString } from "openapi-typescript";
+import ts from "typescript";
 
 const FRONTEND_DIR = path.resolve(path.dirname(fileURLToPath(import.meta.url)), "..");
 export const OPENAPI_PATH = path.resolve(FRONTEND_DIR, "..", "docs", "openapi.json");
@@ -23,12 +24,58 @@ const HEADER =
   " */\n\n";
 
 /**
+ * "Any JSON value" as TypeScript can say it. openapi-typescript writes a schema that refers to
+ * itself as a member of `components` that names itself, which TypeScript refuses
+ * (openapi-ts/openapi-typescript#1603); such a schema becomes this alias instead.
+ */
+const JSON_VALUE_TYPE =
+  "/** Any JSON value (a schema of the document that refers to itself). */\n" +
+  "export type JsonValue = boolean | number | string | null | JsonValue[] | { [key: string]: JsonValue };\n\n";
+
+const SCALARS = new Set(["boolean", "integer", "number", "string", "null"]);
+
+/** A schema that is exactly "any JSON value": scalars, arrays of itself, maps of itself. */
+function isJsonValue(name, schema) {
+  const self = `#/components/schemas/${name}`;
+  const members = schema.anyOf ?? schema.oneOf;
+  return (
+    Array.isArray(members) &&
+    members.every(
+      (m) =>
+        (SCALARS.has(m.type) && Object.keys(m).length === 1) ||
+        (m.type === "array" && m.items?.$ref === self) ||
+        (m.type === "object" && m.additionalProperties?.$ref === self && m.properties === undefined),
+    )
+  );
+}
+
+/** Component schemas that refer to themselves; each must be a JSON value (else: say so). */
+function jsonValueSchemas(document) {
+  const names = new Set();
+  for (const [name, schema] of Object.entries(document.components?.schemas ?? {})) {
+    if (!JSON.stringify(schema).includes(`"#/components/schemas/${name}"`)) continue;
+    if (!isJsonValue(name, schema)) {
+      throw new Error(`components.schemas.${name} refers to itself and is not a JSON value: teach generate-api.mjs its type`);
+    }
+    names.add(`#/components/schemas/${name}`);
+  }
+  return names;
+}
+
+/**
  * The text of src/generated/api.ts for an OpenAPI document's JSON text. A property with a
  * default stays optional (`defaultNonNullable: false`): a partial write leaves fields out.
  */
 export async function generateApiTs(documentText) {
-  const ast = await openapiTS(JSON.parse(documentText), { silent: true, defaultNonNullable: false });
-  return HEADER + astToString(ast);
+  const document = JSON.parse(documentText);
+  const recursive = jsonValueSchemas(document);
+  const ast = await openapiTS(document, {
+    silent: true,
+    defaultNonNullable: false,
+    transform: (_schema, options) =>
+      options.path !== undefined && recursive.has(options.path) ? ts.factory.createTypeReferenceNode("JsonValue") : undefined,
+  });
+  return HEADER + (recursive.size > 0 ? JSON_VALUE_TYPE : "") + astToString(ast);
 }
 
 async function main(argv) {

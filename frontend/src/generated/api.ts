@@ -3,6 +3,9 @@
  * Do not edit: `make codegen` rewrites it, and a test fails when it is stale.
  */
 
+/** Any JSON value (a schema of the document that refers to itself). */
+export type JsonValue = boolean | number | string | null | JsonValue[] | { [key: string]: JsonValue };
+
 export interface paths {
     "/api/v1/audit": {
         parameters: {
@@ -506,13 +509,8 @@ export interface components {
             outcome: "confirmed" | "timeout" | "invalid" | "refused" | "unauthorized" | "forbidden" | "granted" | "released" | "pending";
             /** Reason */
             reason: string | null;
-            /**
-             * Requested
-             * @description the requested values (a malformed body: what came)
-             */
-            requested: boolean | number | string | (boolean | number | string | null)[] | {
-                [key: string]: boolean | number | string | (boolean | number | string | null)[] | null;
-            } | null;
+            /** @description the requested values (a malformed body: what came) */
+            requested: components["schemas"]["Json"];
             /**
              * Robot
              * @description the robot's name (null: rows from before robots had names)
@@ -1081,6 +1079,7 @@ export interface components {
             /** Vendor Id */
             vendor_id: number;
         };
+        Json: JsonValue;
         /**
          * LayoutDocument
          * @description ``GET /api/v1/layout``: the I/O layout every other shape derives from.

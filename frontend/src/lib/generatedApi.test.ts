@@ -28,6 +28,26 @@ describe("src/generated/api.ts", () => {
     expect(changed).toContain("StaleCheckProbe");
   });
 
+  it("writes a schema that refers to itself as a JSON value TypeScript accepts, and refuses others", async () => {
+    const document = (schemas: Record<string, unknown>) =>
+      JSON.stringify({ openapi: "3.1.0", info: { title: "t", version: "1" }, paths: {}, components: { schemas } });
+    const json = {
+      anyOf: [
+        { type: "boolean" },
+        { type: "number" },
+        { type: "string" },
+        { type: "null" },
+        { type: "array", items: { $ref: "#/components/schemas/Any" } },
+        { type: "object", additionalProperties: { $ref: "#/components/schemas/Any" } },
+      ],
+    };
+    const text = await generateApiTs(document({ Any: json }));
+    expect(text).toContain("export type JsonValue =");
+    expect(text).toMatch(/Any: JsonValue;/);
+    const tree = { type: "object", properties: { children: { type: "array", items: { $ref: "#/components/schemas/Tree" } } } };
+    await expect(generateApiTs(document({ Tree: tree }))).rejects.toThrow(/Tree refers to itself/);
+  });
+
   it("describes no shape as empty (every answer has its schema)", () => {
     expect(documentText).not.toMatch(/"schema":\s*\{\s*\}/);
   });
