@@ -118,6 +118,27 @@ async def test_a_chunked_body_is_cut_off_at_the_limit(hmi: Running) -> None:
     assert status == 422, answer
 
 
+async def test_a_body_sent_too_slowly_is_refused(
+    target: Target, robot_host: str, plc_host: str, tmp_path: Path
+) -> None:
+    settings = service_settings(
+        robot_host, target.tcp_port, plc_host, tmp_path, http_idle_timeout_s=1.0
+    )
+    async with running_service(settings) as hmi:
+        token = await hmi.login(OPERATOR)
+        # 100 bytes announced, 10 sent, then silence: the connection would stay busy for ever.
+        head = (
+            f"PATCH /api/v1/command HTTP/1.1\r\nHost: {settings.host}:{settings.port}\r\n"
+            f"Authorization: Bearer {token}\r\nContent-Type: application/json\r\n"
+            "Content-Length: 100\r\n\r\n"
+        ).encode()
+        status, answer = await _raw_http(hmi, head, b'{"tool_do"')
+        assert status == 408, answer
+        assert b"http_idle_timeout_s" in answer
+        metrics = await hmi.metrics()
+        assert 'cobot_hmi_http_refusals_total{reason="body_too_slow"} 1.0' in metrics
+
+
 # --------------------------------------------------------------------------- headers, hosts
 
 

@@ -10,8 +10,9 @@ Outermost first (``install``):
    and this machine's host name: a DNS name that an attacker points at the HMI (DNS
    rebinding) is not one of them.
 3. ``BodyLimit``: a body longer than ``max_body_bytes`` is refused with 413 before anything
-   reads it: at once from ``Content-Length``, and a chunked body (no length) is read by this
-   middleware, at most one byte past the limit, before the routes see it.
+   reads it: at once from ``Content-Length``; otherwise the body is read by this middleware,
+   at most one byte past the limit and within ``http_idle_timeout_s`` (else 408), before the
+   routes see it.
 4. ``CrossSiteCheck``: a request that can change something (any method but GET, HEAD,
    OPTIONS) must come from the HMI's own pages or from a non-browser client. Browsers say where
    a request comes from (``Origin``, else ``Sec-Fetch-Site``); it must be the HMI's own origin
@@ -31,6 +32,7 @@ is counted in ``SecurityCounters`` (``/metrics``). Imports only ``deps`` (the se
 
 from __future__ import annotations
 
+import asyncio
 import ipaddress
 import math
 import socket
@@ -91,7 +93,8 @@ _DOCS_PATHS: Final = ("/docs", "/redoc")
 
 @dataclass(slots=True)
 class SecurityCounters:
-    """Refusals by reason, for ``/metrics``: ``host``, ``body_too_large``, ``cross_site``,
+    """Refusals by reason, for ``/metrics``: ``host``, ``body_too_large``, ``body_too_slow``,
+    ``cross_site``,
     ``content_type``, ``anonymous_write``, ``anonymous_throttled``, ``websocket_origin``."""
 
     refusals: Counter[str] = field(default_factory=Counter)
@@ -236,23 +239,27 @@ class HostCheck:
 
 
 class BodyLimit:
-    """Bounds request bodies to ``max_bytes`` before any route reads them."""
+    """Bounds request bodies to ``max_bytes`` and ``timeout_s`` before any route reads them.
 
-    def __init__(self, app: ASGIApp, max_bytes: int, counters: SecurityCounters) -> None:
+    A body is read here whole (at most one byte past the limit) and handed to the routes as
+    one message, so no route ever waits on a client: one that announces a large body is
+    refused at once from its ``Content-Length``, one that sends too much (chunked) as soon as
+    it passes the limit, one that sends slowly (a connection held busy for ever) with 408 once
+    ``timeout_s`` has passed.
+    """
+
+    def __init__(
+        self, app: ASGIApp, max_bytes: int, timeout_s: float, counters: SecurityCounters
+    ) -> None:
         self.app = app
         self.max_bytes = max_bytes
+        self.timeout_s = timeout_s
         self.counters = counters
 
-    async def _too_large(self, scope: Scope, send: Send) -> None:
-        self.counters.refusals["body_too_large"] += 1
-        await _refuse(
-            scope,
-            send,
-            413,
-            f"request body larger than {self.max_bytes} bytes (max_body_bytes)",
-            # The rest of the body is never read: the connection cannot carry another request.
-            [("connection", "close")],
-        )
+    async def _refuse_and_close(self, scope: Scope, send: Send, status: int, reason: str) -> None:
+        self.counters.refusals["body_too_large" if status == 413 else "body_too_slow"] += 1
+        # The rest of the body is never read: the connection cannot carry another request.
+        await _refuse(scope, send, status, reason, [("connection", "close")])
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
@@ -260,34 +267,52 @@ class BodyLimit:
             return
         length = _header(scope, b"content-length")
         if length is not None:
-            # The HTTP parser delivers exactly Content-Length bytes (RFC 9112 §6.3): checking
-            # the header bounds the body.
-            if not length.strip().isdigit() or not length.isascii():
+            if not (length.isascii() and length.strip().isdigit()):
                 await _refuse(scope, send, 400, f"bad Content-Length {length[:40]!r}")
                 return
             if int(length) > self.max_bytes:
-                await self._too_large(scope, send)
+                await self._refuse_and_close(
+                    scope,
+                    send,
+                    413,
+                    f"request body larger than {self.max_bytes} bytes (max_body_bytes)",
+                )
                 return
-            await self.app(scope, receive, send)
-            return
-        if _header(scope, b"transfer-encoding") is None:
+            if int(length) == 0:
+                await self.app(scope, receive, send)
+                return
+        elif _header(scope, b"transfer-encoding") is None:
             await self.app(scope, receive, send)  # no body
             return
-        # Chunked: read it here, never more than one byte past the limit, then replay it.
         chunks: list[bytes] = []
         size = 0
-        while True:
-            message = await receive()
-            if message["type"] != "http.request":
-                return  # the client went away
-            chunk = message.get("body", b"")
-            size += len(chunk)
-            if size > self.max_bytes:
-                await self._too_large(scope, send)
-                return
-            chunks.append(chunk)
-            if not message.get("more_body", False):
-                break
+        try:
+            async with asyncio.timeout(self.timeout_s):
+                while True:
+                    message = await receive()
+                    if message["type"] != "http.request":
+                        return  # the client went away
+                    chunk = message.get("body", b"")
+                    size += len(chunk)
+                    if size > self.max_bytes:
+                        await self._refuse_and_close(
+                            scope,
+                            send,
+                            413,
+                            f"request body larger than {self.max_bytes} bytes (max_body_bytes)",
+                        )
+                        return
+                    chunks.append(chunk)
+                    if not message.get("more_body", False):
+                        break
+        except TimeoutError:
+            await self._refuse_and_close(
+                scope,
+                send,
+                408,
+                f"request body not complete within {self.timeout_s:g} s (http_idle_timeout_s)",
+            )
+            return
         replayed = False
 
         async def replay() -> Message:
@@ -459,6 +484,7 @@ class SecurityPolicy:
     """What ``install`` needs (from the service settings)."""
 
     max_body_bytes: int = 64 * 1024
+    body_timeout_s: float = 10.0
     allowed_hosts: tuple[str, ...] = field(default_factory=default_allowed_hosts)
     allowed_origins: tuple[str, ...] = ()
     anonymous_writes_per_s: float = 1.0
@@ -468,6 +494,7 @@ class SecurityPolicy:
 def policy_from_settings(settings: ServiceSettings) -> SecurityPolicy:
     return SecurityPolicy(
         max_body_bytes=settings.max_body_bytes,
+        body_timeout_s=settings.http_idle_timeout_s,
         allowed_hosts=tuple(settings.allowed_hosts) or default_allowed_hosts(),
         allowed_origins=tuple(settings.allowed_origins),
         anonymous_writes_per_s=settings.anonymous_writes_per_s,
@@ -481,7 +508,12 @@ def install(app: FastAPI, policy: SecurityPolicy) -> SecurityCounters:
     buckets = TokenBuckets(policy.anonymous_writes_per_s, policy.anonymous_write_burst)
     app.add_middleware(AnonymousWriteGate, buckets=buckets, counters=counters)
     app.add_middleware(CrossSiteCheck, allowed_origins=policy.allowed_origins, counters=counters)
-    app.add_middleware(BodyLimit, max_bytes=policy.max_body_bytes, counters=counters)
+    app.add_middleware(
+        BodyLimit,
+        max_bytes=policy.max_body_bytes,
+        timeout_s=policy.body_timeout_s,
+        counters=counters,
+    )
     app.add_middleware(HostCheck, allowed=policy.allowed_hosts, counters=counters)
     app.add_middleware(SecurityHeaders)
     app.state.security_counters = counters
@@ -497,6 +529,7 @@ def render_metrics(counters: SecurityCounters, connections: ConnectionCounters |
     for reason in (
         "host",
         "body_too_large",
+        "body_too_slow",
         "cross_site",
         "content_type",
         "anonymous_write",

@@ -91,7 +91,6 @@ def connection_setting(param: cp.ConnectionParam[int], *, flag: str | None = Non
 def rpi_ms_setting() -> Any:
     """The RPI in milliseconds (the declaration is in µs: ``connection_params.RPI_US``)."""
     param = cp.RPI_US
-    assert param.minimum is not None and param.maximum is not None
     return setting(
         param.default / 1000,
         param.help + ", ms",
@@ -309,7 +308,7 @@ class ServiceSettings(BaseSettings):
         512, "HTTP and WebSocket connections held at once (idle ones give way)", ge=8
     )
     http_idle_timeout_s: Seconds = setting(
-        10.0, "a connection must send a complete request head within this, s"
+        10.0, "a connection must send a request head, and then its body, within this each, s"
     )
     http_keep_alive_s: Seconds = setting(5.0, "an idle keep-alive connection is closed after, s")
     http_backlog: int = setting(2048, "pending TCP connections the kernel queues", ge=1)
