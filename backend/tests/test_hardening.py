@@ -150,6 +150,8 @@ async def test_answers_carry_the_security_headers(hmi: Running) -> None:
             assert "frame-ancestors 'none'" in csp
             assert "default-src 'self'" in csp
             assert "script-src 'self'" in csp and "unsafe-eval" not in csp
+            own = f"{hmi.settings.host}:{hmi.settings.port}"
+            assert f"connect-src 'self' ws://{own} wss://{own};" in csp  # the stream
             assert answer.headers["x-frame-options"] == "DENY"
             assert answer.headers["x-content-type-options"] == "nosniff"
             assert answer.headers["referrer-policy"] == "no-referrer"

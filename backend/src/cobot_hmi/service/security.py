@@ -35,6 +35,7 @@ from __future__ import annotations
 import asyncio
 import ipaddress
 import math
+import re
 import socket
 import time
 from collections import Counter, OrderedDict
@@ -64,7 +65,8 @@ CSP: Final = "; ".join(
         "style-src 'self' 'unsafe-inline'",
         "img-src 'self' data: blob:",
         "font-src 'self' data:",
-        # 'self' covers ws:/wss: of the same host and port (CSP Level 3, "'self'").
+        # The stream: 'self' covers ws:/wss: of the same host and port in CSP Level 3; older
+        # browsers need them named, which SecurityHeaders does per request.
         "connect-src 'self'",
         "object-src 'none'",
         "base-uri 'self'",
@@ -89,6 +91,17 @@ DOCS_CSP: Final = "; ".join(
     )
 )
 _DOCS_PATHS: Final = ("/docs", "/redoc")
+_PLAIN_HOST: Final = re.compile(r"^(?:[a-z0-9.-]+|\[[0-9a-f:.]+\])(?::[0-9]{1,5})?$")
+"""A ``Host`` header safe to repeat inside the CSP (nothing but a name or address and port)."""
+
+
+def _csp_for(host: str | None) -> bytes:
+    if host is not None and _PLAIN_HOST.fullmatch(host.strip().lower()):
+        name = host.strip().lower()
+        return CSP.replace(
+            "connect-src 'self'", f"connect-src 'self' ws://{name} wss://{name}"
+        ).encode()
+    return CSP.encode()
 
 
 @dataclass(slots=True)
@@ -150,9 +163,12 @@ class SecurityHeaders:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
-        csp = DOCS_CSP if scope["path"].startswith(_DOCS_PATHS) else CSP
+        if scope["path"].startswith(_DOCS_PATHS):
+            csp = DOCS_CSP.encode()
+        else:
+            csp = _csp_for(_header(scope, b"host"))
         extra = (
-            (b"content-security-policy", csp.encode()),
+            (b"content-security-policy", csp),
             (b"x-frame-options", b"DENY"),
             (b"x-content-type-options", b"nosniff"),
             (b"referrer-policy", b"no-referrer"),
