@@ -210,11 +210,15 @@ async def test_a_registered_session_silent_past_the_inactivity_timeout_is_closed
 
 
 @contextlib.asynccontextmanager
-async def control_api(robot_host: str, token: str | None) -> AsyncIterator[httpx.AsyncClient]:
+async def control_api(
+    robot_host: str, token: str | None, allowed_hosts: tuple[str, ...] = ()
+) -> AsyncIterator[httpx.AsyncClient]:
     robot = SimulatedRobot(RobotSettings())
     async with running_target(robot_host) as target:
         server = ControlApiServer(
-            create_control_app(robot, target, token=token), robot_host, free_tcp_port(robot_host)
+            create_control_app(robot, target, token=token, allowed_hosts=allowed_hosts),
+            robot_host,
+            free_tcp_port(robot_host),
         )
         await server.start()
         try:
@@ -293,6 +297,21 @@ async def test_control_api_listens_on_the_emulators_address_only(
         # The same port on another address of this machine: nobody there.
         with pytest.raises(ConnectionRefusedError):
             await asyncio.open_connection(plc_host, port)
+
+
+async def test_control_api_refuses_a_foreign_host_name(robot_host: str) -> None:
+    # DNS rebinding: a page's own name re-pointed at the emulator sends that name as Host.
+    async with control_api(robot_host, None, ("emulator",)) as api:
+        port = api.base_url.port
+        for host in (f"evil.example:{port}", "evil.example", f"localhost.evil.example:{port}"):
+            answer = await api.post("/estop", json={}, headers={"host": host})
+            assert answer.status_code == 400, (host, answer.text)
+            assert "not served here" in answer.json()["detail"]["reason"]
+            assert (await api.get("/status", headers={"host": host})).status_code == 400
+        assert robot_phase(await api.get("/status")) != "emergency_stop"
+        for host in (f"localhost:{port}", f"EMULATOR:{port}", f"[::1]:{port}", robot_host):
+            answer = await api.get("/status", headers={"host": host})
+            assert answer.status_code == 200, (host, answer.text)
 
 
 def test_an_empty_token_is_refused() -> None:

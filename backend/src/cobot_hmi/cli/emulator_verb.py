@@ -140,6 +140,14 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="require 'Authorization: Bearer TOKEN' on the control API "
         "(default: $COBOT_HMI_EMULATOR_CONTROL_TOKEN; none: no token)",
     )
+    robot.add_argument(
+        "--control-allowed-host",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="a host name the control API answers to besides IP addresses, localhost and "
+        "this machine's names (repeatable)",
+    )
     parser.add_argument("-v", "--verbose", action="store_true", help="log connections")
     parser.set_defaults(handler=_run)
 
@@ -223,7 +231,12 @@ def _run(args: argparse.Namespace) -> int:
                 await discovery.start()
             if simulated is not None and not args.no_control_api:
                 control = ControlApiServer(
-                    create_control_app(simulated, target, token=settings.control_token),
+                    create_control_app(
+                        simulated,
+                        target,
+                        token=settings.control_token,
+                        allowed_hosts=args.control_allowed_host,
+                    ),
                     args.host,
                     args.control_port,
                 )

@@ -17,8 +17,11 @@ Guarded against the web pages a tester opens: it listens on the emulator's own a
 (``ControlApiServer`` binds the host it is given, the CLI gives ``--host``); every request but a
 GET must say ``Content-Type: application/json`` (415 otherwise), which a cross-site form or a
 "no-cors" fetch cannot send without a CORS preflight that this API never grants, so no page can
-inject a fault or press e-stop from the tester's browser; and with a token set every request
-must carry ``Authorization: Bearer <token>`` (401 without one, 403 with a wrong one).
+inject a fault or press e-stop from the tester's browser; a request must name the API by an IP
+address, ``localhost``, this machine's name or an allowed name in its ``Host`` header (400
+otherwise), so a page whose name was re-pointed at the emulator (DNS rebinding) is not served
+either; and with a token set every request must carry ``Authorization: Bearer <token>`` (401
+without one, 403 with a wrong one).
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ import asyncio
 import contextlib
 import dataclasses
 import hmac
+import ipaddress
 import logging
 import math
 import socket
@@ -163,8 +167,43 @@ def _refusal(status: int, reason: str, headers: dict[str, str] | None = None) ->
     return JSONResponse({"detail": {"reason": reason}}, status_code=status, headers=headers)
 
 
-def guard_request(request: Request, token: str | None) -> Response | None:
-    """The refusal for a request without the token or, unless a GET, not JSON; else ``None``."""
+def _host_name(host_header: str) -> str:
+    """The name in a ``Host`` header: without the port, brackets or a trailing dot."""
+    host = host_header.strip().lower()
+    if host.startswith("["):
+        return host[1:].partition("]")[0]
+    return host.rpartition(":")[0].rstrip(".") if ":" in host else host.rstrip(".")
+
+
+def default_allowed_host_names() -> frozenset[str]:
+    """``localhost`` and this machine's names (IP literals are always allowed)."""
+    names = {"localhost"}
+    hostname = socket.gethostname().lower()
+    if hostname:
+        names |= {hostname, f"{hostname}.local"}
+    return frozenset(names)
+
+
+def host_allowed(host_header: str, allowed_names: frozenset[str]) -> bool:
+    name = _host_name(host_header)
+    if name in allowed_names:
+        return True
+    try:
+        ipaddress.ip_address(name)
+    except ValueError:
+        return False
+    return True
+
+
+def guard_request(
+    request: Request, token: str | None, allowed_names: frozenset[str] | None = None
+) -> Response | None:
+    """The refusal for a request naming a foreign host, without the token or, unless a GET,
+    not JSON; else ``None``."""
+    names = default_allowed_host_names() if allowed_names is None else allowed_names
+    host = request.headers.get("host", "")
+    if not host_allowed(host, names):
+        return _refusal(400, f"host {host!r} is not served here (--control-allowed-host)")
     if token is not None:
         given = request.headers.get("authorization", "")
         scheme, _, credentials = given.partition(" ")
@@ -193,11 +232,17 @@ def create_control_app(
     clock: Callable[[], float] = time.time,
     *,
     token: str | None = None,
+    allowed_hosts: Sequence[str] = (),
 ) -> FastAPI:
     """The control API over ``robot`` and ``target``; ``clock`` is the target's clock;
-    ``token``: required as ``Authorization: Bearer <token>`` on every request when given."""
+    ``token``: required as ``Authorization: Bearer <token>`` on every request when given;
+    ``allowed_hosts``: names a ``Host`` header may give besides IP addresses, ``localhost`` and
+    this machine's names."""
     if token is not None and not token.strip():
         raise ValueError("the control API token is empty")
+    allowed_names = default_allowed_host_names() | {
+        name.strip().lower().rstrip(".") for name in allowed_hosts if name.strip()
+    }
     app = FastAPI(
         title="cobot-hmi emulator control API",
         description="Scenarios and faults for the emulated robot (docs/emulator.md).",
@@ -207,7 +252,7 @@ def create_control_app(
     async def _guard(
         request: Request, call_next: Callable[[Request], Awaitable[Response]]
     ) -> Response:
-        refusal = guard_request(request, token)
+        refusal = guard_request(request, token, allowed_names)
         if refusal is not None:
             return refusal
         return await call_next(request)
