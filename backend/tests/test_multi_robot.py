@@ -300,7 +300,7 @@ async def test_a_robot_down_too_long_makes_the_service_unhealthy(
             ],
             link_down_unhealthy_s=0.5,
         )
-        async with running_service(settings) as hmi:
+        async with running_service(settings, wait_connected=False) as hmi:
             service = hmi.service
             assert await service.robot("alpha").link.wait_connected(DEADLINE_S)
             await eventually(lambda: service.health_problems() != [])

@@ -25,31 +25,23 @@ N = TypeVar("N", int, float)
 
 @dataclass(frozen=True, slots=True)
 class ConnectionParam(Generic[N]):
-    """One connection setting: default, unit, inclusive bounds and what it means."""
+    """One connection setting: default, inclusive bounds, unit and what it means."""
 
     default: N
     help: str
+    minimum: N
+    maximum: N
     unit: str = ""
-    minimum: N | None = None
-    maximum: N | None = None
 
     def check(self, name: str, value: N) -> N:
         """``value`` if within the bounds; else ``ValueError`` naming ``name`` and the range."""
-        low_ok = self.minimum is None or value >= self.minimum
-        high_ok = self.maximum is None or value <= self.maximum
-        if not (low_ok and high_ok):
+        if not self.minimum <= value <= self.maximum:
             raise ValueError(f"{name}: {self.range_text()}, got {value}")
         return value
 
     def range_text(self) -> str:
         unit = f" {self.unit}" if self.unit else ""
-        if self.minimum is not None and self.maximum is not None:
-            return f"{self.minimum}–{self.maximum}{unit}"
-        if self.minimum is not None:
-            return f"at least {self.minimum}{unit}"
-        if self.maximum is not None:
-            return f"at most {self.maximum}{unit}"
-        return "any value"
+        return f"{self.minimum}–{self.maximum}{unit}"
 
 
 ENIP_TCP_PORT: Final = ConnectionParam(
@@ -67,9 +59,9 @@ CLASS1_UDP_PORT: Final = ConnectionParam(
 RPI_US: Final = ConnectionParam(
     10_000,
     "requested packet interval (RPI) of the cyclic connection, both directions",
-    unit="µs",
     minimum=1_000,
     maximum=10_000_000,
+    unit="µs",
 )
 TIMEOUT_MULTIPLIER: Final = ConnectionParam(
     2,
@@ -115,14 +107,14 @@ LISTEN_ONLY_INSTANCE: Final = ConnectionParam(
 O2T_SIZE: Final = ConnectionParam(
     O2T_ASSEMBLY.size_bytes,
     "O→T data size (without sequence count and run/idle header)",
-    unit="bytes",
     minimum=0,
     maximum=0xFFFF - 6,
+    unit="bytes",
 )
 T2O_SIZE: Final = ConnectionParam(
     T2O_ASSEMBLY.size_bytes,
     "T→O data size (without sequence count)",
-    unit="bytes",
     minimum=0,
     maximum=0xFFFF - 2,
+    unit="bytes",
 )

@@ -1,4 +1,4 @@
-"""Layer: emulator. Imports the codec's sizes and ``cobot_hmi.enip``.
+"""Layer: emulator. Imports ``cobot_hmi.connection_params`` and ``cobot_hmi.enip``.
 
 Everything about the target that a user or a test may configure: addresses, the assembly
 instances and sizes of issue 3, the RPI range, the connection limit, the idle behaviour and
@@ -9,11 +9,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from cobot_hmi.codec import O2T_SIZE, T2O_SIZE
+from cobot_hmi import connection_params as cp
 from cobot_hmi.emulator.process_image import IdleBehaviour
 from cobot_hmi.enip.encapsulation import ENIP_TCP_PORT, ENIP_UDP_PORT
 from cobot_hmi.enip.identity import IdentityInfo
-from cobot_hmi.layout import CONNECTION_POINTS
 
 
 def default_identity() -> IdentityInfo:
@@ -32,21 +31,24 @@ def default_identity() -> IdentityInfo:
 
 @dataclass(frozen=True)
 class TargetSettings:
+    """The connection settings' defaults and the RPI range come from their one declaration
+    (``cobot_hmi.connection_params``), shared with the service and the scanner."""
+
     host: str = "127.0.0.2"
-    tcp_port: int = ENIP_TCP_PORT
+    tcp_port: int = cp.ENIP_TCP_PORT.default
     """0 picks a free port (tests), read back from ``Target.tcp_port``."""
-    udp_port: int = ENIP_UDP_PORT
-    config_instance: int = CONNECTION_POINTS.configuration
-    o2t_instance: int = CONNECTION_POINTS.o2t
-    t2o_instance: int = CONNECTION_POINTS.t2o
-    input_only_instance: int = CONNECTION_POINTS.input_only
-    listen_only_instance: int = CONNECTION_POINTS.listen_only
-    o2t_size: int = O2T_SIZE
-    t2o_size: int = T2O_SIZE
+    udp_port: int = cp.CLASS1_UDP_PORT.default
+    config_instance: int = cp.CONFIG_INSTANCE.default
+    o2t_instance: int = cp.O2T_INSTANCE.default
+    t2o_instance: int = cp.T2O_INSTANCE.default
+    input_only_instance: int = cp.HEARTBEAT_INSTANCE.default
+    listen_only_instance: int = cp.LISTEN_ONLY_INSTANCE.default
+    o2t_size: int = cp.O2T_SIZE.default
+    t2o_size: int = cp.T2O_SIZE.default
     heartbeat_sizes: tuple[int, ...] = (0, 2, 6)
     """O→T connection sizes accepted for input-only and listen-only (vendors differ)."""
-    rpi_min_us: int = 1_000
-    rpi_max_us: int = 10_000_000
+    rpi_min_us: int = cp.RPI_US.minimum
+    rpi_max_us: int = cp.RPI_US.maximum
     max_connections: int = 8
     idle_behaviour: IdleBehaviour = IdleBehaviour.HOLD
     t2o_port_default: int = ENIP_UDP_PORT

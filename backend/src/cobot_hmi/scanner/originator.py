@@ -1,5 +1,5 @@
-"""Layer: scanner (asyncio I/O, the originator role). Imports the codec, ``cobot_hmi.enip``, the
-scanner's own modules and the runtime support (``udp_endpoint``); never the emulator or the
+"""Layer: scanner (asyncio I/O, the originator role). Imports the codec, ``cobot_hmi.enip``,
+``cobot_hmi.connection_params``, the scanner's own modules and the runtime support (``udp_endpoint``); never the emulator or the
 service.
 
 The backend's class 1 connection to the robot, held as a PLC holds it (issue 3, "The
@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any
 
+from cobot_hmi import connection_params as cp
 from cobot_hmi.codec import (
     O2T_SIZE,
     T2O_SIZE,
@@ -63,10 +64,9 @@ from cobot_hmi.enip.connection_manager import (
     decode_forward_open_reply,
 )
 from cobot_hmi.enip.cpf import CpfItem, ItemType, Sockaddr, decode_sockaddr, sockaddr_item
-from cobot_hmi.enip.encapsulation import ENIP_TCP_PORT, ENIP_UDP_PORT
+from cobot_hmi.enip.encapsulation import ENIP_UDP_PORT
 from cobot_hmi.enip.errors import EnipError
 from cobot_hmi.enip.sequence import DUPLICATE, STALE, SequenceTracker
-from cobot_hmi.layout import CONNECTION_POINTS
 from cobot_hmi.scanner.io_port import IoPort
 from cobot_hmi.scanner.o2t_stream import O2TStream
 from cobot_hmi.scanner.session import EnipSession, SessionError
@@ -97,23 +97,26 @@ class NotConnectedError(Exception):
 
 @dataclass(frozen=True)
 class OriginatorSettings:
+    """The connection settings' defaults come from their one declaration
+    (``cobot_hmi.connection_params``), shared with the service and the emulator."""
+
     robot_host: str
-    tcp_port: int = ENIP_TCP_PORT
+    tcp_port: int = cp.ENIP_TCP_PORT.default
     local_host: str | None = None
     """The local address of the UDP port and the TCP session. None: the address that routes
     to the target (so another process may hold UDP 2222 on another address); "0.0.0.0": all."""
-    local_udp_port: int = ENIP_UDP_PORT
-    rpi_us: int = 10_000
-    timeout_multiplier: int = 2
+    local_udp_port: int = cp.CLASS1_UDP_PORT.default
+    rpi_us: int = cp.RPI_US.default
+    timeout_multiplier: int = cp.TIMEOUT_MULTIPLIER.default
     """Connection timeout = RPI × (4 << multiplier): 2 → RPI × 16."""
     input_only: bool = False
     large_forward_open: bool = False
-    config_instance: int = CONNECTION_POINTS.configuration
-    o2t_instance: int = CONNECTION_POINTS.o2t
-    t2o_instance: int = CONNECTION_POINTS.t2o
-    heartbeat_instance: int = CONNECTION_POINTS.input_only
-    o2t_size: int = O2T_SIZE
-    t2o_size: int = T2O_SIZE
+    config_instance: int = cp.CONFIG_INSTANCE.default
+    o2t_instance: int = cp.O2T_INSTANCE.default
+    t2o_instance: int = cp.T2O_INSTANCE.default
+    heartbeat_instance: int = cp.HEARTBEAT_INSTANCE.default
+    o2t_size: int = cp.O2T_SIZE.default
+    t2o_size: int = cp.T2O_SIZE.default
     request_t2o_port: int | None = None
     """Ask for T→O on this local port (a Sockaddr Info 0x8001 item) instead of 2222."""
     heartbeat_o2t_size: int = 0

@@ -17,7 +17,8 @@ Declaring a setting: one field, ``name: type = setting(default, "help", bounds�
 (``--name``, or ``flag=``) and environment variable (``COBOT_HMI_NAME``) are derived. Connection
 settings take default, bounds and help from ``cobot_hmi.connection_params``, shared with the
 emulator and the scanner. Pure: no sockets; imports nothing of the project except the
-connection declarations and (lazily) the scanner's settings type.
+connection declarations and (lazily) the scanner's settings type and the layout (whose units
+and field names key the Sparkplug deadbands).
 """
 
 from __future__ import annotations
@@ -114,6 +115,59 @@ Milliseconds = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 Port = Annotated[int, Field(ge=0, le=65535)]
 """A TCP or UDP port; 0 asks the OS for any free one (the HTTP port in tests)."""
 RobotName = Annotated[str, Field(pattern=ROBOT_NAME_PATTERN)]
+SPARKPLUG_ID_PATTERN: Final = r"^[^+#/]+$"
+"""A Sparkplug group, edge node or device id: no MQTT wildcard, no topic level separator."""
+SparkplugId = Annotated[str, Field(pattern=SPARKPLUG_ID_PATTERN)]
+DEFAULT_DEADBANDS: Final = {
+    # The layout's units (cobot_hmi.layout): about the last digit a display of each one shows.
+    "degree": 0.01,
+    "degree/s": 0.1,
+    "A": 0.01,
+    "°C": 0.1,
+    "N·m": 0.05,
+    "mm": 0.1,
+    "mm/s": 0.5,
+    "N": 0.5,
+    "mA or V per its type": 0.01,
+}
+"""Sparkplug report-by-exception deadbands by unit (absolute, in that unit)."""
+
+
+def _parse_deadbands(value: object) -> object:
+    """``unit=value,field=value`` (a flag or variable) to a mapping; a TOML table passes."""
+    if not isinstance(value, str):
+        return value
+    pairs: dict[str, str] = {}
+    for part in value.split(","):
+        if not part.strip():
+            continue
+        key, sep, number = part.partition("=")
+        if not sep:
+            raise ValueError(f"expected UNIT=VALUE or FIELD=VALUE, got {part.strip()!r}")
+        pairs[key.strip()] = number.strip()
+    return pairs
+
+
+def _check_deadbands(value: dict[str, float]) -> dict[str, float]:
+    """Keys are the layout's units or T→O field names; the defaults fill the other units."""
+    from cobot_hmi.layout import T2O_FIELDS
+
+    known = {f.unit for f in T2O_FIELDS if f.unit} | {f.name for f in T2O_FIELDS}
+    for key, number in value.items():
+        if key not in known:
+            units = ", ".join(sorted({f.unit for f in T2O_FIELDS if f.unit}))
+            raise ValueError(f"{key!r} is neither a unit ({units}) nor a T→O field name")
+        if number < 0:
+            raise ValueError(f"{key}: a deadband is not negative, got {number}")
+    return {**DEFAULT_DEADBANDS, **value}
+
+
+Deadbands = Annotated[
+    dict[str, Annotated[float, Field(allow_inf_nan=False)]],
+    NoDecode,
+    BeforeValidator(_parse_deadbands),
+    AfterValidator(_check_deadbands),
+]
 
 
 def _default_state_dir() -> Path:
@@ -155,6 +209,16 @@ class RobotSettings(BaseModel):
     @property
     def rpi_us(self) -> int:
         return round(self.rpi_ms * 1000)
+
+    @property
+    def sparkplug_node_id(self) -> str:
+        """The edge node id: the setting, else the host name (``+ # /`` made ``_``)."""
+        if self.sparkplug_node:
+            return self.sparkplug_node
+        import socket
+
+        name = socket.gethostname() or "cobot-hmi"
+        return name.replace("+", "_").replace("#", "_").replace("/", "_")
 
     def originator_settings(
         self, local_host: str | None, udp_port: int, *, request_t2o_port: int | None = None
@@ -315,6 +379,39 @@ class ServiceSettings(BaseSettings):
     http_max_header_bytes: int = setting(
         16 * 1024, "largest request line and headers, bytes", ge=1024
     )
+    # --- Sparkplug B edge node over MQTT (cobot_hmi.sparkplug; docs/operations.md "Sparkplug")
+    mqtt_url: str = setting(
+        "",
+        "MQTT broker: mqtt://HOST:PORT or mqtts://HOST:PORT (TLS); empty: no Sparkplug",
+        pattern=r"^$|^mqtts?://[^/:]+(:\d+)?/?$",
+    )
+    mqtt_user: str = setting("", "MQTT user name (empty: none)")
+    mqtt_password: str = setting("", "MQTT password (prefer COBOT_HMI_MQTT_PASSWORD)")
+    mqtt_ca_file: ExpandedPath | None = setting(
+        None, "CA certificates for mqtts:// (default: the system's)"
+    )
+    mqtt_client_cert: ExpandedPath | None = setting(None, "client certificate (PEM) for mqtts://")
+    mqtt_client_key: ExpandedPath | None = setting(None, "its private key (PEM)")
+    mqtt_writes: bool = setting(
+        False, "accept DCMD writes over MQTT (through the write pipeline, with control)"
+    )
+    sparkplug_group: SparkplugId = setting("cobot-hmi", "Sparkplug group id")
+    sparkplug_node: str = setting(
+        "",
+        "Sparkplug edge node id (default: this machine's host name)",
+        pattern=r"^$|" + SPARKPLUG_ID_PATTERN,
+    )
+    sparkplug_deadbands: Deadbands = setting(
+        DEFAULT_DEADBANDS,
+        "report-by-exception deadbands, UNIT=VALUE or FIELD=VALUE comma-separated (absolute, "
+        "in the field's unit); unnamed units keep their defaults",
+    )
+    sparkplug_max_rate_hz: float = setting(
+        10.0, "most DDATA messages per robot per second", gt=0, le=1000, allow_inf_nan=False
+    )
+    sparkplug_buffer_bytes: int = setting(
+        64 * 1024 * 1024, "data kept on disk while the broker is away, bytes (0: none)", ge=0
+    )
 
     @classmethod
     def settings_customise_sources(
@@ -406,6 +503,16 @@ class ServiceSettings(BaseSettings):
     @property
     def rpi_us(self) -> int:
         return round(self.rpi_ms * 1000)
+
+    @property
+    def sparkplug_node_id(self) -> str:
+        """The edge node id: the setting, else the host name (``+ # /`` made ``_``)."""
+        if self.sparkplug_node:
+            return self.sparkplug_node
+        import socket
+
+        name = socket.gethostname() or "cobot-hmi"
+        return name.replace("+", "_").replace("#", "_").replace("/", "_")
 
     @property
     def t2o_udp_port(self) -> int:
