@@ -170,6 +170,14 @@ async def test_other_host_headers_are_refused(hmi: Running) -> None:
             assert "allowed_hosts" in answer.json()["detail"]["reason"]
         for host in (f"localhost:{port}", f"{hmi.settings.host}:{port}", f"[::1]:{port}"):
             assert (await client.get("/api/v1/status", headers={"host": host})).status_code == 200
+    # The stream's handshake too.
+    handshake = (
+        b"GET /api/v1/stream HTTP/1.1\r\nHost: evil.example\r\nUpgrade: websocket\r\n"
+        b"Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+        b"Sec-WebSocket-Version: 13\r\n\r\n"
+    )
+    status, answer = await _raw_http(hmi, handshake)
+    assert status == 403, answer
 
 
 async def test_allowed_hosts_setting(
@@ -345,8 +353,10 @@ async def test_anonymous_writes_are_refused_before_the_database_and_rate_limited
         rows_before = (await operator.get("/api/v1/audit")).json()["total"]
         async with hmi.client() as anonymous:
             statuses = []
-            for _ in range(12):
-                answer = await anonymous.patch("/api/v1/command", json={"tool_do": {"0": True}})
+            for attempt in range(12):
+                # The deprecated path and the robot's own one share the budget.
+                path = "/api/v1/command" if attempt % 2 else "/api/v1/robots/robot/command"
+                answer = await anonymous.patch(path, json={"tool_do": {"0": True}})
                 statuses.append(answer.status_code)
             take = await anonymous.post("/api/v1/control/take")
         assert statuses[:5] == [401] * 5  # the burst
