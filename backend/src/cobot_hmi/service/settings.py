@@ -210,16 +210,6 @@ class RobotSettings(BaseModel):
     def rpi_us(self) -> int:
         return round(self.rpi_ms * 1000)
 
-    @property
-    def sparkplug_node_id(self) -> str:
-        """The edge node id: the setting, else the host name (``+ # /`` made ``_``)."""
-        if self.sparkplug_node:
-            return self.sparkplug_node
-        import socket
-
-        name = socket.gethostname() or "cobot-hmi"
-        return name.replace("+", "_").replace("#", "_").replace("/", "_")
-
     def originator_settings(
         self, local_host: str | None, udp_port: int, *, request_t2o_port: int | None = None
     ) -> OriginatorSettings:
