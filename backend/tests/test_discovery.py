@@ -14,6 +14,7 @@ import struct
 import sys
 from collections.abc import AsyncIterator, Iterator
 
+import httpx
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
@@ -28,6 +29,7 @@ from cobot_hmi.enip import cpf, encapsulation
 from cobot_hmi.enip.cpf import Sockaddr
 from cobot_hmi.enip.encapsulation import Command
 from cobot_hmi.scanner.discovery import discover, list_identity_request, parse_list_identity_reply
+from conftest import free_tcp_port
 
 CLI = [sys.executable, "-m", "cobot_hmi.cli"]
 LOOPBACK_BROADCAST = "127.255.255.255"
@@ -280,6 +282,7 @@ async def test_discover_cli_exits_1_when_nobody_answers(plc_host: str, robot_hos
 
 
 async def test_the_emulator_command_serves_discovery(robot_host: str, plc_host: str) -> None:
+    control_port = free_tcp_port(robot_host)
     process = await asyncio.create_subprocess_exec(
         *CLI,
         "emulator",
@@ -289,7 +292,8 @@ async def test_the_emulator_command_serves_discovery(robot_host: str, plc_host: 
         "0",
         "--udp-port",
         "0",
-        "--static",
+        "--control-port",
+        str(control_port),
         stdout=asyncio.subprocess.PIPE,
         stderr=asyncio.subprocess.PIPE,
     )
@@ -300,6 +304,16 @@ async def test_the_emulator_command_serves_discovery(robot_host: str, plc_host: 
         result = await discover([robot_host], timeout_s=DEADLINE_S, local_host=plc_host)
         assert [d.address for d in result.devices] == [robot_host]
         assert result.devices[0].identity.product_name.startswith("Doosan")
+        async with httpx.AsyncClient(base_url=f"http://{robot_host}:{control_port}") as api:
+            status = (await api.get("/status")).json()
+        assert status["discovery"] == {
+            "host": robot_host,
+            "port": DISCOVERY_PORT,
+            "broadcast_hosts": [LOOPBACK_BROADCAST],
+            "broadcast_errors": {},
+            "pending_replies": 0,
+        }
+        assert status["target_counters"]["udp_list_identity"] == 1
     finally:
         process.terminate()
         await asyncio.wait_for(process.communicate(), 60)

@@ -236,6 +236,7 @@ def _run(args: argparse.Namespace) -> int:
                         target,
                         token=settings.control_token,
                         allowed_hosts=args.control_allowed_host,
+                        discovery=discovery,
                     ),
                     args.host,
                     args.control_port,

@@ -61,6 +61,12 @@ MAX_CORRUPT_COUNT: Final = 1_000_000
 MAX_EXTENDED_STATUS: Final = 0xFFFF
 
 
+class StatusSource(Protocol):
+    """Something more the status shows (``emulator.discovery.DiscoveryServer``)."""
+
+    def status(self) -> dict[str, object]: ...
+
+
 class EmulatorTarget(Protocol):
     """What the control API needs of the EtherNet/IP target (``emulator.target.Target``)."""
 
@@ -233,11 +239,12 @@ def create_control_app(
     *,
     token: str | None = None,
     allowed_hosts: Sequence[str] = (),
+    discovery: StatusSource | None = None,
 ) -> FastAPI:
     """The control API over ``robot`` and ``target``; ``clock`` is the target's clock;
     ``token``: required as ``Authorization: Bearer <token>`` on every request when given;
     ``allowed_hosts``: names a ``Host`` header may give besides IP addresses, ``localhost`` and
-    this machine's names."""
+    this machine's names; ``discovery``: the discovery server, shown in the status."""
     if token is not None and not token.strip():
         raise ValueError("the control API token is empty")
     allowed_names = default_allowed_host_names() | {
@@ -293,6 +300,7 @@ def create_control_app(
                 "target_counters": _snapshot(counters) if counters is not None else None,
                 "pump": target.pump_counters(),
                 "forward_open_refusals": [_snapshot(r) for r in target.forward_open_refusals()],
+                "discovery": discovery.status() if discovery is not None else None,
             }
         )
 
