@@ -27,7 +27,8 @@ Outermost first (``install``):
    client address has a token-bucket budget for such refusals, beyond which it gets 429.
 
 Every refusal is a JSON ``{"detail": {"reason": …}}`` as the routes' own (docs/api.md), and
-is counted in ``SecurityCounters`` (``/metrics``). Imports only ``deps`` (the session token).
+is counted in ``SecurityCounters`` (``/metrics``). Imports only ``deps`` (the session token)
+and ``http_limits`` (its counters, rendered with these).
 """
 
 from __future__ import annotations
