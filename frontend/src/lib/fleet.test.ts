@@ -1,5 +1,5 @@
 import { afterEach, beforeEach, describe, expect, it, vi } from "vitest";
-import { FleetPoller, fleetTile, type RobotsAnswer } from "./fleet";
+import { FleetPoller, fleetTile, knownRobots, type RobotsAnswer } from "./fleet";
 import type { RobotSummary } from "./protocol";
 
 function summary(name: string, overrides: Partial<RobotSummary> = {}): RobotSummary {
@@ -110,6 +110,7 @@ describe("FleetPoller", () => {
     await s.answer({ ok: false, reason: "HTTP 503" });
     expect(poller.getSnapshot()).toMatchObject({ stale: true, error: "HTTP 503" });
     expect(poller.getSnapshot().tiles.map((t) => t.name)).toEqual(["a"]);
+    expect(knownRobots(poller.getSnapshot())).toEqual(["a"]);
     await vi.advanceTimersByTimeAsync(1000);
     await s.answer({ ok: true, robots: [summary("a"), summary("b")] });
     expect(poller.getSnapshot()).toMatchObject({ stale: false, error: null });
@@ -126,9 +127,12 @@ describe("FleetPoller", () => {
     }, 1000);
     poller.start();
     await vi.advanceTimersByTimeAsync(0);
-    expect(poller.getSnapshot()).toMatchObject({ loaded: true, error: "network down", stale: false });
+    expect(poller.getSnapshot()).toMatchObject({ loaded: true, error: "network down", stale: false, answered: false });
+    // No list yet: the robots are unknown, not "none".
+    expect(knownRobots(poller.getSnapshot())).toBeNull();
     await vi.advanceTimersByTimeAsync(1000);
-    expect(poller.getSnapshot()).toMatchObject({ error: null });
+    expect(poller.getSnapshot()).toMatchObject({ error: null, answered: true });
+    expect(knownRobots(poller.getSnapshot())).toEqual(["a"]);
     poller.stop();
   });
 

@@ -56,6 +56,13 @@ export interface FleetSnapshot {
   readonly stale: boolean;
   /** A first answer (good or bad) has come. */
   readonly loaded: boolean;
+  /** A good answer has come: `tiles` is the service's list (else: not known yet). */
+  readonly answered: boolean;
+}
+
+/** The names of the service's robots, in its order; null until it has said. */
+export function knownRobots(fleet: FleetSnapshot): readonly string[] | null {
+  return fleet.answered ? fleet.tiles.map((t) => t.name) : null;
 }
 
 export const FLEET_POLL_MS = 1000;
@@ -73,7 +80,7 @@ export class FleetPoller {
   private timer: ReturnType<typeof setTimeout> | null = null;
   private running = false;
   private generation = 0;
-  private current: FleetSnapshot = { tiles: [], error: null, stale: false, loaded: false };
+  private current: FleetSnapshot = { tiles: [], error: null, stale: false, loaded: false, answered: false };
 
   constructor(fetchRobots: () => Promise<RobotsAnswer>, interval_ms = FLEET_POLL_MS) {
     this.fetchRobots = fetchRobots;
@@ -120,8 +127,8 @@ export class FleetPoller {
     // A stop or a refresh while this poll was out makes its answer (and its next turn) moot.
     if (!this.running || generation !== this.generation) return;
     this.current = answer.ok
-      ? { tiles: answer.robots.map(fleetTile), error: null, stale: false, loaded: true }
-      : { tiles: this.current.tiles, error: answer.reason, stale: this.current.tiles.length > 0, loaded: true };
+      ? { tiles: answer.robots.map(fleetTile), error: null, stale: false, loaded: true, answered: true }
+      : { ...this.current, error: answer.reason, stale: this.current.answered, loaded: true };
     for (const listener of this.listeners) listener();
     this.timer = setTimeout(() => {
       this.timer = null;

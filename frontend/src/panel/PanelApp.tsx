@@ -4,7 +4,7 @@
  * visible in a sticky header; live joint and TCP plots; I/O and registers with writes; events
  * and audit. Switching robot builds a new live pipeline (its own stream) for the new robot.
  */
-import { useCallback, useEffect, useMemo, useState } from "react";
+import { useCallback, useEffect, useMemo, useRef, useState, useSyncExternalStore } from "react";
 import { ConnectionHealth } from "../components/ConnectionHealth";
 import { ControlHolder } from "../components/ControlHolder";
 import { FlagBadges } from "../components/FlagBadges";
@@ -13,8 +13,9 @@ import { RuntimeContext, useLive } from "../components/runtimeContext";
 import { StaleBanner } from "../components/StaleBanner";
 import { StateBadge } from "../components/StateBadge";
 import { api } from "../lib/api";
+import { FleetPoller, knownRobots, type FleetTile } from "../lib/fleet";
 import { ALL_PLOTS, JOINT_PLOTS, TCP_PLOTS } from "../lib/plots";
-import type { ControlStatus, RobotSummary, User } from "../lib/protocol";
+import type { ControlStatus, User } from "../lib/protocol";
 import { chooseRobot, robotFromSearch, searchWithRobot } from "../lib/route";
 import { createLiveRuntime, type LiveRuntime } from "../lib/runtime";
 import { AuditView, EventsView } from "./EventsView";
@@ -31,6 +32,9 @@ declare global {
     __cobotHmi?: LiveRuntime;
   }
 }
+
+/** How often the switcher's list of robots (and their link states) is refreshed. */
+const ROBOTS_POLL_MS = 5000;
 
 const SECTIONS = [
   ["joints", "Joints"],
@@ -53,7 +57,7 @@ function WriteBlockedHint() {
 
 interface PanelProps {
   readonly robot: string;
-  readonly robots: readonly RobotSummary[] | null;
+  readonly robots: readonly FleetTile[];
   readonly onSelect: (robot: string) => void;
   readonly user: User | null;
   readonly onUser: (user: User | null) => void;
@@ -176,8 +180,6 @@ function NoRobot({ reason, user, onUser }: { reason: string; user: User | null; 
 
 export function PanelApp() {
   const [wanted, setWanted] = useState(() => robotFromSearch(window.location.search));
-  const [robots, setRobots] = useState<readonly RobotSummary[] | null>(null);
-  const [robotsError, setRobotsError] = useState<string | null>(null);
   const [user, setUser] = useState<User | null>(null);
 
   useEffect(() => {
@@ -187,24 +189,21 @@ export function PanelApp() {
       .catch(() => setUser(null));
   }, []);
 
-  // The list of robots: at the start and again after a login or logout (a site may require a
-  // login to view anything).
+  // The service's robots for the switcher, polled (their link states change), and asked again
+  // at once after a login or logout (a site may require a login to view anything).
+  const poller = useMemo(() => new FleetPoller(() => api.robots(), ROBOTS_POLL_MS), []);
   useEffect(() => {
-    let cancelled = false;
-    api
-      .robots()
-      .then((answer) => {
-        if (cancelled) return;
-        if (answer.ok) {
-          setRobots(answer.robots);
-          setRobotsError(null);
-        } else setRobotsError(answer.reason);
-      })
-      .catch((e: unknown) => !cancelled && setRobotsError(String(e)));
-    return () => {
-      cancelled = true;
-    };
-  }, [user]);
+    poller.start();
+    return () => poller.stop();
+  }, [poller]);
+  const seenUser = useRef<User | null | undefined>(undefined);
+  useEffect(() => {
+    // Not on the first render: start() has just asked.
+    if (seenUser.current !== undefined) poller.refresh();
+    seenUser.current = user;
+  }, [poller, user]);
+  const fleet = useSyncExternalStore(poller.subscribe, poller.getSnapshot);
+  const known = knownRobots(fleet);
 
   // Back and forward move between robots as they move between pages.
   useEffect(() => {
@@ -218,7 +217,7 @@ export function PanelApp() {
     setWanted(next);
   }, []);
 
-  const { robot, unknown } = chooseRobot(wanted, robots?.map((r) => r.name) ?? null);
+  const { robot, unknown } = chooseRobot(wanted, known);
 
   // A URL without a robot is given the one shown, so that it can be copied as a link to it.
   useEffect(() => {
@@ -231,9 +230,9 @@ export function PanelApp() {
     const reason =
       unknown !== null
         ? `The service has no robot "${unknown}".`
-        : robotsError !== null
-          ? `The robots of the service are unknown: ${robotsError}`
-          : robots !== null
+        : fleet.error !== null
+          ? `The robots of the service are unknown: ${fleet.error}`
+          : known !== null
             ? "The service has no robot."
             : "Asking the service for its robots…";
     return <NoRobot reason={reason} user={user} onUser={setUser} />;
@@ -245,7 +244,7 @@ export function PanelApp() {
           The service has no robot "{unknown}"; showing {robot}.
         </div>
       )}
-      <RobotPanel key={robot} robot={robot} robots={robots} onSelect={onSelect} user={user} onUser={setUser} />
+      <RobotPanel key={robot} robot={robot} robots={fleet.tiles} onSelect={onSelect} user={user} onUser={setUser} />
     </>
   );
 }

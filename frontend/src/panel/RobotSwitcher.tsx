@@ -3,18 +3,19 @@
  * links to the fleet overview and to this robot's kiosk. Choosing changes the URL (`?robot=`),
  * so the browser's back button and a copied link return to the same robot.
  */
-import type { RobotSummary } from "../lib/protocol";
+import type { FleetTile } from "../lib/fleet";
 import { FLEET_HREF, kioskHref } from "../lib/route";
 
 interface Props {
   readonly robot: string;
-  readonly robots: readonly RobotSummary[] | null;
+  /** The service's robots (polled); empty until it has said. */
+  readonly robots: readonly FleetTile[];
   readonly onSelect: (robot: string) => void;
 }
 
 export function RobotSwitcher({ robot, robots, onSelect }: Props) {
   // Until the list is known the current robot is the only choice (its name came from the URL).
-  const choices = robots ?? [];
+  const choices = robots;
   const listed = choices.some((r) => r.name === robot);
   return (
     <div className="robot-switcher">
@@ -23,10 +24,10 @@ export function RobotSwitcher({ robot, robots, onSelect }: Props) {
         <select data-testid="robot-select" value={robot} onChange={(e) => onSelect(e.target.value)}>
           {!listed && <option value={robot}>{robot}</option>}
           {choices.map((r) => (
-            <option key={r.name} value={r.name} data-connection={r.connection}>
+            <option key={r.name} value={r.name} data-connection={r.link}>
               {r.name}
               {r.model !== null ? ` · ${r.model}` : ""}
-              {r.connection !== "connected" ? ` (${r.connection})` : ""}
+              {r.link !== "connected" ? ` (${r.link})` : ""}
             </option>
           ))}
         </select>
