@@ -24,6 +24,11 @@ describe("classifyWriteResponse", () => {
       reason: "control not held",
     });
     expect(classifyWriteResponse(401, null)).toEqual({ kind: "refused", reason: "not logged in" });
+    expect(classifyWriteResponse(429, "")).toEqual({ kind: "refused", reason: "too many requests: try again shortly" });
+    expect(classifyWriteResponse(404, { detail: { reason: "unknown robot 'x'; known: a", field: "name" } })).toEqual({
+      kind: "refused",
+      reason: "unknown robot 'x'; known: a",
+    });
     expect(classifyWriteResponse(403, { detail: "viewer" })).toEqual({ kind: "refused", reason: "viewer" });
     expect(classifyWriteResponse(422, { detail: [{ loc: ["body"], msg: "bad json" }] })).toEqual({
       kind: "refused",

@@ -64,7 +64,7 @@ function reasonOf(body: unknown, fallback: string): string {
   return fallback;
 }
 
-/** Classify a PATCH /api/v1/command answer (docs/api.md, "Writing"). */
+/** Classify a `PATCH /api/v1/robots/{name}/command` answer (docs/api.md, "Writing"). */
 export function classifyWriteResponse(status: number, body: unknown): WriteOutcome {
   if (status === 200) {
     const latency =
@@ -77,8 +77,11 @@ export function classifyWriteResponse(status: number, body: unknown): WriteOutco
   const fallback: Readonly<Record<number, string>> = {
     401: "not logged in",
     403: "your role may not write",
+    404: "the service has no such robot",
     409: "refused: not connected, read-only mode, or control not held",
+    413: "the request is too large",
     422: "invalid value",
+    429: "too many requests: try again shortly",
   };
   return { kind: "refused", reason: reasonOf(body, fallback[status] ?? `refused (HTTP ${status})`) };
 }
