@@ -90,8 +90,10 @@ class DiscoveryTarget(Protocol):
 
 @dataclass(frozen=True, slots=True)
 class ReplyDelay:
-    """One delayed ListIdentity reply: the bound the request allowed and the delay chosen."""
+    """One delayed ListIdentity reply: who asked, the bound the request allowed and the delay
+    chosen."""
 
+    peer: tuple[str, int]
     bound_ms: int
     delay_ms: float
 
@@ -232,7 +234,7 @@ class DiscoveryServer:
                     return
                 delay_ms = choose_reply_delay_ms(header.context, self._rng)
                 self.recent_delays.append(
-                    ReplyDelay(reply_delay_bound_ms(header.context), delay_ms)
+                    ReplyDelay(peer, reply_delay_bound_ms(header.context), delay_ms)
                 )
                 loop = asyncio.get_running_loop()
                 handle: asyncio.TimerHandle | None = None
