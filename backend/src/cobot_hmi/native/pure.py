@@ -42,6 +42,7 @@ _TIMESPEC: Final = struct.Struct("@ll")
 _ANCILLARY_BYTES: Final = socket.CMSG_SPACE(_TIMESPEC.size)
 _DRAIN_MAX: Final = 1024
 _PERIODIC_MAX: Final = 8
+PUMP_FIFO_PRIORITY: Final = 10  # cyclic_pump.c's: low among real-time priorities
 
 
 @dataclass(slots=True)
@@ -96,7 +97,7 @@ class _State:
         self.last_notify_ns = -NEVER
         self.notified = False
         self.sleeping_until = NEVER
-        # sent, send errors, received, ring overflows, wake-ups, max late (ns), realtime (never)
+        # sent, send errors, received, ring overflows, wake-ups, max late (ns), real-time priority
         self.counters = [0] * 7
         self.addresses: dict[tuple[int, int], tuple[str, int]] = {}
         self.sources: dict[str, int] = {}
@@ -193,6 +194,14 @@ class _State:
         self.notified = True
 
     def run(self) -> None:
+        # As the C thread: real-time priority when the system grants it (pid 0: this thread).
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(PUMP_FIFO_PRIORITY))
+            realtime = 1
+        except (OSError, AttributeError):
+            realtime = 0
+        with self.lock:
+            self.counters[6] = realtime
         selector = PreciseEpollSelector()
         selector.register(self.kick_fd, selectors.EVENT_READ)
         socket_watched = False
