@@ -314,6 +314,39 @@ async def test_a_robot_down_too_long_makes_the_service_unhealthy(
                 assert (await client.get("/readyz", params={"robot": "beta"})).status_code == 503
 
 
+async def test_a_refused_robot_never_disturbs_another(plc_host: str, tmp_path: Path) -> None:
+    host_a, host_b = _next_host(), _next_host()
+    async with emulator(host_a) as target_a, emulator(host_b) as target_b:
+        # Beta's settings name a T→O size its robot does not have: every Forward Open is
+        # refused, and retried with backoff, while alpha streams.
+        settings = _settings(
+            plc_host,
+            tmp_path,
+            [
+                _robot("alpha", host_a, target_a.tcp_port),
+                _robot("beta", host_b, target_b.tcp_port, t2o_size=100),
+            ],
+        )
+        async with running_service(settings, wait_connected=False) as hmi:
+            service = hmi.service
+            alpha, beta = service.robot("alpha"), service.robot("beta")
+            assert await alpha.link.wait_connected(DEADLINE_S)
+            async with stream_of(hmi, "alpha") as stream_a:
+                await eventually(lambda: beta.link.state is ConnectionState.REFUSED)
+                assert beta.link.reason is not None and "size" in beta.link.reason
+                shown = len(stream_a.seqs())
+                # Beta is refused again and again (its backoff) while alpha goes on.
+                await eventually(lambda: len(stream_a.seqs()) > shown + 50, timeout_s=30)
+                stats = await alpha.link.stats()
+                assert stats.gaps == 0 and alpha.losses == 0
+                assert alpha.link.state is ConnectionState.CONNECTED
+                seqs = stream_a.seqs()
+                assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))
+                assert not stream_a.of("dropped")
+            ready, reason = beta.ready()
+            assert not ready and reason is not None and reason.startswith("refused")
+
+
 async def test_a_dead_cyclic_thread_is_restarted_and_reported(
     plc_host: str, tmp_path: Path
 ) -> None:
