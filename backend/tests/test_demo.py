@@ -123,7 +123,8 @@ async def test_two_robots_fresh_state_and_emulators_end_after_kill_9() -> None:
                 with contextlib.suppress(httpx.HTTPError):
                     answer = await client.get("/api/v1/robots")
                     if answer.status_code == 200 and all(
-                        r["connection"] == "connected" for r in answer.json()["robots"]
+                        r["connection"] == "connected" and r["model"]
+                        for r in answer.json()["robots"]
                     ):
                         break
                 await asyncio.sleep(0.2)
@@ -133,6 +134,11 @@ async def test_two_robots_fresh_state_and_emulators_end_after_kill_9() -> None:
             ("m0609", hosts[1]),
         ]
         assert all(r["connection"] == "connected" for r in robots), robots
+        # Each arm says which it is (its identity, read by ListIdentity).
+        assert [r["model"] for r in robots] == [
+            "Doosan M1013 (emulated)",
+            "Doosan M0609 (emulated)",
+        ]
         demo.send_signal(signal.SIGKILL)
         await demo.wait()
         # The emulators end by themselves (PR_SET_PDEATHSIG), their addresses free again.

@@ -161,7 +161,7 @@ def _run(args: argparse.Namespace) -> int:
     from cobot_hmi.emulator.discovery import DiscoveryServer
     from cobot_hmi.emulator.process_image import IdleBehaviour, ProcessImage
     from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot
-    from cobot_hmi.emulator.settings import TargetSettings
+    from cobot_hmi.emulator.settings import TargetSettings, default_identity
     from cobot_hmi.emulator.static_robot import StaticRobot
     from cobot_hmi.emulator.target import Target
     from cobot_hmi.eventloop import freeze_startup_heap, precise_event_loop
@@ -194,6 +194,7 @@ def _run(args: argparse.Namespace) -> int:
             tuple(args.discovery_broadcast) if args.discovery_broadcast is not None else None
         ),
         control_token=args.control_token,
+        identity=default_identity(args.model),
     )
 
     simulated: SimulatedRobot | None = None

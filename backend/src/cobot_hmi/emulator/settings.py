@@ -15,17 +15,20 @@ from cobot_hmi.enip.encapsulation import ENIP_TCP_PORT, ENIP_UDP_PORT
 from cobot_hmi.enip.identity import IdentityInfo
 
 
-def default_identity() -> IdentityInfo:
+def default_identity(model: str = "M1013") -> IdentityInfo:
+    """The identity of the emulated ``model`` (``M1013``, ``M0609``): product code and serial
+    number from its digits, so each arm of a cell says which it is."""
     # Placeholder identity values: a real controller's come from its EDS file.
+    digits = model.lstrip("M")
     return IdentityInfo(
         vendor_id=0xFFFE,
         device_type=0x2B,  # generic device (keyable)
-        product_code=1013,
+        product_code=int(digits),
         revision_major=2,
         revision_minor=12,
         status=0x0030,
-        serial_number=0x20131013,
-        product_name="Doosan M1013 (emulated)",
+        serial_number=0x2013_0000 + int(digits, 16),
+        product_name=f"Doosan {model} (emulated)",
     )
 
 
