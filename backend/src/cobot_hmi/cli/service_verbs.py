@@ -43,10 +43,13 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
     serve = subparsers.add_parser(
         "serve",
-        help="run the web service against a robot (REST, WebSocket, frontend)",
+        help="run the web service against the robots (REST, WebSocket, frontend)",
         description=(
-            "Hold a class 1 connection to the robot and serve the HMI. Settings come from the "
-            "flags, then COBOT_HMI_* environment variables, then a TOML file (--config)."
+            "Hold a class 1 connection to each robot and serve the HMI. One robot: --robot HOST "
+            "[--robot-name NAME]; several: [[robots]] tables in the TOML file (--config; "
+            "docs/operations.md). Settings come from the flags, then COBOT_HMI_* environment "
+            "variables, then the TOML file; the top-level connection settings are every "
+            "robot's defaults."
         ),
     )
     add_arguments(serve)
