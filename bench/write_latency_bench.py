@@ -58,6 +58,9 @@ async def run(base_url: str, writes: int, register_writes: int) -> dict[str, lis
             json={"username": BENCH_USER[0], "password": BENCH_USER[1]},
         )
         login.raise_for_status()
+        # A script authenticates with its token (the session cookie alone is for the HMI's own
+        # pages: docs/operations.md "Security").
+        client.headers["Authorization"] = f"Bearer {login.json()['token']}"
         (await client.post("/api/v1/control/take")).raise_for_status()
         for _ in range(5):  # warm-up: connections, code paths
             await patch(client, {"controlbox_do": {"0": True}}, out["notes"])
