@@ -243,15 +243,22 @@ async def test_a_page_on_another_port_cannot_take_control(hmi: Running) -> None:
             headers={"origin": _origin(hmi), "content-type": "text/plain"},
         )
         assert plain.status_code == 415
+        # The cookie without either header: no browser of today sends that; refused too.
+        bare = await browser.post("/api/v1/control/take")
+        assert bare.status_code == 403
+        assert "session cookie" in bare.json()["detail"]["reason"]
         # The HMI's own page (same origin, as the browser says) may.
         own = await browser.post(
             "/api/v1/control/take",
             headers={"origin": _origin(hmi), "sec-fetch-site": "same-origin"},
         )
         assert own.status_code == 200, own.text
-        assert (await browser.post("/api/v1/control/release")).status_code == 200
+        release = await browser.post(
+            "/api/v1/control/release", headers={"sec-fetch-site": "same-origin"}
+        )
+        assert release.status_code == 200
     metrics = await hmi.metrics()
-    assert 'cobot_hmi_http_refusals_total{reason="cross_site"} 4.0' in metrics
+    assert 'cobot_hmi_http_refusals_total{reason="cross_site"} 5.0' in metrics
     assert 'cobot_hmi_http_refusals_total{reason="content_type"} 2.0' in metrics
 
 

@@ -93,6 +93,8 @@ async def test_audit_survives_kill_9(robot_host: str, plc_host: str, tmp_path: P
                 "/api/v1/auth/login", json={"username": OPERATOR[0], "password": OPERATOR[1]}
             )
             assert login.status_code == 200
+            # As a script: the bearer token (the cookie alone is for the browser's own pages).
+            client.headers["authorization"] = f"Bearer {login.json()['token']}"
             assert (await client.post("/api/v1/control/take")).status_code == 200
             write = await client.patch("/api/v1/command", json={"controlbox_do": {"7": True}})
             assert write.status_code == 200

@@ -19,16 +19,17 @@ Outermost first (``install``):
    (scheme, host and port: ``http://127.0.0.1:8001`` is another origin than ``…:8000``) or one
    of ``allowed_origins``. Its body must be JSON (``Content-Type: application/json``): an HTML
    form can post only form encodings and text, so a form on another site can never make a
-   valid write. A WebSocket handshake's ``Origin`` is checked against the same origins. Scripts
-   (no ``Origin``, no ``Sec-Fetch-Site``) pass: they carry a bearer token, which no other site
-   can make a browser send.
+   valid write. A WebSocket handshake's ``Origin`` is checked against the same origins.
+   Scripts (no ``Origin``, no ``Sec-Fetch-Site``) pass when they authenticate with a bearer
+   token (which no other site can make a browser send) or not at all; the session cookie
+   without either header is refused, since only a browser sends it by itself.
 5. ``AnonymousWriteGate``: a changing request to the API (``/api/…`` except login and logout)
    without a live session is refused with 401 here, before any route or database work; each
    client address has a token-bucket budget for such refusals, beyond which it gets 429.
 
 Every refusal is a JSON ``{"detail": {"reason": …}}`` as the routes' own (docs/api.md), and
-is counted in ``SecurityCounters`` (``/metrics``). Imports only ``deps`` (the session token)
-and ``http_limits`` (its counters, rendered with these).
+is counted in ``SecurityCounters`` (``/metrics``). Imports only ``auth`` and ``deps`` (the
+session cookie and token) and ``http_limits`` (its counters, rendered with these).
 """
 
 from __future__ import annotations
@@ -48,6 +49,7 @@ import orjson
 from starlette.requests import HTTPConnection
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+from cobot_hmi.service.auth import SESSION_COOKIE
 from cobot_hmi.service.deps import session_token
 from cobot_hmi.service.http_limits import ConnectionCounters
 
@@ -358,6 +360,15 @@ def _normalize_origin(origin: str) -> str:
     return text
 
 
+def _cookie_session_only(scope: Scope) -> bool:
+    """Whether the request carries the session cookie and no bearer token."""
+    connection = HTTPConnection(scope)
+    if not connection.cookies.get(SESSION_COOKIE):
+        return False
+    scheme, _, token = connection.headers.get("authorization", "").partition(" ")
+    return not (scheme.lower() == "bearer" and token.strip())
+
+
 class CrossSiteCheck:
     """Changing requests and WebSocket handshakes only from the HMI's own origin (or an
     allowed one); changing requests with a body only as JSON."""
@@ -379,8 +390,17 @@ class CrossSiteCheck:
                 return None
             return f"cross-origin request from {origin[:80]!r} refused (allowed_origins)"
         site = _header(scope, b"sec-fetch-site")
-        if site is not None and site.strip().lower() not in ("same-origin", "none"):
-            return f"cross-site request ({site[:20]}) refused"
+        if site is not None:
+            if site.strip().lower() not in ("same-origin", "none"):
+                return f"cross-site request ({site[:20]}) refused"
+            return None
+        if _cookie_session_only(scope):
+            # Only a browser sends the cookie by itself, and every browser of today says where
+            # its request comes from: one that does not is treated as foreign.
+            return (
+                "a request with the session cookie must come from the HMI's own page (Origin "
+                "or Sec-Fetch-Site); scripts send Authorization: Bearer"
+            )
         return None
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
