@@ -155,6 +155,34 @@ async def test_a_stalled_partial_message_is_dropped_after_the_timeout(robot_host
         await eventually(lambda: target.counters.tcp_connections_open == 0, "session closed")
 
 
+async def test_a_client_that_never_reads_its_replies_is_dropped(robot_host: str) -> None:
+    async with running_target(robot_host, incomplete_message_timeout_s=0.5) as target:
+        sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)  # fills fast
+        sock.setblocking(False)
+        loop = asyncio.get_running_loop()
+        try:
+            await loop.sock_connect(sock, (robot_host, target.tcp_port))
+            requests = encapsulation.encode(Command.LIST_IDENTITY) * 256
+            pending = b""
+            end = loop.time() + DEADLINE_S
+            # Ask and ask (whole messages: what a send leaves goes first next time), never
+            # read: the replies back up until the target gives up on us.
+            while target.counters.tcp_sessions_timed_out == 0:
+                assert loop.time() < end, "the target kept a client that never reads"
+                pending = pending or requests
+                with contextlib.suppress(BlockingIOError):
+                    pending = pending[sock.send(pending) :]
+                await asyncio.sleep(0.001)
+            assert target.counters.encapsulation_malformed == 0  # the stream stayed whole
+        except ConnectionError:
+            pass  # dropped while we were still sending: what the test waits for
+        finally:
+            sock.close()
+        await eventually(lambda: target.counters.tcp_sessions_timed_out == 1, "counted")
+        await eventually(lambda: target.counters.tcp_connections_open == 0, "session closed")
+
+
 async def test_a_registered_session_may_idle_and_a_slow_whole_message_is_answered(
     robot_host: str,
 ) -> None:

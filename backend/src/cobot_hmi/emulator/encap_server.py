@@ -8,7 +8,8 @@ or unknown message is answered with an encapsulation status and counted; the ses
 Bounded so that no client can take the process's file descriptors or memory: at most
 ``max_tcp_sessions`` connections at once (one more is closed at once and counted), and a message
 whose bytes stop coming (a stalled 65,535-byte message, or a connection that sends nothing) is
-dropped after ``incomplete_message_timeout_s`` and counted. A registered session may idle between
+dropped after ``incomplete_message_timeout_s`` and counted, as is one that does not read its
+replies within that time. A registered session may idle between
 messages (an originator's session stays open, silent, beside its class 1 connection) up to the
 encapsulation inactivity timeout, 120 s by default as the TCP/IP Interface object's attribute
 13 (CIP Vol 2 Chapter 5); then it is closed and counted, so registered sessions cannot hold
@@ -150,7 +151,16 @@ class EncapSession:
                     break
                 if isinstance(reply, bytes):
                     self.writer.write(reply)
-                    await self.writer.drain()
+                    # A client that asks but never reads must not hold its place forever
+                    # either: the reply has to leave within the same timeout.
+                    try:
+                        async with asyncio.timeout(limits.incomplete_message_timeout_s):
+                            await self.writer.drain()
+                    except TimeoutError:
+                        counters.tcp_sessions_timed_out += 1
+                        log.info("TCP session from %s dropped: replies not read", self.peer_host)
+                        self.writer.transport.abort()
+                        break
         except (asyncio.IncompleteReadError, ConnectionError):
             pass
         finally:
