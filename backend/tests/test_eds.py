@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 
 from cobot_hmi.emulator.eds import eds_text
-from cobot_hmi.emulator.settings import TargetSettings
+from cobot_hmi.emulator.settings import TargetSettings, default_identity
 from cobot_hmi.enip import epath
 from cobot_hmi.layout import CONNECTION_POINTS, O2T_ASSEMBLY, T2O_ASSEMBLY
 
@@ -174,3 +174,14 @@ def test_eds_cli_writes_the_file(tmp_path: Path) -> None:
     )
     assert result.returncode == 1
     assert b"cobot-hmi eds:" in result.stderr
+
+
+def test_eds_cli_carries_the_models_identity(parse_eds: Any) -> None:
+    result = subprocess.run(
+        [*CLI, "eds", "--model", "M0609"], capture_output=True, timeout=60, check=False
+    )
+    assert result.returncode == 0, result.stderr
+    eds = parse_eds(result.stdout.decode("ascii"))
+    identity = default_identity("M0609")
+    assert eds.get_value("Device", "ProdName") == identity.product_name == "Doosan M0609 (emulated)"
+    assert as_int(eds.get_value("Device", "ProdCode")) == identity.product_code

@@ -56,6 +56,12 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         ),
     )
     eds.add_argument("-o", "--output", default=None, metavar="FILE", help="default: stdout")
+    eds.add_argument(
+        "--model",
+        choices=("M1013", "M0609"),
+        default="M1013",
+        help="the emulated arm whose identity the EDS carries (as the emulator's --model)",
+    )
     eds.set_defaults(handler=_eds)
 
 
@@ -100,8 +106,9 @@ def _eds(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from cobot_hmi.emulator.eds import eds_text
+    from cobot_hmi.emulator.settings import TargetSettings, default_identity
 
-    text = eds_text()
+    text = eds_text(TargetSettings(identity=default_identity(args.model)))
     if args.output is None or args.output == "-":
         sys.stdout.write(text)
         return 0
