@@ -4,7 +4,7 @@ Targets (issue 2): at least 100,000 decodes/s on one core, and decode within 5x 
 bare ``struct.unpack_from`` of the same 284 bytes (the layout's own compiled struct, so the
 floor is reading the values and nothing else).
 
-The floor's format is the spec's own word view of the 284 bytes (the robot's I/O table, docs/assembly.md),
+The floor's format is the I/O table's own word view of the 284 bytes (docs/assembly.md),
 written here independently of the codec: DWORD 0, DWORD 4, four REALs, DWORD 24, three USINTs,
 the state USINT, the flag WORD at 34, sixty REALs and the two register DWORDs.
 """

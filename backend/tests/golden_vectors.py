@@ -1,7 +1,7 @@
 """Hand-built golden vectors, independent of the codec.
 
-Each vector is built with ``struct.pack_into`` at the literal offsets of
-the robot's I/O table (docs/assembly.md) and carries the JSON the table says it decodes to, written out from
+Each vector is built with ``struct.pack_into`` at the literal offsets of the robot's I/O
+table (docs/assembly.md) and carries the JSON the table says it decodes to, written out from
 the same literal inputs. Nothing here imports the layout or the codec: the codec is checked
 against this, not mirrored by it. ``python tests/golden_vectors.py`` rewrites ``tests/golden/``.
 """

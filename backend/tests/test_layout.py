@@ -20,7 +20,7 @@ from cobot_hmi.layout import (
 )
 from golden_vectors import STATE_NAMES
 
-# The spec's canonical names (the robot's I/O table and docs/assembly.md), transcribed independently.
+# The I/O table's canonical names (docs/assembly.md), transcribed independently.
 SPEC_T2O_NAMES = """controlbox_di controlbox_do analog_input_type analog_output_type analog_input
 analog_output tool_di tool_do controller_version robot_state servo_on safety_stopped
 emergency_stopped direct_teach_button_pressed power_button_pressed joint_position joint_velocity

@@ -260,8 +260,8 @@ class ConnectionPoints:
     """The robot's default connection points (assembly instances) for class 1 connections.
 
     Exclusive owner: configuration → O→T → T→O; input-only sends its O→T to the heartbeat
-    point, listen-only to its own (docs/protocol.md; CIP Vol 1 §3-5.4.1.10). Every one is a setting on both
-    sides, in case a controller version numbers them otherwise.
+    point, listen-only to its own (docs/protocol.md, "Connection types"). Every one is a
+    setting on both sides, in case a controller version numbers them otherwise.
     """
 
     configuration: int = 151

@@ -7,8 +7,8 @@ Sources:
 - M1013 joint origins, position limits and speed limits: docs/emulator.md, "Reference
   facts the model follows" (Doosan's public ``dsr_description``). Where an older copy of Doosan's
   xacro (``doosan-robotics/doosan-robot``, ``dsr_description/xacro/macro.m1013.white.xacro``) puts
-  J6 at y = −0.124 m, the documented −0.121 m is kept: it is the one that reproduces the controller's
-  published forward-kinematics check (Z = 651.5 mm).
+  J6 at y = −0.124 m, the documented −0.121 m is kept: it is the one that reproduces the
+  controller's published forward-kinematics check (Z = 651.5 mm).
 - M1013 link masses and centres of mass: ``doosan-robotics/doosan-robot``,
   ``dsr_description/xacro/macro.m1013.white.xacro`` (each centre of mass in its own link frame).
 - M0609 joint origins, limits, masses and centres of mass: ``DoosanRobotics/doosan-robot2``,

@@ -65,8 +65,8 @@ class RobotSettings:
     """Bit output register n ← bit input register ``register_map[n]``; None = identity."""
     kinematic_refresh_ms: float = 0.0
     """0: monitoring values are fresh in every frame; 100: as often as the real controller
-    ("monitoring values refresh about every 100 ms, whatever the RPI": docs/emulator.md; the emulator
-    verb's default)."""
+    ("monitoring values refresh about every 100 ms, whatever the RPI": docs/emulator.md; the
+    emulator verb's default)."""
     room_temperature_c: float = 25.0
     thermal_time_constant_s: float = 180.0
     temperature_rise_at_rated_current_c: float = 40.0
