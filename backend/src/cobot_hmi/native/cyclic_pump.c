@@ -170,7 +170,14 @@ pump *pump_new(int fd, int queue_cap, int queue_bytes, int ring_cap, int ring_by
             return NULL;
         }
     }
-    pthread_mutex_init(&p->lock, NULL);
+    /* Priority inheritance: a caller preempted while it holds the lock (an ordinary thread on a
+     * busy machine) runs at the pump thread's real-time priority until it lets go, instead of
+     * holding the pump off for as long as the scheduler keeps it aside. */
+    pthread_mutexattr_t inherit;
+    pthread_mutexattr_init(&inherit);
+    pthread_mutexattr_setprotocol(&inherit, PTHREAD_PRIO_INHERIT);
+    pthread_mutex_init(&p->lock, &inherit);
+    pthread_mutexattr_destroy(&inherit);
     pthread_mutex_init(&p->life, NULL);
     atomic_init(&p->running, 0);
     return p;
