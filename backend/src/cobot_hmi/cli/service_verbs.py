@@ -104,6 +104,18 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="users file and database (default: a fresh temporary directory, removed at the end)",
     )
     demo.add_argument("--frontend-dir", type=Path, default=None, help="built frontend")
+    demo.add_argument(
+        "--mqtt-url",
+        default=None,
+        metavar="URL",
+        help="also publish the cell to this MQTT broker as a Sparkplug B edge node "
+        "(mqtt://HOST:PORT; docs/operations.md, 'Sparkplug B')",
+    )
+    demo.add_argument(
+        "--mqtt-writes",
+        action="store_true",
+        help="with --mqtt-url: accept DCMD writes (through control, audited)",
+    )
     demo.set_defaults(handler=_demo)
 
     users = subparsers.add_parser("users", help="manage the service's users file")
@@ -414,6 +426,9 @@ def _demo(args: argparse.Namespace) -> int:
         }
         if args.frontend_dir is not None:
             flags["frontend_dir"] = args.frontend_dir
+        if args.mqtt_url is not None:
+            flags["mqtt_url"] = args.mqtt_url
+            flags["mqtt_writes"] = args.mqtt_writes
         try:
             settings = load_settings(flags)
         except SettingsError as error:

@@ -9,7 +9,9 @@ name or a state value:
   look-ups per frame);
 - ``backend/src/cobot_hmi/generated/layout.json`` (``layout_json``): the layout the backend serves;
 - ``frontend/src/generated/layout.ts`` (``typescript``): types and constants for the frontend;
-- ``docs/assembly.md`` (``markdown``): the map a human reads.
+- ``docs/assembly.md`` (``markdown``): the map a human reads;
+- ``backend/src/cobot_hmi/generated/sparkplug_b_pb2.py`` and ``.pyi`` (``sparkplug_proto``): the
+  Sparkplug B payload classes, compiled from ``sparkplug/sparkplug_b.proto`` by grpcio-tools.
 
 Run ``cobot-hmi codegen`` (or ``python -m cobot_hmi.codegen``) after changing the layout;
 ``--check`` exits non-zero when a committed file is stale (the test suite runs it).
@@ -24,6 +26,7 @@ from pathlib import Path
 from cobot_hmi.codegen.layout_json import layout_document, layout_json
 from cobot_hmi.codegen.markdown import assembly_doc
 from cobot_hmi.codegen.python_frames import frames_module
+from cobot_hmi.codegen.sparkplug_proto import sparkplug_modules
 from cobot_hmi.codegen.typescript import layout_ts
 
 __all__ = ["layout_document", "main", "outputs", "stale_outputs"]
@@ -39,6 +42,7 @@ def outputs() -> dict[Path, str]:
         PACKAGE_DIR / "generated" / "layout.json": layout_json(),
         REPO_ROOT / "frontend" / "src" / "generated" / "layout.ts": layout_ts(),
         REPO_ROOT / "docs" / "assembly.md": assembly_doc(),
+        **{PACKAGE_DIR / "generated" / name: text for name, text in sparkplug_modules().items()},
     }
 
 

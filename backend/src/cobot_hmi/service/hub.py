@@ -172,6 +172,42 @@ class _RateGroup:
         return chosen
 
 
+class FrameSubscription:
+    """A consumer other than the WebSocket fan-out (the Sparkplug edge node, a recorder): every
+    frame, in order, in a bounded queue of its own that the consumer drains at its own pace.
+
+    The cyclic thread appends (O(1)); when the queue is full the oldest frame goes and is
+    counted in ``dropped`` (a drain racing the append may make that count one too high, never
+    too low). The consumer never makes the cyclic connection wait.
+    """
+
+    __slots__ = ("dropped", "max_frames", "name", "queue")
+
+    def __init__(self, name: str, max_frames: int) -> None:
+        self.name = name
+        self.max_frames = max_frames
+        self.queue: deque[FrameItem] = deque(maxlen=max_frames)
+        self.dropped = 0
+
+    def offer(self, item: FrameItem) -> None:
+        """On the cyclic thread: append, counting the frame that falls out."""
+        queue = self.queue
+        if len(queue) == self.max_frames:
+            self.dropped += 1
+        queue.append(item)
+
+    def drain(self) -> list[FrameItem]:
+        """Every queued frame, oldest first (any thread other than the producer's)."""
+        queue = self.queue
+        items = []
+        while queue:
+            try:
+                items.append(queue.popleft())
+            except IndexError:  # pragma: no cover - emptied between the check and the pop
+                break
+        return items
+
+
 class _FrameWaiter:
     __slots__ = ("after_seq", "future", "predicate")
 
@@ -217,6 +253,7 @@ class Hub:
         self._groups: dict[float | None, _RateGroup] = {}
         self.clients: set[StreamClient] = set()
         self._watcher = FrameWatcher()
+        self._subscriptions: tuple[FrameSubscription, ...] = ()
         self._last_broadcast_seq = 0
         self._last_interval_t: float | None = None
         # Counters for /metrics.
@@ -241,6 +278,8 @@ class Hub:
             item = (self._seq, received_at, frame)
         self._inbox.append(item)
         self.latest = item
+        for subscription in self._subscriptions:
+            subscription.offer(item)
         loop = self._loop
         if loop is not None and item[0] % self.frames_per_batch == 0:
             with contextlib.suppress(RuntimeError):  # the loop closed during shutdown
@@ -253,6 +292,18 @@ class Hub:
     @property
     def seq(self) -> int:
         return self._seq
+
+    # ------------------------------------------------------------ other consumers
+
+    def subscribe(self, name: str, max_frames: int) -> FrameSubscription:
+        """A bounded queue that receives every frame from now on (``FrameSubscription``)."""
+        subscription = FrameSubscription(name, max_frames)
+        # A new tuple, swapped in whole: the cyclic thread iterates whichever it read.
+        self._subscriptions = (*self._subscriptions, subscription)
+        return subscription
+
+    def unsubscribe(self, subscription: FrameSubscription) -> None:
+        self._subscriptions = tuple(s for s in self._subscriptions if s is not subscription)
 
     # ------------------------------------------------------------ frame waiters (writes)
 

@@ -195,4 +195,10 @@ def render_metrics(service: Service, stats: dict[str, ConnectionStats]) -> str:
         "events that could not be stored",
         service.store.event_write_errors,
     )
+    edge_node = service.edge_node
+    if edge_node is not None:  # the Sparkplug B edge node's own counters (cobot_hmi.sparkplug)
+        for name, kind, help_text, samples in edge_node.metric_families():
+            w.metric(name, kind, help_text)
+            for labels, value in samples:
+                w.sample(name, value, labels)
     return "\n".join(w.lines) + "\n"

@@ -17,7 +17,7 @@ import contextlib
 import logging
 import time
 from collections import Counter
-from typing import Final
+from typing import TYPE_CHECKING, Final
 
 from cobot_hmi.service.auth import LoginThrottle, Session, Sessions
 from cobot_hmi.service.commander import Commander
@@ -29,6 +29,9 @@ from cobot_hmi.service.robot import RobotRuntime
 from cobot_hmi.service.settings import ServiceSettings
 from cobot_hmi.service.store import Store
 from cobot_hmi.service.users import UsersFile
+
+if TYPE_CHECKING:
+    from cobot_hmi.sparkplug.edge_node import EdgeNode
 
 log = logging.getLogger(__name__)
 
@@ -68,6 +71,12 @@ class Service:
         self.started_at = time.time()
         self._tasks: list[asyncio.Task[None]] = []
         self._ws_by_session: Counter[tuple[str, str]] = Counter()
+        self.edge_node: EdgeNode | None = None
+        """The Sparkplug B edge node (``cobot_hmi.sparkplug``), when ``mqtt_url`` is set."""
+        if settings.mqtt_url:
+            from cobot_hmi.sparkplug.edge_node import EdgeNode
+
+            self.edge_node = EdgeNode(settings, self.robots)
 
     def robot(self, name: str) -> RobotRuntime:
         """The robot called ``name``; ``UnknownRobotError`` naming the known ones."""
@@ -107,11 +116,15 @@ class Service:
         for robot in self.robots.values():
             robot.start()
         await self.cyclic.start()
+        if self.edge_node is not None:
+            await self.edge_node.start()
         self._tasks.append(asyncio.create_task(self._status_loop(), name="status"))
         self._tasks.append(asyncio.create_task(self._sweep_loop(), name="sessions"))
 
     async def stop(self) -> None:
         """Release control, close the connections (Forward Close), stop everything else."""
+        if self.edge_node is not None:  # DDEATHs and NDEATH while the robots are still up
+            await self.edge_node.stop()
         await asyncio.gather(
             *(robot.release_control("service stopping") for robot in self.robots.values())
         )

@@ -1,0 +1,166 @@
+"""Layer: service (Sparkplug). Data kept on disk while the broker is away, bounded.
+
+Records (topic and payload bytes) are appended to segment files in a directory of the state
+directory; the oldest segment is deleted whole when the total would exceed ``max_bytes`` (its
+records counted as dropped). After the reconnect the edge node takes segments oldest first,
+publishes their records (marked historical) and deletes each segment once it went out; a
+segment interrupted by another disconnect is written back with what is left. Segments left by
+a previous run are replayed too. Writes go through the page cache (no fsync per record): a
+power cut may lose the newest records, never corrupts older ones (a torn last record is cut).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import struct
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Final
+
+log = logging.getLogger(__name__)
+
+_HEADER: Final = struct.Struct("<HI")
+"""Topic length, payload length."""
+_MIN_SEGMENT_BYTES: Final = 64 * 1024
+_SEGMENTS: Final = 16
+"""About this many segments make up the bound: dropping one loses 1/16 of the buffer."""
+
+Record = tuple[str, bytes]
+
+
+def _records(data: bytes) -> Iterator[Record]:
+    offset = 0
+    while offset + _HEADER.size <= len(data):
+        topic_len, payload_len = _HEADER.unpack_from(data, offset)
+        start = offset + _HEADER.size
+        end = start + topic_len + payload_len
+        if end > len(data):
+            return  # a record torn by a crash mid-write
+        yield data[start : start + topic_len].decode(), data[start + topic_len : end]
+        offset = end
+
+
+def encode_record(topic: str, payload: bytes) -> bytes:
+    topic_bytes = topic.encode()
+    return _HEADER.pack(len(topic_bytes), len(payload)) + topic_bytes + payload
+
+
+class DiskBuffer:
+    """Segments ``NNNNNNNNNN.seg`` in ``directory``; at most ``max_bytes`` on disk."""
+
+    def __init__(self, directory: Path, max_bytes: int) -> None:
+        self.directory = directory
+        self.max_bytes = max_bytes
+        self.segment_bytes = max(_MIN_SEGMENT_BYTES, max_bytes // _SEGMENTS)
+        self._segments: list[tuple[Path, int, int]] = []
+        """(path, bytes, records) oldest first; the last one is being appended to."""
+        self.records_buffered = 0
+        self.bytes_buffered = 0
+        self.records_dropped = 0
+        self.records_written = 0
+        self._next_number = 0
+        if max_bytes > 0:
+            self._scan()
+
+    @property
+    def enabled(self) -> bool:
+        return self.max_bytes > 0
+
+    def _scan(self) -> None:
+        with contextlib.suppress(FileNotFoundError):
+            for path in sorted(self.directory.glob("*.seg")):
+                try:
+                    data = path.read_bytes()
+                    number = int(path.stem)
+                except (OSError, ValueError):
+                    continue
+                count = sum(1 for _ in _records(data))
+                self._segments.append((path, len(data), count))
+                self.records_buffered += count
+                self.bytes_buffered += len(data)
+                self._next_number = max(self._next_number, number + 1)
+        if self._segments:
+            log.info(
+                "Sparkplug buffer: %d records from a previous run in %s",
+                self.records_buffered,
+                self.directory,
+            )
+
+    def _new_segment(self) -> Path:
+        path = self.directory / f"{self._next_number:010d}.seg"
+        self._next_number += 1
+        self._segments.append((path, 0, 0))
+        return path
+
+    def append(self, topic: str, payload: bytes) -> bool:
+        """Keep one record; ``False`` when buffering is off or the disk refused it."""
+        if not self.enabled:
+            self.records_dropped += 1
+            return False
+        record = encode_record(topic, payload)
+        if not self._segments or self._segments[-1][1] + len(record) > self.segment_bytes:
+            self._new_segment()
+        while self.bytes_buffered + len(record) > self.max_bytes and len(self._segments) > 1:
+            self._drop_oldest()
+        path, size, count = self._segments[-1]
+        try:
+            self.directory.mkdir(parents=True, exist_ok=True)
+            with path.open("ab") as file:
+                file.write(record)
+        except OSError as error:
+            log.warning("Sparkplug buffer: cannot write %s: %s", path, error)
+            self.records_dropped += 1
+            return False
+        self._segments[-1] = (path, size + len(record), count + 1)
+        self.records_buffered += 1
+        self.bytes_buffered += len(record)
+        self.records_written += 1
+        return True
+
+    def _drop_oldest(self) -> None:
+        path, size, count = self._segments.pop(0)
+        with contextlib.suppress(OSError):
+            path.unlink()
+        self.records_buffered -= count
+        self.bytes_buffered -= size
+        self.records_dropped += count
+        log.warning("Sparkplug buffer full: dropped the oldest %d records", count)
+
+    def take_oldest(self) -> tuple[Path, list[Record]] | None:
+        """The oldest segment's records, for replay (``finish`` or ``put_back`` it after)."""
+        if not self._segments:
+            return None
+        path, _, _ = self._segments[0]
+        if len(self._segments) == 1:
+            self._new_segment()  # new records go to a fresh segment while this one replays
+        try:
+            data = path.read_bytes()
+        except OSError:
+            data = b""
+        return path, list(_records(data))
+
+    def finish(self, path: Path) -> None:
+        """The segment went out: delete it."""
+        for i, (candidate, size, count) in enumerate(self._segments):
+            if candidate == path:
+                del self._segments[i]
+                self.records_buffered -= count
+                self.bytes_buffered -= size
+                break
+        with contextlib.suppress(OSError):
+            path.unlink()
+
+    def put_back(self, path: Path, remaining: list[Record]) -> None:
+        """Replay stopped part-way: keep what did not go out, still the oldest."""
+        data = b"".join(encode_record(topic, payload) for topic, payload in remaining)
+        for i, (candidate, size, count) in enumerate(self._segments):
+            if candidate == path:
+                try:
+                    path.write_bytes(data)
+                except OSError as error:
+                    log.warning("Sparkplug buffer: cannot rewrite %s: %s", path, error)
+                self._segments[i] = (path, len(data), len(remaining))
+                self.records_buffered += len(remaining) - count
+                self.bytes_buffered += len(data) - size
+                return

@@ -1,0 +1,191 @@
+"""Layer: service (Sparkplug). Pure: the metrics of a robot (device) and of the node, derived
+from the layout (``cobot_hmi.layout``), the one place fields, units and enums are written.
+
+One metric per element: ``joint_position/J1``, ``controlbox_di/DI 1``, ``controller_version/
+major``; scalars by the field's name (``robot_state``, ``servo_on``). Types: ``BOOL`` bits are
+``Boolean``, ``REAL`` is ``Float``, ``USINT`` and coded fields (the analog types, the robot state)
+are ``UInt8`` with their names in a ``name`` property. Births carry ``engUnit`` (the layout's
+unit), ``description`` and, for analog values, ``deadband``. The robot's O→T image follows as
+``command/<field>/<channel>`` (writable by DCMD when MQTT writes are on), then the control and
+write-outcome metrics.
+
+Aliases are unique across the node (Sparkplug 3.0 requires it): robot ``n`` (1-based, in the
+settings' order) has ``n * ALIAS_STRIDE + offset``; node metrics have none.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from enum import Enum
+from typing import Final
+
+from cobot_hmi.layout import O2T_FIELDS, T2O_FIELDS, CipType, Field, robot_state_name
+from cobot_hmi.sparkplug.payload import DataType
+
+ALIAS_STRIDE: Final = 1000
+BD_SEQ: Final = "bdSeq"
+REBIRTH: Final = "Node Control/Rebirth"
+CONTROL_HOLDER: Final = "Control/Holder"
+CONTROL_TAKE: Final = "Control/Take"
+CONTROL_RELEASE: Final = "Control/Release"
+WRITE_OUTCOME: Final = "Write/Outcome"
+WRITE_REASON: Final = "Write/Reason"
+COMMAND_PREFIX: Final = "command/"
+
+
+class Role(Enum):
+    DISCRETE = "discrete"
+    """Bits, coded values, the robot state, the version: every change is sent."""
+    ANALOG = "analog"
+    """REAL values: sent when they move by the deadband or more."""
+    COMMAND = "command"
+    """An element of the O→T image (DCMD-writable)."""
+    STATUS = "status"
+    """Control and write-outcome metrics of the edge node itself."""
+
+
+@dataclass(frozen=True, slots=True)
+class MetricDef:
+    name: str
+    offset: int
+    """Index in the device's metric list; the alias is ``robot base + offset``."""
+    datatype: DataType
+    role: Role
+    field: str | None = None
+    index: int | None = None
+    """Element index in the field; ``None`` for a scalar field."""
+    unit: str = ""
+    description: str = ""
+    deadband: float = 0.0
+    value_names: tuple[str, ...] = ()
+    writable: bool = False
+
+
+def _datatype(f: Field) -> DataType:
+    if f.cip_type is CipType.REAL:
+        return DataType.FLOAT
+    if f.value_kind == "bool":
+        return DataType.BOOLEAN
+    return DataType.UINT8
+
+
+def _element_names(f: Field) -> tuple[str, ...]:
+    return f.element_names or f.channels or tuple(str(i) for i in range(f.count))
+
+
+@dataclass(frozen=True, slots=True)
+class FieldSpan:
+    """A T→O field and where its elements sit in the device's metric list."""
+
+    field: str
+    first: int
+    count: int
+    scalar: bool
+
+
+class Catalogue:
+    """Every metric of one robot, in a fixed order (see the module docstring)."""
+
+    def __init__(self, deadbands: Mapping[str, float]) -> None:
+        """``deadbands``: by T→O field name or by unit (a field's name wins)."""
+        metrics: list[MetricDef] = []
+        discrete: list[FieldSpan] = []
+        analog: list[FieldSpan] = []
+
+        def add(**kwargs: object) -> MetricDef:
+            metric = MetricDef(offset=len(metrics), **kwargs)  # type: ignore[arg-type]
+            metrics.append(metric)
+            return metric
+
+        for f in T2O_FIELDS:
+            datatype = _datatype(f)
+            role = Role.ANALOG if f.cip_type is CipType.REAL else Role.DISCRETE
+            deadband = 0.0
+            if role is Role.ANALOG:
+                deadband = float(deadbands.get(f.name, deadbands.get(f.unit, 0.0)))
+            span = FieldSpan(f.name, len(metrics), 1 if f.scalar else f.count, f.scalar)
+            (analog if role is Role.ANALOG else discrete).append(span)
+            names = (f.name,) if f.scalar else tuple(f"{f.name}/{e}" for e in _element_names(f))
+            for index, name in enumerate(names):
+                add(
+                    name=name,
+                    datatype=datatype,
+                    role=role,
+                    field=f.name,
+                    index=None if f.scalar else index,
+                    unit=f.unit,
+                    description=f.description,
+                    deadband=deadband,
+                    value_names=f.value_names,
+                )
+        for f in O2T_FIELDS:
+            for index, element in enumerate(_element_names(f)):
+                add(
+                    name=f"{COMMAND_PREFIX}{f.name}/{element}",
+                    datatype=_datatype(f),
+                    role=Role.COMMAND,
+                    field=f.name,
+                    index=index,
+                    unit=f.unit,
+                    description=f.description,
+                    value_names=f.value_names,
+                    writable=True,
+                )
+        self.control_holder = add(
+            name=CONTROL_HOLDER,
+            datatype=DataType.STRING,
+            role=Role.STATUS,
+            description="who holds control of the robot's outputs (empty: nobody)",
+        )
+        self.control_take = add(
+            name=CONTROL_TAKE,
+            datatype=DataType.BOOLEAN,
+            role=Role.STATUS,
+            description="DCMD true: take control for MQTT writes",
+            writable=True,
+        )
+        self.control_release = add(
+            name=CONTROL_RELEASE,
+            datatype=DataType.BOOLEAN,
+            role=Role.STATUS,
+            description="DCMD true: release control",
+            writable=True,
+        )
+        self.write_outcome = add(
+            name=WRITE_OUTCOME,
+            datatype=DataType.STRING,
+            role=Role.STATUS,
+            description="outcome of the last DCMD (confirmed, refused, invalid, timeout, …)",
+        )
+        self.write_reason = add(
+            name=WRITE_REASON,
+            datatype=DataType.STRING,
+            role=Role.STATUS,
+            description="why, when the last DCMD was not confirmed",
+        )
+        assert len(metrics) < ALIAS_STRIDE
+        self.metrics: tuple[MetricDef, ...] = tuple(metrics)
+        self.discrete_spans: tuple[FieldSpan, ...] = tuple(discrete)
+        self.analog_spans: tuple[FieldSpan, ...] = tuple(analog)
+        self.command_metrics: tuple[MetricDef, ...] = tuple(
+            m for m in metrics if m.role is Role.COMMAND
+        )
+        self.by_name: dict[str, MetricDef] = {m.name: m for m in metrics}
+
+    def analog_deadbands(self) -> list[float]:
+        """Deadbands of the analog metrics, in the order the analog spans flatten to."""
+        return [
+            m.deadband
+            for span in self.analog_spans
+            for m in self.metrics[span.first : span.first + span.count]
+        ]
+
+
+def state_name(metric: MetricDef, value: object) -> str | None:
+    """The name a coded metric's value has (robot state, analog type), else ``None``."""
+    if metric.field == "robot_state" and isinstance(value, int):
+        return robot_state_name(value)
+    if metric.value_names and isinstance(value, int) and 0 <= value < len(metric.value_names):
+        return metric.value_names[value]
+    return None

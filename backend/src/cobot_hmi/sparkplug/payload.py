@@ -1,0 +1,163 @@
+"""Layer: service (Sparkplug). Pure: Sparkplug B payloads to and from protobuf bytes.
+
+The message classes are generated from ``sparkplug_b.proto`` (``cobot_hmi.generated.
+sparkplug_b_pb2``, written by ``cobot-hmi codegen``). Data type numbers and how each sits in
+the metric's ``value`` oneof are the specification's (Sparkplug 3.0, "Payloads": integers up
+to 32 bits in ``int_value``, 64-bit ones in ``long_value``, ``Float`` in ``float_value``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from enum import IntEnum
+
+from cobot_hmi.generated.sparkplug_b_pb2 import Payload
+
+__all__ = [
+    "DataType",
+    "MetricValue",
+    "Payload",
+    "PayloadError",
+    "add_metric",
+    "make_payload",
+    "metric_value",
+    "parse_payload",
+]
+
+
+class DataType(IntEnum):
+    """Sparkplug B data types (the numbers the specification gives them)."""
+
+    INT8 = 1
+    INT16 = 2
+    INT32 = 3
+    INT64 = 4
+    UINT8 = 5
+    UINT16 = 6
+    UINT32 = 7
+    UINT64 = 8
+    FLOAT = 9
+    DOUBLE = 10
+    BOOLEAN = 11
+    STRING = 12
+    DATETIME = 13
+    TEXT = 14
+
+
+class PayloadError(ValueError):
+    """Bytes that are not a Sparkplug B payload."""
+
+
+MetricValue = bool | int | float | str
+
+_INT32_TYPES = frozenset({DataType.INT8, DataType.INT16, DataType.INT32})
+_UINT32_TYPES = frozenset({DataType.UINT8, DataType.UINT16, DataType.UINT32})
+_LONG_TYPES = frozenset({DataType.INT64, DataType.UINT64, DataType.DATETIME})
+
+
+@dataclass(frozen=True, slots=True)
+class Property:
+    key: str
+    datatype: DataType
+    value: MetricValue
+
+
+def _set_value(target: Payload.Metric, datatype: DataType, value: MetricValue) -> None:
+    if datatype is DataType.BOOLEAN:
+        target.boolean_value = bool(value)
+    elif datatype is DataType.FLOAT:
+        target.float_value = float(value)
+    elif datatype is DataType.DOUBLE:
+        target.double_value = float(value)
+    elif datatype in _UINT32_TYPES:
+        target.int_value = int(value)
+    elif datatype in _INT32_TYPES:
+        target.int_value = int(value) & 0xFFFFFFFF  # two's complement in a uint32 (the spec)
+    elif datatype in _LONG_TYPES:
+        target.long_value = int(value) & 0xFFFFFFFFFFFFFFFF
+    else:
+        target.string_value = str(value)
+
+
+def add_metric(
+    payload: Payload,
+    *,
+    alias: int | None,
+    timestamp_ms: int,
+    datatype: DataType,
+    value: MetricValue,
+    name: str | None = None,
+    properties: Sequence[Property] = (),
+    with_datatype: bool = True,
+) -> Payload.Metric:
+    """Append one metric: name on births (and by-name metrics), alias from then on."""
+    metric = payload.metrics.add()
+    if name is not None:
+        metric.name = name
+    if alias is not None:
+        metric.alias = alias
+    metric.timestamp = timestamp_ms
+    if with_datatype:
+        metric.datatype = datatype
+    _set_value(metric, datatype, value)
+    if properties:
+        props = metric.properties
+        for prop in properties:
+            props.keys.append(prop.key)
+            entry = props.values.add()
+            entry.type = prop.datatype
+            if prop.datatype is DataType.STRING:
+                entry.string_value = str(prop.value)
+            elif prop.datatype is DataType.BOOLEAN:
+                entry.boolean_value = bool(prop.value)
+            elif prop.datatype in _LONG_TYPES:
+                entry.long_value = int(prop.value)
+            elif prop.datatype in (DataType.FLOAT,):
+                entry.float_value = float(prop.value)
+            else:
+                entry.int_value = int(prop.value)
+    return metric
+
+
+def make_payload(timestamp_ms: int, seq: int | None) -> Payload:
+    payload = Payload()
+    payload.timestamp = timestamp_ms
+    if seq is not None:
+        payload.seq = seq
+    return payload
+
+
+def parse_payload(data: bytes) -> Payload:
+    """Decode bytes; ``PayloadError`` when they are not a payload."""
+    payload = Payload()
+    try:
+        payload.ParseFromString(data)
+    except Exception as error:  # protobuf raises DecodeError and, for some bytes, others
+        raise PayloadError(f"not a Sparkplug B payload: {error}") from None
+    return payload
+
+
+def metric_value(metric: Payload.Metric) -> MetricValue | None:
+    """The value a metric carries, typed by which ``value`` field is set (``None``: none)."""
+    which = metric.WhichOneof("value")
+    if which is None or metric.is_null:
+        return None
+    if which == "boolean_value":
+        return metric.boolean_value
+    if which == "float_value":
+        return metric.float_value
+    if which == "double_value":
+        return metric.double_value
+    if which == "int_value":
+        return metric.int_value
+    if which == "long_value":
+        return metric.long_value
+    if which == "string_value":
+        return metric.string_value
+    return None
+
+
+def set_historical(metrics: Iterable[Payload.Metric]) -> None:
+    for metric in metrics:
+        metric.is_historical = True

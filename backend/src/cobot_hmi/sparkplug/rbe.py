@@ -1,0 +1,111 @@
+"""Layer: service (Sparkplug). Pure: report by exception, what a DDATA must carry.
+
+Discrete metrics (bits, coded values, the robot state, the version) are compared frame by frame
+over every frame the hub delivered since the last report, so each transition is reported with
+its own frame's timestamp, even one that came and went between two reports: they are never
+decimated away. Analog metrics (``REAL``) are compared once per report, newest frame against the
+value last reported, and sent when they moved by their deadband or more (absolute, in the
+field's unit; a deadband of 0 sends any change). The edge node calls this at most at its
+maximum rate per robot, so analog values are sampled at that rate.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from operator import attrgetter
+from typing import Any
+
+from cobot_hmi.codec import Frame
+from cobot_hmi.sparkplug.catalogue import Catalogue
+from cobot_hmi.sparkplug.payload import MetricValue
+
+Change = tuple[int, MetricValue, int]
+"""``(metric offset, value, timestamp ms)``."""
+
+FrameItem = tuple[int, float, Frame]
+
+
+def _getter(fields: list[str]) -> Any:
+    getter = attrgetter(*fields)
+    if len(fields) == 1:
+        return lambda frame: (getter(frame),)
+    return getter
+
+
+def moved(new: float, old: float, deadband: float) -> bool:
+    """Whether an analog value is reported: by the deadband or more, or into/out of NaN."""
+    new_nan, old_nan = math.isnan(new), math.isnan(old)
+    if new_nan or old_nan:
+        return new_nan != old_nan
+    if deadband <= 0:
+        return new != old
+    return abs(new - old) >= deadband
+
+
+class Reporter:
+    """One robot's last reported values and the changes since (module docstring)."""
+
+    def __init__(self, catalogue: Catalogue) -> None:
+        spans = catalogue.discrete_spans
+        self._discrete_spans = spans
+        self._discrete = _getter([s.field for s in spans])
+        self._analog = _getter([s.field for s in catalogue.analog_spans])
+        self._analog_offsets = [
+            span.first + i for span in catalogue.analog_spans for i in range(span.count)
+        ]
+        self._deadbands = catalogue.analog_deadbands()
+        self._last_discrete: tuple[Any, ...] | None = None
+        self._reported_analog: list[float] = []
+        self.transitions = 0
+        """Discrete transitions reported (all of them)."""
+
+    def baseline(self, frame: Frame) -> None:
+        """A birth reported ``frame`` whole: changes are counted from it."""
+        self._last_discrete = self._discrete(frame)
+        self._reported_analog = self._flat_analog(frame)
+
+    def _flat_analog(self, frame: Frame) -> list[float]:
+        return [value for values in self._analog(frame) for value in values]
+
+    def discrete_changes(self, items: Iterable[FrameItem]) -> list[Change]:
+        """Every discrete transition across ``items`` (oldest first), each at its frame's time."""
+        changes: list[Change] = []
+        last = self._last_discrete
+        for _, received_at, frame in items:
+            values = self._discrete(frame)
+            if last is None:
+                last = values
+                continue
+            if values != last:  # the common case, one tuple comparison
+                stamp = int(received_at * 1000)
+                for span, new, old in zip(self._discrete_spans, values, last, strict=True):
+                    if new == old:
+                        continue
+                    if span.scalar:
+                        changes.append((span.first, new, stamp))
+                        continue
+                    for i, (a, b) in enumerate(zip(new, old, strict=True)):
+                        if a != b:
+                            changes.append((span.first + i, a, stamp))
+                last = values
+        self._last_discrete = last
+        self.transitions += len(changes)
+        return changes
+
+    def analog_changes(self, frame: Frame, received_at: float) -> list[Change]:
+        """Analog metrics of ``frame`` that moved by their deadband since last reported."""
+        stamp = int(received_at * 1000)
+        current = self._flat_analog(frame)
+        reported = self._reported_analog
+        if not reported:
+            self._reported_analog = current
+            return []
+        changes: list[Change] = []
+        for i, (new, old, deadband) in enumerate(
+            zip(current, reported, self._deadbands, strict=True)
+        ):
+            if moved(new, old, deadband):
+                reported[i] = new
+                changes.append((self._analog_offsets[i], new, stamp))
+        return changes
