@@ -83,6 +83,7 @@ class _State:
         self.ring_cap, self.ring_bytes = ring_cap, ring_bytes
         self.lock = threading.Lock()
         self.running = True
+        self.close_on_exit = False  # stopped from this very thread (see _stop)
         self.kick_fd = os.eventfd(0, os.EFD_NONBLOCK | os.EFD_CLOEXEC)
         self.notify_fd = os.eventfd(0, os.EFD_NONBLOCK | os.EFD_CLOEXEC)
         self.queue: list[_Queued] = []  # kept sorted by due time
@@ -246,6 +247,8 @@ class _State:
                             os.eventfd_read(self.kick_fd)
         finally:
             selector.close()
+            if self.close_on_exit:
+                self.close()
 
     def close(self) -> None:
         self.sock.close()
@@ -254,11 +257,17 @@ class _State:
 
 
 def _stop(state: _State, thread: threading.Thread) -> None:
-    """Stop and join the thread, then close what it used (the finalizer: holds no Pump)."""
-    with state.lock:
-        state.running = False
+    """Stop and join the thread, then close what it used (the finalizer: holds no Pump).
+
+    Without the lock: the garbage collector may run this in any thread, the pump's own included,
+    maybe while that thread holds the lock (a bool's assignment is atomic under the GIL). In the
+    pump's own thread it cannot join itself: the thread closes what it used as it ends."""
+    state.running = False
+    if thread is threading.current_thread():
+        state.close_on_exit = True
+        return
     state.kick()
-    if thread.is_alive() and thread is not threading.current_thread():
+    if thread.is_alive():
         thread.join()
     state.close()
 
