@@ -118,6 +118,7 @@ async def hold(
                 raise SystemExit(f"no connection: {originator.state} {originator.reason}")
         await asyncio.sleep(1.0)  # warm-up
         before = [o.stats() for o in originators]
+        pump_before = port.udp.counters()
         for times in arrivals:
             times.clear()
         losses.clear()
@@ -126,6 +127,7 @@ async def hold(
         cpu_s, wakes = own_cpu_s() - cpu0, wakeups(os.getpid()) - wakes0
         wall_s = time.monotonic() - wall0
         after = [o.stats() for o in originators]
+        pump_after = port.udp.counters()
         statuses = [
             await asyncio.to_thread(fetch_status, host, control) for host, _, control in targets
         ]
@@ -158,6 +160,9 @@ async def hold(
         "cpu_us_per_frame": 1e6 * cpu_s / frames,
         "cpu_pct": 100 * cpu_s / wall_s,
         "wakeups_per_frame": wakes / frames,
+        "ring_overflows": pump_after["ring_overflows"] - pump_before["ring_overflows"],
+        "max_late_ms": pump_after["max_late_ns"] / 1e6,
+        "realtime": bool(pump_after.get("realtime")),
     }
 
 
@@ -289,7 +294,7 @@ def report(
     )
     print(
         "   N  pump (got)        T→O gaps  p99 worst ms  max ms   O→T gaps  p99 worst ms   "
-        "losses   CPU/frame µs  CPU %  wake-ups/frame"
+        "losses   CPU/frame µs  CPU %  wake-ups/frame  ring overflows  latest send ms"
     )
     for count in robots:
         for pump in PUMPS:
@@ -302,7 +307,8 @@ def report(
                 f"{sum(x['o2t_gaps'] or 0 for x in c):8d}  "
                 f"{fmt(worst([x['o2t_p99_ms'] for x in c])):>12}   {len(r['losses']):6d}   "
                 f"{r['cpu_us_per_frame']:12.1f}  {r['cpu_pct']:5.1f}  "
-                f"{r['wakeups_per_frame']:14.3f}"
+                f"{r['wakeups_per_frame']:14.3f}  {r['ring_overflows']:14d}  "
+                f"{r['max_late_ms']:14.3f}"
             )
     top, native = max(robots), "native"
     r = results[top, native]

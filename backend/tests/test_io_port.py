@@ -126,6 +126,41 @@ async def test_port_dispatches_by_connection_id_and_source(plc_host: str) -> Non
         port.close()
 
 
+async def test_port_batch_shortens_as_connections_add_up(plc_host: str) -> None:
+    """Eight connections at RPI 2 ms bring 4000 packets a second: a 40 ms batch would fill 160
+    of the pump ring's 256 slots, so the port wakes sooner (a quarter of the ring per batch,
+    16 ms), and per datagram as soon as one connection asks for it (an RPI of 10 ms or more)."""
+    port = IoPort(plc_host, 0)
+    await port.open()
+    try:
+        consumers = [Recorder() for _ in range(9)]
+        ids = [port.new_connection_id() for _ in consumers]
+        port.route(
+            ids[0], "127.0.0.1", consumers[0], batch_s=0.04, silence_s=0.0, packets_per_s=500
+        )
+        assert port.batch_s == pytest.approx(0.04)
+        for connection_id, consumer in zip(ids[1:8], consumers[1:8], strict=True):
+            port.route(
+                connection_id,
+                "127.0.0.1",
+                consumer,
+                batch_s=0.04,
+                silence_s=0.032,
+                packets_per_s=500,
+            )
+        assert port.batch_s == pytest.approx(256 * 0.25 / 4000)
+        port.route(
+            ids[8], "127.0.0.1", consumers[8], batch_s=0.0, silence_s=0.16, packets_per_s=100
+        )
+        assert port.batch_s == 0.0
+        port.unroute(ids[8])
+        for connection_id in ids[1:8]:
+            port.unroute(connection_id)
+        assert port.batch_s == pytest.approx(0.04)
+    finally:
+        port.close()
+
+
 # --------------------------------------------------------------------------- N connections
 
 

@@ -1,6 +1,6 @@
 """Layer: scanner (asyncio I/O, the originator role). Imports the codec, ``cobot_hmi.enip``,
-``cobot_hmi.connection_params``, the scanner's own modules and the runtime support (``udp_endpoint``); never the emulator or the
-service.
+``cobot_hmi.connection_params``, the scanner's own modules and the runtime support
+(``udp_endpoint``); never the emulator or the service.
 
 The backend's class 1 connection to the robot, held as a PLC holds it (issue 3, "The
 originator"): RegisterSession, Forward Open (exclusive owner, or input-only as a read-only
@@ -626,7 +626,12 @@ class Originator:
 
     def _route(self, port: IoPort, link: _Link, *, silence_s: float) -> None:
         port.route(
-            link.t2o_id, link.target_host, self, batch_s=self._t2o_batch_s, silence_s=silence_s
+            link.t2o_id,
+            link.target_host,
+            self,
+            batch_s=self._t2o_batch_s,
+            silence_s=silence_s,
+            packets_per_s=1e6 / link.t2o_api_us,
         )
         link.routed = True
 
