@@ -78,6 +78,19 @@ async def test_each_endpoint_runs_the_pump_asked_for_and_closing_stops_it(
     endpoint.close()  # again: nothing
 
 
+async def test_an_endpoint_closed_from_another_thread_leaves_the_loop_clean(plc_host: str) -> None:
+    """The loop's reader goes through the loop's own thread; the pump stops at once."""
+    loop = asyncio.get_running_loop()
+    before = pump_threads()
+    endpoint = UdpEndpoint(plc_host, 0, lambda *_: None, receive_size=64)
+    endpoint.watch(True)
+    notify_fd = endpoint._notify_fd
+    await asyncio.to_thread(endpoint.close)
+    await eventually(lambda: pump_threads() == before)
+    await asyncio.sleep(0)  # the loop runs the reader's removal
+    assert not loop.remove_reader(notify_fd), "the loop watches its descriptor no more"
+
+
 async def test_an_endpoint_dropped_unclosed_stops_its_thread(plc_host: str) -> None:
     before = pump_threads()
     endpoint = UdpEndpoint(plc_host, 0, lambda *_: None, receive_size=64)
