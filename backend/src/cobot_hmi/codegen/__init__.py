@@ -1,4 +1,4 @@
-"""Layer: layout tooling. Imports only ``cobot_hmi.layout``.
+"""Layer: layout tooling. Imports only ``cobot_hmi.layout`` and ``cobot_hmi.arms``.
 
 Writes every file that derives from the layout table, so that nothing else repeats an offset, a
 name or a state value:
@@ -9,6 +9,8 @@ name or a state value:
   look-ups per frame);
 - ``backend/src/cobot_hmi/generated/layout.json`` (``layout_json``): the layout the backend serves;
 - ``frontend/src/generated/layout.ts`` (``typescript``): types and constants for the frontend;
+- ``frontend/src/generated/arms.ts`` (``arms_ts``): the arms' joint chains (``cobot_hmi.arms``) for
+  the panel's 3D view;
 - ``docs/assembly.md`` (``markdown``): the map a human reads;
 - ``backend/src/cobot_hmi/generated/sparkplug_b_pb2.py`` and ``.pyi`` (``sparkplug_proto``): the
   Sparkplug B payload classes, compiled from ``sparkplug/sparkplug_b.proto`` by grpcio-tools.
@@ -23,6 +25,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from cobot_hmi.codegen.arms_ts import arms_ts
 from cobot_hmi.codegen.layout_json import layout_document, layout_json
 from cobot_hmi.codegen.markdown import assembly_doc
 from cobot_hmi.codegen.python_frames import frames_module
@@ -41,6 +44,7 @@ def outputs() -> dict[Path, str]:
         PACKAGE_DIR / "generated" / "frames.py": frames_module(),
         PACKAGE_DIR / "generated" / "layout.json": layout_json(),
         REPO_ROOT / "frontend" / "src" / "generated" / "layout.ts": layout_ts(),
+        REPO_ROOT / "frontend" / "src" / "generated" / "arms.ts": arms_ts(),
         REPO_ROOT / "docs" / "assembly.md": assembly_doc(),
         **{PACKAGE_DIR / "generated" / name: text for name, text in sparkplug_modules().items()},
     }

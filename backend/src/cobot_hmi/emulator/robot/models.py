@@ -1,20 +1,8 @@
-"""Layer: emulator, pure robot model (no I/O, no sockets). Imports nothing of the project.
+"""Layer: emulator, pure robot model (no I/O, no sockets). Imports only ``cobot_hmi.arms``.
 
 The two arms the emulator can be: their URDF joint chain (origins, limits) and the link masses the
-gravity model needs, as data.
-
-Sources:
-- M1013 joint origins, position limits and speed limits: docs/emulator.md, "Reference
-  facts the model follows" (Doosan's public ``dsr_description``). Where an older copy of Doosan's
-  xacro (``doosan-robotics/doosan-robot``, ``dsr_description/xacro/macro.m1013.white.xacro``) puts
-  J6 at y = −0.124 m, the documented −0.121 m is kept: it is the one that reproduces the
-  controller's published forward-kinematics check (Z = 651.5 mm).
-- M1013 link masses and centres of mass: ``doosan-robotics/doosan-robot``,
-  ``dsr_description/xacro/macro.m1013.white.xacro`` (each centre of mass in its own link frame).
-- M0609 joint origins, limits, masses and centres of mass: ``DoosanRobotics/doosan-robot2``,
-  ``dsr_description2/urdf/m0609.urdf`` (J1 z 0.1345 m, J2 y 0.0062 m, J3 x 0.411 m, J4 y −0.368 m,
-  J6 y −0.121 m; J3 ±150°; 150°/s on J1–J2, 180°/s on J3, 225°/s on J4–J6). The URDF writes
-  π/2 as 1.571; exact π/2 is used here, as the spec does for the M1013.
+gravity model needs. The published geometry lives once in ``cobot_hmi.arms`` (which the panel's 3D
+view is generated from); this module adds what a simulation needs beyond it.
 
 Acceleration limits, torque constants, friction and thermal figures are not published: they are
 plausible values chosen for a convincing demo, marked as such.
@@ -22,13 +10,22 @@ plausible values chosen for a convincing demo, marked as such.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Final
 
-Vector3 = tuple[float, float, float]
+from cobot_hmi.arms import M0609_ARM, M1013_ARM, Arm, ArmLink, Vector3
 
-_HALF_PI: Final = math.pi / 2
+__all__ = [
+    "DEFAULT_MODEL",
+    "M0609",
+    "M1013",
+    "MODELS",
+    "JointSpec",
+    "LinkInertia",
+    "RobotModel",
+    "Vector3",
+    "model_by_name",
+]
 
 
 @dataclass(frozen=True, slots=True)
@@ -55,12 +52,8 @@ class JointSpec:
     """Current at which the motor settles ``MotorThermal``'s rated rise above room. Chosen."""
 
 
-@dataclass(frozen=True, slots=True)
-class LinkInertia:
-    """The mass of the link a joint moves and its centre of mass in that link's frame."""
-
-    mass_kg: float
-    com_m: Vector3
+LinkInertia = ArmLink
+"""The mass of the link a joint moves and its centre of mass in that link's frame."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -99,47 +92,23 @@ _DEMO_WAYPOINTS_DEG: Final = (
     (-40.0, 28.0, 85.0, -20.0, 65.0, -60.0),  # place
 )
 
-M1013: Final = RobotModel(
-    name="M1013",
-    joints=(
-        _joint((0.0, 0.0, 0.1525), (0.0, 0.0, 0.0), 360.0, 120.0, True),
-        _joint((0.0, 0.0345, 0.0), (0.0, -_HALF_PI, -_HALF_PI), 360.0, 120.0, True),
-        _joint((0.620, 0.0, 0.0), (0.0, 0.0, _HALF_PI), 160.0, 180.0, True),
-        _joint((0.0, -0.559, 0.0), (_HALF_PI, 0.0, 0.0), 360.0, 225.0, False),
-        _joint((0.0, 0.0, 0.0), (-_HALF_PI, 0.0, 0.0), 360.0, 225.0, False),
-        _joint((0.0, -0.121, 0.0), (_HALF_PI, 0.0, 0.0), 360.0, 225.0, False),
-    ),
-    links=(
-        LinkInertia(7.8, (0.000119, 0.0428, -0.006383)),
-        LinkInertia(10.83, (0.25973, -5.3e-05, 0.15782)),
-        LinkInertia(3.68, (-1.5e-05, -0.006702, 0.044608)),
-        LinkInertia(3.82, (7.1e-05, 0.091879, -0.18252)),
-        LinkInertia(2.82, (-0.000273, 0.003651, 0.032088)),
-        LinkInertia(1.16, (-0.000292, 7e-06, -0.0539)),
-    ),
-    demo_waypoints_deg=_DEMO_WAYPOINTS_DEG,
-)
 
-M0609: Final = RobotModel(
-    name="M0609",
-    joints=(
-        _joint((0.0, 0.0, 0.1345), (0.0, 0.0, 0.0), 360.0, 150.0, True),
-        _joint((0.0, 0.0062, 0.0), (0.0, -_HALF_PI, -_HALF_PI), 360.0, 150.0, True),
-        _joint((0.411, 0.0, 0.0), (0.0, 0.0, _HALF_PI), 150.0, 180.0, True),
-        _joint((0.0, -0.368, 0.0), (_HALF_PI, 0.0, 0.0), 360.0, 225.0, False),
-        _joint((0.0, 0.0, 0.0), (-_HALF_PI, 0.0, 0.0), 360.0, 225.0, False),
-        _joint((0.0, -0.121, 0.0), (_HALF_PI, 0.0, 0.0), 360.0, 225.0, False),
-    ),
-    links=(
-        LinkInertia(5.02, (7.2e-05, 0.036227, -0.003417)),
-        LinkInertia(8.04, (0.20447, 2.6e-05, 0.16005)),
-        LinkInertia(3.6, (-2.2e-05, -0.006867, 0.043445)),
-        LinkInertia(3.57, (4e-05, 0.097079, -0.10981)),
-        LinkInertia(2.83, (-6.8e-05, 0.003827, 0.031969)),
-        LinkInertia(1.16, (-3e-05, -4.5e-05, -0.0539)),
-    ),
-    demo_waypoints_deg=_DEMO_WAYPOINTS_DEG,
-)
+def _model(arm: Arm) -> RobotModel:
+    """The arm's published geometry with the simulation's chosen figures: J1–J3 have the big
+    motors."""
+    return RobotModel(
+        name=arm.name,
+        joints=tuple(
+            _joint(j.origin_xyz_m, j.origin_rpy_rad, j.limit_deg, j.max_speed_deg_s, i < 3)
+            for i, j in enumerate(arm.joints)
+        ),
+        links=arm.links,
+        demo_waypoints_deg=_DEMO_WAYPOINTS_DEG,
+    )
+
+
+M1013: Final = _model(M1013_ARM)
+M0609: Final = _model(M0609_ARM)
 
 MODELS: Final = {model.name: model for model in (M1013, M0609)}
 """The selectable arms by name; M1013 is the default."""
