@@ -3,19 +3,17 @@
 ``create_app(service)`` wires the routers; the app's lifespan starts and stops the service, so
 ``uvicorn`` runs the whole thing. The frontend (``frontend/dist``) is served when it exists:
 a file under it by its path, anything else that is not API an ``index.html`` (the single-page
-app routes ``/kiosk`` and friends itself).
+app routes ``/kiosk`` and friends itself), precompressed and cached (``static_files``).
 """
 
 from __future__ import annotations
 
 from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
-from pathlib import Path
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import FileResponse, JSONResponse, Response
-from starlette.exceptions import HTTPException as StarletteHTTPException
+from fastapi.responses import JSONResponse, Response
 
 from cobot_hmi import __version__
 from cobot_hmi.service import (
@@ -25,6 +23,7 @@ from cobot_hmi.service import (
     routes_stream,
     routes_write,
     security,
+    static_files,
 )
 from cobot_hmi.service.api_docs import openapi_document
 from cobot_hmi.service.errors import ApiError, UnknownRobotError
@@ -95,26 +94,6 @@ def create_app(
 
     for module in (routes_read, routes_auth, routes_write, routes_log, routes_stream):
         app.include_router(module.router)
-    _serve_frontend(app, service.settings.frontend_path)
+    static_files.serve_frontend(app, service.settings.frontend_path, _API_PREFIXES)
     app.openapi = lambda: openapi_document(app)  # type: ignore[method-assign]
     return app
-
-
-def _serve_frontend(app: FastAPI, root: Path) -> None:
-    root = root.resolve()
-
-    @app.get("/{path:path}", include_in_schema=False)
-    async def frontend(path: str) -> Response:
-        if path.startswith(_API_PREFIXES):
-            raise StarletteHTTPException(404)
-        index = root / "index.html"
-        if not index.is_file():
-            return JSONResponse(
-                {"detail": {"reason": f"no built frontend at {root} (npm run build)"}}, 404
-            )
-        candidate = (root / path).resolve()
-        if path and candidate.is_relative_to(root) and candidate.is_file():
-            return FileResponse(candidate)
-        if Path(path).suffix and not path.endswith(".html"):
-            raise StarletteHTTPException(404)  # a missing asset, not a page
-        return FileResponse(index, headers={"Cache-Control": "no-cache"})
