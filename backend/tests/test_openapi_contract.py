@@ -172,6 +172,7 @@ def test_websocket_messages_and_events_are_components() -> None:
         "flag",
         "write",
         "control",
+        "recording",
     }
 
 

@@ -284,6 +284,23 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/v1/robots/{name}/export": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /** A range of the robot's recorded frames as a file: CSV, Parquet or MCAP (streamed) */
+        get: operations["get_export_api_v1_robots__name__export_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/robots/{name}/frame": {
         parameters: {
             query?: never;
@@ -293,6 +310,23 @@ export interface paths {
         };
         /** The robot's latest decoded frame and its age */
         get: operations["get_frame_api_v1_robots__name__frame_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/robots/{name}/history": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /** A range of the robot's recorded frames, decimated for a plot (min/max/first/last per bucket, or the raw frames) */
+        get: operations["get_history_api_v1_robots__name__history_get"];
         put?: never;
         post?: never;
         delete?: never;
@@ -759,7 +793,7 @@ export interface components {
         /** EventMessage */
         EventMessage: {
             /** Event */
-            event: components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"];
+            event: components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"];
             /**
              * @description discriminator enum property added by openapi-typescript
              * @enum {string}
@@ -772,7 +806,7 @@ export interface components {
          */
         EventPage: {
             /** Items */
-            items: (components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"])[];
+            items: (components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"])[];
             /** Total */
             total: number;
         };
@@ -1048,6 +1082,110 @@ export interface components {
              */
             type: "hello";
         };
+        /**
+         * HistoryAnswer
+         * @description ``GET /api/v1/robots/{name}/history``: a range decimated for a plot (docs/api.md).
+         */
+        HistoryAnswer: {
+            /**
+             * Bucket S
+             * @description bucket width, s (buckets of a second or more start at whole multiples of it since the epoch)
+             */
+            bucket_s: number | null;
+            /**
+             * Count
+             * @description buckets: frames per bucket
+             */
+            count?: number[] | null;
+            /**
+             * Frames
+             * @description frames the answer covers
+             */
+            frames: number;
+            /**
+             * From
+             * @description the range asked, s since the epoch
+             */
+            from: number;
+            /**
+             * Mode
+             * @description raw: every frame of the range (it holds no more than `points`); buckets: per bucket the min, max, first and last of each element
+             * @enum {string}
+             */
+            mode: "raw" | "buckets";
+            /**
+             * Points
+             * @description buckets asked for
+             */
+            points: number;
+            /**
+             * Recording
+             * @description false while recording is paused or off
+             */
+            recording: boolean;
+            /** Recording Paused Reason */
+            recording_paused_reason?: string | null;
+            /** Robot */
+            robot: string;
+            /**
+             * Seq
+             * @description raw: each frame's counter
+             */
+            seq?: number[] | null;
+            /** Series */
+            series: components["schemas"]["HistorySeries"][];
+            /**
+             * T
+             * @description raw: each frame's receive time; buckets: each non-empty bucket's start (s since the epoch)
+             */
+            t: number[];
+            /**
+             * T First
+             * @description buckets: first frame's time
+             */
+            t_first?: number[] | null;
+            /**
+             * T Last
+             * @description buckets: last frame's time
+             */
+            t_last?: number[] | null;
+            /** To */
+            to: number;
+        };
+        /**
+         * HistorySeries
+         * @description One element of a history answer: ``values`` (mode raw) or ``min``/``max``/``first``/
+         *     ``last`` (mode buckets), index for index with the answer's ``t``.
+         */
+        HistorySeries: {
+            /**
+             * Element
+             * @description the element's column name: joint_position.0, robot_state
+             */
+            element: string;
+            /**
+             * Field
+             * @description its layout field
+             */
+            field: string;
+            /** First */
+            first?: (boolean | number | null)[] | null;
+            /**
+             * Label
+             * @description the channel's label (J1), else the field's description
+             */
+            label: string;
+            /** Last */
+            last?: (boolean | number | null)[] | null;
+            /** Max */
+            max?: (boolean | number | null)[] | null;
+            /** Min */
+            min?: (boolean | number | null)[] | null;
+            /** Unit */
+            unit: string;
+            /** Values */
+            values?: (boolean | number | null)[] | null;
+        };
         /** Holder */
         Holder: {
             /**
@@ -1155,6 +1293,44 @@ export interface components {
             reason?: string | null;
             /** Robot */
             robot?: string | null;
+        };
+        /**
+         * RecordingEvent
+         * @description The history recorder paused (disk full, write error), resumed, or fell behind.
+         */
+        RecordingEvent: {
+            /**
+             * Dropped
+             * @description overflow: frames not recorded
+             */
+            dropped?: number | null;
+            /**
+             * Id
+             * @description row id in the event log (log pages only)
+             */
+            id?: number | null;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            kind: "recording";
+            /** Reason */
+            reason?: string | null;
+            /**
+             * Robot
+             * @description the robot's name
+             */
+            robot?: string | null;
+            /**
+             * State
+             * @enum {string}
+             */
+            state: "recording" | "paused" | "overflow";
+            /**
+             * Time
+             * @description s since the epoch
+             */
+            time: number;
         };
         /** RobotList */
         RobotList: {
@@ -1847,7 +2023,7 @@ export interface operations {
         parameters: {
             query?: {
                 /** @description only events of this kind */
-                kind?: ("connection" | "robot_state" | "flag" | "write" | "control") | null;
+                kind?: ("connection" | "robot_state" | "flag" | "write" | "control" | "recording") | null;
                 limit?: number;
                 offset?: number;
                 /** @description csv: the whole page as CSV */
@@ -2458,6 +2634,76 @@ export interface operations {
             };
         };
     };
+    get_export_api_v1_robots__name__export_get: {
+        parameters: {
+            query: {
+                /** @description start of the range: ISO 8601 (2026-11-24T06:00:00Z; without an offset: UTC) or seconds since the epoch */
+                from: string;
+                /** @description end of the range (excluded): ISO 8601 (2026-11-24T06:00:00Z; without an offset: UTC) or seconds since the epoch */
+                to: string;
+                /** @description csv, parquet or mcap */
+                format: "csv" | "parquet" | "mcap";
+                /** @description comma-separated field names (joint_position) or elements (joint_position.2); default: every field */
+                fields?: string | null;
+            };
+            header?: never;
+            path: {
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description the file, named after the robot and the range */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/octet-stream": string;
+                    "application/vnd.apache.parquet": string;
+                    "text/csv": string;
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description invalid request: the answer names the field; nothing was applied */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
     get_frame_api_v1_robots__name__frame_get: {
         parameters: {
             query?: never;
@@ -2499,6 +2745,74 @@ export interface operations {
             };
             /** @description no robot of that name (the answer names the known ones) */
             404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    get_history_api_v1_robots__name__history_get: {
+        parameters: {
+            query: {
+                /** @description start of the range: ISO 8601 (2026-11-24T06:00:00Z; without an offset: UTC) or seconds since the epoch */
+                from: string;
+                /** @description end of the range (excluded): ISO 8601 (2026-11-24T06:00:00Z; without an offset: UTC) or seconds since the epoch */
+                to: string;
+                /** @description comma-separated field names (joint_position) or elements (joint_position.2); default: every field */
+                fields?: string | null;
+                /** @description buckets, at most 5000 */
+                points?: number;
+            };
+            header?: never;
+            path: {
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HistoryAnswer"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description invalid request: the answer names the field; nothing was applied */
+            422: {
                 headers: {
                     [name: string]: unknown;
                 };

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import os
+from pathlib import Path
 
 from cobot_hmi.layout import CONNECTION_POINTS, O2T_ASSEMBLY, T2O_ASSEMBLY
 
@@ -105,6 +106,18 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     robot.add_argument(
         "--static", action="store_true", help="a robot that stands still instead of the simulation"
     )
+    robot.add_argument(
+        "--replay",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="play a recording (a history export: Parquet or MCAP) back as the T→O stream "
+        "instead of the simulation (docs/emulator.md)",
+    )
+    robot.add_argument(
+        "--speed", type=float, default=1.0, metavar="X", help="--replay: X times real time"
+    )
+    robot.add_argument("--loop", action="store_true", help="--replay: start again at the end")
     robot.add_argument("--seed", type=int, default=1, help="seed of the simulation's noise")
     robot.add_argument(
         "--no-program", action="store_true", help="do not start the demo program by itself"
@@ -199,7 +212,20 @@ def _run(args: argparse.Namespace) -> int:
 
     simulated: SimulatedRobot | None = None
     robot: ProcessImage
-    if args.static:
+    if args.replay is not None:
+        from cobot_hmi.emulator.replay_robot import ReplayRobot
+        from cobot_hmi.history.recording import RecordingError, read_recording
+
+        if not args.speed > 0:
+            print("cobot-hmi emulator: --speed must be above 0", flush=True)
+            return 2
+        try:
+            recording = read_recording(args.replay)
+        except RecordingError as error:
+            print(f"cobot-hmi emulator: {error}", flush=True)
+            return 2
+        robot = ReplayRobot(recording, speed=args.speed, loop=args.loop)
+    elif args.static:
         robot = StaticRobot(idle)
     else:
         simulated = SimulatedRobot(

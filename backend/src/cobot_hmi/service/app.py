@@ -18,6 +18,7 @@ from fastapi.responses import JSONResponse, Response
 from cobot_hmi import __version__
 from cobot_hmi.service import (
     routes_auth,
+    routes_history,
     routes_log,
     routes_read,
     routes_stream,
@@ -92,7 +93,14 @@ def create_app(
             422,
         )
 
-    for module in (routes_read, routes_auth, routes_write, routes_log, routes_stream):
+    for module in (
+        routes_read,
+        routes_auth,
+        routes_write,
+        routes_log,
+        routes_history,
+        routes_stream,
+    ):
         app.include_router(module.router)
     static_files.serve_frontend(app, service.settings.frontend_path, _API_PREFIXES)
     app.openapi = lambda: openapi_document(app)  # type: ignore[method-assign]

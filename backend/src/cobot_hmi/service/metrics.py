@@ -201,4 +201,10 @@ def render_metrics(service: Service, stats: dict[str, ConnectionStats]) -> str:
             w.metric(name, kind, help_text)
             for labels, value in samples:
                 w.sample(name, value, labels)
+    recorder = service.recorder
+    if recorder is not None:  # the history recorder's counters (service/recorder.py)
+        for name, kind, help_text, samples in recorder.metric_families():
+            w.metric(name, kind, help_text)
+            for labels, value in samples:
+                w.sample(name, value, labels)
     return "\n".join(w.lines) + "\n"

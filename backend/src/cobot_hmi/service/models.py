@@ -377,11 +377,20 @@ class ControlEvent(_EventBase):
     reason: str | None = None
 
 
+class RecordingEvent(_EventBase):
+    """The history recorder paused (disk full, write error), resumed, or fell behind."""
+
+    kind: Literal["recording"]
+    state: Literal["recording", "paused", "overflow"]
+    reason: str | None = None
+    dropped: int | None = Field(default=None, description="overflow: frames not recorded")
+
+
 Event = Annotated[
-    ConnectionEvent | RobotStateEvent | FlagEvent | WriteEvent | ControlEvent,
+    ConnectionEvent | RobotStateEvent | FlagEvent | WriteEvent | ControlEvent | RecordingEvent,
     Field(discriminator="kind"),
 ]
-EventKind = Literal["connection", "robot_state", "flag", "write", "control"]
+EventKind = Literal["connection", "robot_state", "flag", "write", "control", "recording"]
 
 
 class EventPage(BaseModel):
@@ -537,6 +546,61 @@ class LayoutDocument(BaseModel):
     robot_states: list[RobotStateDoc]
     unknown_state_name: str
     analog_output_ranges: dict[str, RangeDoc]
+
+
+# --------------------------------------------------------------------------- history
+
+HistoryValue = bool | int | float | None
+"""An element's value: as its frame field has it; a non-finite REAL is ``null``."""
+
+
+class HistorySeries(BaseModel):
+    """One element of a history answer: ``values`` (mode raw) or ``min``/``max``/``first``/
+    ``last`` (mode buckets), index for index with the answer's ``t``."""
+
+    element: str = Field(description="the element's column name: joint_position.0, robot_state")
+    field: str = Field(description="its layout field")
+    label: str = Field(description="the channel's label (J1), else the field's description")
+    unit: str
+    values: list[HistoryValue] | None = None
+    min: list[HistoryValue] | None = None
+    max: list[HistoryValue] | None = None
+    first: list[HistoryValue] | None = None
+    last: list[HistoryValue] | None = None
+
+
+class HistoryAnswer(BaseModel):
+    """``GET /api/v1/robots/{name}/history``: a range decimated for a plot (docs/api.md)."""
+
+    model_config = ConfigDict(populate_by_name=True)
+
+    robot: str
+    from_: float = Field(alias="from", description="the range asked, s since the epoch")
+    to: float
+    points: int = Field(description="buckets asked for")
+    mode: Literal["raw", "buckets"] = Field(
+        description="raw: every frame of the range (it holds no more than `points`); buckets: "
+        "per bucket the min, max, first and last of each element"
+    )
+    bucket_s: float | None = Field(
+        description="bucket width, s (buckets of a second or more start at whole multiples of "
+        "it since the epoch)"
+    )
+    frames: int = Field(ge=0, description="frames the answer covers")
+    t: list[float] = Field(
+        description="raw: each frame's receive time; buckets: each non-empty bucket's start (s "
+        "since the epoch)"
+    )
+    seq: list[int] | None = Field(default=None, description="raw: each frame's counter")
+    count: list[int] | None = Field(default=None, description="buckets: frames per bucket")
+    t_first: list[float] | None = Field(default=None, description="buckets: first frame's time")
+    t_last: list[float] | None = Field(default=None, description="buckets: last frame's time")
+    series: list[HistorySeries]
+    recording: bool = Field(description="false while recording is paused or off")
+    recording_paused_reason: str | None = None
+
+
+ExportFormat = Literal["csv", "parquet", "mcap"]
 
 
 WEBSOCKET_MODELS: Final = (StreamMessage,)

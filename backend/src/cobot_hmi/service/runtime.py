@@ -25,6 +25,7 @@ from cobot_hmi.service.control import Control
 from cobot_hmi.service.errors import UnknownRobotError
 from cobot_hmi.service.hub import Hub
 from cobot_hmi.service.link import CyclicLoop, RobotLink
+from cobot_hmi.service.recorder import Recorder
 from cobot_hmi.service.robot import RobotRuntime
 from cobot_hmi.service.settings import ServiceSettings
 from cobot_hmi.service.store import Store
@@ -77,6 +78,10 @@ class Service:
             from cobot_hmi.sparkplug.edge_node import EdgeNode
 
             self.edge_node = EdgeNode(settings, self.robots)
+        self.recorder: Recorder | None = (
+            Recorder(settings, self.robots) if settings.history else None
+        )
+        """Every frame of every robot into its recording (``service.recorder``), unless off."""
 
     def robot(self, name: str) -> RobotRuntime:
         """The robot called ``name``; ``UnknownRobotError`` naming the known ones."""
@@ -115,6 +120,8 @@ class Service:
         await self.store.open()
         for robot in self.robots.values():
             robot.start()
+        if self.recorder is not None:  # subscribed before the first frame can come
+            await self.recorder.start()
         await self.cyclic.start()
         if self.edge_node is not None:
             await self.edge_node.start()
@@ -129,6 +136,8 @@ class Service:
             *(robot.release_control("service stopping") for robot in self.robots.values())
         )
         await self.cyclic.stop()
+        if self.recorder is not None:  # the last frames written, the open segments closed
+            await self.recorder.stop()
         for task in self._tasks:
             task.cancel()
         for task in self._tasks:

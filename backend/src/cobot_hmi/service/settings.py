@@ -402,6 +402,29 @@ class ServiceSettings(BaseSettings):
     sparkplug_buffer_bytes: int = setting(
         64 * 1024 * 1024, "data kept on disk while the broker is away, bytes (0: none)", ge=0
     )
+    # --- history: every frame recorded (cobot_hmi.history; docs/operations.md "History")
+    history: bool = setting(True, "record every frame of every robot (--no-history: off)")
+    history_dir: ExpandedPath | None = setting(
+        None, "directory of the recordings (default: STATE_DIR/history)"
+    )
+    history_retention_days: float = setting(
+        7.0, "delete recordings older than this, days", gt=0, allow_inf_nan=False
+    )
+    history_retention_bytes: int = setting(
+        5 * 1000**3, "keep the recordings under this size, bytes (oldest go first)", ge=1
+    )
+    history_segment_s: Seconds = setting(
+        600.0, "a recording segment is closed (Parquet) after this long, s"
+    )
+    history_flush_s: float = setting(
+        1.0, "frames reach the open segment's journal at least this often, s", gt=0, le=1.5
+    )
+    history_queue_frames: int = setting(
+        6000, "frames per robot the recorder may fall behind by before it drops", ge=100
+    )
+    history_min_free_bytes: int = setting(
+        256 * 1024**2, "recording pauses while the disk has less free space, bytes", ge=0
+    )
 
     @classmethod
     def settings_customise_sources(
@@ -482,6 +505,10 @@ class ServiceSettings(BaseSettings):
     @property
     def database_path(self) -> Path:
         return self.database if self.database is not None else self.state_dir / "hmi.db"
+
+    @property
+    def history_path(self) -> Path:
+        return self.history_dir if self.history_dir is not None else self.state_dir / "history"
 
     @property
     def frontend_path(self) -> Path:

@@ -1,0 +1,313 @@
+"""Layer: history storage. Imports only the layout, the history schema and query, pyarrow and
+mcap.
+
+A range of a robot's recording as a file for the tools engineers use, produced as a stream of
+byte chunks (one segment at a time: memory does not grow with the range):
+
+- ``csv``: one column per element, its unit in the header (``joint_position.0 [degree]``), the
+  receive time in ISO 8601 UTC (``2026-11-24T06:00:00.123456Z``), then ``seq``; opens in Excel
+  and pandas.
+- ``parquet``: the recording's own columns (``schema``: ``time`` as ``timestamp[us, UTC]``,
+  ``seq``, ``joint_position.0`` …, units and descriptions as field metadata); pyarrow, DuckDB,
+  pandas and PlotJuggler read it.
+- ``mcap``: a channel ``/ROBOT/frames`` of JSON messages (each frame's fields as the API's
+  frame JSON has them, plus ``time`` and ``seq``) with a JSON Schema, so Foxglove and Lichtblick
+  plot every field without configuration; a channel ``/ROBOT/events`` of the robot's events
+  (connection, robot state, flags, writes, control, recording, alarms) on the same time axis.
+  A field asked for in part is exported whole (the message keeps the frame's shape).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from pathlib import Path
+from typing import Final, Literal
+
+import numpy as np
+import orjson
+import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.csv as pa_csv
+import pyarrow.parquet as pq
+from mcap.writer import CompressionType, Writer
+
+from cobot_hmi.history.query import iter_raw
+from cobot_hmi.history.schema import ELEMENTS, SCHEMA, SEQ, TIME, Element
+from cobot_hmi.history.times import compact_iso
+from cobot_hmi.layout import T2O_ASSEMBLY, Field
+
+ExportFormat = Literal["csv", "parquet", "mcap"]
+FORMATS: Final = ("csv", "parquet", "mcap")
+MEDIA_TYPES: Final = {
+    "csv": "text/csv; charset=utf-8",
+    "parquet": "application/vnd.apache.parquet",
+    "mcap": "application/octet-stream",
+}
+CHUNK_ROWS: Final = 20_000
+FRAME_SCHEMA_NAME: Final = "cobot_hmi.RobotFrame"
+EVENT_SCHEMA_NAME: Final = "cobot_hmi.Event"
+
+
+def export_filename(robot: str, from_s: float, to_s: float, fmt: str) -> str:
+    """``ROBOT_20261124T060000Z_20261124T070000Z.csv``"""
+    return f"{robot}_{compact_iso(from_s)}_{compact_iso(to_s)}.{fmt}"
+
+
+class _Sink:
+    """A write-only stream that keeps what is written until taken (chunks of the answer)."""
+
+    def __init__(self) -> None:
+        self._parts: list[bytes] = []
+        self._position = 0
+        self.closed = False
+
+    def write(self, data: bytes | bytearray | memoryview) -> int:
+        chunk = bytes(data)
+        self._parts.append(chunk)
+        self._position += len(chunk)
+        return len(chunk)
+
+    def tell(self) -> int:
+        return self._position
+
+    def flush(self) -> None:
+        pass
+
+    def close(self) -> None:
+        self.closed = True
+
+    def writable(self) -> bool:
+        return True
+
+    def seekable(self) -> bool:
+        return False
+
+    def take(self) -> bytes:
+        data = b"".join(self._parts)
+        self._parts.clear()
+        return data
+
+
+def _chunks(tables_: Iterable[pa.Table], rows: int = CHUNK_ROWS) -> Iterator[pa.Table]:
+    for table in tables_:
+        for offset in range(0, table.num_rows, rows):
+            yield table.slice(offset, rows)
+
+
+def export(
+    tables_: Iterable[pa.Table],
+    robot: str,
+    elements: Sequence[Element],
+    fmt: str,
+    events: Iterable[Mapping[str, object]] = (),
+) -> Iterator[bytes]:
+    """The export's bytes, chunk by chunk, from ``tables_`` as ``tables`` gives them."""
+    if fmt == "csv":
+        return _csv(tables_, elements)
+    if fmt == "parquet":
+        return _parquet(tables_, robot, elements)
+    if fmt == "mcap":
+        return _mcap(tables_, robot, elements, events)
+    raise ValueError(f"unknown export format {fmt!r}: expected one of {', '.join(FORMATS)}")
+
+
+def tables(
+    root: Path, robot: str, elements: Sequence[Element], *, from_s: float, to_s: float, fmt: str
+) -> Iterator[pa.Table]:
+    """The tables an export of ``fmt`` reads (MCAP: whole fields)."""
+    columns = [TIME, SEQ, *(e.name for e in export_elements(elements, fmt))]
+    return iter_raw(root, robot, columns, from_s, to_s)
+
+
+def export_elements(elements: Sequence[Element], fmt: str) -> list[Element]:
+    """The elements an export holds: MCAP widens a field asked for in part to the whole."""
+    if fmt != "mcap":
+        return list(elements)
+    fields = {e.field.name for e in elements}
+    return [e for e in ELEMENTS if e.field.name in fields]
+
+
+# --------------------------------------------------------------------------- CSV
+
+
+def csv_header(element: Element) -> str:
+    return f"{element.name} [{element.unit}]" if element.unit else element.name
+
+
+def _csv(tables_: Iterable[pa.Table], elements: Sequence[Element]) -> Iterator[bytes]:
+    names = ["time", SEQ, *(csv_header(e) for e in elements)]
+    types = [pa.string(), pa.int64(), *(e.arrow_type for e in elements)]
+    schema = pa.schema(list(zip(names, types, strict=True)))
+    sink = _Sink()
+    writer = pa_csv.CSVWriter(pa.PythonFile(sink, mode="w"), schema)
+    try:
+        # The header even for an empty range.
+        writer.write_table(schema.empty_table())
+        yield sink.take()
+        for table in _chunks(tables_):
+            times = pc.strftime(table.column(TIME), format="%Y-%m-%dT%H:%M:%SZ")
+            arrays = [times, table.column(SEQ), *(table.column(e.name) for e in elements)]
+            writer.write_table(pa.Table.from_arrays(arrays, schema=schema))
+            yield sink.take()
+    finally:
+        writer.close()
+    yield sink.take()
+
+
+# --------------------------------------------------------------------------- Parquet
+
+
+def export_schema(robot: str, elements: Sequence[Element]) -> pa.Schema:
+    fields = [SCHEMA.field(TIME), SCHEMA.field(SEQ), *(SCHEMA.field(e.name) for e in elements)]
+    return pa.schema(fields, metadata={"robot": robot, "layout": T2O_ASSEMBLY.name})
+
+
+def _parquet(
+    tables_: Iterable[pa.Table], robot: str, elements: Sequence[Element]
+) -> Iterator[bytes]:
+    schema = export_schema(robot, elements)
+    sink = _Sink()
+    writer = pq.ParquetWriter(pa.PythonFile(sink, mode="w"), schema, compression="zstd")
+    try:
+        for table in tables_:
+            if table.num_rows:
+                writer.write_table(table.select(schema.names).cast(schema))
+                yield sink.take()
+    finally:
+        writer.close()
+    yield sink.take()
+
+
+# --------------------------------------------------------------------------- MCAP
+
+
+def _json_type(f: Field) -> dict[str, object]:
+    kind = f.value_kind
+    return {"type": "number" if kind == "float" else "integer" if kind == "int" else "boolean"}
+
+
+def frame_json_schema(elements: Sequence[Element]) -> dict[str, object]:
+    """The JSON Schema of the ``/ROBOT/frames`` messages (whole fields of ``elements``)."""
+    properties: dict[str, object] = {
+        "time": {"type": "number", "description": "receive time, s since the epoch"},
+        "seq": {"type": "integer", "description": "the service's frame counter of the robot"},
+    }
+    seen: list[Field] = []
+    for e in elements:
+        if e.field not in seen:
+            seen.append(e.field)
+    for f in seen:
+        unit = f" [{f.unit}]" if f.unit else ""
+        description = f.description + unit
+        if f.scalar:
+            properties[f.name] = {**_json_type(f), "description": description}
+        elif f.element_names:
+            properties[f.name] = {
+                "type": "object",
+                "properties": {n: _json_type(f) for n in f.element_names},
+                "required": list(f.element_names),
+                "description": description,
+            }
+        else:
+            properties[f.name] = {
+                "type": "array",
+                "items": _json_type(f),
+                "minItems": f.count,
+                "maxItems": f.count,
+                "description": description + (f" ({', '.join(f.channels)})" if f.channels else ""),
+            }
+    return {
+        "title": FRAME_SCHEMA_NAME,
+        "description": T2O_ASSEMBLY.description,
+        "type": "object",
+        "properties": properties,
+        "required": list(properties),
+    }
+
+
+EVENT_JSON_SCHEMA: Final = {
+    "title": EVENT_SCHEMA_NAME,
+    "description": "an event of the robot's event log (docs/api.md, Events)",
+    "type": "object",
+    "properties": {
+        "kind": {"type": "string"},
+        "time": {"type": "number", "description": "s since the epoch"},
+        "robot": {"type": ["string", "null"]},
+    },
+    "required": ["kind", "time"],
+    "additionalProperties": True,
+}
+
+
+def _event_time_ns(event: Mapping[str, object]) -> int:
+    t = event.get("time")
+    return int(float(t) * 1e9) if isinstance(t, int | float) else 0
+
+
+def _mcap(
+    tables_: Iterable[pa.Table],
+    robot: str,
+    elements: Sequence[Element],
+    events: Iterable[Mapping[str, object]],
+) -> Iterator[bytes]:
+    elements = export_elements(elements, "mcap")
+    sink = _Sink()
+    writer = Writer(sink, compression=CompressionType.ZSTD)  # type: ignore[arg-type]
+    writer.start(profile="", library="cobot-hmi")
+    frame_schema = writer.register_schema(
+        name=FRAME_SCHEMA_NAME,
+        encoding="jsonschema",
+        data=json.dumps(frame_json_schema(elements)).encode(),
+    )
+    event_schema = writer.register_schema(
+        name=EVENT_SCHEMA_NAME, encoding="jsonschema", data=json.dumps(EVENT_JSON_SCHEMA).encode()
+    )
+    frames = writer.register_channel(f"/{robot}/frames", "json", frame_schema)
+    event_channel = writer.register_channel(f"/{robot}/events", "json", event_schema)
+    pending = sorted(events, key=_event_time_ns)
+    next_event = 0
+
+    def events_until(time_ns: int | None) -> None:
+        nonlocal next_event
+        while next_event < len(pending):
+            event = pending[next_event]
+            event_ns = _event_time_ns(event)
+            if time_ns is not None and event_ns > time_ns:
+                return
+            data = orjson.dumps(event, option=orjson.OPT_NON_STR_KEYS)
+            writer.add_message(event_channel, event_ns, data, event_ns)
+            next_event += 1
+
+    fields: list[tuple[Field, list[str]]] = []
+    for e in elements:
+        if not fields or fields[-1][0] is not e.field:
+            fields.append((e.field, []))
+        fields[-1][1].append(e.name)
+    yield sink.take()
+    for table in _chunks(tables_):
+        micros = table.column(TIME).cast(pa.int64()).to_numpy()
+        times_ns = (micros.astype(np.int64) * 1000).tolist()
+        times_s = (micros / 1e6).tolist()
+        seqs = table.column(SEQ).to_pylist()
+        values = {e.name: table.column(e.name).to_pylist() for e in elements}
+        for row, time_ns in enumerate(times_ns):
+            events_until(time_ns)
+            message: dict[str, object] = {"time": times_s[row], "seq": seqs[row]}
+            # The frame's JSON shape (``codec.frame_to_json``): scalars, arrays, records.
+            for f, columns in fields:
+                if f.scalar:
+                    message[f.name] = values[columns[0]][row]
+                elif f.element_names:
+                    message[f.name] = {
+                        n: values[c][row] for n, c in zip(f.element_names, columns, strict=True)
+                    }
+                else:
+                    message[f.name] = [values[c][row] for c in columns]
+            writer.add_message(
+                frames, time_ns, orjson.dumps(message), time_ns, seqs[row] & 0xFFFFFFFF
+            )
+        yield sink.take()
+    events_until(None)
+    writer.finish()  # type: ignore[no-untyped-call]
+    yield sink.take()

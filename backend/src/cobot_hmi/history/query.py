@@ -1,0 +1,293 @@
+"""Layer: history storage. Imports only the history schema, rollup and segments.
+
+A range of a robot's recording, decimated for a plot of ``points`` buckets, without losing a
+peak (the M4 idea: per bucket the min, the max, the first and the last value, so a line drawn
+through them has every extreme of the raw frames):
+
+- fewer frames in the range than ``points``: the raw frames themselves (``mode="raw"``);
+- buckets narrower than a second: buckets of ``(to - from) / points`` from ``from``, reduced
+  from the raw frames;
+- buckets of a second or more: a whole number of seconds wide, their edges whole multiples of
+  the width since the epoch, reduced from the per-second cells (``rollup``): exact (a bucket is
+  a union of whole cells), and a day is 86,400 cells instead of 8.64 million frames. The first
+  and last bucket may then reach past ``from`` and ``to`` to their edges.
+
+Only non-empty buckets are answered; ``count`` says how many frames each holds.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Final
+
+import numpy as np
+import numpy.typing as npt
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from cobot_hmi.history.rollup import (
+    CELL,
+    COUNT,
+    STATS,
+    T_FIRST,
+    T_LAST,
+    cell_starts,
+    reduce_runs,
+    rollup_table,
+    stat_column,
+)
+from cobot_hmi.history.schema import SCHEMA, SEQ, TIME, Element, time_seconds
+from cobot_hmi.history.segments import Segment, list_journals, list_segments, read_journal
+
+MAX_POINTS: Final = 5000
+CELL_S: Final = 1.0
+"""Width of a rollup cell, s."""
+
+F64 = npt.NDArray[np.float64]
+
+
+class QueryError(ValueError):
+    """A query that cannot be answered as asked; ``field`` names the parameter at fault."""
+
+    def __init__(self, reason: str, field: str) -> None:
+        super().__init__(reason)
+        self.field = field
+
+
+@dataclass(slots=True)
+class Series:
+    """One element's answer: ``values`` (raw) or ``min``/``max``/``first``/``last`` (buckets)."""
+
+    element: Element
+    values: np.ndarray | None = None
+    stats: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+@dataclass(slots=True)
+class QueryResult:
+    robot: str
+    from_s: float
+    to_s: float
+    points: int
+    mode: str
+    """``raw`` or ``buckets``."""
+    t: F64
+    """Raw: each frame's receive time. Buckets: each non-empty bucket's start."""
+    series: list[Series]
+    bucket_s: float | None = None
+    seq: npt.NDArray[np.int64] | None = None
+    count: npt.NDArray[np.int64] | None = None
+    t_first: F64 | None = None
+    t_last: F64 | None = None
+    frames: int = 0
+    """Frames the answer covers."""
+
+
+def check_range(from_s: float, to_s: float, points: int) -> None:
+    if not (math.isfinite(from_s) and math.isfinite(to_s)):
+        raise QueryError("from and to must be finite times", "from")
+    if to_s <= from_s:
+        raise QueryError("'to' must be after 'from'", "to")
+    if not 1 <= points <= MAX_POINTS:
+        raise QueryError(f"points must be 1 to {MAX_POINTS}", "points")
+
+
+# --------------------------------------------------------------------------- reading
+
+
+def _segments_between(root: Path, robot: str, start_us: int, end_us: int) -> list[Segment]:
+    return [s for s in list_segments(root, robot) if s.end_us >= start_us and s.start_us < end_us]
+
+
+def _journals_before(root: Path, robot: str, end_us: int) -> list[Path]:
+    return [path for start, path in list_journals(root, robot) if start < end_us]
+
+
+def iter_raw(
+    root: Path, robot: str, columns: Sequence[str], from_s: float, to_s: float
+) -> Iterator[pa.Table]:
+    """Frames with ``from_s <= time < to_s``, ``columns`` only, a table per segment (closed
+    ones, then the open one), oldest first: memory holds one segment at a time."""
+    start_us, end_us = math.floor(from_s * 1e6), math.ceil(to_s * 1e6)
+    for segment in _segments_between(root, robot, start_us, end_us):
+        try:
+            table = pq.ParquetFile(segment.path).read(columns=list(columns))
+        except (OSError, pa.ArrowException):  # deleted by retention meanwhile
+            continue
+        partial = segment.start_us < start_us or segment.end_us >= end_us
+        yield _clip(table, from_s, to_s, partial)
+    for path in _journals_before(root, robot, end_us):
+        yield _clip(read_journal(path).select(list(columns)), from_s, to_s, True)
+
+
+def read_raw(
+    root: Path, robot: str, elements: Sequence[Element], from_s: float, to_s: float
+) -> pa.Table:
+    """Frames with ``from_s <= time < to_s``: ``time``, ``seq`` and the elements' columns."""
+    columns = [TIME, SEQ, *(e.name for e in elements)]
+    tables = list(iter_raw(root, robot, columns, from_s, to_s))
+    if not tables:
+        return pa.schema([SCHEMA.field(c) for c in columns]).empty_table()
+    return pa.concat_tables(tables)
+
+
+def _clip(table: pa.Table, from_s: float, to_s: float, needed: bool) -> pa.Table:
+    if not needed or table.num_rows == 0:
+        return table
+    t = time_seconds(table)
+    first, last = np.searchsorted(t, from_s, "left"), np.searchsorted(t, to_s, "left")
+    return table.slice(int(first), int(last - first))
+
+
+def read_cells(
+    root: Path, robot: str, elements: Sequence[Element], first_cell: int, end_cell: int
+) -> pa.Table:
+    """Per-second cells ``first_cell <= cell < end_cell`` of closed segments and journals."""
+    columns = [CELL, COUNT, T_FIRST, T_LAST]
+    columns += [stat_column(e.name, s) for e in elements for s in STATS]
+    start_us, end_us = first_cell * 1_000_000, end_cell * 1_000_000
+    tables = []
+    for segment in _segments_between(root, robot, start_us, end_us):
+        try:
+            table = pq.ParquetFile(segment.rollup_path).read(columns=columns)
+        except (OSError, pa.ArrowException):
+            try:  # a rollup lost or unreadable: made again from the frames
+                raw = pq.ParquetFile(segment.path).read()
+            except (OSError, pa.ArrowException):
+                continue
+            table = rollup_table(raw, list(elements)).select(columns)
+        whole = segment.start_us >= start_us and segment.end_us < end_us
+        tables.append(table if whole else _clip_cells(table, first_cell, end_cell))
+    for path in _journals_before(root, robot, end_us):
+        journal = read_journal(path)
+        cells = rollup_table(journal, list(elements)).select(columns)
+        tables.append(_clip_cells(cells, first_cell, end_cell))
+    if not tables:
+        return pa.schema([]).empty_table()
+    return pa.concat_tables(tables)
+
+
+def _clip_cells(table: pa.Table, first_cell: int, end_cell: int) -> pa.Table:
+    cells = table.column(CELL).to_numpy()
+    first, last = (
+        np.searchsorted(cells, first_cell, "left"),
+        np.searchsorted(cells, end_cell, "left"),
+    )
+    return table.slice(int(first), int(last - first))
+
+
+# --------------------------------------------------------------------------- answering
+
+
+def query(
+    root: Path,
+    robot: str,
+    elements: Sequence[Element],
+    *,
+    from_s: float,
+    to_s: float,
+    points: int,
+) -> QueryResult:
+    """The decimated range (module docstring); ``QueryError`` for a range it cannot answer."""
+    check_range(from_s, to_s, points)
+    width_s = (to_s - from_s) / points
+    if width_s >= CELL_S:
+        result = _from_cells(
+            root, robot, elements, from_s=from_s, to_s=to_s, points=points, width_s=width_s
+        )
+        if result is not None:
+            return result
+    table = read_raw(root, robot, elements, from_s, to_s)
+    t = time_seconds(table)
+    if table.num_rows <= points:
+        seq = table.column(SEQ).to_numpy(zero_copy_only=False)
+        series = [
+            Series(e, values=np.asarray(table.column(e.name).to_numpy(zero_copy_only=False)))
+            for e in elements
+        ]
+        return QueryResult(
+            robot, from_s, to_s, points, "raw", t, series, seq=seq, frames=table.num_rows
+        )
+    index = np.floor((t - from_s) / width_s).astype(np.int64)
+    np.clip(index, 0, points - 1, out=index)
+    starts = cell_starts(index)
+    ends = np.concatenate([starts[1:], [t.size]]).astype(np.intp)
+    series = []
+    for e in elements:
+        values = np.asarray(table.column(e.name).to_numpy(zero_copy_only=False))
+        series.append(Series(e, stats=reduce_runs(e, values, starts)))
+    return QueryResult(
+        robot,
+        from_s,
+        to_s,
+        points,
+        "buckets",
+        (from_s + index[starts] * width_s).astype(np.float64),
+        series,
+        bucket_s=width_s,
+        count=(ends - starts).astype(np.int64),
+        t_first=t[starts],
+        t_last=t[ends - 1],
+        frames=table.num_rows,
+    )
+
+
+def bucket_grid(from_s: float, to_s: float, width_s: float) -> tuple[int, int, int]:
+    """``(bucket_s, first_cell, end_cell)`` of whole-second buckets aligned on the epoch."""
+    bucket_s = max(1, math.ceil(width_s - 1e-9))
+    first_cell = math.floor(from_s / bucket_s) * bucket_s
+    end_cell = math.ceil(to_s / bucket_s) * bucket_s
+    if end_cell <= first_cell:
+        end_cell = first_cell + bucket_s
+    return bucket_s, first_cell, end_cell
+
+
+def _from_cells(
+    root: Path,
+    robot: str,
+    elements: Sequence[Element],
+    *,
+    from_s: float,
+    to_s: float,
+    points: int,
+    width_s: float,
+) -> QueryResult | None:
+    """Whole-second buckets from the cells; ``None`` when the range holds ≤ ``points`` frames
+    (the caller answers them raw)."""
+    bucket_s, first_cell, end_cell = bucket_grid(from_s, to_s, width_s)
+    cells = read_cells(root, robot, elements, first_cell, end_cell)
+    if cells.num_rows == 0:
+        return None
+    counts = cells.column(COUNT).to_numpy().astype(np.int64)
+    if int(counts.sum()) <= points:
+        return None
+    cell = cells.column(CELL).to_numpy()
+    index = (cell - first_cell) // bucket_s
+    starts = cell_starts(index)
+    ends = np.concatenate([starts[1:], [cell.size]]).astype(np.intp)
+    series = []
+    for e in elements:
+        stats = {}
+        for s in STATS:
+            values = np.asarray(cells.column(stat_column(e.name, s)).to_numpy(zero_copy_only=False))
+            stats[s] = reduce_runs(e, values, starts)[s]
+        series.append(Series(e, stats=stats))
+    t_first = cells.column(T_FIRST).to_numpy()
+    t_last = cells.column(T_LAST).to_numpy()
+    return QueryResult(
+        robot,
+        from_s,
+        to_s,
+        points,
+        "buckets",
+        (first_cell + index[starts] * bucket_s).astype(np.float64),
+        series,
+        bucket_s=float(bucket_s),
+        count=np.add.reduceat(counts, starts),
+        t_first=t_first[starts],
+        t_last=t_last[ends - 1],
+        frames=int(counts.sum()),
+    )

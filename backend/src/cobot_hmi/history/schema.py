@@ -1,0 +1,223 @@
+"""Layer: history storage. Imports only the layout, the codec and pyarrow/numpy.
+
+The recording's columns, derived from the layout (never written by hand): ``time`` (the receive
+time, ``timestamp[us, UTC]``), ``seq`` (the service's frame counter of that robot, rising by one
+per frame and starting again at 1 when the service restarts), then one column per element of
+the T→O assembly in the layout's order, named ``field`` for a scalar field and
+``field.index`` (0-based, as the API's element keys) otherwise. REALs are ``float32`` (the
+wire's own width: nothing is lost, nothing is widened), USINTs and coded bits (the analog types,
+the robot state enum) ``uint8``, flags and digital I/O ``bool`` (Parquet packs them to a bit
+each and run-length encodes them). Each column carries its unit and description as field
+metadata, so a Parquet export is self-describing.
+
+Frames are converted whole batches at a time: the recorder re-encodes each decoded frame to its
+284 wire bytes (one precompiled ``struct`` pack) and this module slices the columns out of the
+``(n, 284)`` byte matrix with numpy, by the layout's offsets and bit positions; the reverse
+(columns → bytes, for replay) is the same table read the other way.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Final
+
+import numpy as np
+import numpy.typing as npt
+import pyarrow as pa
+
+from cobot_hmi.codec import T2O_SIZE, Frame, encode_frame
+from cobot_hmi.layout import T2O_ASSEMBLY, CipType, Field
+
+TIME: Final = "time"
+"""Receive time column (``timestamp[us, UTC]``)."""
+SEQ: Final = "seq"
+"""Frame counter column (``int64``)."""
+
+TIME_TYPE: Final = pa.timestamp("us", tz="UTC")
+
+U8 = npt.NDArray[np.uint8]
+
+
+@dataclass(frozen=True, slots=True)
+class Element:
+    """One column of the recording: one element of a layout field."""
+
+    name: str
+    """Canonical column name: ``joint_position.0``, or ``robot_state`` for a scalar field."""
+    field: Field
+    index: int
+    kind: str
+    """``float``, ``int`` or ``bool`` (the layout's value kind)."""
+    label: str
+    """The channel's label (``J1``), else the field's description."""
+
+    @property
+    def unit(self) -> str:
+        return self.field.unit
+
+    @property
+    def arrow_type(self) -> pa.DataType:
+        if self.kind == "float":
+            return pa.float32()
+        if self.kind == "int":
+            return pa.uint8()
+        return pa.bool_()
+
+    @property
+    def bit(self) -> int:
+        """Absolute wire bit of a packed BOOL element (offset·8 + bit)."""
+        return self.field.first_wire_bit + self.index
+
+    @property
+    def byte_offset(self) -> int:
+        """Wire byte offset of a REAL or USINT element."""
+        size = 4 if self.field.cip_type is CipType.REAL else 1
+        return self.field.offset + size * self.index
+
+
+def _elements() -> tuple[Element, ...]:
+    out = []
+    for f in T2O_ASSEMBLY.fields:
+        for index in range(f.count):
+            name = f.name if f.scalar else f"{f.name}.{index}"
+            label = f.channels[index] if f.channels else f.description
+            out.append(Element(name, f, index, f.value_kind, label))
+    return tuple(out)
+
+
+ELEMENTS: Final = _elements()
+"""Every element of the T→O assembly, in the layout's order."""
+ELEMENT_BY_NAME: Final = {e.name: e for e in ELEMENTS}
+FIELD_NAMES: Final = tuple(f.name for f in T2O_ASSEMBLY.fields)
+
+
+def _schema() -> pa.Schema:
+    fields = [
+        pa.field(TIME, TIME_TYPE, nullable=False, metadata={"description": "receive time"}),
+        pa.field(SEQ, pa.int64(), nullable=False, metadata={"description": "frame counter"}),
+    ]
+    for e in ELEMENTS:
+        meta = {"unit": e.unit, "description": e.field.description, "label": e.label}
+        fields.append(pa.field(e.name, e.arrow_type, nullable=False, metadata=meta))
+    return pa.schema(fields, metadata={"layout": T2O_ASSEMBLY.name})
+
+
+SCHEMA: Final = _schema()
+
+
+class UnknownFieldError(ValueError):
+    """A field or element name the layout does not have."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+        super().__init__(
+            f"unknown field {name!r}: expected a T→O field name (e.g. joint_position) or an "
+            "element (e.g. joint_position.2)"
+        )
+
+
+def select_elements(names: Iterable[str] | None) -> list[Element]:
+    """The elements named: a field name stands for all its elements, ``field.i`` for one;
+    ``None`` or nothing: every element. Order kept, duplicates dropped."""
+    wanted = [n.strip() for n in names or () if n.strip()]
+    if not wanted:
+        return list(ELEMENTS)
+    out: dict[str, Element] = {}
+    for name in wanted:
+        element = ELEMENT_BY_NAME.get(name)
+        if element is not None:
+            out.setdefault(element.name, element)
+            continue
+        matched = [e for e in ELEMENTS if e.field.name == name]
+        if not matched:
+            raise UnknownFieldError(name)
+        for e in matched:
+            out.setdefault(e.name, e)
+    return list(out.values())
+
+
+# --------------------------------------------------------------------------- frames ↔ columns
+
+
+def frames_to_raw(frames: Iterable[Frame]) -> U8:
+    """The frames' 284 wire bytes each, as an ``(n, 284)`` matrix (``extra`` bytes dropped)."""
+    blob = b"".join([encode_frame(f)[:T2O_SIZE] for f in frames])
+    return np.frombuffer(blob, dtype=np.uint8).reshape(-1, T2O_SIZE)
+
+
+def time_us(time_s: npt.ArrayLike) -> npt.NDArray[np.int64]:
+    """Epoch seconds → whole microseconds (the ``time`` column's unit)."""
+    return np.rint(np.asarray(time_s, dtype=np.float64) * 1e6).astype(np.int64)
+
+
+def columns_from_raw(raw: U8) -> dict[str, np.ndarray]:
+    """Every element's column, sliced out of an ``(n, 284)`` byte matrix."""
+    n = raw.shape[0]
+    out: dict[str, np.ndarray] = {}
+    done: set[str] = set()
+    for e in ELEMENTS:
+        f = e.field
+        if f.cip_type is CipType.REAL:
+            if f.name not in done:
+                block = np.ascontiguousarray(raw[:, f.offset : f.offset + 4 * f.count])
+                values = block.view("<f4").reshape(n, f.count)
+                for i in range(f.count):
+                    name = f.name if f.scalar else f"{f.name}.{i}"
+                    out[name] = np.ascontiguousarray(values[:, i]).astype(np.float32)
+                done.add(f.name)
+        elif f.cip_type is CipType.USINT:
+            out[e.name] = np.ascontiguousarray(raw[:, e.byte_offset])
+        else:
+            bits = (raw[:, e.bit >> 3] >> (e.bit & 7)) & 1
+            out[e.name] = bits.astype(np.uint8) if e.kind == "int" else bits.astype(np.bool_)
+    return out
+
+
+def raw_to_batch(
+    seq: npt.ArrayLike, time_s: npt.ArrayLike, raw: U8, schema: pa.Schema = SCHEMA
+) -> pa.RecordBatch:
+    """A record batch of the recording's schema from counters, times and wire bytes."""
+    columns = columns_from_raw(raw)
+    arrays = [
+        pa.array(time_us(time_s), type=pa.int64()).cast(TIME_TYPE),
+        pa.array(np.asarray(seq, dtype=np.int64)),
+        *(pa.array(columns[e.name], type=e.arrow_type) for e in ELEMENTS),
+    ]
+    return pa.RecordBatch.from_arrays(arrays, schema=schema)
+
+
+def items_to_batch(items: Sequence[tuple[int, float, Frame]]) -> pa.RecordBatch:
+    """The hub's ``(seq, received_at, frame)`` items as one record batch."""
+    raw = frames_to_raw(item[2] for item in items)
+    return raw_to_batch([item[0] for item in items], [item[1] for item in items], raw)
+
+
+def raw_from_columns(table: pa.Table | pa.RecordBatch) -> U8:
+    """The ``(n, 284)`` wire bytes of a table with element columns (missing ones are 0)."""
+    n = table.num_rows
+    raw = np.zeros((n, T2O_SIZE), dtype=np.uint8)
+    names = set(table.schema.names)
+    for e in ELEMENTS:
+        if e.name not in names:
+            continue
+        column = table.column(e.name)
+        values = column.to_numpy(zero_copy_only=False)
+        f = e.field
+        if f.cip_type is CipType.REAL:
+            raw[:, e.byte_offset : e.byte_offset + 4] = (
+                np.asarray(values, dtype="<f4").view(np.uint8).reshape(n, 4)
+            )
+        elif f.cip_type is CipType.USINT:
+            raw[:, e.byte_offset] = np.asarray(values, dtype=np.uint8)
+        else:
+            bit = (np.asarray(values).astype(np.uint8) & 1) << (e.bit & 7)
+            raw[:, e.bit >> 3] |= bit.astype(np.uint8)
+    return raw
+
+
+def time_seconds(table: pa.Table | pa.RecordBatch) -> npt.NDArray[np.float64]:
+    """The ``time`` column as epoch seconds (float64)."""
+    column = table.column(TIME)
+    micros = column.cast(pa.int64()).to_numpy(zero_copy_only=False)
+    return np.asarray(micros, dtype=np.float64) / 1e6

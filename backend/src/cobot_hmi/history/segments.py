@@ -1,0 +1,274 @@
+"""Layer: history storage. Imports only the history schema and rollup, and pyarrow.
+
+A robot's recording is a directory of segments (``HISTORY_DIR/ROBOT/``):
+
+- the open segment, a *journal*: ``START.journal.arrows``, an Arrow IPC stream to which the
+  recorder appends one record batch per flush (every ``flush_s``, default 1 s). Each batch is
+  written whole with one ``write`` before the next is taken, so a ``kill -9`` of the service
+  leaves every flushed batch readable (the operating system holds the page cache; a power cut
+  is covered from the segment's close on, below) and at most a torn last batch, which the
+  reader skips. What a crash can lose is the batch not yet flushed: at most ``flush_s`` of
+  frames plus the recorder's queue, within the 2 s bound.
+- closed segments: ``START-END.parquet`` (the frames, zstd, one row group per 64 Ki rows) and
+  ``START-END.rollup.parquet`` (per-second cells, ``rollup``). Both are written to a temporary
+  name, fsync'd, renamed into place and the directory fsync'd, rollup first: a ``.parquet``
+  exists only complete. Then the journal goes.
+
+``START``/``END`` are the first and last frame's receive times in epoch microseconds, so a
+query picks its segments from the names alone. On start, ``recover`` closes every journal left
+by a crash (its complete batches), and recording resumes in a new journal.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Final
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from cobot_hmi.history.rollup import rollup_table
+from cobot_hmi.history.schema import SCHEMA, TIME
+
+JOURNAL_SUFFIX: Final = ".journal.arrows"
+ROLLUP_SUFFIX: Final = ".rollup.parquet"
+SEGMENT_SUFFIX: Final = ".parquet"
+ROW_GROUP_ROWS: Final = 64 * 1024
+_SEGMENT_NAME: Final = re.compile(r"^(\d+)-(\d+)\.parquet$")
+_JOURNAL_NAME: Final = re.compile(r"^(\d+)\.journal\.arrows$")
+
+
+@dataclass(frozen=True, slots=True)
+class Segment:
+    """A closed segment: its frames, its cells and the receive times it spans."""
+
+    robot: str
+    path: Path
+    start_us: int
+    end_us: int
+
+    @property
+    def rollup_path(self) -> Path:
+        return self.path.with_name(self.path.name[: -len(SEGMENT_SUFFIX)] + ROLLUP_SUFFIX)
+
+    def size_bytes(self) -> int:
+        total = 0
+        for path in (self.path, self.rollup_path):
+            with contextlib.suppress(OSError):
+                total += path.stat().st_size
+        return total
+
+
+def robot_dir(root: Path, robot: str) -> Path:
+    return root / robot
+
+
+def list_robots(root: Path) -> list[str]:
+    """Robots with a directory under ``root`` (recorded at some time)."""
+    try:
+        return sorted(p.name for p in root.iterdir() if p.is_dir())
+    except OSError:
+        return []
+
+
+def list_segments(root: Path, robot: str) -> list[Segment]:
+    """The robot's closed segments, oldest first."""
+    out = []
+    try:
+        entries = list(os.scandir(robot_dir(root, robot)))
+    except OSError:
+        return []
+    for entry in entries:
+        match = _SEGMENT_NAME.match(entry.name)
+        if match:
+            out.append(Segment(robot, Path(entry.path), int(match[1]), int(match[2])))
+    out.sort(key=lambda s: (s.start_us, s.end_us))
+    return out
+
+
+def list_journals(root: Path, robot: str) -> list[tuple[int, Path]]:
+    """The robot's journals (the open segment; more than one only after a crash)."""
+    out = []
+    try:
+        entries = list(os.scandir(robot_dir(root, robot)))
+    except OSError:
+        return []
+    for entry in entries:
+        match = _JOURNAL_NAME.match(entry.name)
+        if match:
+            out.append((int(match[1]), Path(entry.path)))
+    out.sort()
+    return out
+
+
+def read_journal(path: Path) -> pa.Table:
+    """Every complete batch of a journal (a torn last batch, from a crash, is left out)."""
+    batches: list[pa.RecordBatch] = []
+    try:
+        source = pa.memory_map(str(path))
+    except (OSError, pa.ArrowException):
+        return SCHEMA.empty_table()
+    with source:
+        try:
+            reader = pa.ipc.open_stream(source)
+        except (OSError, pa.ArrowException):  # crashed before the schema was written
+            return SCHEMA.empty_table()
+        while True:
+            try:
+                batches.append(reader.read_next_batch())
+            except StopIteration:
+                break
+            except (OSError, pa.ArrowException):  # torn last batch
+                break
+        table = pa.Table.from_batches(batches, schema=SCHEMA)
+        # Copy out of the mapping before it closes.
+        return table.combine_chunks() if batches else SCHEMA.empty_table()
+
+
+def _fsync_dir(directory: Path) -> None:
+    fd = os.open(directory, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _write_parquet(table: pa.Table, path: Path, row_group_rows: int) -> None:
+    temporary = path.with_name(path.name + ".tmp")
+    try:
+        with open(temporary, "wb") as sink:
+            pq.write_table(
+                table,
+                sink,
+                compression="zstd",
+                row_group_size=row_group_rows,
+                write_statistics=True,
+            )
+            sink.flush()
+            os.fsync(sink.fileno())
+        os.replace(temporary, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            temporary.unlink()
+        raise
+
+
+def write_segment(table: pa.Table, directory: Path, robot: str) -> Segment | None:
+    """Write ``table`` (sorted by time) as a closed segment; ``None`` for an empty table."""
+    if table.num_rows == 0:
+        return None
+    micros = table.column(TIME).cast(pa.int64())
+    start_us, end_us = int(micros[0].as_py()), int(micros[-1].as_py())
+    segment = Segment(robot, directory / f"{start_us}-{end_us}{SEGMENT_SUFFIX}", start_us, end_us)
+    _write_parquet(rollup_table(table), segment.rollup_path, ROW_GROUP_ROWS)
+    _write_parquet(table, segment.path, ROW_GROUP_ROWS)
+    _fsync_dir(directory)
+    return segment
+
+
+def close_journal(path: Path, robot: str) -> Segment | None:
+    """Turn a journal into a closed segment and delete it (also after a crash)."""
+    table = read_journal(path)
+    segment = write_segment(table, path.parent, robot) if table.num_rows else None
+    path.unlink(missing_ok=True)
+    return segment
+
+
+def recover(root: Path, robot: str) -> list[Segment]:
+    """Close every journal a crash left behind; the closed segments made."""
+    made = []
+    for _, path in list_journals(root, robot):
+        segment = close_journal(path, robot)
+        if segment is not None:
+            made.append(segment)
+    return made
+
+
+class SegmentWriter:
+    """The open segment of one robot: append batches, close it every ``segment_s``.
+
+    Not thread-safe: one owner (the recorder's thread). ``OSError`` (disk full, read-only,
+    removed directory) propagates: the caller pauses; the journal written so far stays valid.
+    """
+
+    def __init__(
+        self,
+        root: Path,
+        robot: str,
+        segment_s: float,
+        *,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.root = root
+        self.robot = robot
+        self.segment_s = segment_s
+        self._clock = clock
+        self._path: Path | None = None
+        self._sink: pa.OSFile | None = None
+        self._writer: pa.ipc.RecordBatchStreamWriter | None = None
+        self._opened_at = 0.0
+        self.rows = 0
+        """Rows in the open segment."""
+
+    @property
+    def journal_path(self) -> Path | None:
+        return self._path
+
+    def append(self, batch: pa.RecordBatch) -> None:
+        """Write one batch to the journal (opened with the first batch of a segment)."""
+        if batch.num_rows == 0:
+            return
+        if self._writer is None:
+            self._open(batch)
+        assert self._writer is not None
+        self._writer.write_batch(batch)
+        self.rows += batch.num_rows
+
+    def _open(self, batch: pa.RecordBatch) -> None:
+        directory = robot_dir(self.root, self.robot)
+        directory.mkdir(parents=True, exist_ok=True)
+        start_us = int(batch.column(TIME).cast(pa.int64())[0].as_py())
+        path = directory / f"{start_us}{JOURNAL_SUFFIX}"
+        sink = pa.OSFile(str(path), "wb")
+        try:
+            writer = pa.ipc.new_stream(sink, SCHEMA)
+        except BaseException:
+            sink.close()
+            raise
+        self._path, self._sink, self._writer = path, sink, writer
+        self._opened_at = self._clock()
+        self.rows = 0
+
+    def due(self) -> bool:
+        """The open segment has lasted ``segment_s``."""
+        return self._writer is not None and self._clock() - self._opened_at >= self.segment_s
+
+    def close_segment(self) -> Segment | None:
+        """Close the journal and turn it into a closed segment (``None``: nothing open)."""
+        path = self._path
+        if path is None:
+            return None
+        self._abandon()
+        return close_journal(path, self.robot)
+
+    def _abandon(self) -> None:
+        """Close the journal's file without compacting it (after a write error: it stays on
+        disk for ``recover``)."""
+        writer, sink = self._writer, self._sink
+        self._path, self._sink, self._writer = None, None, None
+        self.rows = 0
+        if writer is not None:
+            with contextlib.suppress(OSError, pa.ArrowException):
+                writer.close()
+        if sink is not None:
+            with contextlib.suppress(OSError, pa.ArrowException):
+                sink.close()
+
+    def abandon(self) -> None:
+        self._abandon()

@@ -1,0 +1,304 @@
+"""Layer: service. The recorder: every frame of every robot into its recording
+(``cobot_hmi.history``), off the hot path.
+
+Each robot's hub hands every frame to the recorder's subscription (``Hub.subscribe``: an O(1)
+append on the cyclic thread into a bounded queue of ``history_queue_frames``, the oldest dropped
+and counted when full: the cyclic connection never waits). One thread of the recorder's own
+drains the queues every ``history_flush_s``, turns the frames into one record batch per robot
+(numpy over the wire bytes, ``history.schema``) and appends it to the robot's open segment;
+every ``history_segment_s`` the segment is closed into Parquet (``history.segments``), and
+retention (``history.retention``) runs. The work holds the GIL briefly (a batch is converted in
+one go; pyarrow's writing releases it), so the cyclic thread is not held off.
+
+A disk that fills (or any write error: read-only, removed directory) pauses recording for every
+robot with a ``recording`` event (state ``paused`` and the reason) on each robot's stream and
+log; so does free space under ``history_min_free_bytes``. The service keeps running; frames
+meanwhile are counted as not recorded. Every ``RETRY_S`` the recorder checks again and resumes
+(event state ``recording``). A queue that overflowed is reported by an event (state
+``overflow``, at most once per ``RETRY_S`` per robot) and in ``/metrics``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import shutil
+import threading
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Final
+
+from cobot_hmi.history import retention, segments
+from cobot_hmi.history.schema import items_to_batch
+from cobot_hmi.history.segments import SegmentWriter
+from cobot_hmi.service.hub import FrameSubscription
+
+if TYPE_CHECKING:
+    from cobot_hmi.service.robot import RobotRuntime
+    from cobot_hmi.service.settings import ServiceSettings
+
+log = logging.getLogger(__name__)
+
+RETRY_S: Final = 5.0
+"""How often a paused recorder checks the disk again, and the least time between two overflow
+events of one robot."""
+RETENTION_INTERVAL_S: Final = 30.0
+SUBSCRIPTION_NAME: Final = "history"
+
+MetricFamily = tuple[str, str, str, list[tuple[dict[str, str], float]]]
+
+
+@dataclass(slots=True)
+class _Track:
+    """One robot's recording state (owned by the recorder's thread)."""
+
+    robot: RobotRuntime
+    writer: SegmentWriter
+    subscription: FrameSubscription | None = None
+    frames_recorded: int = 0
+    frames_not_recorded: int = 0
+    segments_closed: int = 0
+    dropped_reported: int = 0
+    overflow_reported_at: float = 0.0
+
+
+class Recorder:
+    """Build with the settings and the robots; ``start`` on the web loop before the cyclic
+    thread starts (so no frame is missed), ``stop`` after it stopped (the last frames are
+    written and every open segment closed)."""
+
+    def __init__(self, settings: ServiceSettings, robots: Mapping[str, RobotRuntime]) -> None:
+        self.root = settings.history_path
+        self.settings = settings
+        self.tracks = {
+            name: _Track(robot, SegmentWriter(self.root, name, settings.history_segment_s))
+            for name, robot in robots.items()
+        }
+        self.paused_reason: str | None = None
+        """Why recording is paused (``None``: recording)."""
+        self.write_errors = 0
+        self.pauses = 0
+        self.retention_deleted_segments = 0
+        self.retention_freed_bytes = 0
+        self.bytes_on_disk = 0
+        self.cpu_seconds = 0.0
+        """CPU time of the recorder's thread."""
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._stopping = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._next_retry = 0.0
+        self._next_retention = 0.0
+        self._next_space_check = 0.0
+
+    # ------------------------------------------------------------ lifecycle (web loop)
+
+    async def start(self) -> None:
+        self._loop = asyncio.get_running_loop()
+        for name, track in self.tracks.items():
+            track.subscription = track.robot.hub.subscribe(
+                SUBSCRIPTION_NAME, self.settings.history_queue_frames
+            )
+            track.dropped_reported = 0
+            with contextlib.suppress(OSError):  # a crash's journals: closed before new ones
+                await asyncio.to_thread(segments.recover, self.root, name)
+        self._thread = threading.Thread(target=self._run, name="history recorder", daemon=True)
+        self._thread.start()
+
+    async def stop(self) -> None:
+        self._stopping.set()
+        thread = self._thread
+        if thread is not None:
+            await asyncio.to_thread(thread.join)
+        self._thread = None
+        for track in self.tracks.values():
+            if track.subscription is not None:
+                track.robot.hub.unsubscribe(track.subscription)
+                track.subscription = None
+
+    # ------------------------------------------------------------ the thread
+
+    def _run(self) -> None:
+        started = time.thread_time()
+        try:
+            while not self._stopping.wait(self.settings.history_flush_s):
+                self._cycle()
+                self.cpu_seconds = time.thread_time() - started
+            self._cycle()
+            self._close_all()
+        except Exception:  # a bug must not end recording silently
+            log.exception("history recorder failed")
+            self._pause("the recorder failed (see the service log)")
+        finally:
+            self.cpu_seconds = time.thread_time() - started
+
+    def _cycle(self) -> None:
+        now = time.monotonic()
+        if now >= self._next_space_check:
+            self._next_space_check = now + RETRY_S
+            self._check_space()
+        if self.paused_reason is not None and now >= self._next_retry:
+            self._try_resume()
+        for track in self.tracks.values():
+            self._record(track, now)
+        if self.paused_reason is None and now >= self._next_retention:
+            self._next_retention = now + RETENTION_INTERVAL_S
+            self._retention()
+
+    def _record(self, track: _Track, now: float) -> None:
+        subscription = track.subscription
+        if subscription is None:
+            return
+        items = subscription.drain()
+        dropped = subscription.dropped
+        if dropped > track.dropped_reported and now - track.overflow_reported_at >= RETRY_S:
+            newly = dropped - track.dropped_reported
+            track.dropped_reported = dropped
+            track.overflow_reported_at = now
+            self._event(
+                track,
+                "overflow",
+                f"the recorder fell behind: {newly} frames not recorded",
+                dropped=newly,
+            )
+        if self.paused_reason is not None:
+            track.frames_not_recorded += len(items)
+            return
+        try:
+            if items:
+                track.writer.append(items_to_batch(items))
+                track.frames_recorded += len(items)
+            if track.writer.due():
+                if track.writer.close_segment() is not None:
+                    track.segments_closed += 1
+                self._next_retention = 0.0
+        except OSError as error:
+            track.frames_not_recorded += len(items)
+            self.write_errors += 1
+            track.writer.abandon()
+            self._pause(f"cannot write {self.root}: {error.strerror or error}")
+
+    def _close_all(self) -> None:
+        for track in self.tracks.values():
+            try:
+                if track.writer.close_segment() is not None:
+                    track.segments_closed += 1
+            except OSError as error:
+                track.writer.abandon()
+                log.warning("history of %s: segment not closed: %s", track.robot.name, error)
+
+    def _check_space(self) -> None:
+        minimum = self.settings.history_min_free_bytes
+        if not minimum:
+            return
+        try:
+            free = shutil.disk_usage(self._existing_parent()).free
+        except OSError:
+            return
+        if free < minimum and self.paused_reason is None:
+            self._pause(
+                f"disk nearly full: {free // 1024**2} MiB free under {self.root} "
+                f"(history_min_free_bytes {minimum // 1024**2} MiB)"
+            )
+
+    def _existing_parent(self) -> str:
+        path = self.root
+        while not path.exists() and path.parent != path:
+            path = path.parent
+        return str(path)
+
+    def _try_resume(self) -> None:
+        self._next_retry = time.monotonic() + RETRY_S
+        minimum = self.settings.history_min_free_bytes
+        try:
+            if minimum and shutil.disk_usage(self._existing_parent()).free < minimum:
+                return
+            for name in self.tracks:
+                # Journals left by the pause (complete batches) become segments first.
+                segments.recover(self.root, name)
+            self.root.mkdir(parents=True, exist_ok=True)
+        except OSError:
+            return
+        log.warning("history: recording resumed")
+        self.paused_reason = None
+        for track in self.tracks.values():
+            self._event(track, "recording", "recording resumed")
+
+    def _pause(self, reason: str) -> None:
+        if self.paused_reason is not None:
+            return
+        log.warning("history: recording paused: %s", reason)
+        self.paused_reason = reason
+        self.pauses += 1
+        self._next_retry = time.monotonic() + RETRY_S
+        for track in self.tracks.values():
+            track.writer.abandon()
+            self._event(track, "paused", reason)
+
+    def _retention(self) -> None:
+        days = self.settings.history_retention_days
+        try:
+            result = retention.enforce(
+                self.root,
+                now_s=time.time(),
+                max_age_s=days * 86400,
+                max_bytes=self.settings.history_retention_bytes,
+            )
+        except OSError as error:
+            log.warning("history retention failed: %s", error)
+            return
+        self.retention_deleted_segments += len(result.deleted)
+        self.retention_freed_bytes += result.bytes_freed
+        self.bytes_on_disk = result.bytes_kept
+
+    def _event(self, track: _Track, state: str, reason: str, **extra: object) -> None:
+        """A ``recording`` event on the robot's stream and log (from this thread)."""
+        event: dict[str, object] = {
+            "kind": "recording",
+            "time": time.time(),
+            "state": state,
+            "reason": reason,
+            **extra,
+        }
+        loop = self._loop
+        if loop is None:
+            return
+        with contextlib.suppress(RuntimeError):  # the loop closed during shutdown
+            loop.call_soon_threadsafe(track.robot.hub.publish_event, event)
+
+    # ------------------------------------------------------------ /metrics
+
+    def metric_families(self) -> list[MetricFamily]:
+        tracks = list(self.tracks.values())
+
+        def per_robot(value: str) -> list[tuple[dict[str, str], float]]:
+            return [({"robot": t.robot.name}, float(getattr(t, value))) for t in tracks]
+
+        return [
+            ("history_recording", "gauge", "1 while recording, 0 while paused",
+             [({}, 0.0 if self.paused_reason else 1.0)]),
+            ("history_frames_recorded_total", "counter", "frames written to the recording",
+             per_robot("frames_recorded")),
+            ("history_frames_not_recorded_total", "counter",
+             "frames received while recording was paused",
+             per_robot("frames_not_recorded")),
+            ("history_frames_dropped_total", "counter",
+             "frames the recorder's queue dropped before it read them (overflow)",
+             [({"robot": t.robot.name},
+               float(t.subscription.dropped if t.subscription else t.dropped_reported))
+              for t in tracks]),
+            ("history_segments_closed_total", "counter", "segments closed into Parquet",
+             per_robot("segments_closed")),
+            ("history_write_errors_total", "counter", "failed writes (each pauses recording)",
+             [({}, float(self.write_errors))]),
+            ("history_pauses_total", "counter", "times recording paused",
+             [({}, float(self.pauses))]),
+            ("history_retention_deleted_segments_total", "counter",
+             "segments deleted by retention (age or size)",
+             [({}, float(self.retention_deleted_segments))]),
+            ("history_bytes", "gauge", "bytes the recordings take on disk",
+             [({}, float(self.bytes_on_disk))]),
+            ("history_cpu_seconds_total", "counter", "CPU time of the recorder's thread",
+             [({}, self.cpu_seconds)]),
+        ]  # fmt: skip

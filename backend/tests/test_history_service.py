@@ -1,0 +1,376 @@
+"""History against the real emulator and service: the recording equals the frames the stream saw
+(counters, times, every element), the REST history answer equals a brute-force decimation of the
+recorded rows, exports read back by independent readers, refusals say what is wrong, and a disk
+that cannot be written pauses recording with an event while the service keeps serving."""
+
+from __future__ import annotations
+
+import asyncio
+import csv
+import io
+import math
+import re
+from collections.abc import Mapping
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+import httpx
+import orjson
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+from mcap.reader import make_reader
+from websockets.asyncio.client import connect
+
+from cobot_hmi.emulator.robot import RobotSettings as SimulationSettings
+from cobot_hmi.emulator.robot import SimulatedRobot
+from cobot_hmi.history.query import CELL_S, bucket_grid
+from cobot_hmi.history.schema import ELEMENTS, Element, time_seconds
+from cobot_hmi.service.settings import ServiceSettings
+from service_support import (
+    DEADLINE_S,
+    OPERATOR,
+    Running,
+    emulator,
+    running_service,
+    service_settings,
+)
+from test_history_storage import brute_force, same
+
+pytestmark = pytest.mark.timeout(180)
+
+ROBOT = "robot"
+
+
+def simulated() -> SimulatedRobot:
+    """The simulation with fresh monitoring values in every frame (all of them differ)."""
+    return SimulatedRobot(SimulationSettings(kinematic_refresh_ms=0.0))
+
+
+async def stream_frames(hmi: Running, count: int) -> list[dict[str, Any]]:
+    """``count`` frames as the robot's WebSocket stream delivers them (``seq``, ``t``, frame)."""
+    seen: list[dict[str, Any]] = []
+    async with connect(hmi.robot_ws_url(ROBOT), max_size=None) as ws:
+        while len(seen) < count:
+            message = orjson.loads(await asyncio.wait_for(ws.recv(), DEADLINE_S))
+            if message["type"] == "frames":
+                seen.extend(message["frames"])
+    return seen
+
+
+async def wait_recorded(client: httpx.AsyncClient, from_s: float, last_seq: int) -> None:
+    """Until the recording holds frame ``last_seq`` (the recorder flushes every 0.2 s here)."""
+    for _ in range(int(DEADLINE_S * 10)):
+        answer = await client.get(
+            f"/api/v1/robots/{ROBOT}/history",
+            params={"from": from_s, "to": from_s + 3600, "points": 5000, "fields": "robot_state"},
+        )
+        assert answer.status_code == 200, answer.text
+        body = answer.json()
+        if body["mode"] == "buckets" or (body["seq"] and body["seq"][-1] >= last_seq):
+            return  # (buckets: more than 5000 frames recorded since ``from_s``)
+        await asyncio.sleep(0.1)
+    raise AssertionError(f"frame {last_seq} not recorded in time")
+
+
+def element_value(frame: Mapping[str, Any], element: Element) -> object:
+    """An element's value in the stream's frame JSON."""
+    value = frame[element.field.name]
+    if element.field.scalar:
+        return value
+    if element.field.element_names:
+        return value[element.field.element_names[element.index]]
+    return value[element.index]
+
+
+def history_settings(
+    target_port: int, robot_host: str, plc_host: str, tmp_path: Path, **extra: Any
+) -> ServiceSettings:
+    return service_settings(
+        robot_host,
+        target_port,
+        plc_host,
+        tmp_path,
+        history_segment_s=2.0,
+        history_flush_s=0.2,
+        **extra,
+    )
+
+
+async def test_recording_equals_the_frames_the_stream_saw(
+    robot_host: str, plc_host: str, tmp_path: Path
+) -> None:
+    async with emulator(robot_host, simulated()) as target:
+        settings = history_settings(target.tcp_port, robot_host, plc_host, tmp_path)
+        async with running_service(settings) as hmi:
+            seen = await stream_frames(hmi, 500)
+            from_s = seen[0]["t"] - 0.001
+            async with hmi.client() as client:
+                await wait_recorded(client, from_s, seen[-1]["seq"])
+                export = await client.get(
+                    f"/api/v1/robots/{ROBOT}/export",
+                    params={"from": from_s, "to": seen[-1]["t"] + 0.001, "format": "parquet"},
+                )
+            metrics = await hmi.metrics()
+    assert export.status_code == 200, export.text
+    table = pq.read_table(pa.BufferReader(export.content))
+    seqs = table.column("seq").to_pylist()
+    # Every frame between the first and the last the stream saw, none missing, none twice.
+    assert seqs == list(range(seen[0]["seq"], seen[-1]["seq"] + 1))
+    rows = {seq: i for i, seq in enumerate(seqs)}
+    times = time_seconds(table)
+    columns = {e.name: table.column(e.name).to_pylist() for e in ELEMENTS}
+    for item in seen:
+        row = rows[item["seq"]]
+        assert times[row] == pytest.approx(item["t"], abs=1e-6)
+        for e in ELEMENTS:
+            expected = element_value(item["frame"], e)
+            actual = columns[e.name][row]
+            if expected is None:  # a non-finite REAL is null in JSON
+                assert actual is not None and not math.isfinite(actual), e.name
+            else:
+                assert actual == expected, (item["seq"], e.name)
+    # Several segments were closed on the way (2 s each), and the recorder lost nothing.
+    assert len(list((tmp_path / "history" / ROBOT).glob("*-*.rollup.parquet"))) >= 1
+    assert re.search(rf'cobot_hmi_history_frames_dropped_total{{robot="{ROBOT}"}} 0.0', metrics)
+    assert re.search(r"cobot_hmi_history_recording 1.0", metrics)
+    recorded = re.search(
+        rf'cobot_hmi_history_frames_recorded_total{{robot="{ROBOT}"}} (\d+)', metrics
+    )
+    assert recorded and int(recorded[1]) >= len(seqs)
+
+
+async def test_history_answer_equals_brute_force_over_the_recorded_rows(
+    robot_host: str, plc_host: str, tmp_path: Path
+) -> None:
+    names = ["joint_position.1", "joint_torque.4", "robot_state", "servo_on"]
+    async with emulator(robot_host, simulated()) as target:
+        settings = history_settings(target.tcp_port, robot_host, plc_host, tmp_path)
+        async with running_service(settings) as hmi:
+            seen = await stream_frames(hmi, 400)
+            from_s, to_s = seen[0]["t"], seen[-1]["t"]
+            async with hmi.client() as client:
+                await wait_recorded(client, from_s, seen[-1]["seq"])
+                answers = {}
+                for points in (5000, 40, 2):
+                    answer = await client.get(
+                        f"/api/v1/robots/{ROBOT}/history",
+                        params={
+                            "from": from_s,
+                            "to": to_s,
+                            "points": points,
+                            "fields": "joint_position.1,joint_torque.4,robot_state,servo_on",
+                        },
+                    )
+                    assert answer.status_code == 200, answer.text
+                    answers[points] = answer.json()
+                # Whole-second cells need a range of seconds: the wider, the more cells.
+                grid = bucket_grid(from_s, to_s, (to_s - from_s) / 2)
+                export = await client.get(
+                    f"/api/v1/robots/{ROBOT}/export",
+                    params={
+                        "from": grid[1],
+                        "to": grid[2],
+                        "format": "parquet",
+                        "fields": ",".join(names),
+                    },
+                )
+    table = pq.read_table(pa.BufferReader(export.content))
+    t = time_seconds(table)
+    raw = answers[5000]
+    assert raw["mode"] == "raw"
+    inside = (t >= from_s) & (t < to_s)
+    assert raw["seq"] == [
+        s for s, keep in zip(table.column("seq").to_pylist(), inside, strict=True) if keep
+    ]
+    for points in (40, 2):
+        body = answers[points]
+        assert body["mode"] == "buckets"
+        width = (to_s - from_s) / points
+        if width >= CELL_S:
+            bucket_s, first, end = bucket_grid(from_s, to_s, width)
+            edges = [(float(b), float(b + bucket_s)) for b in range(first, end, bucket_s)]
+            rows = table
+        else:
+            edges = [(from_s + k * width, from_s + (k + 1) * width) for k in range(points)]
+            edges[-1] = (edges[-1][0], to_s)
+            rows = table.filter(pa.array(inside))
+        assert body["frames"] == rows.num_rows
+        for name in names:
+            series = next(s for s in body["series"] if s["element"] == name)
+            got = [
+                (c, *(series[s][i] for s in ("min", "max", "first", "last")))
+                for i, c in enumerate(body["count"])
+            ]
+            expected = brute_force(rows, name, edges)
+            assert same(got, [tuple(_json(v) for v in row) for row in expected]), (points, name)
+
+
+def _json(value: object) -> object:
+    """As JSON carries it: a float32 through orjson is its shortest text, read as a double."""
+    if isinstance(value, float) and math.isfinite(value):
+        import numpy as np
+
+        return float(repr(np.float32(value)).removeprefix("np.float32(").removesuffix(")"))
+    return value
+
+
+async def test_exports_read_back_by_independent_readers(
+    robot_host: str, plc_host: str, tmp_path: Path
+) -> None:
+    async with emulator(robot_host, simulated()) as target:
+        settings = history_settings(target.tcp_port, robot_host, plc_host, tmp_path)
+        async with running_service(settings) as hmi:
+            started = hmi.service.started_at
+            seen = await stream_frames(hmi, 200)
+            async with hmi.client() as client:
+                await wait_recorded(client, seen[0]["t"], seen[-1]["seq"])
+                await hmi.service.store.flush_events()
+                params = {"from": started - 5, "to": seen[-1]["t"] + 0.001}
+                csv_answer = await client.get(
+                    f"/api/v1/robots/{ROBOT}/export",
+                    params={**params, "format": "csv", "fields": "joint_position,robot_state"},
+                )
+                mcap_answer = await client.get(
+                    f"/api/v1/robots/{ROBOT}/export", params={**params, "format": "mcap"}
+                )
+    assert csv_answer.status_code == 200
+    assert csv_answer.headers["content-type"].startswith("text/csv")
+    disposition = csv_answer.headers["content-disposition"]
+    assert re.fullmatch(
+        rf'attachment; filename="{ROBOT}_\d{{8}}T\d{{6}}Z_\d{{8}}T\d{{6}}Z\.csv"', disposition
+    )
+    rows = list(csv.reader(io.StringIO(csv_answer.text)))
+    assert rows[0] == [
+        "time",
+        "seq",
+        *(f"joint_position.{i} [degree]" for i in range(6)),
+        "robot_state",
+    ]
+    by_seq = {int(r[1]): r for r in rows[1:]}
+    for item in seen:
+        row = by_seq[item["seq"]]
+        assert datetime.fromisoformat(row[0]).timestamp() == pytest.approx(item["t"], abs=1e-6)
+        assert int(row[8]) == item["frame"]["robot_state"]
+    assert mcap_answer.status_code == 200
+    reader = make_reader(io.BytesIO(mcap_answer.content))
+    frames, events = {}, []
+    for schema, channel, message in reader.iter_messages():
+        data = orjson.loads(message.data)
+        if channel.topic == f"/{ROBOT}/frames":
+            assert schema is not None and schema.encoding == "jsonschema"
+            frames[data["seq"]] = data
+        else:
+            assert channel.topic == f"/{ROBOT}/events"
+            events.append(data)
+    for item in seen:
+        message = frames[item["seq"]]
+        for name, value in item["frame"].items():
+            if name.endswith("_name"):
+                continue
+            assert message[name] == value, name
+    # The connection coming up is on the same time axis, in its own channel.
+    assert any(e["kind"] == "connection" and e["state"] == "connected" for e in events)
+
+
+async def test_refusals_name_the_parameter(robot_host: str, plc_host: str, tmp_path: Path) -> None:
+    async with emulator(robot_host) as target:
+        settings = history_settings(target.tcp_port, robot_host, plc_host, tmp_path)
+        async with running_service(settings) as hmi, hmi.client() as client:
+            path = f"/api/v1/robots/{ROBOT}/history"
+            cases = [
+                (path, {"from": "yesterday", "to": "1"}, 422, "from"),
+                (path, {"from": "10", "to": "5"}, 422, "to"),
+                (path, {"from": "10", "to": "20", "fields": "joint_positon"}, 422, "fields"),
+                (path, {"from": "10", "to": "20", "points": "5001"}, 422, "points"),
+                (path, {"to": "20"}, 422, "from"),
+                ("/api/v1/robots/nobody/history", {"from": "1", "to": "2"}, 404, "name"),
+                (
+                    f"/api/v1/robots/{ROBOT}/export",
+                    {"from": "1", "to": "2", "format": "xlsx"},
+                    422,
+                    "format",
+                ),
+            ]
+            for url, params, status, field in cases:
+                answer = await client.get(url, params=params)
+                assert answer.status_code == status, (params, answer.text)
+                assert answer.json()["detail"]["field"] == field, (params, answer.text)
+            # ISO 8601 and epoch seconds are the same range; an empty range is an empty answer.
+            iso = await client.get(
+                path, params={"from": "2001-01-01T00:00:00Z", "to": "2001-01-01T01:00:00+01:00"}
+            )
+            epoch = await client.get(path, params={"from": "978307200", "to": "978307200.5"})
+            assert iso.status_code == 422  # 01:00+01:00 is the same instant: an empty range
+            assert epoch.status_code == 200
+            assert epoch.json()["frames"] == 0 and epoch.json()["mode"] == "raw"
+
+
+async def test_unwritable_disk_pauses_recording_and_the_service_keeps_running(
+    robot_host: str, plc_host: str, tmp_path: Path
+) -> None:
+    # Running as root here, so a read-only directory would not stop a write: the history
+    # directory is made impossible instead (a regular file where its parent must be), which
+    # fails every write with an OSError as a full or failed disk does.
+    blocker = tmp_path / "blocked"
+    blocker.write_bytes(b"not a directory")
+    history_dir = blocker / "history"
+    async with emulator(robot_host) as target:
+        settings = history_settings(
+            target.tcp_port, robot_host, plc_host, tmp_path, history_dir=history_dir
+        )
+        async with running_service(settings) as hmi:
+            async with hmi.client(await hmi.login(OPERATOR)) as client:
+                events = await _wait_event(client, "paused")
+                assert "cannot write" in events[0]["reason"]
+                # The service keeps serving frames and the stream.
+                frame = await client.get(f"/api/v1/robots/{ROBOT}/frame")
+                assert frame.status_code == 200 and frame.json()["frame"] is not None
+                await stream_frames(hmi, 20)
+                assert "cobot_hmi_history_recording 0.0" in await hmi.metrics()
+                # The disk comes back: recording resumes by itself.
+                blocker.unlink()
+                blocker.mkdir()
+                events = await _wait_event(client, "recording")
+                assert events[0]["reason"] == "recording resumed"
+                seen = await stream_frames(hmi, 50)
+                await wait_recorded(client, seen[0]["t"], seen[-1]["seq"])
+            metrics = await hmi.metrics()
+    assert "cobot_hmi_history_recording 1.0" in metrics
+    assert re.search(
+        rf'cobot_hmi_history_frames_not_recorded_total{{robot="{ROBOT}"}} [1-9]', metrics
+    )
+
+
+async def test_low_free_space_pauses_recording(
+    robot_host: str, plc_host: str, tmp_path: Path
+) -> None:
+    # The other trigger: free space under history_min_free_bytes (here more than any disk has).
+    async with emulator(robot_host) as target:
+        settings = history_settings(
+            target.tcp_port, robot_host, plc_host, tmp_path, history_min_free_bytes=2**62
+        )
+        async with running_service(settings) as hmi:
+            client = hmi.client(await hmi.login(OPERATOR))
+            async with client:
+                events = await _wait_event(client, "paused")
+                assert "disk nearly full" in events[0]["reason"]
+                answer = await client.get(
+                    f"/api/v1/robots/{ROBOT}/history", params={"from": "0", "to": "1"}
+                )
+                assert answer.json()["recording"] is False
+                assert "disk nearly full" in answer.json()["recording_paused_reason"]
+
+
+async def _wait_event(client: httpx.AsyncClient, state: str) -> list[dict[str, Any]]:
+    """The recording events of ``state`` in the event log, once there is one (the recorder
+    checks the disk again every 5 s: a deadline well past that)."""
+    for _ in range(int(DEADLINE_S * 40)):
+        answer = await client.get("/api/v1/events", params={"kind": "recording"})
+        assert answer.status_code == 200, answer.text
+        items = [e for e in answer.json()["items"] if e["state"] == state]
+        if items:
+            return items
+        await asyncio.sleep(0.1)
+    raise AssertionError(f"no recording event {state!r}")

@@ -1,0 +1,504 @@
+"""History storage on synthetic recordings: columns from the layout round trip to the wire bytes,
+a torn journal keeps its complete batches, retention deletes the oldest first, decimated
+min/max/first/last equal a brute-force computation over the raw rows (Hypothesis), each export
+format read back by an independent reader (pyarrow, the ``mcap`` reader, Python's csv)."""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import orjson
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from mcap.reader import make_reader
+
+from cobot_hmi.codec import Frame, decode_frame, encode_frame, zero_frame
+from cobot_hmi.emulator.static_robot import standing_frame
+from cobot_hmi.history import export, retention, segments
+from cobot_hmi.history.query import CELL_S, QueryError, QueryResult, bucket_grid, query, read_raw
+from cobot_hmi.history.recording import RecordingError, read_recording
+from cobot_hmi.history.schema import (
+    ELEMENTS,
+    SCHEMA,
+    UnknownFieldError,
+    items_to_batch,
+    raw_from_columns,
+    select_elements,
+    time_seconds,
+)
+from cobot_hmi.history.times import TimeFormatError, parse_time
+from cobot_hmi.layout import T2O_ASSEMBLY
+
+Item = tuple[int, float, Frame]
+T0 = 1_800_000_000.0  # a whole second, so cells line up with the synthetic rows below
+
+
+def synthetic_items(
+    n: int, start_s: float = T0, period_s: float = 0.01, seed: int = 1
+) -> list[Item]:
+    """``n`` hub items of frames whose joints, force, state and bits all change."""
+    rng = np.random.default_rng(seed)
+    base = standing_frame()
+    items = []
+    for i in range(n):
+        frame = base._replace(
+            joint_position=tuple(float(np.float32(v)) for v in rng.normal(0, 90, 6)),
+            external_force=tuple(float(np.float32(v)) for v in rng.normal(0, 5, 3)),
+            robot_state=int(rng.integers(0, 21)),
+            servo_on=bool(rng.integers(0, 2)),
+            controlbox_di=tuple(bool(b) for b in rng.integers(0, 2, 16)),
+            bit_output_registers=tuple(bool(b) for b in rng.integers(0, 2, 64)),
+        )
+        # As a robot sends it: every REAL a float32 (decoded from its wire bytes).
+        items.append((i + 1, start_s + i * period_s, decode_frame(encode_frame(frame))))
+    return items
+
+
+def write_recording(root: Path, robot: str, items: list[Item], segment_rows: int) -> None:
+    """``items`` as closed segments of ``segment_rows`` frames and an open journal after them."""
+    writer = segments.SegmentWriter(root, robot, segment_s=1e9)
+    for offset in range(0, len(items), segment_rows):
+        writer.append(items_to_batch(items[offset : offset + segment_rows]))
+        if offset + segment_rows < len(items):
+            writer.close_segment()
+    writer.abandon()  # the last part stays a journal, as while the service records
+
+
+# --------------------------------------------------------------------------- schema
+
+
+def test_columns_come_from_the_layout() -> None:
+    count = sum(f.count for f in T2O_ASSEMBLY.fields)
+    assert len(ELEMENTS) == count
+    assert SCHEMA.names[:2] == ["time", "seq"]
+    assert "joint_position.0" in SCHEMA.names
+    assert "robot_state" in SCHEMA.names
+    assert SCHEMA.field("joint_torque.5").metadata[b"unit"] == "N·m".encode()
+    assert SCHEMA.field("servo_on").type == pa.bool_()
+    assert SCHEMA.field("robot_state").type == pa.uint8()
+    assert SCHEMA.field("analog_input_type.1").type == pa.uint8()
+    assert SCHEMA.field("tcp_position.2").type == pa.float32()
+
+
+def test_batch_round_trips_to_the_wire_bytes() -> None:
+    items = synthetic_items(50)
+    batch = items_to_batch(items)
+    raw = raw_from_columns(batch)
+    for row, (_, _, frame) in zip(raw, items, strict=True):
+        assert row.tobytes() == encode_frame(frame)
+        assert decode_frame(row.tobytes()) == frame
+    assert batch.column("seq").to_pylist() == list(range(1, 51))
+    assert time_seconds(batch).tolist() == pytest.approx([t for _, t, _ in items], abs=1e-6)
+
+
+def test_select_elements() -> None:
+    assert [e.name for e in select_elements(["external_force"])] == [
+        "external_force.0",
+        "external_force.1",
+        "external_force.2",
+    ]
+    assert [e.name for e in select_elements(["joint_position.2", "servo_on"])] == [
+        "joint_position.2",
+        "servo_on",
+    ]
+    assert len(select_elements(None)) == len(ELEMENTS)
+    with pytest.raises(UnknownFieldError, match="joint_positon"):
+        select_elements(["joint_positon"])
+
+
+def test_times() -> None:
+    assert parse_time("1800000000.5") == 1800000000.5
+    assert parse_time("2027-01-15T08:00:00Z") == parse_time("2027-01-15T09:00:00+01:00")
+    assert parse_time("2027-01-15T08:00:00") == parse_time("2027-01-15T08:00:00Z")
+    for bad in ("yesterday", "nan", "2027-13-01T00:00:00Z"):
+        with pytest.raises(TimeFormatError):
+            parse_time(bad)
+
+
+# --------------------------------------------------------------------------- segments
+
+
+def test_torn_journal_keeps_its_complete_batches(tmp_path: Path) -> None:
+    items = synthetic_items(300)
+    writer = segments.SegmentWriter(tmp_path, "r", segment_s=1e9)
+    for offset in range(0, 300, 100):
+        writer.append(items_to_batch(items[offset : offset + 100]))
+    journal = writer.journal_path
+    assert journal is not None
+    writer.abandon()
+    size = journal.stat().st_size
+    with journal.open("r+b") as file:  # a crash in the middle of the last batch's write
+        file.truncate(size - 1000)
+    made = segments.recover(tmp_path, "r")
+    assert len(made) == 1
+    assert segments.list_journals(tmp_path, "r") == []
+    table = pq.read_table(made[0].path)
+    assert table.column("seq").to_pylist() == list(range(1, 201))
+    assert made[0].rollup_path.exists()
+
+
+def test_journal_is_readable_while_open(tmp_path: Path) -> None:
+    writer = segments.SegmentWriter(tmp_path, "r", segment_s=1e9)
+    writer.append(items_to_batch(synthetic_items(10)))
+    journal = writer.journal_path
+    assert journal is not None
+    # Another reader (a query, an export, a crash) sees the batch without a close.
+    assert segments.read_journal(journal).num_rows == 10
+    writer.abandon()
+
+
+# --------------------------------------------------------------------------- retention
+
+
+def test_retention_deletes_the_oldest_first(tmp_path: Path) -> None:
+    for robot, start in (("a", T0), ("b", T0 + 5)):
+        write_recording(tmp_path, robot, synthetic_items(1000, start_s=start), 200)
+    closed = {r: segments.list_segments(tmp_path, r) for r in ("a", "b")}
+    assert [len(v) for v in closed.values()] == [4, 4]
+    everything = sorted(
+        (s for v in closed.values() for s in v), key=lambda s: (s.end_us, s.start_us)
+    )
+    sizes = {s.path: s.size_bytes() for s in everything}
+    journals = sum(
+        p.stat().st_size for r in ("a", "b") for _, p in segments.list_journals(tmp_path, r)
+    )
+    total = sum(sizes.values()) + journals
+    # Size: just under the total minus the three oldest segments → exactly those three go.
+    cap = total - sum(sizes[s.path] for s in everything[:3])
+    result = retention.enforce(tmp_path, now_s=T0 + 100, max_age_s=1e9, max_bytes=cap)
+    assert [s.path for s in result.deleted] == [s.path for s in everything[:3]]
+    assert result.bytes_kept <= cap
+    assert all(not s.path.exists() and not s.rollup_path.exists() for s in everything[:3])
+    # Age: segments whose last frame is older than the bound, oldest first; journals stay.
+    oldest_kept = everything[5]
+    age = (T0 + 100) - (oldest_kept.end_us - 1) / 1e6
+    result = retention.enforce(tmp_path, now_s=T0 + 100, max_age_s=age, max_bytes=10**12)
+    assert [s.path for s in result.deleted] == [s.path for s in everything[3:5]]
+    assert [s.path for s in segments.list_segments(tmp_path, "a")] + [
+        s.path for s in segments.list_segments(tmp_path, "b")
+    ] == sorted((s.path for s in everything[5:]), key=lambda p: (p.parent.name, p.name))
+    assert all(segments.list_journals(tmp_path, r) for r in ("a", "b"))
+
+
+# --------------------------------------------------------------------------- query
+
+
+def brute_force(
+    table: pa.Table, name: str, edges: list[tuple[float, float]]
+) -> list[tuple[Any, ...]]:
+    """Per bucket ``[lo, hi)``: (count, min, max, first, last) over the raw rows, plainly."""
+    t = time_seconds(table).tolist()
+    values = table.column(name).to_pylist()
+    out = []
+    for lo, hi in edges:
+        inside = [v for ti, v in zip(t, values, strict=True) if lo <= ti < hi]
+        if not inside:
+            continue
+        finite = [v for v in inside if not (isinstance(v, float) and math.isnan(v))]
+        low = min(finite) if finite else math.nan
+        high = max(finite) if finite else math.nan
+        out.append((len(inside), low, high, inside[0], inside[-1]))
+    return out
+
+
+def answer_buckets(result: QueryResult, name: str) -> list[tuple[Any, ...]]:
+    series = next(s for s in result.series if s.element.name == name)
+    out = []
+    assert result.count is not None
+    for i, count in enumerate(result.count.tolist()):
+        out.append(
+            (
+                count,
+                *(series.stats[s][i].item() for s in ("min", "max", "first", "last")),
+            )
+        )
+    return out
+
+
+def same(a: list[tuple[Any, ...]], b: list[tuple[Any, ...]]) -> bool:
+    def norm(row: tuple[Any, ...]) -> tuple[Any, ...]:
+        return tuple("nan" if isinstance(v, float) and math.isnan(v) else v for v in row)
+
+    return [norm(r) for r in a] == [norm(r) for r in b]
+
+
+NAMES = ["joint_position.3", "robot_state", "servo_on", "bit_output_registers.7"]
+
+
+HYPOTHESIS = settings(
+    max_examples=30,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
+
+
+def check_decimation(
+    root: Path,
+    *,
+    n: int,
+    period_ms: float,
+    segment_rows: int,
+    start_frac: float,
+    span_frac: float,
+    points: int,
+    nan_every: int,
+) -> str:
+    """Record synthetic frames, query, and compare every bucket with the brute force; the path
+    the query took (raw, buckets from the raw rows, buckets from the cells)."""
+    items = synthetic_items(n, start_s=T0 + 0.123, period_s=period_ms / 1000, seed=n)
+    if nan_every:
+        items = [
+            (
+                s,
+                t,
+                f._replace(joint_position=(*f.joint_position[:3], math.nan, *f.joint_position[4:])),
+            )
+            if s % nan_every == 0
+            else (s, t, f)
+            for s, t, f in items
+        ]
+    write_recording(root, "r", items, segment_rows)
+    duration = n * period_ms / 1000
+    from_s = T0 + start_frac * duration
+    to_s = from_s + max(span_frac * duration, 0.001)
+    elements = select_elements(NAMES)
+    result = query(root, "r", elements, from_s=from_s, to_s=to_s, points=points)
+    width = (to_s - from_s) / points
+    if result.mode == "raw":
+        raw = read_raw(root, "r", elements, from_s, to_s)
+        assert raw.num_rows <= points
+        assert result.seq is not None
+        assert result.seq.tolist() == raw.column("seq").to_pylist()
+        expected_seq = [s for s, t, _ in items if from_s <= round(t * 1e6) / 1e6 < to_s]
+        assert result.seq.tolist() == expected_seq
+        return "raw"
+    if width >= CELL_S:
+        bucket_s, first_cell, end_cell = bucket_grid(from_s, to_s, width)
+        assert result.bucket_s == bucket_s
+        edges = [(float(b), float(b + bucket_s)) for b in range(first_cell, end_cell, bucket_s)]
+        table = read_raw(root, "r", elements, first_cell, end_cell)
+    else:
+        assert result.bucket_s == pytest.approx(width)
+        edges = [(from_s + k * width, from_s + (k + 1) * width) for k in range(points)]
+        edges[-1] = (edges[-1][0], to_s)
+        table = read_raw(root, "r", elements, from_s, to_s)
+    assert result.frames == table.num_rows
+    for name in NAMES:
+        assert same(answer_buckets(result, name), brute_force(table, name, edges)), name
+    return "cells" if width >= CELL_S else "rows"
+
+
+@HYPOTHESIS
+@given(
+    n=st.integers(1, 900),
+    period_ms=st.sampled_from([1.0, 10.0, 37.0]),
+    segment_rows=st.integers(50, 400),
+    start_frac=st.floats(0, 1),
+    span_frac=st.floats(0.01, 1.2),
+    points=st.integers(1, 400),
+    nan_every=st.integers(0, 7),
+)
+def test_decimation_equals_brute_force(
+    tmp_path_factory: pytest.TempPathFactory,
+    *,
+    n: int,
+    period_ms: float,
+    segment_rows: int,
+    start_frac: float,
+    span_frac: float,
+    points: int,
+    nan_every: int,
+) -> None:
+    """Short ranges: the raw frames, or buckets reduced from them."""
+    check_decimation(
+        tmp_path_factory.mktemp("history"),
+        n=n,
+        period_ms=period_ms,
+        segment_rows=segment_rows,
+        start_frac=start_frac,
+        span_frac=span_frac,
+        points=points,
+        nan_every=nan_every,
+    )
+
+
+@HYPOTHESIS
+@given(
+    n=st.integers(200, 900),
+    period_ms=st.sampled_from([100.0, 137.0, 250.0]),
+    segment_rows=st.integers(50, 400),
+    start_frac=st.floats(0, 0.5),
+    span_frac=st.floats(0.3, 1.2),
+    points=st.integers(1, 20),
+    nan_every=st.integers(0, 7),
+)
+def test_decimation_over_cells_equals_brute_force(
+    tmp_path_factory: pytest.TempPathFactory,
+    *,
+    n: int,
+    period_ms: float,
+    segment_rows: int,
+    start_frac: float,
+    span_frac: float,
+    points: int,
+    nan_every: int,
+) -> None:
+    """Long ranges: whole-second buckets from the per-second cells (closed segments and the
+    open journal), exactly what the raw rows give."""
+    span_s = span_frac * n * period_ms / 1000
+    points = max(1, min(points, int(span_s / CELL_S)))  # buckets of a second or more
+    path = check_decimation(
+        tmp_path_factory.mktemp("history"),
+        n=n,
+        period_ms=period_ms,
+        segment_rows=segment_rows,
+        start_frac=start_frac,
+        span_frac=span_frac,
+        points=points,
+        nan_every=nan_every,
+    )
+    assert path == "cells"
+
+
+def test_query_errors(tmp_path: Path) -> None:
+    elements = select_elements(["joint_position"])
+    with pytest.raises(QueryError) as error:
+        query(tmp_path, "r", elements, from_s=T0, to_s=T0, points=10)
+    assert error.value.field == "to"
+    with pytest.raises(QueryError) as error:
+        query(tmp_path, "r", elements, from_s=T0, to_s=T0 + 1, points=5001)
+    assert error.value.field == "points"
+    empty = query(tmp_path, "nobody", elements, from_s=T0, to_s=T0 + 86400, points=1000)
+    assert empty.mode == "raw" and empty.frames == 0 and empty.t.size == 0
+
+
+# --------------------------------------------------------------------------- exports
+
+
+@pytest.fixture
+def recorded(tmp_path: Path) -> tuple[Path, list[Item]]:
+    items = synthetic_items(700, start_s=T0 + 0.5)
+    write_recording(tmp_path, "cell-1", items, 300)
+    return tmp_path, items
+
+
+def _export(
+    root: Path, fmt: str, fields: list[str] | None, events: list[dict[str, Any]] | None = None
+) -> bytes:
+    elements = select_elements(fields)
+    tables = export.tables(root, "cell-1", elements, from_s=T0, to_s=T0 + 100, fmt=fmt)
+    return b"".join(export.export(tables, "cell-1", elements, fmt, events or []))
+
+
+def test_parquet_export_read_by_pyarrow(recorded: tuple[Path, list[Item]]) -> None:
+    root, items = recorded
+    table = pq.read_table(pa.BufferReader(_export(root, "parquet", None)))
+    assert table.schema.names == SCHEMA.names
+    assert table.schema.field("time").type == pa.timestamp("us", tz="UTC")
+    assert table.schema.metadata[b"robot"] == b"cell-1"
+    assert table.schema.field("joint_position.0").metadata[b"unit"] == b"degree"
+    assert table.num_rows == len(items)
+    for row, (_, _, frame) in zip(raw_from_columns(table), items, strict=True):
+        assert row.tobytes() == encode_frame(frame)
+
+
+def test_csv_export_read_by_python_csv(recorded: tuple[Path, list[Item]]) -> None:
+    root, items = recorded
+    text = _export(root, "csv", ["joint_position", "servo_on", "robot_state"]).decode()
+    rows = list(csv.reader(io.StringIO(text)))
+    header = rows[0]
+    assert header[:3] == ["time", "seq", "joint_position.0 [degree]"]
+    assert header[-2:] == ["servo_on", "robot_state"]
+    assert len(rows) - 1 == len(items)
+    for row, (seq, t, frame) in zip(rows[1:], items, strict=True):
+        moment = datetime.fromisoformat(row[0])
+        assert row[0].endswith("Z")
+        assert moment.timestamp() == pytest.approx(t, abs=1e-6)
+        assert int(row[1]) == seq
+        # Each REAL written as the shortest text that reads back as the same float32.
+        assert [np.float32(v) for v in row[2:8]] == [np.float32(v) for v in frame.joint_position]
+        assert row[8] == ("true" if frame.servo_on else "false")
+        assert int(row[9]) == frame.robot_state
+
+
+def test_mcap_export_read_by_the_mcap_reader(recorded: tuple[Path, list[Item]]) -> None:
+    root, items = recorded
+    events = [
+        {"kind": "robot_state", "time": T0 + 2.0, "robot": "cell-1", "from": 13, "to": 3},
+        {"kind": "flag", "time": T0 + 4.0, "robot": "cell-1", "flag": "servo_on", "value": False},
+    ]
+    data = _export(root, "mcap", ["joint_position.2", "external_force"], events)
+    reader = make_reader(io.BytesIO(data))
+    summary = reader.get_summary()
+    assert summary is not None
+    topics = {c.topic: summary.schemas[c.schema_id] for c in summary.channels.values()}
+    assert set(topics) == {"/cell-1/frames", "/cell-1/events"}
+    frame_schema = topics["/cell-1/frames"]
+    assert frame_schema.encoding == "jsonschema"
+    schema = orjson.loads(frame_schema.data)
+    # A field asked for in part is exported whole, and every exported field is described.
+    assert schema["properties"]["joint_position"]["maxItems"] == 6
+    assert "degree" in schema["properties"]["joint_position"]["description"]
+    frames, seen_events = [], []
+    for _, channel, message in reader.iter_messages(log_time_order=True):
+        if channel.topic == "/cell-1/frames":
+            frames.append(orjson.loads(message.data))
+        else:
+            seen_events.append(orjson.loads(message.data))
+    assert seen_events == events
+    assert len(frames) == len(items)
+    for message, (seq, t, frame) in zip(frames, items, strict=True):
+        assert message["seq"] == seq
+        assert message["time"] == pytest.approx(t, abs=1e-6)
+        assert message["joint_position"] == list(frame.joint_position)
+        assert message["external_force"] == list(frame.external_force)
+        assert set(message) == {"time", "seq", "joint_position", "external_force"}
+
+
+def test_export_streams_one_segment_at_a_time(recorded: tuple[Path, list[Item]]) -> None:
+    root, _ = recorded
+    elements = select_elements(None)
+    tables = export.tables(root, "cell-1", elements, from_s=T0, to_s=T0 + 100, fmt="parquet")
+    chunks = list(export.export(tables, "cell-1", elements, "parquet"))
+    # Three parts on disk (two closed segments and the journal): a chunk each, then the footer.
+    assert len([c for c in chunks if c]) >= 3
+
+
+def test_filename_names_robot_and_range() -> None:
+    name = export.export_filename("cell-1", parse_time("2027-01-15T08:00:00Z"), T0, "mcap")
+    assert name.startswith("cell-1_20270115T080000Z_")
+    assert name.endswith(".mcap")
+
+
+# --------------------------------------------------------------------------- replay files
+
+
+def test_recordings_read_back_for_replay(recorded: tuple[Path, list[Item]], tmp_path: Path) -> None:
+    root, items = recorded
+    for fmt in ("parquet", "mcap"):
+        path = tmp_path / f"x.{fmt}"
+        path.write_bytes(_export(root, fmt, None))
+        recording = read_recording(path)
+        assert len(recording) == len(items)
+        assert recording.robot == "cell-1"
+        for row, (_, _, frame) in zip(recording.raw, items, strict=True):
+            assert row.tobytes() == encode_frame(frame), fmt
+    bad = tmp_path / "x.txt"
+    bad.write_bytes(b"time,seq\n")
+    with pytest.raises(RecordingError, match="neither Parquet nor MCAP"):
+        read_recording(bad)
+
+
+def test_zero_frame_columns_are_zero() -> None:
+    batch = items_to_batch([(1, T0, zero_frame())])
+    assert raw_from_columns(batch)[0].tobytes() == bytes(284)
