@@ -11,133 +11,35 @@ from __future__ import annotations
 
 import asyncio
 import itertools
-import math
 import sqlite3
-import struct
-from collections.abc import AsyncIterator
-from contextlib import AsyncExitStack, asynccontextmanager, closing
-from dataclasses import dataclass
+from contextlib import closing
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from cobot_hmi.codec import Frame
-from cobot_hmi.emulator.process_image import IdleBehaviour
-from cobot_hmi.emulator.static_robot import StaticRobot
-from cobot_hmi.layout import O2T_FIELDS, T2O_FIELDS, Field
-from cobot_hmi.service.hub import FrameSubscription
-from conftest import _next_host
 from mosquitto_support import (
-    Broker,
     Message,
-    Subscriber,
     encode_command,
-    mosquitto,
     needs_mosquitto,
 )
-from service_support import Running, cell_settings, emulator, eventually, running_service
+from service_support import eventually
+from sparkplug_support import (
+    BOOLEAN,
+    EXPECTED_O2T,
+    EXPECTED_T2O,
+    FLOAT,
+    GROUP,
+    NODE,
+    UINT8,
+    UINT64,
+    Cell,
+    cell,
+    f32,
+    node_messages,
+)
 
 pytestmark = [needs_mosquitto, pytest.mark.timeout(240)]
-
-GROUP = "plant"
-NODE = "cell-7"
-BOOLEAN, FLOAT, UINT8, UINT64, STRING = 11, 9, 5, 8, 12
-
-
-class Panel(StaticRobot):
-    """A robot standing still whose inputs a test sets, optionally with joint 1 on a ramp."""
-
-    def __init__(self, ramp_deg_per_s: float = 0.0) -> None:
-        super().__init__(IdleBehaviour.HOLD)
-        self.ramp_deg_per_s = ramp_deg_per_s
-
-    @property
-    def data_period_s(self) -> float:
-        return 0.0 if self.ramp_deg_per_s else math.inf
-
-    def set(self, **fields: Any) -> None:
-        self._base = self._base._replace(**fields)
-        self._frame = self._compose()
-
-    def produce_frame(self, now_s: float) -> Frame:
-        frame = self._frame
-        if not self.ramp_deg_per_s:
-            return frame
-        j1 = 30.0 + self.ramp_deg_per_s * (now_s % 60.0)
-        return frame._replace(joint_position=(j1, *frame.joint_position[1:]))
-
-
-def element_names(f: Field) -> list[str]:
-    if f.scalar:
-        return [f.name]
-    labels = f.element_names or f.channels or tuple(str(i) for i in range(f.count))
-    return [f"{f.name}/{label}" for label in labels]
-
-
-EXPECTED_T2O = [name for f in T2O_FIELDS for name in element_names(f)]
-EXPECTED_O2T = [f"command/{name}" for f in O2T_FIELDS for name in element_names(f)]
-
-
-def f32(value: float) -> float:
-    result: float = struct.unpack("<f", struct.pack("<f", value))[0]
-    return result
-
-
-@dataclass
-class Cell:
-    broker: Broker
-    running: Running
-    subscriber: Subscriber
-    panels: dict[str, Panel]
-    frames: dict[str, FrameSubscription]
-    """Every frame each robot's hub received since the start (the ground truth)."""
-
-    def birth(self, device: str) -> Message:
-        return self.subscriber.of("DBIRTH", device)[-1]
-
-    def aliases(self, device: str) -> dict[str, int]:
-        return {m.name: m.alias for m in self.birth(device).metrics if m.name and m.alias}
-
-    def frames_seen(self, device: str) -> list[tuple[int, float, Frame]]:
-        return list(self.frames[device].queue)
-
-
-@asynccontextmanager
-async def cell(
-    tmp_path: Path, plc_host: str, *, ramp: float = 0.0, **overrides: Any
-) -> AsyncIterator[Cell]:
-    panels = {"m1013": Panel(ramp), "m0609": Panel()}
-    async with AsyncExitStack() as stack:
-        broker = await stack.enter_async_context(mosquitto(plc_host, tmp_path))
-        subscriber = await stack.enter_async_context(Subscriber(broker))
-        robots = []
-        for name, panel in panels.items():
-            target = await stack.enter_async_context(emulator(_next_host(), panel))
-            robots.append((name, target.settings.host, target.tcp_port))
-        settings = cell_settings(
-            robots,
-            plc_host,
-            tmp_path,
-            mqtt_url=broker.url,
-            sparkplug_group=GROUP,
-            sparkplug_node=NODE,
-            **overrides,
-        )
-        running = await stack.enter_async_context(running_service(settings))
-        frames = {
-            name: robot.hub.subscribe("test", 1_000_000)
-            for name, robot in running.service.robots.items()
-        }
-        the_cell = Cell(broker, running, subscriber, panels, frames)
-        await subscriber.wait_for(
-            lambda ms: {m.device for m in ms if m.kind == "DBIRTH"} >= set(panels)
-        )
-        yield the_cell
-
-
-def node_messages(messages: list[Message]) -> list[Message]:
-    return [m for m in messages if m.kind != "NDEATH" and m.topic.split("/")[3] == NODE]
 
 
 async def test_births_seq_and_data_equal_to_frames(tmp_path: Path, plc_host: str) -> None:

@@ -131,8 +131,10 @@ class DiskBuffer:
         """The oldest segment's records, for replay (``finish`` or ``put_back`` it after)."""
         if not self._segments:
             return None
-        path, _, _ = self._segments[0]
+        path, size, _ = self._segments[0]
         if len(self._segments) == 1:
+            if size == 0:
+                return None  # only the (empty) segment being written to
             self._new_segment()  # new records go to a fresh segment while this one replays
         try:
             data = path.read_bytes()

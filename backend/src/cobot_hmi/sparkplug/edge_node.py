@@ -149,7 +149,8 @@ class EdgeNode:
         self.writer = Writer(user.name, user.role, f"{self.address} ({self.client_id})", session)
         self.online = False
         self._stopping = False
-        self._first_connect = True
+        self._connect_sent = False
+        """The last attempt opened its socket, so its CONNECT (and bdSeq) went out."""
         self._connecting_bd_seq = self.session.bd_seq
         self._client: mqtt.Client | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -176,6 +177,7 @@ class EdgeNode:
         self._loop = asyncio.get_running_loop()
         client = make_client(self.options)
         client.on_pre_connect = self._on_pre_connect
+        client.on_socket_open = self._on_socket_open
         client.on_connect = self._on_connect
         client.on_disconnect = self._on_disconnect
         client.on_message = self._on_message
@@ -235,8 +237,8 @@ class EdgeNode:
 
     def _on_pre_connect(self, client: mqtt.Client, _userdata: object) -> None:
         """Before every CONNECT: the next bdSeq, and the NDEATH carrying it as the will."""
-        bd_seq = self.session.next_connection(self._first_connect)
-        self._first_connect = False
+        bd_seq = self.session.next_connection(self._connect_sent)
+        self._connect_sent = False
         self._connecting_bd_seq = bd_seq
         client.will_set(
             self.topics.node_topic(MessageType.NDEATH),
@@ -244,6 +246,9 @@ class EdgeNode:
             qos=1,
             retain=False,
         )
+
+    def _on_socket_open(self, _client: mqtt.Client, _userdata: object, _socket: object) -> None:
+        self._connect_sent = True  # paho sends CONNECT right after opening the socket
 
     def _on_connect(
         self,

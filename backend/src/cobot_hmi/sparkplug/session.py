@@ -1,7 +1,7 @@
 """Layer: service (Sparkplug). The edge node's session numbers (Sparkplug 3.0, "Sparkplug
 Session Management"): ``bdSeq`` and ``seq``.
 
-``bdSeq`` (0–255) goes up by one with every MQTT CONNECT; the NDEATH registered as that
+``bdSeq`` (0–255) goes up by one with every MQTT CONNECT sent; the NDEATH registered as that
 connection's will and the NBIRTH sent on it carry the same value, so a host application can
 tell a stale death from the current session's. It is kept in a file of the state directory so
 that a restarted service goes on counting (a late will of the previous process must not end the
@@ -40,9 +40,10 @@ class NodeSession:
         except (OSError, ValueError):
             return 0
 
-    def next_connection(self, first: bool) -> int:
-        """Before each MQTT CONNECT: the bdSeq it carries (the first one keeps the loaded)."""
-        if not first:
+    def next_connection(self, advance: bool) -> int:
+        """Before each connection attempt: the bdSeq its CONNECT carries; ``advance`` when the
+        previous attempt sent a CONNECT (one that failed before reaching the broker did not)."""
+        if advance:
             self.bd_seq = (self.bd_seq + 1) % SEQ_MODULO
         if self._state_file is not None:
             with contextlib.suppress(OSError):  # counting on in memory is the next best

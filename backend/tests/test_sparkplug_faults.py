@@ -1,0 +1,179 @@
+"""The Sparkplug edge node through faults, against a real Mosquitto: NDEATH (the will) when the
+service is killed with ``kill -9`` and bdSeq going on after a restart, DDEATH and DBIRTH around
+an emulator restart (the other robot untouched), and the broker going away: the service keeps
+running, buffers on disk and, after the reconnect, sends NBIRTH, DBIRTHs and the buffered data
+marked historical. Deadlines are generous: the machine is shared."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import os
+import signal
+import sys
+from collections.abc import AsyncIterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from conftest import free_tcp_port
+from mosquitto_support import Message, Subscriber, mosquitto, needs_mosquitto
+from service_support import emulator, eventually
+from sparkplug_support import NODE, cell, node_messages, reported
+
+pytestmark = [needs_mosquitto, pytest.mark.timeout(300)]
+
+SLOW_S = 60.0
+"""Deadline for anything that waits on a watchdog, a reconnect backoff or a restart."""
+
+
+def bd_seq(message: Message) -> Any:
+    return next(m.value for m in message.metrics if m.name == "bdSeq")
+
+
+@contextlib.asynccontextmanager
+async def serve_process(*args: str) -> AsyncIterator[asyncio.subprocess.Process]:
+    process = await asyncio.create_subprocess_exec(
+        sys.executable,
+        "-m",
+        "cobot_hmi.cli",
+        "serve",
+        *args,
+        stdout=asyncio.subprocess.DEVNULL,
+        stderr=asyncio.subprocess.DEVNULL,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+    try:
+        yield process
+    finally:
+        if process.returncode is None:
+            process.kill()
+        await process.wait()
+
+
+async def test_ndeath_on_kill_9_and_bdseq_goes_on(
+    robot_host: str, plc_host: str, tmp_path: Path
+) -> None:
+    async with (
+        mosquitto(plc_host, tmp_path) as broker,
+        Subscriber(broker) as subscriber,
+        emulator(robot_host) as target,
+    ):
+        args = (
+            "--robot",
+            robot_host,
+            "--robot-tcp-port",
+            str(target.tcp_port),
+            "--local-host",
+            plc_host,
+            "--host",
+            plc_host,
+            "--port",
+            str(free_tcp_port(plc_host)),
+            "--state-dir",
+            str(tmp_path / "state"),
+            "--timeout-multiplier",
+            "5",
+            "--mqtt-url",
+            broker.url,
+            "--sparkplug-node",
+            NODE,
+        )
+        async with serve_process(*args) as service:
+            await subscriber.wait_for(lambda ms: any(m.kind == "DBIRTH" for m in ms), SLOW_S)
+            first = subscriber.of("NBIRTH")[0]
+            assert not subscriber.of("NDEATH")
+            service.send_signal(signal.SIGKILL)
+            await service.wait()
+            await subscriber.wait_for(lambda ms: any(m.kind == "NDEATH" for m in ms), SLOW_S)
+        death = subscriber.of("NDEATH")[0]
+        assert death.topic == f"spBv1.0/cobot-hmi/NDEATH/{NODE}"
+        assert bd_seq(death) == bd_seq(first)
+        assert death.seq is None
+        # The next process counts on: a late will of the old one cannot end the new session.
+        async with serve_process(*args):
+            await subscriber.wait_for(lambda ms: len([m for m in ms if m.kind == "NBIRTH"]) == 2)
+            second = subscriber.of("NBIRTH")[1]
+            assert bd_seq(second) == (bd_seq(first) + 1) % 256
+
+
+async def test_ddeath_and_dbirth_around_an_emulator_restart(tmp_path: Path, plc_host: str) -> None:
+    async with cell(tmp_path, plc_host) as c:
+        await c.stop_robot("m0609")
+        await c.subscriber.wait_for(lambda ms: any(m.kind == "DDEATH" for m in ms), SLOW_S)
+        await c.start_robot("m0609")
+        await c.subscriber.wait_for(
+            lambda ms: len([m for m in ms if m.kind == "DBIRTH" and m.device == "m0609"]) == 2,
+            SLOW_S,
+        )
+        lifecycle = [
+            m.kind for m in c.subscriber.snapshot() if m.device == "m0609" and m.kind != "DDATA"
+        ]
+        assert lifecycle == ["DBIRTH", "DDEATH", "DBIRTH"]
+        assert not c.subscriber.of("DDEATH", "m1013")
+        seqs = [m.seq for m in node_messages(c.subscriber.snapshot())]
+        assert seqs == [i % 256 for i in range(len(seqs))]
+        text = await c.running.metrics()
+        assert 'cobot_hmi_sparkplug_messages_total{robot="m0609",type="DDEATH"} 1.0' in text
+
+
+async def test_broker_restart_replays_the_buffer_as_historical(
+    tmp_path: Path, plc_host: str
+) -> None:
+    async with cell(tmp_path, plc_host, persistent_broker=True) as c:
+        edge = c.running.service.edge_node
+        assert edge is not None
+        first_bd_seq = bd_seq(c.subscriber.of("NBIRTH")[0])
+        alias = c.aliases("m1013")["controlbox_di/DI 5"]
+        await c.broker.stop()
+        await eventually(lambda: not edge.online, SLOW_S)
+        outage_start = len(c.frames_seen("m1013"))
+        panel = c.panels["m1013"]
+        di = list(panel.produce_frame(0).controlbox_di)
+        for k in range(8):  # the service keeps running: these go to the disk buffer
+            di[4] = k % 2 == 0
+            panel.set(controlbox_di=tuple(di))
+            await asyncio.sleep(0.15)
+        await eventually(lambda: edge.buffer.records_buffered >= 8, SLOW_S)
+        outage_frames = c.frames_seen("m1013")[outage_start:]
+        await c.broker.start()
+        await c.subscriber.wait_for(
+            lambda ms: (
+                len([m for m in ms if m.kind == "NBIRTH"]) == 2
+                and any(metric.is_historical for m in ms for metric in m.metrics)
+            ),
+            SLOW_S,
+        )
+        await eventually(lambda: edge.buffer.records_buffered == 0, SLOW_S)
+        messages = c.subscriber.snapshot()
+        assert bd_seq(c.subscriber.of("NBIRTH")[1]) == (first_bd_seq + 1) % 256
+        # After the reconnect: NBIRTH, both DBIRTHs, then the history.
+        after = messages[messages.index(c.subscriber.of("NBIRTH")[1]) :]
+        assert [m.kind for m in after[:3]] == ["NBIRTH", "DBIRTH", "DBIRTH"]
+        historical = [
+            (metric.value, metric.timestamp)
+            for m in after
+            if m.kind == "DDATA" and m.device == "m1013"
+            for metric in m.metrics
+            if metric.alias == alias and metric.is_historical
+        ]
+        expected = []
+        previous = None
+        for _, t, frame in c.frames_seen("m1013"):
+            value = frame.controlbox_di[4]
+            if previous is not None and value != previous:
+                expected.append((value, int(t * 1000)))
+            previous = value
+        outage_ms = (int(outage_frames[0][1] * 1000), int(outage_frames[-1][1] * 1000))
+        in_outage = [e for e in expected if outage_ms[0] <= e[1] <= outage_ms[1]]
+        assert len(in_outage) >= 4
+        assert historical == in_outage
+        # Live data after the replay is not historical, and DI 5 reads the same as the robot.
+        live = reported(c.subscriber.snapshot(), "m1013", alias)
+        assert live[-1][0] == c.frames_seen("m1013")[-1][2].controlbox_di[4]
+        text = await c.running.metrics()
+        assert "cobot_hmi_sparkplug_reconnects_total 1.0" in text
+        assert f"cobot_hmi_sparkplug_replayed_total {float(len(historical))}" in text or (
+            edge.replayed >= len(historical)
+        )
