@@ -11,12 +11,14 @@ STAMP := $(VENV)/.installed-stamp
 
 .PHONY: test demo lint typecheck pytest codegen venv clean system-deps frontend-test frontend-build peers e2e native-tsan
 
-# Debian packages the tests use: tshark reads our captures, chromium runs the browser tests.
+# Debian packages the tests use: tshark reads our captures, chromium runs the browser tests,
+# mosquitto is the MQTT broker of the Sparkplug tests (in /usr/sbin, often not on a user's PATH).
 # Installed only when missing (needs root, as on a fresh CI machine).
-SYSTEM_COMMANDS := tshark:tshark chromium:chromium
+SYSTEM_COMMANDS := tshark:tshark chromium:chromium mosquitto:mosquitto
 system-deps:
 	@missing=""; for pair in $(SYSTEM_COMMANDS); do \
-	  command -v "$${pair%%:*}" >/dev/null || missing="$$missing $${pair##*:}"; done; \
+	  command -v "$${pair%%:*}" >/dev/null || test -x "/usr/sbin/$${pair%%:*}" \
+	    || missing="$$missing $${pair##*:}"; done; \
 	if [ -n "$$missing" ]; then \
 	  echo "installing Debian packages:$$missing"; \
 	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing >/dev/null; \
