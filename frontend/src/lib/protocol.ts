@@ -39,6 +39,7 @@ export const EVENT_KINDS = [
   "flag",
   "write",
   "control",
+  "recording",
 ] as const satisfies readonly EventKind[];
 
 function isObject(v: unknown): v is Record<string, unknown> {

@@ -53,6 +53,11 @@ function describe(event: StreamEvent): string {
       return `${event.holder?.user ?? "nobody"} holds control${because(event.reason)}`;
     case "write":
       return `${s(event.user)}: ${labels(event.fields)} → ${event.outcome}${because(event.reason)}`;
+    case "recording":
+      return `recording ${event.state}${event.dropped ? `, ${event.dropped} frames dropped` : ""}${because(event.reason)}`;
+    default:
+      // A kind this build does not describe yet (a newer service): its fields as they came.
+      return JSON.stringify(event);
   }
 }
 
