@@ -173,6 +173,7 @@ def test_websocket_messages_and_events_are_components() -> None:
         "write",
         "control",
         "recording",
+        "alarm",
     }
 
 

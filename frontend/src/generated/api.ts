@@ -7,6 +7,108 @@
 export type JsonValue = boolean | number | string | null | JsonValue[] | { [key: string]: JsonValue };
 
 export interface paths {
+    "/api/v1/alarms": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /** Alarms that are active or unacknowledged (every robot, or ?robot=), most urgent first */
+        get: operations["list_alarms_api_v1_alarms_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/alarms/history": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /** Every alarm transition, newest first (JSON, or CSV with ISO 8601 times) */
+        get: operations["alarm_history_api_v1_alarms_history_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/alarms/{alarm_id}": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /** One alarm and its state */
+        get: operations["get_alarm_api_v1_alarms__alarm_id__get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/alarms/{alarm_id}/ack": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /** Acknowledge an alarm (operator): active → active-acknowledged, returned → normal */
+        post: operations["acknowledge_api_v1_alarms__alarm_id__ack_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/alarms/{alarm_id}/shelve": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /** Shelve an alarm (operator): not annunciated until it expires or is unshelved */
+        post: operations["shelve_api_v1_alarms__alarm_id__shelve_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/alarms/{alarm_id}/unshelve": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /** Unshelve an alarm (operator) */
+        post: operations["unshelve_api_v1_alarms__alarm_id__unshelve_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/audit": {
         parameters: {
             query?: never;
@@ -369,6 +471,58 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/v1/robots/{name}/tags": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /** Every taggable point of the robot with its label and tag name */
+        get: operations["get_tags_api_v1_robots__name__tags_get"];
+        /** Replace the robot's tag names (admin; audited) */
+        put: operations["put_tags_api_v1_robots__name__tags_put"];
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/robots/{name}/tags.csv": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /** The tag names as CSV: key,label,name (every point; unnamed ones empty) */
+        get: operations["get_tags_csv_api_v1_robots__name__tags_csv_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/robots/{name}/tags/import": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /** Replace the robot's tag names from CSV key,label,name (admin; audited) */
+        post: operations["import_tags_api_v1_robots__name__tags_import_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/status": {
         parameters: {
             query?: never;
@@ -446,6 +600,263 @@ export type webhooks = Record<string, never>;
 export interface components {
     schemas: {
         /**
+         * Alarm
+         * @description One alarm of one robot and its ISA-18.2 state (docs/api.md "Alarms").
+         */
+        Alarm: {
+            /** Ack Comment */
+            ack_comment: string | null;
+            /**
+             * Acknowledged
+             * @description state normal or active_acknowledged
+             */
+            acknowledged: boolean;
+            /** Acknowledged At */
+            acknowledged_at: number | null;
+            /** Acknowledged By */
+            acknowledged_by: string | null;
+            /** Activated At */
+            activated_at: number | null;
+            /**
+             * Active
+             * @description the condition is there (state active_*)
+             */
+            active: boolean;
+            /**
+             * Changed At
+             * @description last change of this record, s since the epoch
+             */
+            changed_at: number | null;
+            /** Cleared At */
+            cleared_at: number | null;
+            /**
+             * Colour
+             * @description the pendant's colour: a robot state's own, else the priority's (critical red, high orange, medium yellow, low blue)
+             */
+            colour: string;
+            /** Description */
+            description: string;
+            /**
+             * Element
+             * @description the watched frame element, ``name.index``
+             */
+            element: string | null;
+            /** High */
+            high: number | null;
+            /**
+             * Id
+             * @description ``robot:key``, e.g. ``left:emergency_stop``
+             */
+            id: string;
+            /**
+             * Key
+             * @description emergency_stop, protective_stop, safe_off, connection_lost, forward_open_refused, packet_loss, motor_temperature.0–5 (0-based: motor_temperature.2 is J 3), user.NAME
+             */
+            key: string;
+            /**
+             * Kind
+             * @enum {string}
+             */
+            kind: "state" | "connection" | "rate" | "limit" | "bit";
+            /**
+             * Label
+             * @description its label as the robot prints it (J 3, DO 3)
+             */
+            label: string | null;
+            /** Low */
+            low: number | null;
+            /**
+             * Message
+             * @description the condition in words at the last change
+             */
+            message: string | null;
+            /**
+             * Name
+             * @description in words
+             */
+            name: string;
+            /**
+             * Priority
+             * @enum {string}
+             */
+            priority: "critical" | "high" | "medium" | "low";
+            /**
+             * Priority Rank
+             * @description 0 critical … 3 low: sort by it
+             */
+            priority_rank: number;
+            /** Robot */
+            robot: string;
+            /** Shelve Reason */
+            shelve_reason: string | null;
+            /** Shelved */
+            shelved: boolean;
+            /** Shelved By */
+            shelved_by: string | null;
+            /** Shelved Until */
+            shelved_until: number | null;
+            /**
+             * State
+             * @enum {string}
+             */
+            state: "normal" | "active_unacknowledged" | "active_acknowledged" | "returned_unacknowledged";
+            /**
+             * Tag
+             * @description its tag name, when an admin gave one
+             */
+            tag: string | null;
+            /** Unit */
+            unit: string;
+            /**
+             * Value
+             * @description the watched value at the last change
+             */
+            value: boolean | number | null;
+        };
+        /**
+         * AlarmAck
+         * @description ``POST /api/v1/alarms/{id}/ack`` (the body is optional).
+         */
+        AlarmAck: {
+            /** Comment */
+            comment?: string | null;
+        };
+        /**
+         * AlarmAnswer
+         * @description An operator's change of one alarm: the alarm after it, and whether anything changed.
+         */
+        AlarmAnswer: {
+            alarm: components["schemas"]["Alarm"];
+            /** Changed */
+            changed: boolean;
+        };
+        /**
+         * AlarmEvent
+         * @description An alarm changed: it came, went, was acknowledged, shelved or unshelved.
+         */
+        AlarmEvent: {
+            alarm: components["schemas"]["Alarm"];
+            /**
+             * Comment
+             * @description the comment or shelving reason
+             */
+            comment?: string | null;
+            /**
+             * Id
+             * @description row id in the event log (log pages only)
+             */
+            id?: number | null;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            kind: "alarm";
+            /**
+             * Robot
+             * @description the robot's name
+             */
+            robot?: string | null;
+            /**
+             * Time
+             * @description s since the epoch
+             */
+            time: number;
+            /**
+             * Transition
+             * @enum {string}
+             */
+            transition: "activated" | "cleared" | "acknowledged" | "shelved" | "unshelved" | "shelve_expired";
+            /**
+             * User
+             * @description who acknowledged or shelved it
+             */
+            user?: string | null;
+        };
+        /** AlarmHistoryPage */
+        AlarmHistoryPage: {
+            /** Items */
+            items: components["schemas"]["AlarmHistoryRow"][];
+            /** Total */
+            total: number;
+        };
+        /**
+         * AlarmHistoryRow
+         * @description One transition of one alarm.
+         */
+        AlarmHistoryRow: {
+            /** Alarm Id */
+            alarm_id: string;
+            /** Comment */
+            comment: string | null;
+            /** Id */
+            id: number;
+            /** Key */
+            key: string;
+            /** Label */
+            label: string | null;
+            /** Message */
+            message: string | null;
+            /** Name */
+            name: string;
+            /**
+             * Priority
+             * @enum {string}
+             */
+            priority: "critical" | "high" | "medium" | "low";
+            /** Robot */
+            robot: string;
+            /** Shelved */
+            shelved: boolean;
+            /**
+             * State
+             * @description the state after the transition
+             * @enum {string}
+             */
+            state: "normal" | "active_unacknowledged" | "active_acknowledged" | "returned_unacknowledged";
+            /** Tag */
+            tag: string | null;
+            /**
+             * Time
+             * @description s since the epoch (CSV: ISO 8601 with offset)
+             */
+            time: number;
+            /**
+             * Transition
+             * @enum {string}
+             */
+            transition: "activated" | "cleared" | "acknowledged" | "shelved" | "unshelved" | "shelve_expired";
+            /** User */
+            user: string | null;
+            /** Value */
+            value: boolean | number | null;
+        };
+        /**
+         * AlarmList
+         * @description ``GET /api/v1/alarms``: alarms that are active or unacknowledged, most urgent first.
+         */
+        AlarmList: {
+            /** Items */
+            items: components["schemas"]["Alarm"][];
+            /** Total */
+            total: number;
+        };
+        /**
+         * AlarmShelve
+         * @description ``POST /api/v1/alarms/{id}/shelve``.
+         */
+        AlarmShelve: {
+            /**
+             * Duration S
+             * @description until it unshelves itself, s (at most alarm_shelve_max_s)
+             */
+            duration_s: number;
+            /**
+             * Reason
+             * @description why (required)
+             */
+            reason: string;
+        };
+        /**
          * ApiErrorBody
          * @description Why a request was refused.
          */
@@ -514,7 +925,7 @@ export interface components {
              * Action
              * @enum {string}
              */
-            action: "write" | "control.take" | "control.release";
+            action: "write" | "control.take" | "control.release" | "alarm.ack" | "alarm.shelve" | "alarm.unshelve" | "tags.update";
             /** Before */
             before: {
                 [key: string]: boolean | number | null;
@@ -532,6 +943,13 @@ export interface components {
             /** Id */
             id: number;
             /**
+             * Labels
+             * @description the spec's label of each key of ``fields`` (controlbox_do.2 → DO 3)
+             */
+            labels?: {
+                [key: string]: string;
+            };
+            /**
              * Origin
              * @description which door the request came through (HTTP route, …)
              */
@@ -540,7 +958,7 @@ export interface components {
              * Outcome
              * @enum {string}
              */
-            outcome: "confirmed" | "timeout" | "invalid" | "refused" | "unauthorized" | "forbidden" | "granted" | "released" | "pending";
+            outcome: "confirmed" | "timeout" | "invalid" | "refused" | "unauthorized" | "forbidden" | "granted" | "released" | "pending" | "acknowledged" | "shelved" | "unshelved" | "updated" | "unchanged";
             /** Reason */
             reason: string | null;
             /** @description the requested values (a malformed body: what came) */
@@ -550,6 +968,18 @@ export interface components {
              * @description the robot's name (null: rows from before robots had names)
              */
             robot: string | null;
+            /**
+             * Summary
+             * @description what was asked in words with the spec's labels: "DO 3 (gripper close) = on", "AO 1 type = voltage, AO 1 = 5 V"
+             */
+            summary?: string | null;
+            /**
+             * Tags
+             * @description tag names of the touched points when the row was written
+             */
+            tags?: {
+                [key: string]: string;
+            } | null;
             /** Time */
             time: number;
             /** User */
@@ -684,6 +1114,11 @@ export interface components {
             duplicates: number;
             /** Gaps */
             gaps: number;
+            /**
+             * Gaps Per Min
+             * @description T→O sequence gaps in the last minute (null: not connected, or no sample yet)
+             */
+            gaps_per_min?: number | null;
             /** Interval Max Ms */
             interval_max_ms: number | null;
             /** Interval Mean Ms */
@@ -701,6 +1136,12 @@ export interface components {
              * @enum {string}
              */
             mode: "exclusive_owner" | "input_only";
+            /**
+             * Packet Loss High
+             * @description the packet loss alarm is active: gaps_per_min is above alarm_gap_rate_per_min (the connection badge turns amber)
+             * @default false
+             */
+            packet_loss_high?: boolean;
             /** Packets In */
             packets_in: number;
             /** Packets Out */
@@ -793,7 +1234,7 @@ export interface components {
         /** EventMessage */
         EventMessage: {
             /** Event */
-            event: components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"];
+            event: components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"] | components["schemas"]["AlarmEvent"];
             /**
              * @description discriminator enum property added by openapi-typescript
              * @enum {string}
@@ -806,7 +1247,7 @@ export interface components {
          */
         EventPage: {
             /** Items */
-            items: (components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"])[];
+            items: (components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"] | components["schemas"]["AlarmEvent"])[];
             /** Total */
             total: number;
         };
@@ -1077,6 +1518,12 @@ export interface components {
              */
             robot?: string | null;
             /**
+             * Session
+             * @description the public id of this stream's login session (null: none): control's holder.session equal to it means this window holds control
+             * @default null
+             */
+            session?: string | null;
+            /**
              * @description discriminator enum property added by openapi-typescript
              * @enum {string}
              */
@@ -1188,6 +1635,16 @@ export interface components {
         };
         /** Holder */
         Holder: {
+            /**
+             * Session
+             * @description the public id of the login session holding control (never its token); compare with the hello's `session` to tell this window from another one of the same user
+             */
+            session?: string | null;
+            /**
+             * Session Is Yours
+             * @description answers to one request (GET …/status, …/robots, the hello): true when the requesting session holds control, false when another session does (possibly the same user's, in another window: only the holding session may write or release); null when the request has no session, and in events
+             */
+            session_is_yours?: boolean | null;
             /**
              * Since
              * @description when control was taken, s since the epoch
@@ -1456,6 +1913,76 @@ export interface components {
         /** @description One message of WS /api/v1/robots/{name}/stream (JSON text), told apart by `type`. */
         StreamMessage: components["schemas"]["HelloMessage"] | components["schemas"]["FramesMessage"] | components["schemas"]["DroppedMessage"] | components["schemas"]["StatusMessage"] | components["schemas"]["EventMessage"];
         /**
+         * TagImport
+         * @description ``POST /api/v1/robots/{name}/tags/import``: CSV text (``key,label,name``, as the export),
+         *     sent as JSON; replaces every name.
+         */
+        TagImport: {
+            /** Csv */
+            csv: string;
+        };
+        /**
+         * TagList
+         * @description ``GET /api/v1/robots/{name}/tags``: every taggable point with its name.
+         */
+        TagList: {
+            /** Points */
+            points: components["schemas"]["TagPoint"][];
+            /** Robot */
+            robot: string;
+            /**
+             * Tags
+             * @description ``{key: name}`` of the named points only
+             */
+            tags: {
+                [key: string]: string;
+            };
+        };
+        /**
+         * TagPoint
+         * @description A taggable point of one robot: I/O or a bit register.
+         */
+        TagPoint: {
+            /** Directions */
+            directions: ("T2O" | "O2T")[];
+            /** Field */
+            field: string;
+            /** Index */
+            index: number;
+            /**
+             * Key
+             * @description ``name.index``, 0-based as the frame's arrays: controlbox_do.2
+             */
+            key: string;
+            /**
+             * Label
+             * @description the spec's label: DO 3
+             */
+            label: string;
+            /**
+             * Name
+             * @description its tag name (null: none)
+             */
+            name: string | null;
+        };
+        /**
+         * TagUpdate
+         * @description ``PUT /api/v1/robots/{name}/tags``: the whole set of names (a point left out has none).
+         */
+        TagUpdate: {
+            /**
+             * Tags
+             * @description ``{"controlbox_do.2": "gripper close"}`` (index 2 is DO 3); an empty name removes one
+             * @example {
+             *       "bit_input_registers.40": "part ready",
+             *       "controlbox_do.2": "gripper close"
+             *     }
+             */
+            tags: {
+                [key: string]: string;
+            };
+        };
+        /**
          * WriteConfirmed
          * @description ``PATCH …/command``: applied, and the robot showed it.
          */
@@ -1471,7 +1998,10 @@ export interface components {
         };
         /** WriteEvent */
         WriteEvent: {
-            /** Fields */
+            /**
+             * Fields
+             * @description ``name.index`` keys (0-based: controlbox_do.2 is DO 3)
+             */
             fields: string[];
             /**
              * Id
@@ -1483,6 +2013,13 @@ export interface components {
              * @enum {string}
              */
             kind: "write";
+            /**
+             * Labels
+             * @description the spec's label of each key: controlbox_do.2 → DO 3, analog_output_type.1 → AO 1 type
+             */
+            labels?: {
+                [key: string]: string;
+            } | null;
             /**
              * Outcome
              * @enum {string}
@@ -1496,12 +2033,31 @@ export interface components {
              */
             robot?: string | null;
             /**
+             * Summary
+             * @description the write in words with labels, tags and units: "AO 1 type = voltage, AO 1 = 5 V"
+             */
+            summary?: string | null;
+            /**
+             * Tags
+             * @description tag names of the touched points, where one is given
+             */
+            tags?: {
+                [key: string]: string;
+            } | null;
+            /**
              * Time
              * @description s since the epoch
              */
             time: number;
             /** User */
             user: string | null;
+            /**
+             * Values
+             * @description the values written, by ``name.index`` key
+             */
+            values?: {
+                [key: string]: boolean | number | null;
+            } | null;
         };
     };
     responses: never;
@@ -1512,6 +2068,507 @@ export interface components {
 }
 export type $defs = Record<string, never>;
 export interface operations {
+    list_alarms_api_v1_alarms_get: {
+        parameters: {
+            query?: {
+                /** @description current: active or unacknowledged; all: every alarm, normal too */
+                which?: "current" | "all";
+                /** @description only this robot's rows */
+                robot?: string | null;
+            };
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["AlarmList"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description invalid request: the answer names the field; nothing was applied */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    alarm_history_api_v1_alarms_history_get: {
+        parameters: {
+            query?: {
+                /** @description only this priority */
+                priority?: ("critical" | "high" | "medium" | "low") | null;
+                /** @description from this time on, s since the epoch */
+                since?: number | null;
+                /** @description before this time, s since the epoch */
+                until?: number | null;
+                limit?: number;
+                offset?: number;
+                /** @description csv: the page as CSV */
+                format?: "json" | "csv";
+                /** @description only this robot's rows */
+                robot?: string | null;
+            };
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description a page, newest first (format=csv: as CSV, the total in X-Total-Count) */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["AlarmHistoryPage"];
+                    "text/csv": string;
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description invalid request: the answer names the field; nothing was applied */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    get_alarm_api_v1_alarms__alarm_id__get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description ``robot:key``, e.g. ``left:emergency_stop`` (URL-encode the colon as %3A if your client insists) */
+                alarm_id: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["Alarm"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    acknowledge_api_v1_alarms__alarm_id__ack_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description ``robot:key``, e.g. ``left:emergency_stop`` (URL-encode the colon as %3A if your client insists) */
+                alarm_id: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: {
+            content: {
+                "application/json": components["schemas"]["AlarmAck"] | null;
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["AlarmAnswer"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the role is too low, or the request is not same-origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description not now: not connected, input-only mode, or control is someone else's */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the body is larger than the service accepts */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description a body that is not application/json */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description invalid request: the answer names the field; nothing was applied */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description too many attempts: wait as Retry-After says */
+            429: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    shelve_api_v1_alarms__alarm_id__shelve_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description ``robot:key``, e.g. ``left:emergency_stop`` (URL-encode the colon as %3A if your client insists) */
+                alarm_id: string;
+            };
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["AlarmShelve"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["AlarmAnswer"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the role is too low, or the request is not same-origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description not now: not connected, input-only mode, or control is someone else's */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the body is larger than the service accepts */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description a body that is not application/json */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description invalid request: the answer names the field; nothing was applied */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description too many attempts: wait as Retry-After says */
+            429: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    unshelve_api_v1_alarms__alarm_id__unshelve_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description ``robot:key``, e.g. ``left:emergency_stop`` (URL-encode the colon as %3A if your client insists) */
+                alarm_id: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["AlarmAnswer"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the role is too low, or the request is not same-origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description not now: not connected, input-only mode, or control is someone else's */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the body is larger than the service accepts */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description a body that is not application/json */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description invalid request: the answer names the field; nothing was applied */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description too many attempts: wait as Retry-After says */
+            429: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
     get_audit_api_v1_audit_get: {
         parameters: {
             query?: {
@@ -2023,7 +3080,7 @@ export interface operations {
         parameters: {
             query?: {
                 /** @description only events of this kind */
-                kind?: ("connection" | "robot_state" | "flag" | "write" | "control" | "recording") | null;
+                kind?: ("connection" | "robot_state" | "flag" | "write" | "control" | "recording" | "alarm") | null;
                 limit?: number;
                 offset?: number;
                 /** @description csv: the whole page as CSV */
@@ -2913,6 +3970,304 @@ export interface operations {
             };
             /** @description no robot of that name (the answer names the known ones) */
             404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    get_tags_api_v1_robots__name__tags_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["TagList"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    put_tags_api_v1_robots__name__tags_put: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["TagUpdate"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["TagList"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the role is too low, or the request is not same-origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the body is larger than the service accepts */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description a body that is not application/json */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description invalid request: the answer names the field; nothing was applied */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description too many attempts: wait as Retry-After says */
+            429: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    get_tags_csv_api_v1_robots__name__tags_csv_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description CSV with a header row */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "text/csv": string;
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    import_tags_api_v1_robots__name__tags_import_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["TagImport"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["TagList"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the role is too low, or the request is not same-origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the body is larger than the service accepts */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description a body that is not application/json */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description invalid request: the answer names the field; nothing was applied */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description too many attempts: wait as Retry-After says */
+            429: {
                 headers: {
                     [name: string]: unknown;
                 };

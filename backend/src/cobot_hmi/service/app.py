@@ -17,11 +17,13 @@ from fastapi.responses import JSONResponse, Response
 
 from cobot_hmi import __version__
 from cobot_hmi.service import (
+    routes_alarms,
     routes_auth,
     routes_history,
     routes_log,
     routes_read,
     routes_stream,
+    routes_tags,
     routes_write,
     security,
     static_files,
@@ -99,6 +101,8 @@ def create_app(
         routes_write,
         routes_log,
         routes_history,
+        routes_alarms,
+        routes_tags,
         routes_stream,
     ):
         app.include_router(module.router)

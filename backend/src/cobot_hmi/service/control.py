@@ -32,7 +32,14 @@ class Holder:
     client: str | None
 
     def to_json(self) -> dict[str, object]:
-        return {"user": self.user, "since": self.since}
+        return {"user": self.user, "since": self.since, "session": self.session_id}
+
+    def describe_for(self, session: Session | None) -> str:
+        """Who holds control, as the refusal to ``session`` says it: a user, or the same user
+        in another session (another window: control belongs to a session)."""
+        if session is not None and session.user.name == self.user:
+            return f"you ({self.user}) in another session (another window or device)"
+        return self.user
 
 
 class Control:
@@ -49,6 +56,15 @@ class Control:
 
     def status(self) -> dict[str, object]:
         return {"holder": None if self.holder is None else self.holder.to_json()}
+
+    def status_for(self, session: Session | None) -> dict[str, object]:
+        """``status()`` as one requester sees it: ``holder.session_is_yours`` says whether
+        ``session`` holds control (null without a session)."""
+        holder = self.holder
+        if holder is None:
+            return {"holder": None}
+        mine = None if session is None else holder.session_id == session.id
+        return {"holder": {**holder.to_json(), "session_is_yours": mine}}
 
     def holds(self, session: Session) -> bool:
         return self.holder is not None and self.holder.session_id == session.id
@@ -68,7 +84,7 @@ class Control:
             holder = self.holder
             if holder is not None and holder.session_id != session.id:
                 await self._audit(session.user.name, client, "control.take", "refused", "held")
-                raise conflict(f"control is held by {holder.user}")
+                raise conflict(f"control is held by {holder.describe_for(session)}")
             refusal = self.refusal_to_write()
             if refusal is None and holder is None:
                 refusal = await self._go_run()
@@ -105,7 +121,10 @@ class Control:
                 return self.status()
             if holder.session_id != session.id and session.user.role < Role.ADMIN:
                 await self._audit(session.user.name, client, "control.release", "refused", "held")
-                raise conflict(f"control is held by {holder.user}, not by you")
+                raise conflict(
+                    f"control is held by {holder.describe_for(session)}; only the session "
+                    "holding it (or an admin) may release it"
+                )
             reason = "released" if holder.session_id == session.id else "released by an admin"
             await self._end(session.user.name, client, reason)
             return self.status()

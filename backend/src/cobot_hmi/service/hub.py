@@ -30,7 +30,7 @@ import time
 from collections import deque
 from collections.abc import Awaitable, Callable, Coroutine
 from dataclasses import dataclass, field
-from typing import Any, Final
+from typing import Any, Final, Protocol
 
 from cobot_hmi.codec import Frame, dumps, frame_to_json
 from cobot_hmi.service.events import Event, FrameWatcher
@@ -51,6 +51,12 @@ _INTERVAL_BUCKETS_S: Final = (
     *(i / 1000 for i in (30, 40, 50, 75, 100, 250, 500, 1000)),
 )
 """Upper bounds of the receive-interval histogram, seconds."""
+
+
+class FrameAlarms(Protocol):
+    """The robot's alarm engine (``service.alarms.engine.AlarmEngine``) as the hub sees it."""
+
+    def observe(self, frame: Frame, time_s: float) -> list[Event] | None: ...
 
 
 class Kind(enum.Enum):
@@ -253,6 +259,8 @@ class Hub:
         self._groups: dict[float | None, _RateGroup] = {}
         self.clients: set[StreamClient] = set()
         self._watcher = FrameWatcher()
+        self.alarms: FrameAlarms | None = None
+        """Evaluated on every frame in ``tick``, its events after the frame's own."""
         self._subscriptions: tuple[FrameSubscription, ...] = ()
         self._last_broadcast_seq = 0
         self._last_interval_t: float | None = None
@@ -434,8 +442,13 @@ class Hub:
         if items:
             self._account(items)
             events: list[Event] = []
+            alarms = self.alarms
             for _, t, frame in items:
                 events.extend(self._watcher.observe(frame, t))
+                if alarms is not None:
+                    alarm_events = alarms.observe(frame, t)
+                    if alarm_events:
+                        events.extend(alarm_events)
             if self._groups:
                 pieces: list[bytes | None] = [None] * len(items)
                 for group in self._groups.values():

@@ -185,6 +185,14 @@ def render_metrics(service: Service, stats: dict[str, ConnectionStats]) -> str:
         "1 while someone holds control",
         lambda r, s: int(r.control.holder is not None),
     )
+    w.metric(
+        "alarms",
+        "gauge",
+        "alarms by priority and what they are: active, unacknowledged, shelved",
+    )
+    for robot, _, label in robots:
+        for (priority, what), count in robot.alarms.counts().items():
+            w.sample("alarms", count, {**label, "priority": priority, "state": what})
     w.metric("logins_total", "counter", "login attempts by outcome")
     for outcome in ("ok", "failed", "throttled"):
         w.sample("logins_total", service.logins[outcome], {"outcome": outcome})

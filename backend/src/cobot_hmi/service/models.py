@@ -236,11 +236,33 @@ class ConnectionStatus(BaseModel):
     last_frame_age_s: float | None
     stale: bool
     connected_since: float | None
+    gaps_per_min: float | None = Field(
+        default=None,
+        description="T→O sequence gaps in the last minute (null: not connected, or no sample yet)",
+    )
+    packet_loss_high: bool = Field(
+        default=False,
+        description="the packet loss alarm is active: gaps_per_min is above "
+        "alarm_gap_rate_per_min (the connection badge turns amber)",
+    )
 
 
 class Holder(BaseModel):
     user: str
     since: float = Field(description="when control was taken, s since the epoch")
+    session: str | None = Field(
+        default=None,
+        description="the public id of the login session holding control (never its token); "
+        "compare with the hello's `session` to tell this window from another one of the "
+        "same user",
+    )
+    session_is_yours: bool | None = Field(
+        default=None,
+        description="answers to one request (GET …/status, …/robots, the hello): true when the "
+        "requesting session holds control, false when another session does (possibly the "
+        "same user's, in another window: only the holding session may write or release); "
+        "null when the request has no session, and in events",
+    )
 
 
 class ControlStatus(BaseModel):
@@ -366,15 +388,153 @@ WriteOutcomeName = Literal[
 class WriteEvent(_EventBase):
     kind: Literal["write"]
     user: str | None
-    fields: list[str]
+    fields: list[str] = Field(description="``name.index`` keys (0-based: controlbox_do.2 is DO 3)")
     outcome: WriteOutcomeName
     reason: str | None = None
+    values: dict[str, ElementValue] | None = Field(
+        default=None, description="the values written, by ``name.index`` key"
+    )
+    labels: dict[str, str] | None = Field(
+        default=None,
+        description="the spec's label of each key: controlbox_do.2 → DO 3, "
+        "analog_output_type.1 → AO 1 type",
+    )
+    tags: dict[str, str] | None = Field(
+        default=None, description="tag names of the touched points, where one is given"
+    )
+    summary: str | None = Field(
+        default=None,
+        description='the write in words with labels, tags and units: "AO 1 type = voltage, '
+        'AO 1 = 5 V"',
+    )
 
 
 class ControlEvent(_EventBase):
     kind: Literal["control"]
     holder: Holder | None
     reason: str | None = None
+
+
+AlarmPriority = Literal["critical", "high", "medium", "low"]
+AlarmStateName = Literal[
+    "normal", "active_unacknowledged", "active_acknowledged", "returned_unacknowledged"
+]
+AlarmTransition = Literal[
+    "activated", "cleared", "acknowledged", "shelved", "unshelved", "shelve_expired"
+]
+
+
+class Alarm(BaseModel):
+    """One alarm of one robot and its ISA-18.2 state (docs/api.md "Alarms")."""
+
+    id: str = Field(description="``robot:key``, e.g. ``left:emergency_stop``")
+    robot: str
+    key: str = Field(
+        description="emergency_stop, protective_stop, safe_off, connection_lost, "
+        "forward_open_refused, packet_loss, motor_temperature.0–5 (0-based: "
+        "motor_temperature.2 is J 3), user.NAME"
+    )
+    name: str = Field(description="in words")
+    description: str
+    priority: AlarmPriority
+    priority_rank: int = Field(ge=0, le=3, description="0 critical … 3 low: sort by it")
+    colour: str = Field(
+        description="the pendant's colour: a robot state's own, else the priority's (critical "
+        "red, high orange, medium yellow, low blue)"
+    )
+    kind: Literal["state", "connection", "rate", "limit", "bit"]
+    element: str | None = Field(description="the watched frame element, ``name.index``")
+    label: str | None = Field(description="its label as the robot prints it (J 3, DO 3)")
+    tag: str | None = Field(description="its tag name, when an admin gave one")
+    unit: str
+    high: float | None
+    low: float | None
+    state: AlarmStateName
+    active: bool = Field(description="the condition is there (state active_*)")
+    acknowledged: bool = Field(description="state normal or active_acknowledged")
+    shelved: bool
+    changed_at: float | None = Field(description="last change of this record, s since the epoch")
+    activated_at: float | None
+    cleared_at: float | None
+    acknowledged_at: float | None
+    acknowledged_by: str | None
+    ack_comment: str | None
+    shelved_until: float | None
+    shelved_by: str | None
+    shelve_reason: str | None
+    value: bool | float | None = Field(description="the watched value at the last change")
+    message: str | None = Field(description="the condition in words at the last change")
+
+
+class AlarmList(BaseModel):
+    """``GET /api/v1/alarms``: alarms that are active or unacknowledged, most urgent first."""
+
+    items: list[Alarm]
+    total: int = Field(ge=0)
+
+
+class AlarmEvent(_EventBase):
+    """An alarm changed: it came, went, was acknowledged, shelved or unshelved."""
+
+    kind: Literal["alarm"]
+    transition: AlarmTransition
+    user: str | None = Field(default=None, description="who acknowledged or shelved it")
+    comment: str | None = Field(default=None, description="the comment or shelving reason")
+    alarm: Alarm
+
+
+class AlarmHistoryRow(BaseModel):
+    """One transition of one alarm."""
+
+    id: int
+    time: float = Field(description="s since the epoch (CSV: ISO 8601 with offset)")
+    robot: str
+    alarm_id: str
+    key: str
+    name: str
+    priority: AlarmPriority
+    transition: AlarmTransition
+    state: AlarmStateName = Field(description="the state after the transition")
+    shelved: bool
+    message: str | None
+    value: bool | float | None
+    label: str | None
+    tag: str | None
+    user: str | None
+    comment: str | None
+
+
+class AlarmHistoryPage(BaseModel):
+    items: list[AlarmHistoryRow]
+    total: int = Field(ge=0)
+
+
+class AlarmAck(BaseModel):
+    """``POST /api/v1/alarms/{id}/ack`` (the body is optional)."""
+
+    model_config = _STRICT
+
+    comment: str | None = Field(default=None, max_length=500)
+
+
+class AlarmShelve(BaseModel):
+    """``POST /api/v1/alarms/{id}/shelve``."""
+
+    model_config = _STRICT
+
+    reason: str = Field(min_length=1, max_length=500, description="why (required)")
+    duration_s: float = Field(
+        gt=0,
+        allow_inf_nan=False,
+        description="until it unshelves itself, s (at most alarm_shelve_max_s)",
+    )
+
+
+class AlarmAnswer(BaseModel):
+    """An operator's change of one alarm: the alarm after it, and whether anything changed."""
+
+    alarm: Alarm
+    changed: bool
 
 
 class RecordingEvent(_EventBase):
@@ -387,10 +547,16 @@ class RecordingEvent(_EventBase):
 
 
 Event = Annotated[
-    ConnectionEvent | RobotStateEvent | FlagEvent | WriteEvent | ControlEvent | RecordingEvent,
+    ConnectionEvent
+    | RobotStateEvent
+    | FlagEvent
+    | WriteEvent
+    | ControlEvent
+    | RecordingEvent
+    | AlarmEvent,
     Field(discriminator="kind"),
 ]
-EventKind = Literal["connection", "robot_state", "flag", "write", "control", "recording"]
+EventKind = Literal["connection", "robot_state", "flag", "write", "control", "recording", "alarm"]
 
 
 class EventPage(BaseModel):
@@ -402,7 +568,15 @@ class EventPage(BaseModel):
 
 # --------------------------------------------------------------------------- audit
 
-AuditAction = Literal["write", "control.take", "control.release"]
+AuditAction = Literal[
+    "write",
+    "control.take",
+    "control.release",
+    "alarm.ack",
+    "alarm.shelve",
+    "alarm.unshelve",
+    "tags.update",
+]
 AuditOutcome = Literal[
     "confirmed",
     "timeout",
@@ -413,6 +587,11 @@ AuditOutcome = Literal[
     "granted",
     "released",
     "pending",
+    "acknowledged",
+    "shelved",
+    "unshelved",
+    "updated",
+    "unchanged",
 ]
 
 
@@ -433,11 +612,66 @@ class AuditRow(BaseModel):
     requested: Json = Field(description="the requested values (a malformed body: what came)")
     outcome: AuditOutcome
     reason: str | None
+    summary: str | None = Field(
+        default=None,
+        description="what was asked in words with the spec's labels: "
+        '"DO 3 (gripper close) = on", "AO 1 type = voltage, AO 1 = 5 V"',
+    )
+    labels: dict[str, str] = Field(
+        default_factory=dict,
+        description="the spec's label of each key of ``fields`` (controlbox_do.2 → DO 3)",
+    )
+    tags: dict[str, str] | None = Field(
+        default=None, description="tag names of the touched points when the row was written"
+    )
 
 
 class AuditPage(BaseModel):
     items: list[AuditRow]
     total: int = Field(ge=0)
+
+
+# --------------------------------------------------------------------------- tag names
+
+
+class TagPoint(BaseModel):
+    """A taggable point of one robot: I/O or a bit register."""
+
+    key: str = Field(description="``name.index``, 0-based as the frame's arrays: controlbox_do.2")
+    label: str = Field(description="the spec's label: DO 3")
+    field: str
+    index: int = Field(ge=0)
+    directions: list[Literal["T2O", "O2T"]]
+    name: str | None = Field(description="its tag name (null: none)")
+
+
+class TagList(BaseModel):
+    """``GET /api/v1/robots/{name}/tags``: every taggable point with its name."""
+
+    robot: str
+    points: list[TagPoint]
+    tags: dict[str, str] = Field(description="``{key: name}`` of the named points only")
+
+
+class TagUpdate(BaseModel):
+    """``PUT /api/v1/robots/{name}/tags``: the whole set of names (a point left out has none)."""
+
+    model_config = _STRICT
+
+    tags: dict[str, str] = Field(
+        description='``{"controlbox_do.2": "gripper close"}`` (index 2 is DO 3); an empty name '
+        "removes one",
+        examples=[{"controlbox_do.2": "gripper close", "bit_input_registers.40": "part ready"}],
+    )
+
+
+class TagImport(BaseModel):
+    """``POST /api/v1/robots/{name}/tags/import``: CSV text (``key,label,name``, as the export),
+    sent as JSON; replaces every name."""
+
+    model_config = _STRICT
+
+    csv: str = Field(max_length=200_000)
 
 
 # --------------------------------------------------------------------------- WebSocket
@@ -452,6 +686,11 @@ class FrameItem(BaseModel):
 class HelloMessage(BaseModel):
     type: Literal["hello"]
     robot: str | None = None
+    session: str | None = Field(
+        default=None,
+        description="the public id of this stream's login session (null: none): control's "
+        "holder.session equal to it means this window holds control",
+    )
     layout_version: Literal[LAYOUT_VERSION]  # type: ignore[valid-type]
     connection: ConnectionStatus
     control: ControlStatus

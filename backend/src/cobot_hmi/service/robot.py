@@ -26,12 +26,15 @@ from cobot_hmi.layout import LAYOUT_VERSION
 from cobot_hmi.scanner.originator import ConnectionState
 from cobot_hmi.scanner.session import EnipSession, SessionError
 from cobot_hmi.service import models
+from cobot_hmi.service.alarms.engine import TICK_S, AlarmEngine, UserAlarm
+from cobot_hmi.service.alarms.persistence import AlarmStore
 from cobot_hmi.service.commander import Commander
 from cobot_hmi.service.control import Control
 from cobot_hmi.service.hub import Hub
 from cobot_hmi.service.link import CyclicLoop, RobotLink
 from cobot_hmi.service.settings import RobotSettings, ServiceSettings
 from cobot_hmi.service.store import Store
+from cobot_hmi.service.tags import TagBook
 
 log = logging.getLogger(__name__)
 
@@ -122,6 +125,27 @@ class RobotRuntime:
             timeout_s=service_settings.write_timeout_ms / 1000,
         )
         self.identity: RobotIdentity | None = None
+        self.tags = TagBook(self.name)
+        """The robot's tag names (``service.tags``), loaded by ``open_state``."""
+        self.alarm_store = AlarmStore(store)
+        self.alarms = AlarmEngine(
+            self.name,
+            motor_temperature_c=service_settings.alarm_motor_temperature_c,
+            motor_temperature_deadband_c=service_settings.alarm_motor_temperature_deadband_c,
+            gap_rate_per_min=service_settings.alarm_gap_rate_per_min,
+            connection_delay_s=service_settings.alarm_connection_delay_s,
+            shelve_max_s=service_settings.alarm_shelve_max_s,
+            user_alarms=tuple(
+                UserAlarm(**alarm.model_dump(exclude={"robot"}))
+                for alarm in service_settings.alarms
+                if alarm.robot in (None, self.name)
+            ),
+            publish=self.hub.publish_event,
+            persist=self.alarm_store.submit,
+            tags=lambda: self.tags.names,
+        )
+        """The robot's alarms (``service.alarms``): the hub evaluates them on every frame."""
+        self.hub.alarms = self.alarms
         # Counters (``/metrics``).
         self.connects = 0
         """Times the connection came up."""
@@ -134,9 +158,17 @@ class RobotRuntime:
 
     # ------------------------------------------------------------ lifecycle
 
+    async def open_state(self) -> None:
+        """After the store opened, before ``start``: tag names and persisted alarms."""
+        await self.tags.load(self.store)
+        await self.alarm_store.open()
+        self.alarms.restore(await self.alarm_store.load(self.name))
+
     def start(self) -> None:
-        """On the web loop, before the cyclic thread starts: the broadcast loop."""
+        """On the web loop, before the cyclic thread starts: the broadcast loop, the alarms'
+        slow tick."""
         self._tasks.append(asyncio.create_task(self.hub.run(), name=f"hub {self.name}"))
+        self._tasks.append(asyncio.create_task(self._alarm_loop(), name=f"alarms {self.name}"))
 
     async def release_control(self, reason: str) -> None:
         with contextlib.suppress(Exception):
@@ -153,6 +185,7 @@ class RobotRuntime:
         if self._background:
             await asyncio.gather(*self._background, return_exceptions=True)
         await self.hub.close()
+        await self.alarm_store.close()
 
     def spawn(self, coroutine: Coroutine[Any, Any, None], name: str) -> None:
         """Run a follow-up (control release, identity read) on the web loop, tracked."""
@@ -167,6 +200,8 @@ class RobotRuntime:
         self.hub.publish_event(
             {"kind": "connection", "time": time.time(), "state": state.value, "reason": reason}
         )
+        for event in self._connection_alarms(time.time(), time.monotonic()):
+            self.hub.publish_event(event)
         if state is ConnectionState.CONNECTED:
             self.connects += 1
             self.down_since = None
@@ -189,6 +224,41 @@ class RobotRuntime:
         if identity != self.identity:
             log.info("%s: %s, revision %s", self.name, identity.product_name, identity.revision)
         self.identity = identity
+
+    # ------------------------------------------------------------ alarms (slow part)
+
+    def _connection_alarms(self, now_s: float, monotonic_s: float) -> list[dict[str, object]]:
+        state = self.link.state
+        latest = self.hub.latest
+        return self.alarms.connection(
+            connected=state is ConnectionState.CONNECTED,
+            refused=state is ConnectionState.REFUSED,
+            reason=self.link.reason,
+            frame_age_s=None if latest is None else max(0.0, now_s - latest[1]),
+            stale_after_s=self._stale_after_s,
+            now_s=now_s,
+            monotonic_s=monotonic_s,
+        )
+
+    async def _alarm_loop(self) -> None:
+        while True:
+            await asyncio.sleep(TICK_S)
+            try:
+                await self._alarm_tick()
+            except Exception:  # a bug here must not end the alarms' tick
+                log.exception("%s: alarm tick failed", self.name)
+
+    async def _alarm_tick(self) -> None:
+        now_s, monotonic_s = time.time(), time.monotonic()
+        events = self._connection_alarms(now_s, monotonic_s)
+        gaps = None
+        if self.link.state is ConnectionState.CONNECTED:
+            with contextlib.suppress(Exception):  # the cyclic thread restarting: next tick
+                gaps = (await self.link.stats()).gaps
+        events += self.alarms.gaps(gaps, now_s=now_s, monotonic_s=monotonic_s)
+        events += self.alarms.expire_shelving(now_s)
+        for event in events:
+            self.hub.publish_event(event)
 
     def _log_events(self, events: list[dict[str, object]]) -> None:
         for event in events:
@@ -239,6 +309,8 @@ class RobotRuntime:
             "last_frame_age_s": age,
             "stale": stale,
             "connected_since": stats.connected_since,
+            "gaps_per_min": self.alarms.gaps_per_min,
+            "packet_loss_high": self.alarms.packet_loss_high,
         }
 
     async def status(self) -> models.RobotStatus:

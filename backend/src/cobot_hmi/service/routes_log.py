@@ -11,6 +11,7 @@ from cobot_hmi.codec import dumps
 from cobot_hmi.service import models
 from cobot_hmi.service.api_docs import CSV_RESPONSE, LOG, errors
 from cobot_hmi.service.deps import OperatorDep, RobotFilterDep, ServiceDep
+from cobot_hmi.service.labels import labels_of
 from cobot_hmi.service.store import (
     AUDIT_COLUMNS,
     EVENT_COLUMNS,
@@ -70,7 +71,9 @@ async def get_audit(
     format: Format = "json",
 ) -> Response:
     page = await service.store.audit_page(limit, offset, robot=robot)
-    return _answer(page, AUDIT_COLUMNS, format, "audit")
+    for item in page.items:  # the spec's label of each key: controlbox_do.2 is DO 3
+        item["labels"] = labels_of(item.get("fields"))
+    return _answer(page, (*AUDIT_COLUMNS, "labels"), format, "audit")
 
 
 @router.get("/events", summary=_EVENTS, responses=_responses(models.EventPage))

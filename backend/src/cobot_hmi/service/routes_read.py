@@ -21,6 +21,7 @@ from cobot_hmi.codec import command_to_json, dumps, frame_to_json
 from cobot_hmi.scanner.originator import ConnectionState
 from cobot_hmi.service import models, security
 from cobot_hmi.service.api_docs import PROMETHEUS_CONTENT_TYPE, READ, errors
+from cobot_hmi.service.auth import Session
 from cobot_hmi.service.deps import DefaultRobotDep, RobotDep, ServiceDep, ViewerDep
 from cobot_hmi.service.errors import UnknownRobotError
 from cobot_hmi.service.metrics import render_metrics
@@ -59,8 +60,11 @@ async def get_layout(_: ViewerDep) -> Response:
 # --------------------------------------------------------------------------- robots
 
 
-def robot_summary(service: Service, robot: RobotRuntime) -> dict[str, object]:
-    """``models.RobotSummary`` of one robot (no await: plain reads of its parts)."""
+def robot_summary(
+    service: Service, robot: RobotRuntime, session: Session | None = None
+) -> dict[str, object]:
+    """``models.RobotSummary`` of one robot (no await: plain reads of its parts), its holder as
+    ``session`` sees it (``holder.session_is_yours``)."""
     identity = robot.identity.to_json() if robot.identity is not None else None
     latest = robot.hub.latest
     state = latest[2].robot_state if latest is not None else None
@@ -74,7 +78,7 @@ def robot_summary(service: Service, robot: RobotRuntime) -> dict[str, object]:
         "identity": identity,
         "connection": robot.link.state.value,
         "connection_reason": robot.link.reason,
-        "holder": robot.control.status()["holder"],
+        "holder": robot.control.status_for(session)["holder"],
         "robot_state": state,
         "robot_state_name": frame["robot_state_name"] if frame is not None else None,
         "default": robot is service.default_robot,
@@ -88,9 +92,9 @@ def robot_summary(service: Service, robot: RobotRuntime) -> dict[str, object]:
     response_model=models.RobotList,
     responses=errors(401),
 )
-async def list_robots(service: ServiceDep, _: ViewerDep) -> OrjsonResponse:
+async def list_robots(service: ServiceDep, session: ViewerDep) -> OrjsonResponse:
     return OrjsonResponse(
-        {"robots": [robot_summary(service, robot) for robot in service.robots.values()]}
+        {"robots": [robot_summary(service, robot, session) for robot in service.robots.values()]}
     )
 
 
@@ -101,8 +105,8 @@ async def list_robots(service: ServiceDep, _: ViewerDep) -> OrjsonResponse:
     response_model=models.RobotSummary,
     responses=errors(*READ),
 )
-async def get_robot(service: ServiceDep, robot: RobotDep, _: ViewerDep) -> OrjsonResponse:
-    return OrjsonResponse(robot_summary(service, robot))
+async def get_robot(service: ServiceDep, robot: RobotDep, session: ViewerDep) -> OrjsonResponse:
+    return OrjsonResponse(robot_summary(service, robot, session))
 
 
 # --------------------------------------------------------------------------- one robot
@@ -133,9 +137,11 @@ def _frame(service: Service, robot: RobotRuntime) -> dict[str, object]:
     }
 
 
-async def _status(robot: RobotRuntime) -> Any:
+async def _status(robot: RobotRuntime, session: Session | None) -> Any:
     status = await robot.status()
-    return status.model_dump(mode="json") if isinstance(status, models.RobotStatus) else status
+    answer = status.model_dump(mode="json") if isinstance(status, models.RobotStatus) else status
+    answer["control"] = robot.control.status_for(session)  # holder.session_is_yours
+    return answer
 
 
 def _command(robot: RobotRuntime) -> dict[str, object]:
@@ -169,8 +175,8 @@ async def get_frame(service: ServiceDep, robot: RobotDep, _: ViewerDep) -> Orjso
 
 
 @router.get("/api/v1/robots/{name}/status", **_STATUS, responses=errors(*READ))
-async def get_status(robot: RobotDep, _: ViewerDep) -> OrjsonResponse:
-    return OrjsonResponse(await _status(robot))
+async def get_status(robot: RobotDep, session: ViewerDep) -> OrjsonResponse:
+    return OrjsonResponse(await _status(robot, session))
 
 
 @router.get("/api/v1/robots/{name}/command", **_COMMAND, responses=errors(*READ))
@@ -198,8 +204,8 @@ async def get_frame_default(
     description=_DEPRECATED + "status",
     responses=errors(401),
 )
-async def get_status_default(robot: DefaultRobotDep, _: ViewerDep) -> OrjsonResponse:
-    return OrjsonResponse(await _status(robot))
+async def get_status_default(robot: DefaultRobotDep, session: ViewerDep) -> OrjsonResponse:
+    return OrjsonResponse(await _status(robot, session))
 
 
 @router.get(

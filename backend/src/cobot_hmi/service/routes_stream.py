@@ -120,11 +120,16 @@ async def _stream(websocket: WebSocket, name: str | None) -> None:
             async with asyncio.timeout(1.0):
                 await websocket.close(CLOSE_STALLED, reason)
 
+    hello = await robot.hello(rate_hz)
+    # Control as this stream's session sees it: "held by you in another window" is
+    # holder.session != hello.session with the same user.
+    hello["control"] = robot.control.status_for(session)
+    hello["session"] = session.id if session is not None else None
     client = robot.hub.add_client(
         websocket.send_text,
         abort,
         rate_hz,
-        await robot.hello(rate_hz),
+        hello,
         session_id=session.id if session is not None else None,
         client=f"{client_address(websocket)}:{websocket.client.port if websocket.client else 0}",
     )

@@ -119,6 +119,8 @@ class Service:
     async def start(self) -> None:
         await self.store.open()
         for robot in self.robots.values():
+            await robot.open_state()  # tag names, persisted alarms
+        for robot in self.robots.values():
             robot.start()
         if self.recorder is not None:  # subscribed before the first frame can come
             await self.recorder.start()

@@ -235,6 +235,69 @@ class RobotSettings(BaseModel):
         )
 
 
+# --------------------------------------------------------------------------- alarms
+
+ALARM_NAME_PATTERN: Final = r"^[a-z0-9][a-z0-9_-]{0,47}$"
+AlarmPriority = Literal["critical", "high", "medium", "low"]
+
+
+class AlarmSettings(BaseModel):
+    """A user-defined alarm on one element of the robot's T→O frame (an ``[[alarms]]`` table):
+    a number above ``high`` or below ``low`` (with ``deadband``), or a bit equal to
+    ``active_when``; ``on_delay_s`` / ``off_delay_s`` before it comes / clears
+    (docs/operations.md "Alarms")."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    name: str = Field(
+        pattern=ALARM_NAME_PATTERN,
+        description="the alarm's key (user.NAME in the API): lower-case letters, digits, _ and -",
+    )
+    field: str = Field(description="a T→O field of the layout (joint_motor_current, tool_di…)")
+    index: int | None = Field(
+        default=None,
+        ge=0,
+        description="the element's 0-based index in the frame's array (controlbox_di index 2 "
+        "is DI 3); none for a scalar field",
+    )
+    robot: RobotName | None = Field(default=None, description="one robot (default: every robot)")
+    high: float | None = Field(default=None, allow_inf_nan=False, description="above: active")
+    low: float | None = Field(default=None, allow_inf_nan=False, description="below: active")
+    active_when: bool | None = Field(default=None, description="a bit: the value that alarms")
+    deadband: float = Field(default=0.0, ge=0, allow_inf_nan=False, description="hysteresis")
+    on_delay_s: float = Field(default=0.0, ge=0, le=3600, allow_inf_nan=False)
+    off_delay_s: float = Field(default=0.0, ge=0, le=3600, allow_inf_nan=False)
+    priority: AlarmPriority = "medium"
+    message: str = Field(default="", max_length=200, description="the alarm's name in words")
+
+    @model_validator(mode="after")
+    def _check_element(self) -> AlarmSettings:
+        from cobot_hmi.layout import T2O_FIELDS
+
+        fields = {f.name: f for f in T2O_FIELDS}
+        f = fields.get(self.field)
+        if f is None:
+            raise ValueError(f"{self.field!r} is not a T→O field ({', '.join(fields)})")
+        if f.element_names:
+            raise ValueError(f"{self.field} is a record, not a number or a bit")
+        single = f.scalar or f.count == 1
+        if self.index is None and not single:
+            raise ValueError(f"{self.field} has {f.count} elements: give index 0–{f.count - 1}")
+        if self.index is not None and self.index >= f.count:
+            raise ValueError(f"{self.field}: index {self.index} is not in 0–{f.count - 1}")
+        if f.value_kind == "bool":
+            if self.high is not None or self.low is not None or self.deadband:
+                raise ValueError(f"{self.field} is a bit: give active_when, not high/low")
+        else:
+            if self.active_when is not None:
+                raise ValueError(f"{self.field} is a number: give high and/or low")
+            if self.high is None and self.low is None:
+                raise ValueError(f"{self.field}: give high and/or low")
+            if self.high is not None and self.low is not None and self.low >= self.high:
+                raise ValueError(f"low ({self.low:g}) must be below high ({self.high:g})")
+        return self
+
+
 _INHERITED: Final = {
     # robot setting: the top-level setting that is its default
     "tcp_port": "robot_tcp_port",
@@ -402,6 +465,24 @@ class ServiceSettings(BaseSettings):
     sparkplug_buffer_bytes: int = setting(
         64 * 1024 * 1024, "data kept on disk while the broker is away, bytes (0: none)", ge=0
     )
+    # --- alarms (service/alarms; docs/operations.md "Alarms")
+    alarms: list[AlarmSettings] = Field(
+        default_factory=list,
+        description="user-defined alarms ([[alarms]] tables; COBOT_HMI_ALARMS as a JSON list)",
+    )
+    alarm_motor_temperature_c: float = setting(
+        80.0, "motor temperature alarm of each joint above this, °C", allow_inf_nan=False
+    )
+    alarm_motor_temperature_deadband_c: float = setting(
+        2.0, "it clears this far below, °C", ge=0, allow_inf_nan=False
+    )
+    alarm_gap_rate_per_min: float = setting(
+        10.0, "packet loss alarm: more T→O sequence gaps than this in a minute", ge=0
+    )
+    alarm_connection_delay_s: float = setting(
+        2.0, "connection lost or stale this long raises its alarm, s", ge=0, le=3600
+    )
+    alarm_shelve_max_s: Seconds = setting(8 * 3600.0, "longest an alarm may be shelved, s")
     # --- history: every frame recorded (cobot_hmi.history; docs/operations.md "History")
     history: bool = setting(True, "record every frame of every robot (--no-history: off)")
     history_dir: ExpandedPath | None = setting(
@@ -480,6 +561,16 @@ class ServiceSettings(BaseSettings):
             addresses[address] = robot.name
         # The resolved list replaces the given one (the model is frozen; this is its making).
         self.__dict__["robots"] = robots
+        alarm_names: set[str] = set()
+        for alarm in self.alarms:
+            if alarm.robot is not None and robots and alarm.robot not in seen:
+                raise ValueError(
+                    f"alarms: {alarm.name!r} names the robot {alarm.robot!r}; "
+                    f"known: {', '.join(seen)}"
+                )
+            if alarm.name in alarm_names:
+                raise ValueError(f"alarms: the name {alarm.name!r} is given twice")
+            alarm_names.add(alarm.name)
         return self
 
     # ------------------------------------------------------------ derived
@@ -718,7 +809,7 @@ def add_arguments(parser: argparse.ArgumentParser, *, only: tuple[str, ...] | No
     """
     parser.add_argument("--config", type=Path, default=argparse.SUPPRESS, help="TOML file")
     for name, info in ServiceSettings.model_fields.items():
-        if name == "robots" or (only is not None and name not in only):
+        if name in ("robots", "alarms") or (only is not None and name not in only):
             continue
         extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
         flag = str(extra.get("flag") or "--" + name.replace("_", "-"))

@@ -24,6 +24,7 @@ import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from datetime import datetime
 from pathlib import Path
 from typing import Any, Final, TypeVar
 
@@ -57,6 +58,8 @@ _ADDED_COLUMNS: Final = (
     ("audit", "robot", "TEXT"),
     ("audit", "origin", "TEXT"),
     ("events", "robot", "TEXT"),
+    ("audit", "summary", "TEXT"),
+    ("audit", "tags", "TEXT"),
 )
 """Columns added after the first release: a database from before gets them (``NULL`` in its old
 rows) when it is opened; no row is lost."""
@@ -79,8 +82,10 @@ AUDIT_COLUMNS: Final = (
     "requested",
     "outcome",
     "reason",
+    "summary",
+    "tags",
 )
-_AUDIT_JSON: Final = frozenset({"fields", "before", "requested"})
+_AUDIT_JSON: Final = frozenset({"fields", "before", "requested", "tags"})
 EVENT_COLUMNS: Final = ("id", "time", "robot", "kind", "data")
 """The CSV columns of the event log (``data``: the kind's own fields as JSON text)."""
 _EVENT_KEYS: Final = frozenset({"id", "time", "robot", "kind"})
@@ -105,6 +110,10 @@ class AuditEntry:
     """The robot's name (``None``: not about one robot)."""
     origin: str | None = None
     """Which door the request came through (``PATCH /api/v1/robots/{name}/command``, MQTT…)."""
+    summary: str | None = None
+    """What was asked, in words with the spec's labels ("AO 1 type = voltage, AO 1 = 5 V")."""
+    tags: Mapping[str, str] | None = None
+    """Tag names of the touched points at the time (``{"controlbox_do.2": "gripper close"}``)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -184,6 +193,15 @@ class Store:
         with db:
             yield db
 
+    async def call(self, function: Callable[[sqlite3.Connection], _T], *, fsync: bool = True) -> _T:
+        """Run ``function(connection)`` in one transaction on the store's worker thread (the
+        tables of other modules: alarms, tag names), committed durably unless ``fsync=False``."""
+        return await self._run(self._call_sync, function, fsync)
+
+    def _call_sync(self, function: Callable[[sqlite3.Connection], _T], fsync: bool) -> _T:
+        with self._synchronous("FULL" if fsync else "NORMAL") as db:
+            return function(db)
+
     # ----------------------------------------------------------------- audit
 
     async def add_audit(self, entry: AuditEntry, *, fsync: bool = True) -> int:
@@ -194,7 +212,8 @@ class Store:
         with self._synchronous("FULL" if fsync else "NORMAL") as db:
             cursor = db.execute(
                 "INSERT INTO audit (time, robot, user, client, origin, action, fields, before,"
-                " requested, outcome, reason) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                " requested, outcome, reason, summary, tags)"
+                " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 (
                     entry.time or time.time(),
                     entry.robot,
@@ -207,6 +226,8 @@ class Store:
                     orjson.dumps(entry.requested).decode(),
                     entry.outcome,
                     entry.reason,
+                    entry.summary,
+                    None if entry.tags is None else orjson.dumps(dict(entry.tags)).decode(),
                 ),
             )
             row_id = cursor.lastrowid
@@ -352,8 +373,20 @@ def event_csv_rows(items: Sequence[dict[str, object]]) -> list[dict[str, object]
     ]
 
 
-def to_csv(items: Sequence[dict[str, object]], columns: Sequence[str]) -> str:
-    """A page as CSV with a header row; nested values as JSON text."""
+def iso8601(time_s: float) -> str:
+    """Seconds since the epoch as ISO 8601 in the service's local time with its UTC offset
+    (``2026-11-24T07:05:12.345678+01:00``): what a spreadsheet and a person both read."""
+    return datetime.fromtimestamp(time_s).astimezone().isoformat()
+
+
+def to_csv(
+    items: Sequence[dict[str, object]],
+    columns: Sequence[str],
+    *,
+    time_columns: Sequence[str] = ("time",),
+) -> str:
+    """A page as CSV with a header row; nested values as JSON text; ``time_columns`` (seconds
+    since the epoch) as ISO 8601 with offset."""
     out = io.StringIO()
     writer = csv.writer(out)
     writer.writerow(columns)
@@ -361,7 +394,9 @@ def to_csv(items: Sequence[dict[str, object]], columns: Sequence[str]) -> str:
         row = []
         for name in columns:
             value = item.get(name)
-            if isinstance(value, dict | list):
+            if name in time_columns and isinstance(value, int | float):
+                row.append(iso8601(value))
+            elif isinstance(value, dict | list):
                 row.append(orjson.dumps(value).decode())
             else:
                 row.append("" if value is None else str(value))

@@ -35,6 +35,7 @@ from cobot_hmi.codec import CommandImage, Frame, command_to_json
 from cobot_hmi.scanner.originator import NotConnectedError, ReadOnlyError
 from cobot_hmi.service.auth import Session
 from cobot_hmi.service.errors import ApiError
+from cobot_hmi.service.labels import labels_of, write_summary
 from cobot_hmi.service.store import AuditEntry, Store
 from cobot_hmi.service.users import Role
 from cobot_hmi.service.writes import (
@@ -111,6 +112,11 @@ class _Commander(Protocol):
     def timeout_s(self) -> float: ...
 
 
+class _Tags(Protocol):
+    @property
+    def names(self) -> Mapping[str, str]: ...
+
+
 class WriteTarget(Protocol):
     """What the pipeline uses of a robot (``service.robot.RobotRuntime`` is one)."""
 
@@ -131,6 +137,9 @@ class WriteTarget(Protocol):
 
     @property
     def store(self) -> Store: ...
+
+    @property
+    def tags(self) -> _Tags: ...
 
 
 # --------------------------------------------------------------------------- who and what came
@@ -199,13 +208,13 @@ class _RefusedError(Exception):
 # --------------------------------------------------------------------------- the steps
 
 
-def authorize(writer: Writer, what: str) -> None:
+def authorize(writer: Writer, what: str, role: Role = Role.OPERATOR) -> None:
     """Step 1: the writer's role; ``_RefusedError`` 401 / 403."""
     if writer.user is None or writer.role is None:
         raise _RefusedError(401, f"login required to {what}")
-    if writer.role < Role.OPERATOR:
+    if writer.role < role:
         raise _RefusedError(
-            403, f"{what} needs the operator role; {writer.user} is {writer.role.label}"
+            403, f"{what} needs the {role.label} role; {writer.user} is {writer.role.label}"
         )
 
 
@@ -296,6 +305,11 @@ def _refusal_to_write(robot: WriteTarget, writer: Writer) -> str | None:
     if holder is None:
         path = f"/api/v1/robots/{robot.name}/control/take"
         return f"take control first (POST {path})"
+    if session is not None and session.user.name == holder.user:
+        return (
+            f"control is held by you ({holder.user}) in another session (another window or "
+            "device): only the session holding it may write"
+        )
     return f"control is held by {holder.user}"
 
 
@@ -308,6 +322,7 @@ async def _write_locked(
     refusal = _refusal_to_write(robot, writer)
     if refusal is not None:
         raise _RefusedError(409, refusal)
+    words = _Words.of(robot, plan)
 
     row_id = await store.add_audit(
         AuditEntry(
@@ -321,6 +336,8 @@ async def _write_locked(
             None,
             robot=robot.name,
             origin=origin,
+            summary=words.summary,
+            tags=words.tags or None,
         ),
         fsync=False,  # the outcome's fsync below covers it (see ``store``)
     )
@@ -332,7 +349,7 @@ async def _write_locked(
             robot,
             row_id,
             writer=writer,
-            fields=plan.field_names,
+            words=words,
             outcome="refused",
             reason=str(error),
         )
@@ -361,13 +378,9 @@ async def _write_locked(
                 "the O→T packet with the bit input registers did not go out within "
                 f"{timeout_s * 1000:.0f} ms"
             )
-        await _finish(
-            robot, row_id, writer=writer, fields=plan.field_names, outcome="timeout", reason=reason
-        )
+        await _finish(robot, row_id, writer=writer, words=words, outcome="timeout", reason=reason)
         return WriteOutcome(504, "timeout", reason, robot_reports=reports)
-    await _finish(
-        robot, row_id, writer=writer, fields=plan.field_names, outcome="confirmed", reason=None
-    )
+    await _finish(robot, row_id, writer=writer, words=words, outcome="confirmed", reason=None)
     return WriteOutcome(
         200,
         "confirmed",
@@ -376,12 +389,33 @@ async def _write_locked(
     )
 
 
+@dataclass(frozen=True, slots=True)
+class _Words:
+    """A planned write as people read it: values by key, the spec's labels, tag names, and the
+    summary ("AO 1 type = voltage, AO 1 = 5 V": the unit follows the type written with it)."""
+
+    fields: list[str]
+    values: dict[str, object]
+    labels: dict[str, str]
+    tags: dict[str, str]
+    summary: str
+
+    @classmethod
+    def of(cls, robot: WriteTarget, plan: PlannedWrite) -> _Words:
+        fields = plan.field_names
+        values = plan.values(plan.image)
+        names = robot.tags.names
+        tags = {key: names[key] for key in fields if key in names}
+        summary = write_summary(values, tuple(plan.image.analog_output_type), tags)
+        return cls(fields, values, labels_of(fields), tags, summary)
+
+
 async def _finish(
     robot: WriteTarget,
     row_id: int,
     *,
     writer: Writer,
-    fields: list[str],
+    words: _Words,
     outcome: str,
     reason: str | None,
 ) -> None:
@@ -393,11 +427,56 @@ async def _finish(
             "time": time.time(),
             "robot": robot.name,
             "user": writer.user,
-            "fields": fields,
+            "fields": words.fields,
             "outcome": outcome,
             "reason": reason,
+            "values": words.values,
+            "labels": words.labels,
+            "tags": words.tags,
+            "summary": words.summary,
         }
     )
+
+
+# --------------------------------------------------------------------------- other actions
+
+
+async def authorize_audited(
+    store: Store,
+    writer: Writer,
+    *,
+    action: str,
+    what: str,
+    robot: str | None,
+    origin: str,
+    role: Role = Role.OPERATOR,
+    fields: list[str] | None = None,
+    requested: object = None,
+) -> str:
+    """Step 1 for an action other than a write (acknowledging or shelving an alarm, tag
+    names): the writer's role, a refusal audited as a write's is (``ApiError`` 401 / 403).
+    The writer's user name."""
+    try:
+        authorize(writer, what, role)
+    except _RefusedError as refusal:
+        outcome = _STATUS_OUTCOME.get(refusal.status, "refused")
+        await store.add_audit(
+            AuditEntry(
+                writer.user,
+                writer.client,
+                action,
+                fields or [],
+                None,
+                _jsonable(requested),
+                outcome,
+                refusal.reason,
+                robot=robot,
+                origin=origin,
+            )
+        )
+        raise WriteOutcome(refusal.status, outcome, refusal.reason).error() from None
+    assert writer.user is not None
+    return writer.user
 
 
 # --------------------------------------------------------------------------- control

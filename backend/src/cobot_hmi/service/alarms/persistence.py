@@ -1,0 +1,238 @@
+"""Layer: service. Alarms in the service's database: each alarm's current record (so a restart
+keeps the active and unacknowledged ones, their acknowledgements and shelving) and the history
+of every transition.
+
+Two tables beside the audit and the events (``service.store``), written through the store's
+one worker thread (``Store.call``). A transition is queued where it happens (the frame path
+never waits on the disk) and written in order by one writer task, a batch per transaction;
+an operator's acknowledgement or shelving waits for its batch (``flush``) before the answer,
+committed with fsync.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import sqlite3
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Final
+
+import orjson
+
+if TYPE_CHECKING:
+    from cobot_hmi.service.store import Page, Store
+
+_SCHEMA: Final = """
+CREATE TABLE IF NOT EXISTS alarm_state (
+    id TEXT PRIMARY KEY,
+    robot TEXT NOT NULL,
+    key TEXT NOT NULL,
+    data TEXT NOT NULL,
+    time REAL NOT NULL
+);
+CREATE TABLE IF NOT EXISTS alarm_history (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    time REAL NOT NULL,
+    robot TEXT NOT NULL,
+    alarm_id TEXT NOT NULL,
+    key TEXT NOT NULL,
+    name TEXT NOT NULL,
+    priority TEXT NOT NULL,
+    transition TEXT NOT NULL,
+    state TEXT NOT NULL,
+    shelved INTEGER NOT NULL,
+    message TEXT,
+    value TEXT,
+    label TEXT,
+    tag TEXT,
+    user TEXT,
+    comment TEXT
+);
+CREATE INDEX IF NOT EXISTS alarm_history_robot ON alarm_history (robot, id);
+"""
+
+HISTORY_COLUMNS: Final = (
+    "id",
+    "time",
+    "robot",
+    "alarm_id",
+    "key",
+    "name",
+    "priority",
+    "transition",
+    "state",
+    "shelved",
+    "message",
+    "value",
+    "label",
+    "tag",
+    "user",
+    "comment",
+)
+
+
+@dataclass(frozen=True, slots=True)
+class AlarmChange:
+    """One transition of one alarm, as it is stored."""
+
+    time: float
+    robot: str
+    alarm_id: str
+    key: str
+    name: str
+    priority: str
+    transition: str
+    state: str
+    shelved: bool
+    message: str | None
+    value: float | bool | None
+    label: str | None
+    tag: str | None
+    user: str | None
+    comment: str | None
+    record: dict[str, object]
+    """The alarm's whole record after the change (``state.AlarmStatus.to_json``)."""
+
+
+class AlarmStore:
+    """The alarm tables of one ``Store``: ``open`` after the store opened, ``close`` before it
+    closes."""
+
+    def __init__(self, store: Store) -> None:
+        self._store = store
+        self._queue: asyncio.Queue[AlarmChange | None] = asyncio.Queue()
+        self._writer: asyncio.Task[None] | None = None
+        self.write_errors = 0
+
+    async def open(self) -> None:
+        await self._store.call(lambda db: db.executescript(_SCHEMA))
+        if self._writer is None:
+            self._writer = asyncio.create_task(self._write(), name="alarm-store")
+
+    async def close(self) -> None:
+        if self._writer is not None:
+            self._queue.put_nowait(None)
+            await self._writer
+            self._writer = None
+
+    async def load(self, robot: str) -> dict[str, dict[str, object]]:
+        """The persisted records of one robot's alarms, by key."""
+
+        def read(db: sqlite3.Connection) -> list[tuple[str, str]]:
+            rows: list[tuple[str, str]] = db.execute(
+                "SELECT key, data FROM alarm_state WHERE robot = ?", (robot,)
+            ).fetchall()
+            return rows
+
+        out: dict[str, dict[str, object]] = {}
+        for key, data in await self._store.call(read, fsync=False):
+            try:
+                record = orjson.loads(data)
+            except orjson.JSONDecodeError:
+                continue  # a damaged row: the alarm starts normal
+            if isinstance(record, dict):
+                out[key] = record
+        return out
+
+    def submit(self, change: AlarmChange) -> None:
+        """Queue a transition; never blocks (the frame path calls it)."""
+        self._queue.put_nowait(change)
+
+    async def flush(self) -> None:
+        """Wait until every transition queued so far is committed."""
+        await self._queue.join()
+
+    async def _write(self) -> None:
+        stopping = False
+        while not stopping:
+            first = await self._queue.get()
+            batch = [first]
+            while not self._queue.empty():
+                batch.append(self._queue.get_nowait())
+            changes = [c for c in batch if c is not None]
+            stopping = len(changes) != len(batch)
+            try:
+                if changes:
+                    await self._store.call(lambda db, c=changes: _write_sync(db, c))  # type: ignore[misc]
+            except sqlite3.Error:
+                self.write_errors += len(changes)  # a full disk must not stop the alarms
+            finally:
+                for _ in batch:
+                    self._queue.task_done()
+
+    async def history_page(
+        self,
+        limit: int,
+        offset: int,
+        *,
+        robot: str | None = None,
+        priority: str | None = None,
+        since: float | None = None,
+        until: float | None = None,
+    ) -> Page:
+        """Transitions, newest first, optionally of one robot, one priority, a time range."""
+        from cobot_hmi.service.store import Page
+
+        clauses: list[str] = []
+        params: list[object] = []
+        for column, op, value in (
+            ("robot", "=", robot),
+            ("priority", "=", priority),
+            ("time", ">=", since),
+            ("time", "<", until),
+        ):
+            if value is not None:
+                clauses.append(f"{column} {op} ?")
+                params.append(value)
+        where = ("WHERE " + " AND ".join(clauses)) if clauses else ""
+
+        def read(db: sqlite3.Connection) -> tuple[int, list[tuple[object, ...]]]:
+            total = db.execute(f"SELECT count(*) FROM alarm_history {where}", params).fetchone()
+            rows = db.execute(
+                f"SELECT {', '.join(HISTORY_COLUMNS)} FROM alarm_history {where}"
+                " ORDER BY id DESC LIMIT ? OFFSET ?",
+                (*params, limit, offset),
+            ).fetchall()
+            return int(total[0]), rows
+
+        total, rows = await self._store.call(read, fsync=False)
+        items = []
+        for row in rows:
+            item = dict(zip(HISTORY_COLUMNS, row, strict=True))
+            item["shelved"] = bool(item["shelved"])
+            text = item["value"]
+            item["value"] = orjson.loads(text) if isinstance(text, str) else None
+            items.append(item)
+        return Page(items, total)
+
+
+def _write_sync(db: sqlite3.Connection, changes: list[AlarmChange]) -> None:
+    db.executemany(
+        "INSERT INTO alarm_history (time, robot, alarm_id, key, name, priority, transition,"
+        " state, shelved, message, value, label, tag, user, comment)"
+        " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+        [
+            (
+                c.time,
+                c.robot,
+                c.alarm_id,
+                c.key,
+                c.name,
+                c.priority,
+                c.transition,
+                c.state,
+                int(c.shelved),
+                c.message,
+                None if c.value is None else orjson.dumps(c.value).decode(),
+                c.label,
+                c.tag,
+                c.user,
+                c.comment,
+            )
+            for c in changes
+        ],
+    )
+    db.executemany(
+        "INSERT INTO alarm_state (id, robot, key, data, time) VALUES (?, ?, ?, ?, ?)"
+        " ON CONFLICT (id) DO UPDATE SET data = excluded.data, time = excluded.time",
+        [(c.alarm_id, c.robot, c.key, orjson.dumps(c.record).decode(), c.time) for c in changes],
+    )

@@ -1,0 +1,351 @@
+"""Layer: service. Alarms: the current ones of every robot (or one, ``?robot=``), one alarm, its
+acknowledgement and shelving (operator role, audited as writes are), and the history (JSON or
+CSV with ISO 8601 times).
+
+An alarm's id is ``robot:key`` (``left:emergency_stop``, ``left:motor_temperature.2`` is J 3's):
+the robot part picks the robot's engine (``RobotRuntime.alarms``). Every change is also an
+``alarm`` event on that robot's stream and in the event log.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Final, Literal
+
+from fastapi import APIRouter, Body, Path, Query, Request, Response
+
+from cobot_hmi.codec import dumps
+from cobot_hmi.service import models
+from cobot_hmi.service.alarms.engine import AlarmEngine, AlarmRefusedError, UnknownAlarmError
+from cobot_hmi.service.alarms.persistence import HISTORY_COLUMNS
+from cobot_hmi.service.api_docs import CSV_RESPONSE, errors
+from cobot_hmi.service.deps import RobotFilterDep, ServiceDep, ViewerDep, WriterDep
+from cobot_hmi.service.errors import ApiError, conflict, not_found
+from cobot_hmi.service.robot import RobotRuntime
+from cobot_hmi.service.routes_read import OrjsonResponse
+from cobot_hmi.service.runtime import Service
+from cobot_hmi.service.store import MAX_PAGE, AuditEntry, to_csv
+from cobot_hmi.service.write_pipeline import Writer, authorize_audited
+
+router = APIRouter(prefix="/api/v1", tags=["alarms"])
+
+AlarmId = Annotated[
+    str,
+    Path(
+        description="``robot:key``, e.g. ``left:emergency_stop`` (URL-encode the colon as %3A "
+        "if your client insists)",
+        json_schema_extra={"pattern": r"^[a-z0-9][a-z0-9_-]{0,31}:[a-z0-9_.-]+$"},
+    ),
+]
+_CHANGE: Final = (401, 403, 404, 409, 413, 415, 422, 429)
+
+
+def _engine(service: Service, alarm_id: str) -> tuple[RobotRuntime, AlarmEngine]:
+    name, colon, key = alarm_id.partition(":")
+    robot = service.robots.get(name) if colon and key else None
+    if robot is None:
+        known = ", ".join(service.robots)
+        raise not_found(
+            f"no alarm {alarm_id!r}: an alarm id is robot:key, robots: {known}", field="alarm_id"
+        )
+    return robot, robot.alarms
+
+
+def _find(engine: AlarmEngine, alarm_id: str) -> None:
+    try:
+        engine.find(alarm_id)
+    except UnknownAlarmError:
+        raise not_found(
+            f"robot {engine.robot} has no alarm {alarm_id!r}", field="alarm_id"
+        ) from None
+
+
+@router.get(
+    "/alarms",
+    summary="Alarms that are active or unacknowledged (every robot, or ?robot=), most urgent first",
+    response_model=models.AlarmList,
+    responses=errors(401, 404, 422),
+)
+async def list_alarms(
+    service: ServiceDep,
+    _: ViewerDep,
+    robot: RobotFilterDep,
+    *,
+    which: Annotated[
+        Literal["current", "all"],
+        Query(description="current: active or unacknowledged; all: every alarm, normal too"),
+    ] = "current",
+) -> OrjsonResponse:
+    robots = [service.robot(robot)] if robot is not None else list(service.robots.values())
+    items: list[dict[str, object]] = []
+    for one in robots:
+        items.extend(one.alarms.current() if which == "current" else one.alarms.all())
+    items.sort(key=lambda a: (a["priority_rank"], -float(a["changed_at"] or 0.0)))  # type: ignore[arg-type]
+    return OrjsonResponse({"items": items, "total": len(items)})
+
+
+Limit = Annotated[int, Query(ge=1, le=MAX_PAGE)]
+Offset = Annotated[int, Query(ge=0)]
+
+
+@router.get(
+    "/alarms/history",
+    summary="Every alarm transition, newest first (JSON, or CSV with ISO 8601 times)",
+    responses={
+        200: {
+            "model": models.AlarmHistoryPage,
+            "description": "a page, newest first (format=csv: as CSV, the total in X-Total-Count)",
+            "content": CSV_RESPONSE,
+        },
+        **errors(401, 404, 422),
+    },
+)
+async def alarm_history(
+    service: ServiceDep,
+    _: ViewerDep,
+    robot: RobotFilterDep,
+    *,
+    priority: Annotated[
+        models.AlarmPriority | None, Query(description="only this priority")
+    ] = None,
+    since: Annotated[
+        float | None, Query(description="from this time on, s since the epoch")
+    ] = None,
+    until: Annotated[float | None, Query(description="before this time, s since the epoch")] = None,
+    limit: Limit = 100,
+    offset: Offset = 0,
+    format: Annotated[Literal["json", "csv"], Query(description="csv: the page as CSV")] = "json",
+) -> Response:
+    store = service.default_robot.alarm_store
+    page = await store.history_page(
+        limit, offset, robot=robot, priority=priority, since=since, until=until
+    )
+    if format == "csv":
+        return Response(
+            to_csv(page.items, HISTORY_COLUMNS),
+            media_type="text/csv; charset=utf-8",
+            headers={
+                "Content-Disposition": 'attachment; filename="alarm-history.csv"',
+                "X-Total-Count": str(page.total),
+            },
+        )
+    return Response(
+        dumps({"items": page.items, "total": page.total}), media_type="application/json"
+    )
+
+
+@router.get(
+    "/alarms/{alarm_id}",
+    summary="One alarm and its state",
+    response_model=models.Alarm,
+    responses=errors(401, 404),
+)
+async def get_alarm(service: ServiceDep, _: ViewerDep, alarm_id: AlarmId) -> OrjsonResponse:
+    engine = _engine(service, alarm_id)[1]
+    _find(engine, alarm_id)
+    return OrjsonResponse(engine.snapshot(engine.find(alarm_id)))
+
+
+def _origin(request: Request) -> str:
+    return f"{request.method} {request.url.path}"
+
+
+async def _audit(
+    robot: RobotRuntime,
+    writer: Writer,
+    *,
+    user: str,
+    action: str,
+    key: str,
+    requested: dict[str, Any],
+    outcome: str,
+    reason: str | None,
+    origin: str,
+    summary: str | None = None,
+) -> None:
+    await robot.store.add_audit(
+        AuditEntry(
+            user,
+            writer.client,
+            action,
+            [key],
+            None,
+            requested,
+            outcome,
+            reason,
+            robot=robot.name,
+            origin=origin,
+            summary=summary,
+        )
+    )
+
+
+def _summary(alarm: dict[str, object], what: str) -> str:
+    where = alarm.get("label")
+    tag = alarm.get("tag")
+    if where and tag:
+        where = f"{where} ({tag})"
+    return f"{alarm['name']}{f' [{where}]' if where else ''}: {what}"
+
+
+@router.post(
+    "/alarms/{alarm_id}/ack",
+    summary="Acknowledge an alarm (operator): active → active-acknowledged, returned → normal",
+    response_model=models.AlarmAnswer,
+    responses=errors(*_CHANGE),
+)
+async def acknowledge(
+    service: ServiceDep,
+    writer: WriterDep,
+    request: Request,
+    alarm_id: AlarmId,
+    body: Annotated[models.AlarmAck | None, Body()] = None,
+) -> OrjsonResponse:
+    robot, engine = _engine(service, alarm_id)
+    _find(engine, alarm_id)
+    comment = body.comment.strip() or None if body is not None and body.comment else None
+    key = alarm_id.partition(":")[2]
+    requested: dict[str, Any] = {"comment": comment}
+    origin = _origin(request)
+    user = await authorize_audited(
+        robot.store,
+        writer,
+        action="alarm.ack",
+        what="acknowledging alarms",
+        robot=robot.name,
+        origin=origin,
+        fields=[key],
+        requested=requested,
+    )
+    try:
+        alarm, changed = engine.acknowledge(alarm_id, user, comment)
+    except AlarmRefusedError as error:
+        await _audit(
+            robot,
+            writer,
+            user=user,
+            action="alarm.ack",
+            key=key,
+            requested=requested,
+            outcome="refused",
+            reason=str(error),
+            origin=origin,
+        )
+        raise conflict(str(error)) from None
+    await robot.alarm_store.flush()
+    outcome = "acknowledged" if changed else "unchanged"
+    reason = None if changed else "already acknowledged"
+    summary = _summary(alarm, "acknowledged" + (f" — {comment}" if comment else ""))
+    await _audit(
+        robot,
+        writer,
+        user=user,
+        action="alarm.ack",
+        key=key,
+        requested=requested,
+        outcome=outcome,
+        reason=reason,
+        origin=origin,
+        summary=summary,
+    )
+    return OrjsonResponse({"alarm": alarm, "changed": changed})
+
+
+@router.post(
+    "/alarms/{alarm_id}/shelve",
+    summary="Shelve an alarm (operator): not annunciated until it expires or is unshelved",
+    response_model=models.AlarmAnswer,
+    responses=errors(*_CHANGE),
+)
+async def shelve(
+    service: ServiceDep,
+    writer: WriterDep,
+    request: Request,
+    alarm_id: AlarmId,
+    body: models.AlarmShelve,
+) -> OrjsonResponse:
+    robot, engine = _engine(service, alarm_id)
+    _find(engine, alarm_id)
+    key = alarm_id.partition(":")[2]
+    requested: dict[str, Any] = {"reason": body.reason, "duration_s": body.duration_s}
+    origin = _origin(request)
+    user = await authorize_audited(
+        robot.store,
+        writer,
+        action="alarm.shelve",
+        what="shelving alarms",
+        robot=robot.name,
+        origin=origin,
+        fields=[key],
+        requested=requested,
+    )
+    try:
+        alarm = engine.shelve(alarm_id, user, body.reason, body.duration_s)
+    except AlarmRefusedError as error:
+        await _audit(
+            robot,
+            writer,
+            user=user,
+            action="alarm.shelve",
+            key=key,
+            requested=requested,
+            outcome="refused",
+            reason=str(error),
+            origin=origin,
+        )
+        raise ApiError(422, str(error), field="duration_s") from None
+    await robot.alarm_store.flush()
+    summary = _summary(alarm, f"shelved for {body.duration_s:g} s — {body.reason.strip()}")
+    await _audit(
+        robot,
+        writer,
+        user=user,
+        action="alarm.shelve",
+        key=key,
+        requested=requested,
+        outcome="shelved",
+        reason=None,
+        origin=origin,
+        summary=summary,
+    )
+    return OrjsonResponse({"alarm": alarm, "changed": True})
+
+
+@router.post(
+    "/alarms/{alarm_id}/unshelve",
+    summary="Unshelve an alarm (operator)",
+    response_model=models.AlarmAnswer,
+    responses=errors(*_CHANGE),
+)
+async def unshelve(
+    service: ServiceDep, writer: WriterDep, request: Request, alarm_id: AlarmId
+) -> OrjsonResponse:
+    robot, engine = _engine(service, alarm_id)
+    _find(engine, alarm_id)
+    key = alarm_id.partition(":")[2]
+    origin = _origin(request)
+    user = await authorize_audited(
+        robot.store,
+        writer,
+        action="alarm.unshelve",
+        what="unshelving alarms",
+        robot=robot.name,
+        origin=origin,
+        fields=[key],
+    )
+    alarm, changed = engine.unshelve(alarm_id, user)
+    await robot.alarm_store.flush()
+    outcome = "unshelved" if changed else "unchanged"
+    reason = None if changed else "not shelved"
+    await _audit(
+        robot,
+        writer,
+        user=user,
+        action="alarm.unshelve",
+        key=key,
+        requested={},
+        outcome=outcome,
+        reason=reason,
+        origin=origin,
+        summary=_summary(alarm, "unshelved"),
+    )
+    return OrjsonResponse({"alarm": alarm, "changed": changed})

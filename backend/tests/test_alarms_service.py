@@ -1,0 +1,293 @@
+"""Issue 13, alarms end to end: the simulated robot behind the real EtherNet/IP target (its
+control API drives the e-stop), the service on loopback holding the class 1 connection. An
+e-stop raises its alarm with the very frame that shows it, on the stream and in the API;
+acknowledge, reset and a restart of the service keep the ISA-18.2 states; shelving expires;
+per-robot filtering; the history as CSV with ISO 8601 times; /metrics and the status' packet
+loss fields."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import csv
+import io
+from collections.abc import AsyncIterator
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+import orjson
+import pytest
+from websockets.asyncio.client import connect
+
+from cobot_hmi.service.alarms.persistence import HISTORY_COLUMNS
+from cobot_hmi.service.models import EVENT, STREAM_MESSAGE, AlarmHistoryPage, AlarmList
+from conftest import free_tcp_port
+from emulator_harness import Emulator, running_emulator
+from service_support import (
+    OPERATOR,
+    VIEWER,
+    Running,
+    cell_settings,
+    emulator,
+    eventually,
+    running_service,
+    service_settings,
+)
+
+pytestmark = pytest.mark.timeout(180)
+
+ESTOP = "robot:emergency_stop"
+
+
+class Stream:
+    """A WebSocket reader keeping every message, each validated against the contract."""
+
+    def __init__(self) -> None:
+        self.messages: list[Any] = []
+        self.invalid: list[str] = []
+
+    def alarm_events(self, alarm_id: str | None = None) -> list[dict[str, Any]]:
+        return [
+            m["event"]
+            for m in self.messages
+            if m["type"] == "event"
+            and m["event"]["kind"] == "alarm"
+            and (alarm_id is None or m["event"]["alarm"]["id"] == alarm_id)
+        ]
+
+
+@contextlib.asynccontextmanager
+async def stream(url: str, token: str | None = None) -> AsyncIterator[Stream]:
+    headers = {"Authorization": f"Bearer {token}"} if token else None
+    reading = Stream()
+    async with connect(url, additional_headers=headers) as connection:
+
+        async def read() -> None:
+            async for text in connection:
+                message = orjson.loads(text)
+                reading.messages.append(message)
+                try:
+                    STREAM_MESSAGE.validate_python(message)
+                except ValueError as error:
+                    reading.invalid.append(f"{str(message)[:200]}: {error}")
+
+        task = asyncio.create_task(read())
+        try:
+            yield reading
+        finally:
+            await connection.close()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await asyncio.wait_for(task, 5)
+    assert not reading.invalid, reading.invalid[:3]
+
+
+async def alarms(hmi: Running, query: str = "") -> dict[str, dict[str, Any]]:
+    async with hmi.client() as client:
+        answer = await client.get(f"/api/v1/alarms{query}")
+    assert answer.status_code == 200, answer.text
+    AlarmList.model_validate(answer.json())
+    return {item["id"]: item for item in answer.json()["items"]}
+
+
+def state_is(hmi: Running, value: int) -> bool:
+    latest = hmi.service.default_robot.hub.latest
+    return latest is not None and latest[2].robot_state == value
+
+
+@pytest.fixture
+async def emu(robot_host: str, plc_host: str) -> AsyncIterator[Emulator]:
+    async with running_emulator(robot_host, plc_host) as emulator_:
+        yield emulator_
+
+
+async def test_estop_alarm_ack_restart_reset(emu: Emulator, plc_host: str, tmp_path: Path) -> None:
+    settings = service_settings(emu.target.settings.host, emu.target.tcp_port, plc_host, tmp_path)
+    async with running_service(settings) as hmi:
+        await eventually(lambda: state_is(hmi, 14))  # STANDALONE_RUNNING
+        assert ESTOP not in await alarms(hmi)
+        robot = hmi.service.default_robot
+        frames = robot.hub.subscribe("test", 100_000)
+        async with stream(hmi.robot_ws_url("robot")) as watching:
+            await emu.post("/estop")
+            await eventually(lambda: bool(watching.alarm_events(ESTOP)))
+        robot.hub.unsubscribe(frames)
+        first_estop_t = next(t for _, t, frame in frames.drain() if frame.robot_state == 0)
+        [event] = watching.alarm_events(ESTOP)
+        EVENT.validate_python(event)
+        assert event["transition"] == "activated"
+        # Raised by the first frame that shows the e-stop: the alarm's time is that frame's.
+        assert event["alarm"]["activated_at"] == first_estop_t
+        assert event["alarm"]["state"] == "active_unacknowledged"
+        assert event["alarm"]["priority"] == "critical" and event["alarm"]["colour"] == "red"
+        current = await alarms(hmi)
+        assert current[ESTOP]["state"] == "active_unacknowledged"
+        assert current[ESTOP]["active"] is True and current[ESTOP]["acknowledged"] is False
+        # The most urgent first.
+        assert next(iter(current)) == ESTOP
+        activated_at = current[ESTOP]["activated_at"]
+
+    # A restart keeps the active, unacknowledged alarm: not raised again, same time.
+    again = settings.replace(port=free_tcp_port(plc_host))
+    async with running_service(again) as hmi:
+        await eventually(lambda: state_is(hmi, 0))
+        kept = (await alarms(hmi))[ESTOP]
+        assert kept["state"] == "active_unacknowledged"
+        assert kept["activated_at"] == activated_at
+        async with hmi.client(await hmi.login(VIEWER)) as viewer:
+            refused = await viewer.post(f"/api/v1/alarms/{ESTOP}/ack", json={})
+        assert refused.status_code == 403, refused.text
+        async with hmi.client(await hmi.login(OPERATOR)) as operator:
+            acked = await operator.post(
+                f"/api/v1/alarms/{ESTOP}/ack", json={"comment": "cell checked"}
+            )
+            assert acked.status_code == 200, acked.text
+            alarm = acked.json()["alarm"]
+            assert acked.json()["changed"] is True
+            assert alarm["state"] == "active_acknowledged"
+            assert (alarm["acknowledged_by"], alarm["ack_comment"]) == (OPERATOR[0], "cell checked")
+            twice = await operator.post(f"/api/v1/alarms/{ESTOP}/ack")  # no body: fine
+            assert twice.status_code == 200 and twice.json()["changed"] is False
+            audit = (await operator.get("/api/v1/audit?limit=5")).json()["items"]
+        acks = [row for row in audit if row["action"] == "alarm.ack"]
+        assert [(r["user"], r["outcome"]) for r in acks] == [
+            (OPERATOR[0], "unchanged"),
+            (OPERATOR[0], "acknowledged"),
+            (VIEWER[0], "forbidden"),
+        ]
+        assert acks[1]["requested"] == {"comment": "cell checked"}
+        assert acks[1]["fields"] == ["emergency_stop"] and acks[1]["robot"] == "robot"
+        assert acks[1]["summary"] == "Emergency stop: acknowledged — cell checked"
+
+        # Reset: the e-stop returns to normal (acknowledged before: C → A); SAFE_OFF passes by
+        # unacknowledged (B → D): it stays in the list until someone acknowledges it.
+        await emu.post("/reset")
+        await eventually(lambda: state_is(hmi, 13))  # STANDALONE_STANDBY
+        await eventually(
+            lambda: hmi.service.default_robot.alarms.find(ESTOP).status.state == "normal"
+        )
+        safe_off = hmi.service.default_robot.alarms.find("robot:safe_off").status
+        await eventually(lambda: safe_off.state == "returned_unacknowledged")
+        current = await alarms(hmi)
+        assert ESTOP not in current
+        assert current["robot:safe_off"]["state"] == "returned_unacknowledged"
+        everything = await alarms(hmi, "?which=all")
+        assert everything[ESTOP]["state"] == "normal"
+
+        await hmi.service.default_robot.alarm_store.flush()
+        async with hmi.client() as client:
+            page = (await client.get("/api/v1/alarms/history?robot=robot")).json()
+            AlarmHistoryPage.model_validate(page)
+            history_csv = await client.get("/api/v1/alarms/history?format=csv")
+        transitions = [(i["key"], i["transition"]) for i in reversed(page["items"])]
+        estop_transitions = [t for k, t in transitions if k == "emergency_stop"]
+        assert estop_transitions == ["activated", "acknowledged", "cleared"]
+        assert history_csv.status_code == 200
+        assert history_csv.headers["content-type"].startswith("text/csv")
+        rows = list(csv.reader(io.StringIO(history_csv.text)))
+        assert tuple(rows[0]) == HISTORY_COLUMNS
+        assert len(rows) - 1 == page["total"] == int(history_csv.headers["x-total-count"])
+        for row in rows[1:]:
+            when = datetime.fromisoformat(row[1])
+            assert when.tzinfo is not None and when.utcoffset() is not None
+        metrics = await hmi.metrics()
+        assert 'cobot_hmi_alarms{robot="robot",priority="high",state="unacknowledged"} 1.0' in (
+            metrics
+        )
+        assert 'cobot_hmi_alarms{robot="robot",priority="critical",state="active"} 0.0' in metrics
+
+
+async def test_shelving_with_expiry_and_refusals(
+    emu: Emulator, plc_host: str, tmp_path: Path
+) -> None:
+    settings = service_settings(
+        emu.target.settings.host, emu.target.tcp_port, plc_host, tmp_path, alarm_shelve_max_s=60
+    )
+    async with running_service(settings) as hmi:
+        alarm_id = "robot:protective_stop"
+        async with hmi.client(await hmi.login(OPERATOR)) as operator:
+            path = f"/api/v1/alarms/{alarm_id}/shelve"
+            for body, field in (
+                ({"duration_s": 1.0}, "reason"),
+                ({"reason": "", "duration_s": 1.0}, "reason"),
+                ({"reason": "x", "duration_s": 0}, "duration_s"),
+                ({"reason": "x", "duration_s": 61}, "duration_s"),
+            ):
+                answer = await operator.post(path, json=body)
+                assert answer.status_code == 422, (body, answer.text)
+                assert answer.json()["detail"]["field"] == field
+            unknown = await operator.post(
+                "/api/v1/alarms/robot:nope/shelve", json={"reason": "x", "duration_s": 1}
+            )
+            assert unknown.status_code == 404
+            shelved = await operator.post(
+                path, json={"reason": "guard being replaced", "duration_s": 1.5}
+            )
+            assert shelved.status_code == 200, shelved.text
+            assert shelved.json()["alarm"]["shelved"] is True
+            assert shelved.json()["alarm"]["shelve_reason"] == "guard being replaced"
+            # While shelved the alarm still follows its condition.
+            await eventually(lambda: state_is(hmi, 14))  # servo on, running
+            await emu.post("/protective-stop")
+            await eventually(
+                lambda: hmi.service.default_robot.alarms.find(alarm_id).status.state.active
+            )
+            item = (await alarms(hmi))[alarm_id]
+            assert item["shelved"] is True and item["state"] == "active_unacknowledged"
+            # The expiry unshelves it (the slow tick; a generous deadline).
+            await eventually(
+                lambda: not hmi.service.default_robot.alarms.find(alarm_id).status.shelved,
+                timeout_s=30,
+            )
+            await hmi.service.default_robot.alarm_store.flush()
+            page = (await operator.get("/api/v1/alarms/history?limit=50")).json()
+            audit = (await operator.get("/api/v1/audit?limit=20")).json()["items"]
+        kinds = [i["transition"] for i in reversed(page["items"]) if i["alarm_id"] == alarm_id]
+        assert kinds[0] == "shelved" and "shelve_expired" in kinds and "activated" in kinds
+        shelve_rows = [(r["outcome"], r["reason"]) for r in audit if r["action"] == "alarm.shelve"]
+        assert shelve_rows[0] == ("shelved", None)
+        assert ("refused", "shelve for more than 0 and at most 60 s (alarm_shelve_max_s)") in (
+            shelve_rows
+        )
+
+
+async def test_alarms_per_robot(robot_host: str, plc_host: str, tmp_path: Path) -> None:
+    from conftest import _next_host
+
+    async with running_emulator(robot_host, plc_host) as left, emulator(_next_host()) as right:
+        settings = cell_settings(
+            [
+                ("left", left.target.settings.host, left.target.tcp_port),
+                ("right", right.settings.host, right.tcp_port),
+            ],
+            plc_host,
+            tmp_path,
+        )
+        async with running_service(settings) as hmi:
+            left_robot = hmi.service.robots["left"]
+            await eventually(
+                lambda: (
+                    left_robot.hub.latest is not None and left_robot.hub.latest[2].robot_state == 14
+                )
+            )
+            await left.post("/estop")
+            await eventually(
+                lambda: left_robot.alarms.find("left:emergency_stop").status.state.active
+            )
+            mine = await alarms(hmi, "?robot=left")
+            theirs = await alarms(hmi, "?robot=right")
+            both = await alarms(hmi)
+            assert "left:emergency_stop" in mine and "left:emergency_stop" in both
+            assert all(a["robot"] == "left" for a in mine.values())
+            assert all(a["robot"] == "right" and k.startswith("right:") for k, a in theirs.items())
+            assert set(mine) | set(theirs) == set(both)
+            async with hmi.client() as client:
+                unknown = await client.get("/api/v1/alarms?robot=nobody")
+                assert unknown.status_code == 404
+                assert unknown.json()["detail"]["known"] == ["left", "right"]
+                status = (await client.get("/api/v1/robots/right/status")).json()
+            assert status["connection"]["packet_loss_high"] is False
+            await eventually(lambda: hmi.service.robots["right"].alarms.gaps_per_min is not None)
+            async with hmi.client() as client:
+                status = (await client.get("/api/v1/robots/right/status")).json()
+            assert status["connection"]["gaps_per_min"] == 0.0
