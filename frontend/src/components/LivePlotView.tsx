@@ -22,6 +22,7 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
   const container = useRef<HTMLDivElement | null>(null);
   const plotRef = useRef<LivePlot | null>(null);
   const [paused, setPaused] = useState(false);
+  const [zoomed, setZoomed] = useState(false);
   const [window_ms, setWindow] = useState(DEFAULT_WINDOW_MS);
   const traces = tracesOf(spec);
   const titles = axisTitles(spec);
@@ -40,7 +41,11 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
       theme,
       readOnly,
       ...(height_px !== undefined ? { height_px } : {}),
+      // The kiosk is read from three metres: no text under 18 px there.
+      ...(readOnly ? { fontSize_px: 18 } : {}),
     });
+    // Whether it is zoomed away from the moving window is configuration (the button shown).
+    plot.onZoomedChange = setZoomed;
     plot.mount(el);
     plotRef.current = plot;
     coordinator.add(plot);
@@ -53,6 +58,7 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
     }
     return () => {
       observer?.disconnect();
+      plot.onZoomedChange = null;
       coordinator.remove(plot);
       plot.unmount();
       plotRef.current = null;
@@ -63,6 +69,14 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
     const next = !paused;
     setPaused(next);
     plotRef.current?.setPaused(next);
+  };
+  const backToLive = () => {
+    setPaused(false);
+    plotRef.current?.backToLive();
+  };
+  const exportPng = () => {
+    const stamp = new Date().toISOString().replace(/[:.]/g, "-");
+    plotRef.current?.exportPng(`${spec.id.replace(/^plot-/, "")}-${stamp}`);
   };
   const chooseWindow = (ms: number) => {
     setWindow(ms);
@@ -99,6 +113,20 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
               title={paused ? "Resume (data kept buffering while paused)" : "Pause (data keeps buffering)"}
             >
               {paused ? "Resume" : "Pause"}
+            </button>
+            {(zoomed || paused) && (
+              <button
+                type="button"
+                className="plot__live"
+                data-testid={`${spec.id}-live`}
+                onClick={backToLive}
+                title="Back to the moving window of the newest data"
+              >
+                Back to live
+              </button>
+            )}
+            <button type="button" data-testid={`${spec.id}-png`} onClick={exportPng} title="Save this plot as a PNG image">
+              PNG
             </button>
             <select
               aria-label={`${spec.title} window`}
@@ -142,7 +170,14 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
         </div>
       )}
       <div className="plot__frame">
-        <div className="plot__area" ref={container} data-testid={spec.id} data-points="0" style={{ height: `${height}px` }} />
+        <div
+          className="plot__area"
+          ref={container}
+          data-testid={spec.id}
+          data-points="0"
+          data-zoomed="false"
+          style={{ height: `${height}px` }}
+        />
         <span className="plot__axis-title plot__axis-title--y" data-testid={`${spec.id}-axis-y`} style={{ top: titleTop }}>
           {titles.y}
         </span>

@@ -1,5 +1,7 @@
 /**
- * The kiosk (`/kiosk?robot=NAME`; without `robot`, the service's default robot): read-only by
+ * The kiosk (`/kiosk?robot=NAME&tiles=joint_position,tcp_position`; without `robot`, the
+ * service's default robot; `tiles` chooses its large numeric tiles, any numeric field of the
+ * frame; `robot3d=1` adds the 3D view, `arm=M0609` names the arm it draws): read-only by
  * construction. Its component tree imports no write control,
  * no REST module and no login (a test walks its imports); it reads the WebSocket only. Dark,
  * readable from three metres, cursor hidden, reconnects by itself, bounded memory, and shifts a
@@ -13,11 +15,14 @@ import { LampRow } from "../components/IoView";
 import { LivePlotView } from "../components/LivePlotView";
 import { RuntimeContext, useLive } from "../components/runtimeContext";
 import { StaleBanner } from "../components/StaleBanner";
+import { Robot3DView } from "../components/Robot3DView";
 import { StateBadge } from "../components/StateBadge";
 import { burnInOffset, BURN_IN_PERIOD_MS } from "../lib/burnIn";
+import { tilesFromSearch } from "../lib/kioskTiles";
 import { JOINT_PLOTS, TCP_PLOTS, type PlotSpec } from "../lib/plots";
 import { robotFromSearch } from "../lib/route";
 import { createLiveRuntime } from "../lib/runtime";
+import { KioskClock, KioskStateWords, KioskTiles } from "./KioskTiles";
 import "../styles/kiosk.css";
 
 const KIOSK_PLOTS: readonly PlotSpec[] = [JOINT_PLOTS[0], TCP_PLOTS[0]].filter((p): p is PlotSpec => p !== undefined);
@@ -33,7 +38,18 @@ function useBurnInOffset() {
   return burnInOffset(now);
 }
 
+/** What the kiosk's URL chooses besides the robot (read once: a kiosk's URL does not change). */
+function kioskOptions(search: string) {
+  const params = new URLSearchParams(search);
+  return {
+    tiles: tilesFromSearch(search),
+    robot3d: params.get("robot3d") === "1",
+    arm: params.get("arm"),
+  };
+}
+
 function Kiosk() {
+  const [options] = useState(() => kioskOptions(window.location.search));
   const live = useLive();
   const offset = useBurnInOffset();
   const stale = live.health !== "connected";
@@ -47,12 +63,16 @@ function Kiosk() {
         style={{ transform: `translate(${offset.dx_px}px, ${offset.dy_px}px)` }}
       >
         <header className="kiosk__header">
-          {live.robot !== null && (
-            <div className="kiosk__robot" data-testid="kiosk-robot">
-              {live.robot}
-            </div>
-          )}
+          <div className="kiosk__topline">
+            {live.robot !== null && (
+              <div className="kiosk__robot" data-testid="kiosk-robot">
+                {live.robot}
+              </div>
+            )}
+            <KioskClock />
+          </div>
           <StateBadge value={frame?.robot_state} stale={stale} size="kiosk" />
+          <KioskStateWords value={frame?.robot_state} />
           {estop && (
             <div className="kiosk__estop" data-testid="kiosk-estop" role="alert">
               EMERGENCY STOP
@@ -64,7 +84,15 @@ function Kiosk() {
             <ControlHolder control={live.control} />
           </div>
         </header>
+        {/* The alarm banner (data-testid="alarm-banner") goes here, above everything but the state. */}
+        <div className="kiosk__alarms" data-slot="alarm-banner" />
         <StaleBanner live={live} />
+        <KioskTiles fields={options.tiles.fields} unknown={options.tiles.unknown} frame={frame} />
+        {options.robot3d && (
+          <div className="kiosk__robot3d">
+            <Robot3DView model={options.arm} theme="dark" interactive={false} height_px={360} />
+          </div>
+        )}
         <main className={`kiosk__main${stale ? " is-stale" : ""}`}>
           <div className="kiosk__plots">
             {KIOSK_PLOTS.map((spec) => (

@@ -37,6 +37,14 @@ export const plotlyBackend: PlotBackend = {
     }
     return zoomed;
   },
+  onRelayout(el, listener) {
+    // Plotly adds `on` to the element it plotted into (an EventEmitter); relayout is a person's
+    // zoom, pan, autoscale or reset (and our own relayout calls, none while live).
+    (el as HTMLElement & { on?: (event: string, cb: () => void) => void }).on?.("plotly_relayout", listener);
+  },
+  downloadPng(el, filename) {
+    ignore(Plotly.downloadImage(el, { format: "png", filename, width: el.clientWidth, height: el.clientHeight }));
+  },
   purge(el) {
     Plotly.purge(el);
   },

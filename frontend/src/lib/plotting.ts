@@ -25,6 +25,10 @@ export interface PlotBackend {
   relayout(el: HTMLElement, update: object): void;
   /** The axes a person zoomed or panned (autorange off) and their ranges now. */
   zoomedAxes(el: HTMLElement): Readonly<Record<string, readonly unknown[]>>;
+  /** Call `listener` after each zoom, pan or autoscale a person makes (Plotly's relayout). */
+  onRelayout?(el: HTMLElement, listener: () => void): void;
+  /** Save the plot as it is drawn now as a PNG file. */
+  downloadPng?(el: HTMLElement, filename: string): void;
   purge(el: HTMLElement): void;
 }
 
@@ -53,6 +57,8 @@ export interface LivePlotOptions {
   /** Kiosk: a static picture, no zoom, no mode bar, no hover. */
   readonly readOnly: boolean;
   readonly height_px?: number;
+  /** Tick labels' size (px); the kiosk's are large (no text under 18 px there). */
+  readonly fontSize_px?: number;
 }
 
 /** Trace colours (colour-blind friendly order, Okabe–Ito). */
@@ -86,6 +92,9 @@ export class LivePlot {
   private visible: boolean[];
   private tzShift_ms = 0;
   private revision = 0;
+  private zoomed = false;
+  /** Told when the plot is zoomed away from the moving window, or back on it. */
+  onZoomedChange: ((zoomed: boolean) => void) | null = null;
   /** `revision` of the last drawing: a rebuild within the same revision keeps the zoom. */
   private drawnRevision = -1;
   /** Points in each trace now (all traces have the same count). */
@@ -124,7 +133,43 @@ export class LivePlot {
   mount(el: HTMLElement): void {
     this.el = el;
     this.backend.newPlot(el, this.emptyData(), this.layout(), this.config());
+    this.backend.onRelayout?.(el, () => this.checkZoom());
     this.needsRebuild = true;
+  }
+
+  /** Whether a person zoomed or panned the plot away from its moving window. */
+  get isZoomed(): boolean {
+    return this.zoomed;
+  }
+
+  private checkZoom(): void {
+    if (this.el === null) return;
+    this.setZoomed(Object.keys(this.backend.zoomedAxes(this.el)).length > 0);
+  }
+
+  private setZoomed(zoomed: boolean): void {
+    if (zoomed === this.zoomed) return;
+    this.zoomed = zoomed;
+    this.mark();
+    this.onZoomedChange?.(zoomed);
+  }
+
+  /**
+   * Back to the moving window: unpaused, every axis autoranged again (a zoom is dropped with a
+   * new `uirevision`), the whole window redrawn from the ring at once.
+   */
+  backToLive(): void {
+    this.paused = false;
+    this.revision++;
+    this.setZoomed(false);
+    this.needsRebuild = true;
+    if (this.el !== null) this.rebuild(this.el);
+    this.mark();
+  }
+
+  /** Save the plot as drawn now as `filename`.png. */
+  exportPng(filename: string): void {
+    if (this.el !== null) this.backend.downloadPng?.(this.el, filename);
   }
 
   unmount(): void {
@@ -141,11 +186,15 @@ export class LivePlot {
 
   setPaused(paused: boolean): void {
     if (paused === this.paused) return;
-    this.paused = paused;
-    // Resuming redraws the whole window from the ring, which kept buffering meanwhile.
-    if (!paused) this.needsRebuild = true;
+    if (!paused) {
+      // Resuming is going back to live: the moving window, not a zoom into a time now past
+      // (with it the plot would scroll out of the range and go blank).
+      this.backToLive();
+      return;
+    }
+    this.paused = true;
     // Pausing redraws once, interactive with hover (see `interactive`), frozen from then on.
-    else if (this.el !== null) this.rebuild(this.el);
+    if (this.el !== null) this.rebuild(this.el);
     this.mark();
   }
 
@@ -241,6 +290,7 @@ export class LivePlot {
     this.el.dataset.paused = this.paused ? "true" : "false";
     this.el.dataset.windowMs = String(this.window_ms);
     this.el.dataset.interactive = this.interactive ? "true" : "false";
+    this.el.dataset.zoomed = this.zoomed ? "true" : "false";
   }
 
   private newBucketer(): MinMaxBucketer {
@@ -266,7 +316,10 @@ export class LivePlot {
       visible: this.visible[i] ?? true,
       line: { width: 1.5, color: traceColour(i), dash: trace.axis === "y2" ? "dot" : "solid" },
       connectgaps: false,
-      hoverinfo: this.options.readOnly ? "skip" : "x+y+name",
+      // The value with the layout's unit ("J 1: 12.35 degree"), the time in the hover's header.
+      ...(this.options.readOnly
+        ? { hoverinfo: "skip" }
+        : { hovertemplate: `${trace.name}: %{y:.4~r} ${trace.field.unit}<extra></extra>` }),
       hoverlabel: { namelength: -1 },
     };
   }
@@ -284,9 +337,9 @@ export class LivePlot {
       showlegend: false,
       paper_bgcolor: dark ? "#12161b" : "#ffffff",
       plot_bgcolor: dark ? "#12161b" : "#ffffff",
-      font: { color: fg, size: 11 },
-      // Hover only on a paused plot: values streaming by cannot be read anyway.
-      hovermode: this.paused && this.interactive ? "x" : false,
+      font: { color: fg, size: this.options.fontSize_px ?? 11 },
+      // Hover whenever the plot is interactive (the pointer on it, or paused): live too.
+      hovermode: this.interactive ? "x" : false,
       // No Plotly axis titles: the view draws them (axisTitles in plots.ts) beside the plot. With a
       // title, Plotly measures every tick label against it on every redraw and caches each
       // measurement under the label's pixel position: with autoranged axes the labels keep

@@ -22,6 +22,11 @@ export interface RuntimeOptions {
   readonly rate_hz?: number;
   /** A session token for the stream's handshake (a kiosk of a site where viewing needs a login). */
   readonly token?: string | null;
+  /**
+   * The page's plot coordinator, for a pipeline whose plots share the page's redraw budget (the
+   * panel's custom plots); it is not started or stopped here. Undefined: a coordinator of its own.
+   */
+  readonly coordinator?: PlotCoordinator;
 }
 
 export function createLiveRuntime(plots: readonly PlotSpec[], options: RuntimeOptions = {}): LiveRuntime {
@@ -31,7 +36,8 @@ export function createLiveRuntime(plots: readonly PlotSpec[], options: RuntimeOp
     onSocketState: (s) => live.setSocketState(s),
     onCloseReason: (r) => live.setCloseReason(r),
   });
-  const coordinator = new PlotCoordinator();
+  const shared = options.coordinator !== undefined;
+  const coordinator = options.coordinator ?? new PlotCoordinator();
   return {
     live,
     stream,
@@ -39,10 +45,10 @@ export function createLiveRuntime(plots: readonly PlotSpec[], options: RuntimeOp
     start() {
       live.start();
       stream.start();
-      coordinator.start();
+      if (!shared) coordinator.start();
     },
     stop() {
-      coordinator.stop();
+      if (!shared) coordinator.stop();
       stream.stop();
       live.stop();
     },

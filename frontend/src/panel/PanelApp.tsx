@@ -7,8 +7,10 @@
 import { useCallback, useEffect, useMemo, useRef, useState, useSyncExternalStore } from "react";
 import { ConnectionHealth } from "../components/ConnectionHealth";
 import { ControlHolder } from "../components/ControlHolder";
+import { CustomPlots } from "../components/CustomPlots";
 import { FlagBadges } from "../components/FlagBadges";
 import { LivePlotView } from "../components/LivePlotView";
+import { Robot3DView } from "../components/Robot3DView";
 import { RuntimeContext, useLive } from "../components/runtimeContext";
 import { StaleBanner } from "../components/StaleBanner";
 import { StateBadge } from "../components/StateBadge";
@@ -39,6 +41,8 @@ const ROBOTS_POLL_MS = 5000;
 const SECTIONS = [
   ["joints", "Joints"],
   ["tcp", "TCP"],
+  ["custom", "Custom plots"],
+  ["robot3d", "3D"],
   ["io", "I/O"],
   ["registers", "Registers"],
   ["events", "Events"],
@@ -119,6 +123,14 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
                 <LivePlotView key={spec.id} spec={spec} theme="light" />
               ))}
             </div>
+          </section>
+          <section id="custom">
+            <h2>Custom plots</h2>
+            <CustomPlots robot={robot} robots={robots.map((r) => r.name)} coordinator={runtime.coordinator} />
+          </section>
+          <section id="robot3d">
+            <h2>3D</h2>
+            <Robot3DView model={robots.find((r) => r.name === robot)?.model ?? null} theme="light" />
           </section>
           <section id="io">
             <h2>I/O</h2>

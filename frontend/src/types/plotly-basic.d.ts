@@ -17,6 +17,10 @@ declare module "plotly.js-basic-dist-min" {
     restyle(el: HTMLElement, update: Record<string, unknown>, indices?: number[]): Promise<HTMLElement>;
     relayout(el: HTMLElement, update: Record<string, unknown>): Promise<HTMLElement>;
     purge(el: HTMLElement): void;
+    downloadImage(
+      el: HTMLElement,
+      options: { format: "png" | "svg" | "jpeg" | "webp"; filename: string; width?: number; height?: number },
+    ): Promise<string>;
     Plots: { resize(el: HTMLElement): Promise<void> };
   }
   const Plotly: PlotlyStatic;

@@ -1,0 +1,93 @@
+/**
+ * Layer: pure kiosk logic (no React, no DOM, no network).
+ *
+ * The kiosk's large numeric tiles are chosen in its URL (`/kiosk?robot=NAME&tiles=joint_position,
+ * tcp_position`): any numeric field of the robot's frame, by its layout name. Names, channel
+ * labels and units come from the generated layout; this module decides only how many decimals a
+ * number gets (fixed per field, so digits do not jump about as values change) and how a state
+ * reads in plain words.
+ */
+import { LAYOUT, type FieldInfo, type Frame, type FrameFieldName } from "../generated/layout";
+import { stateBadge } from "./stateBadge";
+
+/** Tiles shown when the URL chooses none. */
+export const DEFAULT_TILES: readonly FrameFieldName[] = ["joint_position", "tcp_position"];
+
+const T2O = LAYOUT.assemblies.find((a) => a.direction === "T2O");
+
+/** Fields a tile can show: numbers (not bits, not the state, which the kiosk shows anyway). */
+export const TILE_FIELDS: readonly FieldInfo[] = (T2O?.fields ?? []).filter(
+  (f) => f.value_kind !== "bool" && f.enum === undefined && f.element_names === undefined && f.name !== "robot_state",
+);
+
+const BY_NAME = new Map(TILE_FIELDS.map((f) => [f.name, f]));
+
+export interface TileChoice {
+  readonly fields: readonly FieldInfo[];
+  /** Names in the URL that are no numeric field of the frame (shown, so a typo is seen). */
+  readonly unknown: readonly string[];
+}
+
+/** The tiles a kiosk URL's query asks for (`tiles=a,b`; repeated `tiles` add up). */
+export function tilesFromSearch(search: string): TileChoice {
+  const params = new URLSearchParams(search);
+  const asked = params
+    .getAll("tiles")
+    .flatMap((v) => v.split(","))
+    .map((v) => v.trim())
+    .filter((v) => v !== "");
+  if (asked.length === 0) return { fields: DEFAULT_TILES.map((n) => BY_NAME.get(n)).filter((f): f is FieldInfo => f !== undefined), unknown: [] };
+  const fields: FieldInfo[] = [];
+  const unknown: string[] = [];
+  for (const name of asked) {
+    const field = BY_NAME.get(name.toLowerCase());
+    if (field === undefined) unknown.push(name);
+    else if (!fields.includes(field)) fields.push(field);
+  }
+  return { fields, unknown };
+}
+
+/** Decimals of a field's numbers: whole numbers for integers, two for currents and analog. */
+export function tileDecimals(field: FieldInfo): number {
+  if (field.value_kind === "int") return 0;
+  if (field.unit === "A" || field.unit.startsWith("mA")) return 2;
+  return 1;
+}
+
+/** One number as a tile shows it: fixed decimals, a real minus sign, no "-0.0", "—" for none. */
+export function formatTileValue(value: unknown, field: FieldInfo): string {
+  if (typeof value !== "number" || !Number.isFinite(value)) return "—";
+  const text = value.toFixed(tileDecimals(field));
+  if (/^-0(\.0+)?$/.test(text)) return text.slice(1);
+  return text.startsWith("-") ? `\u2212${text.slice(1)}` : text;
+}
+
+export interface TileCell {
+  readonly label: string;
+  readonly text: string;
+}
+
+/** Each channel of `field` in `frame` with its layout label ("J1", "X", …). */
+export function tileCells(field: FieldInfo, frame: Frame | null): TileCell[] {
+  const raw: unknown = frame === null ? undefined : (frame as unknown as Record<string, unknown>)[field.name];
+  const values: readonly unknown[] = Array.isArray(raw) ? raw : [raw];
+  const labels = field.channels.length > 0 ? field.channels : [field.description];
+  return labels.map((label, i) => ({ label, text: formatTileValue(values[i], field) }));
+}
+
+/** "STANDALONE_RUNNING" → "Standalone running". */
+export function plainName(name: string): string {
+  const words = name.toLowerCase().replace(/_/g, " ");
+  return words.charAt(0).toUpperCase() + words.slice(1);
+}
+
+/**
+ * The robot's state in plain words: the layout's state name as a phrase and the first sentence
+ * of its description ("Standalone running", "The task program is being executed.").
+ */
+export function stateWords(value: number | null | undefined): { readonly title: string; readonly detail: string } {
+  const badge = stateBadge(value);
+  if (!badge.known) return { title: value === null || value === undefined ? "No data" : "Unknown state", detail: badge.description };
+  const first = badge.description.match(/^.*?[.!?](\s|$)/)?.[0]?.trim() ?? badge.description;
+  return { title: plainName(badge.name), detail: first };
+}
