@@ -11,6 +11,9 @@ The work is split so that nothing a client does can reach the cyclic connection:
   frame ONCE, then builds one message per rate group (clients asking the same ``?rate=``) from
   those pieces and hands the same text to each client of the group. A client's ``offer`` is a
   deque append: O(1) per client per tick.
+- The robot's alarm engine (``service.alarms``) sees every frame the loop drains, in order,
+  before the frames are sent (``Hub.alarms.observe``: nothing allocated unless an alarm
+  changes); its events follow the frame's own.
 - Each client has its own bounded queue (in frames) and its own sender task. A slow client's
   queue overflows: its oldest frame messages are dropped, counted, and it is told with a
   ``dropped`` message before its next frames. A stalled client (one send stuck for

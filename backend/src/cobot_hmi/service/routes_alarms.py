@@ -79,8 +79,17 @@ async def list_alarms(
     items: list[dict[str, object]] = []
     for one in robots:
         items.extend(one.alarms.current() if which == "current" else one.alarms.all())
-    items.sort(key=lambda a: (a["priority_rank"], -float(a["changed_at"] or 0.0)))  # type: ignore[arg-type]
+    items.sort(key=_urgency)
     return OrjsonResponse({"items": items, "total": len(items)})
+
+
+def _urgency(alarm: dict[str, object]) -> tuple[int, float]:
+    """Most urgent first: priority, then the newest change."""
+    rank, changed = alarm["priority_rank"], alarm["changed_at"]
+    return (
+        rank if isinstance(rank, int) else 3,
+        -changed if isinstance(changed, int | float) else 0.0,
+    )
 
 
 Limit = Annotated[int, Query(ge=1, le=MAX_PAGE)]

@@ -176,15 +176,30 @@ async def import_tags(
         tags = from_csv(body.csv)
     except TagError as error:
         # Authorization first: a viewer learns nothing from a refusal of the sheet.
-        await authorize_audited(
+        origin = f"{request.method} {request.url.path}"
+        user = await authorize_audited(
             robot.store,
             writer,
             action="tags.update",
             what="naming tags",
             robot=robot.name,
-            origin=f"{request.method} {request.url.path}",
+            origin=origin,
             role=Role.ADMIN,
             requested={"how": "csv"},
+        )
+        await robot.store.add_audit(
+            AuditEntry(
+                user,
+                writer.client,
+                "tags.update",
+                [],
+                None,
+                {"how": "csv"},
+                "invalid",
+                error.reason,
+                robot=robot.name,
+                origin=origin,
+            )
         )
         raise ApiError(422, error.reason, field=error.field) from None
     return await _replace(robot, writer, request, tags, "csv")

@@ -486,13 +486,24 @@ async def take_control(robot: WriteTarget, writer: Writer, *, origin: str) -> di
     """Authorize (audited) and take control of ``robot`` for the writer's session; the
     ``ControlStatus``. ``ApiError`` for a refusal."""
     session = await _control_session(robot, writer, "control.take", origin)
-    return await robot.control.take(session, writer.client)
+    return _as_seen_by(await robot.control.take(session, writer.client), session)
 
 
 async def release_control(robot: WriteTarget, writer: Writer, *, origin: str) -> dict[str, object]:
     """Authorize (audited) and release control of ``robot`` (an admin: anyone's)."""
     session = await _control_session(robot, writer, "control.release", origin)
-    return await robot.control.release(session, writer.client)
+    return _as_seen_by(await robot.control.release(session, writer.client), session)
+
+
+def _as_seen_by(status: dict[str, object], session: Session) -> dict[str, object]:
+    """A ``ControlStatus`` with ``holder.session_is_yours`` for the session that asked."""
+    holder = status.get("holder")
+    if isinstance(holder, dict):
+        return {
+            **status,
+            "holder": {**holder, "session_is_yours": holder.get("session") == session.id},
+        }
+    return status
 
 
 async def _control_session(robot: WriteTarget, writer: Writer, action: str, origin: str) -> Session:

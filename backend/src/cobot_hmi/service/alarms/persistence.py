@@ -12,6 +12,7 @@ committed with fsync.
 from __future__ import annotations
 
 import asyncio
+import functools
 import sqlite3
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final
@@ -152,7 +153,7 @@ class AlarmStore:
             stopping = len(changes) != len(batch)
             try:
                 if changes:
-                    await self._store.call(lambda db, c=changes: _write_sync(db, c))  # type: ignore[misc]
+                    await self._store.call(functools.partial(_write_sync, changes=changes))
             except sqlite3.Error:
                 self.write_errors += len(changes)  # a full disk must not stop the alarms
             finally:
