@@ -267,24 +267,45 @@ class Broker:
             await process.wait()
 
 
+def broker_config(
+    host: str,
+    directory: Path,
+    *,
+    persistent: bool = False,
+    port: int | None = None,
+    lines: tuple[str, ...] = (),
+) -> Broker:
+    """A broker on ``host`` (a free port unless given), its config written, not started.
+    ``lines`` replace the plain anonymous listener (their own listeners and security)."""
+    port = port if port is not None else free_tcp_port(host)
+    config = directory / "mosquitto.conf"
+    body = list(lines) or [f"listener {port} {host}", "allow_anonymous true"]
+    body += [f"persistence {'true' if persistent else 'false'}", "log_dest none"]
+    if os.geteuid() == 0:
+        # As root Mosquitto drops to the user "mosquitto", who cannot read a test's private
+        # temporary directory (certificates, password file, persistence): stay who we are.
+        body.append("user root")
+    if persistent:
+        body += [f"persistence_location {directory}/", "queue_qos0_messages true"]
+    config.write_text("\n".join(body) + "\n")
+    return Broker(host, port, config)
+
+
 @contextlib.asynccontextmanager
 async def mosquitto(
-    host: str, directory: Path, *, persistent: bool = False
+    host: str,
+    directory: Path,
+    *,
+    persistent: bool = False,
+    port: int | None = None,
+    lines: tuple[str, ...] = (),
+    start: bool = True,
 ) -> AsyncIterator[Broker]:
-    """Mosquitto on ``host`` (a port of its own), stopped at the end whatever happens."""
-    port = free_tcp_port(host)
-    config = directory / "mosquitto.conf"
-    lines = [
-        f"listener {port} {host}",
-        "allow_anonymous true",
-        f"persistence {'true' if persistent else 'false'}",
-        "log_dest none",
-    ]
-    if persistent:
-        lines += [f"persistence_location {directory}/", "queue_qos0_messages true"]
-    config.write_text("\n".join(lines) + "\n")
-    broker = Broker(host, port, config)
-    await broker.start()
+    """Mosquitto on ``host``, stopped at the end whatever happens (``start=False``: the test
+    starts it when it wants)."""
+    broker = broker_config(host, directory, persistent=persistent, port=port, lines=lines)
+    if start:
+        await broker.start()
     try:
         yield broker
     finally:
@@ -320,7 +341,12 @@ class Subscriber:
         self._subscribed.set()
 
     def _on_message(self, _client: mqtt.Client, _userdata: Any, message: Any) -> None:
-        decoded = decode_payload(message.topic, bytes(message.payload), time.time())
+        received_at = time.time()
+        try:
+            decoded = decode_payload(message.topic, bytes(message.payload), received_at)
+        except (IndexError, ValueError, UnicodeDecodeError, struct.error):
+            # Not a payload (a test's own garbage command): kept, without metrics.
+            decoded = Message(message.topic, None, None, [], received_at, len(message.payload))
         with self._lock:
             self.messages.append(decoded)
 
