@@ -25,6 +25,7 @@ from cobot_hmi.service.models import EVENT, STREAM_MESSAGE, AlarmHistoryPage, Al
 from conftest import free_tcp_port
 from emulator_harness import Emulator, running_emulator
 from service_support import (
+    ADMIN,
     OPERATOR,
     VIEWER,
     Running,
@@ -291,3 +292,63 @@ async def test_alarms_per_robot(robot_host: str, plc_host: str, tmp_path: Path) 
             async with hmi.client() as client:
                 status = (await client.get("/api/v1/robots/right/status")).json()
             assert status["connection"]["gaps_per_min"] == 0.0
+
+
+async def test_user_alarm_from_the_settings_with_its_tag(
+    emu: Emulator, plc_host: str, tmp_path: Path
+) -> None:
+    door = {
+        "name": "door-open",
+        "field": "controlbox_di",
+        "index": 2,  # DI 3
+        "active_when": True,
+        "on_delay_s": 0.2,
+        "priority": "high",
+        "message": "Cell door open",
+    }
+    pressure = {"name": "pressure", "field": "analog_input", "index": 1, "low": 4.5, "high": 18}
+    settings = service_settings(
+        emu.target.settings.host,
+        emu.target.tcp_port,
+        plc_host,
+        tmp_path,
+        alarms=[door, pressure],
+    )
+    alarm_id = "robot:user.door-open"
+    async with running_service(settings) as hmi:
+        async with hmi.client(await hmi.login(ADMIN)) as admin:
+            named = await admin.put(
+                "/api/v1/robots/robot/tags", json={"tags": {"controlbox_di.2": "cell door"}}
+            )
+            assert named.status_code == 200
+        engine = hmi.service.default_robot.alarms
+        assert not engine.find(alarm_id).status.state.active
+        await emu.post("/inputs", {"controlbox_di": {"2": True}})
+        await eventually(lambda: engine.find(alarm_id).status.state.active)
+        alarm = (await alarms(hmi))[alarm_id]
+        assert alarm["name"] == "Cell door open" and alarm["priority"] == "high"
+        assert alarm["label"] == "DI 3" and alarm["tag"] == "cell door"
+        assert alarm["message"] == "DI 3 (cell door) = on"
+        await emu.post("/inputs", {"controlbox_di": {"2": False}})
+        await eventually(lambda: not engine.find(alarm_id).status.state.active)
+        assert (await alarms(hmi))[alarm_id]["state"] == "returned_unacknowledged"
+        everything = await alarms(hmi, "?which=all")
+        assert everything["robot:user.pressure"]["low"] == 4.5
+
+
+async def test_refused_forward_open_and_lost_connection_alarms(
+    robot_host: str, plc_host: str, tmp_path: Path
+) -> None:
+    async with emulator(robot_host) as target:
+        # A T→O size the robot does not have: every Forward Open is refused.
+        settings = service_settings(robot_host, target.tcp_port, plc_host, tmp_path, t2o_size=100)
+        async with running_service(settings, wait_connected=False) as hmi:
+            engine = hmi.service.default_robot.alarms
+            await eventually(lambda: engine.find("robot:forward_open_refused").status.state.active)
+            await eventually(
+                lambda: engine.find("robot:connection_lost").status.state.active, timeout_s=30
+            )
+            current = await alarms(hmi)
+            refused = current["robot:forward_open_refused"]
+            assert refused["message"].startswith("Forward Open refused: ")
+            assert current["robot:connection_lost"]["message"].startswith("not connected")
