@@ -1276,6 +1276,11 @@ export interface components {
              */
             kind: "flag";
             /**
+             * Label
+             * @description the flag in words ("Servo on")
+             */
+            label?: string | null;
+            /**
              * Robot
              * @description the robot's name
              */

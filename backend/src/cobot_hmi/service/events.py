@@ -14,6 +14,8 @@ Event = dict[str, object]
 """``{"kind": …, "time": t, …}`` as ``docs/api.md`` defines it."""
 
 FLAG_NAMES: Final = tuple(f.name for f in flag_fields())
+FLAG_LABELS: Final = {f.name: f.description for f in flag_fields()}
+"""Each flag in words, as the layout describes it ("Servo on")."""
 
 
 def robot_state_event(time_s: float, old: int | None, new: int) -> Event:
@@ -50,6 +52,14 @@ class FrameWatcher:
             if self._flags is not None:
                 for name, old, new in zip(FLAG_NAMES, self._flags, flags, strict=True):
                     if old != new:
-                        events.append({"kind": "flag", "time": time_s, "flag": name, "value": new})
+                        events.append(
+                            {
+                                "kind": "flag",
+                                "time": time_s,
+                                "flag": name,
+                                "value": new,
+                                "label": FLAG_LABELS[name],
+                            }
+                        )
             self._flags = flags
         return events

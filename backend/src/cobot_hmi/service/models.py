@@ -378,6 +378,7 @@ class FlagEvent(_EventBase):
     kind: Literal["flag"]
     flag: FlagName
     value: bool
+    label: str | None = Field(default=None, description='the flag in words ("Servo on")')
 
 
 WriteOutcomeName = Literal[
