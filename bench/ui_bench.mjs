@@ -5,8 +5,10 @@
 //   - long tasks (> 50 ms, PerformanceObserver 'longtask'),
 //   - JS heap after a forced GC at 10 s and at the end,
 //   - frames received over the WebSocket (every frame: no client gaps, no drops) and plot updates.
-// Targets: >= 30 rendered frames/s while receiving every frame at RPI 10 ms; heap at the end
-// within 10 % of the heap at 10 s. Only loopback addresses are used.
+// Targets (issue 13): the panel at 1920x1080 in its default view renders >= 50 frames/s while
+// receiving every frame at RPI 10 ms, each plot in view redraws >= 10 times/s (the monitoring
+// values' own rate), the heap at the end within 10 % of the heap at 10 s (run with --seconds 600
+// for the 10-minute figure). Only loopback addresses are used.
 import { spawn } from "node:child_process";
 import { mkdtempSync, rmSync, writeFileSync } from "node:fs";
 import { createRequire } from "node:module";
@@ -19,7 +21,9 @@ const root = resolve(dirname(fileURLToPath(import.meta.url)), "..");
 const require = createRequire(join(root, "frontend", "package.json"));
 const { chromium } = require("playwright-core");
 
-const TARGET_FPS = 30;
+const TARGET_FPS = 50;
+/** Redraws per second each plot in view must reach (monitoring values refresh every 100 ms). */
+const TARGET_PLOT_REDRAWS = 10;
 const TARGET_HEAP_GROWTH = 0.1;
 const HEAP_FIRST_S = 10;
 
@@ -30,8 +34,8 @@ function option(name, fallback) {
 const seconds = option("seconds", 60);
 const rpiMs = option("rpi-ms", 10);
 const kioskSeconds = option("kiosk-seconds", 60);
-const width = option("width", 1600);
-const height = option("height", 1300);
+const width = option("width", 1920);
+const height = option("height", 1080);
 // Diagnosis: write heap snapshots at 10 s and at the end into this directory (takes seconds each).
 const snapshotIdx = process.argv.indexOf("--heap-snapshots");
 const snapshotDir = snapshotIdx >= 0 ? process.argv[snapshotIdx + 1] : undefined;
@@ -259,14 +263,18 @@ try {
     `  plot updates        ${(updates / secondsMeasured).toFixed(1)}/s in all, ${updateMean_ms === null ? "—" : updateMean_ms.toFixed(1)} ms each on average (Plotly included), longest ${tEnd.updateTimeMax_ms.toFixed(0)} ms, duty ${tEnd.duty?.toFixed(2)}`,
   );
   for (const p of plotRates) {
-    console.log(`  ${p.id.padEnd(30)} ${p.updates_per_s.toFixed(1).padStart(5)} updates/s, ${p.points} points/trace${p.onScreen ? "" : " (out of view)"}`);
+    console.log(`  ${p.id.padEnd(30)} ${p.updates_per_s.toFixed(1).padStart(5)} redraws/s, ${p.points} points/trace${p.onScreen ? "" : " (out of view)"}`);
   }
+  const inViewRates = plotRates.filter((p) => p.onScreen);
+  const slowest = inViewRates.reduce((m, p) => Math.min(m, p.updates_per_s), Infinity);
+  const redrawsOk = inViewRates.length > 0 && slowest >= TARGET_PLOT_REDRAWS;
   const everyFrame = clientGaps === 0 && dropped === 0 && receivedPerS >= 0.9 * (1000 / rpiMs);
   const fpsOk = fpsSteady >= TARGET_FPS;
   const heapOk = Math.abs(heapGrowth) <= TARGET_HEAP_GROWTH;
   console.log(
-    `  targets: >= ${TARGET_FPS} frames/s ${fpsOk ? "MET" : "MISSED"}; every frame received ${everyFrame ? "MET" : "MISSED"}; ` +
-      `heap within ${TARGET_HEAP_GROWTH * 100} % ${heapOk ? "MET" : "MISSED"}`,
+    `  targets: >= ${TARGET_FPS} frames/s ${fpsOk ? "MET" : "MISSED"}; ` +
+      `>= ${TARGET_PLOT_REDRAWS} redraws/s per plot in view (${inViewRates.length} in view, slowest ${slowest.toFixed(1)}) ${redrawsOk ? "MET" : "MISSED"}; ` +
+      `every frame received ${everyFrame ? "MET" : "MISSED"}; heap within ${TARGET_HEAP_GROWTH * 100} % ${heapOk ? "MET" : "MISSED"}`,
   );
   console.log(
     JSON.stringify({
@@ -286,6 +294,8 @@ try {
       robot_gaps: robotGaps,
       plot_updates_per_s: updates / secondsMeasured,
       plot_update_mean_ms: updateMean_ms,
+      plots_in_view: inViewRates.length,
+      plot_redraws_per_s_slowest_in_view: slowest,
       plots: plotRates,
     }),
   );

@@ -79,6 +79,16 @@ export function Robot3DView({ model, theme, interactive = true, height_px = 420 
         fit();
         const observer = typeof ResizeObserver !== "undefined" ? new ResizeObserver(fit) : null;
         observer?.observe(el);
+        // Out of view it keeps following (the path stays whole) but does not draw.
+        let onScreen = true;
+        const visibility =
+          typeof IntersectionObserver !== "undefined"
+            ? new IntersectionObserver((entries) => {
+                for (const entry of entries) onScreen = entry.isIntersecting;
+                if (onScreen) dirty = true;
+              })
+            : null;
+        visibility?.observe(el);
         let handle = 0;
         const loop = () => {
           handle = requestAnimationFrame(loop);
@@ -87,7 +97,7 @@ export function Robot3DView({ model, theme, interactive = true, height_px = 420 
             scene.setTrailCount(feed.trail.copyInto(scene.trailArray));
             dirty = true;
           }
-          if (!dirty || !feed.hasPose) return;
+          if (!dirty || !feed.hasPose || !onScreen) return;
           dirty = false;
           scene.render();
           // For tests and the benchmark: how often it drew (an attribute, not React state).
@@ -97,6 +107,7 @@ export function Robot3DView({ model, theme, interactive = true, height_px = 420 
         stop = () => {
           cancelAnimationFrame(handle);
           observer?.disconnect();
+          visibility?.disconnect();
           reset.current = null;
           scene.dispose();
         };
