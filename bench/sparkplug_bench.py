@@ -14,6 +14,8 @@ cost) per robot; Mosquitto's CPU; latency robot frame → subscriber, p50/p99 (e
 metric timestamp, the frame's kernel receive time in the service, to the subscriber's receive
 time: both clocks are this machine's); per robot the cyclic receive interval p99 (the
 ``frame_receive_interval_seconds`` histogram between two scrapes) on and off and their ratio.
+A probe published by this process every 50 ms during the "on" phases gives the machine's own
+MQTT latency (this process → Mosquitto → this process) as a baseline in the same run.
 Targets: latency p99 ≤ 50 ms, ratio ≤ 1.1, publisher CPU ≤ 5 % of a core per robot.
 """
 
@@ -51,6 +53,8 @@ from cobot_hmi.service.users import Role, UsersFile
 from cobot_hmi.sparkplug.payload import parse_payload
 
 HISTOGRAM = "cobot_hmi_frame_receive_interval_seconds"
+PROBE_TOPIC = "bench/probe"
+PROBE_PERIOD_S = 0.05
 
 
 @dataclass
@@ -60,6 +64,8 @@ class Subscription:
     latencies_s: list[float] = field(default_factory=list)
     in_service_s: list[float] = field(default_factory=list)
     """Newest frame's receive time → the payload's timestamp (taken when it was built)."""
+    probe_s: list[float] = field(default_factory=list)
+    """This process → Mosquitto → this process: the machine's own MQTT latency, a baseline."""
     messages: int = 0
     bytes: int = 0
     recording: bool = False
@@ -72,6 +78,10 @@ class Subscription:
         if not self.recording:
             return
         data = bytes(message.payload)
+        if message.topic == PROBE_TOPIC:
+            with self.lock:
+                self.probe_s.append(received - float(data))
+            return
         latency = in_service = None
         if "/DDATA/" in message.topic:
             payload = parse_payload(data)
@@ -151,6 +161,7 @@ def run_phase(
     broker_pid: int,
     names: list[str],
     subscription: Subscription,
+    probe: mqtt.Client,
 ) -> Phase:
     http_port = free_port(service_host)
     base_url = f"http://{service_host}:{http_port}"
@@ -180,7 +191,10 @@ def run_phase(
         cpu0 = (process_cpu_s(service.pid), process_cpu_s(broker_pid), own_cpu_s())
         subscription.recording = on
         started = time.monotonic()
-        time.sleep(seconds)
+        while (left := started + seconds - time.monotonic()) > 0:
+            if on:  # the baseline: the same path without the service
+                probe.publish(PROBE_TOPIC, repr(time.time()).encode(), qos=0)
+            time.sleep(min(left, PROBE_PERIOD_S))
         elapsed = time.monotonic() - started
         subscription.recording = False
         cpu1 = (process_cpu_s(service.pid), process_cpu_s(broker_pid), own_cpu_s())
@@ -273,6 +287,10 @@ def main() -> int:
                 client.on_connect = lambda c, *_: c.subscribe("spBv1.0/#", qos=0)
                 client.connect(service_host, broker_port)
                 client.loop_start()
+                client.subscribe(PROBE_TOPIC, qos=0)
+                probe = mqtt.Client(CallbackAPIVersion.VERSION2, protocol=mqtt.MQTTv311)
+                probe.connect(service_host, broker_port)
+                probe.loop_start()
                 try:
                     url = f"mqtt://{service_host}:{broker_port}"
                     for _ in range(args.cycles):
@@ -288,11 +306,13 @@ def main() -> int:
                                     broker_pid=broker_process.pid,
                                     names=names,
                                     subscription=subscription,
+                                    probe=probe,
                                 )
                             )
                 finally:
-                    client.disconnect()
-                    client.loop_stop()
+                    for each in (client, probe):
+                        each.disconnect()
+                        each.loop_stop()
         finally:
             for process in emulators:
                 process.send_signal(signal.SIGINT)
@@ -335,7 +355,10 @@ def report(
         f"{percentile(sub.latencies_s, 0.5) * 1e3:.1f} ms, p99 "
         f"{percentile(sub.latencies_s, 0.99) * 1e3:.1f} ms (target ≤ 50 ms); of which in the "
         f"service (frame received → DDATA built) p50 {percentile(sub.in_service_s, 0.5) * 1e3:.1f}"
-        f" ms, p99 {percentile(sub.in_service_s, 0.99) * 1e3:.1f} ms"
+        f" ms, p99 {percentile(sub.in_service_s, 0.99) * 1e3:.1f} ms; the machine's own MQTT "
+        f"path (this process → Mosquitto → this process, {len(sub.probe_s)} probes) p50 "
+        f"{percentile(sub.probe_s, 0.5) * 1e3:.1f} ms, p99 "
+        f"{percentile(sub.probe_s, 0.99) * 1e3:.1f} ms"
     )
     print(
         f"  service CPU: on {service_on:.1f} %, off {service_off:.1f} % of a core; the "

@@ -87,6 +87,10 @@ MetricFamily = tuple[str, str, str, list[tuple[dict[str, str], float]]]
 """``(name, type, help, [(labels, value)])`` for ``/metrics``."""
 
 
+def _any_frame(_frame: Frame) -> bool:
+    return True
+
+
 def _now_ms() -> int:
     return int(time.time() * 1000)
 
@@ -435,12 +439,21 @@ class EdgeNode:
     # ------------------------------------------------------------ the web loop: ticks
 
     async def _device_loop(self, device: Device) -> None:
+        """A tick at most every ``period_s``, each right after a frame arrived: the newest frame
+        is then at its freshest when reported (one wake-up per tick from the cyclic thread,
+        through ``Hub.wait_for_frame``)."""
+        loop = asyncio.get_running_loop()
+        hub = device.robot.hub
+        last = loop.time()
         while True:
+            await asyncio.sleep(max(0.0, last + self.period_s - loop.time()))
+            if device.robot.down_since is None:
+                await hub.wait_for_frame(_any_frame, hub.seq, self.period_s)
+            last = loop.time()
             try:
                 self._tick(device)
             except Exception:  # a bug here must not end the robot's reports for good
                 log.exception("Sparkplug tick of %s failed", device.name)
-            await asyncio.sleep(self.period_s)
 
     def _tick(self, device: Device) -> None:
         robot = device.robot
