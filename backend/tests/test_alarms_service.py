@@ -135,6 +135,15 @@ async def test_estop_alarm_ack_restart_reset(emu: Emulator, plc_host: str, tmp_p
         assert current[ESTOP]["active"] is True and current[ESTOP]["acknowledged"] is False
         # The most urgent first.
         assert next(iter(current)) == ESTOP
+        # A stream opened now has them in its hello; the robot's summary counts them.
+        async with stream(hmi.robot_ws_url("robot")) as late:
+            await eventually(lambda: bool(late.messages))
+        hello = late.messages[0]
+        assert hello["type"] == "hello" and hello["alarms"][0]["id"] == ESTOP
+        async with hmi.client() as client:
+            summary = (await client.get("/api/v1/robots/robot")).json()["alarms"]
+        assert summary["active"] >= 1 and summary["unacknowledged"] >= 1
+        assert summary["highest_priority"] == "critical"
         activated_at = current[ESTOP]["activated_at"]
 
     # A restart keeps the active, unacknowledged alarm: not raised again, same time.

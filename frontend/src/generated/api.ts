@@ -857,6 +857,23 @@ export interface components {
             reason: string;
         };
         /**
+         * AlarmSummary
+         * @description A robot's alarms at a glance (the fleet tile, the banner's colour).
+         */
+        AlarmSummary: {
+            /** Active */
+            active: number;
+            /**
+             * Highest Priority
+             * @description the most urgent priority of the alarms not normal and not shelved
+             */
+            highest_priority: ("critical" | "high" | "medium" | "low") | null;
+            /** Shelved */
+            shelved: number;
+            /** Unacknowledged */
+            unacknowledged: number;
+        };
+        /**
          * ApiErrorBody
          * @description Why a request was refused.
          */
@@ -1508,6 +1525,11 @@ export interface components {
         };
         /** HelloMessage */
         HelloMessage: {
+            /**
+             * Alarms
+             * @description the robot's alarms that are active or unacknowledged when the stream opens, most urgent first; changes follow as `alarm` events
+             */
+            alarms?: components["schemas"]["Alarm"][];
             connection: components["schemas"]["ConnectionStatus"];
             control: components["schemas"]["ControlStatus"];
             /**
@@ -1862,6 +1884,8 @@ export interface components {
          * @description One robot of the cell in ``GET /api/v1/robots``.
          */
         RobotSummary: {
+            /** @description its alarms at a glance (GET /api/v1/alarms?robot= for them) */
+            alarms?: components["schemas"]["AlarmSummary"] | null;
             /**
              * Connection
              * @enum {string}

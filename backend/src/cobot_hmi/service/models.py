@@ -289,6 +289,17 @@ class Identity(BaseModel):
     product_name: str
 
 
+class AlarmSummary(BaseModel):
+    """A robot's alarms at a glance (the fleet tile, the banner's colour)."""
+
+    active: int = Field(ge=0)
+    unacknowledged: int = Field(ge=0)
+    shelved: int = Field(ge=0)
+    highest_priority: Literal["critical", "high", "medium", "low"] | None = Field(
+        description="the most urgent priority of the alarms not normal and not shelved"
+    )
+
+
 class RobotSummary(BaseModel):
     """One robot of the cell in ``GET /api/v1/robots``."""
 
@@ -304,6 +315,9 @@ class RobotSummary(BaseModel):
     robot_state: int | None = Field(description="the latest frame's robot state, if any")
     robot_state_name: RobotStateName | None
     default: bool = Field(description="the robot the deprecated single-robot paths answer for")
+    alarms: AlarmSummary | None = Field(
+        default=None, description="its alarms at a glance (GET /api/v1/alarms?robot= for them)"
+    )
 
 
 class RobotList(BaseModel):
@@ -696,6 +710,11 @@ class HelloMessage(BaseModel):
     connection: ConnectionStatus
     control: ControlStatus
     rate_hz: float | None
+    alarms: list[Alarm] = Field(
+        default_factory=list,
+        description="the robot's alarms that are active or unacknowledged when the stream "
+        "opens, most urgent first; changes follow as `alarm` events",
+    )
 
 
 class FramesMessage(BaseModel):

@@ -82,6 +82,7 @@ def robot_summary(
         "robot_state": state,
         "robot_state_name": frame["robot_state_name"] if frame is not None else None,
         "default": robot is service.default_robot,
+        "alarms": robot.alarms.summary(),
     }
 
 

@@ -125,6 +125,7 @@ async def _stream(websocket: WebSocket, name: str | None) -> None:
     # holder.session != hello.session with the same user.
     hello["control"] = robot.control.status_for(session)
     hello["session"] = session.id if session is not None else None
+    hello["alarms"] = robot.alarms.current()  # the banner from the first message on
     client = robot.hub.add_client(
         websocket.send_text,
         abort,

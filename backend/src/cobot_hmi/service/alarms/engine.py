@@ -401,6 +401,28 @@ class AlarmEngine:
     def all(self) -> list[Event]:
         return [self.snapshot(a) for a in self.alarms.values()]
 
+    def summary(self) -> dict[str, object]:
+        """``models.AlarmSummary``: how many alarms are active, unacknowledged, shelved, and the
+        most urgent priority among those not normal and not shelved (the banner's colour)."""
+        active = unacknowledged = shelved = 0
+        highest: Priority | None = None
+        for alarm in self.alarms.values():
+            status = alarm.status
+            state = status.state
+            active += state.active
+            unacknowledged += not state.acknowledged
+            shelved += status.shelved
+            if state.value != "normal" and not status.shelved:
+                level = alarm.definition.priority
+                if highest is None or level.rank < highest.rank:
+                    highest = level
+        return {
+            "active": active,
+            "unacknowledged": unacknowledged,
+            "shelved": shelved,
+            "highest_priority": None if highest is None else highest.value,
+        }
+
     def counts(self) -> dict[tuple[str, str], int]:
         """``(priority, "active" | "unacknowledged" | "shelved")`` → alarms (``/metrics``)."""
         out: dict[tuple[str, str], int] = {}
