@@ -19,6 +19,10 @@ The work is split so that nothing a client does can reach the cyclic connection:
   ``dropped`` message before its next frames. A stalled client (one send stuck for
   ``stall_timeout_s``: the peer stopped reading and the TCP buffers are full) is disconnected.
   Events and the hello are never dropped.
+
+Consumers other than WebSocket clients (the Sparkplug B edge node) ``subscribe``: a bounded
+queue of their own that ``on_frame`` appends every frame to (O(1); the oldest dropped and
+counted when full) and that they drain on their own schedule.
 """
 
 from __future__ import annotations
