@@ -193,6 +193,12 @@ def render_metrics(service: Service, stats: dict[str, ConnectionStats]) -> str:
     for robot, _, label in robots:
         for (priority, what), count in robot.alarms.counts().items():
             w.sample("alarms", count, {**label, "priority": priority, "state": what})
+    per_robot(
+        "alarm_write_errors_total",
+        "counter",
+        "alarm changes that could not be stored",
+        lambda r, s: r.alarm_store.write_errors,
+    )
     w.metric("logins_total", "counter", "login attempts by outcome")
     for outcome in ("ok", "failed", "throttled"):
         w.sample("logins_total", service.logins[outcome], {"outcome": outcome})

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import asyncio
 import functools
+import logging
 import sqlite3
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final
@@ -21,6 +22,8 @@ import orjson
 
 if TYPE_CHECKING:
     from cobot_hmi.service.store import Page, Store
+
+log = logging.getLogger(__name__)
 
 _SCHEMA: Final = """
 CREATE TABLE IF NOT EXISTS alarm_state (
@@ -154,8 +157,9 @@ class AlarmStore:
             try:
                 if changes:
                     await self._store.call(functools.partial(_write_sync, changes=changes))
-            except sqlite3.Error:
-                self.write_errors += len(changes)  # a full disk must not stop the alarms
+            except Exception:  # a full disk (or any failure) must not stop the alarms
+                self.write_errors += len(changes)
+                log.exception("alarm history: %d changes not written", len(changes))
             finally:
                 for _ in batch:
                     self._queue.task_done()
