@@ -310,6 +310,12 @@ async def test_alarms_per_robot(robot_host: str, plc_host: str, tmp_path: Path) 
             assert all(a["robot"] == "right" and k.startswith("right:") for k, a in theirs.items())
             assert set(mine) | set(theirs) == set(both)
             async with hmi.client() as client:
+                one = await client.get("/api/v1/alarms/left:emergency_stop")
+                assert one.status_code == 200 and one.json()["state"] == "active_unacknowledged"
+                for missing in ("left:nope", "nobody:emergency_stop", "emergency_stop"):
+                    answer = await client.get(f"/api/v1/alarms/{missing}")
+                    assert answer.status_code == 404, missing
+                    assert answer.json()["detail"]["field"] == "alarm_id"
                 unknown = await client.get("/api/v1/alarms?robot=nobody")
                 assert unknown.status_code == 404
                 assert unknown.json()["detail"]["known"] == ["left", "right"]
@@ -361,6 +367,12 @@ async def test_user_alarm_from_the_settings_with_its_tag(
         assert (await alarms(hmi))[alarm_id]["state"] == "returned_unacknowledged"
         everything = await alarms(hmi, "?which=all")
         assert everything["robot:user.pressure"]["low"] == 4.5
+        async with hmi.client(await hmi.login(OPERATOR)) as operator:
+            normal = await operator.post("/api/v1/alarms/robot:motor_temperature.0/ack", json={})
+            assert normal.status_code == 409
+            assert "nothing to acknowledge" in normal.json()["detail"]["reason"]
+            audit = (await operator.get("/api/v1/audit?limit=1")).json()["items"]
+        assert (audit[0]["action"], audit[0]["outcome"]) == ("alarm.ack", "refused")
 
 
 async def test_refused_forward_open_and_lost_connection_alarms(
