@@ -24,7 +24,8 @@ from service_support import Running, cell_settings, running_service
 
 GROUP = "plant"
 NODE = "cell-7"
-BOOLEAN, FLOAT, UINT8, UINT64, STRING = 11, 9, 5, 8, 12
+BOOLEAN, FLOAT, UINT8, INT64, STRING = 11, 9, 5, 4, 12
+"""Sparkplug B data type numbers, as the specification gives them."""
 
 
 class Panel(StaticRobot):

@@ -30,9 +30,9 @@ from sparkplug_support import (
     EXPECTED_T2O,
     FLOAT,
     GROUP,
+    INT64,
     NODE,
     UINT8,
-    UINT64,
     Cell,
     cell,
     f32,
@@ -48,7 +48,7 @@ async def test_births_seq_and_data_equal_to_frames(tmp_path: Path, plc_host: str
         assert nbirth.topic == f"spBv1.0/{GROUP}/NBIRTH/{NODE}"
         assert nbirth.seq == 0
         node = {m.name: m for m in nbirth.metrics}
-        assert node["bdSeq"].datatype == UINT64
+        assert node["bdSeq"].datatype == INT64
         assert node["Node Control/Rebirth"].value is False
 
         all_aliases: list[int] = []

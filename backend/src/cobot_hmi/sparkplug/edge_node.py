@@ -317,7 +317,7 @@ class EdgeNode:
             alias=None,
             name=BD_SEQ,
             timestamp_ms=now,
-            datatype=DataType.UINT64,
+            datatype=DataType.INT64,
             value=self._connecting_bd_seq,
         )
         add_metric(
@@ -349,7 +349,7 @@ class EdgeNode:
             alias=None,
             name=BD_SEQ,
             timestamp_ms=_now_ms(),
-            datatype=DataType.UINT64,
+            datatype=DataType.INT64,
             value=bd_seq,
         )
         return payload.SerializeToString()
