@@ -1,0 +1,92 @@
+// Scenario 15: a live plot's hover shows values with units; after a zoom, "Back to live" brings
+// the moving window back (before, the plot stayed on the old range and went blank); the signal
+// picker plots a field of another robot; a plot saves as PNG.
+import type { Page } from "@playwright/test";
+import { expect, test } from "../support/fixtures";
+import { settings } from "../support/settings";
+
+const PLOT = "plot-joint-position";
+
+/** The x range Plotly shows now (ms since the epoch, local time as the plot shows it). */
+async function xRange(page: Page): Promise<[number, number]> {
+  return page.getByTestId(PLOT).evaluate((el) => {
+    const range = (el as HTMLElement & { _fullLayout?: { xaxis?: { range?: unknown[] } } })._fullLayout?.xaxis?.range ?? [];
+    return range.map((v) => (typeof v === "number" ? v : new Date(String(v).replace(" ", "T") + "Z").getTime())) as [number, number];
+  });
+}
+
+test("hover while live, zoom, and back to live", async ({ page }) => {
+  await page.goto(`/?robot=${settings.robotName}`);
+  const plot = page.getByTestId(PLOT);
+  await expect.poll(async () => Number(await plot.getAttribute("data-points"))).toBeGreaterThan(0);
+  const box = (await plot.boundingBox())!;
+  const y = box.y + box.height / 2;
+
+  // Pointing at the plot makes it interactive while it keeps streaming; hover names the unit.
+  await page.mouse.move(box.x + box.width * 0.7, y);
+  await expect(plot).toHaveAttribute("data-interactive", "true");
+  await page.mouse.move(box.x + box.width * 0.72, y + 5);
+  await expect(page.locator(`[data-testid="${PLOT}"] .hoverlayer .hovertext`).first()).toContainText("degree");
+  await expect(plot).toHaveAttribute("data-paused", "false");
+
+  // Zoom into a slice of the past by dragging a box.
+  await page.mouse.move(box.x + box.width * 0.3, y);
+  await page.mouse.down();
+  await page.mouse.move(box.x + box.width * 0.45, y + 20, { steps: 6 });
+  await page.mouse.up();
+  await expect(plot).toHaveAttribute("data-zoomed", "true");
+  const zoomed = await xRange(page);
+  await page.waitForTimeout(1500);
+  expect(await xRange(page)).toEqual(zoomed); // held where the person put it
+
+  await page.getByTestId(`${PLOT}-live`).click();
+  await expect(plot).toHaveAttribute("data-zoomed", "false");
+  await expect(page.getByTestId(`${PLOT}-live`)).toHaveCount(0);
+  // The moving window again: 10 s wide, its end moving on with the data.
+  await page.mouse.move(0, 0);
+  const live1 = await xRange(page);
+  expect(live1[1] - live1[0]).toBeGreaterThan(5_000);
+  expect(live1[1]).toBeGreaterThan(zoomed[1]);
+  await expect.poll(async () => (await xRange(page))[1], { timeout: 10_000 }).toBeGreaterThan(live1[1] + 500);
+  expect(Number(await plot.getAttribute("data-points"))).toBeGreaterThan(100);
+});
+
+test("pause, zoom, resume: the plot is live again, not blank", async ({ page }) => {
+  await page.goto(`/?robot=${settings.robotName}`);
+  const plot = page.getByTestId(PLOT);
+  await expect.poll(async () => Number(await plot.getAttribute("data-points"))).toBeGreaterThan(0);
+  await page.getByTestId(`${PLOT}-pause`).click();
+  await expect(plot).toHaveAttribute("data-paused", "true");
+  const box = (await plot.boundingBox())!;
+  const y = box.y + box.height / 2;
+  await page.mouse.move(box.x + box.width * 0.5, y);
+  await page.mouse.down();
+  await page.mouse.move(box.x + box.width * 0.6, y + 20, { steps: 6 });
+  await page.mouse.up();
+  await expect(plot).toHaveAttribute("data-zoomed", "true");
+  await page.waitForTimeout(2000);
+  await page.getByTestId(`${PLOT}-pause`).click(); // Resume
+  await expect(plot).toHaveAttribute("data-paused", "false");
+  await expect(plot).toHaveAttribute("data-zoomed", "false");
+  const live = await xRange(page);
+  await expect.poll(async () => (await xRange(page))[1], { timeout: 10_000 }).toBeGreaterThan(live[1] + 500);
+});
+
+test("the signal picker plots a field of another robot; a plot saves as PNG", async ({ page }) => {
+  await page.goto(`/?robot=${settings.robotName}`);
+  await page.getByTestId("picker-robot").selectOption(settings.robot2Name);
+  await page.getByTestId("picker-field").selectOption("joint_motor_temperature");
+  await page.getByTestId("picker-add").click();
+  const pane = page.getByTestId("plot-custom-1-pane");
+  await expect(pane).toHaveAttribute("data-robot", settings.robot2Name);
+  await expect(pane).toContainText("[°C]");
+  await expect.poll(async () => Number(await page.getByTestId("plot-custom-1").getAttribute("data-points")), { timeout: 15_000 }).toBeGreaterThan(0);
+  // The same signal of the same robot twice is refused with a reason.
+  await page.getByTestId("picker-field").selectOption("joint_motor_temperature");
+  await expect(page.getByTestId("picker-refusal")).toContainText("already");
+
+  const download = page.waitForEvent("download");
+  await page.getByTestId(`${PLOT}-png`).click();
+  const file = await download;
+  expect(file.suggestedFilename()).toMatch(/^joint-position-.*\.png$/);
+});
