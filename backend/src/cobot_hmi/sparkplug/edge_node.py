@@ -115,6 +115,9 @@ class Device:
         self.holder = ""
         self.outcome: tuple[str, str] = ("", "")
         self.outcome_pending = False
+        self.reported_at = -math.inf
+        """``loop.time()`` of the last DDATA (published or buffered): the next one waits for
+        ``period_s`` after it (the maximum rate)."""
         self.messages: Counter[str] = Counter()
         self.bytes: Counter[str] = Counter()
 
@@ -446,7 +449,8 @@ class EdgeNode:
         hub = device.robot.hub
         last = loop.time()
         while True:
-            await asyncio.sleep(max(0.0, last + self.period_s - loop.time()))
+            due = max(last, device.reported_at) + self.period_s
+            await asyncio.sleep(max(0.0, due - loop.time()))
             if device.robot.down_since is None:
                 await hub.wait_for_frame(_any_frame, hub.seq, self.period_s)
             last = loop.time()
@@ -521,6 +525,8 @@ class EdgeNode:
 
     def _report(self, device: Device, changes: list[Change]) -> None:
         """A DDATA: published when born, buffered on disk while the broker is away."""
+        # The payload's time and the rate's reference are one instant.
+        device.reported_at = asyncio.get_running_loop().time()
         payload = make_payload(_now_ms(), None)
         metrics = self.catalogue.metrics
         for offset, value, stamp in changes:
