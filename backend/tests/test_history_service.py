@@ -132,7 +132,7 @@ async def test_recording_equals_the_frames_the_stream_saw(
             else:
                 assert actual == expected, (item["seq"], e.name)
     # Several segments were closed on the way (2 s each), and the recorder lost nothing.
-    assert len(list((tmp_path / "history" / ROBOT).glob("*-*.rollup.parquet"))) >= 1
+    assert len(list((tmp_path / "history" / ROBOT).glob("*-*.cells.arrow"))) >= 1
     assert re.search(rf'cobot_hmi_history_frames_dropped_total{{robot="{ROBOT}"}} 0.0', metrics)
     assert re.search(r"cobot_hmi_history_recording 1.0", metrics)
     recorded = re.search(

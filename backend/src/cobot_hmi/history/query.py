@@ -40,7 +40,13 @@ from cobot_hmi.history.rollup import (
     stat_column,
 )
 from cobot_hmi.history.schema import SCHEMA, SEQ, TIME, Element, time_seconds
-from cobot_hmi.history.segments import Segment, list_journals, list_segments, read_journal
+from cobot_hmi.history.segments import (
+    Segment,
+    list_journals,
+    list_segments,
+    read_cells_file,
+    read_journal,
+)
 
 MAX_POINTS: Final = 5000
 CELL_S: Final = 1.0
@@ -152,7 +158,7 @@ def read_cells(
     tables = []
     for segment in _segments_between(root, robot, start_us, end_us):
         try:
-            table = pq.ParquetFile(segment.rollup_path).read(columns=columns)
+            table = read_cells_file(segment.rollup_path, columns)
         except (OSError, pa.ArrowException):
             try:  # a rollup lost or unreadable: made again from the frames
                 raw = pq.ParquetFile(segment.path).read()

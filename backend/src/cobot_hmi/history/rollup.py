@@ -2,7 +2,7 @@
 
 Per-second cells of a recording: for every element the min, max, first and last value of the
 frames received in that whole second of the epoch, plus the cell's frame count and its first
-and last receive times. A closed segment keeps its cells beside it (``*.rollup.parquet``), so a
+and last receive times. A closed segment keeps its cells beside it (``*.cells.arrow``), so a
 query of a long range reads one row per second instead of a hundred, and stays exact: a bucket
 made of whole cells has exactly the min/max/first/last of its frames (``query``).
 

@@ -10,8 +10,10 @@ A robot's recording is a directory of segments (``HISTORY_DIR/ROBOT/``):
   reader skips. What a crash can lose is the batch not yet flushed: at most ``flush_s`` of
   frames plus the recorder's queue, within the 2 s bound.
 - closed segments: ``START-END.parquet`` (the frames, zstd, one row group per 64 Ki rows) and
-  ``START-END.rollup.parquet`` (per-second cells, ``rollup``). Both are written to a temporary
-  name, fsync'd, renamed into place and the directory fsync'd, rollup first: a ``.parquet``
+  ``START-END.cells.arrow`` (per-second cells, ``rollup``, an Arrow IPC file compressed with
+  LZ4: a query memory-maps it and decompresses only the columns it reads, about 0.7 ms a file
+  where Parquet's footer of 750 columns alone costs several). Both are written to a temporary
+  name, fsync'd, renamed into place and the directory fsync'd, cells first: a ``.parquet``
   exists only complete. Then the journal goes.
 
 ``START``/``END`` are the first and last frame's receive times in epoch microseconds, so a
@@ -34,12 +36,22 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from cobot_hmi.history.rollup import rollup_table
-from cobot_hmi.history.schema import SCHEMA, TIME
+from cobot_hmi.history.schema import ELEMENTS, SCHEMA, SEQ, TIME
 
 JOURNAL_SUFFIX: Final = ".journal.arrows"
-ROLLUP_SUFFIX: Final = ".rollup.parquet"
+ROLLUP_SUFFIX: Final = ".cells.arrow"
 SEGMENT_SUFFIX: Final = ".parquet"
 ROW_GROUP_ROWS: Final = 64 * 1024
+_FLOATS: Final = [e.name for e in ELEMENTS if e.kind == "float"]
+_ENCODINGS: Final = {
+    **dict.fromkeys(_FLOATS, "BYTE_STREAM_SPLIT"),
+    TIME: "DELTA_BINARY_PACKED",
+    SEQ: "DELTA_BINARY_PACKED",
+}
+"""Floats split into byte streams (zstd then finds the slowly changing exponent bytes), times
+and counters as deltas: 12 % smaller than the defaults and three times faster to write (a day
+of the simulated robot, bench/history)."""
+_DICTIONARY_COLUMNS: Final = [name for name in SCHEMA.names if name not in _ENCODINGS]
 _SEGMENT_NAME: Final = re.compile(r"^(\d+)-(\d+)\.parquet$")
 _JOURNAL_NAME: Final = re.compile(r"^(\d+)\.journal\.arrows$")
 
@@ -139,9 +151,7 @@ def _fsync_dir(directory: Path) -> None:
         os.close(fd)
 
 
-def _write_parquet(
-    table: pa.Table, path: Path, row_group_rows: int, *, statistics: bool = True
-) -> None:
+def _write_parquet(table: pa.Table, path: Path, row_group_rows: int) -> None:
     """Without the Arrow schema in the footer (the columns' types read back the same; the
     units and descriptions would add kilobytes to every segment), fsync'd, renamed in place."""
     temporary = path.with_name(path.name + ".tmp")
@@ -152,8 +162,10 @@ def _write_parquet(
                 sink,
                 compression="zstd",
                 row_group_size=row_group_rows,
-                write_statistics=statistics,
+                write_statistics=True,
                 store_schema=False,
+                use_dictionary=_DICTIONARY_COLUMNS,
+                column_encoding=_ENCODINGS,
             )
             sink.flush()
             os.fsync(sink.fileno())
@@ -164,6 +176,36 @@ def _write_parquet(
         raise
 
 
+def _write_cells(table: pa.Table, path: Path) -> None:
+    """The cells as an Arrow IPC file (LZ4), fsync'd, renamed in place."""
+    temporary = path.with_name(path.name + ".tmp")
+    options = pa.ipc.IpcWriteOptions(compression="lz4")
+    try:
+        with open(temporary, "wb") as sink:
+            with pa.ipc.new_file(sink, table.schema, options=options) as writer:
+                writer.write_table(table)
+            sink.flush()
+            os.fsync(sink.fileno())
+        os.replace(temporary, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            temporary.unlink()
+        raise
+
+
+def read_cells_file(path: Path, columns: list[str]) -> pa.Table:
+    """``columns`` of a cells file, only theirs decompressed (``OSError``/``ArrowException``)."""
+    with pa.memory_map(str(path)) as source:
+        schema = pa.ipc.open_file(source).schema
+        indices = [schema.get_field_index(c) for c in columns]
+        if min(indices, default=0) < 0:
+            raise pa.ArrowInvalid(f"{path}: a column is missing")
+        options = pa.ipc.IpcReadOptions(included_fields=indices, use_threads=False)
+        table = pa.ipc.open_file(source, options=options).read_all()
+        # Copied out of the mapping before it closes.
+        return table.select(columns).combine_chunks()
+
+
 def write_segment(table: pa.Table, directory: Path, robot: str) -> Segment | None:
     """Write ``table`` (sorted by time) as a closed segment; ``None`` for an empty table."""
     if table.num_rows == 0:
@@ -171,8 +213,7 @@ def write_segment(table: pa.Table, directory: Path, robot: str) -> Segment | Non
     micros = table.column(TIME).cast(pa.int64())
     start_us, end_us = int(micros[0].as_py()), int(micros[-1].as_py())
     segment = Segment(robot, directory / f"{start_us}-{end_us}{SEGMENT_SUFFIX}", start_us, end_us)
-    # The cells' footer names four columns per element: no statistics, they are never used.
-    _write_parquet(rollup_table(table), segment.rollup_path, ROW_GROUP_ROWS, statistics=False)
+    _write_cells(rollup_table(table), segment.rollup_path)
     _write_parquet(table, segment.path, ROW_GROUP_ROWS)
     _fsync_dir(directory)
     return segment

@@ -1,0 +1,208 @@
+"""History benchmark (see bench/history). Prints figures, the targets they are held against and a
+baseline measured in the same run.
+
+1. Ingest: a simulated day at 100 Hz for one robot through the recorder's own path (hub items →
+   wire bytes → columns → journal batches of one second → a Parquet segment with its per-second
+   cells every 10 minutes), as fast as it goes: frames/s written (target ≥ 50× real time, 5,000
+   frames/s) and bytes per hour on disk against the raw 284-byte frames. The frames come from
+   the simulated robot (its monitoring values refresh every 100 ms, as the controller's do):
+   ten minutes of them, repeated with rising times and counters. Baseline: appending the same
+   frames' raw bytes to a file (the floor of any recorder).
+2. Live: the service with 4 emulated robots at RPI 10 ms, each its own process; the recorder
+   thread's CPU time (``cobot_hmi_history_cpu_seconds_total``) over the window, per robot
+   (target ≤ 2 % of a core per robot), and the service's whole CPU against the same cell with
+   ``--no-history`` (baseline).
+3. Query: 1 min, 1 h and 24 h ranges at 1000 points, 12 elements (joint positions, external
+   force, TCP position), decimated and serialized as the REST answer is, cold (first) and warm
+   (median of the next runs) (targets: 1 h < 100 ms, 24 h < 500 ms). Baseline: reading the
+   same range's raw rows of those elements with pyarrow.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from proc_stats import process_cpu_s
+from service_bench_support import metrics, stack, value_of
+
+from cobot_hmi.codec import T2O_SIZE, decode_frame, encode_frame
+from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot
+from cobot_hmi.history import segments
+from cobot_hmi.history.query import query, read_raw
+from cobot_hmi.history.schema import items_to_batch, select_elements
+from cobot_hmi.service.routes_history import answer_json
+
+RATE_HZ = 100
+POOL_S = 600
+SEGMENT_S = 600.0
+TARGET_REALTIME_X = 50
+TARGET_CORE_PCT_PER_ROBOT = 2.0
+TARGETS_MS = {"1 min": None, "1 h": 100.0, "24 h": 500.0}
+FIELDS = ["joint_position", "external_force", "tcp_position"]
+START_S = 1_900_000_000.0
+
+
+def frame_pool(seconds: int) -> list[bytes]:
+    """``seconds`` of 100 Hz frames of the simulated robot (its demo program running)."""
+    robot = SimulatedRobot(RobotSettings(), start_s=START_S - 5)
+    return [
+        encode_frame(robot.produce_frame(START_S + i / RATE_HZ)) for i in range(seconds * RATE_HZ)
+    ]
+
+
+def ingest(root: Path, hours: float, pool: list[bytes]) -> tuple[float, int, int]:
+    """Record ``hours`` simulated; (seconds taken, frames, bytes on disk)."""
+    frames_pool = [decode_frame(data) for data in pool]
+    simulated_now = [START_S]
+    writer = segments.SegmentWriter(root, "r1", SEGMENT_S, clock=lambda: simulated_now[0])
+    total = int(hours * 3600 * RATE_HZ)
+    started = time.perf_counter()
+    seq = 0
+    for second_start in range(0, total, RATE_HZ):
+        items = []
+        for i in range(second_start, min(second_start + RATE_HZ, total)):
+            seq += 1
+            items.append((seq, START_S + i / RATE_HZ, frames_pool[i % len(frames_pool)]))
+        writer.append(items_to_batch(items))
+        simulated_now[0] = START_S + (second_start + RATE_HZ) / RATE_HZ
+        if writer.due():
+            writer.close_segment()
+    writer.close_segment()
+    elapsed = time.perf_counter() - started
+    size = sum(s.size_bytes() for s in segments.list_segments(root, "r1"))
+    return elapsed, total, size
+
+
+def raw_floor(root: Path, frames: int, pool: list[bytes]) -> float:
+    """Seconds to append ``frames`` raw frames to a file, a second at a time (the floor)."""
+    path = root / "raw.bin"
+    started = time.perf_counter()
+    with path.open("wb") as out:
+        for second_start in range(0, frames, RATE_HZ):
+            out.write(
+                b"".join(pool[i % len(pool)] for i in range(second_start, second_start + RATE_HZ))
+            )
+            out.flush()
+    elapsed = time.perf_counter() - started
+    path.unlink()
+    return elapsed
+
+
+def query_latency(root: Path, hours: float, runs: int) -> dict[str, tuple[float, float, float]]:
+    """Per range: (cold ms, warm median ms, raw-read baseline ms)."""
+    elements = select_elements(FIELDS)
+    end = START_S + hours * 3600
+    out = {}
+    for label, span in (("1 min", 60.0), ("1 h", 3600.0), ("24 h", 86400.0)):
+        if span > hours * 3600:
+            continue
+        from_s, to_s = end - span, end
+
+        def once(from_s: float = from_s, to_s: float = to_s) -> float:
+            started = time.perf_counter()
+            result = query(root, "r1", elements, from_s=from_s, to_s=to_s, points=1000)
+            answer_json(result, None, recording=True)
+            return (time.perf_counter() - started) * 1000
+
+        cold = once()
+        warm = statistics.median(once() for _ in range(runs))
+        started = time.perf_counter()
+        read_raw(root, "r1", elements, from_s, to_s)
+        baseline = (time.perf_counter() - started) * 1000
+        out[label] = (cold, warm, baseline)
+    return out
+
+
+def live(seconds: float, robots: int) -> tuple[float, float, float, float]:
+    """(recorder CPU s, service CPU s with history, service CPU s without, window s)."""
+    with stack(10.0, "--history-flush-s", "1", robots=robots) as running:
+        time.sleep(5)  # connections settled, first flushes done
+        before = metrics(running.get("/metrics").decode())
+        cpu_before = process_cpu_s(running.service.pid)
+        started = time.monotonic()
+        time.sleep(seconds)
+        after = metrics(running.get("/metrics").decode())
+        cpu_with = process_cpu_s(running.service.pid) - cpu_before
+        window = time.monotonic() - started
+        recorder = value_of(after, "cobot_hmi_history_cpu_seconds_total") - value_of(
+            before, "cobot_hmi_history_cpu_seconds_total"
+        )
+        frames = sum(
+            value_of(after, "cobot_hmi_history_frames_recorded_total", r)
+            - value_of(before, "cobot_hmi_history_frames_recorded_total", r)
+            for r in running.robot_names
+        )
+        dropped = sum(
+            value_of(after, "cobot_hmi_history_frames_dropped_total", r)
+            for r in running.robot_names
+        )
+        print(f"  recorded {frames:.0f} frames in {window:.1f} s ({frames / window:.0f}/s), "
+              f"dropped {dropped:.0f}")  # fmt: skip
+    with stack(10.0, "--no-history", robots=robots) as running:
+        time.sleep(5)
+        cpu_before = process_cpu_s(running.service.pid)
+        started = time.monotonic()
+        time.sleep(seconds)
+        cpu_without = (process_cpu_s(running.service.pid) - cpu_before) * (
+            window / (time.monotonic() - started)
+        )
+    return recorder, cpu_with, cpu_without, window
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--hours", type=float, default=24.0, help="simulated hours to record")
+    parser.add_argument("--robots", type=int, default=4, help="robots of the live phase")
+    parser.add_argument("--live-seconds", type=float, default=30.0)
+    parser.add_argument("--query-runs", type=int, default=7)
+    parser.add_argument("--skip-live", action="store_true")
+    args = parser.parse_args()
+    print(f"load average before: {os.getloadavg()}")
+    pool = frame_pool(POOL_S)
+    with tempfile.TemporaryDirectory(prefix="cobot-history-bench-") as directory:
+        root = Path(directory)
+        elapsed, frames, size = ingest(root, args.hours, pool)
+        floor = raw_floor(root, frames, pool)
+        rate = frames / elapsed
+        raw_per_hour = T2O_SIZE * RATE_HZ * 3600
+        per_hour = size / args.hours
+        print(f"\ningest: {args.hours:g} h at {RATE_HZ} Hz = {frames:,} frames in {elapsed:.1f} s")
+        print(f"  {rate:,.0f} frames/s = {rate / RATE_HZ:.0f}x real time "
+              f"(target >= {TARGET_REALTIME_X}x) "
+              f"{'OK' if rate / RATE_HZ >= TARGET_REALTIME_X else 'MISSED'}")  # fmt: skip
+        print(f"  baseline, raw bytes appended to a file: {frames / floor:,.0f} frames/s")
+        print(f"  on disk {per_hour / 1e6:.1f} MB per hour (segments + cells) vs raw "
+              f"{raw_per_hour / 1e6:.1f} MB: {raw_per_hour / per_hour:.1f}x smaller")  # fmt: skip
+        print(f"  segments: {len(segments.list_segments(root, 'r1'))}")
+        print("\nquery, 12 elements, 1000 points (cold / warm median / raw read of the range):")
+        for label, (cold, warm, baseline) in query_latency(
+            root, args.hours, args.query_runs
+        ).items():
+            target = TARGETS_MS[label]
+            verdict = "" if target is None else (
+                f" (target < {target:.0f} ms) {'OK' if warm < target else 'MISSED'}"
+            )  # fmt: skip
+            print(f"  {label:>5}: {cold:7.1f} ms / {warm:7.1f} ms / {baseline:8.1f} ms{verdict}")
+    if not args.skip_live:
+        print(f"\nlive: {args.robots} robots at RPI 10 ms, {args.live_seconds:g} s each way")
+        recorder, with_history, without, window = live(args.live_seconds, args.robots)
+        per_robot = recorder / window * 100 / args.robots
+        print(f"  recorder thread: {recorder / window * 100:.2f} % of a core, "
+              f"{per_robot:.2f} % per robot (target <= {TARGET_CORE_PCT_PER_ROBOT} %) "
+              f"{'OK' if per_robot <= TARGET_CORE_PCT_PER_ROBOT else 'MISSED'}")  # fmt: skip
+        print(f"  service process: {with_history / window * 100:.1f} % of a core with history, "
+              f"{without / window * 100:.1f} % without (baseline)")  # fmt: skip
+    print(f"\nload average after: {os.getloadavg()}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
