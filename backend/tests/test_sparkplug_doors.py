@@ -249,3 +249,27 @@ async def test_demo_passes_the_broker_on(robot_host: str, plc_host: str, tmp_pat
 
 
 _ = broker_config  # (re-exported for tests that build a broker by hand)
+
+
+async def test_a_stalled_broker_stalls_nothing(tmp_path: Path, plc_host: str) -> None:
+    """Mosquitto stopped (SIGSTOP: the TCP connection stays open, nothing is read): the robots'
+    connections, the frames and the HMI go on; after SIGCONT the node publishes again."""
+    async with cell(tmp_path, plc_host, ramp=3.0) as c:
+        process = c.broker.process
+        assert process is not None
+        robots = c.running.service.robots
+        process.send_signal(signal.SIGSTOP)
+        try:
+            before = {name: robot.hub.seq for name, robot in robots.items()}
+            await eventually(
+                lambda: all(robot.hub.seq > before[name] + 100 for name, robot in robots.items()),
+                SLOW_S,
+            )
+            async with c.running.client() as client:
+                assert (await client.get("/readyz")).status_code == 200
+            assert all(robot.down_since is None for robot in robots.values())
+        finally:
+            process.send_signal(signal.SIGCONT)
+        count = len(c.subscriber.of("DDATA", "m1013"))
+        await c.subscriber.wait_for(lambda ms: len([m for m in ms if m.kind == "DDATA"]) > count)
+        assert not c.subscriber.of("NDEATH")

@@ -280,3 +280,24 @@ def test_moved() -> None:
     assert moved(math.nan, 0.0, 1.0)
     assert moved(0.0, math.nan, 1.0)
     assert not moved(math.nan, math.nan, 0.0)
+
+
+# --------------------------------------------------------------------------- hub subscriptions
+
+
+def test_a_hub_subscription_is_bounded_and_counts_its_drops() -> None:
+    from cobot_hmi.service.hub import Hub
+
+    hub = Hub(batch_s=0.05, queue_frames=10, stall_timeout_s=5.0, robot="r")
+    subscription = hub.subscribe("test", 3)
+    frames = [zero_frame()._replace(robot_state=i) for i in range(5)]
+    for i, frame in enumerate(frames):
+        hub.on_frame(frame, 1000.0 + i, i)
+    assert subscription.dropped == 2
+    drained = subscription.drain()
+    assert [item[2].robot_state for item in drained] == [2, 3, 4]
+    assert [item[0] for item in drained] == [3, 4, 5]  # the hub's own sequence
+    assert subscription.drain() == []
+    hub.unsubscribe(subscription)
+    hub.on_frame(frames[0], 2000.0, 6)
+    assert subscription.drain() == []
