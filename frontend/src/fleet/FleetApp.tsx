@@ -1,6 +1,6 @@
 /**
  * The fleet overview (`/fleet`): one tile per robot of the service with its state, its link,
- * who holds its control, and links to its panel and its kiosk. Read only: it polls
+ * who holds its control, its alarms, and links to its panel and its kiosk. Read only: it polls
  * `GET /api/v1/robots` once a second (lib/fleet.ts) and writes nothing.
  */
 import { useEffect, useMemo, useSyncExternalStore } from "react";
@@ -38,6 +38,19 @@ function Tile({ tile, stale }: { tile: FleetTile; stale: boolean }) {
             {tile.holder ?? "nobody"}
           </dd>
         </div>
+        {tile.alarms !== null && (
+          <div className="fleet-tile__alarms">
+            <dt>alarms</dt>
+            <dd
+              data-testid="fleet-alarms"
+              data-active={tile.alarms.active}
+              data-unacknowledged={tile.alarms.unacknowledged}
+              data-priority={tile.alarms.highest_priority ?? ""}
+            >
+              {tile.alarmWords}
+            </dd>
+          </div>
+        )}
       </dl>
       <nav className="fleet-tile__links">
         <a href={tile.panelHref}>Panel</a>

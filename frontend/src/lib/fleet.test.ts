@@ -1,5 +1,5 @@
 import { afterEach, beforeEach, describe, expect, it, vi } from "vitest";
-import { FleetPoller, fleetTile, knownRobots, type RobotsAnswer } from "./fleet";
+import { alarmWords, FleetPoller, fleetTile, knownRobots, type RobotsAnswer } from "./fleet";
 import type { RobotSummary } from "./protocol";
 
 function summary(name: string, overrides: Partial<RobotSummary> = {}): RobotSummary {
@@ -41,6 +41,16 @@ describe("fleetTile", () => {
     expect(tile.stateValue).toBeNull();
     expect(tile.linkWords).toBe("lost: no T→O for 640 ms");
     expect(tile.holder).toBeNull();
+  });
+
+  it("sums up the robot's alarms", () => {
+    expect(fleetTile(summary("a")).alarmWords).toBe("—");
+    const alarms = { active: 2, unacknowledged: 1, shelved: 0, highest_priority: "high" as const };
+    const tile = fleetTile(summary("a", { alarms }));
+    expect(tile.alarms).toEqual(alarms);
+    expect(tile.alarmWords).toBe("2 active, 1 unacknowledged (highest: high)");
+    expect(alarmWords({ active: 0, unacknowledged: 0, shelved: 0, highest_priority: null })).toBe("none");
+    expect(alarmWords({ active: 0, unacknowledged: 1, shelved: 1, highest_priority: "low" })).toBe("1 unacknowledged, 1 shelved (highest: low)");
   });
 
   it("marks an input-only robot read-only and an unknown model as unknown", () => {

@@ -4,7 +4,7 @@
  * service stops answering. Names of robot states come from the generated layout (the tile's
  * state badge); this module only decides what each tile says.
  */
-import type { LinkState, RobotSummary } from "./protocol";
+import type { AlarmSummary, LinkState, RobotSummary } from "./protocol";
 import { kioskHref, panelHref } from "./route";
 
 export interface FleetTile {
@@ -20,6 +20,9 @@ export interface FleetTile {
   readonly stateValue: number | null;
   /** Who holds control of this robot's outputs, null: nobody. */
   readonly holder: string | null;
+  /** Its alarms at a glance (null: the service does not report alarms). */
+  readonly alarms: AlarmSummary | null;
+  readonly alarmWords: string;
   readonly panelHref: string;
   readonly kioskHref: string;
 }
@@ -37,9 +40,22 @@ export function fleetTile(robot: RobotSummary): FleetTile {
     // A state from a link that is down is history: the badge shows NO DATA rather than a stale state.
     stateValue: link === "connected" ? robot.robot_state : null,
     holder: robot.holder?.user ?? null,
+    alarms: robot.alarms ?? null,
+    alarmWords: alarmWords(robot.alarms ?? null),
     panelHref: panelHref(robot.name),
     kioskHref: kioskHref(robot.name),
   };
+}
+
+/** "none", "2 active, 1 unacknowledged (highest: high)", "1 shelved" … */
+export function alarmWords(alarms: AlarmSummary | null): string {
+  if (alarms === null) return "—";
+  const parts: string[] = [];
+  if (alarms.active > 0) parts.push(`${alarms.active} active`);
+  if (alarms.unacknowledged > 0) parts.push(`${alarms.unacknowledged} unacknowledged`);
+  if (alarms.shelved > 0) parts.push(`${alarms.shelved} shelved`);
+  if (parts.length === 0) return "none";
+  return parts.join(", ") + (alarms.highest_priority !== null ? ` (highest: ${alarms.highest_priority})` : "");
 }
 
 /** What fetching the list gave: the robots, or why there are none. */

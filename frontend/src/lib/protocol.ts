@@ -17,6 +17,7 @@ export type LinkState = ConnectionStatus["state"];
 export type ControlHolder = Schemas["Holder"];
 export type ControlStatus = Schemas["ControlStatus"];
 export type RobotSummary = Schemas["RobotSummary"];
+export type AlarmSummary = Schemas["AlarmSummary"];
 export type RobotStatus = Schemas["RobotStatus"];
 export type CommandState = Schemas["CommandState"];
 export type ApiErrorBody = Schemas["ApiErrorBody"];
@@ -39,6 +40,7 @@ export const EVENT_KINDS = [
   "flag",
   "write",
   "control",
+  "alarm",
   "recording",
 ] as const satisfies readonly EventKind[];
 

@@ -53,6 +53,8 @@ function describe(event: StreamEvent): string {
       return `${event.holder?.user ?? "nobody"} holds control${because(event.reason)}`;
     case "write":
       return `${s(event.user)}: ${labels(event.fields)} → ${event.outcome}${because(event.reason)}`;
+    case "alarm":
+      return `${event.alarm.label ?? event.alarm.name} ${event.transition.replaceAll("_", " ")}${event.user ? ` by ${event.user}` : ""}${because(event.comment)}`;
     case "recording":
       return `recording ${event.state}${event.dropped ? `, ${event.dropped} frames dropped` : ""}${because(event.reason)}`;
     default:
