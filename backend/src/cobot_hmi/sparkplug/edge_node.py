@@ -63,7 +63,6 @@ from cobot_hmi.sparkplug.payload import (
     add_metric,
     make_payload,
     parse_payload,
-    set_historical,
 )
 from cobot_hmi.sparkplug.rbe import Change, Reporter
 from cobot_hmi.sparkplug.session import NodeSession
@@ -137,7 +136,11 @@ class EdgeNode:
         }
         state = settings.state_dir / "sparkplug"
         self.session = NodeSession(state / "bdseq")
-        self.buffer = DiskBuffer(state / "buffer", settings.sparkplug_buffer_bytes)
+        # Per layout version: a buffered metric is its robot's catalogue offset (in the alias),
+        # which another layout numbers otherwise.
+        self.buffer = DiskBuffer(
+            state / f"buffer-layout-{LAYOUT_VERSION}", settings.sparkplug_buffer_bytes
+        )
         self.client_id = f"cobot-hmi-{self.topics.group}-{self.topics.node}"
         identity = settings.mqtt_user or self.client_id
         self.options = ClientOptions(
@@ -565,9 +568,15 @@ class EdgeNode:
                         payload = parse_payload(data)
                     except PayloadError:
                         continue
-                    set_historical(payload.metrics)
                     parsed = self.topics.parse(topic)
                     device = self.devices.get(parsed.device or "") if parsed else None
+                    if device is None:  # buffered by a run with other robots or ids
+                        self.buffer.records_dropped += 1
+                        continue
+                    for metric in payload.metrics:
+                        # The robot's place in the settings may have changed since.
+                        metric.alias = device.alias_base + metric.alias % ALIAS_STRIDE
+                        metric.is_historical = True
                     self._publish(topic, payload, device)
                     self.replayed += 1
                     if index % REPLAY_BATCH == REPLAY_BATCH - 1:

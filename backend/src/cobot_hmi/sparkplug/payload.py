@@ -8,7 +8,7 @@ to 32 bits in ``int_value``, 64-bit ones in ``long_value``, ``Float`` in ``float
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import IntEnum
 
@@ -156,8 +156,3 @@ def metric_value(metric: Payload.Metric) -> MetricValue | None:
     if which == "string_value":
         return metric.string_value
     return None
-
-
-def set_historical(metrics: Iterable[Payload.Metric]) -> None:
-    for metric in metrics:
-        metric.is_historical = True
