@@ -16,7 +16,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cobot_hmi.codec import Frame, zero_frame
-from cobot_hmi.service.alarms.conditions import CAME, UNCHANGED, WENT, BitCondition, LimitCondition
+from cobot_hmi.service.alarms.conditions import (
+    CAME,
+    UNCHANGED,
+    WENT,
+    BitCondition,
+    Condition,
+    LimitCondition,
+    StateCondition,
+)
 from cobot_hmi.service.alarms.definitions import PRIORITY_COLOURS, Priority
 from cobot_hmi.service.alarms.engine import AlarmEngine, AlarmRefusedError, UserAlarm
 from cobot_hmi.service.alarms.state import (
@@ -514,3 +522,61 @@ def test_tag_csv_round_trip_and_traps() -> None:
         "T2O",
         "O2T",
     )
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(
+        st.tuples(
+            st.floats(allow_nan=True, allow_infinity=True, width=32),
+            st.booleans(),
+            st.integers(min_value=0, max_value=20),
+            st.floats(min_value=0.0, max_value=0.3),
+        ),
+        min_size=1,
+        max_size=40,
+    ),
+    st.floats(min_value=0.0, max_value=3.0),
+    st.floats(min_value=0.0, max_value=0.5),
+)
+def test_the_written_out_hot_paths_say_what_holds_says(
+    steps: list[tuple[float, bool, int, float]], deadband: float, delay_s: float
+) -> None:
+    """Each condition's ``update`` has its ``holds`` written out for speed: run it beside the
+    generic ``Condition.update`` (which calls ``holds``) on the same frames."""
+
+    def limit() -> LimitCondition:
+        return LimitCondition(
+            "analog_input.1",
+            "analog_input",
+            1,
+            high=10.0,
+            low=-10.0,
+            deadband=deadband,
+            on_delay_s=delay_s,
+            off_delay_s=delay_s,
+        )
+
+    def bit() -> BitCondition:
+        return BitCondition("tool_di.3", "tool_di", 3, active_when=False, on_delay_s=delay_s)
+
+    def state() -> StateCondition:
+        return StateCondition(3, "INTERRUPTED", "safety_stopped")
+
+    pairs: list[tuple[Condition, Condition]] = [
+        (limit(), limit()),
+        (bit(), bit()),
+        (state(), state()),
+    ]
+    t = 0.0
+    for value, bit_value, robot_state, dt in steps:
+        t += dt
+        frame = zero_frame()._replace(
+            analog_input=(0.0, value),
+            tool_di=(False, False, False, bit_value, False, False),
+            robot_state=robot_state,
+            safety_stopped=bit_value,
+        )
+        for fast, generic in pairs:
+            assert fast.update(frame, t) == Condition.update(generic, frame, t)
+            assert fast.active is generic.active

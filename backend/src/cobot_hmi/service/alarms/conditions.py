@@ -49,6 +49,10 @@ class Condition:
         if raw is self.active:
             self._since = None
             return UNCHANGED
+        return self._settle(raw, time_s)
+
+    def _settle(self, raw: bool, time_s: float) -> int:
+        """The raw condition differs from ``active``: run the delay, or change."""
         since = self._since
         if since is None:
             self._since = since = time_s
@@ -83,6 +87,15 @@ class StateCondition(Condition):
         if frame.robot_state == self.state:
             return True
         return self.flag is not None and getattr(frame, self.flag) is True
+
+    def update(self, frame: Frame, time_s: float) -> int:
+        # ``holds`` written out (one call per frame, not two; bench/alarms).
+        flag = self.flag
+        raw = frame.robot_state == self.state or (flag is not None and getattr(frame, flag) is True)
+        if raw is self.active:
+            self._since = None
+            return UNCHANGED
+        return self._settle(raw, time_s)
 
     def describe(self, frame: Frame, tags: Mapping[str, str]) -> tuple[float | bool | None, str]:
         words = f"robot state {frame.robot_state}"
@@ -149,6 +162,33 @@ class LimitCondition(ElementCondition):
         self._high_clear = None if high is None else high - deadband
         self._low_clear = None if low is None else low + deadband
 
+    def update(self, frame: Frame, time_s: float) -> int:
+        # ``holds`` written out here: one Python call per limit and frame instead of two (the
+        # hot path; bench/alarms). The two must say the same (tests/test_alarms_units.py).
+        value = getattr(frame, self.field)
+        index = self.index
+        if index is not None:
+            value = value[index]
+        active = self.active
+        if active:
+            high_clear = self._high_clear
+            if high_clear is not None and not value <= high_clear:
+                raw = True
+            else:
+                low_clear = self._low_clear
+                raw = low_clear is not None and not value >= low_clear
+        else:
+            high = self.high
+            if high is not None and value > high:
+                raw = True
+            else:
+                low = self.low
+                raw = low is not None and value < low
+        if raw is active:
+            self._since = None
+            return UNCHANGED
+        return self._settle(raw, time_s)
+
     def holds(self, frame: Frame) -> bool:
         value = getattr(frame, self.field)
         if self.index is not None:
@@ -190,3 +230,15 @@ class BitCondition(ElementCondition):
         if self.index is not None:
             value = value[self.index]
         return bool(value == self.active_when)
+
+    def update(self, frame: Frame, time_s: float) -> int:
+        # ``holds`` written out (one call per frame, not two; bench/alarms).
+        value = getattr(frame, self.field)
+        index = self.index
+        if index is not None:
+            value = value[index]
+        raw = value is self.active_when or value == self.active_when
+        if raw is self.active:
+            self._since = None
+            return UNCHANGED
+        return self._settle(raw, time_s)

@@ -182,6 +182,7 @@ class AlarmEngine:
             self.alarms[definition.key] = alarm
             frame_checks.append((alarm, element_condition))
         self._frame_checks: tuple[tuple[_Alarm, Condition], ...] = tuple(frame_checks)
+        self._frame_conditions: tuple[Condition, ...] = tuple(c for _, c in frame_checks)
         self._failed = False
         # Connection health.
         self._bad_since: float | None = None
@@ -221,17 +222,17 @@ class AlarmEngine:
         if self._failed:
             return None
         events: list[Event] | None = None
-        checks = self._frame_checks
-        count = len(checks)
+        conditions = self._frame_conditions
+        count = len(conditions)
         index = 0
         try:
             # An index, not ``for … in``: a for loop allocates an iterator on every frame.
             while index < count:
-                alarm, condition = checks[index]
+                change = conditions[index].update(frame, time_s)
                 index += 1
-                change = condition.update(frame, time_s)
                 if change == UNCHANGED:
                     continue
+                alarm, condition = self._frame_checks[index - 1]
                 value, message = condition.describe(frame, self._tag_names())
                 event = self._process(alarm, change == CAME, time_s, value, message)
                 if event is not None:
