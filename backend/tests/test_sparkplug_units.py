@@ -103,6 +103,8 @@ def test_deadbands_from_a_flag_and_the_defaults() -> None:
         ({"sparkplug_group": "a/b"}, "sparkplug_group"),
         ({"sparkplug_node": "cell#1"}, "sparkplug_node"),
         ({"sparkplug_max_rate_hz": 0}, "sparkplug_max_rate_hz"),
+        ({"mqtt_ca_file": "/nonexistent/ca.pem"}, "mqtt_ca_file.*not a readable file"),
+        ({"mqtt_client_key": "/nonexistent/key.pem"}, "mqtt_client_key"),
     ],
 )
 def test_bad_sparkplug_settings_are_named(flags: dict[str, object], named: str) -> None:

@@ -110,6 +110,17 @@ def _split_commas(value: object) -> object:
 CommaList = Annotated[list[str], NoDecode, BeforeValidator(_split_commas)]
 """A list setting written ``a,b,c`` in a flag or variable (a list in TOML)."""
 ExpandedPath = Annotated[Path, AfterValidator(Path.expanduser)]
+
+
+def _readable_file(path: Path) -> Path:
+    path = path.expanduser()
+    if not path.is_file() or not os.access(path, os.R_OK):
+        raise ValueError(f"{path} is not a readable file")
+    return path
+
+
+ReadableFile = Annotated[Path, AfterValidator(_readable_file)]
+"""A file that must be there when the service starts (a certificate, a key)."""
 Seconds = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 Milliseconds = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 Port = Annotated[int, Field(ge=0, le=65535)]
@@ -440,11 +451,11 @@ class ServiceSettings(BaseSettings):
     )
     mqtt_user: str = setting("", "MQTT user name (empty: none)")
     mqtt_password: str = setting("", "MQTT password (prefer COBOT_HMI_MQTT_PASSWORD)")
-    mqtt_ca_file: ExpandedPath | None = setting(
+    mqtt_ca_file: ReadableFile | None = setting(
         None, "CA certificates for mqtts:// (default: the system's)"
     )
-    mqtt_client_cert: ExpandedPath | None = setting(None, "client certificate (PEM) for mqtts://")
-    mqtt_client_key: ExpandedPath | None = setting(None, "its private key (PEM)")
+    mqtt_client_cert: ReadableFile | None = setting(None, "client certificate (PEM) for mqtts://")
+    mqtt_client_key: ReadableFile | None = setting(None, "its private key (PEM)")
     mqtt_writes: bool = setting(
         False, "accept DCMD writes over MQTT (through the write pipeline, with control)"
     )
