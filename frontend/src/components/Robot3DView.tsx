@@ -56,7 +56,7 @@ export function Robot3DView({ model, theme, interactive = true, height_px = 420 
             theme,
             interactive,
             jointCount: chain.jointCount,
-            trailCapacity: feed.trail.capacity,
+            trailCapacity: feed.trail.capacity + 1, // and the flange drawn
             reach_m: reachOf(chain),
           });
         } catch {
@@ -92,9 +92,11 @@ export function Robot3DView({ model, theme, interactive = true, height_px = 420 
         let handle = 0;
         const loop = () => {
           handle = requestAnimationFrame(loop);
-          if (feed.update()) {
+          feed.update();
+          // The pose played back a little behind the newest frame, so it moves every frame.
+          if (feed.poseAt(performance.now())) {
             scene.setPose(feed.frames);
-            scene.setTrailCount(feed.trail.copyInto(scene.trailArray));
+            scene.setTrailCount(feed.trailInto(scene.trailArray));
             dirty = true;
           }
           if (!dirty || !feed.hasPose || !onScreen) return;

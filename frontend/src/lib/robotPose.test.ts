@@ -31,15 +31,18 @@ describe("RobotPoseFeed", () => {
     q.forEach((v, i) => (r[channels.channelOf("joint_position", i)] = v));
     return r;
   };
+  const tcpOf = (feed: RobotPoseFeed) => originOf(feed.frames[6] as Float64Array).map((v) => v * 1000);
 
-  it("follows the newest joints and traces the flange", () => {
+  it("draws the arm by its kinematics and traces the flange", () => {
     const ring = new SampleRing(1000, channels.channelCount);
     const feed = new RobotPoseFeed(new ArmChain(ARMS.M1013), ring, channels, 1000, 100);
     expect(feed.update()).toBe(false);
+    expect(feed.poseAt(0)).toBe(false);
     expect(feed.hasPose).toBe(false);
     ring.push(0, row([30, 0, 90, 0, 90, 0]));
     expect(feed.update()).toBe(true);
-    const tcp = originOf(feed.frames[6] as Float64Array).map((v) => v * 1000);
+    expect(feed.poseAt(0)).toBe(true);
+    const tcp = tcpOf(feed);
     expect(tcp[0]).toBeCloseTo(466.9, 1);
     expect(tcp[1]).toBeCloseTo(309.4, 1);
     expect(tcp[2]).toBeCloseTo(651.5, 1);
@@ -49,18 +52,58 @@ describe("RobotPoseFeed", () => {
     expect(feed.samples).toBe(21);
     const out = new Float32Array(feed.trail.capacity * 3);
     expect(feed.trail.copyInto(out)).toBe(21);
-    // The newest point of the path is the flange drawn.
-    const moved = originOf(feed.frames[6] as Float64Array);
-    expect(out[20 * 3]).toBeCloseTo(moved[0], 5);
-    expect(moved[0]).not.toBeCloseTo((tcp[0] ?? Number.NaN) / 1000, 3);
+  });
+
+  it("plays the pose back behind the newest sample, interpolated, moving every frame", () => {
+    const ring = new SampleRing(1000, channels.channelCount);
+    const feed = new RobotPoseFeed(new ArmChain(ARMS.M1013), ring, channels, 1000, 100, 100);
+    // A batch of 5 frames 10 ms apart: J1 from 0 to 40 degrees.
+    for (let i = 0; i <= 4; i++) ring.push(1000 + i * 10, row([i * 10, 0, 90, 0, 90, 0]));
+    feed.update();
+    const chain = new ArmChain(ARMS.M1013);
+    const at = (j1: number) => chain.tcpPosition_mm([j1, 0, 90, 0, 90, 0]);
+    expect(feed.poseAt(5000)).toBe(true); // starts 100 ms behind the newest (t = 940): J1 = 0
+    expect(tcpOf(feed)[1]).toBeCloseTo(at(0)[1], 6);
+    // Another batch arrives; the browser's clock moves 65 ms: t = 1005, halfway from 0 to 10.
+    for (let i = 5; i <= 9; i++) ring.push(1000 + i * 10, row([i * 10, 0, 90, 0, 90, 0]));
+    feed.update();
+    expect(feed.poseAt(5065)).toBe(true);
+    expect(tcpOf(feed)[1]).toBeCloseTo(at(5)[1], 6);
+    // Every animation frame moves it, without new data.
+    expect(feed.poseAt(5081)).toBe(true);
+    expect(tcpOf(feed)[1]).toBeCloseTo(at(21)[1], 6);
+    // The same moment again: nothing to draw.
+    expect(feed.poseAt(5081)).toBe(false);
+    // It never runs ahead of the data: held at the newest sample.
+    expect(feed.poseAt(9000)).toBe(true);
+    expect(tcpOf(feed)[1]).toBeCloseTo(at(90)[1], 6);
+    // The path drawn ends at the flange drawn.
+    const out = new Float32Array((feed.trail.capacity + 1) * 3);
+    const n = feed.trailInto(out);
+    expect(out[(n - 1) * 3 + 1]! * 1000).toBeCloseTo(at(90)[1], 3);
+  });
+
+  it("catches up after a stall instead of lagging ever more", () => {
+    const ring = new SampleRing(10_000, channels.channelCount);
+    const feed = new RobotPoseFeed(new ArmChain(ARMS.M1013), ring, channels, 1000, 100, 100);
+    ring.push(0, row([0, 0, 90, 0, 90, 0]));
+    feed.poseAt(0);
+    for (let i = 1; i <= 500; i++) ring.push(i * 10, row([i / 10, 0, 90, 0, 90, 0])); // 5 s later
+    feed.update();
+    feed.poseAt(16); // the browser's clock moved 16 ms only (the tab was hidden)
+    const chain = new ArmChain(ARMS.M1013);
+    expect(tcpOf(feed)[1]).toBeCloseTo(chain.tcpPosition_mm([49, 0, 90, 0, 90, 0])[1], 6); // t = 4900
   });
 
   it("skips frames without joint values and keeps the last pose", () => {
     const ring = new SampleRing(100, channels.channelCount);
-    const feed = new RobotPoseFeed(new ArmChain(ARMS.M0609), ring, channels);
+    const feed = new RobotPoseFeed(new ArmChain(ARMS.M0609), ring, channels, 5000, 100, 0);
     ring.push(0, row([0, 0, 90, 0, 90, 0]));
+    feed.update();
+    expect(feed.poseAt(0)).toBe(true);
     ring.push(10, new Float64Array(channels.channelCount).fill(Number.NaN));
-    expect(feed.update()).toBe(true);
+    feed.update();
+    expect(feed.poseAt(10)).toBe(false);
     expect(feed.hasPose).toBe(true);
     expect(originOf(feed.frames[6] as Float64Array)[2]).toBeCloseTo(0.1345 + 0.411 - 0.121, 9);
   });

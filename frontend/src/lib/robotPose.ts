@@ -3,9 +3,15 @@
  *
  * Reads the arm's joint positions from the live sample ring (the same ring the plots read; the
  * samples never pass through React), works out every link's frame by the arm's forward
- * kinematics (armKinematics.ts) for the newest sample, and keeps the flange's path over the last
- * `trail_ms` in a fixed ring (memory allocated once). The view asks `update()` once per
- * animation frame and redraws only when it says something moved.
+ * kinematics (armKinematics.ts), and keeps the flange's path over the last `trail_ms` in a fixed
+ * ring (memory allocated once).
+ *
+ * Frames arrive in batches (the service sends one WebSocket message per 50 ms by default), so
+ * drawing the newest sample would move the arm in 20 steps a second however fast the display.
+ * The pose drawn is instead played back `delay_ms` behind the newest sample on a clock that runs
+ * with the browser's, interpolated between the two samples around it: the arm moves on every
+ * animation frame, a fixed `delay_ms` after the robot did. The view asks `update()` and
+ * `poseAt()` once per animation frame and redraws only when the pose moved.
  */
 import { ArmChain, type Transform } from "./armKinematics";
 import type { ChannelMap } from "./plots";
@@ -13,6 +19,9 @@ import type { SampleRing } from "./ringBuffer";
 
 /** The flange's path over this long is drawn behind it. */
 export const DEFAULT_TRAIL_MS = 5_000;
+
+/** How far behind the newest sample the pose is played back (two of the service's batches). */
+export const DEFAULT_PLAYBACK_DELAY_MS = 100;
 
 /** A fixed-capacity path of time-stamped points; points older than the window are dropped. */
 export class TcpTrail {
@@ -48,17 +57,20 @@ export class TcpTrail {
   }
 
   /**
-   * The points no older than `window_ms` before the newest, oldest first, into `out` (x, y, z
-   * each; at least capacity × 3 long). Returns how many.
+   * The points of the `window_ms` up to `until_ms` (the newest point by default), oldest first,
+   * into `out` (x, y, z each; at least capacity × 3 long). Returns how many.
    */
-  copyInto(out: Float32Array): number {
+  copyInto(out: Float32Array, until_ms = Infinity): number {
     const n = this.size;
     if (n === 0) return 0;
-    const newest = this.times_ms[(this.written - 1) % this.capacity] as number;
+    let last = this.written - 1;
+    while (last >= this.written - n && (this.times_ms[last % this.capacity] as number) > until_ms) last--;
+    if (last < this.written - n) return 0;
+    const end = this.times_ms[last % this.capacity] as number;
     let first = this.written - n;
-    while (first < this.written - 1 && (this.times_ms[first % this.capacity] as number) < newest - this.window_ms) first++;
+    while (first < last && (this.times_ms[first % this.capacity] as number) < end - this.window_ms) first++;
     let k = 0;
-    for (let seq = first; seq < this.written; seq++) {
+    for (let seq = first; seq <= last; seq++) {
       const slot = seq % this.capacity;
       out[k * 3] = this.xyz[slot * 3] as number;
       out[k * 3 + 1] = this.xyz[slot * 3 + 1] as number;
@@ -78,25 +90,40 @@ export class RobotPoseFeed {
   private readonly ring: SampleRing;
   private readonly jointChannels: readonly number[];
   private readonly joints_deg: Float64Array;
+  private readonly after_deg: Float64Array;
   private readonly scratch: Transform[];
+  private readonly delay_ms: number;
   private readSeq = 0;
+  /** The ring time of the pose drawn, and the browser time it was worked out at. */
+  private playback_ms: number | null = null;
+  private playbackAt_ms = 0;
+  private drawn_ms: number | null = null;
   /** Whether a pose has been computed yet. */
   hasPose = false;
   /** Samples taken from the ring, for tests and the benchmark. */
   samples = 0;
 
-  constructor(chain: ArmChain, ring: SampleRing, channels: ChannelMap, trail_ms = DEFAULT_TRAIL_MS, maxRate_hz = 1000) {
+  constructor(
+    chain: ArmChain,
+    ring: SampleRing,
+    channels: ChannelMap,
+    trail_ms = DEFAULT_TRAIL_MS,
+    maxRate_hz = 1000,
+    delay_ms = DEFAULT_PLAYBACK_DELAY_MS,
+  ) {
     this.chain = chain;
     this.ring = ring;
     const n = chain.jointCount;
     this.jointChannels = Array.from({ length: n }, (_, i) => channels.channelOf("joint_position", i));
     this.joints_deg = new Float64Array(n);
+    this.after_deg = new Float64Array(n);
+    this.delay_ms = delay_ms;
     this.frames = chain.newFrames();
     this.scratch = chain.newFrames();
     this.trail = new TcpTrail(Math.max(2, Math.ceil((trail_ms / 1000) * maxRate_hz)), trail_ms);
   }
 
-  /** Take what the ring received since the last call; true when the pose or path changed. */
+  /** Take what the ring received since the last call into the path; true when there was any. */
   update(): boolean {
     const ring = this.ring;
     const end = ring.endSeq;
@@ -115,13 +142,62 @@ export class RobotPoseFeed {
       this.samples++;
       moved = true;
     }
-    // The pose drawn is the newest sample's that had joint values.
-    if (moved) {
-      for (let i = 0; i < this.frames.length; i++) (this.frames[i] as Transform).set(this.scratch[i] as Transform);
-      this.hasPose = true;
-    }
     this.readSeq = end;
     return moved;
+  }
+
+  /**
+   * The pose at browser time `now_ms` (performance.now()) into `frames`: played back `delay_ms`
+   * behind the newest sample, interpolated; true when it differs from the pose last worked out.
+   */
+  poseAt(now_ms: number): boolean {
+    const ring = this.ring;
+    const newest = ring.newestTime();
+    if (newest === null || ring.size === 0) return false;
+    const wanted = newest - this.delay_ms;
+    let t = this.playback_ms === null ? wanted : this.playback_ms + (now_ms - this.playbackAt_ms);
+    // Never ahead of the data; far behind (a stall, a hidden tab, clock drift): catch up at once.
+    if (t > newest) t = newest;
+    if (t < wanted - 2 * this.delay_ms) t = wanted;
+    this.playback_ms = t;
+    this.playbackAt_ms = now_ms;
+    if (t === this.drawn_ms) return false;
+    const after = Math.min(ring.firstSeqAtOrAfter(t), ring.endSeq - 1);
+    if (!this.readJoints(after)) return false;
+    const before = after - 1;
+    if (before >= ring.oldestSeq) {
+      const t0 = ring.timeAt(before);
+      const t1 = ring.timeAt(after);
+      const f = t1 > t0 ? Math.min(1, Math.max(0, (t - t0) / (t1 - t0))) : 1;
+      this.after_deg.set(this.joints_deg);
+      if (f < 1 && this.readJoints(before)) {
+        // joints_deg now holds `before`; blend towards `after` (kept in after_deg).
+        for (let i = 0; i < this.joints_deg.length; i++) {
+          const a = this.joints_deg[i] as number;
+          this.joints_deg[i] = a + ((this.after_deg[i] as number) - a) * f;
+        }
+      } else {
+        this.joints_deg.set(this.after_deg);
+      }
+    }
+    this.chain.forward(this.joints_deg, this.frames);
+    this.drawn_ms = t;
+    this.hasPose = true;
+    return true;
+  }
+
+  /** The path up to the pose drawn, ending at its flange, into `out`; returns the point count. */
+  trailInto(out: Float32Array): number {
+    if (this.drawn_ms === null) return 0;
+    let n = this.trail.copyInto(out, this.drawn_ms);
+    const flange = this.frames[this.frames.length - 1] as Transform;
+    if (n * 3 + 3 <= out.length) {
+      out[n * 3] = flange[3] as number;
+      out[n * 3 + 1] = flange[7] as number;
+      out[n * 3 + 2] = flange[11] as number;
+      n++;
+    }
+    return n;
   }
 
   private readJoints(seq: number): boolean {
