@@ -1,7 +1,7 @@
 """The Sparkplug edge node's doors against a real Mosquitto: bad commands get a clear answer and
 leave the node up, a broker that is not there when the service starts (the service serves,
 buffers, and births when it comes), TLS with a password on a listener that refuses anonymous
-clients (and a wrong password refused and counted), and ``cobot-hmi demo --mqtt-url``."""
+clients (a wrong password refused and counted) and with a client certificate as the identity, and ``cobot-hmi demo --mqtt-url``."""
 
 from __future__ import annotations
 
@@ -150,6 +150,14 @@ async def test_tls_and_a_password(tmp_path: Path, plc_host: str) -> None:
         "x509", "-req", "-in", "server.csr", "-CA", "ca.pem", "-CAkey", "ca.key",
         "-CAcreateserial", "-out", "server.pem", "-days", "2", "-extfile", "san.ext", cwd=pki,
     )  # fmt: skip
+    _openssl(
+        "req", "-newkey", "rsa:2048", "-nodes", "-keyout", "client.key", "-out", "client.csr",
+        "-subj", "/CN=cell-7", cwd=pki,
+    )  # fmt: skip
+    _openssl(
+        "x509", "-req", "-in", "client.csr", "-CA", "ca.pem", "-CAkey", "ca.key",
+        "-CAcreateserial", "-out", "client.pem", "-days", "2", cwd=pki,
+    )  # fmt: skip
     passwords = tmp_path / "passwords"
     _run("mosquitto_passwd", "-b", "-c", str(passwords), "cell-7", "s3cret-cell", cwd=tmp_path)
     os.chmod(passwords, 0o644)
@@ -157,6 +165,7 @@ async def test_tls_and_a_password(tmp_path: Path, plc_host: str) -> None:
         os.chmod(path, 0o644)
     tls_port = free_tcp_port(plc_host)
     plain_port = free_tcp_port(plc_host)
+    mutual_port = free_tcp_port(plc_host)
     lines = (
         "per_listener_settings true",
         f"listener {tls_port} {plc_host}",
@@ -167,6 +176,13 @@ async def test_tls_and_a_password(tmp_path: Path, plc_host: str) -> None:
         f"password_file {passwords}",
         f"listener {plain_port} {plc_host}",  # the test's reader
         "allow_anonymous true",
+        f"listener {mutual_port} {plc_host}",  # a client certificate is the identity
+        f"cafile {pki / 'ca.pem'}",
+        f"certfile {pki / 'server.pem'}",
+        f"keyfile {pki / 'server.key'}",
+        "require_certificate true",
+        "use_identity_as_username true",
+        "allow_anonymous false",
     )
     panel = Panel()
     robot_host = _next_host()
@@ -192,6 +208,17 @@ async def test_tls_and_a_password(tmp_path: Path, plc_host: str) -> None:
             assert not subscriber.of("NBIRTH")
         async with running_service(base.replace(mqtt_password="s3cret-cell")):
             await subscriber.wait_for(lambda ms: any(m.kind == "DBIRTH" for m in ms), SLOW_S)
+        mutual = base.replace(
+            mqtt_url=f"mqtts://{plc_host}:{mutual_port}",
+            mqtt_user="",
+            mqtt_client_cert=pki / "client.pem",
+            mqtt_client_key=pki / "client.key",
+        )
+        births = len(subscriber.of("NBIRTH"))
+        async with running_service(mutual) as running:
+            await subscriber.wait_for(lambda ms: sum(m.kind == "NBIRTH" for m in ms) > births)
+            edge = running.service.edge_node
+            assert edge is not None and edge.connect_refusals == 0
 
 
 @contextlib.asynccontextmanager
