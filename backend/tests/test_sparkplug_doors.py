@@ -1,7 +1,8 @@
 """The Sparkplug edge node's doors against a real Mosquitto: bad commands get a clear answer and
 leave the node up, a broker that is not there when the service starts (the service serves,
-buffers, and births when it comes), TLS with a password on a listener that refuses anonymous
-clients (a wrong password refused and counted) and with a client certificate as the identity, and ``cobot-hmi demo --mqtt-url``."""
+buffers, and births when it comes), a stalled broker stalls nothing, TLS with a password on a
+listener that refuses anonymous clients (a wrong password refused and counted) and with a client
+certificate as the identity, and ``cobot-hmi demo --mqtt-url``."""
 
 from __future__ import annotations
 
