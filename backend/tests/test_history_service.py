@@ -10,6 +10,7 @@ import csv
 import io
 import math
 import re
+import time
 from collections.abc import Mapping
 from datetime import datetime
 from pathlib import Path
@@ -374,3 +375,52 @@ async def _wait_event(client: httpx.AsyncClient, state: str) -> list[dict[str, A
             return items
         await asyncio.sleep(0.1)
     raise AssertionError(f"no recording event {state!r}")
+
+
+async def test_events_of_a_range_and_the_recording_status(
+    robot_host: str, plc_host: str, tmp_path: Path
+) -> None:
+    robot = simulated()
+    async with emulator(robot_host, robot) as target:
+        settings = history_settings(target.tcp_port, robot_host, plc_host, tmp_path)
+        async with running_service(settings) as hmi:
+            before = await stream_frames(hmi, 50)
+            robot.estop(time.time())
+            after_stop: list[dict[str, Any]] = []
+            for _ in range(int(DEADLINE_S * 10)):
+                after_stop = await stream_frames(hmi, 10)
+                if after_stop[-1]["frame"]["robot_state"] == 0:
+                    break
+            else:
+                raise AssertionError("the emergency stop never showed")
+            stopped_at = next(f["t"] for f in after_stop if f["frame"]["robot_state"] == 0)
+            async with hmi.client() as client:
+                await wait_recorded(client, before[0]["t"], after_stop[-1]["seq"])
+                path = f"/api/v1/robots/{ROBOT}/history"
+                span = {"from": before[0]["t"], "to": after_stop[-1]["t"] + 1}
+                events = await client.get(
+                    path + "/events", params={**span, "kind": ["robot_state", "flag"]}
+                )
+                few = await client.get(path + "/events", params={**span, "limit": 1})
+                started = hmi.service.started_at
+                none = await client.get(
+                    path + "/events", params={"from": started - 100, "to": started - 50}
+                )
+                status = await client.get(path + "/status")
+    assert events.status_code == 200, events.text
+    body = events.json()
+    assert body["truncated"] is False
+    assert {e["kind"] for e in body["items"]} <= {"robot_state", "flag"}
+    times = [e["time"] for e in body["items"]]
+    assert times == sorted(times)
+    stop = [e for e in body["items"] if e["kind"] == "robot_state" and e["to"] == 0]
+    assert len(stop) == 1 and stop[0]["to_name"] == "EMERGENCY_STOP"
+    # The marker sits on the frames' time axis: the first frame that showed the stop.
+    assert stop[0]["time"] == pytest.approx(stopped_at, abs=1e-6)
+    assert len(few.json()["items"]) == 1 and few.json()["truncated"] is True
+    assert none.json() == {"items": [], "truncated": False}
+    state = status.json()
+    assert state["robot"] == ROBOT and state["recording"] is True
+    assert state["first"] <= before[0]["t"] <= after_stop[-1]["t"] <= state["last"]
+    assert state["bytes"] > 0
+    assert state["retention_days"] == 7.0

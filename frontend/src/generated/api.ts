@@ -437,6 +437,40 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/v1/robots/{name}/history/events": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /** The robot's events of a range (markers for history plots), oldest first */
+        get: operations["get_history_events_api_v1_robots__name__history_events_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/robots/{name}/history/status": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /** What is recorded of the robot: the range kept, its size, recording or paused */
+        get: operations["get_history_status_api_v1_robots__name__history_status_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/robots/{name}/readyz": {
         parameters: {
             query?: never;
@@ -1627,6 +1661,20 @@ export interface components {
             to: number;
         };
         /**
+         * HistoryEvents
+         * @description ``GET /api/v1/robots/{name}/history/events``: the robot's events of a range, oldest
+         *     first, each as the stream carries it plus its log ``id``.
+         */
+        HistoryEvents: {
+            /** Items */
+            items: (components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"] | components["schemas"]["AlarmEvent"])[];
+            /**
+             * Truncated
+             * @description the range holds more than `limit` events: these are its oldest `limit`
+             */
+            truncated: boolean;
+        };
+        /**
          * HistorySeries
          * @description One element of a history answer: ``values`` (mode raw) or ``min``/``max``/``first``/
          *     ``last`` (mode buckets), index for index with the answer's ``t``.
@@ -1659,6 +1707,48 @@ export interface components {
             unit: string;
             /** Values */
             values?: (boolean | number | null)[] | null;
+        };
+        /**
+         * HistoryStatus
+         * @description ``GET /api/v1/robots/{name}/history/status``: what is recorded of the robot.
+         */
+        HistoryStatus: {
+            /**
+             * Bytes
+             * @description the robot's recording on disk
+             */
+            bytes: number;
+            /**
+             * First
+             * @description the oldest frame kept, s since the epoch
+             */
+            first: number | null;
+            /**
+             * Last
+             * @description the newest frame on disk, s since the epoch
+             */
+            last: number | null;
+            /**
+             * Recording
+             * @description false while recording is paused or off
+             */
+            recording: boolean;
+            /** Recording Paused Reason */
+            recording_paused_reason?: string | null;
+            /**
+             * Retention Bytes
+             * @description the bound of every robot's recordings together
+             */
+            retention_bytes: number;
+            /** Retention Days */
+            retention_days: number;
+            /** Robot */
+            robot: string;
+            /**
+             * Segments
+             * @description closed segments kept
+             */
+            segments: number;
         };
         /** Holder */
         Holder: {
@@ -3899,6 +3989,124 @@ export interface operations {
             };
             /** @description invalid request: the answer names the field; nothing was applied */
             422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    get_history_events_api_v1_robots__name__history_events_get: {
+        parameters: {
+            query: {
+                /** @description start of the range: ISO 8601 (2026-11-24T06:00:00Z; without an offset: UTC) or seconds since the epoch */
+                from: string;
+                /** @description end of the range (excluded): ISO 8601 (2026-11-24T06:00:00Z; without an offset: UTC) or seconds since the epoch */
+                to: string;
+                /** @description only events of these kinds (repeatable) */
+                kind?: ("connection" | "robot_state" | "flag" | "write" | "control" | "recording" | "alarm")[] | null;
+                /** @description at most this many events */
+                limit?: number;
+            };
+            header?: never;
+            path: {
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HistoryEvents"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description invalid request: the answer names the field; nothing was applied */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    get_history_status_api_v1_robots__name__history_status_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HistoryStatus"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
                 headers: {
                     [name: string]: unknown;
                 };

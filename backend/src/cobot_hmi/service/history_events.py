@@ -18,9 +18,16 @@ _KEYS = frozenset({"id", "time", "robot", "kind"})
 
 
 def events_between(
-    database: Path, robot: str, from_s: float, to_s: float, *, limit: int = 1_000_000
+    database: Path,
+    robot: str,
+    from_s: float,
+    to_s: float,
+    *,
+    limit: int = 1_000_000,
+    kinds: set[str] | None = None,
 ) -> list[dict[str, object]]:
-    """Events of ``robot`` with ``from_s <= time < to_s``; none when there is no database."""
+    """Events of ``robot`` (of ``kinds``, default all) with ``from_s <= time < to_s``, oldest
+    first, at most ``limit``; none when there is no database."""
     if not database.exists():
         return []
     try:
@@ -28,10 +35,12 @@ def events_between(
     except sqlite3.Error:
         return []
     try:
+        kind_list = sorted(kinds) if kinds else []
+        only = f" AND kind IN ({', '.join('?' * len(kind_list))})" if kind_list else ""
         rows = db.execute(
             "SELECT id, time, robot, kind, data FROM events"
-            " WHERE robot = ? AND time >= ? AND time < ? ORDER BY time, id LIMIT ?",
-            (robot, from_s, to_s, limit),
+            f" WHERE robot = ? AND time >= ? AND time < ?{only} ORDER BY time, id LIMIT ?",
+            (robot, from_s, to_s, *kind_list, limit),
         ).fetchall()
     except sqlite3.Error:  # no events table yet
         return []

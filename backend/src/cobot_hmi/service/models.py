@@ -859,6 +859,30 @@ class HistoryAnswer(BaseModel):
     recording_paused_reason: str | None = None
 
 
+class HistoryEvents(BaseModel):
+    """``GET /api/v1/robots/{name}/history/events``: the robot's events of a range, oldest
+    first, each as the stream carries it plus its log ``id``."""
+
+    items: list[Event]
+    truncated: bool = Field(
+        description="the range holds more than `limit` events: these are its oldest `limit`"
+    )
+
+
+class HistoryStatus(BaseModel):
+    """``GET /api/v1/robots/{name}/history/status``: what is recorded of the robot."""
+
+    robot: str
+    recording: bool = Field(description="false while recording is paused or off")
+    recording_paused_reason: str | None = None
+    first: float | None = Field(description="the oldest frame kept, s since the epoch")
+    last: float | None = Field(description="the newest frame on disk, s since the epoch")
+    segments: int = Field(ge=0, description="closed segments kept")
+    bytes: int = Field(ge=0, description="the robot's recording on disk")
+    retention_days: float
+    retention_bytes: int = Field(description="the bound of every robot's recordings together")
+
+
 ExportFormat = Literal["csv", "parquet", "mcap"]
 
 

@@ -62,6 +62,8 @@ class _Track:
     segments_closed: int = 0
     dropped_reported: int = 0
     overflow_reported_at: float = 0.0
+    last_time_s: float | None = None
+    """Receive time of the newest frame written to the journal."""
 
 
 class Recorder:
@@ -169,6 +171,7 @@ class Recorder:
             if items:
                 track.writer.append(items_to_batch(items))
                 track.frames_recorded += len(items)
+                track.last_time_s = items[-1][1]
             if track.writer.due():
                 if track.writer.close_segment() is not None:
                     track.segments_closed += 1

@@ -6,6 +6,7 @@ worker threads, never on the event loop; an export streams chunk by chunk.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Annotated, Any, Final
@@ -15,6 +16,7 @@ from fastapi import APIRouter, Query, Response
 from fastapi.responses import StreamingResponse
 
 from cobot_hmi.history import export as history_export
+from cobot_hmi.history import segments
 from cobot_hmi.history.query import MAX_POINTS, QueryError, QueryResult, check_range, query
 from cobot_hmi.history.schema import Element, UnknownFieldError, select_elements
 from cobot_hmi.history.times import TimeFormatError, parse_time
@@ -23,7 +25,9 @@ from cobot_hmi.service.api_docs import READ, errors
 from cobot_hmi.service.deps import RobotDep, ServiceDep, ViewerDep
 from cobot_hmi.service.errors import ApiError
 from cobot_hmi.service.history_events import events_between
+from cobot_hmi.service.recorder import Recorder
 from cobot_hmi.service.runtime import Service
+from cobot_hmi.service.settings import ServiceSettings
 
 router = APIRouter(prefix="/api/v1/robots/{name}", tags=["history"])
 
@@ -155,6 +159,91 @@ async def get_history(
         return answer_json(result, paused_reason, recording)
 
     return Response(await asyncio.to_thread(work), media_type="application/json")
+
+
+EventLimit = Annotated[int, Query(ge=1, le=10_000, description="at most this many events")]
+EventKind = Annotated[
+    list[models.EventKind] | None, Query(description="only events of these kinds (repeatable)")
+]
+
+
+@router.get(
+    "/history/events",
+    summary="The robot's events of a range (markers for history plots), oldest first",
+    response_model=models.HistoryEvents,
+    responses=errors(*READ, 422),
+)
+async def get_history_events(
+    service: ServiceDep,
+    robot: RobotDep,
+    _: ViewerDep,
+    *,
+    from_: From,
+    to: To,
+    kind: EventKind = None,
+    limit: EventLimit = 1000,
+) -> Response:
+    from_s, to_s = _times(from_, to, 1)
+    await service.store.flush_events()  # the events queued so far are in the answer
+    kinds: set[str] | None = {str(k) for k in kind} if kind else None
+
+    def work() -> bytes:
+        events = events_between(
+            service.settings.database_path,
+            robot.name,
+            from_s,
+            to_s,
+            limit=limit + 1,
+            kinds=kinds,
+        )
+        return orjson.dumps({"items": events[:limit], "truncated": len(events) > limit})
+
+    return Response(await asyncio.to_thread(work), media_type="application/json")
+
+
+def history_status(
+    root: Path, robot: str, recorder: Recorder | None, settings: ServiceSettings
+) -> dict[str, object]:
+    """What is recorded of ``robot`` (``HistoryStatus``)."""
+    closed = segments.list_segments(root, robot)
+    journals = segments.list_journals(root, robot)
+    starts = [s.start_us for s in closed] + [start for start, _ in journals]
+    size = sum(s.size_bytes() for s in closed)
+    for _, path in journals:
+        with contextlib.suppress(OSError):
+            size += path.stat().st_size
+    track = recorder.tracks.get(robot) if recorder is not None else None
+    last = track.last_time_s if track is not None else None
+    if last is None and closed:
+        last = closed[-1].end_us / 1e6
+    return {
+        "robot": robot,
+        "recording": recorder is not None and recorder.paused_reason is None,
+        "recording_paused_reason": recorder.paused_reason if recorder is not None else None,
+        "first": min(starts) / 1e6 if starts else None,
+        "last": last,
+        "segments": len(closed),
+        "bytes": size,
+        "retention_days": settings.history_retention_days,
+        "retention_bytes": settings.history_retention_bytes,
+    }
+
+
+@router.get(
+    "/history/status",
+    summary="What is recorded of the robot: the range kept, its size, recording or paused",
+    response_model=models.HistoryStatus,
+    responses=errors(*READ),
+)
+async def get_history_status(service: ServiceDep, robot: RobotDep, _: ViewerDep) -> Response:
+    status = await asyncio.to_thread(
+        history_status,
+        service.settings.history_path,
+        robot.name,
+        service.recorder,
+        service.settings,
+    )
+    return Response(orjson.dumps(status), media_type="application/json")
 
 
 def export_chunks(
