@@ -40,7 +40,8 @@ test("the 3D view renders the robot and follows it live", async ({ page }, testI
 test("each robot is drawn as its own model", async ({ page }) => {
   await page.goto(`/?robot=${settings.robot2Name}`);
   const view = await shownView(page);
-  await expect(view).toHaveAttribute("data-arm", "M0609");
+  // The model comes with the robot list (polled), once the service has read the identity.
+  await expect(view).toHaveAttribute("data-arm", "M0609", { timeout: 20_000 });
 });
 
 test("the kiosk shows the 3D view when asked, without controls", async ({ page }) => {

@@ -96,8 +96,9 @@ export class RobotScene {
     const grid = new GridHelper(3 * reach, 12, dark ? 0x4a5563 : 0xb0b8c0, dark ? 0x2a3139 : 0xe1e5e9);
     grid.rotation.x = Math.PI / 2; // GridHelper lies in x-z; the floor here is x-y
     this.scene.add(grid);
-    this.scene.add(new AxesHelper(0.25 * reach));
-    this.disposables.push(grid.geometry, grid.material as LineBasicMaterial);
+    const axes = new AxesHelper(0.25 * reach);
+    this.scene.add(axes);
+    this.disposables.push(grid, axes);
 
     const linkGeometry = new CylinderGeometry(1, 1, 1, 20); // scaled per link
     const jointGeometry = new CylinderGeometry(1, 1, 1, 24);
