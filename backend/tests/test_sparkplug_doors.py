@@ -218,8 +218,8 @@ async def test_tls_and_a_password(tmp_path: Path, plc_host: str) -> None:
         births = len(subscriber.of("NBIRTH"))
         async with running_service(mutual) as running:
             await subscriber.wait_for(lambda ms: sum(m.kind == "NBIRTH" for m in ms) > births)
-            edge = running.service.edge_node
-            assert edge is not None and edge.connect_refusals == 0
+            node = running.service.edge_node
+            assert node is not None and node.connect_refusals == 0
 
 
 @contextlib.asynccontextmanager
@@ -230,8 +230,8 @@ async def demo_process(*args: str) -> AsyncIterator[asyncio.subprocess.Process]:
         "cobot_hmi.cli",
         "demo",
         *args,
-        stdout=asyncio.subprocess.DEVNULL,
-        stderr=asyncio.subprocess.DEVNULL,
+        stdout=asyncio.subprocess.PIPE,
+        stderr=asyncio.subprocess.STDOUT,
         env={**os.environ, "PYTHONUNBUFFERED": "1"},
     )
     try:
@@ -270,8 +270,16 @@ async def test_demo_passes_the_broker_on(robot_host: str, plc_host: str, tmp_pat
             str(tmp_path / "state"),
             "--mqtt-url",
             broker.url,
-        ),  # fmt: skip
+        ) as demo,
     ):
+        assert demo.stdout is not None
+        said = b""
+        async with asyncio.timeout(SLOW_S):
+            while b"Ctrl-C stops all" not in said:
+                line = await demo.stdout.readline()
+                assert line, f"the demo ended: {said.decode(errors='replace')}"
+                said += line
+        assert f"Sparkplug B to {broker.url}: spBv1.0/cobot-hmi/+/".encode() in said
         await subscriber.wait_for(lambda ms: any(m.kind == "DBIRTH" for m in ms), SLOW_S)
         assert subscriber.of("DBIRTH")[0].device == "m1013"
 

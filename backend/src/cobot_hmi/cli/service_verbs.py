@@ -475,6 +475,12 @@ def _run_demo(
         f"  log in as {DEMO_USER!r} with password {password!r} (shown only now)\n"
         f"  state in {settings.state_dir}"
         + (" (removed at the end)" if args.state_dir is None else "")
+        + (
+            f"\n  Sparkplug B to {settings.mqtt_url}: spBv1.0/{settings.sparkplug_group}/+/"
+            f"{settings.sparkplug_node_id}/# (writes {'on' if settings.mqtt_writes else 'off'})"
+            if settings.mqtt_url
+            else ""
+        )
         + "\n  Ctrl-C stops all.",
         flush=True,
     )
