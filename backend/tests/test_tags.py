@@ -216,6 +216,8 @@ async def _second_window(
     write = await window2.patch("/api/v1/robots/robot/command", json={"tool_do": {"0": True}})
     assert write.status_code == 409
     assert "another session" in write.json()["detail"]["reason"]
+    [refused] = (await window2.get("/api/v1/audit?limit=1")).json()["items"]
+    assert (refused["outcome"], refused["summary"]) == ("refused", "Tool DO 1 = on")
     release = await window2.post("/api/v1/robots/robot/control/release")
     assert release.status_code == 409
     assert "another session" in release.json()["detail"]["reason"]

@@ -267,6 +267,7 @@ async def submit_write(
     except _RefusedError as refusal:
         outcome = _STATUS_OUTCOME.get(refusal.status, "refused")
         robot.commander.outcomes[outcome] += 1
+        words = _refused_words(robot, parsed) if refusal.status == 409 else None
         await robot.store.add_audit(
             AuditEntry(
                 writer.user,
@@ -279,9 +280,19 @@ async def submit_write(
                 refusal.reason,
                 robot=robot.name,
                 origin=origin,
+                summary=None if words is None else words.summary,
+                tags=None if words is None else words.tags or None,
             )
         )
         return WriteOutcome(refusal.status, outcome, refusal.reason, refusal.field)
+
+
+def _refused_words(robot: WriteTarget, body: object) -> _Words | None:
+    """A valid write refused for now (409: control, connection): what it asked, in words."""
+    try:
+        return _Words.of(robot, plan_write(body, robot.link.command))
+    except WriteValidationError:
+        return None
 
 
 def _jsonable(value: object) -> object:
