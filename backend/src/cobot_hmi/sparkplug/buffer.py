@@ -7,6 +7,8 @@ publishes their records (marked historical) and deletes each segment once it wen
 segment interrupted by another disconnect is written back with what is left. Segments left by
 a previous run are replayed too. Writes go through the page cache (no fsync per record): a
 power cut may lose the newest records, never corrupts older ones (a torn last record is cut).
+
+Imports nothing of the project.
 """
 
 from __future__ import annotations

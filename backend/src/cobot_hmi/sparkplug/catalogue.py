@@ -11,6 +11,8 @@ write-outcome metrics.
 
 Aliases are unique across the node (Sparkplug 3.0 requires it): robot ``n`` (1-based, in the
 settings' order) has ``n * ALIAS_STRIDE + offset``; node metrics have none.
+
+Imports only the layout and ``payload``.
 """
 
 from __future__ import annotations

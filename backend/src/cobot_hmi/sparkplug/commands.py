@@ -7,6 +7,8 @@ whole, refused unless the MQTT writer holds control, audited with the writer's M
 confirmed by the robot's own frame. ``Control/Take`` and ``Control/Release`` (true) take and
 release control through the same pipeline. With MQTT writes off every DCMD is refused (and
 audited). The outcome goes back as the device's ``Write/Outcome`` and ``Write/Reason``.
+
+Imports the write pipeline, the store and ``catalogue``/``payload``; never a route.
 """
 
 from __future__ import annotations

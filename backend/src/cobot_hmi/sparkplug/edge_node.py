@@ -11,6 +11,8 @@ DBIRTH from its newest frame; otherwise a DDATA with what changed (``rbe``), the
 the control holder and command outcomes, if anything did. While the broker is away the DDATA go
 to the disk buffer; after the reconnect come NBIRTH, the DBIRTHs, then the buffered data as
 historical. NDEATH is the MQTT will of each connection (and is sent before a clean stop).
+
+Never imports a route, the app or the CLI.
 """
 
 from __future__ import annotations

@@ -6,6 +6,8 @@ the web event loop ever waits for the broker; ``publish`` only queues (paho is t
 MQTT 3.1.1, clean session, as Sparkplug B 3.0 asks of an edge node. ``mqtts://`` uses TLS with
 the CA file (else the system's CAs) and optionally a client certificate; user and password go
 in CONNECT.
+
+Imports nothing of the project; the only module that imports paho-mqtt at run time.
 """
 
 from __future__ import annotations

@@ -4,6 +4,8 @@ The message classes are generated from ``sparkplug_b.proto`` (``cobot_hmi.genera
 sparkplug_b_pb2``, written by ``cobot-hmi codegen``). Data type numbers and how each sits in
 the metric's ``value`` oneof are the specification's (Sparkplug 3.0, "Payloads": integers up
 to 32 bits in ``int_value``, 64-bit ones in ``long_value``, ``Float`` in ``float_value``).
+
+Imports only the generated classes: the only protobuf import.
 """
 
 from __future__ import annotations

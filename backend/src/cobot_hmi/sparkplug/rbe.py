@@ -7,6 +7,8 @@ decimated away. Analog metrics (``REAL``) are compared once per report, newest f
 value last reported, and sent when they moved by their deadband or more (absolute, in the
 field's unit; a deadband of 0 sends any change). The edge node calls this at most at its
 maximum rate per robot, so analog values are sampled at that rate.
+
+Imports only the codec, ``catalogue`` and ``payload``.
 """
 
 from __future__ import annotations

@@ -7,6 +7,8 @@ tell a stale death from the current session's. It is kept in a file of the state
 that a restarted service goes on counting (a late will of the previous process must not end the
 new session). ``seq`` (0–255, wrapping) numbers every message after NBIRTH (which is 0),
 NDEATH excepted.
+
+Imports nothing of the project.
 """
 
 from __future__ import annotations

@@ -2,6 +2,8 @@
 
 Sparkplug B 3.0 topics are ``spBv1.0/GROUP/TYPE/NODE[/DEVICE]``; this edge node is NODE and
 each robot one DEVICE (its name). Ids never contain ``+``, ``#`` or ``/`` (the settings check).
+
+Imports nothing of the project.
 """
 
 from __future__ import annotations
