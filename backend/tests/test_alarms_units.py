@@ -367,6 +367,7 @@ def test_engine_connection_and_packet_loss() -> None:
     assert _link(engine, 103.0, refused=True, reason="0x0109") == [
         ("forward_open_refused", "activated")
     ]
+    assert _link(engine, 103.5) == []  # trying again: still refused until connected
     assert sorted(_link(engine, 104.0, connected=True, frame_age_s=0.01)) == [
         ("connection_lost", "cleared"),
         ("forward_open_refused", "cleared"),

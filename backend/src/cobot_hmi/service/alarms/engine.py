@@ -260,7 +260,9 @@ class AlarmEngine:
         """The connection's alarms from its state now (a change, or the tick)."""
         events: list[Event] = []
         refused_alarm = self.alarms[d.FORWARD_OPEN_REFUSED]
-        if refused != refused_alarm.status.state.active:
+        was_refused = refused_alarm.status.state.active
+        # Comes with a refusal, goes once a connection is made (not while still trying).
+        if refused != was_refused and (refused or connected):
             message = f"Forward Open refused: {reason}" if refused else "connected"
             event = self._process(refused_alarm, refused, now_s, None, message)
             if event is not None:
