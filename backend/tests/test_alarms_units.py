@@ -581,3 +581,12 @@ def test_the_written_out_hot_paths_say_what_holds_says(
         for fast, generic in pairs:
             assert fast.update(frame, t) == Condition.update(generic, frame, t)
             assert fast.active is generic.active
+
+
+def test_a_failing_evaluation_stops_the_frame_alarms_not_the_frames() -> None:
+    engine, _ = _engine()
+    assert not engine.failed
+    broken = zero_frame()._replace(robot_state=14, joint_motor_temperature=None)  # type: ignore[arg-type]
+    assert engine.observe(broken, 1.0) is None
+    assert engine.failed
+    assert engine.observe(zero_frame(), 2.0) is None  # an e-stop frame: off, quietly

@@ -194,6 +194,12 @@ def render_metrics(service: Service, stats: dict[str, ConnectionStats]) -> str:
         for (priority, what), count in robot.alarms.counts().items():
             w.sample("alarms", count, {**label, "priority": priority, "state": what})
     per_robot(
+        "alarm_evaluation_failed",
+        "gauge",
+        "1 when the frame alarms stopped after an error (see the log)",
+        lambda r, s: int(r.alarms.failed),
+    )
+    per_robot(
         "alarm_write_errors_total",
         "counter",
         "alarm changes that could not be stored",

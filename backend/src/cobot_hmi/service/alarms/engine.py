@@ -197,6 +197,11 @@ class AlarmEngine:
         return f"{self.robot}:{key}"
 
     @property
+    def failed(self) -> bool:
+        """Frame evaluation stopped after an error (logged; ``/metrics`` shows it)."""
+        return self._failed
+
+    @property
     def packet_loss_high(self) -> bool:
         """Packet loss above the threshold (the status' amber connection badge)."""
         return self.alarms[d.PACKET_LOSS].status.state.active
