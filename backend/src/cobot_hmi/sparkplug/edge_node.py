@@ -182,6 +182,8 @@ class EdgeNode:
         self.replayed = 0
         self.commands: Counter[str] = Counter()
         self.bad_commands = 0
+        self.tick_seconds = 0.0
+        """Time in the robots' ticks on the web loop (reports, encoding, publishing calls)."""
 
     # ------------------------------------------------------------ lifecycle
 
@@ -459,10 +461,12 @@ class EdgeNode:
             if device.robot.down_since is None:
                 await hub.wait_for_frame(_any_frame, hub.seq, self.period_s)
             last = loop.time()
+            started = time.perf_counter()
             try:
                 self._tick(device)
             except Exception:  # a bug here must not end the robot's reports for good
                 log.exception("Sparkplug tick of %s failed", device.name)
+            self.tick_seconds += time.perf_counter() - started
 
     def _tick(self, device: Device) -> None:
         robot = device.robot
@@ -720,6 +724,12 @@ class EdgeNode:
                 "counter",
                 "frames the edge node's queue dropped before it read them",
                 [({"robot": d.name}, float(d.subscription.dropped)) for d in devices],
+            ),
+            (
+                "sparkplug_tick_seconds_total",
+                "counter",
+                "time the edge node's reports took on the web event loop",
+                [({}, self.tick_seconds)],
             ),
             (
                 "sparkplug_commands_total",
