@@ -156,6 +156,32 @@ def test_journal_is_readable_while_open(tmp_path: Path) -> None:
     writer.abandon()
 
 
+def test_journal_read_as_it_grows_equals_a_fresh_read(tmp_path: Path) -> None:
+    items = synthetic_items(400)
+    writer = segments.SegmentWriter(tmp_path, "r", segment_s=1e9)
+    journal = None
+    for offset in range(0, 400, 20):
+        writer.append(items_to_batch(items[offset : offset + 20]))
+        journal = writer.journal_path
+        assert journal is not None
+        # Each read parses only the new batches (kept per journal) and sees all of them.
+        grown = segments.read_journal(journal, ["seq", "joint_position.0"])
+        assert grown.column("seq").to_pylist() == list(range(1, offset + 21))
+    assert journal is not None
+    writer.abandon()
+    segments.forget_journal(journal)
+    fresh = segments.read_journal(journal)
+    assert fresh.num_rows == 400
+    assert fresh.equals(segments.read_journal(journal))
+    # A torn tail is left out until it is complete.
+    data = journal.read_bytes()
+    journal.write_bytes(data[:-700])
+    segments.forget_journal(journal)
+    assert segments.read_journal(journal, ["seq"]).num_rows == 380
+    journal.write_bytes(data)  # the same file grows: its last batch completes
+    assert segments.read_journal(journal, ["seq"]).num_rows == 400
+
+
 # --------------------------------------------------------------------------- retention
 
 

@@ -126,7 +126,7 @@ def iter_raw(
         partial = segment.start_us < start_us or segment.end_us >= end_us
         yield _clip(table, from_s, to_s, partial)
     for path in _journals_before(root, robot, end_us):
-        yield _clip(read_journal(path).select(list(columns)), from_s, to_s, True)
+        yield _clip(read_journal(path, columns), from_s, to_s, True)
 
 
 def read_raw(
@@ -168,7 +168,7 @@ def read_cells(
         whole = segment.start_us >= start_us and segment.end_us < end_us
         tables.append(table if whole else _clip_cells(table, first_cell, end_cell))
     for path in _journals_before(root, robot, end_us):
-        journal = read_journal(path)
+        journal = read_journal(path, [TIME, *(e.name for e in elements)])
         cells = rollup_table(journal, list(elements)).select(columns)
         tables.append(_clip_cells(cells, first_cell, end_cell))
     if not tables:

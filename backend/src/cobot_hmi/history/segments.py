@@ -26,8 +26,10 @@ from __future__ import annotations
 import contextlib
 import os
 import re
+import threading
 import time
-from collections.abc import Callable
+from collections import OrderedDict
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Final
@@ -119,28 +121,100 @@ def list_journals(root: Path, robot: str) -> list[tuple[int, Path]]:
     return out
 
 
-def read_journal(path: Path) -> pa.Table:
-    """Every complete batch of a journal (a torn last batch, from a crash, is left out)."""
-    batches: list[pa.RecordBatch] = []
+class _Journal:
+    """What a reader has parsed of one journal: the batches up to ``offset`` bytes."""
+
+    __slots__ = ("batches", "identity", "offset", "schema")
+
+    def __init__(self, identity: tuple[int, int]) -> None:
+        self.identity = identity
+        self.offset = 0
+        self.schema: pa.Schema | None = None
+        self.batches: list[pa.RecordBatch] = []
+
+
+_JOURNALS: Final[OrderedDict[Path, _Journal]] = OrderedDict()
+_JOURNALS_LOCK: Final = threading.Lock()
+_JOURNALS_KEPT: Final = 16
+_CONSOLIDATE_BATCHES: Final = 128
+
+
+def read_journal(path: Path, columns: Sequence[str] | None = None) -> pa.Table:
+    """Every complete batch of a journal (a torn last batch, from a crash, is left out),
+    ``columns`` only (default all).
+
+    A journal only grows, a batch a second: the batches parsed are kept per journal (the last
+    few journals read), so a query of the open segment parses only the new ones; parsing all
+    of a ten-minute journal (600 batches of 190 columns) costs about 100 ms, the new second a
+    fraction of a millisecond."""
+    batches, schema = _journal_batches(path)
+    if not batches or schema is None:
+        return _empty(columns)
+    table = pa.Table.from_batches(batches, schema=schema)
+    if columns is not None:
+        table = table.select(list(columns))
+    return table.combine_chunks()
+
+
+def _journal_batches(path: Path) -> tuple[list[pa.RecordBatch], pa.Schema | None]:
     try:
-        source = pa.memory_map(str(path))
-    except (OSError, pa.ArrowException):
-        return SCHEMA.empty_table()
-    with source:
+        stat = os.stat(path)
+    except OSError:
+        forget_journal(path)
+        return [], None
+    identity = (stat.st_dev, stat.st_ino)
+    with _JOURNALS_LOCK:
+        entry = _JOURNALS.get(path)
+        if entry is None or entry.identity != identity or stat.st_size < entry.offset:
+            entry = _Journal(identity)
+        _JOURNALS[path] = entry
+        _JOURNALS.move_to_end(path)
+        while len(_JOURNALS) > _JOURNALS_KEPT:
+            _JOURNALS.popitem(last=False)
+        if stat.st_size > entry.offset:
+            with contextlib.suppress(OSError):  # read again next time
+                _parse_more(path, entry, stat.st_size)
+        return list(entry.batches), entry.schema
+
+
+def _parse_more(path: Path, entry: _Journal, size: int) -> None:
+    """Parse the complete IPC messages between ``entry.offset`` and ``size``."""
+    with path.open("rb") as file:
+        file.seek(entry.offset)
+        data = file.read(size - entry.offset)
+    reader = pa.BufferReader(pa.py_buffer(data))
+    consumed = 0
+    while True:
         try:
-            reader = pa.ipc.open_stream(source)
-        except (OSError, pa.ArrowException):  # crashed before the schema was written
-            return SCHEMA.empty_table()
-        while True:
-            try:
-                batches.append(reader.read_next_batch())
-            except StopIteration:
-                break
-            except (OSError, pa.ArrowException):  # torn last batch
-                break
-        table = pa.Table.from_batches(batches, schema=SCHEMA)
-        # Copy out of the mapping before it closes.
-        return table.combine_chunks() if batches else SCHEMA.empty_table()
+            message = pa.ipc.read_message(reader)
+        except (EOFError, OSError, pa.ArrowException):  # the end, or a batch still torn
+            break
+        if message is None:
+            break
+        try:
+            if entry.schema is None:
+                entry.schema = pa.ipc.read_schema(message)
+            else:
+                entry.batches.append(pa.ipc.read_record_batch(message, entry.schema))
+        except (OSError, pa.ArrowException):
+            break
+        consumed = reader.tell()
+    entry.offset += consumed
+    if len(entry.batches) > _CONSOLIDATE_BATCHES and entry.schema is not None:
+        # One batch instead of many: a query's concatenation stays cheap.
+        whole = pa.Table.from_batches(entry.batches, schema=entry.schema).combine_chunks()
+        entry.batches = whole.to_batches()
+
+
+def forget_journal(path: Path) -> None:
+    """Drop what was parsed of a journal (it was closed into a segment)."""
+    with _JOURNALS_LOCK:
+        _JOURNALS.pop(path, None)
+
+
+def _empty(columns: Sequence[str] | None) -> pa.Table:
+    table = SCHEMA.empty_table()
+    return table if columns is None else table.select(list(columns))
 
 
 def _fsync_dir(directory: Path) -> None:
@@ -221,7 +295,9 @@ def write_segment(table: pa.Table, directory: Path, robot: str) -> Segment | Non
 
 def close_journal(path: Path, robot: str) -> Segment | None:
     """Turn a journal into a closed segment and delete it (also after a crash)."""
+    forget_journal(path)
     table = read_journal(path)
+    forget_journal(path)
     segment = write_segment(table, path.parent, robot) if table.num_rows else None
     path.unlink(missing_ok=True)
     return segment
