@@ -360,8 +360,8 @@ class Subscriber:
         self.client.disconnect()
         await asyncio.to_thread(self.client.loop_stop)
 
-    def publish(self, topic: str, payload: bytes) -> None:
-        self.client.publish(topic, payload, qos=1)
+    def publish(self, topic: str, payload: bytes, *, retain: bool = False) -> None:
+        self.client.publish(topic, payload, qos=1, retain=retain)
 
     def snapshot(self) -> list[Message]:
         with self._lock:

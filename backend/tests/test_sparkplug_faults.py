@@ -11,16 +11,18 @@ import contextlib
 import os
 import signal
 import sys
+import time
 from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
 
+import orjson
 import pytest
 
 from conftest import free_tcp_port
-from mosquitto_support import Message, Subscriber, mosquitto, needs_mosquitto
+from mosquitto_support import Message, Subscriber, encode_command, mosquitto, needs_mosquitto
 from service_support import emulator, eventually
-from sparkplug_support import NODE, Cell, cell, node_messages, reported
+from sparkplug_support import BOOLEAN, GROUP, NODE, Cell, cell, node_messages, reported
 
 pytestmark = [needs_mosquitto, pytest.mark.timeout(300)]
 
@@ -185,3 +187,51 @@ async def test_broker_restart_replays_the_buffer_as_historical(
         assert f"cobot_hmi_sparkplug_replayed_total {float(len(historical))}" in text or (
             edge.replayed >= len(historical)
         )
+
+
+def _state(online: bool, timestamp_ms: int) -> bytes:
+    return orjson.dumps({"online": online, "timestamp": timestamp_ms})
+
+
+async def test_births_wait_for_the_primary_host(tmp_path: Path, plc_host: str) -> None:
+    """With a primary host application configured: no birth until its STATE says online (the
+    data meanwhile buffered, then historical); its going offline brings NDEATH and a new
+    connection (next bdSeq) that waits again; an older STATE changes nothing."""
+    async with cell(
+        tmp_path, plc_host, ramp=3.0, wait_births=False, sparkplug_primary_host="scada"
+    ) as c:
+        edge = c.running.service.edge_node
+        assert edge is not None
+        state_topic = "spBv1.0/STATE/scada"
+        await eventually(lambda: edge.online and edge.buffer.records_buffered >= 3, SLOW_S)
+        assert not edge.active
+        assert not c.subscriber.of("NBIRTH")
+        first = int(time.time() * 1000)
+        c.subscriber.publish(state_topic, _state(True, first), retain=True)
+        await c.subscriber.wait_for(
+            lambda ms: (
+                sum(m.kind == "DBIRTH" for m in ms) == 2
+                and any(metric.is_historical for m in ms for metric in m.metrics)
+            ),
+            SLOW_S,
+        )
+        born_bd_seq = bd_seq(c.subscriber.of("NBIRTH")[0])
+        connections = edge.connections
+        c.subscriber.publish(state_topic, _state(False, first + 1), retain=True)
+        await c.subscriber.wait_for(lambda ms: any(m.kind == "NDEATH" for m in ms), SLOW_S)
+        assert bd_seq(c.subscriber.of("NDEATH")[0]) == born_bd_seq
+        await eventually(lambda: edge.connections == connections + 1, SLOW_S)
+        assert not edge.active
+        c.subscriber.publish(state_topic, _state(True, first + 2), retain=True)
+        await c.subscriber.wait_for(lambda ms: sum(m.kind == "NBIRTH" for m in ms) == 2, SLOW_S)
+        assert bd_seq(c.subscriber.of("NBIRTH")[1]) == (born_bd_seq + 1) % 256
+        # A late, older "offline" is ignored: a rebirth request after it is still answered.
+        c.subscriber.publish(state_topic, _state(False, first), retain=False)
+        c.subscriber.publish(
+            f"spBv1.0/{GROUP}/NCMD/{NODE}",
+            encode_command([("Node Control/Rebirth", None, BOOLEAN, True)]),
+        )
+        await c.subscriber.wait_for(lambda ms: sum(m.kind == "NBIRTH" for m in ms) == 3, SLOW_S)
+        assert len(c.subscriber.of("NDEATH")) == 1
+        assert edge.active
+        assert "cobot_hmi_sparkplug_born 1.0" in await c.running.metrics()

@@ -465,6 +465,11 @@ class ServiceSettings(BaseSettings):
         "Sparkplug edge node id (default: this machine's host name)",
         pattern=r"^$|" + SPARKPLUG_ID_PATTERN,
     )
+    sparkplug_primary_host: str = setting(
+        "",
+        "wait for this Sparkplug primary host application's STATE before births (empty: don't)",
+        pattern=r"^$|" + SPARKPLUG_ID_PATTERN,
+    )
     sparkplug_deadbands: Deadbands = setting(
         DEFAULT_DEADBANDS,
         "report-by-exception deadbands, UNIT=VALUE or FIELD=VALUE comma-separated (absolute, "

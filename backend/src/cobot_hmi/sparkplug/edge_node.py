@@ -27,6 +27,8 @@ from collections import Counter
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any, Final
 
+import orjson
+
 from cobot_hmi.codec import CommandImage, Frame
 from cobot_hmi.layout import LAYOUT_VERSION, O2T_FIELDS
 from cobot_hmi.service.auth import Session
@@ -160,6 +162,12 @@ class EdgeNode:
         session = Session(secrets.token_urlsafe(24), user, time.time(), math.inf)
         self.writer = Writer(user.name, user.role, f"{self.address} ({self.client_id})", session)
         self.online = False
+        """Connected to the broker."""
+        self.active = False
+        """Born: NBIRTH went out on this connection, so DBIRTH, DDATA and DDEATH may follow."""
+        self.primary_host = settings.sparkplug_primary_host or None
+        self._host_online = self.primary_host is None
+        self._host_timestamp = -1
         self._stopping = False
         self._connect_sent = False
         """The last attempt opened its socket, so its CONNECT (and bdSeq) went out."""
@@ -169,6 +177,7 @@ class EdgeNode:
         self._tasks: list[asyncio.Task[None]] = []
         self._background: set[asyncio.Task[None]] = set()
         self._replaying = False
+        self._cycling = False
         self._command_offsets = {
             f.name: next(m.offset for m in self.catalogue.command_metrics if m.field == f.name)
             for f in O2T_FIELDS
@@ -189,15 +198,7 @@ class EdgeNode:
 
     async def start(self) -> None:
         self._loop = asyncio.get_running_loop()
-        client = make_client(self.options)
-        client.on_pre_connect = self._on_pre_connect
-        client.on_socket_open = self._on_socket_open
-        client.on_connect = self._on_connect
-        client.on_disconnect = self._on_disconnect
-        client.on_message = self._on_message
-        self._client = client
-        client.connect_async(self.address.host, self.address.port, KEEPALIVE_S)
-        client.loop_start()
+        self._connect()
         log.info(
             "Sparkplug B edge node %s/%s on %s (%d robots)",
             self.topics.group,
@@ -241,6 +242,18 @@ class EdgeNode:
         for device in self.devices.values():
             device.robot.hub.unsubscribe(device.subscription)
 
+    def _connect(self) -> None:
+        """A new client (paho's thread and sockets are its own), connecting in the background."""
+        client = make_client(self.options)
+        client.on_pre_connect = self._on_pre_connect
+        client.on_socket_open = self._on_socket_open
+        client.on_connect = self._on_connect
+        client.on_disconnect = self._on_disconnect
+        client.on_message = self._on_message
+        self._client = client
+        client.connect_async(self.address.host, self.address.port, KEEPALIVE_S)
+        client.loop_start()
+
     # ------------------------------------------------------------ paho's thread
 
     def _to_loop(self, callback: Callable[..., None], *args: Any) -> None:
@@ -278,6 +291,8 @@ class EdgeNode:
         # Subscribed before the NBIRTH, as the specification asks.
         for topic_filter in self.topics.command_filters:
             client.subscribe(topic_filter, qos=1)
+        if self.primary_host is not None:
+            client.subscribe(self.topics.state_topic(self.primary_host), qos=1)
         self._to_loop(self._connected, self._connecting_bd_seq)
 
     def _on_disconnect(
@@ -307,16 +322,73 @@ class EdgeNode:
             self.reconnects += 1
         log.info("Sparkplug: connected to %s (bdSeq %d)", self.address, bd_seq)
         self.online = True
+        # With a primary host application: its STATE (retained) says first whether it is up.
+        self._host_online = self.primary_host is None
+        if self._host_online:
+            self._activate()
+
+    def _activate(self) -> None:
+        """Births, then the buffered data as historical."""
+        self.active = True
         self._birth_all()
         if self.buffer.records_buffered and not self._replaying:
             self._spawn(self._replay(), "sparkplug replay")
 
     def _disconnected(self, reason: str) -> None:
-        if self.online:
+        if self.online and not self._cycling:
             log.warning("Sparkplug: lost the broker %s: %s", self.address, reason)
         self.online = False
+        self.active = False
         for device in self.devices.values():
             device.born = False
+
+    def _on_host_state(self, data: bytes) -> None:
+        """The primary host application's STATE (Sparkplug 3.0: JSON ``online``,
+        ``timestamp``): births when it is online; when it goes offline, NDEATH, disconnect and
+        connect again (a new bdSeq), to be born once it is back. Older states are ignored."""
+        try:
+            state = orjson.loads(data)
+            online = state["online"]
+            timestamp = state["timestamp"]
+            if not isinstance(online, bool) or not isinstance(timestamp, int):
+                raise TypeError("online must be a boolean and timestamp an integer")
+        except (orjson.JSONDecodeError, KeyError, TypeError) as error:
+            self.bad_commands += 1
+            log.warning("Sparkplug: the primary host's STATE is not understood: %s", error)
+            return
+        if timestamp < self._host_timestamp:
+            return  # a state older than the one we act on
+        self._host_timestamp = timestamp
+        self._host_online = online
+        if online and self.online and not self.active:
+            log.info("Sparkplug: the primary host %s is online", self.primary_host)
+            self._activate()
+        elif not online and self.active:
+            log.warning("Sparkplug: the primary host %s went offline", self.primary_host)
+            self.active = False  # from now on, DDATA go to the buffer
+            self._spawn(self._cycle_connection(), "sparkplug reconnect")
+
+    async def _cycle_connection(self) -> None:
+        """NDEATH, disconnect, connect again (Sparkplug 3.0 for a primary host gone offline)."""
+        client = self._client
+        if client is None:
+            return
+        self._cycling = True
+        try:
+            for device in self.devices.values():
+                if device.born:
+                    self._publish_device_death(device)
+            payload = self._death_payload(self._connecting_bd_seq)
+            info = client.publish(self.topics.node_topic(MessageType.NDEATH), payload, qos=1)
+            self._count(None, MessageType.NDEATH, len(payload))
+            with contextlib.suppress(RuntimeError, ValueError):
+                await asyncio.to_thread(info.wait_for_publish, 2.0)
+            client.disconnect()
+            await asyncio.to_thread(client.loop_stop)
+            if not self._stopping:
+                self._connect()
+        finally:
+            self._cycling = False
 
     def _birth_all(self) -> None:
         """NBIRTH (seq 0), then a DBIRTH for every robot that is up."""
@@ -474,7 +546,7 @@ class EdgeNode:
         connected = robot.down_since is None
         if device.alive and (not connected or robot.connects != device.connects_seen):
             device.alive = False
-            if device.born and self.online:
+            if device.born and self.active:
                 self._publish_device_death(device)
             device.born = False
         if not connected:
@@ -488,7 +560,7 @@ class EdgeNode:
             device.alive = True
             device.reporter.baseline(items[-1][2])
             self._read_status(device)
-            if self.online:
+            if self.active:
                 self._publish_device_birth(device)
             return
         changes = device.reporter.discrete_changes(items)
@@ -550,9 +622,9 @@ class EdgeNode:
                 properties=(Property("name", DataType.STRING, name),) if name else (),
             )
         topic = self.topics.device_topic(MessageType.DDATA, device.name)
-        if self.online and device.born:
+        if self.active and device.born:
             self._publish(topic, payload, device)
-        elif not self.online and self.buffer.append(topic, payload.SerializeToString()):
+        elif not self.active and self.buffer.append(topic, payload.SerializeToString()):
             device.messages["DDATA_buffered"] += 1
 
     # ------------------------------------------------------------ the buffer
@@ -561,13 +633,13 @@ class EdgeNode:
         """The buffered DDATA, oldest first, marked historical, after the births."""
         self._replaying = True
         try:
-            while self.online:
+            while self.active:
                 taken = self.buffer.take_oldest()
                 if taken is None:
                     return
                 path, records = taken
                 for index, (topic, data) in enumerate(records):
-                    if not self.online:
+                    if not self.active:
                         self.buffer.put_back(path, records[index:])
                         return
                     try:
@@ -599,6 +671,9 @@ class EdgeNode:
         task.add_done_callback(self._background.discard)
 
     def _on_command(self, topic: str, data: bytes) -> None:
+        if self.primary_host is not None and topic == self.topics.state_topic(self.primary_host):
+            self._on_host_state(data)
+            return
         parsed = self.topics.parse(topic)
         if parsed is None or self._stopping:
             return
@@ -609,7 +684,7 @@ class EdgeNode:
             log.warning("Sparkplug: %s: %s", topic, error)
             return
         if parsed.message_type is MessageType.NCMD:
-            if wants_rebirth(payload) and self.online:
+            if wants_rebirth(payload) and self.active:
                 log.info("Sparkplug: rebirth asked (NCMD)")
                 self._birth_all()
             return
@@ -661,6 +736,12 @@ class EdgeNode:
                 "gauge",
                 "1 while the edge node is connected to its MQTT broker",
                 [({}, float(self.online))],
+            ),
+            (
+                "sparkplug_born",
+                "gauge",
+                "1 while the node's births are out (connected, and its primary host online)",
+                [({}, float(self.active))],
             ),
             (
                 "sparkplug_reconnects_total",

@@ -49,6 +49,11 @@ class Topics:
     def device_topic(self, message_type: MessageType, device: str) -> str:
         return f"{NAMESPACE}/{self.group}/{message_type}/{self.node}/{device}"
 
+    @staticmethod
+    def state_topic(host_id: str) -> str:
+        """Where a primary host application says whether it is online (Sparkplug 3.0)."""
+        return f"{NAMESPACE}/STATE/{host_id}"
+
     @property
     def command_filters(self) -> tuple[str, str]:
         """What the node subscribes to: its NCMD and every device's DCMD."""
