@@ -88,14 +88,13 @@ def element_value(frame: Mapping[str, Any], element: Element) -> object:
 def history_settings(
     target_port: int, robot_host: str, plc_host: str, tmp_path: Path, **extra: Any
 ) -> ServiceSettings:
+    """Segments of 2 s and flushes every 0.2 s (unless ``extra`` says otherwise)."""
     return service_settings(
         robot_host,
         target_port,
         plc_host,
         tmp_path,
-        history_segment_s=2.0,
-        history_flush_s=0.2,
-        **extra,
+        **{"history_segment_s": 2.0, "history_flush_s": 0.2, **extra},
     )
 
 
@@ -426,3 +425,32 @@ async def test_events_of_a_range_and_the_recording_status(
     assert after_stop[-1]["t"] <= state["last"]
     assert state["bytes"] > 0
     assert state["retention_days"] == 7.0
+
+
+async def test_a_recorder_that_falls_behind_drops_its_oldest_and_says_so(
+    robot_host: str, plc_host: str, tmp_path: Path
+) -> None:
+    # A queue of 100 frames drained every 1.5 s at 100 frames/s: it overflows every time, by
+    # construction (the recorder's queue, never the connection, gives way).
+    async with emulator(robot_host) as target:
+        settings = history_settings(
+            target.tcp_port,
+            robot_host,
+            plc_host,
+            tmp_path,
+            history_queue_frames=100,
+            history_flush_s=1.5,
+        )
+        async with running_service(settings) as hmi:
+            async with hmi.client(await hmi.login(OPERATOR)) as client:
+                events = await _wait_event(client, "overflow")
+                frames = await stream_frames(hmi, 300)  # the stream does not miss a frame
+            metrics = await hmi.metrics()
+    assert events[0]["dropped"] > 0
+    assert "fell behind" in events[0]["reason"]
+    dropped = re.search(
+        rf'cobot_hmi_history_frames_dropped_total{{robot="{ROBOT}"}} (\S+)', metrics
+    )
+    assert dropped and float(dropped[1]) >= events[0]["dropped"]
+    seqs = [f["seq"] for f in frames]
+    assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))

@@ -528,3 +528,26 @@ def test_recordings_read_back_for_replay(recorded: tuple[Path, list[Item]], tmp_
 def test_zero_frame_columns_are_zero() -> None:
     batch = items_to_batch([(1, T0, zero_frame())])
     assert raw_from_columns(batch)[0].tobytes() == bytes(284)
+
+
+# --------------------------------------------------------------------------- cobot-hmi export
+
+
+def test_export_verb(
+    recorded: tuple[Path, list[Item]], tmp_path_factory: pytest.TempPathFactory
+) -> None:
+    from cobot_hmi.cli import main
+
+    root, items = recorded
+    state = tmp_path_factory.mktemp("state")
+    (state / "history").symlink_to(root)
+    out = tmp_path_factory.mktemp("out") / "x.csv"
+    base = ["export", "--state-dir", str(state), "--from", str(T0), "--to", str(T0 + 100)]
+    assert main([*base, "--fields", "robot_state", "-o", str(out)]) == 0
+    rows = list(csv.reader(io.StringIO(out.read_text())))
+    assert rows[0] == ["time", "seq", "robot_state"]
+    assert [int(r[2]) for r in rows[1:]] == [frame.robot_state for _, _, frame in items]
+    # The only robot recorded is the default; a name that is not recorded is refused.
+    assert main([*base, "--robot", "nobody", "-o", str(out)]) == 2
+    assert main([*base, "--fields", "nothing", "-o", str(out)]) == 2
+    assert main(["export", "--state-dir", str(state), "--from", "2", "--to", "1"]) == 2
