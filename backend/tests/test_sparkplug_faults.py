@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import itertools
 import os
 import signal
 import sys
@@ -19,10 +20,11 @@ from typing import Any
 import orjson
 import pytest
 
-from conftest import free_tcp_port
+from cobot_hmi.service.settings import ServiceSettings
+from conftest import _next_host, free_tcp_port
 from mosquitto_support import Message, Subscriber, encode_command, mosquitto, needs_mosquitto
-from service_support import emulator, eventually
-from sparkplug_support import BOOLEAN, GROUP, NODE, Cell, cell, node_messages, reported
+from service_support import cell_settings, emulator, eventually, running_service
+from sparkplug_support import BOOLEAN, GROUP, NODE, Cell, Panel, cell, node_messages, reported
 
 pytestmark = [needs_mosquitto, pytest.mark.timeout(300)]
 
@@ -235,3 +237,83 @@ async def test_births_wait_for_the_primary_host(tmp_path: Path, plc_host: str) -
         assert len(c.subscriber.of("NDEATH")) == 1
         assert edge.active
         assert "cobot_hmi_sparkplug_born 1.0" in await c.running.metrics()
+
+
+async def test_a_buffer_left_by_a_run_goes_out_with_the_next(tmp_path: Path, plc_host: str) -> None:
+    """The broker away for a whole run: what it buffered goes out, historical, after the next
+    run's births, under the aliases of that run (whose robots are listed in another order)."""
+    panels = {"m1013": Panel(), "m0609": Panel()}
+    hosts = {name: _next_host() for name in panels}
+    async with contextlib.AsyncExitStack() as stack:
+        broker = await stack.enter_async_context(mosquitto(plc_host, tmp_path, start=False))
+        ports = {}
+        for name, panel in panels.items():
+            target = await stack.enter_async_context(emulator(hosts[name], panel))
+            ports[name] = target.tcp_port
+
+        def settings(order: list[str]) -> ServiceSettings:
+            return cell_settings(
+                [(name, hosts[name], ports[name]) for name in order],
+                plc_host,
+                tmp_path,
+                mqtt_url=broker.url,
+                sparkplug_group=GROUP,
+                sparkplug_node=NODE,
+            )
+
+        async with running_service(settings(["m1013", "m0609"])) as first:
+            edge = first.service.edge_node
+            assert edge is not None
+            frames = first.service.robots["m1013"].hub.subscribe("test", 100_000)
+            await asyncio.sleep(0.3)  # past the (unsent) birth: the toggles are reports
+            di = list(panels["m1013"].produce_frame(0).controlbox_di)
+            for k in range(4):
+                di[4] = k % 2 == 0
+                panels["m1013"].set(controlbox_di=tuple(di))
+                await asyncio.sleep(0.15)
+            seen = list(frames.queue)
+            expected = []
+            for (_, _, a), (_, t, b) in itertools.pairwise(seen):
+                if a.controlbox_di[4] != b.controlbox_di[4]:
+                    expected.append((b.controlbox_di[4], int(t * 1000)))
+            assert len(expected) >= 2
+            device = edge.devices["m1013"]
+            await eventually(
+                lambda: device.frame is not None and int(device.frame[1] * 1000) > expected[-1][1],
+                SLOW_S,
+            )
+        await broker.start()
+        async with (
+            Subscriber(broker) as subscriber,
+            running_service(settings(["m0609", "m1013"])),
+        ):
+            await subscriber.wait_for(
+                lambda ms: any(metric.is_historical for m in ms for metric in m.metrics), SLOW_S
+            )
+            alias = next(
+                m.alias
+                for m in subscriber.of("DBIRTH", "m1013")[0].metrics
+                if m.name == "controlbox_di/DI 5"
+            )
+            assert alias is not None and alias // 1000 == 2  # second in this run's settings
+            await subscriber.wait_for(
+                lambda ms: (
+                    [
+                        (metric.value, metric.timestamp)
+                        for m in ms
+                        if m.kind == "DDATA" and m.device == "m1013"
+                        for metric in m.metrics
+                        if metric.alias == alias and metric.is_historical
+                    ]
+                    == expected
+                ),
+                SLOW_S,
+            )
+            messages = subscriber.snapshot()
+            birth = messages.index(subscriber.of("DBIRTH", "m1013")[0])
+            history = [
+                i
+                for i, m in enumerate(messages)
+                if m.device == "m1013" and any(x.is_historical for x in m.metrics)
+            ]
+            assert history and min(history) > birth  # its history only after its birth

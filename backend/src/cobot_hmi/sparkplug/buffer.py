@@ -2,10 +2,10 @@
 
 Records (topic and payload bytes) are appended to segment files in a directory of the state
 directory; the oldest segment is deleted whole when the total would exceed ``max_bytes`` (its
-records counted as dropped). After the reconnect the edge node takes segments oldest first,
-publishes their records (marked historical) and deletes each segment once it went out; a
-segment interrupted by another disconnect is written back with what is left. Segments left by
-a previous run are replayed too. Writes go through the page cache (no fsync per record): a
+records counted as dropped). After the reconnect the edge node reads the sealed segments oldest
+first, publishes their records (marked historical) and deletes each segment once it went out;
+what could not go out yet (another disconnect, a robot not born yet) is written back. Segments
+left by a previous run are replayed too. Writes go through the page cache (no fsync per record): a
 power cut may lose the newest records, never corrupts older ones (a torn last record is cut).
 
 Imports nothing of the project.
@@ -129,20 +129,19 @@ class DiskBuffer:
         self.records_dropped += count
         log.warning("Sparkplug buffer full: dropped the oldest %d records", count)
 
-    def take_oldest(self) -> tuple[Path, list[Record]] | None:
-        """The oldest segment's records, for replay (``finish`` or ``put_back`` it after)."""
-        if not self._segments:
-            return None
-        path, size, _ = self._segments[0]
-        if len(self._segments) == 1:
-            if size == 0:
-                return None  # only the (empty) segment being written to
-            self._new_segment()  # new records go to a fresh segment while this one replays
+    def sealed(self) -> list[Path]:
+        """The segments that new records no longer go to (a fresh one takes them from now
+        on), oldest first: what a replay may read, ``finish`` or ``put_back``."""
+        if self._segments and self._segments[-1][1] > 0:
+            self._new_segment()
+        return [path for path, _, _ in self._segments[:-1]]
+
+    def read(self, path: Path) -> list[Record]:
+        """A segment's records (none if it cannot be read)."""
         try:
-            data = path.read_bytes()
+            return list(_records(path.read_bytes()))
         except OSError:
-            data = b""
-        return path, list(_records(data))
+            return []
 
     def finish(self, path: Path) -> None:
         """The segment went out: delete it."""

@@ -25,6 +25,7 @@ import secrets
 import time
 from collections import Counter
 from collections.abc import Callable, Mapping
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
 import orjson
@@ -178,6 +179,7 @@ class EdgeNode:
         self._background: set[asyncio.Task[None]] = set()
         self._replaying = False
         self._cycling = False
+        self._replay_again = False
         self._command_offsets = {
             f.name: next(m.offset for m in self.catalogue.command_metrics if m.field == f.name)
             for f in O2T_FIELDS
@@ -328,11 +330,9 @@ class EdgeNode:
             self._activate()
 
     def _activate(self) -> None:
-        """Births, then the buffered data as historical."""
+        """Births; each DBIRTH is followed by its robot's buffered data, as historical."""
         self.active = True
         self._birth_all()
-        if self.buffer.records_buffered and not self._replaying:
-            self._spawn(self._replay(), "sparkplug replay")
 
     def _disconnected(self, reason: str) -> None:
         if self.online and not self._cycling:
@@ -479,6 +479,10 @@ class EdgeNode:
             )
         self._publish(self.topics.device_topic(MessageType.DBIRTH, device.name), payload, device)
         device.born = True
+        if self.buffer.records_buffered:  # its history, if it has some, after its birth
+            self._replay_again = True
+            if not self._replaying:
+                self._spawn(self._replay(), "sparkplug replay")
 
     def _publish_device_death(self, device: Device) -> None:
         payload = make_payload(_now_ms(), None)
@@ -630,38 +634,52 @@ class EdgeNode:
     # ------------------------------------------------------------ the buffer
 
     async def _replay(self) -> None:
-        """The buffered DDATA, oldest first, marked historical, after the births."""
+        """The buffered DDATA, oldest first, marked historical, each after its robot's DBIRTH
+        (a robot not born yet keeps its records for a replay after its birth)."""
         self._replaying = True
         try:
-            while self.active:
-                taken = self.buffer.take_oldest()
-                if taken is None:
-                    return
-                path, records = taken
-                for index, (topic, data) in enumerate(records):
-                    if not self.active:
-                        self.buffer.put_back(path, records[index:])
+            self._replay_again = True
+            while self._replay_again and self.active:
+                self._replay_again = False
+                for path in self.buffer.sealed():
+                    if not await self._replay_segment(path):
                         return
-                    try:
-                        payload = parse_payload(data)
-                    except PayloadError:
-                        continue
-                    parsed = self.topics.parse(topic)
-                    device = self.devices.get(parsed.device or "") if parsed else None
-                    if device is None:  # buffered by a run with other robots or ids
-                        self.buffer.records_dropped += 1
-                        continue
-                    for metric in payload.metrics:
-                        # The robot's place in the settings may have changed since.
-                        metric.alias = device.alias_base + metric.alias % ALIAS_STRIDE
-                        metric.is_historical = True
-                    self._publish(topic, payload, device)
-                    self.replayed += 1
-                    if index % REPLAY_BATCH == REPLAY_BATCH - 1:
-                        await asyncio.sleep(0.01)  # let paho's thread drain its queue
-                self.buffer.finish(path)
         finally:
             self._replaying = False
+
+    async def _replay_segment(self, path: Path) -> bool:
+        """One segment; ``False`` when the node stopped being born midway."""
+        records = self.buffer.read(path)
+        deferred: list[tuple[str, bytes]] = []
+        for index, (topic, data) in enumerate(records):
+            if not self.active:
+                self.buffer.put_back(path, deferred + records[index:])
+                return False
+            try:
+                payload = parse_payload(data)
+            except PayloadError:
+                continue
+            parsed = self.topics.parse(topic)
+            device = self.devices.get(parsed.device or "") if parsed else None
+            if device is None:  # buffered by a run with other robots or ids
+                self.buffer.records_dropped += 1
+                continue
+            if not device.born:
+                deferred.append((topic, data))
+                continue
+            for metric in payload.metrics:
+                # The robot's place in the settings may have changed since.
+                metric.alias = device.alias_base + metric.alias % ALIAS_STRIDE
+                metric.is_historical = True
+            self._publish(topic, payload, device)
+            self.replayed += 1
+            if index % REPLAY_BATCH == REPLAY_BATCH - 1:
+                await asyncio.sleep(0.01)  # let paho's thread drain its queue
+        if deferred:
+            self.buffer.put_back(path, deferred)
+        else:
+            self.buffer.finish(path)
+        return True
 
     # ------------------------------------------------------------ commands
 
