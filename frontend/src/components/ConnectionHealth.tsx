@@ -20,11 +20,21 @@ export function ConnectionHealth({ live, compact = false }: Props) {
       : c !== null && c.state !== "connected"
         ? `robot link ${c.state}${c.reason !== null ? `: ${c.reason}` : ""}`
         : null;
+  // The service's packet-loss alarm (gaps per minute over its threshold) turns a live badge amber.
+  const lossy = live.health === "connected" && c?.packet_loss_high === true;
+  const lossWords = lossy ? `packet loss: ${c.gaps_per_min ?? "?"} gaps in the last minute` : null;
   return (
-    <div className={`health health--${live.health}`} aria-label="Connection health">
-      <div className="health__status" data-testid="connection-status" data-state={live.health} title={reason ?? ""}>
+    <div className={`health health--${live.health}${lossy ? " health--amber" : ""}`} aria-label="Connection health">
+      <div
+        className="health__status"
+        data-testid="connection-status"
+        data-state={live.health}
+        data-packet-loss={lossy ? "high" : "normal"}
+        title={reason ?? lossWords ?? ""}
+      >
         <span className="health__dot" aria-hidden="true" />
         {live.health}
+        {lossy && <span className="health__loss"> · packet loss</span>}
       </div>
       <dl className="health__figures">
         <div>

@@ -8,6 +8,7 @@
  * few pixels now and then against burn-in without ever hiding the state or an emergency stop.
  */
 import { useEffect, useMemo, useState } from "react";
+import { AlarmBanner } from "../components/AlarmBanner";
 import { ConnectionHealth } from "../components/ConnectionHealth";
 import { ControlHolder } from "../components/ControlHolder";
 import { FlagBadges } from "../components/FlagBadges";
@@ -84,8 +85,10 @@ function Kiosk() {
             <ControlHolder control={live.control} />
           </div>
         </header>
-        {/* The alarm banner (data-testid="alarm-banner") goes here, above everything but the state. */}
-        <div className="kiosk__alarms" data-slot="alarm-banner" />
+        {/* Above everything but the state; read-only: the stream's alarms, no acknowledge here. */}
+        <div className="kiosk__alarms">
+          <AlarmBanner alarms={live.alarms} size="kiosk" />
+        </div>
         <StaleBanner live={live} />
         <KioskTiles fields={options.tiles.fields} unknown={options.tiles.unknown} frame={frame} />
         {options.robot3d && (

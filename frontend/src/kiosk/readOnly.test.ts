@@ -8,7 +8,7 @@ import { describe, expect, it } from "vitest";
 import { isKioskPath } from "../lib/route";
 
 const SRC = resolve(dirname(fileURLToPath(import.meta.url)), "..");
-const FORBIDDEN = [/^panel\//, /^lib\/api\.ts$/, /^lib\/writes\.ts$/];
+const FORBIDDEN = [/^panel\//, /^lib\/api\.ts$/, /^lib\/alarmsApi\.ts$/, /^lib\/writes\.ts$/];
 
 function resolveImport(from: string, spec: string): string | null {
   if (!spec.startsWith(".")) return null; // packages
@@ -44,6 +44,8 @@ describe("kiosk", () => {
     const files = [...importGraph(join(SRC, "kiosk", "KioskApp.tsx"))].map((f) => relative(SRC, f));
     expect(files).toContain("components/StateBadge.tsx");
     expect(files).toContain("lib/stream.ts");
+    // The alarm banner is there, read-only (acknowledging goes through lib/alarmsApi.ts).
+    expect(files).toContain("components/AlarmBanner.tsx");
     const forbidden = files.filter((f) => FORBIDDEN.some((p) => p.test(f)));
     expect(forbidden).toEqual([]);
   });

@@ -8,6 +8,7 @@
  * Must not import React or any component.
  */
 import { LAYOUT_VERSION, type Frame } from "../generated/layout";
+import { alarmsFromHello, applyAlarm, type Alarm } from "./alarms";
 import { connectionHealth, type Health, type SocketState } from "./health";
 import { FLAG_FIELDS, isFlagField } from "./layoutInfo";
 import { ChannelMap, type PlotSpec } from "./plots";
@@ -44,6 +45,10 @@ export interface LiveSnapshot {
   readonly closeReason: string | null;
   /** The robot's name as the stream's hello gave it (null: before the hello). */
   readonly robot: string | null;
+  /** The robot's current alarms (hello, then `alarm` events), most urgent first (lib/alarms.ts). */
+  readonly alarms: readonly Alarm[];
+  /** This stream's login session as the hello named it (null: none), to tell whose control it is. */
+  readonly session: string | null;
 }
 
 export interface LiveDataOptions {
@@ -84,6 +89,8 @@ export class LiveData {
   private staleSince_ms: number | null = null;
   private closeReason: string | null = null;
   private robot: string | null = null;
+  private alarms: readonly Alarm[] = [];
+  private session: string | null = null;
   private current: LiveSnapshot;
   private timer: ReturnType<typeof setInterval> | null = null;
   framesReceived = 0;
@@ -140,6 +147,8 @@ export class LiveData {
         this.control = message.control;
         this.rate_hz = message.rate_hz;
         this.robot = message.robot ?? null;
+        this.alarms = alarmsFromHello(message.alarms);
+        this.session = message.session ?? null;
         this.layoutMismatch = message.layout_version === LAYOUT_VERSION ? null : message.layout_version;
         this.lastSeq = null;
         this.publish();
@@ -197,6 +206,7 @@ export class LiveData {
   private addEvent(event: StreamEvent): void {
     this.events = [event, ...this.events.slice(0, EVENT_LIMIT - 1)];
     if (event.kind === "control") this.control = { holder: event.holder };
+    if (event.kind === "alarm") this.alarms = applyAlarm(this.alarms, event.alarm);
     if (event.kind === "connection" && this.connection !== null) {
       // The event is immediate; the next status (≤ 1 s) brings the rest.
       this.connection = { ...this.connection, state: event.state, reason: event.reason ?? null };
@@ -239,6 +249,8 @@ export class LiveData {
       rate_hz: this.rate_hz,
       closeReason: this.closeReason,
       robot: this.robot,
+      alarms: this.alarms,
+      session: this.session,
     };
   }
 }

@@ -4,10 +4,12 @@
  * filtered by action. CSV export goes through the API.
  */
 import { memo, useEffect, useMemo, useState } from "react";
+import { alarmTitle } from "../lib/alarms";
 import { api, auditCsvUrl, eventsCsvUrl } from "../lib/api";
 import { formatTimestamp } from "../lib/health";
 import { keyLabel } from "../lib/layoutInfo";
 import { EVENT_KINDS, roleAtLeast, type AuditPage, type EventKind, type EventPage, type StreamEvent, type User } from "../lib/protocol";
+import { pointsWords } from "../lib/tags";
 
 /** A table filter: "all" (the empty value) or one of ``options``. */
 function FilterSelect(props: {
@@ -46,26 +48,24 @@ function describe(event: StreamEvent): string {
     case "robot_state":
       return `${s(event.from_name ?? event.from)} → ${s(event.to_name)}`;
     case "flag":
-      return `${event.flag} = ${String(event.value)}`;
+      return `${event.label ?? event.flag} ${event.value ? "on" : "off"}`;
     case "connection":
       return `${event.state}${event.reason ? `: ${event.reason}` : ""}`;
     case "control":
       return `${event.holder?.user ?? "nobody"} holds control${because(event.reason)}`;
     case "write":
-      return `${s(event.user)}: ${labels(event.fields)} → ${event.outcome}${because(event.reason)}`;
-    case "alarm":
-      return `${event.alarm.label ?? event.alarm.name} ${event.transition.replaceAll("_", " ")}${event.user ? ` by ${event.user}` : ""}${because(event.comment)}`;
+      // The service's words name the spec's labels, tags and units ("AO 1 type = voltage, AO 1 = 5 V").
+      return `${s(event.user)}: ${event.summary ?? pointsWords(event.fields, event.tags, event.labels)} → ${event.outcome}${because(event.reason)}`;
+    case "alarm": {
+      const message = event.transition === "activated" && event.alarm.message ? `: ${event.alarm.message}` : "";
+      return `${event.alarm.priority} alarm ${alarmTitle(event.alarm)} ${event.transition.replaceAll("_", " ")}${message}${event.user ? ` by ${event.user}` : ""}${because(event.comment)}`;
+    }
     case "recording":
       return `recording ${event.state}${event.dropped ? `, ${event.dropped} frames dropped` : ""}${because(event.reason)}`;
     default:
       // A kind this build does not describe yet (a newer service): its fields as they came.
       return JSON.stringify(event);
   }
-}
-
-/** ["controlbox_do.2"] → "DO 3". */
-function labels(fields: readonly string[]): string {
-  return fields.length === 0 ? "—" : fields.map(keyLabel).join(", ");
 }
 
 /** {"controlbox_do.2": true} → "DO 3 = true"; anything else as JSON. */
@@ -191,7 +191,7 @@ export const AuditView = memo(function AuditView({
   const [action, setAction] = useState("");
   const [error, setError] = useState<string | null>(null);
   const allowed = roleAtLeast(user, "operator");
-  const newestAudited = liveEvents.find((e) => e.kind === "write" || e.kind === "control");
+  const newestAudited = liveEvents.find((e) => e.kind === "write" || e.kind === "control" || (e.kind === "alarm" && e.user));
 
   useEffect(() => {
     if (!allowed) {
@@ -252,9 +252,11 @@ export const AuditView = memo(function AuditView({
                 <td>{i.user ?? ""}</td>
                 <td>{i.client ?? ""}</td>
                 <td>{i.action}</td>
-                <td title={short(i.fields)}>{labels(i.fields)}</td>
+                <td title={short(i.fields)}>{pointsWords(i.fields, i.tags, i.labels)}</td>
                 <td title={short(i.before)}>{values(i.before)}</td>
-                <td title={short(i.requested)}>{values(i.requested)}</td>
+                <td title={short(i.requested)} data-testid="audit-summary">
+                  {i.summary ?? values(i.requested)}
+                </td>
                 <td>{i.outcome}</td>
                 <td>{i.reason ?? ""}</td>
               </tr>

@@ -5,6 +5,7 @@
  * and audit. Switching robot builds a new live pipeline (its own stream) for the new robot.
  */
 import { useCallback, useEffect, useMemo, useRef, useState, useSyncExternalStore } from "react";
+import { AlarmBanner } from "../components/AlarmBanner";
 import { ConnectionHealth } from "../components/ConnectionHealth";
 import { ControlHolder } from "../components/ControlHolder";
 import { CustomPlots } from "../components/CustomPlots";
@@ -19,12 +20,16 @@ import { FleetPoller, knownRobots, type FleetTile } from "../lib/fleet";
 import { ALL_PLOTS, JOINT_PLOTS, TCP_PLOTS } from "../lib/plots";
 import type { ControlStatus, User } from "../lib/protocol";
 import { chooseRobot, robotFromSearch, searchWithRobot } from "../lib/route";
+import { controlOwnership } from "../lib/controlSession";
 import { createLiveRuntime, type LiveRuntime } from "../lib/runtime";
+import { AlarmCue } from "./AlarmCue";
+import { AlarmsView } from "./AlarmsView";
 import { AuditView, EventsView } from "./EventsView";
 import { IoSection } from "./IoSection";
 import { RegistersSection } from "./RegistersSection";
 import { RobotSwitcher } from "./RobotSwitcher";
 import { SessionBar } from "./SessionBar";
+import { TagsView } from "./TagsView";
 import { WriteProvider, useWrites } from "./writeContext";
 import "../styles/panel.css";
 
@@ -43,10 +48,12 @@ const SECTIONS = [
   ["tcp", "TCP"],
   ["custom", "Custom plots"],
   ["robot3d", "3D"],
+  ["alarms", "Alarms"],
   ["io", "I/O"],
   ["registers", "Registers"],
   ["events", "Events"],
   ["audit", "Audit"],
+  ["tags", "Tag names"],
 ] as const;
 
 function WriteBlockedHint() {
@@ -80,6 +87,8 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
     [runtime, onUser],
   );
   const onControl = useCallback((control: ControlStatus) => runtime.live.setControl(control), [runtime]);
+  const ownership = controlOwnership(live.control, user, live.session);
+  const newestAlarmEvent = live.events.find((e) => e.kind === "alarm")?.time ?? null;
 
   return (
     <WriteProvider robot={robot} user={user} live={live}>
@@ -90,9 +99,13 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
           <FlagBadges frame={live.frame} stale={stale} />
           <ConnectionHealth live={live} />
           <div className="panel-header__control">
-            <ControlHolder control={live.control} />
-            <SessionBar robot={robot} user={user} control={live.control} onUser={onSessionUser} onControl={onControl} />
+            <ControlHolder control={live.control} ownership={ownership} />
+            <SessionBar robot={robot} user={user} ownership={ownership} onUser={onSessionUser} onControl={onControl} />
           </div>
+          {/* In the sticky header: an alarm stays in view wherever the page is scrolled. */}
+          <AlarmBanner alarms={live.alarms} size="panel" listHref="#alarms">
+            <AlarmCue alarms={live.alarms} />
+          </AlarmBanner>
         </header>
         <StaleBanner live={live} />
         {live.layoutMismatch !== null && (
@@ -132,6 +145,10 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
             <h2>3D</h2>
             <Robot3DView model={robots.find((r) => r.name === robot)?.model ?? null} theme="light" />
           </section>
+          <section id="alarms">
+            <h2>Alarms</h2>
+            <AlarmsView robot={robot} user={user} alarms={live.alarms} newestEvent={newestAlarmEvent} />
+          </section>
           <section id="io">
             <h2>I/O</h2>
             <WriteBlockedHint />
@@ -148,6 +165,10 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
           <section id="audit">
             <h2>Audit</h2>
             <AuditView robot={robot} user={user} liveEvents={live.events} />
+          </section>
+          <section id="tags">
+            <h2>Tag names</h2>
+            <TagsView robot={robot} user={user} />
           </section>
         </main>
       </div>
@@ -183,7 +204,7 @@ function NoRobot({ reason, user, onUser }: { reason: string; user: User | null; 
           {reason}
         </p>
         <div className="panel-header__control">
-          {user === null && <SessionBar robot="" user={null} control={{ holder: null }} onUser={onUser} onControl={() => undefined} />}
+          {user === null && <SessionBar robot="" user={null} ownership="nobody" onUser={onUser} onControl={() => undefined} />}
         </div>
       </header>
     </div>

@@ -1,6 +1,7 @@
 /** Login form, the logged-in user, and Take control / Release of the robot shown. */
 import { useState, type FormEvent } from "react";
 import { api, controlOf, errorReason } from "../lib/api";
+import type { Ownership } from "../lib/controlSession";
 import { roleAtLeast, userOf, type ControlStatus, type User } from "../lib/protocol";
 import type { HttpAnswer } from "../lib/writes";
 
@@ -8,12 +9,13 @@ interface Props {
   /** The robot whose control the buttons take and release. */
   readonly robot: string;
   readonly user: User | null;
-  readonly control: ControlStatus;
+  /** Whose control it is as this window sees it (a session's, not a user name's). */
+  readonly ownership: Ownership;
   readonly onUser: (user: User | null) => void;
   readonly onControl: (control: ControlStatus) => void;
 }
 
-export function SessionBar({ robot, user, control, onUser, onControl }: Props) {
+export function SessionBar({ robot, user, ownership, onUser, onControl }: Props) {
   const [username, setUsername] = useState("");
   const [password, setPassword] = useState("");
   const [busy, setBusy] = useState(false);
@@ -86,14 +88,20 @@ export function SessionBar({ robot, user, control, onUser, onControl }: Props) {
     );
   }
 
-  const holding = control.holder?.user === user.name;
+  // Control belongs to a session: the same user's other window holds it, not this one.
+  const holding = ownership === "you";
   const operator = roleAtLeast(user, "operator");
   return (
     <div className="session">
       <span className="session__user" data-testid="current-user" data-role={user.role}>
         {user.name} <span className="session__role">({user.role})</span>
       </span>
-      {operator && !holding && (
+      {ownership === "you-elsewhere" && (
+        <span className="hint" data-testid="control-held-elsewhere">
+          Control is held by you in another window: release it there to take it here.
+        </span>
+      )}
+      {operator && ownership !== "you" && ownership !== "you-elsewhere" && (
         <button type="button" className="primary" data-testid="take-control" disabled={busy} onClick={() => void controlAction(() => api.takeControl(robot))}>
           Take control
         </button>

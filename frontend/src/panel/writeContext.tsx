@@ -10,6 +10,7 @@ import { createContext, useCallback, useContext, useEffect, useMemo, useRef, use
 import type { CommandPatch } from "../generated/layout";
 import { api as rest } from "../lib/api";
 import type { LiveSnapshot } from "../lib/liveData";
+import { controlOwnership } from "../lib/controlSession";
 import { roleAtLeast, type CommandState, type User } from "../lib/protocol";
 import { WriteTracker, performWrite, type WriteValue, type WriteView } from "../lib/writes";
 
@@ -47,7 +48,9 @@ export function useWriteView(key: string, actual: WriteValue | null | undefined)
 export function blockReasonOf(user: User | null, live: LiveSnapshot): string | null {
   if (user === null) return "Log in as an operator to write.";
   if (!roleAtLeast(user, "operator")) return `Your role (${user.role}) may not write.`;
-  if (live.control.holder?.user !== user.name) {
+  const ownership = controlOwnership(live.control, user, live.session);
+  if (ownership !== "you") {
+    if (ownership === "you-elsewhere") return "Control is held by you in another window: release it there and take it here to write.";
     return live.control.holder === null ? "Take control to write." : `${live.control.holder.user} holds control.`;
   }
   if (live.connection?.mode === "input_only") return "Read-only: the HMI listens beside a PLC (input only).";

@@ -1,0 +1,61 @@
+/**
+ * The alarm banner of the panel and the kiosk: the most urgent alarm that needs a person (active
+ * before returned, then by priority), in its pendant colour, with the count of the others.
+ * Read-only: it shows the live snapshot's alarms (the stream's hello and `alarm` events) and
+ * writes nothing; the panel puts its own controls (mute, a link to the list) in `children`.
+ */
+import type { ReactNode } from "react";
+import { alarmPaint, alarmStateWords, alarmTitle, bannerView, countWords, isUnacknowledged, type Alarm } from "../lib/alarms";
+import { formatClock } from "../lib/health";
+import "../styles/alarms.css";
+
+interface Props {
+  readonly alarms: readonly Alarm[];
+  readonly size: "panel" | "kiosk";
+  /** Where the count links to (the panel's alarm list), undefined: no link. */
+  readonly listHref?: string;
+  readonly children?: ReactNode;
+}
+
+export function AlarmBanner({ alarms, size, listHref, children }: Props) {
+  const view = bannerView(alarms);
+  const top = view.top;
+  if (top === null) return null;
+  const paint = alarmPaint(top.colour);
+  const unacknowledged = isUnacknowledged(top);
+  const others = view.count - 1;
+  const count = countWords(view);
+  return (
+    <div
+      className={`alarm-banner alarm-banner--${size}${unacknowledged ? " is-unacknowledged" : ""}${top.active ? "" : " is-returned"}`}
+      data-testid="alarm-banner"
+      data-alarm={top.id}
+      data-priority={top.priority}
+      data-colour={top.colour}
+      data-state={top.state}
+      data-unacknowledged={unacknowledged ? "true" : "false"}
+      data-count={view.count}
+      role="alert"
+      style={{ background: paint.background, color: paint.text }}
+    >
+      <span className="alarm-banner__priority">{top.priority}</span>
+      <span className="alarm-banner__title" data-testid="alarm-banner-title">
+        {alarmTitle(top)}
+      </span>
+      <span className="alarm-banner__state">
+        {unacknowledged && (
+          <span className="alarm-banner__unack" data-testid="alarm-banner-unack" aria-label="unacknowledged">
+            ●
+          </span>
+        )}{" "}
+        {alarmStateWords(top)}
+        {top.activated_at !== null ? ` since ${formatClock(top.activated_at * 1000)}` : ""}
+      </span>
+      {top.message !== null && top.message !== "" && <span className="alarm-banner__message">{top.message}</span>}
+      <span className="alarm-banner__count" data-testid="alarm-banner-count" title={count}>
+        {listHref !== undefined ? <a href={listHref}>{others > 0 ? `+${others} more · ${count}` : count}</a> : others > 0 ? `+${others} more · ${count}` : count}
+      </span>
+      {children}
+    </div>
+  );
+}

@@ -1,0 +1,29 @@
+import { describe, expect, it } from "vitest";
+import { pointsWords, pointWords, tagChanges } from "./tags";
+
+describe("tag names beside the spec's labels", () => {
+  it("names a 0-based key by its label and its tag", () => {
+    expect(pointWords("controlbox_do.2", { "controlbox_do.2": "gripper close" })).toBe("DO 3 — gripper close");
+    expect(pointWords("controlbox_do.2", {})).toBe("DO 3");
+    expect(pointWords("tool_do.0", null)).toBe("Tool DO 1");
+    expect(pointWords("analog_output.0", { "analog_output.0": "pump" })).toBe("AO 0 — pump");
+  });
+
+  it("prefers the service's own labels when an answer carries them", () => {
+    expect(pointWords("analog_output_type.1", null, { "analog_output_type.1": "AO 1 type" })).toBe("AO 1 type");
+    expect(pointWords("bit_input_registers.40", { "bit_input_registers.40": "part ready" }, { "bit_input_registers.40": "Register 40" })).toBe(
+      "Register 40 — part ready",
+    );
+  });
+
+  it("joins several points, a dash for none", () => {
+    expect(pointsWords(["controlbox_do.2", "controlbox_do.3"], { "controlbox_do.3": "lamp" })).toBe("DO 3, DO 4 — lamp");
+    expect(pointsWords([], null)).toBe("—");
+  });
+
+  it("counts the names changed (an empty name is none)", () => {
+    expect(tagChanges({ a: "x" }, { a: "x" })).toBe(0);
+    expect(tagChanges({ a: "x" }, { a: "y", b: "" })).toBe(1);
+    expect(tagChanges({ a: "x" }, { a: "", b: "z" })).toBe(2);
+  });
+});

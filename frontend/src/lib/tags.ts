@@ -1,0 +1,28 @@
+/**
+ * Layer: pure tag-name helpers (no React, no DOM, no network): a point's label with its tag
+ * name, as the panel, the events, the audit and the alarms show it ("DO 3 — gripper close").
+ * Keys are the API's `name.index` (0-based: `controlbox_do.2` is DO 3); labels come from the
+ * layout (`keyLabel`) or from the service's answer (`labels`), never computed from the index.
+ */
+import { tagLabel } from "./alarms";
+import { keyLabel } from "./layoutInfo";
+
+export type TagNames = Readonly<Record<string, string>>;
+
+/** "DO 3 — gripper close" for `controlbox_do.2`; the label alone without a name. */
+export function pointWords(key: string, tags: TagNames | null | undefined, labels?: TagNames | null): string {
+  return tagLabel(labels?.[key] ?? keyLabel(key), tags?.[key]);
+}
+
+/** The points of `keys` in words, joined ("DO 3 — gripper close, DO 4"), "—" for none. */
+export function pointsWords(keys: readonly string[], tags: TagNames | null | undefined, labels?: TagNames | null): string {
+  return keys.length === 0 ? "—" : keys.map((k) => pointWords(k, tags, labels)).join(", ");
+}
+
+/** How many names differ between two sets (an empty name counts as none). */
+export function tagChanges(before: TagNames, after: TagNames): number {
+  const keys = new Set([...Object.keys(before), ...Object.keys(after)]);
+  let changed = 0;
+  for (const key of keys) if ((before[key] ?? "").trim() !== (after[key] ?? "").trim()) changed++;
+  return changed;
+}

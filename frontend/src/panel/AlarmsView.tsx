@@ -1,0 +1,340 @@
+/**
+ * The panel's alarms: the robot's current alarms (from the stream: no polling) with Acknowledge
+ * and Shelve (a reason and a duration) for operators, and the history of every transition with
+ * filters (priority, period) and a CSV export, from `GET /api/v1/alarms/history`.
+ */
+import { memo, useEffect, useState, type FormEvent } from "react";
+import { alarmHistoryCsvUrl, alarmsApi, type AlarmHistoryPage, type HistoryFilter } from "../lib/alarmsApi";
+import {
+  ALARM_PRIORITIES,
+  alarmPaint,
+  alarmStateWords,
+  alarmTitle,
+  isUnacknowledged,
+  tagLabel,
+  type Alarm,
+  type AlarmPriority,
+} from "../lib/alarms";
+import { formatClock, formatTimestamp } from "../lib/health";
+import { roleAtLeast, type User } from "../lib/protocol";
+
+/** Shelving durations offered (the service caps them at its alarm_shelve_max_s). */
+const SHELVE_CHOICES_S = [
+  [15 * 60, "15 min"],
+  [60 * 60, "1 h"],
+  [4 * 3600, "4 h"],
+  [8 * 3600, "8 h"],
+] as const;
+
+const PERIODS = [
+  ["hour", "last hour", 3600],
+  ["day", "last 24 h", 86_400],
+  ["week", "last 7 days", 7 * 86_400],
+  ["all", "everything", null],
+] as const;
+type Period = (typeof PERIODS)[number][0];
+
+const HISTORY_PAGE = 100;
+
+function value(v: boolean | number | null, unit: string): string {
+  if (v === null) return "";
+  if (typeof v === "boolean") return v ? "on" : "off";
+  return unit !== "" ? `${v} ${unit}` : String(v);
+}
+
+function ShelveForm({ alarm, onDone }: { alarm: Alarm; onDone: () => void }) {
+  const [reason, setReason] = useState("");
+  const [duration_s, setDuration] = useState<number>(SHELVE_CHOICES_S[1][0]);
+  const [busy, setBusy] = useState(false);
+  const [error, setError] = useState<string | null>(null);
+  const submit = async (e: FormEvent) => {
+    e.preventDefault();
+    if (reason.trim() === "") {
+      setError("say why it is shelved");
+      return;
+    }
+    setBusy(true);
+    const answer = await alarmsApi.shelve(alarm.id, reason.trim(), duration_s).catch((x: unknown) => ({ ok: false as const, reason: String(x) }));
+    setBusy(false);
+    if (answer.ok) onDone();
+    else setError(answer.reason);
+  };
+  return (
+    <form className="alarm-shelve" onSubmit={(e) => void submit(e)} aria-label={`Shelve ${alarm.name}`}>
+      <input
+        aria-label="Reason for shelving"
+        placeholder="reason (required)"
+        data-testid="alarm-shelve-reason"
+        value={reason}
+        onChange={(e) => {
+          setReason(e.target.value);
+          setError(null);
+        }}
+      />
+      <select aria-label="Shelve for" data-testid="alarm-shelve-duration" value={duration_s} onChange={(e) => setDuration(Number(e.target.value))}>
+        {SHELVE_CHOICES_S.map(([s, words]) => (
+          <option key={s} value={s}>
+            {words}
+          </option>
+        ))}
+      </select>
+      <button type="submit" data-testid="alarm-shelve-submit" disabled={busy}>
+        Shelve
+      </button>
+      <button type="button" onClick={onDone} disabled={busy}>
+        Cancel
+      </button>
+      {error !== null && (
+        <span className="reason" role="alert" data-testid="alarm-shelve-error">
+          {error}
+        </span>
+      )}
+    </form>
+  );
+}
+
+function AlarmRow({ alarm, canAct }: { alarm: Alarm; canAct: boolean }) {
+  const [shelving, setShelving] = useState(false);
+  const [busy, setBusy] = useState(false);
+  const [error, setError] = useState<string | null>(null);
+  const paint = alarmPaint(alarm.colour);
+  const unacknowledged = isUnacknowledged(alarm);
+  const act = async (action: () => Promise<{ ok: boolean; reason?: string }>) => {
+    setBusy(true);
+    setError(null);
+    const answer = await action().catch((x: unknown) => ({ ok: false, reason: String(x) }));
+    setBusy(false);
+    if (!answer.ok) setError(answer.reason ?? "refused");
+  };
+  return (
+    <tr
+      data-testid="alarm-row"
+      data-alarm={alarm.id}
+      data-priority={alarm.priority}
+      data-state={alarm.state}
+      data-unacknowledged={unacknowledged ? "true" : "false"}
+      data-shelved={alarm.shelved ? "true" : "false"}
+      className={`alarm-row${unacknowledged ? " is-unacknowledged" : ""}${alarm.shelved ? " is-shelved" : ""}`}
+    >
+      <td>
+        <span className="alarm-priority" style={{ background: paint.background, color: paint.text }}>
+          {alarm.priority}
+        </span>
+      </td>
+      <td>
+        <strong>{alarmTitle(alarm)}</strong>
+        {alarm.message !== null && alarm.message !== "" && <div className="alarm-row__message">{alarm.message}</div>}
+      </td>
+      <td data-testid="alarm-state">
+        {unacknowledged && (
+          <span className="alarm-unack-mark" data-testid="alarm-unack-mark" aria-label="unacknowledged">
+            ●{" "}
+          </span>
+        )}
+        {alarmStateWords(alarm)}
+        {alarm.shelved && alarm.shelved_until !== null && (
+          <div className="hint">
+            until {formatClock(alarm.shelved_until * 1000)} by {alarm.shelved_by ?? "?"}: {alarm.shelve_reason ?? ""}
+          </div>
+        )}
+        {alarm.acknowledged_by !== null && !unacknowledged && (
+          <div className="hint">
+            acknowledged by {alarm.acknowledged_by}
+            {alarm.ack_comment ? `: ${alarm.ack_comment}` : ""}
+          </div>
+        )}
+      </td>
+      <td className="nowrap">{alarm.activated_at !== null ? formatTimestamp(alarm.activated_at) : ""}</td>
+      <td className="alarm-row__actions">
+        {unacknowledged && (
+          <button
+            type="button"
+            className="primary"
+            data-testid="alarm-ack"
+            disabled={!canAct || busy}
+            title={canAct ? undefined : "Log in as an operator to acknowledge"}
+            onClick={() => void act(() => alarmsApi.ack(alarm.id, null))}
+          >
+            Acknowledge
+          </button>
+        )}
+        {alarm.shelved ? (
+          <button type="button" data-testid="alarm-unshelve" disabled={!canAct || busy} onClick={() => void act(() => alarmsApi.unshelve(alarm.id))}>
+            Unshelve
+          </button>
+        ) : (
+          !shelving && (
+            <button type="button" data-testid="alarm-shelve" disabled={!canAct || busy} onClick={() => setShelving(true)}>
+              Shelve…
+            </button>
+          )
+        )}
+        {shelving && <ShelveForm alarm={alarm} onDone={() => setShelving(false)} />}
+        {error !== null && (
+          <span className="reason" role="alert" data-testid="alarm-action-error">
+            {error}
+          </span>
+        )}
+      </td>
+    </tr>
+  );
+}
+
+function AlarmHistory({ robot, newest }: { robot: string; newest: number | null }) {
+  const [priority, setPriority] = useState<AlarmPriority | "">("");
+  const [period, setPeriod] = useState<Period>("day");
+  const [page, setPage] = useState<AlarmHistoryPage | null>(null);
+  const [error, setError] = useState<string | null>(null);
+  // The filter as last asked (its period's start fixed then), for the CSV link.
+  const [asked, setAsked] = useState<HistoryFilter>({ priority: null, since: null, until: null });
+  const seconds = PERIODS.find(([p]) => p === period)?.[2] ?? null;
+
+  // Asked again when the filter changes or an alarm changes (the stream's newest alarm event).
+  useEffect(() => {
+    let cancelled = false;
+    const timer = setTimeout(() => {
+      const filter: HistoryFilter = {
+        priority: priority === "" ? null : priority,
+        since: seconds === null ? null : Math.floor(Date.now() / 1000) - seconds,
+        until: null,
+      };
+      alarmsApi
+        .history(robot, filter, HISTORY_PAGE, 0)
+        .then((answer) => {
+          if (cancelled) return;
+          setAsked(filter);
+          if (answer.ok) {
+            setPage(answer.page);
+            setError(null);
+          } else setError(`history: ${answer.reason}`);
+        })
+        .catch((e: unknown) => !cancelled && setError(String(e)));
+    }, 300);
+    return () => {
+      cancelled = true;
+      clearTimeout(timer);
+    };
+  }, [robot, priority, seconds, newest]);
+
+  return (
+    <div className="table-view">
+      <div className="table-view__bar">
+        <label>
+          priority{" "}
+          <select data-testid="alarm-history-priority" value={priority} onChange={(e) => setPriority(ALARM_PRIORITIES.find((p) => p === e.target.value) ?? "")}>
+            <option value="">all</option>
+            {ALARM_PRIORITIES.map((p) => (
+              <option key={p} value={p}>
+                {p}
+              </option>
+            ))}
+          </select>
+        </label>
+        <label>
+          period{" "}
+          <select data-testid="alarm-history-period" value={period} onChange={(e) => setPeriod(PERIODS.find(([p]) => p === e.target.value)?.[0] ?? "day")}>
+            {PERIODS.map(([p, words]) => (
+              <option key={p} value={p}>
+                {words}
+              </option>
+            ))}
+          </select>
+        </label>
+        <span className="table-view__source">{page !== null ? `${page.total} transitions, newest ${HISTORY_PAGE} shown` : "loading…"}</span>
+        <a data-testid="alarm-history-csv" href={alarmHistoryCsvUrl(robot, asked)} download>
+          Export CSV
+        </a>
+        {error !== null && <span className="reason">{error}</span>}
+      </div>
+      <div className="table-scroll">
+        <table data-testid="alarm-history-table">
+          <thead>
+            <tr>
+              <th>time</th>
+              <th>priority</th>
+              <th>alarm</th>
+              <th>transition</th>
+              <th>state after</th>
+              <th>value</th>
+              <th>user</th>
+              <th>comment</th>
+            </tr>
+          </thead>
+          <tbody>
+            {(page?.items ?? []).map((row) => (
+              <tr key={row.id} data-testid="alarm-history-row" data-transition={row.transition} data-priority={row.priority}>
+                <td className="nowrap">{formatTimestamp(row.time)}</td>
+                <td>{row.priority}</td>
+                <td>
+                  {row.name}
+                  {tagLabel(row.label, row.tag) !== "" && !row.name.includes(tagLabel(row.label, row.tag)) ? ` · ${tagLabel(row.label, row.tag)}` : ""}
+                  {row.message !== null && row.message !== "" && <div className="hint">{row.message}</div>}
+                </td>
+                <td>{row.transition.replaceAll("_", " ")}</td>
+                <td>{alarmStateWords(row)}</td>
+                <td>{value(row.value, "")}</td>
+                <td>{row.user ?? ""}</td>
+                <td>{row.comment ?? ""}</td>
+              </tr>
+            ))}
+            {(page?.items.length ?? 0) === 0 && (
+              <tr>
+                <td colSpan={8} className="empty">
+                  no alarm transitions
+                </td>
+              </tr>
+            )}
+          </tbody>
+        </table>
+      </div>
+    </div>
+  );
+}
+
+// Memoized: the panel re-renders with every live snapshot; this only when the alarms change.
+export const AlarmsView = memo(function AlarmsView({
+  robot,
+  user,
+  alarms,
+  newestEvent,
+}: {
+  readonly robot: string;
+  readonly user: User | null;
+  readonly alarms: readonly Alarm[];
+  /** Time of the stream's newest `alarm` event (the history is asked again when it changes). */
+  readonly newestEvent: number | null;
+}) {
+  const canAct = roleAtLeast(user, "operator");
+  return (
+    <div className="alarms-view">
+      {!canAct && <p className="hint">Log in as an operator to acknowledge or shelve alarms.</p>}
+      <div className="table-scroll">
+        <table data-testid="alarm-table" className="alarm-table">
+          <thead>
+            <tr>
+              <th>priority</th>
+              <th>alarm</th>
+              <th>state</th>
+              <th>since</th>
+              <th>actions</th>
+            </tr>
+          </thead>
+          <tbody>
+            {alarms.map((alarm) => (
+              <AlarmRow key={alarm.id} alarm={alarm} canAct={canAct} />
+            ))}
+            {alarms.length === 0 && (
+              <tr>
+                <td colSpan={5} className="empty" data-testid="alarms-none">
+                  no alarms
+                </td>
+              </tr>
+            )}
+          </tbody>
+        </table>
+      </div>
+      <h3>History</h3>
+      <AlarmHistory robot={robot} newest={newestEvent} />
+    </div>
+  );
+});
