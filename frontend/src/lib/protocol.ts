@@ -33,16 +33,23 @@ export type StampedFrame = Omit<Schemas["FrameItem"], "frame"> & { readonly fram
 export type FramesMessage = Omit<Schemas["FramesMessage"], "frames"> & { readonly frames: readonly StampedFrame[] };
 export type ServerMessage = Exclude<Schemas["StreamMessage"], { type: "frames" }> | FramesMessage;
 
-/** Every event kind, in the order the filter offers them (a test checks none is missing). */
-export const EVENT_KINDS = [
-  "connection",
-  "robot_state",
-  "flag",
-  "write",
-  "control",
-  "alarm",
-  "recording",
-] as const satisfies readonly EventKind[];
+/**
+ * Every event kind of the contract, in the order the filter offers them (an object's string
+ * keys keep their order). Written as an object that must have exactly the generated
+ * `EventKind`s as keys, so a kind added to the service's OpenAPI document (`make codegen`) fails
+ * to compile here until it is listed, and a kind the contract dropped fails too.
+ */
+const EVENT_KIND_SET = {
+  connection: true,
+  robot_state: true,
+  flag: true,
+  write: true,
+  control: true,
+  alarm: true,
+  recording: true,
+} as const satisfies Record<EventKind, true>;
+
+export const EVENT_KINDS = Object.keys(EVENT_KIND_SET) as (keyof typeof EVENT_KIND_SET)[];
 
 function isObject(v: unknown): v is Record<string, unknown> {
   return typeof v === "object" && v !== null && !Array.isArray(v);
