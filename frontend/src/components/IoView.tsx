@@ -1,7 +1,9 @@
 /** Read-only I/O views shared by the panel and the kiosk: input lamps and analog inputs. */
 import type { Frame } from "../generated/layout";
 import { analogTypeName, analogUnit, channelNumber, frameField } from "../lib/layoutInfo";
+import { tagLabel } from "../lib/alarms";
 import { Lamp } from "./Lamp";
+import { useTagNames } from "./tagNames";
 
 type BoolField = "controlbox_di" | "controlbox_do" | "tool_di" | "tool_do" | "bit_output_registers";
 
@@ -18,16 +20,19 @@ interface LampRowProps {
 export function LampRow({ field, testPrefix, frame, variant = "io", numberOnly = false }: LampRowProps) {
   const info = frameField(field);
   const values = frame?.[field] ?? null;
+  const tags = useTagNames();
   return (
     <div className={`lamp-row lamp-row--${variant}`} role="group" aria-label={info.description}>
       {info.channels.map((label, i) => {
         const n = channelNumber(label);
+        const tag = tags[`${field}.${i}`];
         return (
           <Lamp
             key={label}
             testId={`${testPrefix}-${n}`}
             label={numberOnly ? String(n) : label}
-            title={label}
+            tag={numberOnly ? undefined : tag}
+            title={tagLabel(label, tag)}
             on={values === null ? null : (values[i] ?? null)}
             variant={variant}
           />
@@ -44,6 +49,7 @@ export function formatAnalog(value: number | null | undefined): string {
 /** Analog inputs with their type and unit (both from the layout). */
 export function AnalogInputs({ frame }: { readonly frame: Frame | null }) {
   const info = frameField("analog_input");
+  const tags = useTagNames();
   const typeInfo = frameField("analog_input_type");
   return (
     <div className="analog-list">
@@ -59,7 +65,9 @@ export function AnalogInputs({ frame }: { readonly frame: Frame | null }) {
             data-value={value ?? ""}
             data-type={analogTypeName(typeInfo, type) ?? ""}
           >
-            <span className="analog__label">{label}</span>
+            <span className="analog__label" title={tagLabel(label, tags[`analog_input.${i}`])}>
+              {label}
+            </span>
             <span className="analog__type">{analogTypeName(typeInfo, type) ?? "—"}</span>
             <span className="analog__value">
               {formatAnalog(value)} <span className="analog__unit">{unit}</span>

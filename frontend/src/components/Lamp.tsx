@@ -6,10 +6,12 @@ interface Props {
   readonly label: string;
   readonly on: boolean | null | undefined;
   readonly title?: string;
+  /** The point's tag name, shown under its label. */
+  readonly tag?: string | undefined;
   readonly variant?: "io" | "flag" | "register";
 }
 
-export const Lamp = memo(function Lamp({ testId, label, on, title, variant = "io" }: Props) {
+export const Lamp = memo(function Lamp({ testId, label, on, title, tag, variant = "io" }: Props) {
   const state = on === true ? "on" : "off";
   return (
     <div
@@ -20,6 +22,11 @@ export const Lamp = memo(function Lamp({ testId, label, on, title, variant = "io
     >
       <span className="lamp__light" aria-hidden="true" />
       <span className="lamp__label">{label}</span>
+      {tag !== undefined && tag !== "" && (
+        <span className="lamp__tag" data-testid={`${testId}-tag`}>
+          {tag}
+        </span>
+      )}
       <span className="visually-hidden">{state}</span>
     </div>
   );

@@ -18,17 +18,44 @@ import { RuntimeContext, useLive } from "../components/runtimeContext";
 import { StaleBanner } from "../components/StaleBanner";
 import { Robot3DView } from "../components/Robot3DView";
 import { StateBadge } from "../components/StateBadge";
+import { TagNamesContext } from "../components/tagNames";
 import { burnInOffset, BURN_IN_PERIOD_MS } from "../lib/burnIn";
 import { tilesFromSearch } from "../lib/kioskTiles";
 import { JOINT_PLOTS, TCP_PLOTS, type PlotSpec } from "../lib/plots";
 import { robotFromSearch } from "../lib/route";
 import { createLiveRuntime } from "../lib/runtime";
+import { fetchTagNames } from "../lib/tagNames";
+import type { TagNames } from "../lib/tags";
 import { KioskClock, KioskStateWords, KioskTiles } from "./KioskTiles";
 import "../styles/kiosk.css";
 
 const KIOSK_PLOTS: readonly PlotSpec[] = [JOINT_PLOTS[0], TCP_PLOTS[0]].filter((p): p is PlotSpec => p !== undefined);
 /** A kiosk does not need every frame: 25 per second keeps a small PC cool for days. */
 const KIOSK_RATE_HZ = 25;
+/** Tag names change seldom (an admin renames a point): asked again this often. */
+const TAGS_REFRESH_MS = 60_000;
+
+/** The robot's tag names for the lamps, read with a plain GET (the kiosk has no REST client). */
+function useKioskTagNames(robot: string | null, token: string | null): TagNames {
+  const [tags, setTags] = useState<TagNames>({});
+  useEffect(() => {
+    if (robot === null) return;
+    let cancelled = false;
+    const load = () =>
+      fetchTagNames(robot, token)
+        .then((names) => {
+          if (!cancelled && names !== null) setTags(names);
+        })
+        .catch(() => undefined);
+    void load();
+    const timer = setInterval(() => void load(), TAGS_REFRESH_MS);
+    return () => {
+      cancelled = true;
+      clearInterval(timer);
+    };
+  }, [robot, token]);
+  return tags;
+}
 
 function useBurnInOffset() {
   const [now, setNow] = useState(() => Date.now());
@@ -46,6 +73,7 @@ function kioskOptions(search: string) {
     tiles: tilesFromSearch(search),
     robot3d: params.get("robot3d") === "1",
     arm: params.get("arm"),
+    token: params.get("token"),
   };
 }
 
@@ -53,64 +81,67 @@ function Kiosk() {
   const [options] = useState(() => kioskOptions(window.location.search));
   const live = useLive();
   const offset = useBurnInOffset();
+  const tags = useKioskTagNames(live.robot, options.token);
   const stale = live.health !== "connected";
   const frame = live.frame;
   const estop = frame?.emergency_stopped === true;
   return (
-    <div className="kiosk" data-testid="kiosk" data-stale={stale ? "true" : "false"}>
-      <div
-        className="kiosk__shift"
-        data-testid="kiosk-shift"
-        style={{ transform: `translate(${offset.dx_px}px, ${offset.dy_px}px)` }}
-      >
-        <header className="kiosk__header">
-          <div className="kiosk__topline">
-            {live.robot !== null && (
-              <div className="kiosk__robot" data-testid="kiosk-robot">
-                {live.robot}
+    <TagNamesContext.Provider value={tags}>
+      <div className="kiosk" data-testid="kiosk" data-stale={stale ? "true" : "false"}>
+        <div
+          className="kiosk__shift"
+          data-testid="kiosk-shift"
+          style={{ transform: `translate(${offset.dx_px}px, ${offset.dy_px}px)` }}
+        >
+          <header className="kiosk__header">
+            <div className="kiosk__topline">
+              {live.robot !== null && (
+                <div className="kiosk__robot" data-testid="kiosk-robot">
+                  {live.robot}
+                </div>
+              )}
+              <KioskClock />
+            </div>
+            <StateBadge value={frame?.robot_state} stale={stale} size="kiosk" />
+            <KioskStateWords value={frame?.robot_state} />
+            {estop && (
+              <div className="kiosk__estop" data-testid="kiosk-estop" role="alert">
+                EMERGENCY STOP
               </div>
             )}
-            <KioskClock />
+            <FlagBadges frame={frame} stale={stale} />
+            <div className="kiosk__status">
+              <ConnectionHealth live={live} compact />
+              <ControlHolder control={live.control} />
+            </div>
+          </header>
+          {/* Above everything but the state; read-only: the stream's alarms, no acknowledge here. */}
+          <div className="kiosk__alarms">
+            <AlarmBanner alarms={live.alarms} size="kiosk" />
           </div>
-          <StateBadge value={frame?.robot_state} stale={stale} size="kiosk" />
-          <KioskStateWords value={frame?.robot_state} />
-          {estop && (
-            <div className="kiosk__estop" data-testid="kiosk-estop" role="alert">
-              EMERGENCY STOP
+          <StaleBanner live={live} />
+          <KioskTiles fields={options.tiles.fields} unknown={options.tiles.unknown} frame={frame} />
+          {options.robot3d && (
+            <div className="kiosk__robot3d">
+              <Robot3DView model={options.arm} theme="dark" interactive={false} height_px={360} />
             </div>
           )}
-          <FlagBadges frame={frame} stale={stale} />
-          <div className="kiosk__status">
-            <ConnectionHealth live={live} compact />
-            <ControlHolder control={live.control} />
-          </div>
-        </header>
-        {/* Above everything but the state; read-only: the stream's alarms, no acknowledge here. */}
-        <div className="kiosk__alarms">
-          <AlarmBanner alarms={live.alarms} size="kiosk" />
+          <main className={`kiosk__main${stale ? " is-stale" : ""}`}>
+            <div className="kiosk__plots">
+              {KIOSK_PLOTS.map((spec) => (
+                <LivePlotView key={spec.id} spec={spec} theme="dark" readOnly height_px={260} />
+              ))}
+            </div>
+            <div className="kiosk__io">
+              <LampRow field="controlbox_di" testPrefix="di" frame={frame} />
+              <LampRow field="controlbox_do" testPrefix="do" frame={frame} />
+              <LampRow field="tool_di" testPrefix="tool-di" frame={frame} />
+              <LampRow field="tool_do" testPrefix="tool-do" frame={frame} />
+            </div>
+          </main>
         </div>
-        <StaleBanner live={live} />
-        <KioskTiles fields={options.tiles.fields} unknown={options.tiles.unknown} frame={frame} />
-        {options.robot3d && (
-          <div className="kiosk__robot3d">
-            <Robot3DView model={options.arm} theme="dark" interactive={false} height_px={360} />
-          </div>
-        )}
-        <main className={`kiosk__main${stale ? " is-stale" : ""}`}>
-          <div className="kiosk__plots">
-            {KIOSK_PLOTS.map((spec) => (
-              <LivePlotView key={spec.id} spec={spec} theme="dark" readOnly height_px={260} />
-            ))}
-          </div>
-          <div className="kiosk__io">
-            <LampRow field="controlbox_di" testPrefix="di" frame={frame} />
-            <LampRow field="controlbox_do" testPrefix="do" frame={frame} />
-            <LampRow field="tool_di" testPrefix="tool-di" frame={frame} />
-            <LampRow field="tool_do" testPrefix="tool-do" frame={frame} />
-          </div>
-        </main>
       </div>
-    </div>
+    </TagNamesContext.Provider>
   );
 }
 

@@ -5,6 +5,8 @@
  */
 import { memo } from "react";
 import type { CommandFieldName } from "../generated/layout";
+import { useTagNames } from "../components/tagNames";
+import { tagLabel } from "../lib/alarms";
 import { writeKey } from "../lib/writes";
 import { useWrites, useWriteView } from "./writeContext";
 
@@ -36,17 +38,20 @@ export const OutputToggle = memo(function OutputToggle({
   const writes = useWrites();
   const key = writeKey(field, index);
   const view = useWriteView(key, actual);
+  const tag = useTagNames()[key];
+  // "DO 3 — gripper close" in the question and the tooltip; registers' compact label is a number.
+  const named = tagLabel(kind === "register" ? `Register ${label}` : label, tag);
   const state = view.shown === "pending" ? "pending" : view.shown === true ? "on" : "off";
   const mismatch = !view.pending && actual !== null && command !== null && actual !== command;
 
   const onClick = () => {
     const requested = !(actual ?? command ?? false);
     const ask = kind === "output" || writes.confirmRegisters;
-    const message = `Switch ${label} ${requested ? "ON" : "OFF"}?`;
+    const message = `Switch ${tag !== undefined ? named : label} ${requested ? "ON" : "OFF"}?`;
     void writes.write([key], [requested], { [field]: { [String(index)]: requested } }, ask ? message : null);
   };
 
-  const title = writes.blockReason ?? `${label}: actual ${actual === null ? "unknown" : actual ? "on" : "off"}, command ${command === null ? "unknown" : command ? "on" : "off"}`;
+  const title = writes.blockReason ?? `${named}: actual ${actual === null ? "unknown" : actual ? "on" : "off"}, command ${command === null ? "unknown" : command ? "on" : "off"}`;
   return (
     <div className={`toggle-cell${compact ? " toggle-cell--compact" : ""}`}>
       <button
@@ -64,6 +69,11 @@ export const OutputToggle = memo(function OutputToggle({
       >
         <span className="toggle__light" aria-hidden="true" />
         <span className="toggle__label">{label}</span>
+        {!compact && tag !== undefined && tag !== "" && (
+          <span className="toggle__tag" data-testid={`${testId}-tag`}>
+            {tag}
+          </span>
+        )}
         {!compact && <span className="toggle__state">{state === "pending" ? "…" : state.toUpperCase()}</span>}
         {!compact && kind === "output" && (
           <span className="toggle__command" title="command being sent">

@@ -15,6 +15,7 @@ import { Robot3DView } from "../components/Robot3DView";
 import { RuntimeContext, useLive } from "../components/runtimeContext";
 import { StaleBanner } from "../components/StaleBanner";
 import { StateBadge } from "../components/StateBadge";
+import { TagNamesContext } from "../components/tagNames";
 import { api } from "../lib/api";
 import { FleetPoller, knownRobots, type FleetTile } from "../lib/fleet";
 import { ALL_PLOTS, JOINT_PLOTS, TCP_PLOTS } from "../lib/plots";
@@ -22,6 +23,7 @@ import type { ControlStatus, User } from "../lib/protocol";
 import { chooseRobot, robotFromSearch, searchWithRobot } from "../lib/route";
 import { controlOwnership } from "../lib/controlSession";
 import { createLiveRuntime, type LiveRuntime } from "../lib/runtime";
+import type { TagNames } from "../lib/tags";
 import { AlarmCue } from "./AlarmCue";
 import { AlarmsView } from "./AlarmsView";
 import { AuditView, EventsView } from "./EventsView";
@@ -89,90 +91,93 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
   const onControl = useCallback((control: ControlStatus) => runtime.live.setControl(control), [runtime]);
   const ownership = controlOwnership(live.control, user, live.session);
   const newestAlarmEvent = live.events.find((e) => e.kind === "alarm")?.time ?? null;
+  const [tags, setTags] = useState<TagNames>({});
 
   return (
-    <WriteProvider robot={robot} user={user} live={live}>
-      <div className="panel" data-testid="panel" data-robot={robot} data-stale={stale ? "true" : "false"}>
-        <header className="panel-header">
-          <RobotSwitcher robot={robot} robots={robots} onSelect={onSelect} />
-          <StateBadge value={live.frame?.robot_state} stale={stale} size="panel" />
-          <FlagBadges frame={live.frame} stale={stale} />
-          <ConnectionHealth live={live} />
-          <div className="panel-header__control">
-            <ControlHolder control={live.control} ownership={ownership} />
-            <SessionBar robot={robot} user={user} ownership={ownership} onUser={onSessionUser} onControl={onControl} />
-          </div>
-          {/* In the sticky header: an alarm stays in view wherever the page is scrolled. */}
-          <AlarmBanner alarms={live.alarms} size="panel" listHref="#alarms">
-            <AlarmCue alarms={live.alarms} />
-          </AlarmBanner>
-        </header>
-        <StaleBanner live={live} />
-        {live.layoutMismatch !== null && (
-          <div className="stale-banner" role="alert">
-            The service uses layout version {live.layoutMismatch}; this page was built for another. Reload the page.
-          </div>
-        )}
-        <nav className="panel-nav">
-          {SECTIONS.map(([id, label]) => (
-            <a key={id} href={`#${id}`}>
-              {label}
-            </a>
-          ))}
-        </nav>
-        <main className={`panel-main${stale ? " is-stale" : ""}`}>
-          <section id="joints">
-            <h2>Joints</h2>
-            <div className="plot-grid">
-              {JOINT_PLOTS.map((spec) => (
-                <LivePlotView key={spec.id} spec={spec} theme="light" />
-              ))}
+    <TagNamesContext.Provider value={tags}>
+      <WriteProvider robot={robot} user={user} live={live}>
+        <div className="panel" data-testid="panel" data-robot={robot} data-stale={stale ? "true" : "false"}>
+          <header className="panel-header">
+            <RobotSwitcher robot={robot} robots={robots} onSelect={onSelect} />
+            <StateBadge value={live.frame?.robot_state} stale={stale} size="panel" />
+            <FlagBadges frame={live.frame} stale={stale} />
+            <ConnectionHealth live={live} />
+            <div className="panel-header__control">
+              <ControlHolder control={live.control} ownership={ownership} />
+              <SessionBar robot={robot} user={user} ownership={ownership} onUser={onSessionUser} onControl={onControl} />
             </div>
-          </section>
-          <section id="tcp">
-            <h2>TCP</h2>
-            <div className="plot-grid">
-              {TCP_PLOTS.map((spec) => (
-                <LivePlotView key={spec.id} spec={spec} theme="light" />
-              ))}
+            {/* In the sticky header: an alarm stays in view wherever the page is scrolled. */}
+            <AlarmBanner alarms={live.alarms} size="panel" listHref="#alarms">
+              <AlarmCue alarms={live.alarms} />
+            </AlarmBanner>
+          </header>
+          <StaleBanner live={live} />
+          {live.layoutMismatch !== null && (
+            <div className="stale-banner" role="alert">
+              The service uses layout version {live.layoutMismatch}; this page was built for another. Reload the page.
             </div>
-          </section>
-          <section id="custom">
-            <h2>Custom plots</h2>
-            <CustomPlots robot={robot} robots={robots.map((r) => r.name)} coordinator={runtime.coordinator} />
-          </section>
-          <section id="robot3d">
-            <h2>3D</h2>
-            <Robot3DView model={robots.find((r) => r.name === robot)?.model ?? null} theme="light" />
-          </section>
-          <section id="alarms">
-            <h2>Alarms</h2>
-            <AlarmsView robot={robot} user={user} alarms={live.alarms} newestEvent={newestAlarmEvent} />
-          </section>
-          <section id="io">
-            <h2>I/O</h2>
-            <WriteBlockedHint />
-            <IoSection frame={live.frame} />
-          </section>
-          <section id="registers">
-            <h2>Bit registers</h2>
-            <RegistersSection frame={live.frame} />
-          </section>
-          <section id="events">
-            <h2>Events</h2>
-            <EventsView robot={robot} user={user} liveEvents={live.events} />
-          </section>
-          <section id="audit">
-            <h2>Audit</h2>
-            <AuditView robot={robot} user={user} liveEvents={live.events} />
-          </section>
-          <section id="tags">
-            <h2>Tag names</h2>
-            <TagsView robot={robot} user={user} />
-          </section>
-        </main>
-      </div>
-    </WriteProvider>
+          )}
+          <nav className="panel-nav">
+            {SECTIONS.map(([id, label]) => (
+              <a key={id} href={`#${id}`}>
+                {label}
+              </a>
+            ))}
+          </nav>
+          <main className={`panel-main${stale ? " is-stale" : ""}`}>
+            <section id="joints">
+              <h2>Joints</h2>
+              <div className="plot-grid">
+                {JOINT_PLOTS.map((spec) => (
+                  <LivePlotView key={spec.id} spec={spec} theme="light" />
+                ))}
+              </div>
+            </section>
+            <section id="tcp">
+              <h2>TCP</h2>
+              <div className="plot-grid">
+                {TCP_PLOTS.map((spec) => (
+                  <LivePlotView key={spec.id} spec={spec} theme="light" />
+                ))}
+              </div>
+            </section>
+            <section id="custom">
+              <h2>Custom plots</h2>
+              <CustomPlots robot={robot} robots={robots.map((r) => r.name)} coordinator={runtime.coordinator} />
+            </section>
+            <section id="robot3d">
+              <h2>3D</h2>
+              <Robot3DView model={robots.find((r) => r.name === robot)?.model ?? null} theme="light" />
+            </section>
+            <section id="alarms">
+              <h2>Alarms</h2>
+              <AlarmsView robot={robot} user={user} alarms={live.alarms} newestEvent={newestAlarmEvent} />
+            </section>
+            <section id="io">
+              <h2>I/O</h2>
+              <WriteBlockedHint />
+              <IoSection frame={live.frame} />
+            </section>
+            <section id="registers">
+              <h2>Bit registers</h2>
+              <RegistersSection frame={live.frame} />
+            </section>
+            <section id="events">
+              <h2>Events</h2>
+              <EventsView robot={robot} user={user} liveEvents={live.events} />
+            </section>
+            <section id="audit">
+              <h2>Audit</h2>
+              <AuditView robot={robot} user={user} liveEvents={live.events} />
+            </section>
+            <section id="tags">
+              <h2>Tag names</h2>
+              <TagsView robot={robot} user={user} onTags={setTags} />
+            </section>
+          </main>
+        </div>
+      </WriteProvider>
+    </TagNamesContext.Provider>
   );
 }
 

@@ -8,9 +8,18 @@ import { memo, useEffect, useMemo, useState, type ChangeEvent } from "react";
 import { tagLabel } from "../lib/alarms";
 import { alarmsApi, tagsCsvUrl, type TagList } from "../lib/alarmsApi";
 import { roleAtLeast, type User } from "../lib/protocol";
-import { tagChanges } from "../lib/tags";
+import { tagChanges, type TagNames } from "../lib/tags";
 
-export const TagsView = memo(function TagsView({ robot, user }: { readonly robot: string; readonly user: User | null }) {
+export const TagsView = memo(function TagsView({
+  robot,
+  user,
+  onTags,
+}: {
+  readonly robot: string;
+  readonly user: User | null;
+  /** The names as the service has them now (after loading, saving or importing), for the rest of the panel. */
+  readonly onTags: (tags: TagNames) => void;
+}) {
   const [list, setList] = useState<TagList | null>(null);
   const [draft, setDraft] = useState<Readonly<Record<string, string>>>({});
   const [filter, setFilter] = useState("");
@@ -30,13 +39,14 @@ export const TagsView = memo(function TagsView({ robot, user }: { readonly robot
           setList(answer.page);
           setDraft(answer.page.tags);
           setError(null);
+          onTags(answer.page.tags);
         } else setError(`tag names: ${answer.reason}`);
       })
       .catch((e: unknown) => !cancelled && setError(String(e)));
     return () => {
       cancelled = true;
     };
-  }, [robot, reload, user]);
+  }, [robot, reload, user, onTags]);
 
   const changes = useMemo(() => (list === null ? 0 : tagChanges(list.tags, draft)), [list, draft]);
   const points = useMemo(() => {
@@ -52,6 +62,7 @@ export const TagsView = memo(function TagsView({ robot, user }: { readonly robot
       setDraft(answer.page.tags);
       setError(null);
       setNote(words);
+      onTags(answer.page.tags);
     } else setError(answer.reason);
   };
 
