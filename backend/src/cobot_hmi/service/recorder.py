@@ -93,6 +93,7 @@ class Recorder:
         self._next_retry = 0.0
         self._next_retention = 0.0
         self._next_space_check = 0.0
+        self._closed_this_cycle = False
 
     # ------------------------------------------------------------ lifecycle (web loop)
 
@@ -142,6 +143,7 @@ class Recorder:
             self._check_space()
         if self.paused_reason is not None and now >= self._next_retry:
             self._try_resume()
+        self._closed_this_cycle = False
         for track in self.tracks.values():
             self._record(track, now)
         if self.paused_reason is None and now >= self._next_retention:
@@ -172,7 +174,11 @@ class Recorder:
                 track.writer.append(items_to_batch(items))
                 track.frames_recorded += len(items)
                 track.last_time_s = items[-1][1]
-            if track.writer.due():
+            # One segment closed per cycle (about 0.25 s for ten minutes of frames): robots
+            # whose segments fell due together close in turn, so no robot's frames wait in
+            # the queue much longer than a flush period (the crash-loss bound).
+            if track.writer.due() and not self._closed_this_cycle:
+                self._closed_this_cycle = True
                 if track.writer.close_segment() is not None:
                     track.segments_closed += 1
                 self._next_retention = 0.0
