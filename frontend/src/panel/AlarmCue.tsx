@@ -69,7 +69,11 @@ export function AlarmCue({ alarms }: { readonly alarms: readonly Alarm[] }) {
     if (priority === null) return;
     const Ctor = audioContextClass();
     if (Ctor === null) return;
-    context.current ??= new Ctor();
+    try {
+      context.current ??= new Ctor();
+    } catch {
+      return; // no audio device: the banner still shows everything
+    }
     const ctx = context.current;
     const tone = cueTone(priority);
     const play = () => {
