@@ -4,7 +4,7 @@
  * reaches `lib/api.ts`, which its import-graph test forbids): the kiosk's banner reads the
  * stream only.
  */
-import { API, api, errorReason, type PageAnswer } from "./api";
+import { API, api, errorReason, type JsonClient, type PageAnswer } from "./api";
 import type { Alarm, AlarmHistoryRow, AlarmPriority } from "./alarms";
 import type { components } from "../generated/api";
 import type { HttpAnswer } from "./writes";
@@ -56,49 +56,54 @@ function historyQuery(robot: string, filter: HistoryFilter) {
   };
 }
 
-export const alarmsApi = {
+export class AlarmsApi {
+  constructor(readonly client: JsonClient) {}
+
   async ack(alarmId: string, comment: string | null): Promise<AlarmActionAnswer> {
     return actionOf(
-      await api.client.POST("/api/v1/alarms/{alarm_id}/ack", {
+      await this.client.POST("/api/v1/alarms/{alarm_id}/ack", {
         params: { path: { alarm_id: alarmId } },
         body: comment !== null && comment !== "" ? { comment } : {},
         headers: JSON_CONTENT,
       }),
     );
-  },
+  }
 
   async shelve(alarmId: string, reason: string, duration_s: number): Promise<AlarmActionAnswer> {
     return actionOf(
-      await api.client.POST("/api/v1/alarms/{alarm_id}/shelve", {
+      await this.client.POST("/api/v1/alarms/{alarm_id}/shelve", {
         params: { path: { alarm_id: alarmId } },
         body: { reason, duration_s },
       }),
     );
-  },
+  }
 
   async unshelve(alarmId: string): Promise<AlarmActionAnswer> {
     return actionOf(
-      await api.client.POST("/api/v1/alarms/{alarm_id}/unshelve", { params: { path: { alarm_id: alarmId } }, headers: JSON_CONTENT }),
+      await this.client.POST("/api/v1/alarms/{alarm_id}/unshelve", { params: { path: { alarm_id: alarmId } }, headers: JSON_CONTENT }),
     );
-  },
+  }
 
   async history(robot: string, filter: HistoryFilter, limit: number, offset: number): Promise<PageAnswer<AlarmHistoryPage>> {
     const query = { ...historyQuery(robot, filter), limit, offset };
-    return pageOf(await api.client.GET("/api/v1/alarms/history", { params: { query } }));
-  },
+    return pageOf(await this.client.GET("/api/v1/alarms/history", { params: { query } }));
+  }
 
   async tags(robot: string): Promise<PageAnswer<TagList>> {
-    return pageOf(await api.client.GET("/api/v1/robots/{name}/tags", { params: { path: { name: robot } } }));
-  },
+    return pageOf(await this.client.GET("/api/v1/robots/{name}/tags", { params: { path: { name: robot } } }));
+  }
 
   async putTags(robot: string, tags: Readonly<Record<string, string>>): Promise<PageAnswer<TagList>> {
-    return pageOf(await api.client.PUT("/api/v1/robots/{name}/tags", { params: { path: { name: robot } }, body: { tags: { ...tags } } }));
-  },
+    return pageOf(await this.client.PUT("/api/v1/robots/{name}/tags", { params: { path: { name: robot } }, body: { tags: { ...tags } } }));
+  }
 
   async importTags(robot: string, csv: string): Promise<PageAnswer<TagList>> {
-    return pageOf(await api.client.POST("/api/v1/robots/{name}/tags/import", { params: { path: { name: robot } }, body: { csv } }));
-  },
-};
+    return pageOf(await this.client.POST("/api/v1/robots/{name}/tags/import", { params: { path: { name: robot } }, body: { csv } }));
+  }
+}
+
+/** The panel's client: the page's REST client (same origin, the session cookie). */
+export const alarmsApi = new AlarmsApi(api.client);
 
 /** The history as CSV (the browser downloads it with the session cookie). */
 export function alarmHistoryCsvUrl(robot: string, filter: HistoryFilter): string {
