@@ -176,8 +176,8 @@ async def test_other_host_headers_are_refused(hmi: Running) -> None:
         b"Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
         b"Sec-WebSocket-Version: 13\r\n\r\n"
     )
-    status, answer = await _raw_http(hmi, handshake)
-    assert status == 403, answer
+    status, raw_answer = await _raw_http(hmi, handshake)
+    assert status == 403, raw_answer
 
 
 async def test_allowed_hosts_setting(
