@@ -396,6 +396,20 @@ def test_decimation_over_cells_equals_brute_force(
     assert path == "cells"
 
 
+def test_range_edges_follow_the_stored_times(tmp_path: Path) -> None:
+    """A range starting between a frame's receive time and its stored (whole-microsecond)
+    time: closed segment or journal, the frame is in or out the same way as by its stored
+    time."""
+    items = synthetic_items(30, start_s=T0 + 0.1234563)
+    write_recording(tmp_path, "r", items, 10)  # two closed segments, then a journal
+    elements = select_elements(["robot_state"])
+    for first in (0, 10, 20):
+        from_s = items[first][1]  # .1234563 s + k·10 ms: stored as .123456 s + k·10 ms
+        result = query(tmp_path, "r", elements, from_s=from_s, to_s=T0 + 10, points=1000)
+        assert result.seq is not None
+        assert result.seq.tolist() == list(range(first + 2, 31))
+
+
 def test_query_errors(tmp_path: Path) -> None:
     elements = select_elements(["joint_position"])
     with pytest.raises(QueryError) as error:

@@ -123,7 +123,8 @@ def iter_raw(
             table = pq.ParquetFile(segment.path).read(columns=list(columns))
         except (OSError, pa.ArrowException):  # deleted by retention meanwhile
             continue
-        partial = segment.start_us < start_us or segment.end_us >= end_us
+        # Compared as _clip compares (receive times in seconds), not by whole microseconds.
+        partial = segment.start_us / 1e6 < from_s or segment.end_us / 1e6 >= to_s
         yield _clip(table, from_s, to_s, partial)
     for path in _journals_before(root, robot, end_us):
         yield _clip(read_journal(path, columns), from_s, to_s, True)
