@@ -30,6 +30,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final
 
+import pyarrow as pa
+
 from cobot_hmi.history import retention, segments
 from cobot_hmi.history.schema import items_to_batch
 from cobot_hmi.history.segments import SegmentWriter
@@ -126,15 +128,24 @@ class Recorder:
         started = time.thread_time()
         try:
             while not self._stopping.wait(self.settings.history_flush_s):
-                self._cycle()
+                self._guarded_cycle()
                 self.cpu_seconds = time.thread_time() - started
-            self._cycle()
+            self._guarded_cycle()
             self._close_all()
-        except Exception:  # a bug must not end recording silently
-            log.exception("history recorder failed")
-            self._pause("the recorder failed (see the service log)")
         finally:
             self.cpu_seconds = time.thread_time() - started
+
+    def _guarded_cycle(self) -> None:
+        """A cycle; an unexpected error pauses recording (retried like a full disk) instead of
+        ending the thread: recording never stops silently."""
+        try:
+            self._cycle()
+        except Exception as error:
+            log.exception("history recorder cycle failed")
+            self.write_errors += 1
+            for track in self.tracks.values():
+                track.writer.abandon()
+            self._pause(f"the recorder failed: {type(error).__name__}: {error}")
 
     def _cycle(self) -> None:
         now = time.monotonic()
@@ -182,18 +193,19 @@ class Recorder:
                 if track.writer.close_segment() is not None:
                     track.segments_closed += 1
                 self._next_retention = 0.0
-        except OSError as error:
+        except (OSError, pa.ArrowException) as error:
             track.frames_not_recorded += len(items)
             self.write_errors += 1
             track.writer.abandon()
-            self._pause(f"cannot write {self.root}: {error.strerror or error}")
+            reason = error.strerror if isinstance(error, OSError) else None
+            self._pause(f"cannot write {self.root}: {reason or error}")
 
     def _close_all(self) -> None:
         for track in self.tracks.values():
             try:
                 if track.writer.close_segment() is not None:
                     track.segments_closed += 1
-            except OSError as error:
+            except (OSError, pa.ArrowException) as error:
                 track.writer.abandon()
                 log.warning("history of %s: segment not closed: %s", track.robot.name, error)
 
