@@ -20,7 +20,8 @@ from collections.abc import AsyncIterator, Callable
 
 import pytest
 
-from cobot_hmi.udp_endpoint import RING_SLOTS, UdpEndpoint
+from cobot_hmi.native import pure
+from cobot_hmi.udp_endpoint import PERIODIC_MAX, RING_SLOTS, QueueFullError, UdpEndpoint
 
 pytestmark = pytest.mark.both_pumps  # conftest: native and pure-Python pump
 DEADLINE_S = 5.0
@@ -165,6 +166,29 @@ async def test_a_stream_template_must_hold_its_counters(
     with pytest.raises(ValueError, match="does not fit"):
         sender.replace_periodic(4, bytes(6))
     assert sender.replace_periodic(5, bytes(8)) is False, "no such stream"
+
+
+async def test_one_pump_holds_a_stream_per_connection_of_a_cell(
+    pair: tuple[UdpEndpoint, Received],
+) -> None:
+    """Every connection on one UDP 2222 socket has its own O→T stream: a pump holds
+    ``PERIODIC_MAX`` of them (the same in both pumps), each sending, and refuses one more."""
+    sender, received = pair
+    peer = sender.peer  # type: ignore[attr-defined]
+    assert PERIODIC_MAX == pure.PERIODIC_MAX >= 64
+    now = asyncio.get_running_loop().time()
+    for tag in range(PERIODIC_MAX):
+        sender.send_every(100 + tag, now, 0.010, struct.pack("<IH", 0, tag), peer, (0, 0))
+    with pytest.raises(QueueFullError, match="every periodic stream"):
+        sender.send_every(999, now, 0.010, bytes(6), peer, (0, 0))
+    await eventually(
+        lambda: (
+            {d[4:6] for d, _, _ in received}
+            >= {struct.pack("<H", tag) for tag in range(PERIODIC_MAX)}
+        )
+    )
+    for tag in range(PERIODIC_MAX):
+        assert sender.stop_periodic(100 + tag) is not None
 
 
 async def test_a_full_ring_keeps_the_newest_with_their_sources_and_times(

@@ -43,7 +43,7 @@ from collections.abc import Callable
 from types import TracebackType
 from typing import Final
 
-from cobot_hmi.native import Implementation, PumpLike, pump_class
+from cobot_hmi.native import Implementation, PumpLike, pump_class, pure
 
 log = logging.getLogger(__name__)
 
@@ -56,6 +56,9 @@ RING_SLOTS: Final = 256
 oldest: 0.5 s of packets at RPI 2 ms)."""
 QUEUE_SLOTS: Final = 256
 """Datagrams queued ahead at most."""
+PERIODIC_MAX: Final = pure.PERIODIC_MAX
+"""Periodic streams (one per class 1 connection) one endpoint sends at once; the C pump holds
+as many (``PUMP_PERIODIC_MAX``, native/cyclic_pump.h)."""
 BATCH_PERIOD_S: Final = 0.010
 """Below this RPI an owner wakes once per batch rather than once per packet (its own batch
 period: ``TargetSettings.batch_period_s``, ``OriginatorSettings.t2o_batch_s``); at it and above,
@@ -330,4 +333,10 @@ def _release(
     sock.close()
 
 
-__all__ = ["BATCH_PERIOD_S", "PacketHandler", "QueueFullError", "UdpEndpoint"]
+__all__ = [
+    "BATCH_PERIOD_S",
+    "PERIODIC_MAX",
+    "PacketHandler",
+    "QueueFullError",
+    "UdpEndpoint",
+]

@@ -4,6 +4,7 @@ interface in Python."""
 from types import TracebackType
 
 TAKE_MAX: int
+PERIODIC_MAX: int
 
 class Pump:
     def __init__(

@@ -272,7 +272,8 @@ PyMODINIT_FUNC PyInit__cyclic_pump(void) {
     PyObject *m = PyModule_Create(&module);
     if (!m) return NULL;
     if (PyModule_AddObjectRef(m, "Pump", (PyObject *)&PumpType) < 0 ||
-        PyModule_AddIntConstant(m, "TAKE_MAX", TAKE_MAX) < 0) {
+        PyModule_AddIntConstant(m, "TAKE_MAX", TAKE_MAX) < 0 ||
+        PyModule_AddIntConstant(m, "PERIODIC_MAX", PUMP_PERIODIC_MAX) < 0) {
         Py_DECREF(m);
         return NULL;
     }

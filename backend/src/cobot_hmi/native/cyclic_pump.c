@@ -68,7 +68,7 @@ typedef struct {
     int32_t len;
 } ring_meta;
 
-#define PERIODIC_MAX 8
+#define PERIODIC_MAX PUMP_PERIODIC_MAX
 
 typedef struct {
     int active;

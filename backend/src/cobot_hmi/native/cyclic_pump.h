@@ -8,6 +8,11 @@
 
 typedef struct pump pump;
 
+/* Periodic streams one pump holds at once: one per class 1 connection on its socket. A PLC
+ * holds dozens of adapter connections from one UDP 2222 socket (docs/protocol.md); a slot costs
+ * one datagram's buffer, and a wake-up scans only the active ones' due times. */
+#define PUMP_PERIODIC_MAX 64
+
 /* What pump_counters reports, in this order. */
 enum {
     C_SENT,

@@ -41,7 +41,8 @@ _SO_TIMESTAMPNS: Final = getattr(socket, "SO_TIMESTAMPNS", 35)  # asm-generic/so
 _TIMESPEC: Final = struct.Struct("@ll")
 _ANCILLARY_BYTES: Final = socket.CMSG_SPACE(_TIMESPEC.size)
 _DRAIN_MAX: Final = 1024
-_PERIODIC_MAX: Final = 8
+PERIODIC_MAX: Final = 64
+"""Periodic streams at once, as the C pump's ``PUMP_PERIODIC_MAX`` (cyclic_pump.h)."""
 PUMP_FIFO_PRIORITY: Final = 10  # cyclic_pump.c's: low among real-time priorities
 
 
@@ -391,7 +392,7 @@ class Pump:
         if period_ns <= 0:
             return -2
         with state.lock:
-            if tag not in state.periodics and len(state.periodics) >= _PERIODIC_MAX:
+            if tag not in state.periodics and len(state.periodics) >= PERIODIC_MAX:
                 return -1
             state.periodics[tag] = _Periodic(
                 tag,
@@ -435,4 +436,4 @@ class Pump:
             return stream.count32, stream.count16, stream.due_ns
 
 
-__all__ = ["TAKE_MAX", "Pump"]
+__all__ = ["PERIODIC_MAX", "TAKE_MAX", "Pump"]
