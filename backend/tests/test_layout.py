@@ -79,6 +79,16 @@ def test_robot_state_enum_is_the_tables() -> None:
     }
 
 
+def test_every_state_has_plain_words_distinct_from_its_enum_name() -> None:
+    labels = [s.label for s in ROBOT_STATES]
+    assert all(labels), "every state needs its plain-words label"
+    assert len(set(labels)) == len(labels), "two states read the same"
+    assert all(s.label != s.name for s in ROBOT_STATES)
+    by_name = {s.name: s.label for s in ROBOT_STATES}
+    assert by_name["STANDALONE_RUNNING"] == "Standalone running"
+    assert by_name["INTERRUPTED"] == "Protective stop"
+
+
 def test_five_flags_in_the_tables_order() -> None:
     flags = flag_fields()
     assert [f.flag.abbreviation for f in flags if f.flag] == ["SO", "SS", "ES", "DTBP", "PBP"]

@@ -112,6 +112,9 @@ class RobotStateInfo:
     description: str
     pendant_colours: tuple[str, ...]
     colour_from_table: bool = False
+    label: str = ""
+    """The state in plain words for people ("Standalone running"); the enum ``name`` stays the
+    identifier (API, tooltips)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -280,49 +283,70 @@ _WHITE = ("white",)
 
 # fmt: off
 ROBOT_STATES: Final[tuple[RobotStateInfo, ...]] = (
-    RobotStateInfo(0, "EMERGENCY_STOP", "The emergency stop state.", ("red",)),
+    RobotStateInfo(0, "EMERGENCY_STOP", "The emergency stop state.", ("red",),
+                   label="Emergency stop"),
     RobotStateInfo(1, "INITIALIZING",
-                   "The initialization state for setting various parameters.", ("blue",)),
+                   "The initialization state for setting various parameters.", ("blue",),
+                   label="Initializing"),
     RobotStateInfo(2, "SAFE_OFF", "The servo off state. This is robot stop state due to a "
-                   "function error or operation error.", ("red",)),
+                   "function error or operation error.", ("red",),
+                   label="Safe off (servo off)"),
     RobotStateInfo(3, "INTERRUPTED", "The system is in a protective stop state due to protective "
-                   "stop input, exceeding the safety threshold, etc.", ("yellow",)),
-    RobotStateInfo(4, "MANUAL_STANDBY", "This is the default status of teaching.", ("blue",)),
+                   "stop input, exceeding the safety threshold, etc.", ("yellow",),
+                   label="Protective stop"),
+    RobotStateInfo(4, "MANUAL_STANDBY", "This is the default status of teaching.", ("blue",),
+                   label="Manual standby"),
     RobotStateInfo(5, "MANUAL_JOGGING", "The jog function is used to operate the robot.",
-                   ("blue",)),
+                   ("blue",),
+                   label="Manual jogging"),
     RobotStateInfo(6, "MANUAL_HANDGUIDING",
-                   "The robot can be operated manually during teaching.", ("blue",)),
+                   "The robot can be operated manually during teaching.", ("blue",),
+                   label="Manual hand-guiding"),
     RobotStateInfo(7, "RECOVERY_STANDBY", "Recovery in progress. All safety functions except for "
-                   "axis and TCP speed monitoring are disabled during recovery.", ("yellow",)),
+                   "axis and TCP speed monitoring are disabled during recovery.", ("yellow",),
+                   label="Recovery standby"),
     RobotStateInfo(8, "RECOVERY_JOGGING", "The jogs of each axis can be used to correct the "
-                   "exceeded safety threshold.", ("yellow",)),
+                   "exceeded safety threshold.", ("yellow",),
+                   label="Recovery jogging"),
     RobotStateInfo(9, "BACKDRIVE_HOLD", "All brakes of 6 joints are engaged, and Backdrive "
-                   "motion is locked.", ("yellow",)),
+                   "motion is locked.", ("yellow",),
+                   label="Backdrive hold"),
     RobotStateInfo(10, "BACKDRIVE_RELEASE", "Brake of one or more joint(s) is released due to "
-                   "the selection of brake release.", ("yellow",)),
+                   "the selection of brake release.", ("yellow",),
+                   label="Backdrive release"),
     RobotStateInfo(11, "BACKDRIVE_RELEASE_BY_COCKPIT", "Brake of one or more joint(s) is "
-                   "released due to the Cockpit.", ("yellow",)),
+                   "released due to the Cockpit.", ("yellow",),
+                   label="Backdrive release by Cockpit"),
     RobotStateInfo(12, "RECOVERY_HANDGUIDING", "The robot can be moved directly by hand to "
-                   "correct the exceeded safety threshold.", ("yellow",)),
+                   "correct the exceeded safety threshold.", ("yellow",),
+                   label="Recovery hand-guiding"),
     RobotStateInfo(13, "STANDALONE_STANDBY", "The Teach Pendant UI is in the actual mode "
                    "execution screen in a single work space. White is displayed for a Standalone "
-                   "Zone.", _WHITE, colour_from_table=True),
+                   "Zone.", _WHITE, colour_from_table=True,
+                   label="Standalone standby"),
     RobotStateInfo(14, "STANDALONE_RUNNING", "The task program is being executed. White is "
-                   "displayed for a Standalone Zone.", _WHITE, colour_from_table=True),
+                   "displayed for a Standalone Zone.", _WHITE, colour_from_table=True,
+                   label="Standalone running"),
     RobotStateInfo(15, "COLLABORATIVE_STANDBY", "The Teach Pendant UI is in the actual mode "
                    "execution screen in a single work space. Green is displayed for a "
-                   "Collaborative Zone.", ("green",), colour_from_table=True),
+                   "Collaborative Zone.", ("green",), colour_from_table=True,
+                   label="Collaborative standby"),
     RobotStateInfo(16, "COLLABORATIVE_RUNNING", "The task program is being executed. Green is "
-                   "displayed for a Collaborative Zone.", ("green",), colour_from_table=True),
+                   "displayed for a Collaborative Zone.", ("green",), colour_from_table=True,
+                   label="Collaborative running"),
     RobotStateInfo(17, "HIGH_PRIORITY_RUNNING", "The task program is being executed. White and "
                    "Yellow are displayed by turns for a High Priority Zone.", ("white", "yellow"),
-                   colour_from_table=True),
+                   colour_from_table=True,
+                   label="High-priority running"),
     RobotStateInfo(18, "AUTO_MEASURE", "The weight and center of gravity point of the end "
-                   "effector are measured automatically.", _WHITE),
+                   "effector are measured automatically.", _WHITE,
+                   label="Automatic measuring"),
     RobotStateInfo(19, "HANDGUIDING_CONTROL_STANDBY", "The Handguiding command is executed "
-                   "during task program execution.", _WHITE),
+                   "during task program execution.", _WHITE,
+                   label="Hand-guiding control standby"),
     RobotStateInfo(20, "HANDGUIDING_CONTROL_RUNNING", "The robot pose can be changed by pressing "
-                   "the \"Handguiding\" button.", _WHITE),
+                   "the \"Handguiding\" button.", _WHITE,
+                   label="Hand-guiding control running"),
 )
 # fmt: on
 

@@ -1917,6 +1917,8 @@ export interface components {
             colour_from_table: boolean;
             /** Description */
             description: string;
+            /** Label */
+            label: string;
             /** Name */
             name: string;
             /** Pendant Colours */

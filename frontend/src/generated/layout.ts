@@ -119,6 +119,8 @@ export interface FieldInfo {
 export interface RobotStateInfo {
   readonly value: number;
   readonly name: RobotStateName;
+  /** The state in plain words ("Standalone running"); `name` stays the identifier. */
+  readonly label: string;
   readonly description: string;
   readonly pendant_colours: readonly string[];
   readonly colour_from_table: boolean;
@@ -995,6 +997,7 @@ export const LAYOUT: Layout = {
     {
       "value": 0,
       "name": "EMERGENCY_STOP",
+      "label": "Emergency stop",
       "description": "The emergency stop state.",
       "pendant_colours": [
         "red"
@@ -1004,6 +1007,7 @@ export const LAYOUT: Layout = {
     {
       "value": 1,
       "name": "INITIALIZING",
+      "label": "Initializing",
       "description": "The initialization state for setting various parameters.",
       "pendant_colours": [
         "blue"
@@ -1013,6 +1017,7 @@ export const LAYOUT: Layout = {
     {
       "value": 2,
       "name": "SAFE_OFF",
+      "label": "Safe off (servo off)",
       "description": "The servo off state. This is robot stop state due to a function error or operation error.",
       "pendant_colours": [
         "red"
@@ -1022,6 +1027,7 @@ export const LAYOUT: Layout = {
     {
       "value": 3,
       "name": "INTERRUPTED",
+      "label": "Protective stop",
       "description": "The system is in a protective stop state due to protective stop input, exceeding the safety threshold, etc.",
       "pendant_colours": [
         "yellow"
@@ -1031,6 +1037,7 @@ export const LAYOUT: Layout = {
     {
       "value": 4,
       "name": "MANUAL_STANDBY",
+      "label": "Manual standby",
       "description": "This is the default status of teaching.",
       "pendant_colours": [
         "blue"
@@ -1040,6 +1047,7 @@ export const LAYOUT: Layout = {
     {
       "value": 5,
       "name": "MANUAL_JOGGING",
+      "label": "Manual jogging",
       "description": "The jog function is used to operate the robot.",
       "pendant_colours": [
         "blue"
@@ -1049,6 +1057,7 @@ export const LAYOUT: Layout = {
     {
       "value": 6,
       "name": "MANUAL_HANDGUIDING",
+      "label": "Manual hand-guiding",
       "description": "The robot can be operated manually during teaching.",
       "pendant_colours": [
         "blue"
@@ -1058,6 +1067,7 @@ export const LAYOUT: Layout = {
     {
       "value": 7,
       "name": "RECOVERY_STANDBY",
+      "label": "Recovery standby",
       "description": "Recovery in progress. All safety functions except for axis and TCP speed monitoring are disabled during recovery.",
       "pendant_colours": [
         "yellow"
@@ -1067,6 +1077,7 @@ export const LAYOUT: Layout = {
     {
       "value": 8,
       "name": "RECOVERY_JOGGING",
+      "label": "Recovery jogging",
       "description": "The jogs of each axis can be used to correct the exceeded safety threshold.",
       "pendant_colours": [
         "yellow"
@@ -1076,6 +1087,7 @@ export const LAYOUT: Layout = {
     {
       "value": 9,
       "name": "BACKDRIVE_HOLD",
+      "label": "Backdrive hold",
       "description": "All brakes of 6 joints are engaged, and Backdrive motion is locked.",
       "pendant_colours": [
         "yellow"
@@ -1085,6 +1097,7 @@ export const LAYOUT: Layout = {
     {
       "value": 10,
       "name": "BACKDRIVE_RELEASE",
+      "label": "Backdrive release",
       "description": "Brake of one or more joint(s) is released due to the selection of brake release.",
       "pendant_colours": [
         "yellow"
@@ -1094,6 +1107,7 @@ export const LAYOUT: Layout = {
     {
       "value": 11,
       "name": "BACKDRIVE_RELEASE_BY_COCKPIT",
+      "label": "Backdrive release by Cockpit",
       "description": "Brake of one or more joint(s) is released due to the Cockpit.",
       "pendant_colours": [
         "yellow"
@@ -1103,6 +1117,7 @@ export const LAYOUT: Layout = {
     {
       "value": 12,
       "name": "RECOVERY_HANDGUIDING",
+      "label": "Recovery hand-guiding",
       "description": "The robot can be moved directly by hand to correct the exceeded safety threshold.",
       "pendant_colours": [
         "yellow"
@@ -1112,6 +1127,7 @@ export const LAYOUT: Layout = {
     {
       "value": 13,
       "name": "STANDALONE_STANDBY",
+      "label": "Standalone standby",
       "description": "The Teach Pendant UI is in the actual mode execution screen in a single work space. White is displayed for a Standalone Zone.",
       "pendant_colours": [
         "white"
@@ -1121,6 +1137,7 @@ export const LAYOUT: Layout = {
     {
       "value": 14,
       "name": "STANDALONE_RUNNING",
+      "label": "Standalone running",
       "description": "The task program is being executed. White is displayed for a Standalone Zone.",
       "pendant_colours": [
         "white"
@@ -1130,6 +1147,7 @@ export const LAYOUT: Layout = {
     {
       "value": 15,
       "name": "COLLABORATIVE_STANDBY",
+      "label": "Collaborative standby",
       "description": "The Teach Pendant UI is in the actual mode execution screen in a single work space. Green is displayed for a Collaborative Zone.",
       "pendant_colours": [
         "green"
@@ -1139,6 +1157,7 @@ export const LAYOUT: Layout = {
     {
       "value": 16,
       "name": "COLLABORATIVE_RUNNING",
+      "label": "Collaborative running",
       "description": "The task program is being executed. Green is displayed for a Collaborative Zone.",
       "pendant_colours": [
         "green"
@@ -1148,6 +1167,7 @@ export const LAYOUT: Layout = {
     {
       "value": 17,
       "name": "HIGH_PRIORITY_RUNNING",
+      "label": "High-priority running",
       "description": "The task program is being executed. White and Yellow are displayed by turns for a High Priority Zone.",
       "pendant_colours": [
         "white",
@@ -1158,6 +1178,7 @@ export const LAYOUT: Layout = {
     {
       "value": 18,
       "name": "AUTO_MEASURE",
+      "label": "Automatic measuring",
       "description": "The weight and center of gravity point of the end effector are measured automatically.",
       "pendant_colours": [
         "white"
@@ -1167,6 +1188,7 @@ export const LAYOUT: Layout = {
     {
       "value": 19,
       "name": "HANDGUIDING_CONTROL_STANDBY",
+      "label": "Hand-guiding control standby",
       "description": "The Handguiding command is executed during task program execution.",
       "pendant_colours": [
         "white"
@@ -1176,6 +1198,7 @@ export const LAYOUT: Layout = {
     {
       "value": 20,
       "name": "HANDGUIDING_CONTROL_RUNNING",
+      "label": "Hand-guiding control running",
       "description": "The robot pose can be changed by pressing the \"Handguiding\" button.",
       "pendant_colours": [
         "white"

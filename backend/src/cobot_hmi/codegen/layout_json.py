@@ -59,6 +59,7 @@ def layout_document() -> dict[str, object]:
             {
                 "value": s.value,
                 "name": s.name,
+                "label": s.label,
                 "description": s.description,
                 "pendant_colours": list(s.pendant_colours),
                 "colour_from_table": s.colour_from_table,

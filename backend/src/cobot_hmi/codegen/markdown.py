@@ -126,15 +126,15 @@ def assembly_doc() -> str:
     lines += [
         "## Robot state (T→O byte 32)",
         "",
-        "| value | name | pendant colour | description |",
-        "|---:|---|---|---|",
+        "| value | name | in plain words | pendant colour | description |",
+        "|---:|---|---|---|---|",
     ]
     for s in ROBOT_STATES:
         colours = " and ".join(s.pendant_colours) + ("" if s.colour_from_table else " (assumed)")
-        lines.append(f"| {s.value} | `{s.name}` | {colours} | {s.description} |")
+        lines.append(f"| {s.value} | `{s.name}` | {s.label} | {colours} | {s.description} |")
     lines += [
-        f"| other | `{UNKNOWN_STATE_NAME}` | grey | Not in the table: shown as such, never an "
-        "error. |",
+        f"| other | `{UNKNOWN_STATE_NAME}` | Unknown state | grey | Not in the table: shown as "
+        "such, never an error. |",
         "",
         "Colours marked *assumed* are not stated by the robot's table; they follow the severity "
         "of the state and are a setting to check against a real teach pendant.",

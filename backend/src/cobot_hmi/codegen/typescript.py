@@ -90,6 +90,8 @@ def layout_ts() -> str:
         "export interface RobotStateInfo {",
         "  readonly value: number;",
         "  readonly name: RobotStateName;",
+        '  /** The state in plain words ("Standalone running"); `name` stays the identifier. */',
+        "  readonly label: string;",
         "  readonly description: string;",
         "  readonly pendant_colours: readonly string[];",
         "  readonly colour_from_table: boolean;",

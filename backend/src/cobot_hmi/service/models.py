@@ -786,6 +786,7 @@ class AssemblyDoc(BaseModel):
 class RobotStateDoc(BaseModel):
     value: int
     name: str
+    label: str
     description: str
     pendant_colours: list[str]
     colour_from_table: bool
