@@ -565,3 +565,25 @@ def test_export_verb(
     assert main([*base, "--robot", "nobody", "-o", str(out)]) == 2
     assert main([*base, "--fields", "nothing", "-o", str(out)]) == 2
     assert main(["export", "--state-dir", str(state), "--from", "2", "--to", "1"]) == 2
+
+
+def test_history_storage_imports_only_the_layout_and_the_codec() -> None:
+    """The layering (docs/architecture.md): the service, the command line and the emulator use
+    ``cobot_hmi.history``, so it must not import any of them (nor ``enip`` or the scanner)."""
+    import ast
+
+    import cobot_hmi.history
+
+    allowed = ("cobot_hmi.layout", "cobot_hmi.codec", "cobot_hmi.generated", "cobot_hmi.history")
+    package = Path(cobot_hmi.history.__file__).parent
+    for source in sorted(package.glob("*.py")):
+        tree = ast.parse(source.read_text(encoding="utf-8"))
+        for node in ast.walk(tree):
+            names = []
+            if isinstance(node, ast.ImportFrom) and node.module:
+                names = [node.module]
+            elif isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            for name in names:
+                if name.startswith("cobot_hmi"):
+                    assert name.startswith(allowed), f"{source.name} imports {name}"
