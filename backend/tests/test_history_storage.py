@@ -182,6 +182,20 @@ def test_journal_read_as_it_grows_equals_a_fresh_read(tmp_path: Path) -> None:
     assert segments.read_journal(journal, ["seq"]).num_rows == 400
 
 
+def test_a_journal_closed_while_a_query_lists_is_read_once(tmp_path: Path) -> None:
+    # The moment between a closed segment's rename and its journal's deletion: both on disk.
+    items = synthetic_items(50)
+    writer = segments.SegmentWriter(tmp_path, "r", segment_s=1e9)
+    writer.append(items_to_batch(items))
+    journal = writer.journal_path
+    assert journal is not None
+    writer.abandon()
+    segments.write_segment(segments.read_journal(journal), journal.parent, "r")
+    assert journal.exists() and segments.list_segments(tmp_path, "r")
+    table = read_raw(tmp_path, "r", select_elements(["robot_state"]), T0 - 1, T0 + 10)
+    assert table.column("seq").to_pylist() == list(range(1, 51))
+
+
 # --------------------------------------------------------------------------- retention
 
 

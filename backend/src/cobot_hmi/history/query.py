@@ -104,12 +104,19 @@ def check_range(from_s: float, to_s: float, points: int) -> None:
 # --------------------------------------------------------------------------- reading
 
 
-def _segments_between(root: Path, robot: str, start_us: int, end_us: int) -> list[Segment]:
-    return [s for s in list_segments(root, robot) if s.end_us >= start_us and s.start_us < end_us]
-
-
-def _journals_before(root: Path, robot: str, end_us: int) -> list[Path]:
-    return [path for start, path in list_journals(root, robot) if start < end_us]
+def _sources(
+    root: Path, robot: str, start_us: int, end_us: int
+) -> tuple[list[Segment], list[Path]]:
+    """The closed segments and the journals a range reads. The journals are listed first: one
+    the recorder closes meanwhile shows up as its segment in the listing after, and a journal
+    seen with its segment (closed, not yet deleted) is read as the segment only."""
+    journals = list_journals(root, robot)
+    closed = list_segments(root, robot)
+    starts = {s.start_us for s in closed}
+    return (
+        [s for s in closed if s.end_us >= start_us and s.start_us < end_us],
+        [path for start, path in journals if start < end_us and start not in starts],
+    )
 
 
 def iter_raw(
@@ -118,7 +125,8 @@ def iter_raw(
     """Frames with ``from_s <= time < to_s``, ``columns`` only, a table per segment (closed
     ones, then the open one), oldest first: memory holds one segment at a time."""
     start_us, end_us = math.floor(from_s * 1e6), math.ceil(to_s * 1e6)
-    for segment in _segments_between(root, robot, start_us, end_us):
+    closed, journals = _sources(root, robot, start_us, end_us)
+    for segment in closed:
         try:
             table = pq.ParquetFile(segment.path).read(columns=list(columns))
         except (OSError, pa.ArrowException):  # deleted by retention meanwhile
@@ -126,7 +134,7 @@ def iter_raw(
         # Compared as _clip compares (receive times in seconds), not by whole microseconds.
         partial = segment.start_us / 1e6 < from_s or segment.end_us / 1e6 >= to_s
         yield _clip(table, from_s, to_s, partial)
-    for path in _journals_before(root, robot, end_us):
+    for path in journals:
         yield _clip(read_journal(path, columns), from_s, to_s, True)
 
 
@@ -157,7 +165,8 @@ def read_cells(
     columns += [stat_column(e.name, s) for e in elements for s in STATS]
     start_us, end_us = first_cell * 1_000_000, end_cell * 1_000_000
     tables = []
-    for segment in _segments_between(root, robot, start_us, end_us):
+    closed, journals = _sources(root, robot, start_us, end_us)
+    for segment in closed:
         try:
             table = read_cells_file(segment.rollup_path, columns)
         except (OSError, pa.ArrowException):
@@ -168,7 +177,7 @@ def read_cells(
             table = rollup_table(raw, list(elements)).select(columns)
         whole = segment.start_us >= start_us and segment.end_us < end_us
         tables.append(table if whole else _clip_cells(table, first_cell, end_cell))
-    for path in _journals_before(root, robot, end_us):
+    for path in journals:
         journal = read_journal(path, [TIME, *(e.name for e in elements)])
         cells = rollup_table(journal, list(elements)).select(columns)
         tables.append(_clip_cells(cells, first_cell, end_cell))
