@@ -103,6 +103,9 @@ async def test_originator_holds_a_32_32_adapter_with_raw_data(
         await eventually(lambda: len(data) >= 20)
         count = adapter.connections()[0].packets_in
         await eventually(lambda: adapter.connections()[0].packets_in >= count + 10)
+        assert adapter.assembly.data(o2t) == bytes(32), "idle: the O→T instance keeps its data"
+        originator.set_run(True)
+        await eventually(lambda: adapter.assembly.data(o2t) == bytes(range(32)))
         stats = originator.stats()
     finally:
         await originator.stop()
@@ -175,12 +178,16 @@ async def test_probe_verb_against_a_32_32_adapter(adapter: Target, robot_host: s
     assert code == 0, err
     result = json.loads(out)
     assert result["assembly_sizes"][str(INSTANCES[2])] == 32
+    assert result["assembly_sizes"][str(INSTANCES[1])] == 32, "the O→T instance's own size"
     assert len(result["t2o_data_hex"]) == 64
     assert result["t2o_frame"] is None
     assert "t2o_frame_error" not in result
     code, out, err = await _run_cli(*common, *points, "--sizes", "32,284")
     assert code == 1, err
     assert json.loads(out)["sizes_match"] is False
+    code, out, err = await _run_cli(*common, *points, "--sizes", "32,32")
+    assert code == 0, err
+    assert json.loads(out)["sizes_match"] is True
 
 
 async def test_scan_beside_another_process_holding_2222(

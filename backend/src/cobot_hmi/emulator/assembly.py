@@ -5,8 +5,11 @@ The target's Assembly object (class 0x04; CIP Vol 1 Chapter 5, object library): 
 instance (the robot's frame), the O→T instance (the PLC's command image) and the configuration
 instance (size 0), with their data (attribute 3) and sizes (attribute 4), and the explicit
 services on them. The class 1 engine (``io_connections``) reads the T→O data from here; the
-O→T data comes in by class 1 or, while no connection owns it, by Set_Attribute_Single.
-Nothing here raises for a bad request: each gets its CIP general status.
+O→T data comes in by class 1 (``consume_o2t``) or, while no connection owns it, by
+Set_Attribute_Single. At the robot's O→T size (20 bytes) that data is the robot's command
+image; configured with another size (the emulator standing in for another adapter, issue 11
+"Scanning any adapter") the instance holds the bytes as they came, and its size attribute says
+the configured size. Nothing here raises for a bad request: each gets its CIP general status.
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ import struct
 import time
 from collections.abc import Callable
 
-from cobot_hmi.codec import CodecError, decode_command, encode_command, encode_frame
+from cobot_hmi.codec import O2T_SIZE, CodecError, decode_command, encode_command, encode_frame
 from cobot_hmi.emulator.process_image import ProcessImage
 from cobot_hmi.emulator.replies import class_attribute, reply
 from cobot_hmi.emulator.settings import TargetSettings
@@ -49,6 +52,10 @@ class AssemblyObject:
         self._owned = owned
         self._changed = changed
         self._t2o_cache: tuple[object, bytes] | None = None
+        self.o2t_is_command = settings.o2t_size == O2T_SIZE
+        """Whether the O→T instance holds the robot's command image (else raw bytes)."""
+        self._o2t_raw = bytes(settings.o2t_size)
+        """The O→T instance's data when it is not the robot's command image."""
 
     def instances(self) -> tuple[int, ...]:
         """Instances with data: T→O, O→T and configuration."""
@@ -74,8 +81,19 @@ class AssemblyObject:
         if instance == self.settings.t2o_instance:
             return self.t2o_data(time.time())
         if instance == self.settings.o2t_instance:
-            return encode_command(self.process_image.command_image())
+            if self.o2t_is_command:
+                return encode_command(self.process_image.command_image())
+            return self._o2t_raw
         return b""
+
+    def consume_o2t(self, data: bytes, now_s: float) -> None:
+        """New O→T data from the connection that owns the instance, in run (``data`` is the
+        configured O→T size: the class 1 engine checked it). Raises ``CodecError`` only for data
+        the robot's command image cannot hold, which a size-checked packet never is."""
+        if self.o2t_is_command:
+            self.process_image.consume_command(decode_command(data), now_s)
+        else:
+            self._o2t_raw = bytes(data)
 
     def set_data(self, instance: int, data: bytes) -> int:
         """Write attribute 3; the CIP general status."""
@@ -90,10 +108,9 @@ class AssemblyObject:
         if len(data) > self.settings.o2t_size:
             return GeneralStatus.TOO_MUCH_DATA
         try:
-            image = decode_command(data)
+            self.consume_o2t(data, time.time())
         except CodecError:
             return GeneralStatus.INVALID_ATTRIBUTE_VALUE
-        self.process_image.consume_command(image, time.time())
         self._changed()
         return GeneralStatus.SUCCESS
 

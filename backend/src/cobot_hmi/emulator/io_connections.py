@@ -19,7 +19,6 @@ import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
-from cobot_hmi.codec import decode_command
 from cobot_hmi.emulator.connections import ConnectionKind, IoConnection
 from cobot_hmi.emulator.counters import TargetCounters
 from cobot_hmi.emulator.faults import TargetFaults
@@ -79,6 +78,7 @@ class IoConnections:
         settings: TargetSettings,
         process_image: ProcessImage,
         t2o_data: Callable[[float], bytes],
+        consume_o2t: Callable[[bytes, float], None],
         *,
         faults: TargetFaults,
         counters: TargetCounters,
@@ -88,6 +88,8 @@ class IoConnections:
         self.process_image = process_image
         self._t2o_data = t2o_data
         """The T→O assembly's data at an epoch time (``AssemblyObject.t2o_data``)."""
+        self._consume_o2t = consume_o2t
+        """New O→T data of the owner in run, at an epoch time (``AssemblyObject.consume_o2t``)."""
         self.faults = faults
         self.counters = counters
         self._by_o2t = table
@@ -578,7 +580,7 @@ class IoConnections:
             conn.run = True
             if command != conn.last_applied:
                 conn.last_applied = command
-                self.process_image.consume_command(decode_command(command), time.time())
+                self._consume_o2t(command, time.time())
                 self.process_image_changed()
         elif conn.run:
             conn.run = False

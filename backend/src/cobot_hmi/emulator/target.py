@@ -66,6 +66,7 @@ class Target:
             settings,
             process_image,
             self.assembly.t2o_data,
+            self.assembly.consume_o2t,
             faults=self.faults,
             counters=self.counters,
             table=self._by_o2t,
