@@ -2,7 +2,7 @@
 connection to our emulator for more than 3 s, and the bytes it writes reach the emulator's
 command image (issue 3, "Tests"). ``make test`` installs it (``npm ci`` in tests/peers).
 
-It connects to TCP 44818 and binds UDP 2222 without SO_REUSEADDR (ethernetip.md), so the
+It connects to TCP 44818 and binds UDP 2222 without SO_REUSEADDR, so the
 emulator gets the test's own ``robot_host`` with the standard ports, and the scanner ``plc_host``.
 """
 

@@ -129,7 +129,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         default=100.0,
         metavar="MS",
         help="refresh the monitoring values (joints, TCP, currents, analog inputs) every MS: "
-        "default 100, as the real controller does whatever the RPI (assembly.md); 0: every frame",
+        "default 100, as the real controller does whatever the RPI (docs/emulator.md); "
+        "0: every frame",
     )
     robot.add_argument(
         "--register-map",

@@ -1,7 +1,7 @@
 """Layer: scanner (blocking TCP through pycomm3). The only module of the project that imports
 pycomm3 (common rules); imports the codec and nothing else of the project's I/O.
 
-Explicit (class 3 / UCMM) reads as ethernetip.md "Roles" describes them: ``list_identity`` and
+Explicit (class 3 / UCMM) reads (docs/protocol.md, "Explicit messaging"): ``list_identity`` and
 ``generic_message(service=0x0E, class_code=0x04, instance=N, attribute=3|4)`` for an assembly's
 data and size. The ``probe`` verb and the benchmark's polling baseline use it.
 """

@@ -4,7 +4,7 @@
 The originator's O→T packets (issue 3: "send O→T from the same socket at the RPI with the run/idle
 header"), sent by the cyclic pump as a periodic stream: one packet per RPI on a drift-free
 schedule (``due += RPI``, never ``sleep(RPI)``), both sequence numbers raised by one per packet
-by the pump itself (ethernetip.md "Class 1 packets"), so we never wake to send. When the data
+by the pump itself (docs/protocol.md "Cyclic packets"), so we never wake to send. When the data
 changes (a write, run/idle), :meth:`rebuild` hands the pump the new packet: the next one on the
 wire carries it, with the next sequence numbers.
 

@@ -753,7 +753,7 @@ class Originator:
         self.malformed += 1
 
     def _check_t2o_silence(self, link: _Link, now: float, lag_s: float) -> None:
-        """The watchdog (ethernetip.md "Forward Open": RPI × (4 << multiplier)). Checked after
+        """The watchdog (docs/protocol.md, Forward Open: RPI × (4 << multiplier)). Checked after
         each T→O wake-up, including the one the pump gives once T→O has been silent for the
         timeout, and at the O→T stream's fallback timer: a steady T→O stream costs no wake-up of
         its own for it.
@@ -859,7 +859,7 @@ class Originator:
 
 def _source_host(port: IoPort) -> str | None:
     """The TCP session's source address: the target sends T→O to the address our TCP
-    connection comes from (ethernetip.md "Two stacks on one host"): the port's address."""
+    connection comes from (docs/operations.md, ports and addresses): the port's address."""
     host = port.local_host
     return None if host in ("0.0.0.0", "") else host
 

@@ -1,6 +1,6 @@
 """Layer: scanner (asyncio TCP). Imports ``cobot_hmi.enip``.
 
-An encapsulation session from the originator's side (ethernetip.md "Encapsulation"):
+An encapsulation session from the originator's side (CIP Vol 2 §2-3, docs/protocol.md):
 RegisterSession, SendRRData request/response matched by sender context, UnRegisterSession.
 The originator uses it for the Forward Open / Forward Close and the explicit read of the O→T
 assembly; it runs on the event loop (pycomm3 is blocking, so it cannot).
