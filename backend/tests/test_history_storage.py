@@ -466,6 +466,36 @@ def test_parquet_export_read_by_pyarrow(recorded: tuple[Path, list[Item]]) -> No
         assert row.tobytes() == encode_frame(frame)
 
 
+def test_parquet_export_read_by_duckdb(recorded: tuple[Path, list[Item]], tmp_path: Path) -> None:
+    """An independent reader (DuckDB's own Parquet reader, no Arrow involved)."""
+    import duckdb
+
+    root, items = recorded
+    path = tmp_path / "export.parquet"
+    path.write_bytes(_export(root, "parquet", ["joint_position", "servo_on", "robot_state"]))
+    with duckdb.connect() as db:
+        rows = db.execute(
+            'SELECT epoch_us("time"), seq, "joint_position.3", servo_on, robot_state '
+            f"FROM read_parquet('{path}') ORDER BY seq"
+        ).fetchall()
+        types = dict(
+            db.execute(
+                f"SELECT column_name, column_type FROM (DESCRIBE SELECT * FROM '{path}')"
+            ).fetchall()
+        )
+    assert types["time"] == "TIMESTAMP WITH TIME ZONE"
+    assert types["joint_position.3"] == "FLOAT"
+    assert types["servo_on"] == "BOOLEAN"
+    assert types["robot_state"] == "UTINYINT"
+    assert len(rows) == len(items)
+    for (time_us, seq, joint, servo, state), (i_seq, t, frame) in zip(rows, items, strict=True):
+        assert time_us == round(t * 1e6)
+        assert seq == i_seq
+        assert np.float32(joint) == np.float32(frame.joint_position[3])
+        assert servo == frame.servo_on
+        assert state == frame.robot_state
+
+
 def test_csv_export_read_by_python_csv(recorded: tuple[Path, list[Item]]) -> None:
     root, items = recorded
     text = _export(root, "csv", ["joint_position", "servo_on", "robot_state"]).decode()
