@@ -106,7 +106,7 @@ class Recorder:
                 SUBSCRIPTION_NAME, self.settings.history_queue_frames
             )
             track.dropped_reported = 0
-            with contextlib.suppress(OSError):  # a crash's journals: closed before new ones
+            with contextlib.suppress(OSError, pa.ArrowException):  # a crash's journals first
                 await asyncio.to_thread(segments.recover, self.root, name)
         self._thread = threading.Thread(target=self._run, name="history recorder", daemon=True)
         self._thread.start()
