@@ -8,7 +8,7 @@ test("the panel survives the robot going away and coming back", async ({ page },
   const status = page.getByTestId("connection-status");
   const badge = page.getByTestId("robot-state");
   await expect(status).toHaveAttribute("data-state", "connected");
-  await expect(badge).toHaveText("STANDALONE_RUNNING");
+  await expect(badge).toHaveAttribute("data-state-name", "STANDALONE_RUNNING");
   await expect(page.getByTestId("stale-banner")).toHaveCount(0);
   // A mark that a reload would wipe.
   await page.evaluate(() => ((window as unknown as { __e2eNoReload: boolean }).__e2eNoReload = true));
@@ -37,7 +37,7 @@ test("the panel survives the robot going away and coming back", async ({ page },
   await expect(page.getByTestId("stale-banner")).toHaveCount(0);
   await expect(page.getByTestId("di-1")).not.toHaveCSS("filter", "grayscale(1)");
   // The freshly started robot initialises, then runs its program: live data again.
-  await expect(badge).toHaveText("STANDALONE_RUNNING", { timeout: 15_000 });
+  await expect(badge).toHaveAttribute("data-state-name", "STANDALONE_RUNNING", { timeout: 15_000 });
   expect(await page.evaluate(() => (window as unknown as { __e2eNoReload?: boolean }).__e2eNoReload)).toBe(true);
   await screenshot(page, testInfo, "panel-reconnected");
 });

@@ -41,8 +41,8 @@ test("the fleet overview shows each robot with its own state, link and control",
   // In the service's order: the default robot first.
   await expect(tiles.nth(0)).toHaveAttribute("data-robot", FIRST);
   await expect(tiles.nth(1)).toHaveAttribute("data-robot", SECOND);
-  await expect(tile(page, FIRST).getByTestId("robot-state")).toHaveText("STANDALONE_RUNNING");
-  await expect(tile(page, SECOND).getByTestId("robot-state")).toHaveText(secondState);
+  await expect(tile(page, FIRST).getByTestId("robot-state")).toHaveAttribute("data-state-name", "STANDALONE_RUNNING");
+  await expect(tile(page, SECOND).getByTestId("robot-state")).toHaveAttribute("data-state-name", secondState);
   for (const name of [FIRST, SECOND]) {
     await expect(tile(page, name).getByTestId("fleet-connection")).toHaveAttribute("data-state", "connected");
     await expect(tile(page, name).getByTestId("fleet-holder")).toHaveAttribute("data-holder", "");
@@ -64,7 +64,7 @@ test("the fleet overview shows each robot with its own state, link and control",
   await tile(page, SECOND).getByTestId("fleet-panel-link").click();
   await expect(page).toHaveURL(new RegExp(`/\\?robot=${SECOND}$`));
   await expect(page.getByTestId("robot-select")).toHaveValue(SECOND);
-  await expect(page.getByTestId("robot-state")).toHaveText(secondState);
+  await expect(page.getByTestId("robot-state")).toHaveAttribute("data-state-name", secondState);
 });
 
 test("the panel switches robot: stream, state, control and URL follow", async ({ page, robot2, operatorApi }, testInfo) => {
@@ -78,12 +78,12 @@ test("the panel switches robot: stream, state, control and URL follow", async ({
   // Without ?robot= the panel shows the service's default (first) robot and names it in the URL.
   await expect(select).toHaveValue(FIRST);
   await expect(page).toHaveURL(new RegExp(`/\\?robot=${FIRST}$`));
-  await expect(badge).toHaveText("STANDALONE_RUNNING");
+  await expect(badge).toHaveAttribute("data-state-name", "STANDALONE_RUNNING");
   await expect(status).toHaveAttribute("data-state", "connected");
 
   await select.selectOption(SECOND);
   await expect(page).toHaveURL(new RegExp(`/\\?robot=${SECOND}$`));
-  await expect(badge).toHaveText(secondState);
+  await expect(badge).toHaveAttribute("data-state-name", secondState);
   await expect(status).toHaveAttribute("data-state", "connected");
   expect(sockets).toContain(`/api/v1/robots/${FIRST}/stream`);
   expect(sockets).toContain(`/api/v1/robots/${SECOND}/stream`);
@@ -99,13 +99,13 @@ test("the panel switches robot: stream, state, control and URL follow", async ({
 
   // What the second robot does is what the panel shows now.
   await robot2.estop();
-  await expect(badge).toHaveText("EMERGENCY_STOP");
+  await expect(badge).toHaveAttribute("data-state-name", "EMERGENCY_STOP");
   await screenshot(page, testInfo, "panel-second-robot");
 
   // Back: the first robot again, live, untouched by the second's emergency stop.
   await page.goBack();
   await expect(select).toHaveValue(FIRST);
-  await expect(badge).toHaveText("STANDALONE_RUNNING");
+  await expect(badge).toHaveAttribute("data-state-name", "STANDALONE_RUNNING");
   await expect(status).toHaveAttribute("data-state", "connected");
 });
 
@@ -117,12 +117,12 @@ test("the kiosk shows the robot its URL names", async ({ page, robot2 }) => {
 
   await page.goto(`/kiosk?robot=${SECOND}`);
   await expect(page.getByTestId("kiosk-robot")).toHaveText(SECOND);
-  await expect(page.getByTestId("robot-state")).toHaveText(secondState);
+  await expect(page.getByTestId("robot-state")).toHaveAttribute("data-state-name", secondState);
   await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
 
   await page.goto(`/kiosk?robot=${FIRST}`);
   await expect(page.getByTestId("kiosk-robot")).toHaveText(FIRST);
-  await expect(page.getByTestId("robot-state")).toHaveText("STANDALONE_RUNNING");
+  await expect(page.getByTestId("robot-state")).toHaveAttribute("data-state-name", "STANDALONE_RUNNING");
 
   // Each page streamed its robot (a busy machine may make a kiosk reconnect: same path again).
   expect([...new Set(sockets)]).toEqual([`/api/v1/robots/${SECOND}/stream`, `/api/v1/robots/${FIRST}/stream`]);

@@ -1,6 +1,9 @@
-/** The five status flags with their full names from the layout. */
+/**
+ * The five status flags in plain words from the layout ("Servo on"); the robot's own name of the
+ * flag (SERVO_ON_ROBOT, SO) in the tooltip.
+ */
 import type { Frame } from "../generated/layout";
-import { FLAG_FIELDS, isFlagField, kebab } from "../lib/layoutInfo";
+import { FLAG_FIELDS, flagEnumName, isFlagField, kebab } from "../lib/layoutInfo";
 
 interface Props {
   readonly frame: Frame | null;
@@ -19,10 +22,10 @@ export function FlagBadges({ frame, stale }: Props) {
             className={`flag flag--${kebab(field.name)}${on === null ? " flag--unknown" : ""}`}
             data-testid={`flag-${kebab(field.name)}`}
             data-state={state}
-            title={`${field.description} (${field.flag?.abbreviation ?? ""})`}
+            title={`${field.description}: ${on === null ? "unknown" : state} (${flagEnumName(field)})`}
           >
             <span className="flag__light" aria-hidden="true" />
-            <span className="flag__name">{field.flag?.full_name ?? field.name}</span>
+            <span className="flag__name">{field.description}</span>
             <span className="visually-hidden">{state}</span>
           </div>
         );

@@ -1,6 +1,10 @@
-/** The robot-state badge: the layout's name, pendant colours (alternating for two), description as tooltip. */
-import { Fragment, type CSSProperties } from "react";
-import { stateBadge } from "../lib/stateBadge";
+/**
+ * The robot-state badge: the state in plain words from the layout ("Standalone running"), pendant
+ * colours (alternating for two); the description and the enum name (what the API says) in the
+ * tooltip and in `data-state-name`.
+ */
+import type { CSSProperties } from "react";
+import { stateBadge, stateTooltip } from "../lib/stateBadge";
 
 interface Props {
   readonly value: number | null | undefined;
@@ -17,13 +21,14 @@ export function StateBadge({ value, stale, size }: Props) {
     "--badge-fg-0": first?.text,
     "--badge-bg-1": second?.background,
     "--badge-fg-1": second?.text,
-    // Lets the kiosk size the longest names (28 characters) to the screen's width.
-    "--name-length": Math.max(badge.name.length, 12),
+    // Lets the kiosk size the longest labels (29 characters) to the screen's width.
+    "--name-length": Math.max(badge.label.length, 12),
   } as CSSProperties;
   const classes = ["state-badge", `state-badge--${size}`];
   if (badge.alternating) classes.push("state-badge--alternating");
   if (!badge.known) classes.push("state-badge--unknown");
   if (stale) classes.push("is-stale");
+  const tooltip = stateTooltip(badge);
   return (
     <div
       className={classes.join(" ")}
@@ -33,18 +38,11 @@ export function StateBadge({ value, stale, size }: Props) {
       data-state-value={badge.value ?? ""}
       data-colours={badge.colours.join(" ")}
       data-stale={stale ? "true" : "false"}
-      title={badge.description}
+      title={tooltip}
       role="status"
-      aria-label={`Robot state ${badge.name}${stale ? " (stale)" : ""}: ${badge.description}`}
+      aria-label={`Robot state ${badge.label}${stale ? " (stale)" : ""}: ${tooltip}`}
     >
-      {badge.name.split("_").map((part, i) => (
-        // A line may break after an underscore (long names on narrow screens), never inside a word.
-        <Fragment key={i}>
-          {i > 0 && "_"}
-          {i > 0 && <wbr />}
-          {part}
-        </Fragment>
-      ))}
+      {badge.label}
     </div>
   );
 }

@@ -1,5 +1,5 @@
 import { describe, expect, it } from "vitest";
-import { analogRange, analogUnit, channelNumber, commandField, FLAG_FIELDS, frameField, kebab, keyLabel } from "./layoutInfo";
+import { analogRange, analogUnit, channelNumber, commandField, FLAG_FIELDS, flagEnumName, frameField, kebab, keyLabel } from "./layoutInfo";
 
 describe("layout lookups", () => {
   it("lists the five flags with their full names, in the layout's order", () => {
@@ -11,6 +11,11 @@ describe("layout lookups", () => {
       "power-button-pressed",
     ]);
     expect(FLAG_FIELDS.every((f) => (f.flag?.full_name ?? "") !== "")).toBe(true);
+  });
+
+  it("names each flag in plain words and keeps the robot's own name for the tooltip", () => {
+    expect(FLAG_FIELDS.map((f) => f.description)).toContain("Servo on");
+    expect(flagEnumName(frameField("servo_on"))).toBe("SERVO_ON_ROBOT, SO");
   });
 
   it("numbers test ids as the robot labels its channels", () => {

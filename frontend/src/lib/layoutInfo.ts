@@ -49,6 +49,12 @@ export type FlagFieldName =
   | "direct_teach_button_pressed"
   | "power_button_pressed";
 
+/** The robot's own name of a flag and its abbreviation ("SERVO_ON_ROBOT, SO"), for tooltips. */
+export function flagEnumName(field: FieldInfo): string {
+  if (field.flag === undefined) return field.name;
+  return `${field.flag.full_name}, ${field.flag.abbreviation}`;
+}
+
 export function isFlagField(name: string): name is FlagFieldName {
   return FLAG_FIELDS.some((f) => f.name === name);
 }

@@ -127,6 +127,14 @@ export class LiveData {
 
   getSnapshot = (): LiveSnapshot => this.current;
 
+  /**
+   * The newest frame as received, between snapshots: for views that write the DOM themselves at
+   * the data's own rate (the numeric readouts) without a React render per frame.
+   */
+  latestFrame(): Frame | null {
+    return this.frame;
+  }
+
   setSocketState(state: SocketState): void {
     if (state === this.socket) return;
     this.socket = state;

@@ -1,6 +1,6 @@
 import { describe, expect, it } from "vitest";
 import { LAYOUT, UNKNOWN_STATE_NAME } from "../generated/layout";
-import { NO_DATA_NAME, UNKNOWN_PAINT, paintOf, stateBadge } from "./stateBadge";
+import { NO_DATA_LABEL, NO_DATA_NAME, UNKNOWN_LABEL, UNKNOWN_PAINT, paintOf, stateBadge, stateTooltip } from "./stateBadge";
 
 describe("stateBadge", () => {
   it("knows all 21 states of the layout", () => {
@@ -15,6 +15,9 @@ describe("stateBadge", () => {
       const badge = stateBadge(value);
       expect(badge.known).toBe(true);
       expect(badge.name).toBe(info.name);
+      expect(badge.label).toBe(info.label);
+      expect(badge.label).not.toBe(info.name);
+      expect(stateTooltip(badge)).toBe(`${info.description} (${info.name})`);
       expect(badge.description).toBe(info.description);
       expect(badge.colours).toEqual(info.pendant_colours);
       expect(badge.alternating).toBe(info.pendant_colours.length > 1);
@@ -30,6 +33,8 @@ describe("stateBadge", () => {
       return stateBadge(info.value);
     };
     expect(byName("STANDALONE_RUNNING").colours).toEqual(["white"]);
+    expect(byName("STANDALONE_RUNNING").label).toBe("Standalone running");
+    expect(byName("INTERRUPTED").label).toBe("Protective stop");
     expect(byName("COLLABORATIVE_RUNNING").colours).toEqual(["green"]);
     expect(byName("EMERGENCY_STOP").colours).toEqual(["red"]);
     const hp = byName("HIGH_PRIORITY_RUNNING");
@@ -44,6 +49,7 @@ describe("stateBadge", () => {
     const badge = stateBadge(42);
     expect(badge.known).toBe(false);
     expect(badge.name).toBe(UNKNOWN_STATE_NAME);
+    expect(badge.label).toBe(UNKNOWN_LABEL);
     expect(badge.description).toContain("42");
     expect(badge.paints).toEqual([UNKNOWN_PAINT]);
     expect(badge.alternating).toBe(false);
@@ -51,6 +57,7 @@ describe("stateBadge", () => {
 
   it("shows NO DATA before the first frame", () => {
     expect(stateBadge(null).name).toBe(NO_DATA_NAME);
+    expect(stateBadge(null).label).toBe(NO_DATA_LABEL);
     expect(stateBadge(undefined).known).toBe(false);
   });
 });

@@ -32,6 +32,8 @@ export interface StateBadgeView {
   readonly value: number | null;
   /** The layout's state name, UNKNOWN for a value it does not define, NO DATA before a frame. */
   readonly name: string;
+  /** The state in plain words for people ("Standalone running"), from the layout. */
+  readonly label: string;
   /** The layout's description, shown as the badge's tooltip. */
   readonly description: string;
   /** Pendant colour names in display order; two or more alternate ("in turn"). */
@@ -42,6 +44,14 @@ export interface StateBadgeView {
 }
 
 export const NO_DATA_NAME = "NO DATA";
+/** What the badge says before a frame and for a value the layout does not define. */
+export const NO_DATA_LABEL = "No data";
+export const UNKNOWN_LABEL = "Unknown state";
+
+/** The tooltip of a state: its description, then the enum name the API and the robot use. */
+export function stateTooltip(view: StateBadgeView): string {
+  return view.known ? `${view.description} (${view.name})` : view.description;
+}
 
 const BY_VALUE = new Map(LAYOUT.robot_states.map((s) => [s.value, s]));
 
@@ -51,6 +61,7 @@ export function stateBadge(value: number | null | undefined): StateBadgeView {
     return {
       value: null,
       name: NO_DATA_NAME,
+      label: NO_DATA_LABEL,
       description: "No frame has been received from the robot yet.",
       colours: [],
       paints: [UNKNOWN_PAINT],
@@ -63,6 +74,7 @@ export function stateBadge(value: number | null | undefined): StateBadgeView {
     return {
       value,
       name: UNKNOWN_STATE_NAME,
+      label: UNKNOWN_LABEL,
       description: `The robot reported state value ${value}, which the layout does not define.`,
       colours: [],
       paints: [UNKNOWN_PAINT],
@@ -73,6 +85,7 @@ export function stateBadge(value: number | null | undefined): StateBadgeView {
   return {
     value,
     name: info.name,
+    label: info.label,
     description: info.description,
     colours: info.pendant_colours,
     paints: info.pendant_colours.map(paintOf),

@@ -10,11 +10,13 @@ import { ConnectionHealth } from "../components/ConnectionHealth";
 import { ControlHolder } from "../components/ControlHolder";
 import { CustomPlots } from "../components/CustomPlots";
 import { FlagBadges } from "../components/FlagBadges";
+import { JointTable } from "../components/JointTable";
 import { LivePlotView } from "../components/LivePlotView";
 import { Robot3DView } from "../components/Robot3DView";
 import { RuntimeContext, useLive } from "../components/runtimeContext";
 import { StaleBanner } from "../components/StaleBanner";
 import { StateBadge } from "../components/StateBadge";
+import { TcpReadout } from "../components/TcpReadout";
 import { TagNamesContext } from "../components/tagNames";
 import { api } from "../lib/api";
 import { FleetPoller, knownRobots, type FleetTile } from "../lib/fleet";
@@ -34,6 +36,7 @@ import { SessionBar } from "./SessionBar";
 import { TagsView } from "./TagsView";
 import { WriteProvider, useWrites } from "./writeContext";
 import "../styles/panel.css";
+import "../styles/readouts.css";
 
 declare global {
   interface Window {
@@ -127,6 +130,10 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
           <main className={`panel-main${stale ? " is-stale" : ""}`}>
             <section id="joints">
               <h2>Joints</h2>
+              <div className="readouts">
+                <JointTable stale={stale} />
+                <TcpReadout stale={stale} />
+              </div>
               <div className="plot-grid">
                 {JOINT_PLOTS.map((spec) => (
                   <LivePlotView key={spec.id} spec={spec} theme="light" />

@@ -1,0 +1,42 @@
+/**
+ * The TCP readout: pose (position, orientation), velocity (linear, angular), external force
+ * and moment, three elements each, units beside each quantity; cells written by `useLiveCells`
+ * at the stream's own rate.
+ */
+import { NO_VALUE, TCP_ROWS, type ReadoutCell } from "../lib/readouts";
+import { CELL_ATTRIBUTE, useLiveCells } from "./LiveCells";
+
+const ELEMENTS = 3;
+
+const CELLS: readonly ReadoutCell[] = TCP_ROWS.flatMap((row) =>
+  Array.from({ length: ELEMENTS }, (_, index) => ({ field: row.field, index, decimals: row.decimals })),
+);
+
+export function TcpReadout({ stale }: { readonly stale: boolean }) {
+  const root = useLiveCells<HTMLTableElement>(CELLS);
+  return (
+    <div className="readout-scroll">
+      <table className={`readout tcp-readout${stale ? " is-stale" : ""}`} data-testid="tcp-readout" ref={root}>
+        <caption className="visually-hidden">TCP values of the newest frame (base frame)</caption>
+        <tbody>
+          {TCP_ROWS.map((row, r) => (
+            <tr key={row.field} data-field={row.field}>
+              <th scope="row">
+                {row.title}
+                {row.unit !== "" && <span className="readout__unit"> [{row.unit}]</span>}
+              </th>
+              {row.channels.slice(0, ELEMENTS).map((element, i) => (
+                <td key={element} data-field={row.field} data-index={i}>
+                  <span className="readout__element">{element}</span>{" "}
+                  <span className="readout__value" {...{ [CELL_ATTRIBUTE]: r * ELEMENTS + i }}>
+                    {NO_VALUE}
+                  </span>
+                </td>
+              ))}
+            </tr>
+          ))}
+        </tbody>
+      </table>
+    </div>
+  );
+}
