@@ -37,7 +37,7 @@ from service_support import (
     running_service,
     service_settings,
 )
-from test_history_storage import brute_force, same
+from test_history_storage import brute_force, f32, same
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -269,7 +269,7 @@ async def test_exports_read_back_by_independent_readers(
         for name, value in item["frame"].items():
             if name.endswith("_name"):
                 continue
-            assert message[name] == value, name
+            assert f32(message[name]) == f32(value), name
     # The connection coming up is on the same time axis, in its own channel.
     assert any(e["kind"] == "connection" and e["state"] == "connected" for e in events)
 

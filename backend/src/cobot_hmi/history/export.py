@@ -290,13 +290,24 @@ def _mcap(
         times_ns = (micros.astype(np.int64) * 1000).tolist()
         times_s = (micros / 1e6).tolist()
         seqs = table.column(SEQ).to_pylist()
-        values = {e.name: table.column(e.name).to_pylist() for e in elements}
+        values = {e.name: table.column(e.name).to_pylist() for e in elements if e.kind != "float"}
+        # REAL arrays as float32 rows: orjson writes each as the shortest text that reads back
+        # as the same float32 (as the CSV does), not the 17 digits of its double.
+        blocks = {
+            f.name: np.column_stack(
+                [table.column(c).to_numpy(zero_copy_only=False) for c in columns]
+            ).astype(np.float32)
+            for f, columns in fields
+            if f.value_kind == "float"
+        }
         for row, time_ns in enumerate(times_ns):
             events_until(time_ns)
             message: dict[str, object] = {"time": times_s[row], "seq": seqs[row]}
             # The frame's JSON shape (``codec.frame_to_json``): scalars, arrays, records.
             for f, columns in fields:
-                if f.scalar:
+                if f.name in blocks:
+                    message[f.name] = blocks[f.name][row]
+                elif f.scalar:
                     message[f.name] = values[columns[0]][row]
                 elif f.element_names:
                     message[f.name] = {
@@ -304,9 +315,8 @@ def _mcap(
                     }
                 else:
                     message[f.name] = [values[c][row] for c in columns]
-            writer.add_message(
-                frames, time_ns, orjson.dumps(message), time_ns, seqs[row] & 0xFFFFFFFF
-            )
+            data = orjson.dumps(message, option=orjson.OPT_SERIALIZE_NUMPY)
+            writer.add_message(frames, time_ns, data, time_ns, seqs[row] & 0xFFFFFFFF)
         yield sink.take()
     events_until(None)
     writer.finish()  # type: ignore[no-untyped-call]
