@@ -182,6 +182,21 @@ def test_journal_read_as_it_grows_equals_a_fresh_read(tmp_path: Path) -> None:
     assert segments.read_journal(journal, ["seq"]).num_rows == 400
 
 
+def test_cells_read_in_parts_equal_the_file(tmp_path: Path) -> None:
+    items = synthetic_items(300, period_s=0.1)
+    write_recording(tmp_path, "r", items, 150)  # a closed segment of 15 s, then a journal
+    writer_segment = segments.list_segments(tmp_path, "r")[0]
+    first = segments.read_cells_file(writer_segment.rollup_path, ["cell", "robot_state:max"])
+    both = segments.read_cells_file(
+        writer_segment.rollup_path, ["robot_state:max", "servo_on:min", "cell"]
+    )
+    with pa.memory_map(str(writer_segment.rollup_path)) as source:
+        whole = pa.ipc.open_file(source).read_all()
+        assert both.equals(whole.select(["robot_state:max", "servo_on:min", "cell"]))
+        assert first.equals(whole.select(["cell", "robot_state:max"]))
+    assert both.num_rows == 15
+
+
 def test_a_journal_closed_while_a_query_lists_is_read_once(tmp_path: Path) -> None:
     # The moment between a closed segment's rename and its journal's deletion: both on disk.
     items = synthetic_items(50)

@@ -267,8 +267,53 @@ def _write_cells(table: pa.Table, path: Path) -> None:
         raise
 
 
+class _CellsCache:
+    """Columns of closed segments' cells files, the most recently used first out last, up to
+    ``max_bytes``: a closed segment's files never change."""
+
+    def __init__(self, max_bytes: int) -> None:
+        self.max_bytes = max_bytes
+        self.bytes = 0
+        self._entries: OrderedDict[Path, dict[str, pa.Array]] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, path: Path) -> dict[str, pa.Array] | None:
+        with self._lock:
+            entry = self._entries.get(path)
+            if entry is not None:
+                self._entries.move_to_end(path)
+                return dict(entry)
+            return None
+
+    def keep(self, path: Path, columns: dict[str, pa.Array]) -> None:
+        with self._lock:
+            entry = self._entries.setdefault(path, {})
+            for name, array in columns.items():
+                if name not in entry:
+                    entry[name] = array
+                    self.bytes += array.nbytes
+            self._entries.move_to_end(path)
+            while self.bytes > self.max_bytes and len(self._entries) > 1:
+                _, evicted = self._entries.popitem(last=False)
+                self.bytes -= sum(a.nbytes for a in evicted.values())
+
+
+_CELLS: Final = _CellsCache(128 * 1024 * 1024)
+
+
 def read_cells_file(path: Path, columns: list[str]) -> pa.Table:
-    """``columns`` of a cells file, only theirs decompressed (``OSError``/``ArrowException``)."""
+    """``columns`` of a cells file (``OSError``/``ArrowException``). The columns read are kept
+    (``_CellsCache``, 128 MiB), so a plot that pans and zooms over days reads each file once."""
+    cached = _CELLS.get(path) or {}
+    missing = [c for c in columns if c not in cached]
+    if missing:
+        read = _read_cells_columns(path, missing)
+        _CELLS.keep(path, read)
+        cached.update(read)
+    return pa.table({c: cached[c] for c in columns})
+
+
+def _read_cells_columns(path: Path, columns: list[str]) -> dict[str, pa.Array]:
     with pa.memory_map(str(path)) as source:
         schema = pa.ipc.open_file(source).schema
         indices = [schema.get_field_index(c) for c in columns]
@@ -276,8 +321,14 @@ def read_cells_file(path: Path, columns: list[str]) -> pa.Table:
             raise pa.ArrowInvalid(f"{path}: a column is missing")
         options = pa.ipc.IpcReadOptions(included_fields=indices, use_threads=False)
         table = pa.ipc.open_file(source, options=options).read_all()
-        # Copied out of the mapping before it closes.
-        return table.select(columns).combine_chunks()
+        # Copied out of the mapping before it closes: one chunk per column.
+        table = table.select(columns).combine_chunks()
+    return {
+        c: table.column(c).chunk(0)
+        if table.column(c).num_chunks
+        else pa.array([], table.schema.field(c).type)
+        for c in columns
+    }
 
 
 def write_segment(table: pa.Table, directory: Path, robot: str) -> Segment | None:
