@@ -5,8 +5,14 @@
  */
 import { StrictMode, type ComponentType } from "react";
 import { createRoot } from "react-dom/client";
+import { themeStore } from "./components/theme";
 import { faceOf } from "./lib/route";
 import "./styles/common.css";
+import "./styles/theme.css";
+
+// The face and the theme on <html> before the first render: no flash of the other theme.
+document.documentElement.dataset.face = faceOf(window.location.pathname);
+themeStore();
 
 async function load(): Promise<ComponentType> {
   switch (faceOf(window.location.pathname)) {

@@ -10,9 +10,11 @@ import type { PlotCoordinator } from "../lib/plotting";
 import { createLiveRuntime } from "../lib/runtime";
 import { LivePlotView } from "./LivePlotView";
 import { RuntimeContext } from "./runtimeContext";
+import { useTheme } from "./theme";
 import "../styles/customPlots.css";
 
 function CustomPlotPane({ plot, coordinator, onRemove }: { plot: CustomPlot; coordinator: PlotCoordinator; onRemove: () => void }) {
+  const theme = useTheme();
   const runtime = useMemo(
     () => createLiveRuntime([plot.spec], { robot: plot.robot, rate_hz: CUSTOM_PLOT_RATE_HZ, coordinator }),
     [plot, coordinator],
@@ -24,7 +26,7 @@ function CustomPlotPane({ plot, coordinator, onRemove }: { plot: CustomPlot; coo
   return (
     <div className="custom-plot" data-testid={`${plot.spec.id}-pane`} data-robot={plot.robot} data-field={plot.field}>
       <RuntimeContext.Provider value={runtime}>
-        <LivePlotView spec={plot.spec} theme="light" />
+        <LivePlotView spec={plot.spec} theme={theme} />
       </RuntimeContext.Provider>
       <button type="button" className="custom-plot__remove" data-testid={`${plot.spec.id}-remove`} onClick={onRemove}>
         Remove plot

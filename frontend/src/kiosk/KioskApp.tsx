@@ -3,8 +3,8 @@
  * service's default robot; `tiles` chooses its large numeric tiles, any numeric field of the
  * frame; `robot3d=1` adds the 3D view, `arm=M0609` names the arm it draws): read-only by
  * construction. Its component tree imports no write control,
- * no REST module and no login (a test walks its imports); it reads the WebSocket only. Dark,
- * readable from three metres, cursor hidden, reconnects by itself, bounded memory, and shifts a
+ * no REST module and no login (a test walks its imports); it reads the WebSocket only. Light or
+ * dark as the system says (or `theme=light|dark` in its URL), readable from three metres, cursor hidden, reconnects by itself, bounded memory, and shifts a
  * few pixels now and then against burn-in without ever hiding the state or an emergency stop.
  */
 import { useEffect, useMemo, useState } from "react";
@@ -19,6 +19,7 @@ import { StaleBanner } from "../components/StaleBanner";
 import { Robot3DView } from "../components/Robot3DView";
 import { StateBadge } from "../components/StateBadge";
 import { TagNamesContext } from "../components/tagNames";
+import { useTheme } from "../components/theme";
 import { burnInOffset, BURN_IN_PERIOD_MS } from "../lib/burnIn";
 import { tilesFromSearch } from "../lib/kioskTiles";
 import { JOINT_PLOTS, TCP_PLOTS, type PlotSpec } from "../lib/plots";
@@ -85,6 +86,7 @@ function Kiosk() {
   const stale = live.health !== "connected";
   const frame = live.frame;
   const estop = frame?.emergency_stopped === true;
+  const theme = useTheme();
   return (
     <TagNamesContext.Provider value={tags}>
       <div className="kiosk" data-testid="kiosk" data-stale={stale ? "true" : "false"}>
@@ -123,13 +125,13 @@ function Kiosk() {
           <KioskTiles fields={options.tiles.fields} unknown={options.tiles.unknown} frame={frame} />
           {options.robot3d && (
             <div className="kiosk__robot3d">
-              <Robot3DView model={options.arm} theme="dark" interactive={false} height_px={360} />
+              <Robot3DView model={options.arm} theme={theme} interactive={false} height_px={360} />
             </div>
           )}
           <main className={`kiosk__main${stale ? " is-stale" : ""}`}>
             <div className="kiosk__plots">
               {KIOSK_PLOTS.map((spec) => (
-                <LivePlotView key={spec.id} spec={spec} theme="dark" readOnly height_px={260} />
+                <LivePlotView key={spec.id} spec={spec} theme={theme} readOnly height_px={260} />
               ))}
             </div>
             <div className="kiosk__io">

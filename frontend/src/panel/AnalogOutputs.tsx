@@ -1,11 +1,13 @@
 /**
  * Analog outputs: actual value with its type and unit, the command being sent, and a setpoint
- * field with a type choice. The backend validates the range (the refusal is shown here); the
- * layout's range for the chosen type is shown as a hint.
+ * field with a type choice. The setpoint is checked against the layout's range for the chosen
+ * type before the confirmation is asked (a decimal comma is accepted); the refusal goes away as
+ * soon as a valid value is typed. The backend checks again (its refusal is shown here too).
  */
 import { useState } from "react";
 import type { Frame } from "../generated/layout";
 import { analogRange, analogTypeName, analogUnit, channelNumber, commandField, frameField } from "../lib/layoutInfo";
+import { checkSetpoint } from "../lib/writeChecks";
 import { writeKey, type WriteValue } from "../lib/writes";
 import { formatAnalog } from "../components/IoView";
 import { useWrites, useWriteView } from "./writeContext";
@@ -30,12 +32,26 @@ function AnalogOutput({ index, label, frame }: { index: number; label: string; f
   const reason = localReason ?? valueView.reason ?? typeView.reason;
   const testId = `ao-${channelNumber(label)}`;
 
+  // A refusal (ours or the service's) stays only while the typed value is still not valid.
+  const recheck = (text: string, forType: number) => {
+    if (localReason === null && valueView.reason === null) return;
+    const checked = checkSetpoint(text, analogRange(typeField, forType));
+    if (checked.ok) {
+      setLocalReason(null);
+      writes.tracker.clear(valueKey);
+      writes.tracker.clear(typeKey);
+    } else if (localReason !== null) {
+      setLocalReason(checked.reason);
+    }
+  };
+
   const submit = () => {
-    const value = Number(setpoint.trim());
-    if (setpoint.trim() === "" || !Number.isFinite(value)) {
-      setLocalReason("enter a number");
+    const checked = checkSetpoint(setpoint, range);
+    if (!checked.ok) {
+      setLocalReason(checked.reason);
       return;
     }
+    const value = checked.value;
     setLocalReason(null);
     const keys: string[] = [];
     const values: WriteValue[] = [];
@@ -84,7 +100,11 @@ function AnalogOutput({ index, label, frame }: { index: number; label: string; f
           data-write="true"
           value={type}
           disabled={!writes.canWrite || pending}
-          onChange={(e) => setChosenType(Number(e.target.value))}
+          onChange={(e) => {
+            const next = Number(e.target.value);
+            setChosenType(next);
+            recheck(setpoint, next);
+          }}
         >
           {(typeField.value_names ?? []).map((name, v) => (
             <option key={name} value={v}>
@@ -101,15 +121,20 @@ function AnalogOutput({ index, label, frame }: { index: number; label: string; f
           placeholder={range !== null ? `${range.low}–${range.high} ${range.unit}` : ""}
           value={setpoint}
           disabled={!writes.canWrite || pending}
-          onChange={(e) => setSetpoint(e.target.value)}
+          aria-invalid={localReason !== null}
+          aria-describedby={reason !== null ? `${testId}-reason` : undefined}
+          onChange={(e) => {
+            setSetpoint(e.target.value);
+            recheck(e.target.value, type);
+          }}
         />
         <button type="submit" data-testid={`${testId}-set`} data-write="true" disabled={!writes.canWrite || pending} title={writes.blockReason ?? ""}>
           Set
         </button>
       </form>
       {reason !== null && (
-        <span className="reason" data-testid={`${testId}-reason`} role="alert">
-          {valueView.phase === "timeout" || typeView.phase === "timeout" ? "timeout: " : "refused: "}
+        <span className="reason" id={`${testId}-reason`} data-testid={`${testId}-reason`} role="alert">
+          {localReason === null && (valueView.phase === "timeout" || typeView.phase === "timeout") ? "timeout: " : "refused: "}
           {reason}
         </span>
       )}

@@ -18,6 +18,7 @@ import { StaleBanner } from "../components/StaleBanner";
 import { StateBadge } from "../components/StateBadge";
 import { TcpReadout } from "../components/TcpReadout";
 import { TagNamesContext } from "../components/tagNames";
+import { ThemeSwitch, useTheme } from "../components/theme";
 import { api } from "../lib/api";
 import { FleetPoller, knownRobots, type FleetTile } from "../lib/fleet";
 import { ALL_PLOTS, JOINT_PLOTS, TCP_PLOTS } from "../lib/plots";
@@ -81,6 +82,7 @@ interface PanelProps {
 
 function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & { runtime: LiveRuntime }) {
   const live = useLive();
+  const theme = useTheme();
   const stale = live.health !== "connected";
 
   const onSessionUser = useCallback(
@@ -126,6 +128,7 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
                 {label}
               </a>
             ))}
+            <ThemeSwitch />
           </nav>
           <main className={`panel-main${stale ? " is-stale" : ""}`}>
             <section id="joints">
@@ -136,7 +139,7 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
               </div>
               <div className="plot-grid">
                 {JOINT_PLOTS.map((spec) => (
-                  <LivePlotView key={spec.id} spec={spec} theme="light" />
+                  <LivePlotView key={spec.id} spec={spec} theme={theme} />
                 ))}
               </div>
             </section>
@@ -144,7 +147,7 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
               <h2>TCP</h2>
               <div className="plot-grid">
                 {TCP_PLOTS.map((spec) => (
-                  <LivePlotView key={spec.id} spec={spec} theme="light" />
+                  <LivePlotView key={spec.id} spec={spec} theme={theme} />
                 ))}
               </div>
             </section>
@@ -154,7 +157,7 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
             </section>
             <section id="robot3d">
               <h2>3D</h2>
-              <Robot3DView model={robots.find((r) => r.name === robot)?.model ?? null} theme="light" />
+              <Robot3DView model={robots.find((r) => r.name === robot)?.model ?? null} theme={theme} />
             </section>
             <section id="alarms">
               <h2>Alarms</h2>

@@ -12,7 +12,9 @@ import { api as rest } from "../lib/api";
 import type { LiveSnapshot } from "../lib/liveData";
 import { controlOwnership } from "../lib/controlSession";
 import { roleAtLeast, type CommandState, type User } from "../lib/protocol";
+import { stopWarning } from "../lib/writeChecks";
 import { WriteTracker, performWrite, type WriteValue, type WriteView } from "../lib/writes";
+import { ConfirmDialog } from "../components/ConfirmDialog";
 
 const CONFIRM_REGISTERS_KEY = "cobot-hmi.confirm-register-writes";
 const COMMAND_POLL_MS = 2000;
@@ -161,21 +163,7 @@ export function WriteProvider({
   return (
     <WriteContext.Provider value={api}>
       {children}
-      {confirm !== null && (
-        <div className="dialog-backdrop">
-          <div className="dialog" role="alertdialog" aria-modal="true" aria-labelledby="confirm-text" data-testid="confirm-dialog">
-            <p id="confirm-text">{confirm.message}</p>
-            <div className="dialog__buttons">
-              <button type="button" data-testid="confirm-no" onClick={() => answer(false)}>
-                Cancel
-              </button>
-              <button type="button" className="primary" data-testid="confirm-yes" autoFocus onClick={() => answer(true)}>
-                Confirm
-              </button>
-            </div>
-          </div>
-        </div>
-      )}
+      {confirm !== null && <ConfirmDialog message={confirm.message} warning={stopWarning(live.frame)} onAnswer={answer} />}
     </WriteContext.Provider>
   );
 }
