@@ -27,12 +27,14 @@ from websockets.asyncio.client import connect
 from cobot_hmi.emulator.robot import RobotSettings as SimulationSettings
 from cobot_hmi.emulator.robot import SimulatedRobot
 from cobot_hmi.history.query import CELL_S, bucket_grid
-from cobot_hmi.history.schema import ELEMENTS, Element, time_seconds
+from cobot_hmi.history.schema import ELEMENTS, Element, raw_from_columns, time_seconds
 from cobot_hmi.service.settings import ServiceSettings
+from conftest import _next_host
 from service_support import (
     DEADLINE_S,
     OPERATOR,
     Running,
+    cell_settings,
     emulator,
     running_service,
     service_settings,
@@ -454,3 +456,48 @@ async def test_a_recorder_that_falls_behind_drops_its_oldest_and_says_so(
     assert dropped and float(dropped[1]) >= events[0]["dropped"]
     seqs = [f["seq"] for f in frames]
     assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))
+
+
+async def test_every_robot_of_a_cell_is_recorded_apart(plc_host: str, tmp_path: Path) -> None:
+    hosts = [_next_host(), _next_host()]
+    robots = [SimulatedRobot(SimulationSettings(kinematic_refresh_ms=0.0, seed=s)) for s in (1, 2)]
+    async with emulator(hosts[0], robots[0]) as left, emulator(hosts[1], robots[1]) as right:
+        settings = cell_settings(
+            [("left", hosts[0], left.tcp_port), ("right", hosts[1], right.tcp_port)],
+            plc_host,
+            tmp_path,
+            history_segment_s=2.0,
+            history_flush_s=0.2,
+        )
+        async with running_service(settings) as hmi, hmi.client() as client:
+            recorded: dict[str, list[int]] = {}
+            for _ in range(int(DEADLINE_S * 10)):
+                for name in ("left", "right"):
+                    now = time.time()
+                    answer = await client.get(
+                        f"/api/v1/robots/{name}/history",
+                        params={"from": now - 60, "to": now + 60, "points": 5000,
+                                "fields": "joint_position.0"},
+                    )  # fmt: skip
+                    assert answer.status_code == 200, answer.text
+                    recorded[name] = answer.json()["seq"] or []
+                if all(len(seqs) >= 300 for seqs in recorded.values()):
+                    break
+                await asyncio.sleep(0.2)
+            else:
+                raise AssertionError(f"not recorded: {[len(v) for v in recorded.values()]}")
+            values = {}
+            for name in ("left", "right"):
+                answer = await client.get(
+                    f"/api/v1/robots/{name}/export",
+                    params={"from": 0, "to": 4e9, "format": "parquet"},
+                )
+                values[name] = pq.read_table(pa.BufferReader(answer.content))
+    for name in ("left", "right"):
+        seqs = values[name].column("seq").to_pylist()
+        assert seqs == list(range(1, len(seqs) + 1)), name  # each robot's every frame
+        assert (tmp_path / "history" / name).is_dir()
+    # Two robots, two recordings: each robot's own values (their simulations' seeds differ).
+    left_rows = {bytes(row) for row in raw_from_columns(values["left"])}
+    right_rows = {bytes(row) for row in raw_from_columns(values["right"])}
+    assert len(left_rows & right_rows) < len(left_rows) / 2
