@@ -6,9 +6,12 @@ append on the cyclic thread into a bounded queue of ``history_queue_frames``, th
 and counted when full: the cyclic connection never waits). One thread of the recorder's own
 drains the queues every ``history_flush_s``, turns the frames into one record batch per robot
 (numpy over the wire bytes, ``history.schema``) and appends it to the robot's open segment;
-every ``history_segment_s`` the segment is closed into Parquet (``history.segments``), and
-retention (``history.retention``) runs. The work holds the GIL briefly (a batch is converted in
-one go; pyarrow's writing releases it), so the cyclic thread is not held off.
+every ``history_segment_s`` the segment is closed into Parquet (``history.segments``; one
+robot's per cycle, about 0.25 s of work), and retention (``history.retention``) runs. The work
+holds the GIL in short stretches (a second of frames is converted in a few milliseconds;
+pyarrow's encoding and writing release it); the cyclic connection does not depend on it for its
+timing (its receive times are the kernel's, its O→T packets are sent by the C pump thread, which
+needs no GIL; bench/history compares the receive interval with and without recording).
 
 A disk that fills (or any write error: read-only, removed directory) pauses recording for every
 robot with a ``recording`` event (state ``paused`` and the reason) on each robot's stream and
