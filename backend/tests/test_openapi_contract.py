@@ -98,6 +98,23 @@ def test_every_route_lists_its_statuses_with_the_error_schema() -> None:
                 assert schema == {"$ref": envelope}, f"{method} {path} {status}"
 
 
+def test_auth_answers_are_models_a_client_can_use() -> None:
+    """Login, logout and who-am-I answer named models (the frontend's ``User`` is generated
+    from them), and login lists its refusals (wrong password, throttled)."""
+
+    def answer_ref(method: str, path: str) -> str:
+        operation = _document()["paths"][path][method]
+        schema = operation["responses"]["200"]["content"]["application/json"]["schema"]
+        return str(schema["$ref"]).rsplit("/", 1)[-1]
+
+    assert answer_ref("post", "/api/v1/auth/login") == "LoginAnswer"
+    assert answer_ref("post", "/api/v1/auth/logout") == "Me"
+    assert answer_ref("get", "/api/v1/auth/me") == "Me"
+    schemas = _document()["components"]["schemas"]
+    assert schemas["User"]["properties"]["role"]["enum"] == ["viewer", "operator", "admin"]
+    assert {401, 422, 429} <= _statuses("POST", "/api/v1/auth/login")
+
+
 def test_per_robot_paths_and_deprecated_single_robot_paths() -> None:
     paths = _document()["paths"]
     for suffix, method in (

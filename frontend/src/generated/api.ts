@@ -1850,6 +1850,25 @@ export interface components {
             /** Value Names */
             value_names?: string[] | null;
         };
+        /**
+         * LoginAnswer
+         * @description A new session: its user, and its bearer token (also set as the session cookie).
+         */
+        LoginAnswer: {
+            /**
+             * Token
+             * @description send as `Authorization: Bearer …` from scripts
+             */
+            token: string;
+            user: components["schemas"]["User"];
+        };
+        /**
+         * Me
+         * @description Who this request's session belongs to (null: no session).
+         */
+        Me: {
+            user: components["schemas"]["User"] | null;
+        };
         /** RangeDoc */
         RangeDoc: {
             /** High */
@@ -2102,6 +2121,20 @@ export interface components {
             tags: {
                 [key: string]: string;
             };
+        };
+        /**
+         * User
+         * @description A logged-in user (or an API token's pseudo-user ``token:NAME``) and its role.
+         */
+        User: {
+            /** Name */
+            name: string;
+            /**
+             * Role
+             * @description viewer reads; operator also takes control and writes; admin also names tags
+             * @enum {string}
+             */
+            role: "viewer" | "operator" | "admin";
         };
         /**
          * WriteConfirmed
@@ -2782,9 +2815,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["LoginAnswer"];
                 };
             };
             /** @description the request cannot be read */
@@ -2796,8 +2827,53 @@ export interface operations {
                     "application/json": components["schemas"]["ApiErrorResponse"];
                 };
             };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the body is larger than the service accepts */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description a body that is not application/json */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
             /** @description invalid request: the answer names the field; nothing was applied */
             422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description too many attempts: wait as Retry-After says */
+            429: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description not ready / not healthy */
+            503: {
                 headers: {
                     [name: string]: unknown;
                 };
@@ -2822,13 +2898,29 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["Me"];
                 };
             };
             /** @description the request cannot be read */
             400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the role is too low, or the request is not same-origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description a body that is not application/json */
+            415: {
                 headers: {
                     [name: string]: unknown;
                 };
@@ -2853,9 +2945,7 @@ export interface operations {
                     [name: string]: unknown;
                 };
                 content: {
-                    "application/json": {
-                        [key: string]: unknown;
-                    };
+                    "application/json": components["schemas"]["Me"];
                 };
             };
             /** @description the request cannot be read */

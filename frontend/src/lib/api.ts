@@ -12,7 +12,7 @@ import createClient, { type Client } from "openapi-fetch";
 import type { paths } from "../generated/api";
 import type { CommandPatch } from "../generated/layout";
 import type { RobotsAnswer } from "./fleet";
-import { userOf, type AuditPage, type CommandState, type ControlStatus, type EventKind, type EventPage, type User } from "./protocol";
+import { type AuditPage, type CommandState, type ControlStatus, type EventKind, type EventPage, type User } from "./protocol";
 import type { HttpAnswer } from "./writes";
 
 export const API = "/api/v1";
@@ -67,7 +67,7 @@ export class HmiApi {
 
   async me(): Promise<User | null> {
     const result = await this.client.GET("/api/v1/auth/me");
-    return userOf(result.data?.user);
+    return result.data?.user ?? null;
   }
 
   async login(username: string, password: string): Promise<HttpAnswer> {

@@ -92,15 +92,15 @@ export function parseServerMessage(text: string): ServerMessage | null {
   }
 }
 
-export interface User {
-  readonly name: string;
-  readonly role: "viewer" | "operator" | "admin" | string;
-}
+export type User = Schemas["User"];
+export type Role = User["role"];
 
-/** A user as an auth answer carries it, or null when it is not one. */
+const ROLES: readonly string[] = ["viewer", "operator", "admin"] satisfies readonly Role[];
+
+/** A user as an auth answer carries it, or null when it is not one (an answer read untyped). */
 export function userOf(value: unknown): User | null {
   if (!isObject(value) || typeof value.name !== "string" || typeof value.role !== "string") return null;
-  return { name: value.name, role: value.role };
+  return ROLES.includes(value.role) ? { name: value.name, role: value.role as Role } : null;
 }
 
 const ROLE_RANK: Readonly<Record<string, number>> = { viewer: 0, operator: 1, admin: 2 };

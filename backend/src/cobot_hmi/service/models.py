@@ -247,6 +247,28 @@ class ConnectionStatus(BaseModel):
     )
 
 
+class User(BaseModel):
+    """A logged-in user (or an API token's pseudo-user ``token:NAME``) and its role."""
+
+    name: str
+    role: Literal["viewer", "operator", "admin"] = Field(
+        description="viewer reads; operator also takes control and writes; admin also names tags"
+    )
+
+
+class Me(BaseModel):
+    """Who this request's session belongs to (null: no session)."""
+
+    user: User | None
+
+
+class LoginAnswer(BaseModel):
+    """A new session: its user, and its bearer token (also set as the session cookie)."""
+
+    user: User
+    token: str = Field(description="send as `Authorization: Bearer …` from scripts")
+
+
 class Holder(BaseModel):
     user: str
     since: float = Field(description="when control was taken, s since the epoch")

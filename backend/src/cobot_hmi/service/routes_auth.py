@@ -8,9 +8,12 @@ import math
 from fastapi import APIRouter, Request, Response
 from pydantic import BaseModel, Field
 
+from cobot_hmi.service.api_docs import errors
 from cobot_hmi.service.auth import SESSION_COOKIE
 from cobot_hmi.service.deps import ServiceDep, SessionDep, client_address
 from cobot_hmi.service.errors import ApiError, unauthorized
+from cobot_hmi.service.models import LoginAnswer, Me
+from cobot_hmi.service.models import User as UserModel
 from cobot_hmi.service.users import User, UsersError
 
 router = APIRouter(prefix="/api/v1/auth", tags=["auth"])
@@ -21,14 +24,18 @@ class Credentials(BaseModel):
     password: str = Field(min_length=1, max_length=1024)
 
 
-def _user_json(user: User) -> dict[str, str]:
-    return {"name": user.name, "role": user.role.label}
+def _user_model(user: User) -> UserModel:
+    return UserModel.model_validate({"name": user.name, "role": user.role.label})
 
 
-@router.post("/login", summary="Log in: a session cookie and a bearer token")
+@router.post(
+    "/login",
+    summary="Log in: a session cookie and a bearer token",
+    responses=errors(401, 413, 415, 422, 429, 503),
+)
 async def login(
     credentials: Credentials, request: Request, response: Response, service: ServiceDep
-) -> dict[str, object]:
+) -> LoginAnswer:
     # The client address is the connection's peer (or, only from a configured trusted proxy,
     # its X-Forwarded-For: uvicorn's proxy headers, service/server.py).
     user_name, client = credentials.username, client_address(request)
@@ -61,17 +68,21 @@ async def login(
         secure=service.settings.cookie_secure,
         path="/",
     )
-    return {"user": _user_json(user), "token": session.token}
+    return LoginAnswer(user=_user_model(user), token=session.token)
 
 
-@router.post("/logout", summary="End the session (and release control if it holds it)")
-async def logout(response: Response, service: ServiceDep, session: SessionDep) -> dict[str, object]:
+@router.post(
+    "/logout",
+    summary="End the session (and release control if it holds it)",
+    responses=errors(403, 415),
+)
+async def logout(response: Response, service: ServiceDep, session: SessionDep) -> Me:
     if session is not None:
         service.sessions.end(session, "logged out")
     response.delete_cookie(SESSION_COOKIE, path="/")
-    return {"user": None}
+    return Me(user=None)
 
 
 @router.get("/me", summary="The logged-in user, or null")
-async def me(session: SessionDep) -> dict[str, object]:
-    return {"user": None if session is None else _user_json(session.user)}
+async def me(session: SessionDep) -> Me:
+    return Me(user=None if session is None else _user_model(session.user))
