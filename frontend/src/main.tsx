@@ -9,6 +9,7 @@ import { themeStore } from "./components/theme";
 import { faceOf } from "./lib/route";
 import "./styles/common.css";
 import "./styles/theme.css";
+import "./styles/responsive.css";
 
 // The face and the theme on <html> before the first render: no flash of the other theme.
 document.documentElement.dataset.face = faceOf(window.location.pathname);

@@ -6,6 +6,7 @@
 import { JOINT_COLUMNS, NO_VALUE, headerWithUnit, type ReadoutCell } from "../lib/readouts";
 import { CELL_ATTRIBUTE, useLiveCells } from "./LiveCells";
 
+const CAPTION = "Joint values of the newest frame";
 const JOINT_COUNT = JOINT_COLUMNS[0]?.channels.length ?? 0;
 const JOINT_LABELS = JOINT_COLUMNS[0]?.channels ?? [];
 
@@ -17,9 +18,9 @@ const CELLS: readonly ReadoutCell[] = Array.from({ length: JOINT_COUNT }, (_, jo
 export function JointTable({ stale }: { readonly stale: boolean }) {
   const root = useLiveCells<HTMLTableElement>(CELLS);
   return (
-    <div className="readout-scroll">
+    <div className="readout-scroll" role="region" aria-label={CAPTION} tabIndex={0}>
       <table className={`readout joint-table${stale ? " is-stale" : ""}`} data-testid="joint-table" ref={root}>
-        <caption className="visually-hidden">Joint values of the newest frame</caption>
+        <caption className="visually-hidden">{CAPTION}</caption>
         <thead>
           <tr>
             <th scope="col">Joint</th>

@@ -6,6 +6,7 @@
 import { NO_VALUE, TCP_ROWS, type ReadoutCell } from "../lib/readouts";
 import { CELL_ATTRIBUTE, useLiveCells } from "./LiveCells";
 
+const CAPTION = "TCP values of the newest frame (base frame)";
 const ELEMENTS = 3;
 
 const CELLS: readonly ReadoutCell[] = TCP_ROWS.flatMap((row) =>
@@ -15,9 +16,9 @@ const CELLS: readonly ReadoutCell[] = TCP_ROWS.flatMap((row) =>
 export function TcpReadout({ stale }: { readonly stale: boolean }) {
   const root = useLiveCells<HTMLTableElement>(CELLS);
   return (
-    <div className="readout-scroll">
+    <div className="readout-scroll" role="region" aria-label={CAPTION} tabIndex={0}>
       <table className={`readout tcp-readout${stale ? " is-stale" : ""}`} data-testid="tcp-readout" ref={root}>
-        <caption className="visually-hidden">TCP values of the newest frame (base frame)</caption>
+        <caption className="visually-hidden">{CAPTION}</caption>
         <tbody>
           {TCP_ROWS.map((row, r) => (
             <tr key={row.field} data-field={row.field}>

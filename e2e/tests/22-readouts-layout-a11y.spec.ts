@@ -1,0 +1,214 @@
+// Issue 13, numbers and every screen: the joint table shows the frame's values; a 390 × 844
+// phone has no horizontal scrolling, a short sticky header, dialogs on screen and 44 px touch
+// targets; the confirmation dialog keeps focus, Escape cancels and Enter confirms (with a
+// warning during an emergency stop); axe-core finds nothing serious on the panel, the login
+// and the kiosk, light and dark.
+import AxeBuilder from "@axe-core/playwright";
+import type { Page } from "@playwright/test";
+import { expect, operatorWithControl, test } from "../support/fixtures";
+import { settings } from "../support/settings";
+
+const DO16_INDEX = 15; // DO 1–16 are indexes 0–15 of controlbox_do
+
+type Readout = { field: string; index: number; text: string; value: number };
+
+/** The joint table's cells: layout field, joint index, shown text and raw value. */
+async function jointTable(page: Page): Promise<Readout[]> {
+  return page.getByTestId("joint-table").evaluate((table) =>
+    Array.from(table.querySelectorAll<HTMLElement>("td[data-field]")).map((td) => ({
+      field: td.dataset.field ?? "",
+      index: Number(td.closest("tr")?.dataset.joint),
+      text: td.textContent ?? "",
+      value: Number(td.dataset.value),
+    })),
+  );
+}
+
+test("the joint table equals the frame's values", async ({ page, robot, request }) => {
+  // A robot at rest: its joints stay where they are between the page and the REST read.
+  await robot.setProgram(false);
+  await page.goto("/");
+  const table = page.getByTestId("joint-table");
+  await expect(table).toBeVisible();
+  // Units in the header, from the layout.
+  await expect(table.locator("thead")).toContainText("Position [degree]");
+  await expect(table.locator("thead")).toContainText("Motor temperature [°C]");
+  await expect(table.locator("thead")).toContainText("External torque [N·m]");
+  await expect(table.locator("tbody tr")).toHaveCount(6);
+
+  const frameOf = async () => {
+    const answer = await request.get(`/api/v1/robots/${settings.robotName}/frame`);
+    expect(answer.status()).toBe(200);
+    return ((await answer.json()) as { frame: Record<string, (number | null)[]> }).frame;
+  };
+  // Position and velocity of a robot at rest are exact; currents, temperatures and torques
+  // move a little between two frames, so they are compared with a tolerance (the refresh).
+  await expect
+    .poll(
+      async () => {
+        const frame = await frameOf();
+        const cells = await jointTable(page);
+        const wrong: string[] = [];
+        for (const cell of cells) {
+          const expected = frame[cell.field]?.[cell.index];
+          if (typeof expected !== "number") {
+            if (cell.text !== "—") wrong.push(`${cell.field}[${cell.index}] shows ${cell.text}, frame has none`);
+            continue;
+          }
+          const exact = cell.field === "joint_position" || cell.field === "joint_velocity";
+          const tolerance = exact ? 0.01 : 0.05 * Math.max(1, Math.abs(expected));
+          if (!(Math.abs(cell.value - expected) <= tolerance)) wrong.push(`${cell.field}[${cell.index}] ${cell.value} ≠ ${expected}`);
+          // The text is the value, rounded.
+          const shown = Number(cell.text.replace("\u2212", "-"));
+          if (!(Math.abs(shown - cell.value) <= 0.051)) wrong.push(`${cell.field}[${cell.index}] text ${cell.text} ≠ ${cell.value}`);
+        }
+        return cells.length === 36 ? wrong : [`${cells.length} cells`];
+      },
+      { timeout: 15_000, message: "joint table = frame" },
+    )
+    .toEqual([]);
+
+  // It follows the stream without React: the table counts the frames it has shown.
+  const first = Number(await table.getAttribute("data-frames"));
+  await expect.poll(async () => Number(await table.getAttribute("data-frames"))).toBeGreaterThan(first);
+  await expect(page.getByTestId("tcp-readout")).toContainText("Position [mm]");
+});
+
+test("the phone layout has no overflow", async ({ browser }) => {
+  const context = await browser.newContext({ viewport: { width: 390, height: 844 }, hasTouch: true, isMobile: true });
+  const page = await context.newPage();
+  try {
+    const noOverflow = async (where: string) =>
+      expect(await page.evaluate(() => document.documentElement.scrollWidth), where).toBeLessThanOrEqual(390);
+    const headerShort = async () => {
+      const box = await page.locator(".panel-header").boundingBox();
+      expect(box?.height ?? 999, "sticky header height").toBeLessThanOrEqual(0.2 * 844 + 0.5);
+    };
+    const touchTargetsBigEnough = async () => {
+      const small = await page.evaluate(() => {
+        const out: string[] = [];
+        for (const el of Array.from(document.querySelectorAll<HTMLElement>(".panel button, .panel select, .panel input, .panel-nav a"))) {
+          const target = el instanceof HTMLInputElement && (el.type === "checkbox" || el.type === "radio") ? (el.closest("label") ?? el) : el;
+          const r = target.getBoundingClientRect();
+          if (r.width === 0 || r.height === 0 || getComputedStyle(el).visibility === "hidden") continue; // not shown
+          if (r.width < 44 || r.height < 44) out.push(`${el.dataset.testid ?? el.getAttribute("aria-label") ?? el.textContent?.trim() ?? el.tagName} ${Math.round(r.width)}×${Math.round(r.height)}`);
+        }
+        return out;
+      });
+      expect(small, "touch targets under 44 × 44 px").toEqual([]);
+    };
+
+    await page.goto("/");
+    await expect(page.getByTestId("joint-table")).toBeVisible();
+    await noOverflow("panel, logged out");
+    await headerShort();
+    await touchTargetsBigEnough();
+
+    await operatorWithControl(page);
+    await noOverflow("panel, operator with control");
+    await headerShort();
+    await touchTargetsBigEnough();
+
+    // A dialog is fully on screen.
+    const toggle = page.getByTestId("do-16");
+    await toggle.scrollIntoViewIfNeeded();
+    await toggle.click();
+    const dialog = page.getByTestId("confirm-dialog");
+    await expect(dialog).toBeVisible();
+    const box = await dialog.boundingBox();
+    expect(box).not.toBeNull();
+    if (box !== null) {
+      expect(box.x).toBeGreaterThanOrEqual(0);
+      expect(box.y).toBeGreaterThanOrEqual(0);
+      expect(box.x + box.width).toBeLessThanOrEqual(390);
+      expect(box.y + box.height).toBeLessThanOrEqual(844);
+    }
+    await page.getByTestId("confirm-no").click();
+    await expect(dialog).toHaveCount(0);
+
+    await page.goto("/kiosk");
+    await expect(page.getByTestId("robot-state")).toHaveAttribute("data-state-name", /.+/);
+    await noOverflow("kiosk");
+  } finally {
+    await context.close();
+  }
+});
+
+test("Escape closes the dialog, focus stays inside, Enter confirms", async ({ page, robot, operatorApi }) => {
+  await operatorApi.write({ controlbox_do: { [DO16_INDEX]: false } }); // whatever a failed run left
+  await operatorWithControl(page);
+  const toggle = page.getByTestId("do-16");
+  await toggle.scrollIntoViewIfNeeded();
+  await expect(toggle).toHaveAttribute("data-state", "off");
+  const dialog = page.getByTestId("confirm-dialog");
+
+  // Keyboard only: the toggle is reachable and opens the question; the answer has the focus.
+  await toggle.focus();
+  await page.keyboard.press("Space");
+  await expect(dialog).toBeVisible();
+  await expect(page.getByTestId("confirm-yes")).toBeFocused();
+  for (let i = 0; i < 3; i++) {
+    await page.keyboard.press("Tab");
+    expect(await dialog.evaluate((d) => d.contains(document.activeElement)), "focus stays in the dialog").toBe(true);
+  }
+  await page.keyboard.press("Shift+Tab");
+  expect(await dialog.evaluate((d) => d.contains(document.activeElement))).toBe(true);
+  await page.keyboard.press("Escape");
+  await expect(dialog).toHaveCount(0);
+  await expect(toggle).toBeFocused();
+  expect((await robot.status()).frame.controlbox_do[DO16_INDEX]).toBe(false);
+
+  // Enter confirms.
+  await page.keyboard.press("Space");
+  await expect(dialog).toBeVisible();
+  await page.getByTestId("confirm-no").focus();
+  await page.getByTestId("confirm-yes").focus();
+  await page.keyboard.press("Enter");
+  await expect(toggle).toHaveAttribute("data-state", "on");
+  expect((await robot.status()).plc_command.controlbox_do[DO16_INDEX]).toBe(true);
+
+  // During an emergency stop the question warns.
+  await robot.estop();
+  await expect(page.getByTestId("robot-state")).toHaveAttribute("data-state-name", "EMERGENCY_STOP");
+  await toggle.click();
+  await expect(page.getByTestId("confirm-warning")).toContainText("emergency stop");
+  await page.getByTestId("confirm-yes").click();
+  await expect(toggle).toHaveAttribute("data-state", "off");
+});
+
+async function seriousViolations(page: Page): Promise<string[]> {
+  const results = await new AxeBuilder({ page }).analyze();
+  return results.violations
+    .filter((v) => v.impact === "serious" || v.impact === "critical")
+    .map((v) => `${v.id} (${v.impact}): ${v.nodes.map((n) => n.target.join(" ")).slice(0, 5).join(", ")}`);
+}
+
+for (const colorScheme of ["light", "dark"] as const) {
+  test(`axe-core clean: login, panel and kiosk (${colorScheme})`, async ({ page }) => {
+    await page.emulateMedia({ colorScheme });
+    await page.goto("/");
+    await expect(page.getByTestId("login-username")).toBeVisible();
+    await expect(page.getByTestId("joint-table")).toHaveAttribute("data-frames", /[1-9]/);
+    expect(await page.evaluate(() => document.documentElement.dataset.theme)).toBe(colorScheme);
+    expect(await seriousViolations(page), "login and panel").toEqual([]);
+
+    await operatorWithControl(page);
+    expect(await seriousViolations(page), "panel with control").toEqual([]);
+
+    await page.goto("/kiosk");
+    await expect(page.getByTestId("robot-state")).toHaveAttribute("data-state-name", /.+/);
+    expect(await seriousViolations(page), "kiosk").toEqual([]);
+  });
+}
+
+test("the theme switch is remembered", async ({ page }) => {
+  await page.emulateMedia({ colorScheme: "light" });
+  await page.goto("/");
+  await page.getByTestId("theme-switch").selectOption("dark");
+  expect(await page.evaluate(() => document.documentElement.dataset.theme)).toBe("dark");
+  await page.reload();
+  await expect(page.getByTestId("theme-switch")).toHaveValue("dark");
+  expect(await page.evaluate(() => document.documentElement.dataset.theme)).toBe("dark");
+  await page.getByTestId("theme-switch").selectOption("system");
+  expect(await page.evaluate(() => document.documentElement.dataset.theme)).toBe("light");
+});
