@@ -1,6 +1,8 @@
 """The service's TCP bounds against the real ``cobot-hmi serve`` process: 1,100 idle
 connections do not starve it, a connection that never sends a request is closed, and the
-closings are counted in ``/metrics``.
+closings are counted in ``/metrics``. And with 1,100 idle connections held (descriptors past
+1023), the robot's TCP session and class 1 connection dropped: the link reconnects (a
+``select()`` loop could not watch the new sockets, and the cyclic thread died for good).
 
 The service runs with the open-files limit of a typical Linux service (1024, soft and hard):
 without the bounds it accepts connections until it runs out of descriptors, and every later
@@ -14,7 +16,7 @@ import asyncio
 import contextlib
 import resource
 import sys
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Callable
 from pathlib import Path
 
 import httpx
@@ -22,7 +24,7 @@ import pytest
 
 from cobot_hmi.emulator.target import Target
 from conftest import free_tcp_port
-from service_support import DEADLINE_S, emulator
+from service_support import DEADLINE_S, emulator, eventually
 
 pytestmark = pytest.mark.timeout(240)
 
@@ -36,15 +38,24 @@ async def target(robot_host: str) -> AsyncIterator[Target]:
         yield target
 
 
-def _limit_files() -> None:  # in the child, before exec
-    resource.setrlimit(resource.RLIMIT_NOFILE, (SERVICE_FILES_LIMIT, SERVICE_FILES_LIMIT))
+def _limit_files(limit: int) -> Callable[[], None]:
+    def in_child() -> None:  # before exec
+        resource.setrlimit(resource.RLIMIT_NOFILE, (limit, limit))
+
+    return in_child
 
 
 @contextlib.asynccontextmanager
 async def serve(
-    target: Target, robot_host: str, plc_host: str, tmp_path: Path, *flags: str
+    target: Target,
+    robot_host: str,
+    plc_host: str,
+    tmp_path: Path,
+    *flags: str,
+    files_limit: int = SERVICE_FILES_LIMIT,
 ) -> AsyncIterator[str]:
-    """``cobot-hmi serve`` as a child process with 1024 files; its base URL once it answers."""
+    """``cobot-hmi serve`` as a child process with ``files_limit`` files; its base URL once it
+    answers."""
     port = free_tcp_port(plc_host)
     log = (tmp_path / "service.log").open("wb")
     process = await asyncio.create_subprocess_exec(
@@ -69,7 +80,7 @@ async def serve(
         *flags,
         stdout=log,
         stderr=log,
-        preexec_fn=_limit_files,
+        preexec_fn=_limit_files(files_limit),
     )
     base_url = f"http://{plc_host}:{port}"
     try:
@@ -150,3 +161,59 @@ async def test_a_connection_that_sends_no_request_is_closed(
         async with httpx.AsyncClient(base_url=base_url, timeout=DEADLINE_S) as client:
             metrics = (await client.get("/metrics")).text
         assert 'cobot_hmi_http_connections_closed_total{reason="idle_closed"} 1.0' in metrics
+
+
+async def test_the_link_reconnects_while_idle_connections_hold_descriptors_past_1023(
+    robot_host: str, plc_host: str, tmp_path: Path
+) -> None:
+    _raise_own_files_limit(IDLE_CONNECTIONS + 512)
+    robot_tcp_port = free_tcp_port(robot_host)
+    async with (
+        emulator(robot_host, tcp_port=robot_tcp_port) as first,
+        serve(
+            first,
+            robot_host,
+            plc_host,
+            tmp_path,
+            "--http-max-connections",
+            str(IDLE_CONNECTIONS + 200),
+            files_limit=4096,
+        ) as base_url,
+    ):
+        port = int(base_url.rsplit(":", 1)[1])
+        async with httpx.AsyncClient(base_url=base_url, timeout=60.0) as client:
+
+            async def ready() -> int:
+                return (await client.get("/readyz")).status_code
+
+            ready_now: list[int] = []
+
+            async def poll_ready(expected: int) -> None:
+                for _ in range(int(DEADLINE_S * 6)):
+                    ready_now.append(await ready())
+                    if ready_now[-1] == expected:
+                        return
+                    await asyncio.sleep(0.5)
+                raise AssertionError(f"readyz never {expected}: {ready_now[-5:]}")
+
+            await poll_ready(200)
+            idle = await _open_idle(plc_host, port, IDLE_CONNECTIONS)
+            try:
+                # The robot goes away with its TCP session and class 1 connection...
+                await first.stop()
+                await poll_ready(503)
+                # ...and comes back: the link must open new sockets (descriptors past
+                # 1100 in the service) and reconnect.
+                async with emulator(robot_host, tcp_port=robot_tcp_port) as second:
+                    await poll_ready(200)
+                    await eventually(lambda: bool(second.connections()), DEADLINE_S * 3)
+                    health = await client.get("/healthz")
+                    assert health.status_code == 200, health.text
+                    metrics = (await client.get("/metrics")).text
+                    # Reconnected by the same cyclic thread: it never died on the way.
+                    assert "cobot_hmi_cyclic_thread_restarts_total 0" in metrics, [
+                        line for line in metrics.splitlines() if "restarts" in line
+                    ]
+            finally:
+                for writer in idle:
+                    writer.close()
