@@ -199,7 +199,9 @@ class CyclicLoop:
                     web_loop.call_soon_threadsafe(_settle, death, reason)
 
     def _salvage(self, loop: asyncio.AbstractEventLoop) -> None:
-        """After the loop died: stop the originators (bounded) and end every task left."""
+        """After the loop died: stop the originators (bounded) and end every task left. The
+        loop may be what broke (its selector): then nothing more runs on it, and the coroutine
+        that never started is closed rather than left for the garbage collector to warn about."""
 
         async def stop_all() -> None:
             async with asyncio.timeout(_SALVAGE_TIMEOUT_S):
@@ -208,8 +210,12 @@ class CyclicLoop:
                     return_exceptions=True,
                 )
 
+        stopping = stop_all()
         try:
-            loop.run_until_complete(stop_all())
+            loop.run_until_complete(stopping)
+        except BaseException:
+            stopping.close()
+            raise
         finally:
             tasks = asyncio.all_tasks(loop)
             for task in tasks:
