@@ -234,6 +234,33 @@ async def test_a_registered_session_silent_past_the_inactivity_timeout_is_closed
         await eventually(lambda: target.counters.tcp_connections_open == 0, "session closed")
 
 
+async def test_a_connection_caught_in_its_accepting_by_stop_is_closed(robot_host: str) -> None:
+    """Wherever ``stop()`` catches a connection on its way in (in the kernel's queue, accepted
+    but without its transport, with a transport but before its session task runs), ``stop()``
+    closes it: the client sees the end of the stream, nothing is left open in the target (a
+    session the target answers only after ``stop()`` would hold its socket until the loop ends).
+    Each number of loop turns between connecting and stopping is one such point."""
+    for turns in range(12):
+        target = Target(
+            TargetSettings(
+                host=robot_host, tcp_port=0, incomplete_message_timeout_s=10 * DEADLINE_S
+            ),
+            StaticRobot(IdleBehaviour.CLEAR),
+        )
+        await target.start()
+        client = socket.create_connection((robot_host, target.tcp_port))
+        try:
+            for _ in range(turns):
+                await asyncio.sleep(0)
+            await target.stop()
+            client.settimeout(DEADLINE_S)
+            with contextlib.suppress(ConnectionResetError):  # still in the kernel's queue
+                assert await asyncio.to_thread(client.recv, 1) == b"", f"after {turns} turns"
+        finally:
+            client.close()
+        assert target.counters.tcp_connections_open == 0, f"after {turns} turns"
+
+
 # ------------------------------------------------------------------------------ control API
 
 

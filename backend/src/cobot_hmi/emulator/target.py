@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import socket
 
 from cobot_hmi.emulator.assembly import AssemblyObject
 from cobot_hmi.emulator.connection_manager import ConnectionManager, RefusalCount
@@ -35,6 +36,9 @@ from cobot_hmi.enip.identity import IdentityInfo
 
 log = logging.getLogger(__name__)
 
+ACCEPT_RETRY_DELAY_S = 1.0
+"""After a failed accept (no descriptor left), as ``asyncio``'s own server waits."""
+
 
 class Target:
     """The EtherNet/IP target. ``await start()`` binds the sockets, ``await stop()`` closes
@@ -55,7 +59,9 @@ class Target:
         self._by_o2t: dict[int, IoConnection] = {}
         self._sessions: set[EncapSession] = set()
         self._session_tasks: set[asyncio.Task[None]] = set()
-        self._server: asyncio.Server | None = None
+        self._listener: socket.socket | None = None
+        self._accepting: asyncio.Task[None] | None = None
+        self._stopping = False
         self.assembly = AssemblyObject(
             settings,
             process_image,
@@ -79,16 +85,18 @@ class Target:
     # ------------------------------------------------------------------ lifecycle
 
     async def start(self) -> None:
+        self._stopping = False
         self.io.start()
         self.udp_port = self.io.udp_port
         try:
-            self._server = await asyncio.start_server(
-                self._client_connected, self.settings.host, self.settings.tcp_port
-            )
+            listener = socket.create_server((self.settings.host, self.settings.tcp_port))
         except OSError:
             self.io.shutdown()
             raise
-        self.tcp_port = self._server.sockets[0].getsockname()[1]
+        listener.setblocking(False)
+        self._listener = listener
+        self.tcp_port = listener.getsockname()[1]
+        self._accepting = asyncio.get_running_loop().create_task(self._accept(listener))
         log.info(
             "EtherNet/IP target on %s TCP %d, UDP %d",
             self.settings.host,
@@ -97,13 +105,16 @@ class Target:
         )
 
     async def stop(self) -> None:
+        self._stopping = True
         self.io.close_all("target stopping")
-        if self._server is not None:
-            self._server.close()
+        if self._accepting is not None:
+            self._accepting.cancel()
+            await asyncio.gather(self._accepting, return_exceptions=True)
+            self._accepting = None
+        if self._listener is not None:
+            self._listener.close()
+            self._listener = None
         await self.drop_sessions()
-        if self._server is not None:
-            await self._server.wait_closed()
-            self._server = None
         self.io.shutdown()
 
     async def drop_sessions(self) -> None:
@@ -112,19 +123,48 @@ class Target:
             session.close()
         await asyncio.gather(*self._session_tasks, return_exceptions=True)
 
-    async def _client_connected(
-        self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter
-    ) -> None:
+    async def _accept(self, listener: socket.socket) -> None:
+        """The TCP accept loop. Our own rather than ``asyncio.start_server``: on Python 3.11 a
+        ``Server.close()`` that falls between a connection's accept and its transport leaves the
+        accepted socket open and owned by no one (the transport's attach to the closed server
+        fails). Here an accepted socket is ours from ``sock_accept`` on: ``stop()`` cancels this
+        loop, and a socket caught between accept and transport is closed below."""
+        loop = asyncio.get_running_loop()
+        while True:
+            try:
+                connection, _ = await loop.sock_accept(listener)
+            except OSError as error:  # out of descriptors, a connection reset in the queue
+                log.warning("TCP accept failed: %s; accepting again in a second", error)
+                await asyncio.sleep(ACCEPT_RETRY_DELAY_S)
+                continue
+            try:
+                await loop.connect_accepted_socket(self._stream_protocol, connection)
+            except BaseException:
+                connection.close()
+                raise
+
+    def _stream_protocol(self) -> asyncio.StreamReaderProtocol:
+        return asyncio.StreamReaderProtocol(asyncio.StreamReader(), self._client_connected)
+
+    def _client_connected(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        """Called from the connection's ``connection_made``: the session and its task are known
+        at once, so ``stop()`` and ``drop_sessions()`` find a connection whose task has not run
+        yet (a coroutine here would start a loop turn later, and a ``stop()`` in between left its
+        socket open until the loop ended)."""
+        if self._stopping:
+            writer.transport.abort()
+            return
         session = EncapSession(self, reader, writer)
         self._sessions.add(session)
-        task = asyncio.current_task()
-        assert task is not None
+        task = asyncio.get_running_loop().create_task(self._run_session(session))
         self._session_tasks.add(task)
+        task.add_done_callback(self._session_tasks.discard)
+
+    async def _run_session(self, session: EncapSession) -> None:
         try:
             await session.run()
         finally:
             self._sessions.discard(session)
-            self._session_tasks.discard(task)
 
     # ------------------------------------------------------------------ status
 
