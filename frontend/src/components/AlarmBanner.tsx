@@ -44,7 +44,7 @@ export function AlarmBanner({ alarms, size, listHref, children }: Props) {
       </span>
       <span className="alarm-banner__state">
         {unacknowledged && (
-          <span className="alarm-banner__unack" data-testid="alarm-banner-unack" aria-label="unacknowledged">
+          <span className="alarm-banner__unack" data-testid="alarm-banner-unack" aria-hidden="true">
             ●
           </span>
         )}{" "}

@@ -127,7 +127,7 @@ function AlarmRow({ alarm, canAct }: { alarm: Alarm; canAct: boolean }) {
       </td>
       <td data-testid="alarm-state">
         {unacknowledged && (
-          <span className="alarm-unack-mark" data-testid="alarm-unack-mark" aria-label="unacknowledged">
+          <span className="alarm-unack-mark" data-testid="alarm-unack-mark" aria-hidden="true">
             ●{" "}
           </span>
         )}
