@@ -470,22 +470,25 @@ def _run_demo(
         raise _DemoError(str(error)) from None
     url = f"http://{args.host}:{http_socket.getsockname()[1]}/"
     cell = ", ".join(f"{name} ({model}) at {host}" for name, host, model, _ in robots)
-    print(
-        f"cobot-hmi demo: {cell}; HMI at {url}\n"
-        f"  log in as {DEMO_USER!r} with password {password!r} (shown only now)\n"
-        f"  state in {settings.state_dir}"
-        + (" (removed at the end)" if args.state_dir is None else "")
-        + (
-            f"\n  Sparkplug B to {settings.mqtt_url}: spBv1.0/{settings.sparkplug_group}/+/"
-            f"{settings.sparkplug_node_id}/# (writes {'on' if settings.mqtt_writes else 'off'})"
-            if settings.mqtt_url
-            else ""
-        )
-        + "\n  Ctrl-C stops all.",
-        flush=True,
-    )
-    prepare_process()
+    # From the printout on, Ctrl-C stops the demo cleanly (exit 0), also when it comes before
+    # the server has taken SIGINT over (uvicorn's handler, asyncio.run's before it): a user
+    # who has just read the password may press it at once.
     with contextlib.suppress(KeyboardInterrupt):
+        print(
+            f"cobot-hmi demo: {cell}; HMI at {url}\n"
+            f"  log in as {DEMO_USER!r} with password {password!r} (shown only now)\n"
+            f"  state in {settings.state_dir}"
+            + (" (removed at the end)" if args.state_dir is None else "")
+            + (
+                f"\n  Sparkplug B to {settings.mqtt_url}: spBv1.0/{settings.sparkplug_group}/+/"
+                f"{settings.sparkplug_node_id}/# (writes {'on' if settings.mqtt_writes else 'off'})"
+                if settings.mqtt_url
+                else ""
+            )
+            + "\n  Ctrl-C stops all.",
+            flush=True,
+        )
+        prepare_process()
         asyncio.run(serve(settings, sockets=[http_socket]))
     _stop_all(emulators)
     print("cobot-hmi demo: stopped.", flush=True)
