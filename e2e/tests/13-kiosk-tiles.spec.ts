@@ -51,8 +51,9 @@ test("the kiosk shows the tiles its URL chooses, the state in words, a clock; no
   const tcp = await page.getByTestId("tile-tcp-position").locator("dt").allTextContents();
   expect(tcp).toHaveLength(3);
 
-  // The state in plain words from the layout, and a running clock.
-  await expect(page.getByTestId("kiosk-state-words")).toContainText("Standalone running");
+  // What the state means, in the layout's words, and a running clock.
+  await expect(page.getByTestId("kiosk-state-words")).toHaveAttribute("data-state-title", "Standalone running");
+  await expect(page.getByTestId("kiosk-state-words")).toContainText("The task program is being executed.");
   const clock = page.getByTestId("kiosk-clock");
   const first = await clock.textContent();
   await expect.poll(async () => await clock.textContent(), { timeout: 5_000 }).not.toBe(first);

@@ -43,12 +43,11 @@ export function KioskTiles({ fields, unknown, frame }: { fields: readonly FieldI
   );
 }
 
-/** The state as a phrase and its meaning, from the layout. */
+/** What the state means, from the layout (the badge above it says the state in plain words). */
 export function KioskStateWords({ value }: { value: number | null | undefined }) {
   const words = stateWords(value);
   return (
-    <div className="kiosk__state-words" data-testid="kiosk-state-words">
-      <span className="kiosk__state-title">{words.title}</span>
+    <div className="kiosk__state-words" data-testid="kiosk-state-words" data-state-title={words.title}>
       <span className="kiosk__state-detail">{words.detail}</span>
     </div>
   );
