@@ -10,6 +10,7 @@ import { ConnectionHealth } from "../components/ConnectionHealth";
 import { ControlHolder } from "../components/ControlHolder";
 import { CustomPlots } from "../components/CustomPlots";
 import { FlagBadges } from "../components/FlagBadges";
+import { HistoryView } from "../components/HistoryView";
 import { JointTable } from "../components/JointTable";
 import { LivePlotView } from "../components/LivePlotView";
 import { Robot3DView } from "../components/Robot3DView";
@@ -53,6 +54,7 @@ const SECTIONS = [
   ["joints", "Joints"],
   ["tcp", "TCP"],
   ["custom", "Custom plots"],
+  ["history", "History"],
   ["robot3d", "3D"],
   ["alarms", "Alarms"],
   ["io", "I/O"],
@@ -154,6 +156,10 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
             <section id="custom">
               <h2>Custom plots</h2>
               <CustomPlots robot={robot} robots={robots.map((r) => r.name)} coordinator={runtime.coordinator} />
+            </section>
+            <section id="history">
+              <h2>History</h2>
+              <HistoryView robot={robot} theme={theme} />
             </section>
             <section id="robot3d">
               <h2>3D</h2>

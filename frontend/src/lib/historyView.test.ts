@@ -1,0 +1,262 @@
+// The history plot's window logic (lib/historyView.ts): live ↔ history, presets, custom ranges,
+// buckets from the width, envelopes with gaps, marker placement, export links, and the loader's
+// debounce and cancelling of stale requests.
+import { describe, expect, it } from "vitest";
+import {
+  RANGE_PRESETS,
+  RangeLoader,
+  axisTimeToEpochS,
+  backToLive,
+  bucketsForWidth,
+  customWindow,
+  envelopeTraces,
+  exportUrl,
+  fieldsOf,
+  markersOf,
+  presetOf,
+  presetWindow,
+  rangeOf,
+  windowAfterMove,
+  windowAround,
+  type HistoryAnswer,
+  type HistoryEvent,
+  type RangeData,
+  type TimeRange,
+  type Timer,
+} from "./historyView";
+import { JOINT_PLOTS, TCP_PLOTS } from "./plots";
+
+const NOW = 1_795_500_000;
+
+describe("windows", () => {
+  it("has the presets 15 min, 1 h, 24 h, 7 days, each a moving window ending now", () => {
+    expect(RANGE_PRESETS.map((p) => p.label)).toEqual(["15 min", "1 h", "24 h", "7 days"]);
+    expect(rangeOf(presetWindow("15m"), NOW)).toEqual({ from_s: NOW - 900, to_s: NOW });
+    expect(rangeOf(presetWindow("7d"), NOW)).toEqual({ from_s: NOW - 7 * 86400, to_s: NOW });
+    expect(presetOf(presetWindow("24h"))).toBe("24h");
+    expect(presetOf({ mode: "live", span_s: 123 })).toBeNull();
+    expect(presetOf({ mode: "history", from_s: NOW - 900, to_s: NOW })).toBeNull();
+    expect(() => presetWindow("2y")).toThrow(/2y/);
+  });
+
+  it("a zoom or pan into the past leaves live; one ending at now stays live", () => {
+    const past = windowAfterMove({ from_s: NOW - 600, to_s: NOW - 300 }, NOW);
+    expect(past).toEqual({ mode: "history", from_s: NOW - 600, to_s: NOW - 300 });
+    expect(rangeOf(past, NOW + 1000)).toEqual({ from_s: NOW - 600, to_s: NOW - 300 }); // fixed
+    // Ending within a fiftieth of the width (at least 2 s) of now: the moving window, as wide.
+    expect(windowAfterMove({ from_s: NOW - 1000, to_s: NOW - 15 }, NOW)).toEqual({ mode: "live", span_s: 985 });
+    expect(windowAfterMove({ from_s: NOW - 10, to_s: NOW - 1 }, NOW)).toEqual({ mode: "live", span_s: 9 });
+    expect(windowAfterMove({ from_s: NOW - 10, to_s: NOW - 3 }, NOW).mode).toBe("history");
+  });
+
+  it("back to live keeps the width of the view", () => {
+    expect(backToLive({ mode: "history", from_s: NOW - 600, to_s: NOW - 300 })).toEqual({ mode: "live", span_s: 300 });
+    const live = presetWindow("1h");
+    expect(backToLive(live)).toBe(live);
+  });
+
+  it("custom ranges are checked; a marker's window centres it", () => {
+    expect(customWindow(NOW - 60, NOW)).toEqual({ mode: "history", from_s: NOW - 60, to_s: NOW });
+    expect(customWindow(NOW, NOW)).toMatch(/after the start/);
+    expect(customWindow(Number.NaN, NOW)).toMatch(/Both times/);
+    expect(windowAround(NOW, 60)).toEqual({ mode: "history", from_s: NOW - 30, to_s: NOW + 30 });
+  });
+
+  it("asks for one bucket per pixel, within the service's 1–5000", () => {
+    expect(bucketsForWidth(812.4)).toBe(812);
+    expect(bucketsForWidth(20_000)).toBe(5000);
+    expect(bucketsForWidth(-5)).toBe(50);
+    expect(bucketsForWidth(Number.NaN)).toBe(1000);
+  });
+
+  it("reads Plotly's date-axis values back as epoch seconds", () => {
+    const shift_ms = -60 * 60_000; // UTC+1
+    expect(axisTimeToEpochS(NOW * 1000 - shift_ms, shift_ms)).toBe(NOW);
+    expect(axisTimeToEpochS("2026-11-24 07:00:00.5", 0)).toBe(Date.UTC(2026, 10, 24, 7, 0, 0, 500) / 1000);
+    expect(axisTimeToEpochS("2026-11-24 08:00:00", shift_ms)).toBe(Date.UTC(2026, 10, 24, 7) / 1000);
+    expect(axisTimeToEpochS(null, 0)).toBeNaN();
+  });
+
+  it("asks for a plot's fields", () => {
+    expect(fieldsOf(JOINT_PLOTS[0]!)).toBe("joint_position");
+    expect(fieldsOf(TCP_PLOTS.find((s) => s.id === "plot-external-force")!)).toBe("external_force,external_moment");
+  });
+});
+
+function answer(over: Partial<HistoryAnswer>): HistoryAnswer {
+  return {
+    robot: "left",
+    from: NOW,
+    to: NOW + 40,
+    points: 4,
+    mode: "buckets",
+    bucket_s: 10,
+    frames: 3000,
+    t: [],
+    series: [],
+    recording: true,
+    ...over,
+  };
+}
+
+describe("envelopes", () => {
+  const spec = JOINT_PLOTS[0]!;
+  it("draws each element as a min and a max line, the band filled, a missing bucket a gap", () => {
+    const a = answer({
+      t: [NOW, NOW + 10, NOW + 30],
+      series: [
+        { element: "joint_position.0", field: "joint_position", label: "J1", unit: "degree", min: [1, 2, 3], max: [4, 5, 6], first: [], last: [] },
+      ],
+    });
+    const traces = envelopeTraces(a, spec, 0) as { name: string; x: (number | null)[]; y: (number | null)[]; fill?: string; hovertemplate: string }[];
+    expect(traces.map((t) => t.name)).toEqual(["J 1 min", "J 1 max"]);
+    const [min, max] = traces;
+    // The bucket at +20 s is missing: a null after +10 s breaks the line.
+    expect(min!.y).toEqual([1, 2, null, 3]);
+    expect(max!.y).toEqual([4, 5, null, 6]);
+    expect(min!.x[0]).toBe(NOW * 1000);
+    expect(min!.x[3]).toBe((NOW + 30) * 1000);
+    expect(max!.fill).toBe("tonexty");
+    expect(max!.hovertemplate).toContain("degree");
+  });
+
+  it("draws raw frames as one line per element, shifted to local time", () => {
+    const a = answer({
+      mode: "raw",
+      bucket_s: null,
+      t: [NOW, NOW + 0.01],
+      series: [{ element: "joint_position.1", field: "joint_position", label: "J2", unit: "degree", values: [7, null] }],
+    });
+    const traces = envelopeTraces(a, spec, 3_600_000) as { name: string; x: number[]; y: (number | null)[] }[];
+    expect(traces).toHaveLength(1);
+    expect(traces[0]!.name).toBe("J 2");
+    expect(traces[0]!.x).toEqual([NOW * 1000 - 3_600_000, (NOW + 0.01) * 1000 - 3_600_000]);
+    expect(traces[0]!.y).toEqual([7, null]);
+  });
+});
+
+describe("markers", () => {
+  const range: TimeRange = { from_s: NOW, to_s: NOW + 100 };
+  const estop = {
+    kind: "robot_state",
+    time: NOW + 25,
+    id: 7,
+    robot: "left",
+    from: 1,
+    from_name: "STANDALONE_RUNNING",
+    to: 0,
+    to_name: "EMERGENCY_STOP",
+  } as HistoryEvent;
+  it("places events on the time axis as a fraction of the range", () => {
+    const markers = markersOf([estop], range);
+    expect(markers).toHaveLength(1);
+    expect(markers[0]!.at).toBeCloseTo(0.25);
+    expect(markers[0]!.label).toBe("State EMERGENCY_STOP");
+    expect(markers[0]!.kind).toBe("alarm"); // an emergency stop is marked as urgent
+    expect(markers[0]!.time_s).toBe(NOW + 25);
+  });
+
+  it("joins events too close to tell apart into one marker; zooming in separates them", () => {
+    const standby = { ...estop, id: 8, time: NOW + 26, to_name: "STANDALONE_STANDBY" } as HistoryEvent;
+    const later = { ...estop, id: 9, time: NOW + 40, to_name: "STANDALONE_RUNNING" } as HistoryEvent;
+    const markers = markersOf([estop, standby, later], range);
+    expect(markers.map((m) => m.label)).toEqual(["State EMERGENCY_STOP; State STANDALONE_STANDBY", "State STANDALONE_RUNNING"]);
+    expect(markers[0]!.time_s).toBe(NOW + 25); // a click jumps to the first
+    expect(markers[0]!.events).toHaveLength(2);
+    expect(markers[1]!.kind).toBe("robot_state");
+    const zoomed = markersOf([estop, standby, later], { from_s: NOW + 20, to_s: NOW + 30 });
+    expect(zoomed.map((m) => m.at)).toEqual([0.5, 0.6]);
+  });
+
+  it("leaves out events outside the range and kinds that are no markers", () => {
+    const before = { ...estop, time: NOW - 1 } as HistoryEvent;
+    const atEnd = { ...estop, time: NOW + 100 } as HistoryEvent; // `to` is excluded
+    const write = { kind: "write", time: NOW + 50 } as unknown as HistoryEvent;
+    expect(markersOf([before, atEnd, write], range)).toEqual([]);
+    expect(markersOf([estop], { from_s: NOW, to_s: NOW })).toEqual([]);
+  });
+});
+
+describe("export", () => {
+  it("links the range shown in each format, with the plot's fields", () => {
+    const url = new URL(exportUrl("left arm", { from_s: NOW, to_s: NOW + 60.5 }, "csv", "joint_position"), "http://x");
+    expect(url.pathname).toBe("/api/v1/robots/left%20arm/export");
+    expect(url.searchParams.get("from")).toBe(`${NOW}.000`);
+    expect(url.searchParams.get("to")).toBe(`${NOW + 60}.500`);
+    expect(url.searchParams.get("format")).toBe("csv");
+    expect(url.searchParams.get("fields")).toBe("joint_position");
+    expect(new URL(exportUrl("left", { from_s: 1, to_s: 2 }, "mcap", null), "http://x").searchParams.has("fields")).toBe(false);
+  });
+});
+
+describe("RangeLoader", () => {
+  function fakeTimer() {
+    const due: { cb: () => void; handle: number }[] = [];
+    let next = 0;
+    const timer: Timer = {
+      set: (cb) => {
+        const handle = ++next;
+        due.push({ cb, handle });
+        return handle;
+      },
+      clear: (h) => {
+        const i = due.findIndex((d) => d.handle === h);
+        if (i >= 0) due.splice(i, 1);
+      },
+    };
+    const fire = () => due.splice(0).forEach((d) => d.cb());
+    return { timer, fire, due };
+  }
+
+  function deferredFetch() {
+    const calls: { range: TimeRange; points: number; signal: AbortSignal; resolve: (d: RangeData) => void; reject: (e: Error) => void }[] = [];
+    const fetchRange = (range: TimeRange, points: number, signal: AbortSignal) =>
+      new Promise<RangeData>((resolve, reject) => calls.push({ range, points, signal, resolve, reject }));
+    return { calls, fetchRange };
+  }
+
+  const data = (range: TimeRange): RangeData => ({ range, answer: answer({}), events: [] });
+
+  it("debounces: only the last range of a burst is fetched", async () => {
+    const { timer, fire } = fakeTimer();
+    const { calls, fetchRange } = deferredFetch();
+    const got: RangeData[] = [];
+    const loader = new RangeLoader(fetchRange, (d) => got.push(d), () => undefined, 200, timer);
+    for (let i = 0; i < 5; i++) loader.request({ from_s: i, to_s: i + 10 }, 800);
+    expect(calls).toHaveLength(0);
+    fire();
+    expect(calls).toHaveLength(1);
+    expect(calls[0]!.range).toEqual({ from_s: 4, to_s: 14 });
+    expect(calls[0]!.points).toBe(800);
+    calls[0]!.resolve(data(calls[0]!.range));
+    await Promise.resolve();
+    await Promise.resolve();
+    expect(got.map((d) => d.range.from_s)).toEqual([4]);
+  });
+
+  it("a newer request aborts the one in flight, whose answer is never drawn", async () => {
+    const { timer } = fakeTimer();
+    const { calls, fetchRange } = deferredFetch();
+    const got: RangeData[] = [];
+    const errors: string[] = [];
+    const loader = new RangeLoader(fetchRange, (d) => got.push(d), (e) => errors.push(e), 200, timer);
+    loader.request({ from_s: 0, to_s: 10 }, 100, true);
+    loader.request({ from_s: 5, to_s: 15 }, 100, true);
+    expect(calls[0]!.signal.aborted).toBe(true);
+    expect(calls[1]!.signal.aborted).toBe(false);
+    calls[1]!.resolve(data(calls[1]!.range));
+    calls[0]!.resolve(data(calls[0]!.range)); // late: dropped
+    await new Promise((r) => setTimeout(r, 0));
+    expect(got.map((d) => d.range.from_s)).toEqual([5]);
+    loader.request({ from_s: 9, to_s: 19 }, 100, true);
+    calls[2]!.reject(new Error("HTTP 422"));
+    await new Promise((r) => setTimeout(r, 0));
+    expect(errors).toEqual(["HTTP 422"]);
+    loader.request({ from_s: 9, to_s: 19 }, 100, true);
+    loader.stop();
+    expect(calls[3]!.signal.aborted).toBe(true);
+    calls[3]!.resolve(data(calls[3]!.range));
+    await new Promise((r) => setTimeout(r, 0));
+    expect(got).toHaveLength(1);
+  });
+});

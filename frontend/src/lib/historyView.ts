@@ -1,0 +1,341 @@
+/**
+ * Layer: the history plot's logic, independent of React and Plotly (plain TypeScript).
+ *
+ * The history view shows a time window of the recorder's frames (docs/api.md "History"): the
+ * moving window of the last 15 min … 7 days ("live", refreshed from the recording), or a fixed
+ * range in the past after a zoom, a pan, a custom range or a click on a marker. Ranges are
+ * fetched decimated to about one bucket per pixel (min/max per bucket, so every peak stays
+ * drawn as an envelope), debounced while the view moves, a stale request cancelled with its
+ * AbortController. Events and alarms of the range become markers on the time axis.
+ * Times here are seconds since the epoch, as the service's answers have them.
+ */
+import type { components } from "../generated/api";
+import { tracesOf, type PlotSpec } from "./plots";
+import { traceColour } from "./plotting";
+
+export type HistoryAnswer = components["schemas"]["HistoryAnswer"];
+export type HistoryEvents = components["schemas"]["HistoryEvents"];
+export type HistoryEvent = HistoryEvents["items"][number];
+
+/** The range picker's presets: the moving window of the newest data, this long. */
+export const RANGE_PRESETS: readonly { readonly id: string; readonly label: string; readonly span_s: number }[] = [
+  { id: "15m", label: "15 min", span_s: 15 * 60 },
+  { id: "1h", label: "1 h", span_s: 3600 },
+  { id: "24h", label: "24 h", span_s: 24 * 3600 },
+  { id: "7d", label: "7 days", span_s: 7 * 24 * 3600 },
+];
+
+export const DEFAULT_SPAN_S = 15 * 60;
+
+/** The moving window ending now, or a fixed range in the past. */
+export type HistoryWindow =
+  | { readonly mode: "live"; readonly span_s: number }
+  | { readonly mode: "history"; readonly from_s: number; readonly to_s: number };
+
+export interface TimeRange {
+  readonly from_s: number;
+  readonly to_s: number;
+}
+
+/** The range a window shows at `now_s`. */
+export function rangeOf(window: HistoryWindow, now_s: number): TimeRange {
+  return window.mode === "live" ? { from_s: now_s - window.span_s, to_s: now_s } : { from_s: window.from_s, to_s: window.to_s };
+}
+
+export function presetWindow(id: string): HistoryWindow {
+  const preset = RANGE_PRESETS.find((p) => p.id === id);
+  if (preset === undefined) throw new Error(`no range preset "${id}"`);
+  return { mode: "live", span_s: preset.span_s };
+}
+
+/** The preset a window is, or null (a custom or zoomed range). */
+export function presetOf(window: HistoryWindow): string | null {
+  if (window.mode !== "live") return null;
+  return RANGE_PRESETS.find((p) => p.span_s === window.span_s)?.id ?? null;
+}
+
+/**
+ * The window after a person moved the view to `range` (zoom or pan): still live when its end
+ * is within a fiftieth of its width (at least 2 s) of now — a pan back to the newest data
+ * follows it again — else a fixed range in the past.
+ */
+export function windowAfterMove(range: TimeRange, now_s: number): HistoryWindow {
+  const span_s = Math.max(range.to_s - range.from_s, 1);
+  const slack_s = Math.max(span_s / 50, 2);
+  if (range.to_s >= now_s - slack_s) return { mode: "live", span_s };
+  return { mode: "history", from_s: range.from_s, to_s: range.to_s };
+}
+
+/** "Back to live": the moving window as wide as the view was. */
+export function backToLive(window: HistoryWindow): HistoryWindow {
+  if (window.mode === "live") return window;
+  return { mode: "live", span_s: Math.max(1, window.to_s - window.from_s) };
+}
+
+/** A custom range, or why not. */
+export function customWindow(from_s: number, to_s: number): HistoryWindow | string {
+  if (!Number.isFinite(from_s) || !Number.isFinite(to_s)) return "Both times are needed.";
+  if (to_s <= from_s) return "The end must be after the start.";
+  return { mode: "history", from_s, to_s };
+}
+
+/** Around a marker: `span_s` wide (default 60 s), the marker at its centre. */
+export function windowAround(time_s: number, span_s = 60): HistoryWindow {
+  return { mode: "history", from_s: time_s - span_s / 2, to_s: time_s + span_s / 2 };
+}
+
+export const MAX_POINTS = 5000;
+const MIN_POINTS = 50;
+
+/** Buckets to ask for: one per pixel of the plotting area (the service allows 1–5000). */
+export function bucketsForWidth(width_px: number): number {
+  if (!Number.isFinite(width_px)) return 1000;
+  return Math.min(MAX_POINTS, Math.max(MIN_POINTS, Math.round(width_px)));
+}
+
+/** The fields of a plot, as the history API's `fields` parameter. */
+export function fieldsOf(spec: PlotSpec): string {
+  return [...new Set(spec.series.map((s) => s.field))].join(",");
+}
+
+// ---- Plotly traces (plain objects; numeric dates, shifted to local time as the live plots do)
+
+type Datum = number | null;
+
+function num(v: boolean | number | null | undefined): Datum {
+  if (v === null || v === undefined) return null;
+  return typeof v === "boolean" ? (v ? 1 : 0) : v;
+}
+
+/**
+ * The answer's traces for `spec`: per element, a min and a max line with the band between
+ * filled (mode buckets), or the values (mode raw). A gap in the recording (a missing bucket, or
+ * raw frames further apart than a second) breaks the lines instead of bridging it.
+ * `shift_ms` is subtracted from every time (Plotly shows numeric dates in UTC).
+ */
+export function envelopeTraces(answer: HistoryAnswer, spec: PlotSpec, shift_ms: number): object[] {
+  const traces = tracesOf(spec);
+  const step_s = answer.mode === "buckets" ? (answer.bucket_s ?? (answer.to - answer.from) / Math.max(1, answer.points)) : 1;
+  const gapAfter: boolean[] = answer.t.map((t, i) => {
+    const next = answer.t[i + 1];
+    return next !== undefined && next - t > step_s * 1.5;
+  });
+  const withGaps = (values: readonly Datum[]): { x: Datum[]; y: Datum[] } => {
+    const x: Datum[] = [];
+    const y: Datum[] = [];
+    answer.t.forEach((t, i) => {
+      x.push(t * 1000 - shift_ms);
+      y.push(values[i] ?? null);
+      if (gapAfter[i] === true) {
+        x.push(t * 1000 - shift_ms + 1);
+        y.push(null);
+      }
+    });
+    return { x, y };
+  };
+  const out: object[] = [];
+  traces.forEach((trace, i) => {
+    const element = `${trace.fieldName}.${trace.channel}`;
+    const series = answer.series.find((s) => s.element === element);
+    if (series === undefined) return;
+    const colour = traceColour(i);
+    const base = { type: "scatter", mode: "lines", yaxis: trace.axis, connectgaps: false, showlegend: false };
+    const unit = series.unit;
+    if (answer.mode === "raw") {
+      out.push({
+        ...base,
+        name: trace.name,
+        ...withGaps((series.values ?? []).map(num)),
+        line: { width: 1.5, color: colour },
+        hovertemplate: `${trace.name}: %{y:.4~r} ${unit}<extra></extra>`,
+      });
+      return;
+    }
+    out.push({
+      ...base,
+      name: `${trace.name} min`,
+      ...withGaps((series.min ?? []).map(num)),
+      line: { width: 1, color: colour },
+      hovertemplate: `${trace.name} min: %{y:.4~r} ${unit}<extra></extra>`,
+    });
+    out.push({
+      ...base,
+      name: `${trace.name} max`,
+      ...withGaps((series.max ?? []).map(num)),
+      line: { width: 1, color: colour },
+      fill: "tonexty",
+      fillcolor: `${colour}40`,
+      hovertemplate: `${trace.name} max: %{y:.4~r} ${unit}<extra></extra>`,
+    });
+  });
+  return out;
+}
+
+// ---- Markers
+
+export interface MarkerEvent {
+  readonly time_s: number;
+  readonly kind: HistoryEvent["kind"];
+  readonly label: string;
+}
+
+/** One marker: an event, or events too close together to tell apart at this zoom. */
+export interface Marker {
+  readonly id: string;
+  /** The first event's time: where a click jumps to. */
+  readonly time_s: number;
+  /** "alarm" when any of its events is an alarm or an emergency stop, else the first's kind. */
+  readonly kind: HistoryEvent["kind"];
+  /** Its events' words, oldest first, "; " between. */
+  readonly label: string;
+  readonly events: readonly MarkerEvent[];
+  /** Position within the plotting area, 0–1. */
+  readonly at: number;
+}
+
+/** Events closer than this (a share of the plotting area's width) share one marker. */
+export const MARKER_SPACING = 0.015;
+
+/** The words of an event on its marker. */
+export function eventLabel(event: HistoryEvent): string {
+  switch (event.kind) {
+    case "robot_state":
+      return `State ${event.to_name}`;
+    case "alarm":
+      return `${event.alarm.name} ${event.transition}`;
+    default:
+      return event.kind.replace("_", " ");
+  }
+}
+
+/** Kinds shown as markers: what explains a curve (not every write or control hand-over). */
+export const MARKER_KINDS: readonly HistoryEvent["kind"][] = ["robot_state", "alarm", "connection", "recording"];
+
+function urgent(e: MarkerEvent): boolean {
+  return e.kind === "alarm" || e.label.includes("EMERGENCY_STOP");
+}
+
+/**
+ * The events of `range` as markers placed on the time axis (a fraction of the plotting area);
+ * events within MARKER_SPACING of a marker's first event join it, so markers never overlap
+ * and each can be clicked. Zooming in separates them.
+ */
+export function markersOf(events: readonly HistoryEvent[], range: TimeRange): Marker[] {
+  const span = range.to_s - range.from_s;
+  if (!(span > 0)) return [];
+  const groups: { first: HistoryEvent; at: number; events: MarkerEvent[] }[] = [];
+  for (const e of events) {
+    if (!MARKER_KINDS.includes(e.kind) || e.time < range.from_s || e.time >= range.to_s) continue;
+    const at = (e.time - range.from_s) / span;
+    const item = { time_s: e.time, kind: e.kind, label: eventLabel(e) };
+    const last = groups[groups.length - 1];
+    if (last !== undefined && at - last.at < MARKER_SPACING) last.events.push(item);
+    else groups.push({ first: e, at, events: [item] });
+  }
+  return groups.map((g, i) => ({
+    id: `${g.first.id ?? i}-${g.first.time}`,
+    time_s: g.first.time,
+    kind: g.events.some(urgent) ? "alarm" : g.first.kind,
+    label: g.events.map((e) => e.label).join("; "),
+    events: g.events,
+    at: g.at,
+  }));
+}
+
+// ---- Export
+
+export type ExportFormat = "csv" | "parquet" | "mcap";
+export const EXPORT_FORMATS: readonly ExportFormat[] = ["csv", "parquet", "mcap"];
+
+/** The export link of a range (a plain download: the browser sends the session cookie). */
+export function exportUrl(robot: string, range: TimeRange, format: ExportFormat, fields: string | null): string {
+  const q = new URLSearchParams({ from: range.from_s.toFixed(3), to: range.to_s.toFixed(3), format });
+  if (fields !== null && fields !== "") q.set("fields", fields);
+  return `/api/v1/robots/${encodeURIComponent(robot)}/export?${q.toString()}`;
+}
+
+// ---- Fetching
+
+export interface RangeData {
+  readonly range: TimeRange;
+  readonly answer: HistoryAnswer;
+  readonly events: readonly HistoryEvent[];
+}
+
+export type FetchRange = (range: TimeRange, points: number, signal: AbortSignal) => Promise<RangeData>;
+
+export interface Timer {
+  set(callback: () => void, delay_ms: number): unknown;
+  clear(handle: unknown): void;
+}
+
+const browserTimer: Timer = {
+  set: (cb, ms) => setTimeout(cb, ms),
+  clear: (h) => clearTimeout(h as ReturnType<typeof setTimeout>),
+};
+
+/**
+ * Asks for ranges as the view moves: the last request within `debounce_ms` wins; a newer
+ * request aborts the one in flight, whose answer is never delivered.
+ */
+export class RangeLoader {
+  private pending: unknown = null;
+  private inFlight: AbortController | null = null;
+  private generation = 0;
+
+  constructor(
+    private readonly fetchRange: FetchRange,
+    private readonly onData: (data: RangeData) => void,
+    private readonly onError: (reason: string) => void,
+    private readonly debounce_ms = 200,
+    private readonly timer: Timer = browserTimer,
+  ) {}
+
+  request(range: TimeRange, points: number, immediate = false): void {
+    if (this.pending !== null) this.timer.clear(this.pending);
+    this.pending = null;
+    if (immediate) {
+      this.start(range, points);
+      return;
+    }
+    this.pending = this.timer.set(() => {
+      this.pending = null;
+      this.start(range, points);
+    }, this.debounce_ms);
+  }
+
+  private start(range: TimeRange, points: number): void {
+    this.inFlight?.abort();
+    const controller = new AbortController();
+    this.inFlight = controller;
+    const generation = ++this.generation;
+    this.fetchRange(range, points, controller.signal).then(
+      (data) => {
+        if (generation !== this.generation || controller.signal.aborted) return;
+        this.inFlight = null;
+        this.onData(data);
+      },
+      (error: unknown) => {
+        if (generation !== this.generation || controller.signal.aborted) return;
+        this.inFlight = null;
+        this.onError(error instanceof Error ? error.message : String(error));
+      },
+    );
+  }
+
+  /** Nothing more is delivered. */
+  stop(): void {
+    if (this.pending !== null) this.timer.clear(this.pending);
+    this.pending = null;
+    this.inFlight?.abort();
+    this.inFlight = null;
+    this.generation++;
+  }
+}
+
+/** A Plotly date-axis value (a number, or its "2026-11-24 07:00:00.123" text, UTC) as epoch s. */
+export function axisTimeToEpochS(value: unknown, shift_ms: number): number {
+  if (typeof value === "number") return (value + shift_ms) / 1000;
+  if (typeof value === "string") return (Date.parse(`${value.trim().replace(" ", "T")}Z`) + shift_ms) / 1000;
+  return Number.NaN;
+}
