@@ -78,8 +78,17 @@ test("the phone layout has no overflow", async ({ browser }) => {
   const context = await browser.newContext({ viewport: { width: 390, height: 844 }, hasTouch: true, isMobile: true });
   const page = await context.newPage();
   try {
-    const noOverflow = async (where: string) =>
-      expect(await page.evaluate(() => document.documentElement.scrollWidth), where).toBeLessThanOrEqual(390);
+    const noOverflow = async (where: string) => {
+      const { width, wide } = await page.evaluate(() => ({
+        width: document.documentElement.scrollWidth,
+        // The outermost elements that reach past the right edge, to name in a failure.
+        wide: Array.from(document.querySelectorAll<HTMLElement>("body *"))
+          .filter((el) => el.getBoundingClientRect().right > 391 && !(el.parentElement && el.parentElement.getBoundingClientRect().right > 391))
+          .slice(0, 8)
+          .map((el) => `${el.tagName.toLowerCase()}.${el.className} ${Math.round(el.getBoundingClientRect().right)}`),
+      }));
+      expect(width, `${where}: ${wide.join("; ")}`).toBeLessThanOrEqual(390);
+    };
     const headerShort = async () => {
       const box = await page.locator(".panel-header").boundingBox();
       expect(box?.height ?? 999, "sticky header height").toBeLessThanOrEqual(0.2 * 844 + 0.5);

@@ -246,7 +246,7 @@ function AlarmHistory({ robot, newest }: { robot: string; newest: number | null 
         </a>
         {error !== null && <span className="reason">{error}</span>}
       </div>
-      <div className="table-scroll">
+      <div className="table-scroll" tabIndex={0} role="region" aria-label="Alarm history">
         <table data-testid="alarm-history-table">
           <thead>
             <tr>
@@ -308,7 +308,7 @@ export const AlarmsView = memo(function AlarmsView({
   return (
     <div className="alarms-view">
       {!canAct && <p className="hint">Log in as an operator to acknowledge or shelve alarms.</p>}
-      <div className="table-scroll">
+      <div className="table-scroll" tabIndex={0} role="region" aria-label="Alarms">
         <table data-testid="alarm-table" className="alarm-table">
           <thead>
             <tr>

@@ -142,7 +142,7 @@ export const EventsView = memo(function EventsView({
         </a>
         {error !== null && <span className="reason">{error}</span>}
       </div>
-      <div className="table-scroll">
+      <div className="table-scroll" tabIndex={0} role="region" aria-label="Events">
         <table data-testid="events-table">
           <thead>
             <tr>
@@ -230,7 +230,7 @@ export const AuditView = memo(function AuditView({
         </a>
         {error !== null && <span className="reason">{error}</span>}
       </div>
-      <div className="table-scroll">
+      <div className="table-scroll" tabIndex={0} role="region" aria-label="Audit">
         <table data-testid="audit-table">
           <thead>
             <tr>

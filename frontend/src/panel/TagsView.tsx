@@ -130,7 +130,7 @@ export const TagsView = memo(function TagsView({
           </span>
         )}
       </div>
-      <div className="table-scroll">
+      <div className="table-scroll" tabIndex={0} role="region" aria-label="Tag names">
         <table data-testid="tags-table">
           <thead>
             <tr>
