@@ -100,7 +100,7 @@ export function AlarmCue({ alarms }: { readonly alarms: readonly Alarm[] }) {
       title={blocked ? "The browser blocks sound until you click the page" : undefined}
       onClick={() => setMuted(mute(alarms))}
     >
-      {now.length > 0 ? (blocked ? "🔇 Sound blocked · Mute" : "🔊 Mute") : "🔇 Muted"}
+      {now.length > 0 ? (blocked ? "Mute (sound blocked until a click)" : "Mute sound") : "Sound muted"}
     </button>
   );
 }

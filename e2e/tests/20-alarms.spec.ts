@@ -1,0 +1,120 @@
+// Scenario 20: alarms end to end. An emergency stop on the robot raises the panel's alarm banner
+// (the critical e-stop alarm, unacknowledged) within 1 s; the alarm list has its row and an
+// acknowledge button; acknowledging clears the unacknowledged mark in the list and the banner;
+// the kiosk shows the same banner with nothing to press; a reset returns the alarm to normal
+// (it leaves the list, the history keeps every transition).
+import type { Page } from "@playwright/test";
+import { expect, loginInPanel, screenshot, test, type Service } from "../support/fixtures";
+import { settings } from "../support/settings";
+
+const ESTOP_ID = `${settings.robotName}:emergency_stop`;
+
+interface AlarmListed {
+  readonly id: string;
+  readonly state: string;
+}
+
+/** Acknowledge every unacknowledged alarm of the robot, so the test starts from a quiet list. */
+async function acknowledgeAll(service: Service): Promise<void> {
+  const answer = await service.api.get(`/api/v1/alarms?robot=${settings.robotName}`);
+  expect(answer.status(), await answer.text()).toBe(200);
+  const { items } = (await answer.json()) as { items: AlarmListed[] };
+  for (const alarm of items) {
+    if (alarm.state !== "active_unacknowledged" && alarm.state !== "returned_unacknowledged") continue;
+    const ack = await service.api.post(`/api/v1/alarms/${encodeURIComponent(alarm.id)}/ack`, { data: { comment: "e2e: clean start" } });
+    expect([200, 409], await ack.text()).toContain(ack.status());
+  }
+}
+
+/** Note, in the page, when the banner first shows `alarmId` unacknowledged (it need not exist yet). */
+async function noteBanner(page: Page, alarmId: string): Promise<void> {
+  await page.evaluate((alarmId) => {
+    const w = window as unknown as { __e2eBannerAt?: number };
+    delete w.__e2eBannerAt;
+    const seen = () => {
+      const el = document.querySelector('[data-testid="alarm-banner"]');
+      return el !== null && el.getAttribute("data-alarm") === alarmId && el.getAttribute("data-unacknowledged") === "true";
+    };
+    const observer = new MutationObserver(() => {
+      if (w.__e2eBannerAt === undefined && seen()) {
+        w.__e2eBannerAt = Date.now();
+        observer.disconnect();
+      }
+    });
+    observer.observe(document.body, { attributes: true, childList: true, subtree: true });
+  }, alarmId);
+}
+
+test.afterEach(async ({ robot, operatorApi }) => {
+  await robot.tryPost("/reset");
+  await acknowledgeAll(operatorApi);
+});
+
+test("an emergency stop raises the alarm banner within 1 s and acknowledging clears the unacknowledged mark", async ({
+  page,
+  robot,
+  operatorApi,
+}, testInfo) => {
+  await acknowledgeAll(operatorApi);
+  await page.goto("/");
+  await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
+  await loginInPanel(page, settings.operator);
+  await expect(page.locator(`[data-testid="alarm-row"][data-alarm="${ESTOP_ID}"]`)).toHaveCount(0);
+  await noteBanner(page, ESTOP_ID);
+
+  const pressed_ms = Date.now();
+  await robot.estop();
+  const banner = page.getByTestId("alarm-banner");
+  await expect(banner).toHaveAttribute("data-alarm", ESTOP_ID);
+  await expect(banner).toHaveAttribute("data-priority", "critical");
+  await expect(banner).toHaveAttribute("data-unacknowledged", "true");
+  await expect(banner).toContainText("Emergency stop");
+  // Measured in the page: when a person could first see it, from the press (request included).
+  const seen_ms = (await page.evaluate(() => (window as unknown as { __e2eBannerAt?: number }).__e2eBannerAt))! - pressed_ms;
+  testInfo.annotations.push({ type: "alarm banner shown after (ms)", description: String(seen_ms) });
+  expect(seen_ms).toBeLessThanOrEqual(1000);
+  // The e-stop's pendant colour is red.
+  await expect(banner).toHaveAttribute("data-colour", "red");
+
+  const row = page.locator(`[data-testid="alarm-row"][data-alarm="${ESTOP_ID}"]`);
+  await expect(row).toHaveAttribute("data-state", "active_unacknowledged");
+  await expect(row).toHaveAttribute("data-unacknowledged", "true");
+  await expect(row.getByTestId("alarm-unack-mark")).toBeVisible();
+  // The audible cue sounds until muted.
+  const mute = page.getByTestId("alarm-mute");
+  await expect(mute).toHaveAttribute("data-sounding", "true");
+  await mute.click();
+  await expect(mute).toHaveAttribute("data-sounding", "false");
+  await screenshot(page, testInfo, "alarm-banner");
+
+  // The kiosk shows the same banner, and nothing to acknowledge it with.
+  const kiosk = await page.context().newPage();
+  await kiosk.goto("/kiosk");
+  await expect(kiosk.getByTestId("alarm-banner")).toHaveAttribute("data-alarm", ESTOP_ID);
+  await expect(kiosk.getByTestId("alarm-banner")).toContainText("Emergency stop");
+  await expect(kiosk.getByTestId("alarm-ack")).toHaveCount(0);
+  await screenshot(kiosk, testInfo, "kiosk-alarm-banner");
+
+  await row.getByTestId("alarm-ack").click();
+  await expect(row).toHaveAttribute("data-state", "active_acknowledged");
+  await expect(row).toHaveAttribute("data-unacknowledged", "false");
+  await expect(row.getByTestId("alarm-unack-mark")).toHaveCount(0);
+  await expect(row.getByTestId("alarm-ack")).toHaveCount(0);
+  await expect(row).toContainText(`acknowledged by ${settings.operator.name}`);
+  await expect(banner).toHaveAttribute("data-unacknowledged", "false");
+  await expect(kiosk.getByTestId("alarm-banner")).toHaveAttribute("data-unacknowledged", "false");
+
+  // Reset: acknowledged and gone, so normal: out of the list and off both banners.
+  await robot.reset();
+  await expect(row).toHaveCount(0);
+  await expect(page.locator(`[data-testid="alarm-banner"][data-alarm="${ESTOP_ID}"]`)).toHaveCount(0);
+  await expect(kiosk.locator(`[data-testid="alarm-banner"][data-alarm="${ESTOP_ID}"]`)).toHaveCount(0);
+  await kiosk.close();
+
+  // The history keeps every transition, with who acknowledged.
+  const history = (transition: string) =>
+    page.locator(`[data-testid="alarm-history-row"][data-transition="${transition}"]`).filter({ hasText: "Emergency stop" }).first();
+  await expect(history("activated")).toBeVisible();
+  await expect(history("acknowledged")).toContainText(settings.operator.name);
+  await expect(history("cleared")).toBeVisible();
+});

@@ -1,0 +1,52 @@
+// Scenario 21: control belongs to a session, not to a user name. The same operator logged in in
+// two browsers: the one that took control shows Release and live toggles; the other says
+// "held by you in another window", has no Release and no Take control, and its toggles stay
+// disabled — whether it learns of the control live (an event) or from its hello (a reload).
+import { expect, loginInPanel, test } from "../support/fixtures";
+import { baseURL, settings } from "../support/settings";
+
+test("the same user in a second window sees control held by you in another window", async ({ browser }) => {
+  // Two contexts: two cookie jars, so two login sessions of the same user.
+  const first = await browser.newContext({ baseURL, viewport: { width: 1600, height: 1000 } });
+  const second = await browser.newContext({ baseURL, viewport: { width: 1600, height: 1000 } });
+  try {
+    const a = await first.newPage();
+    const b = await second.newPage();
+    for (const page of [a, b]) {
+      await page.goto("/");
+      await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
+      await loginInPanel(page, settings.operator);
+    }
+
+    await a.getByTestId("take-control").click();
+    await expect(a.getByTestId("control-holder")).toHaveAttribute("data-ownership", "you");
+    await expect(a.getByTestId("release-control")).toBeVisible();
+    await expect(a.getByTestId("do-3")).toBeEnabled();
+
+    // The second window learns it from the control event.
+    const holder = b.getByTestId("control-holder");
+    await expect(holder).toHaveAttribute("data-holder", settings.operator.name);
+    await expect(holder).toHaveAttribute("data-ownership", "you-elsewhere");
+    await expect(holder).toContainText("held by you in another window");
+    await expect(b.getByTestId("release-control")).toHaveCount(0);
+    await expect(b.getByTestId("take-control")).toHaveCount(0);
+    await expect(b.getByTestId("do-3")).toBeDisabled();
+    await expect(b.getByTestId("write-blocked-reason")).toContainText("another window");
+
+    // And from its hello after a reload (the login stays).
+    await b.reload();
+    await expect(b.getByTestId("current-user")).toContainText(settings.operator.name);
+    await expect(b.getByTestId("control-holder")).toHaveAttribute("data-ownership", "you-elsewhere");
+    await expect(b.getByTestId("release-control")).toHaveCount(0);
+    await expect(b.getByTestId("do-3")).toBeDisabled();
+    // The first window still holds it.
+    await expect(a.getByTestId("release-control")).toBeVisible();
+
+    await a.getByTestId("release-control").click();
+    await expect(b.getByTestId("control-holder")).toHaveAttribute("data-holder", "");
+    await expect(b.getByTestId("take-control")).toBeVisible();
+  } finally {
+    await first.close();
+    await second.close();
+  }
+});
