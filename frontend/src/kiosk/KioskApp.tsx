@@ -1,7 +1,7 @@
 /**
  * The kiosk (`/kiosk?robot=NAME&tiles=joint_position,tcp_position`; without `robot`, the
  * service's default robot; `tiles` chooses its large numeric tiles, any numeric field of the
- * frame; `robot3d=1` adds the 3D view, `arm=M0609` names the arm it draws): read-only by
+ * frame; `robot3d=1` adds the 3D view of the robot's model, `arm=M0609` overrides it): read-only by
  * construction. Its component tree imports no write control,
  * no REST module and no login (a test walks its imports); it reads the WebSocket only. Light or
  * dark as the system says (or `theme=light|dark` in its URL), readable from three metres, cursor hidden, reconnects by itself, bounded memory, and shifts a
@@ -28,6 +28,7 @@ import { createLiveRuntime } from "../lib/runtime";
 import { fetchTagNames } from "../lib/tagNames";
 import type { TagNames } from "../lib/tags";
 import { KioskClock, KioskStateWords, KioskTiles } from "./KioskTiles";
+import { useRobotModel } from "./useRobotModel";
 import "../styles/kiosk.css";
 
 const KIOSK_PLOTS: readonly PlotSpec[] = [JOINT_PLOTS[0], TCP_PLOTS[0]].filter((p): p is PlotSpec => p !== undefined);
@@ -83,6 +84,8 @@ function Kiosk() {
   const live = useLive();
   const offset = useBurnInOffset();
   const tags = useKioskTagNames(live.robot, options.token);
+  // The 3D view's arm: `arm=` in the URL, else the model the service reports for the robot.
+  const model = useRobotModel(options.robot3d && options.arm === null ? live.robot : null, options.token);
   const stale = live.health !== "connected";
   const frame = live.frame;
   const estop = frame?.emergency_stopped === true;
@@ -125,7 +128,7 @@ function Kiosk() {
           <KioskTiles fields={options.tiles.fields} unknown={options.tiles.unknown} frame={frame} />
           {options.robot3d && (
             <div className="kiosk__robot3d">
-              <Robot3DView model={options.arm} theme={theme} interactive={false} height_px={360} />
+              <Robot3DView model={options.arm ?? model} theme={theme} interactive={false} height_px={360} />
             </div>
           )}
           <main className={`kiosk__main${stale ? " is-stale" : ""}`}>
