@@ -109,7 +109,7 @@ class Phase:
     published_messages: float = 0.0
     published_bytes: float = 0.0
     tick_s: float = 0.0
-    """The edge node's own time on the web loop (its counter)."""
+    """The edge node's own CPU time on the web loop (its counter)."""
 
 
 def _sum(samples: dict[tuple[str, str], float], name: str) -> float:
@@ -368,7 +368,7 @@ def report(
     print(
         f"  service CPU: on {service_on:.1f} %, off {service_off:.1f} % of a core; the "
         f"publisher's share {publisher:.1f} % = {publisher / args.robots:.2f} % per robot "
-        f"(target ≤ 5 %); the edge node's own time on the web loop {ticks:.2f} % = "
+        f"(target ≤ 5 %); the edge node's own CPU on the web loop {ticks:.2f} % = "
         f"{ticks / args.robots:.2f} % per robot (its counter; paho's network thread is in the "
         f"difference only); Mosquitto {broker_on:.1f} %"
     )
