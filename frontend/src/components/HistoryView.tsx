@@ -8,6 +8,7 @@
 import { memo, useEffect, useMemo, useRef, useState } from "react";
 import { api } from "../lib/api";
 import { historyFetcher } from "../lib/historyApi";
+import { historyLink } from "../lib/historyLink";
 import {
   DEFAULT_SPAN_S,
   EXPORT_FORMATS,
@@ -171,6 +172,17 @@ export const HistoryView = memo(function HistoryView({ robot, theme }: Props) {
     return () => clearInterval(timer);
   }, [loader, window, margin.l, margin.r]);
 
+  // A live plot's "History": its fields over its range in view, as a fixed range.
+  useEffect(
+    () =>
+      historyLink.listen(({ specId: wanted, range }) => {
+        if (ALL_PLOTS.some((s) => s.id === wanted)) setSpecId(wanted);
+        const next = customWindow(range.from_s, range.to_s);
+        if (typeof next !== "string") setWindow(next);
+      }),
+    [],
+  );
+
   const applyCustom = () => {
     if (custom === null) return;
     const result = customWindow(Date.parse(custom.from) / 1000, Date.parse(custom.to) / 1000);
@@ -289,7 +301,7 @@ export const HistoryView = memo(function HistoryView({ robot, theme }: Props) {
         className="history__markers"
         role="group"
         aria-label="Events on the time axis"
-        style={{ position: "relative", height: "28px" }}
+        style={{ position: "relative" }}
       >
         {markers.map((m) => (
           <button
@@ -305,7 +317,8 @@ export const HistoryView = memo(function HistoryView({ robot, theme }: Props) {
             onClick={() => setWindow(windowAround(m.time_s))}
             style={{
               position: "absolute",
-              left: `calc(${margin.l}px + (100% - ${margin.l + margin.r}px) * ${m.at})`,
+              // Kept inside the strip at its ends (no overflow of a narrow screen).
+              left: `clamp(22px, calc(${margin.l}px + (100% - ${margin.l + margin.r}px) * ${m.at}), calc(100% - 22px))`,
               transform: "translateX(-50%)",
             }}
           >

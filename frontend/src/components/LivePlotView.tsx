@@ -4,9 +4,11 @@
  * samples never pass through React state.
  */
 import { memo, useEffect, useRef, useState } from "react";
+import { historyLink } from "../lib/historyLink";
+import { axisTimeToEpochS } from "../lib/historyView";
 import { plotlyBackend } from "../lib/plotlyAdapter";
 import { DEFAULT_PLOT_HEIGHT_PX, LivePlot, plotMargin, traceColour, type PlotTheme } from "../lib/plotting";
-import { DEFAULT_WINDOW_MS, WINDOWS_MS, axisTitles, tracesOf, type PlotSpec } from "../lib/plots";
+import { ALL_PLOTS, DEFAULT_WINDOW_MS, WINDOWS_MS, axisTitles, tracesOf, type PlotSpec } from "../lib/plots";
 import { useRuntime } from "./runtimeContext";
 
 interface Props {
@@ -74,6 +76,21 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
     setPaused(false);
     plotRef.current?.backToLive();
   };
+  // The panel's history plot shows this plot's fields over the range in view (the zoom, or the
+  // window), from the recording: the way from live back into history (components/HistoryView).
+  const inHistory = ALL_PLOTS.some((s) => s.id === spec.id);
+  const showInHistory = () => {
+    const el = container.current;
+    const shift_ms = new Date().getTimezoneOffset() * 60_000;
+    const x = el !== null ? plotlyBackend.zoomedAxes(el).xaxis : undefined;
+    const now_s = Date.now() / 1000;
+    const range =
+      x !== undefined
+        ? { from_s: axisTimeToEpochS(x[0], shift_ms), to_s: axisTimeToEpochS(x[1], shift_ms) }
+        : { from_s: now_s - window_ms / 1000, to_s: now_s };
+    if (!(range.to_s > range.from_s)) return;
+    if (historyLink.show({ specId: spec.id, range })) document.getElementById("history")?.scrollIntoView();
+  };
   const exportPng = () => {
     const stamp = new Date().toISOString().replace(/[:.]/g, "-");
     plotRef.current?.exportPng(`${spec.id.replace(/^plot-/, "")}-${stamp}`);
@@ -123,6 +140,16 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
                 title="Back to the moving window of the newest data"
               >
                 Back to live
+              </button>
+            )}
+            {(zoomed || paused) && inHistory && (
+              <button
+                type="button"
+                data-testid={`${spec.id}-history`}
+                onClick={showInHistory}
+                title="Show the range in view in the history plot, from the recording"
+              >
+                History
               </button>
             )}
             <button type="button" data-testid={`${spec.id}-png`} onClick={exportPng} title="Save this plot as a PNG image">
