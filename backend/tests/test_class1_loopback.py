@@ -307,6 +307,33 @@ async def test_t2o_runs_on_unbroken_between_the_pumps_stream_and_packet_by_packe
     assert info.packets_out >= stats.packets_in > 100
 
 
+async def test_a_silence_that_comes_on_between_wake_ups_holds_back_a_change(
+    scanner: Factory, target: Target, robot: StaticRobot
+) -> None:
+    """A silence set while T→O is the pump's periodic stream, then a change to the robot's
+    data before the engine's next wake-up (a write arriving at once): the change never goes
+    out. The stream stops at the change; fed the change instead, it sent it until that
+    wake-up, and a write a test expected to time out was confirmed."""
+    shown: list[bool] = []
+    originator = await scanner(
+        on_frame=lambda frame, _at, _seq: shown.append(frame.tool_do[0]),
+        rpi_us=2_000,
+        timeout_multiplier=7,
+    )
+    assert await originator.wait_connected(DEADLINE_S)
+    (conn,) = target._by_o2t.values()
+    await eventually(lambda: conn.t2o_streaming)
+    # One turn of the loop: no wake-up of the engine in between.
+    target.faults.t2o_silent = True
+    robot.consume_command(
+        command_from_json({"tool_do": {"0": True}}, base=robot.command_image()), 0.0
+    )
+    target.process_image_changed()
+    await eventually(lambda: originator.state is not ConnectionState.CONNECTED)
+    assert shown
+    assert not any(shown), "the change went out after the silence began"
+
+
 # --------------------------------------------------------------------------- refusals
 
 REFUSALS = [

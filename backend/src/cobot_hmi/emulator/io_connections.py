@@ -460,6 +460,16 @@ class IoConnections:
             return
         now = asyncio.get_running_loop().time()
         epoch_minus_loop = time.time() - now
+        if self.faults.per_packet() and any(c.t2o_streaming for c in self._by_o2t.values()):
+            # A fault came on since the last wake-up (a silence, say): the streams stop now,
+            # never to carry the change, and the packets up to the next wake-up are built
+            # under the fault (a silent target had sent the new outputs until that wake-up).
+            for conn in self._by_o2t.values():
+                if conn.t2o_streaming:
+                    self._stop_stream(conn)
+            if self._wake_period_s is not None:
+                self._queue_t2o_until(now + self._wake_period_s + HORIZON_MARGIN_S, now)
+            return
         for conn in self._by_o2t.values():
             if conn.t2o_streaming:
                 self._stream_t2o(conn, self._t2o_data(now + epoch_minus_loop), now)
