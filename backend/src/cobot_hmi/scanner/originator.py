@@ -694,12 +694,18 @@ class Originator:
             if future is not None and not future.done():
                 future.cancel()
         session, self._session = self._session, None
-        if link is not None and forward_close:
-            with contextlib.suppress(SessionError, EnipError, OSError, TimeoutError):
-                await asyncio.wait_for(self._forward_close(session, link), 1.0)
-        if session is not None:
-            with contextlib.suppress(OSError, TimeoutError):
-                await asyncio.wait_for(session.close(), 1.0)
+        try:
+            if link is not None and forward_close:
+                with contextlib.suppress(SessionError, EnipError, OSError, TimeoutError):
+                    await asyncio.wait_for(self._forward_close(session, link), 1.0)
+            if session is not None:
+                with contextlib.suppress(OSError, TimeoutError):
+                    await asyncio.wait_for(session.close(), 1.0)
+        finally:
+            # stop() cancels a supervisor that may be in here: the session (already out of
+            # self._session) must not be left open.
+            if session is not None:
+                session.abort()
         if self.state is ConnectionState.CONNECTED and not self._stopping:
             self._set_state(ConnectionState.LOST, "connection closed")
         self.run = False

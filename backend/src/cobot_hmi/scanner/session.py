@@ -58,36 +58,52 @@ class EnipSession:
 
     async def open(self) -> None:
         try:
-            self._reader, self._writer = await asyncio.wait_for(
-                asyncio.open_connection(
+            # asyncio.timeout, not wait_for: on Python 3.11 a wait_for cancelled (the originator
+            # stopping) just as the connection came up dropped the connected stream unclosed;
+            # in this task, open_connection's own clean-up closes the socket.
+            async with asyncio.timeout(self.timeout_s):
+                self._reader, self._writer = await asyncio.open_connection(
                     self.host,
                     self.port,
                     local_addr=(self.local_host, 0) if self.local_host else None,
-                ),
-                self.timeout_s,
-            )
+                )
         except (OSError, TimeoutError) as error:
             raise SessionError(f"cannot reach {self.host}:{self.port}: {error}") from None
         peer = self._writer.get_extra_info("peername") if self._writer is not None else None
         self.peer_host = str(peer[0]) if peer else None
-        reply = await self._transact(
-            Command.REGISTER_SESSION, encapsulation.encode_register_session()
-        )
+        try:
+            reply = await self._transact(
+                Command.REGISTER_SESSION, encapsulation.encode_register_session()
+            )
+        except BaseException:  # refused, timed out or cancelled: the socket is not left open
+            self.abort()
+            raise
         self.handle = reply.header.session
+
+    def abort(self) -> None:
+        """Close the socket at once, without unregistering (nothing to await: safe in a
+        clean-up that a cancellation may interrupt). Nothing after ``close()``."""
+        if self._writer is not None:
+            self._writer.transport.abort()
+        self._writer = None
+        self._reader = None
 
     async def close(self) -> None:
         writer = self._writer
         if writer is None:
             return
-        if self.handle and not writer.is_closing():
-            with contextlib.suppress(OSError):
-                writer.write(encapsulation.encode(Command.UNREGISTER_SESSION, session=self.handle))
-                await asyncio.wait_for(writer.drain(), self.timeout_s)
-        writer.close()
+        try:
+            if self.handle and not writer.is_closing():
+                with contextlib.suppress(OSError):
+                    message = encapsulation.encode(Command.UNREGISTER_SESSION, session=self.handle)
+                    writer.write(message)
+                    await asyncio.wait_for(writer.drain(), self.timeout_s)
+        finally:  # a caller's timeout cancelling the drain still closes the socket
+            writer.close()
+            self._writer = None
+            self._reader = None
         with contextlib.suppress(OSError, TimeoutError):
             await asyncio.wait_for(writer.wait_closed(), self.timeout_s)
-        self._writer = None
-        self._reader = None
         self.handle = 0
 
     async def _transact(self, command: int, data: bytes) -> EncapMessage:
