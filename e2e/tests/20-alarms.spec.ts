@@ -1,8 +1,9 @@
 // Scenario 20: alarms end to end. An emergency stop on the robot raises the panel's alarm banner
 // (the critical e-stop alarm, unacknowledged) within 1 s; the alarm list has its row and an
 // acknowledge button; acknowledging clears the unacknowledged mark in the list and the banner;
-// the kiosk shows the same banner with nothing to press; a reset returns the alarm to normal
-// (it leaves the list, the history keeps every transition).
+// the kiosk shows the same banner with nothing to press; a reset returns it to normal (it leaves
+// the list, the history keeps every transition). Shelving (a reason is required) takes an alarm
+// off both banners while it stays listed; unshelving brings it back.
 import type { Page } from "@playwright/test";
 import { expect, loginInPanel, screenshot, test, type Service } from "../support/fixtures";
 import { settings } from "../support/settings";
@@ -55,6 +56,9 @@ test("an emergency stop raises the alarm banner within 1 s and acknowledging cle
   robot,
   operatorApi,
 }, testInfo) => {
+  // Generous: on a loaded machine the panel redraws its plots slowly (the one timing asserted,
+  // the banner within 1 s of the press, is the issue's requirement, as scenario 02's badge).
+  test.setTimeout(120_000);
   await acknowledgeAll(operatorApi);
   await page.goto("/");
   await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
@@ -117,4 +121,38 @@ test("an emergency stop raises the alarm banner within 1 s and acknowledging cle
   await expect(history("activated")).toBeVisible();
   await expect(history("acknowledged")).toContainText(settings.operator.name);
   await expect(history("cleared")).toBeVisible();
+});
+
+test("a shelved alarm stays listed but leaves the banners; unshelved, it is back", async ({ page, robot, operatorApi }) => {
+  // Generous: on a loaded machine the panel redraws its plots slowly (no timing is asserted here).
+  test.setTimeout(120_000);
+  await acknowledgeAll(operatorApi);
+  await page.goto("/");
+  await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
+  await loginInPanel(page, settings.operator);
+  await robot.estop();
+  const banner = page.getByTestId("alarm-banner");
+  await expect(banner).toHaveAttribute("data-alarm", ESTOP_ID);
+  const row = page.locator(`[data-testid="alarm-row"][data-alarm="${ESTOP_ID}"]`);
+  const kiosk = await page.context().newPage();
+  await kiosk.goto("/kiosk");
+  await expect(kiosk.getByTestId("alarm-banner")).toHaveAttribute("data-alarm", ESTOP_ID);
+
+  // A reason is required.
+  await row.getByTestId("alarm-shelve").click();
+  await row.getByTestId("alarm-shelve-submit").click();
+  await expect(row.getByTestId("alarm-shelve-error")).toContainText("why");
+  await row.getByTestId("alarm-shelve-reason").fill("e2e: cell being inspected");
+  await row.getByTestId("alarm-shelve-duration").selectOption({ label: "15 min" });
+  await row.getByTestId("alarm-shelve-submit").click();
+  await expect(row).toHaveAttribute("data-shelved", "true");
+  await expect(row).toContainText("e2e: cell being inspected");
+  await expect(page.locator(`[data-testid="alarm-banner"][data-alarm="${ESTOP_ID}"]`)).toHaveCount(0);
+  await expect(kiosk.locator(`[data-testid="alarm-banner"][data-alarm="${ESTOP_ID}"]`)).toHaveCount(0);
+
+  await row.getByTestId("alarm-unshelve").click();
+  await expect(row).toHaveAttribute("data-shelved", "false");
+  await expect(banner).toHaveAttribute("data-alarm", ESTOP_ID);
+  await expect(kiosk.getByTestId("alarm-banner")).toHaveAttribute("data-alarm", ESTOP_ID);
+  await kiosk.close();
 });
