@@ -127,16 +127,23 @@ class Target:
         """The TCP accept loop. Our own rather than ``asyncio.start_server``: on Python 3.11 a
         ``Server.close()`` that falls between a connection's accept and its transport leaves the
         accepted socket open and owned by no one (the transport's attach to the closed server
-        fails). Here an accepted socket is ours from ``sock_accept`` on: ``stop()`` cancels this
-        loop, and a socket caught between accept and transport is closed below."""
+        fails). Here an accepted socket is ours from the moment of ``accept()``: the loop waits
+        for the listener to be readable (a cancel there loses nothing) and accepts in the same
+        step, with no await between (``loop.sock_accept`` would lose a socket accepted just as
+        ``stop()`` cancels this loop); a socket caught between accept and transport is closed
+        below."""
         loop = asyncio.get_running_loop()
         while True:
+            await _readable(loop, listener)
             try:
-                connection, _ = await loop.sock_accept(listener)
-            except OSError as error:  # out of descriptors, a connection reset in the queue
+                connection, _ = listener.accept()
+            except (BlockingIOError, InterruptedError):
+                continue  # another wake-up took it, or a connection reset in the queue
+            except OSError as error:  # out of descriptors
                 log.warning("TCP accept failed: %s; accepting again in a second", error)
                 await asyncio.sleep(ACCEPT_RETRY_DELAY_S)
                 continue
+            connection.setblocking(False)
             try:
                 await loop.connect_accepted_socket(self._stream_protocol, connection)
             except BaseException:
@@ -201,6 +208,21 @@ class Target:
         request = cip.decode_request(request_data)
         response, extra = self.router.route(request, items, session)
         return response.encode(), extra
+
+
+async def _readable(loop: asyncio.AbstractEventLoop, sock: socket.socket) -> None:
+    """Until ``sock`` is readable (for a listener: a connection waits to be accepted)."""
+    ready: asyncio.Future[None] = loop.create_future()
+
+    def wake() -> None:
+        if not ready.done():
+            ready.set_result(None)
+
+    loop.add_reader(sock.fileno(), wake)
+    try:
+        await ready
+    finally:
+        loop.remove_reader(sock.fileno())
 
 
 __all__ = ["HORIZON_MARGIN_S", "TICK_READ_MAX_RPI_US", "ConnectionInfo", "Target"]
