@@ -6,7 +6,7 @@
  */
 import { useEffect, useMemo, useState } from "react";
 import { CUSTOM_PLOT_RATE_HZ, customPlot, PICKABLE_FIELDS, refuseNewPlot, type CustomPlot } from "../lib/customPlots";
-import type { PlotCoordinator } from "../lib/plotting";
+import type { PlotCoordinator } from "../lib/plotCoordinator";
 import { createLiveRuntime } from "../lib/runtime";
 import { LivePlotView } from "./LivePlotView";
 import { RuntimeContext } from "./runtimeContext";

@@ -3,7 +3,7 @@
  * WebSocket (StreamClient) → LiveData (ring buffer + snapshot) → PlotCoordinator (rAF tick).
  */
 import { LiveData } from "./liveData";
-import { PlotCoordinator } from "./plotting";
+import { PlotCoordinator } from "./plotCoordinator";
 import type { PlotSpec } from "./plots";
 import { StreamClient, streamUrl } from "./stream";
 
