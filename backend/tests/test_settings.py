@@ -225,3 +225,53 @@ def test_serve_without_a_robot_says_so(
         monkeypatch.delenv(name, raising=False)
     assert main(["serve"]) == 2
     assert "no robot given" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("entry", "why"),
+    [
+        ("10.0.0.300", "not an IP address or network"),
+        ("10.0.0.1/24", "has host bits set"),
+        ("proxy.example", "not an IP address or network"),
+        ("10.0.0.0/33", "not an IP address or network"),
+        ("*", "trusting every peer is not offered"),
+    ],
+)
+def test_trusted_proxies_refuses_malformed_entries_naming_them(
+    tmp_path: Path, entry: str, why: str
+) -> None:
+    # uvicorn would take each of these as a literal that no peer matches: trusted nobody, silently.
+    good = "10.0.0.1"
+    from_env = {"COBOT_HMI_ROBOT_HOST": "h", "COBOT_HMI_TRUSTED_PROXIES": f"{good}, {entry}"}
+    with pytest.raises(SettingsError) as error:
+        load_settings({}, environ=from_env)
+    message = str(error.value)
+    assert f"trusted_proxies (from COBOT_HMI_TRUSTED_PROXIES): entry {entry!r}: " in message
+    assert why in message
+    path = _config(tmp_path, f'robot_host = "h"\ntrusted_proxies = ["{good}", "{entry}"]\n')
+    with pytest.raises(SettingsError) as error:
+        load_settings({}, environ={}, config_file=path)
+    message = str(error.value)
+    assert f"trusted_proxies (from config file {path}): entry {entry!r}: " in message
+    assert why in message
+
+
+def test_trusted_proxies_accepts_addresses_and_networks_in_canonical_form() -> None:
+    settings = load_settings(
+        {},
+        environ={
+            "COBOT_HMI_ROBOT_HOST": "h",
+            "COBOT_HMI_TRUSTED_PROXIES": "127.0.0.1, 10.1.0.0/16,0:0::1, fd00::/8",
+        },
+    )
+    assert settings.trusted_proxies == ["127.0.0.1", "10.1.0.0/16", "::1", "fd00::/8"]
+
+
+def test_serve_with_a_malformed_trusted_proxy_does_not_start(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    for name in ("COBOT_HMI_ROBOT_HOST", "COBOT_HMI_ROBOTS", "COBOT_HMI_CONFIG"):
+        monkeypatch.delenv(name, raising=False)
+    assert main(["serve", "--robot", "127.0.0.1", "--trusted-proxies", "10.0.0.1/8"]) == 2
+    err = capsys.readouterr().err
+    assert "trusted_proxies (from --trusted-proxies): entry '10.0.0.1/8'" in err

@@ -24,6 +24,7 @@ and field names key the Sparkplug deadbands).
 from __future__ import annotations
 
 import argparse
+import ipaddress
 import os
 import tomllib
 import types
@@ -109,6 +110,36 @@ def _split_commas(value: object) -> object:
 
 CommaList = Annotated[list[str], NoDecode, BeforeValidator(_split_commas)]
 """A list setting written ``a,b,c`` in a flag or variable (a list in TOML)."""
+
+
+def _check_proxies(entries: list[str]) -> list[str]:
+    """Each entry an IP address or a network (``ipaddress``), in its canonical form.
+
+    uvicorn takes any entry it cannot parse as a literal host name that no peer address ever
+    equals, so a typo (``10.0.0.300``, ``10.0.0.1/24`` with host bits set) would silently trust
+    nobody; refused here, the service does not start and the message names the entry. ``*``
+    (uvicorn's "trust every peer") is refused too: whoever can reach the port could then
+    choose the client address the login throttle and the audit trail see.
+    """
+    checked = []
+    for entry in entries:
+        try:
+            if "/" in entry:
+                checked.append(str(ipaddress.ip_network(entry)))
+            else:
+                checked.append(str(ipaddress.ip_address(entry)))
+        except ValueError as error:
+            hint = (
+                "trusting every peer is not offered: name the proxies"
+                if entry == "*"
+                else f"not an IP address or network ({error})"
+            )
+            raise ValueError(f"entry {entry!r}: {hint}") from None
+    return checked
+
+
+ProxyList = Annotated[CommaList, AfterValidator(_check_proxies)]
+"""Addresses and networks, ``a,b/24`` in a flag or variable; canonical, each one checked."""
 ExpandedPath = Annotated[Path, AfterValidator(Path.expanduser)]
 
 
@@ -415,7 +446,7 @@ class ServiceSettings(BaseSettings):
         "other origins (scheme://host:port) whose pages may write and stream, "
         "comma-separated; the service's own origin always may",
     )
-    trusted_proxies: CommaList = setting(
+    trusted_proxies: ProxyList = setting(
         [],
         "reverse proxies (addresses or networks) whose X-Forwarded-For/-Proto are "
         "believed, comma-separated; none by default",
