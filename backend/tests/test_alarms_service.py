@@ -279,6 +279,58 @@ async def test_shelving_with_expiry_and_refusals(
         )
 
 
+async def test_unshelve_is_authorized_and_audited_like_ack_and_shelve(
+    emu: Emulator, plc_host: str, tmp_path: Path
+) -> None:
+    """Each row of an unshelve: a viewer's refusal (nothing asked: null), a no-op (``{}``,
+    "not shelved"), the real one with its summary; the alarm's history has the transition."""
+    settings = service_settings(
+        emu.target.settings.host,
+        emu.target.tcp_port,
+        plc_host,
+        tmp_path,
+        alarm_connection_delay_s=600,
+    )
+    async with running_service(settings) as hmi:
+        alarm_id = "robot:protective_stop"
+        path = f"/api/v1/alarms/{alarm_id}/unshelve"
+        async with hmi.client(await hmi.login(VIEWER)) as viewer:
+            refused = await viewer.post(path)
+        assert refused.status_code == 403, refused.text
+        async with hmi.client(await hmi.login(OPERATOR)) as operator:
+            noop = await operator.post(path)
+            assert noop.status_code == 200 and noop.json()["changed"] is False, noop.text
+            shelved = await operator.post(
+                f"/api/v1/alarms/{alarm_id}/shelve", json={"reason": "guard out", "duration_s": 60}
+            )
+            assert shelved.status_code == 200, shelved.text
+            done = await operator.post(path)
+            assert done.status_code == 200 and done.json()["changed"] is True, done.text
+            assert done.json()["alarm"]["shelved"] is False
+            missing = await operator.post("/api/v1/alarms/robot:nope/unshelve")
+            assert missing.status_code == 404
+            audit = (await operator.get("/api/v1/audit?limit=10")).json()["items"]
+        rows = [
+            (r["user"], r["outcome"], r["reason"], r["requested"], r["fields"], r["summary"])
+            for r in reversed(audit)
+            if r["action"] == "alarm.unshelve"
+        ]
+        assert rows[0][:5] == (VIEWER[0], "forbidden", rows[0][2], None, ["protective_stop"])
+        assert rows[0][2] and "operator" in rows[0][2]
+        assert rows[1:] == [
+            (
+                OPERATOR[0],
+                "unchanged",
+                "not shelved",
+                {},
+                ["protective_stop"],
+                "Protective stop: unshelved",
+            ),
+            (OPERATOR[0], "unshelved", None, {}, ["protective_stop"], "Protective stop: unshelved"),
+        ]
+        assert {r["origin"] for r in audit if r["action"] == "alarm.unshelve"} == {f"POST {path}"}
+
+
 async def test_alarms_per_robot(robot_host: str, plc_host: str, tmp_path: Path) -> None:
     from conftest import _next_host
 

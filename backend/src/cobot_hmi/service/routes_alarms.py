@@ -9,7 +9,9 @@ the robot part picks the robot's engine (``RobotRuntime.alarms``). Every change 
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Final, Literal
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Annotated, Any, Final, Literal, TypeVar
 
 from fastapi import APIRouter, Body, Path, Query, Request, Response
 
@@ -37,6 +39,7 @@ AlarmId = Annotated[
     ),
 ]
 _CHANGE: Final = (401, 403, 404, 409, 413, 415, 422, 429)
+_T = TypeVar("_T")
 
 
 def _engine(service: Service, alarm_id: str) -> tuple[RobotRuntime, AlarmEngine]:
@@ -154,38 +157,78 @@ async def get_alarm(service: ServiceDep, _: ViewerDep, alarm_id: AlarmId) -> Orj
     return OrjsonResponse(engine.snapshot(engine.find(alarm_id)))
 
 
-def _origin(request: Request) -> str:
-    return f"{request.method} {request.url.path}"
+@dataclass(frozen=True, slots=True)
+class _Change:
+    """An operator's change of one alarm, authorized: what the audit row of its outcome needs."""
 
+    robot: RobotRuntime
+    engine: AlarmEngine
+    writer: Writer
+    user: str
+    action: str
+    key: str
+    requested: dict[str, Any]
+    origin: str
 
-async def _audit(
-    robot: RobotRuntime,
-    writer: Writer,
-    *,
-    user: str,
-    action: str,
-    key: str,
-    requested: dict[str, Any],
-    outcome: str,
-    reason: str | None,
-    origin: str,
-    summary: str | None = None,
-) -> None:
-    await robot.store.add_audit(
-        AuditEntry(
-            user,
-            writer.client,
-            action,
-            [key],
-            None,
-            requested,
-            outcome,
-            reason,
-            robot=robot.name,
-            origin=origin,
-            summary=summary,
+    async def audit(self, outcome: str, reason: str | None, summary: str | None = None) -> None:
+        await self.robot.store.add_audit(
+            AuditEntry(
+                self.user,
+                self.writer.client,
+                self.action,
+                [self.key],
+                None,
+                self.requested,
+                outcome,
+                reason,
+                robot=self.robot.name,
+                origin=self.origin,
+                summary=summary,
+            )
         )
+
+    async def act(self, change: Callable[[], _T], refused: Callable[[str], ApiError]) -> _T:
+        """``change()`` on the engine; a refusal audited and raised as ``refused(reason)``.
+        The alarm's new state is in the database before the answer."""
+        try:
+            result = change()
+        except AlarmRefusedError as error:
+            await self.audit("refused", str(error))
+            raise refused(str(error)) from None
+        await self.robot.alarm_store.flush()
+        return result
+
+
+async def _authorize(
+    service: Service,
+    writer: Writer,
+    request: Request,
+    alarm_id: str,
+    *,
+    action: str,
+    what: str,
+    requested: dict[str, Any] | None,
+) -> _Change:
+    """The alarm (404), then the writer's role (401 / 403, audited as a write's refusal is).
+
+    ``requested`` is what the audit rows show was asked; ``None`` shows as null on a refusal
+    of the role and as ``{}`` on the outcome's row."""
+    robot, engine = _engine(service, alarm_id)
+    _find(engine, alarm_id)
+    key = alarm_id.partition(":")[2]
+    origin = f"{request.method} {request.url.path}"
+    user = await authorize_audited(
+        robot.store,
+        writer,
+        action=action,
+        what=what,
+        robot=robot.name,
+        origin=origin,
+        fields=[key],
+        requested=requested,
     )
+    asked = {} if requested is None else requested
+    return _Change(robot, engine, writer, user, action, key, asked, origin)
 
 
 def _summary(alarm: dict[str, object], what: str) -> str:
@@ -194,6 +237,10 @@ def _summary(alarm: dict[str, object], what: str) -> str:
     if where and tag:
         where = f"{where} ({tag})"
     return f"{alarm['name']}{f' [{where}]' if where else ''}: {what}"
+
+
+def _shelve_refused(reason: str) -> ApiError:
+    return ApiError(422, reason, field="duration_s")
 
 
 @router.post(
@@ -209,52 +256,23 @@ async def acknowledge(
     alarm_id: AlarmId,
     body: Annotated[models.AlarmAck | None, Body()] = None,
 ) -> OrjsonResponse:
-    robot, engine = _engine(service, alarm_id)
-    _find(engine, alarm_id)
     comment = body.comment.strip() or None if body is not None and body.comment else None
-    key = alarm_id.partition(":")[2]
-    requested: dict[str, Any] = {"comment": comment}
-    origin = _origin(request)
-    user = await authorize_audited(
-        robot.store,
+    change = await _authorize(
+        service,
         writer,
+        request,
+        alarm_id,
         action="alarm.ack",
         what="acknowledging alarms",
-        robot=robot.name,
-        origin=origin,
-        fields=[key],
-        requested=requested,
+        requested={"comment": comment},
     )
-    try:
-        alarm, changed = engine.acknowledge(alarm_id, user, comment)
-    except AlarmRefusedError as error:
-        await _audit(
-            robot,
-            writer,
-            user=user,
-            action="alarm.ack",
-            key=key,
-            requested=requested,
-            outcome="refused",
-            reason=str(error),
-            origin=origin,
-        )
-        raise conflict(str(error)) from None
-    await robot.alarm_store.flush()
-    outcome = "acknowledged" if changed else "unchanged"
-    reason = None if changed else "already acknowledged"
-    summary = _summary(alarm, "acknowledged" + (f" — {comment}" if comment else ""))
-    await _audit(
-        robot,
-        writer,
-        user=user,
-        action="alarm.ack",
-        key=key,
-        requested=requested,
-        outcome=outcome,
-        reason=reason,
-        origin=origin,
-        summary=summary,
+    alarm, changed = await change.act(
+        lambda: change.engine.acknowledge(alarm_id, change.user, comment), conflict
+    )
+    await change.audit(
+        "acknowledged" if changed else "unchanged",
+        None if changed else "already acknowledged",
+        _summary(alarm, "acknowledged" + (f" — {comment}" if comment else "")),
     )
     return OrjsonResponse({"alarm": alarm, "changed": changed})
 
@@ -272,50 +290,21 @@ async def shelve(
     alarm_id: AlarmId,
     body: models.AlarmShelve,
 ) -> OrjsonResponse:
-    robot, engine = _engine(service, alarm_id)
-    _find(engine, alarm_id)
-    key = alarm_id.partition(":")[2]
-    requested: dict[str, Any] = {"reason": body.reason, "duration_s": body.duration_s}
-    origin = _origin(request)
-    user = await authorize_audited(
-        robot.store,
+    change = await _authorize(
+        service,
         writer,
+        request,
+        alarm_id,
         action="alarm.shelve",
         what="shelving alarms",
-        robot=robot.name,
-        origin=origin,
-        fields=[key],
-        requested=requested,
+        requested={"reason": body.reason, "duration_s": body.duration_s},
     )
-    try:
-        alarm = engine.shelve(alarm_id, user, body.reason, body.duration_s)
-    except AlarmRefusedError as error:
-        await _audit(
-            robot,
-            writer,
-            user=user,
-            action="alarm.shelve",
-            key=key,
-            requested=requested,
-            outcome="refused",
-            reason=str(error),
-            origin=origin,
-        )
-        raise ApiError(422, str(error), field="duration_s") from None
-    await robot.alarm_store.flush()
+    alarm = await change.act(
+        lambda: change.engine.shelve(alarm_id, change.user, body.reason, body.duration_s),
+        _shelve_refused,
+    )
     summary = _summary(alarm, f"shelved for {body.duration_s:g} s — {body.reason.strip()}")
-    await _audit(
-        robot,
-        writer,
-        user=user,
-        action="alarm.shelve",
-        key=key,
-        requested=requested,
-        outcome="shelved",
-        reason=None,
-        origin=origin,
-        summary=summary,
-    )
+    await change.audit("shelved", None, summary)
     return OrjsonResponse({"alarm": alarm, "changed": True})
 
 
@@ -328,33 +317,21 @@ async def shelve(
 async def unshelve(
     service: ServiceDep, writer: WriterDep, request: Request, alarm_id: AlarmId
 ) -> OrjsonResponse:
-    robot, engine = _engine(service, alarm_id)
-    _find(engine, alarm_id)
-    key = alarm_id.partition(":")[2]
-    origin = _origin(request)
-    user = await authorize_audited(
-        robot.store,
+    change = await _authorize(
+        service,
         writer,
+        request,
+        alarm_id,
         action="alarm.unshelve",
         what="unshelving alarms",
-        robot=robot.name,
-        origin=origin,
-        fields=[key],
+        requested=None,
     )
-    alarm, changed = engine.unshelve(alarm_id, user)
-    await robot.alarm_store.flush()
-    outcome = "unshelved" if changed else "unchanged"
-    reason = None if changed else "not shelved"
-    await _audit(
-        robot,
-        writer,
-        user=user,
-        action="alarm.unshelve",
-        key=key,
-        requested={},
-        outcome=outcome,
-        reason=reason,
-        origin=origin,
-        summary=_summary(alarm, "unshelved"),
+    alarm, changed = await change.act(
+        lambda: change.engine.unshelve(alarm_id, change.user), conflict
+    )
+    await change.audit(
+        "unshelved" if changed else "unchanged",
+        None if changed else "not shelved",
+        _summary(alarm, "unshelved"),
     )
     return OrjsonResponse({"alarm": alarm, "changed": changed})
