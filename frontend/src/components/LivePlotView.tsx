@@ -1,15 +1,37 @@
 /**
  * One live plot: a container Plotly draws into (created once), fed by the coordinator's
- * animation-frame tick. React holds only its configuration (window, pause, picked signals);
+ * animation-frame tick. React holds only its configuration (window, pause, picked signals) and,
+ * when it shows the recording, the range shown, its event markers and the export links;
  * samples never pass through React state.
+ *
+ * In the panel (a PlotHistoryContext provider) the plot reaches the recording: long windows
+ * (15 min … 7 days) and a custom range in its window picker, a zoom or pan past the ring
+ * fetched from the history API, markers whose click moves every plot of the panel, and the
+ * export of the range in view (docs/architecture.md "Plots: from the ring into the recording").
  */
-import { memo, useEffect, useRef, useState } from "react";
-import { historyLink } from "../lib/historyLink";
-import { axisTimeToEpochS } from "../lib/historyView";
+import { memo, useEffect, useRef, useState, type MouseEvent } from "react";
+import {
+  EXPORT_FORMATS,
+  customRange,
+  exportUrl,
+  fieldsOf,
+  markersOf,
+  type ExportFormat,
+  type TimeRange,
+} from "../lib/historyView";
 import { plotlyBackend } from "../lib/plotlyAdapter";
-import { DEFAULT_PLOT_HEIGHT_PX, LivePlot, plotMargin, traceColour, type PlotTheme } from "../lib/plotting";
-import { ALL_PLOTS, DEFAULT_WINDOW_MS, WINDOWS_MS, axisTitles, tracesOf, type PlotSpec } from "../lib/plots";
+import {
+  DEFAULT_PLOT_HEIGHT_PX,
+  LivePlot,
+  plotMargin,
+  traceColour,
+  type HistoryShown,
+  type PlotTheme,
+} from "../lib/plotting";
+import { DEFAULT_WINDOW_MS, HISTORY_WINDOWS_MS, WINDOWS_MS, axisTitles, tracesOf, type PlotSpec } from "../lib/plots";
+import { usePlotHistory } from "./plotHistory";
 import { useRuntime } from "./runtimeContext";
+import "../styles/history.css";
 
 interface Props {
   readonly spec: PlotSpec;
@@ -19,13 +41,37 @@ interface Props {
   readonly height_px?: number;
 }
 
+/** A `datetime-local` input's value (local time, seconds) for epoch seconds. */
+function localInput(time_s: number): string {
+  const d = new Date(time_s * 1000 - new Date(time_s * 1000).getTimezoneOffset() * 60_000);
+  return d.toISOString().slice(0, 19);
+}
+
+function localText(time_s: number): string {
+  return new Date(time_s * 1000).toLocaleString();
+}
+
+const CUSTOM = "custom";
+const RANGE = "range";
+
 export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly = false, height_px }: Props) {
-  const { live, coordinator } = useRuntime();
+  const runtime = useRuntime();
+  const { live, coordinator } = runtime;
+  const access = usePlotHistory();
+  const robot = runtime.robot;
+  // The recording is reached from the panel's plots (not the kiosk's) of a named robot.
+  const history = !readOnly && access !== null && robot !== null ? { access, robot } : null;
+  const fields = fieldsOf(spec);
   const container = useRef<HTMLDivElement | null>(null);
   const plotRef = useRef<LivePlot | null>(null);
   const [paused, setPaused] = useState(false);
   const [zoomed, setZoomed] = useState(false);
   const [window_ms, setWindow] = useState(DEFAULT_WINDOW_MS);
+  // The plot is rebuilt with the window picked so far (a theme change recreates it).
+  const windowRef = useRef(window_ms);
+  const [shown, setShown] = useState<HistoryShown | null>(null);
+  const [custom, setCustom] = useState<{ from: string; to: string } | null>(null);
+  const [customError, setCustomError] = useState<string | null>(null);
   const traces = tracesOf(spec);
   const titles = axisTitles(spec);
   const margin = plotMargin(titles.y2 !== null);
@@ -34,23 +80,35 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
   // area; drawn here rather than by Plotly (see the layout in lib/plotting.ts).
   const titleTop = `${margin.t + (height - margin.t - margin.b) / 2}px`;
   const [visible, setVisible] = useState<boolean[]>(() => traces.map(() => true));
+  const historyAccess = history?.access ?? null;
+  const historyRobot = history?.robot ?? null;
 
   useEffect(() => {
     const el = container.current;
     if (el === null) return;
     const plot = new LivePlot(spec, live.ring, live.channels, plotlyBackend, {
-      window_ms: DEFAULT_WINDOW_MS,
+      window_ms: windowRef.current,
       theme,
       readOnly,
       ...(height_px !== undefined ? { height_px } : {}),
       // The kiosk is read from three metres: no text under 18 px there.
       ...(readOnly ? { fontSize_px: 18 } : {}),
+      ...(historyAccess !== null && historyRobot !== null
+        ? { history: { fetchRange: historyAccess.fetcher(historyRobot, fields) } }
+        : {}),
     });
     // Whether it is zoomed away from the moving window is configuration (the button shown).
     plot.onZoomedChange = setZoomed;
+    // Each drawing of the recording (not each frame): the range, its markers, an error.
+    plot.onHistory = (next) => {
+      setShown(next.view === "ring" ? null : next);
+      setPaused(plot.isPaused);
+    };
     plot.mount(el);
     plotRef.current = plot;
     coordinator.add(plot);
+    // A marker's jump in any plot of the panel moves this one too.
+    const stopListening = historyAccess?.timeRange.subscribe((range) => plot.showRange(range));
     let observer: IntersectionObserver | null = null;
     if (typeof IntersectionObserver !== "undefined") {
       observer = new IntersectionObserver((entries) => {
@@ -60,12 +118,15 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
     }
     return () => {
       observer?.disconnect();
+      stopListening?.();
       plot.onZoomedChange = null;
+      plot.onHistory = null;
       coordinator.remove(plot);
       plot.unmount();
       plotRef.current = null;
+      setShown(null);
     };
-  }, [spec, live, coordinator, theme, readOnly, height_px]);
+  }, [spec, live, coordinator, theme, readOnly, height_px, historyAccess, historyRobot, fields]);
 
   const togglePause = () => {
     const next = !paused;
@@ -74,39 +135,62 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
   };
   const backToLive = () => {
     setPaused(false);
+    setCustom(null);
     plotRef.current?.backToLive();
-  };
-  // The panel's history plot shows this plot's fields over the range in view (the zoom, or the
-  // window), from the recording: the way from live back into history (components/HistoryView).
-  const inHistory = ALL_PLOTS.some((s) => s.id === spec.id);
-  const showInHistory = () => {
-    const el = container.current;
-    const shift_ms = new Date().getTimezoneOffset() * 60_000;
-    const x = el !== null ? plotlyBackend.zoomedAxes(el).xaxis : undefined;
-    const now_s = Date.now() / 1000;
-    const range =
-      x !== undefined
-        ? { from_s: axisTimeToEpochS(x[0], shift_ms), to_s: axisTimeToEpochS(x[1], shift_ms) }
-        : { from_s: now_s - window_ms / 1000, to_s: now_s };
-    if (!(range.to_s > range.from_s)) return;
-    if (historyLink.show({ specId: spec.id, range })) document.getElementById("history")?.scrollIntoView();
   };
   const exportPng = () => {
     const stamp = new Date().toISOString().replace(/[:.]/g, "-");
     plotRef.current?.exportPng(`${spec.id.replace(/^plot-/, "")}-${stamp}`);
   };
-  const chooseWindow = (ms: number) => {
+  const chooseWindow = (value: string) => {
+    if (value === RANGE) return;
+    if (value === CUSTOM) {
+      const r = plotRef.current?.visibleRange() ?? null;
+      const now_s = Date.now() / 1000;
+      setCustom({ from: localInput(r?.from_s ?? now_s - 600), to: localInput(r?.to_s ?? now_s) });
+      setCustomError(null);
+      return;
+    }
+    const ms = Number(value);
+    setCustom(null);
     setWindow(ms);
+    windowRef.current = ms;
     plotRef.current?.setWindow(ms);
+  };
+  const applyCustom = () => {
+    if (custom === null) return;
+    const result = customRange(Date.parse(custom.from) / 1000, Date.parse(custom.to) / 1000);
+    if (typeof result === "string") {
+      setCustomError(result);
+      return;
+    }
+    setCustomError(null);
+    setCustom(null);
+    plotRef.current?.showRange(result);
   };
   const pick = (i: number, on: boolean) => {
     setVisible((v) => v.map((x, k) => (k === i ? on : x)));
     plotRef.current?.setTraceVisible(i, on);
   };
 
+  const fixed = shown?.view === "fixed";
+  const range: TimeRange | null = shown?.range ?? null;
+  const markers = shown !== null && range !== null ? markersOf(shown.events, range) : [];
+  const windowValue = fixed ? RANGE : custom !== null ? CUSTOM : String(window_ms);
+  // On the ring the range in view moves: the link's range is renewed at the click (below).
+  const now_s = Date.now() / 1000;
+  const linkRange = range ?? { from_s: now_s - window_ms / 1000, to_s: now_s };
+  const exportHref = (format: ExportFormat) => (historyRobot === null ? undefined : exportUrl(historyRobot, linkRange, format, fields));
+  const exportNow = (format: ExportFormat) => (e: MouseEvent<HTMLAnchorElement>) => {
+    const r = plotRef.current?.visibleRange() ?? null;
+    if (historyRobot !== null && r !== null) e.currentTarget.href = exportUrl(historyRobot, r, format, fields);
+  };
+
   return (
     <figure
       className={`plot plot--${theme}`}
+      data-testid={`${spec.id}-figure`}
+      data-view={shown?.view ?? "ring"}
       onPointerEnter={readOnly ? undefined : () => plotRef.current?.setPointerInside(true)}
       onPointerLeave={
         readOnly
@@ -121,17 +205,19 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
         <span className="plot__title">{spec.title}</span>
         {!readOnly && (
           <span className="plot__controls">
-            <button
-              type="button"
-              className="plot__pause"
-              data-testid={`${spec.id}-pause`}
-              aria-pressed={paused}
-              onClick={togglePause}
-              title={paused ? "Resume (data kept buffering while paused)" : "Pause (data keeps buffering)"}
-            >
-              {paused ? "Resume" : "Pause"}
-            </button>
-            {(zoomed || paused) && (
+            {!fixed && (
+              <button
+                type="button"
+                className="plot__pause"
+                data-testid={`${spec.id}-pause`}
+                aria-pressed={paused}
+                onClick={togglePause}
+                title={paused ? "Resume (data kept buffering while paused)" : "Pause (data keeps buffering)"}
+              >
+                {paused ? "Resume" : "Pause"}
+              </button>
+            )}
+            {(zoomed || paused || fixed) && (
               <button
                 type="button"
                 className="plot__live"
@@ -142,34 +228,73 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
                 Back to live
               </button>
             )}
-            {(zoomed || paused) && inHistory && (
-              <button
-                type="button"
-                data-testid={`${spec.id}-history`}
-                onClick={showInHistory}
-                title="Show the range in view in the history plot, from the recording"
-              >
-                History
-              </button>
-            )}
             <button type="button" data-testid={`${spec.id}-png`} onClick={exportPng} title="Save this plot as a PNG image">
               PNG
             </button>
             <select
               aria-label={`${spec.title} window`}
               data-testid={`${spec.id}-window`}
-              value={window_ms}
-              onChange={(e) => chooseWindow(Number(e.target.value))}
+              value={windowValue}
+              onChange={(e) => chooseWindow(e.target.value)}
             >
               {WINDOWS_MS.map((w) => (
-                <option key={w.ms} value={w.ms}>
+                <option key={w.ms} value={String(w.ms)}>
                   {w.label}
                 </option>
               ))}
+              {history !== null &&
+                HISTORY_WINDOWS_MS.map((w) => (
+                  <option key={w.ms} value={String(w.ms)}>
+                    {w.label}
+                  </option>
+                ))}
+              {fixed && <option value={RANGE}>Range of the past</option>}
+              {history !== null && <option value={CUSTOM}>Custom…</option>}
             </select>
           </span>
         )}
       </figcaption>
+      {custom !== null && (
+        <form
+          className="history__custom"
+          onSubmit={(e) => {
+            e.preventDefault();
+            applyCustom();
+          }}
+        >
+          <label>
+            From{" "}
+            <input
+              type="datetime-local"
+              step={1}
+              data-testid={`${spec.id}-custom-from`}
+              value={custom.from}
+              onChange={(e) => setCustom({ ...custom, from: e.target.value })}
+            />
+          </label>{" "}
+          <label>
+            to{" "}
+            <input
+              type="datetime-local"
+              step={1}
+              data-testid={`${spec.id}-custom-to`}
+              value={custom.to}
+              onChange={(e) => setCustom({ ...custom, to: e.target.value })}
+            />
+          </label>{" "}
+          <button type="submit" data-testid={`${spec.id}-custom-apply`}>
+            Show
+          </button>
+          <button type="button" onClick={() => setCustom(null)}>
+            Cancel
+          </button>
+          {customError !== null && (
+            <span className="hint" role="alert">
+              {customError}
+            </span>
+          )}
+        </form>
+      )}
       {!readOnly && (
         <div className="plot__signals" role="group" aria-label={`${spec.title} signals`}>
           {traces.map((trace, i) => (
@@ -203,6 +328,7 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
           data-testid={spec.id}
           data-points="0"
           data-zoomed="false"
+          data-view="ring"
           style={{ height: `${height}px` }}
         />
         <span className="plot__axis-title plot__axis-title--y" data-testid={`${spec.id}-axis-y`} style={{ top: titleTop }}>
@@ -214,6 +340,61 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
           </span>
         )}
       </div>
+      {shown !== null && (
+        <div className="history__markers" role="group" aria-label={`${spec.title}: events on the time axis`}>
+          {markers.map((m) => (
+            <button
+              key={m.id}
+              type="button"
+              className={`history__marker history__marker--${m.kind}`}
+              data-testid={`${spec.id}-marker`}
+              data-kind={m.kind}
+              data-kinds={m.events.map((e) => e.kind).join(" ")}
+              data-time={m.time_s}
+              title={`${m.label} at ${localText(m.time_s)}: show this moment in every plot`}
+              aria-label={`${m.label} at ${localText(m.time_s)}`}
+              onClick={() => history?.access.timeRange.jumpAround(m.time_s)}
+              style={{
+                // Kept inside the strip at its ends (no overflow of a narrow screen).
+                left: `clamp(22px, calc(${margin.l}px + (100% - ${margin.l + margin.r}px) * ${m.at}), calc(100% - 22px))`,
+              }}
+            >
+              {m.kind === "alarm" ? "▲!" : "▲"}
+              {m.events.length > 1 ? <small>{m.events.length}</small> : null}
+            </button>
+          ))}
+        </div>
+      )}
+      {history !== null && (
+        <p className="history__status">
+          {shown !== null && range !== null && (
+            <span data-testid={`${spec.id}-range`}>
+              {localText(range.from_s)} – {localText(range.to_s)}
+              {shown.view === "moving" ? " (live)" : ""}
+            </span>
+          )}
+          {shown?.error != null && (
+            <span className="hint" role="alert" data-testid={`${spec.id}-history-error`}>
+              {shown.error}
+            </span>
+          )}
+          <span className="history__export" role="group" aria-label={`${spec.title}: export the range in view`}>
+            Export the view:{" "}
+            {EXPORT_FORMATS.map((format) => (
+              <a
+                key={format}
+                data-testid={`${spec.id}-export-${format}`}
+                href={exportHref(format)}
+                onClick={exportNow(format)}
+                download
+                title={`Every frame of ${spec.title} in the range in view, as ${format.toUpperCase()}`}
+              >
+                {format.toUpperCase()}
+              </a>
+            )).flatMap((link, i) => (i === 0 ? [link] : [" ", link]))}
+          </span>
+        </p>
+      )}
     </figure>
   );
 });

@@ -1,23 +1,19 @@
-// The history plot's window logic (lib/historyView.ts): live ↔ history, presets, custom ranges,
-// buckets from the width, envelopes with gaps, marker placement, export links, and the loader's
-// debounce and cancelling of stale requests.
+// The plots' way into the recording (lib/historyView.ts): custom ranges, a marker's range,
+// buckets from the width, envelopes with gaps, the newest frame of an answer, marker placement,
+// export links, and the loader's debounce and cancelling of stale requests.
 import { describe, expect, it } from "vitest";
 import {
-  RANGE_PRESETS,
   RangeLoader,
   axisTimeToEpochS,
-  backToLive,
   bucketsForWidth,
-  customWindow,
+  customRange,
+  envelopeTraceSets,
   envelopeTraces,
   exportUrl,
   fieldsOf,
   markersOf,
-  presetOf,
-  presetWindow,
-  rangeOf,
-  windowAfterMove,
-  windowAround,
+  newestRecorded,
+  rangeAround,
   type HistoryAnswer,
   type HistoryEvent,
   type RangeData,
@@ -28,38 +24,13 @@ import { JOINT_PLOTS, TCP_PLOTS } from "./plots";
 
 const NOW = 1_795_500_000;
 
-describe("windows", () => {
-  it("has the presets 15 min, 1 h, 24 h, 7 days, each a moving window ending now", () => {
-    expect(RANGE_PRESETS.map((p) => p.label)).toEqual(["15 min", "1 h", "24 h", "7 days"]);
-    expect(rangeOf(presetWindow("15m"), NOW)).toEqual({ from_s: NOW - 900, to_s: NOW });
-    expect(rangeOf(presetWindow("7d"), NOW)).toEqual({ from_s: NOW - 7 * 86400, to_s: NOW });
-    expect(presetOf(presetWindow("24h"))).toBe("24h");
-    expect(presetOf({ mode: "live", span_s: 123 })).toBeNull();
-    expect(presetOf({ mode: "history", from_s: NOW - 900, to_s: NOW })).toBeNull();
-    expect(() => presetWindow("2y")).toThrow(/2y/);
-  });
-
-  it("a zoom or pan into the past leaves live; one ending at now stays live", () => {
-    const past = windowAfterMove({ from_s: NOW - 600, to_s: NOW - 300 }, NOW);
-    expect(past).toEqual({ mode: "history", from_s: NOW - 600, to_s: NOW - 300 });
-    expect(rangeOf(past, NOW + 1000)).toEqual({ from_s: NOW - 600, to_s: NOW - 300 }); // fixed
-    // Ending within a fiftieth of the width (at least 2 s) of now: the moving window, as wide.
-    expect(windowAfterMove({ from_s: NOW - 1000, to_s: NOW - 15 }, NOW)).toEqual({ mode: "live", span_s: 985 });
-    expect(windowAfterMove({ from_s: NOW - 10, to_s: NOW - 1 }, NOW)).toEqual({ mode: "live", span_s: 9 });
-    expect(windowAfterMove({ from_s: NOW - 10, to_s: NOW - 3 }, NOW).mode).toBe("history");
-  });
-
-  it("back to live keeps the width of the view", () => {
-    expect(backToLive({ mode: "history", from_s: NOW - 600, to_s: NOW - 300 })).toEqual({ mode: "live", span_s: 300 });
-    const live = presetWindow("1h");
-    expect(backToLive(live)).toBe(live);
-  });
-
-  it("custom ranges are checked; a marker's window centres it", () => {
-    expect(customWindow(NOW - 60, NOW)).toEqual({ mode: "history", from_s: NOW - 60, to_s: NOW });
-    expect(customWindow(NOW, NOW)).toMatch(/after the start/);
-    expect(customWindow(Number.NaN, NOW)).toMatch(/Both times/);
-    expect(windowAround(NOW, 60)).toEqual({ mode: "history", from_s: NOW - 30, to_s: NOW + 30 });
+describe("ranges", () => {
+  it("custom ranges are checked; a marker's range centres it", () => {
+    expect(customRange(NOW - 60, NOW)).toEqual({ from_s: NOW - 60, to_s: NOW });
+    expect(customRange(NOW, NOW)).toMatch(/after the start/);
+    expect(customRange(Number.NaN, NOW)).toMatch(/Both times/);
+    expect(rangeAround(NOW, 60)).toEqual({ from_s: NOW - 30, to_s: NOW + 30 });
+    expect(rangeAround(NOW)).toEqual({ from_s: NOW - 30, to_s: NOW + 30 });
   });
 
   it("asks for one bucket per pixel, within the service's 1–5000", () => {
@@ -132,6 +103,22 @@ describe("envelopes", () => {
     expect(traces[0]!.name).toBe("J 2");
     expect(traces[0]!.x).toEqual([NOW * 1000 - 3_600_000, (NOW + 0.01) * 1000 - 3_600_000]);
     expect(traces[0]!.y).toEqual([7, null]);
+  });
+
+  it("groups the traces per signal of the plot (a signal without a series has none)", () => {
+    const a = answer({
+      t: [NOW],
+      series: [{ element: "joint_position.2", field: "joint_position", label: "J3", unit: "degree", min: [1], max: [2], first: [], last: [] }],
+    });
+    const sets = envelopeTraceSets(a, spec, 0);
+    expect(sets).toHaveLength(6);
+    expect(sets.map((set) => set.length)).toEqual([0, 0, 2, 0, 0, 0]);
+  });
+
+  it("knows the newest frame an answer holds (the ring draws what comes after it)", () => {
+    expect(newestRecorded(answer({ frames: 0 }))).toBeNull();
+    expect(newestRecorded(answer({ t: [NOW, NOW + 10], t_last: [NOW + 9.99, NOW + 12.5], frames: 20 }))).toBe(NOW + 12.5);
+    expect(newestRecorded(answer({ mode: "raw", t: [NOW, NOW + 0.01], frames: 2 }))).toBe(NOW + 0.01);
   });
 });
 

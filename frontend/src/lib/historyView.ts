@@ -1,87 +1,36 @@
 /**
- * Layer: the history plot's logic, independent of React and Plotly (plain TypeScript).
+ * Layer: the plots' way into the recording, independent of React and Plotly (plain TypeScript).
  *
- * The history view shows a time window of the recorder's frames (docs/api.md "History"): the
- * moving window of the last 15 min … 7 days ("live", refreshed from the recording), or a fixed
- * range in the past after a zoom, a pan, a custom range or a click on a marker. Ranges are
- * fetched decimated to about one bucket per pixel (min/max per bucket, so every peak stays
- * drawn as an envelope), debounced while the view moves, a stale request cancelled with its
- * AbortController. Events and alarms of the range become markers on the time axis.
+ * A live plot (lib/plotting.ts) that shows more than its ring holds — a long moving window
+ * (15 min … 7 days), or a range of the past after a zoom, a pan, a custom range or a click on a
+ * marker — draws the recorder's frames (docs/api.md "History"). Ranges are fetched decimated to
+ * about one bucket per pixel (min/max per bucket, so every peak stays drawn as an envelope),
+ * debounced while the view moves, a stale request cancelled with its AbortController. Events
+ * and alarms of the range become markers on the time axis; the export links name the range.
  * Times here are seconds since the epoch, as the service's answers have them.
  */
 import type { components } from "../generated/api";
-import { tracesOf, type PlotSpec } from "./plots";
-import { traceColour } from "./plotting";
+import { traceColour, tracesOf, type PlotSpec } from "./plots";
 
 export type HistoryAnswer = components["schemas"]["HistoryAnswer"];
 export type HistoryEvents = components["schemas"]["HistoryEvents"];
 export type HistoryEvent = HistoryEvents["items"][number];
-
-/** The range picker's presets: the moving window of the newest data, this long. */
-export const RANGE_PRESETS: readonly { readonly id: string; readonly label: string; readonly span_s: number }[] = [
-  { id: "15m", label: "15 min", span_s: 15 * 60 },
-  { id: "1h", label: "1 h", span_s: 3600 },
-  { id: "24h", label: "24 h", span_s: 24 * 3600 },
-  { id: "7d", label: "7 days", span_s: 7 * 24 * 3600 },
-];
-
-export const DEFAULT_SPAN_S = 15 * 60;
-
-/** The moving window ending now, or a fixed range in the past. */
-export type HistoryWindow =
-  | { readonly mode: "live"; readonly span_s: number }
-  | { readonly mode: "history"; readonly from_s: number; readonly to_s: number };
 
 export interface TimeRange {
   readonly from_s: number;
   readonly to_s: number;
 }
 
-/** The range a window shows at `now_s`. */
-export function rangeOf(window: HistoryWindow, now_s: number): TimeRange {
-  return window.mode === "live" ? { from_s: now_s - window.span_s, to_s: now_s } : { from_s: window.from_s, to_s: window.to_s };
-}
-
-export function presetWindow(id: string): HistoryWindow {
-  const preset = RANGE_PRESETS.find((p) => p.id === id);
-  if (preset === undefined) throw new Error(`no range preset "${id}"`);
-  return { mode: "live", span_s: preset.span_s };
-}
-
-/** The preset a window is, or null (a custom or zoomed range). */
-export function presetOf(window: HistoryWindow): string | null {
-  if (window.mode !== "live") return null;
-  return RANGE_PRESETS.find((p) => p.span_s === window.span_s)?.id ?? null;
-}
-
-/**
- * The window after a person moved the view to `range` (zoom or pan): still live when its end
- * is within a fiftieth of its width (at least 2 s) of now — a pan back to the newest data
- * follows it again — else a fixed range in the past.
- */
-export function windowAfterMove(range: TimeRange, now_s: number): HistoryWindow {
-  const span_s = Math.max(range.to_s - range.from_s, 1);
-  const slack_s = Math.max(span_s / 50, 2);
-  if (range.to_s >= now_s - slack_s) return { mode: "live", span_s };
-  return { mode: "history", from_s: range.from_s, to_s: range.to_s };
-}
-
-/** "Back to live": the moving window as wide as the view was. */
-export function backToLive(window: HistoryWindow): HistoryWindow {
-  if (window.mode === "live") return window;
-  return { mode: "live", span_s: Math.max(1, window.to_s - window.from_s) };
-}
-
 /** A custom range, or why not. */
-export function customWindow(from_s: number, to_s: number): HistoryWindow | string {
+export function customRange(from_s: number, to_s: number): TimeRange | string {
   if (!Number.isFinite(from_s) || !Number.isFinite(to_s)) return "Both times are needed.";
   if (to_s <= from_s) return "The end must be after the start.";
-  return { mode: "history", from_s, to_s };
+  return { from_s, to_s };
 }
 
 /** Around a marker: `span_s` wide (default 60 s), the marker at its centre. */
-export function windowAround(time_s: number, span_s = 60): HistoryWindow {
-  return { mode: "history", from_s: time_s - span_s / 2, to_s: time_s + span_s / 2 };
+export function rangeAround(time_s: number, span_s = 60): TimeRange {
+  return { from_s: time_s - span_s / 2, to_s: time_s + span_s / 2 };
 }
 
 export const MAX_POINTS = 5000;
@@ -108,12 +57,13 @@ function num(v: boolean | number | null | undefined): Datum {
 }
 
 /**
- * The answer's traces for `spec`: per element, a min and a max line with the band between
- * filled (mode buckets), or the values (mode raw). A gap in the recording (a missing bucket, or
- * raw frames further apart than a second) breaks the lines instead of bridging it.
- * `shift_ms` is subtracted from every time (Plotly shows numeric dates in UTC).
+ * The answer's traces for `spec`, per trace of the plot (`tracesOf(spec)`'s order): per element,
+ * a min and a max line with the band between filled (mode buckets), or the values (mode raw).
+ * A gap in the recording (a missing bucket, or raw frames further apart than a second) breaks
+ * the lines instead of bridging it. `shift_ms` is subtracted from every time (Plotly shows
+ * numeric dates in UTC).
  */
-export function envelopeTraces(answer: HistoryAnswer, spec: PlotSpec, shift_ms: number): object[] {
+export function envelopeTraceSets(answer: HistoryAnswer, spec: PlotSpec, shift_ms: number): object[][] {
   const traces = tracesOf(spec);
   const step_s = answer.mode === "buckets" ? (answer.bucket_s ?? (answer.to - answer.from) / Math.max(1, answer.points)) : 1;
   const gapAfter: boolean[] = answer.t.map((t, i) => {
@@ -133,42 +83,60 @@ export function envelopeTraces(answer: HistoryAnswer, spec: PlotSpec, shift_ms: 
     });
     return { x, y };
   };
-  const out: object[] = [];
-  traces.forEach((trace, i) => {
+  return traces.map((trace, i) => {
     const element = `${trace.fieldName}.${trace.channel}`;
     const series = answer.series.find((s) => s.element === element);
-    if (series === undefined) return;
+    if (series === undefined) return [];
     const colour = traceColour(i);
     const base = { type: "scatter", mode: "lines", yaxis: trace.axis, connectgaps: false, showlegend: false };
     const unit = series.unit;
     if (answer.mode === "raw") {
-      out.push({
-        ...base,
-        name: trace.name,
-        ...withGaps((series.values ?? []).map(num)),
-        line: { width: 1.5, color: colour },
-        hovertemplate: `${trace.name}: %{y:.4~r} ${unit}<extra></extra>`,
-      });
-      return;
+      return [
+        {
+          ...base,
+          name: trace.name,
+          ...withGaps((series.values ?? []).map(num)),
+          line: { width: 1.5, color: colour },
+          hovertemplate: `${trace.name}: %{y:.4~r} ${unit}<extra></extra>`,
+        },
+      ];
     }
-    out.push({
-      ...base,
-      name: `${trace.name} min`,
-      ...withGaps((series.min ?? []).map(num)),
-      line: { width: 1, color: colour },
-      hovertemplate: `${trace.name} min: %{y:.4~r} ${unit}<extra></extra>`,
-    });
-    out.push({
-      ...base,
-      name: `${trace.name} max`,
-      ...withGaps((series.max ?? []).map(num)),
-      line: { width: 1, color: colour },
-      fill: "tonexty",
-      fillcolor: `${colour}40`,
-      hovertemplate: `${trace.name} max: %{y:.4~r} ${unit}<extra></extra>`,
-    });
+    return [
+      {
+        ...base,
+        name: `${trace.name} min`,
+        ...withGaps((series.min ?? []).map(num)),
+        line: { width: 1, color: colour },
+        hovertemplate: `${trace.name} min: %{y:.4~r} ${unit}<extra></extra>`,
+      },
+      {
+        ...base,
+        name: `${trace.name} max`,
+        ...withGaps((series.max ?? []).map(num)),
+        line: { width: 1, color: colour },
+        fill: "tonexty",
+        fillcolor: `${colour}40`,
+        hovertemplate: `${trace.name} max: %{y:.4~r} ${unit}<extra></extra>`,
+      },
+    ];
   });
-  return out;
+}
+
+/** All of the answer's traces for `spec`, in one list (see `envelopeTraceSets`). */
+export function envelopeTraces(answer: HistoryAnswer, spec: PlotSpec, shift_ms: number): object[] {
+  return envelopeTraceSets(answer, spec, shift_ms).flat();
+}
+
+/**
+ * The time (s) of the newest frame the answer holds, or null when it holds none: what comes
+ * after it in the range the plot takes from its ring (frames the recorder has not written yet).
+ */
+export function newestRecorded(answer: HistoryAnswer): number | null {
+  if (answer.frames === 0 || answer.t.length === 0) return null;
+  const last = answer.t_last ?? answer.t;
+  let newest = -Infinity;
+  for (const t of last) if (t > newest) newest = t;
+  return Number.isFinite(newest) ? newest : null;
 }
 
 // ---- Markers
@@ -269,7 +237,7 @@ export interface Timer {
   clear(handle: unknown): void;
 }
 
-const browserTimer: Timer = {
+export const browserTimer: Timer = {
   set: (cb, ms) => setTimeout(cb, ms),
   clear: (h) => clearTimeout(h as ReturnType<typeof setTimeout>),
 };

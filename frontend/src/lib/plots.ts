@@ -95,6 +95,20 @@ export function axisTitles(spec: PlotSpec): { readonly y: string; readonly y2: s
   return { y: y1 === undefined ? "" : axisTitle(y1), y2: y2 === undefined ? null : axisTitle(y2) };
 }
 
+/** Trace colours (colour-blind friendly order, Okabe–Ito). */
+export const TRACE_COLOURS: readonly string[] = [
+  "#0072B2",
+  "#E69F00",
+  "#009E73",
+  "#CC79A7",
+  "#56B4E9",
+  "#D55E00",
+];
+
+export function traceColour(i: number): string {
+  return TRACE_COLOURS[i % TRACE_COLOURS.length] as string;
+}
+
 /** The plot window lengths a person can choose. */
 export const WINDOWS_MS: readonly { readonly label: string; readonly ms: number }[] = [
   { label: "10 s", ms: 10_000 },
@@ -102,6 +116,19 @@ export const WINDOWS_MS: readonly { readonly label: string; readonly ms: number 
   { label: "2 min", ms: 120_000 },
 ];
 export const DEFAULT_WINDOW_MS = 10_000;
+/** The longest window drawn from the ring alone; longer ones come from the recording. */
+export const RING_WINDOW_MAX_MS = 120_000;
+
+/**
+ * The long windows of a plot that can reach the recording (the panel's, not the kiosk's): moving
+ * windows drawn from the history API, refreshed as they move, the newest seconds from the ring.
+ */
+export const HISTORY_WINDOWS_MS: readonly { readonly label: string; readonly ms: number }[] = [
+  { label: "15 min", ms: 15 * 60_000 },
+  { label: "1 h", ms: 3_600_000 },
+  { label: "24 h", ms: 24 * 3_600_000 },
+  { label: "7 days", ms: 7 * 24 * 3_600_000 },
+];
 
 /**
  * The ring's channel map: every plotted field gets `count` consecutive channels. Built from the

@@ -9,9 +9,31 @@
  * resumed after a pause (the ring kept buffering meanwhile) or when it fell behind the ring.
  * `uirevision` keeps the person's zoom while data streams. Plotly itself is reached through the
  * small `PlotBackend` interface (src/lib/plotlyAdapter.ts in the app, a fake in tests).
+ *
+ * A plot of the panel also reaches the recording (docs/architecture.md "Plots: from the ring
+ * into the recording"). Its view is one of three: "ring" (a window of up to 2 min, drawn from the
+ * ring alone, never fetching), "moving" (a long window, 15 min … 7 days: the history API's
+ * decimated range, refreshed as it moves, the newest seconds from the ring) or "fixed" (a range
+ * of the past: a zoom or pan reaching before what the ring holds, a marker's jump, a custom
+ * range). A history view fetches through a `RangeLoader` (debounced, a stale answer dropped) and
+ * draws only when an answer arrives: in between `hasWork()` is false and a frame costs nothing.
  */
 import { bucketWidthMs, MinMaxBucketer, POINTS_PER_BUCKET } from "./decimate";
-import { tracesOf, type PlotSpec, type TraceInfo } from "./plots";
+import {
+  RangeLoader,
+  axisTimeToEpochS,
+  browserTimer,
+  bucketsForWidth,
+  envelopeTraceSets,
+  markersOf,
+  newestRecorded,
+  type FetchRange,
+  type HistoryEvent,
+  type RangeData,
+  type TimeRange,
+  type Timer,
+} from "./historyView";
+import { RING_WINDOW_MAX_MS, traceColour, tracesOf, type PlotSpec, type TraceInfo } from "./plots";
 import type { SampleRing } from "./ringBuffer";
 import type { ChannelMap } from "./plots";
 
@@ -59,21 +81,47 @@ export interface LivePlotOptions {
   readonly height_px?: number;
   /** Tick labels' size (px); the kiosk's are large (no text under 18 px there). */
   readonly fontSize_px?: number;
+  /** The plot's way into the recording (the panel's plots); none: the ring only (the kiosk). */
+  readonly history?: PlotHistorySource;
 }
 
-/** Trace colours (colour-blind friendly order, Okabe–Ito). */
-export const TRACE_COLOURS: readonly string[] = [
-  "#0072B2",
-  "#E69F00",
-  "#009E73",
-  "#CC79A7",
-  "#56B4E9",
-  "#D55E00",
-];
-
-export function traceColour(i: number): string {
-  return TRACE_COLOURS[i % TRACE_COLOURS.length] as string;
+/** Where a plot reads the recording of its fields (lib/historyApi.ts in the panel, a fake in tests). */
+export interface PlotHistorySource {
+  readonly fetchRange: FetchRange;
+  /** Requests while a person moves the view wait this long for the view to settle (ms). */
+  readonly debounce_ms?: number;
+  readonly timer?: Timer;
+  /** The time now (ms since the epoch), when the ring has no recent frame to tell it. */
+  readonly now_ms?: () => number;
 }
+
+/**
+ * What a plot shows: its moving window from the ring; a long moving window from the recording
+ * (and the ring's newest seconds); or a fixed range of the past (times in ms since the epoch).
+ */
+export type PlotView =
+  | { readonly kind: "ring" }
+  | { readonly kind: "moving"; readonly span_ms: number }
+  | { readonly kind: "fixed"; readonly from_ms: number; readonly to_ms: number };
+
+/** What a plot showing the recording tells its view (markers, range, export links, errors). */
+export interface HistoryShown {
+  readonly view: PlotView["kind"];
+  /** The range shown (s since the epoch); null on the ring. */
+  readonly range: TimeRange | null;
+  /** The events of the range drawn (markers). */
+  readonly events: readonly HistoryEvent[];
+  readonly error: string | null;
+  /** Frames the recording holds in the range drawn. */
+  readonly frames: number;
+}
+
+/** A moving window from the recording is fetched again this often: a bucket's width, in bounds. */
+export const MOVING_REFRESH_MIN_MS = 2000;
+export const MOVING_REFRESH_MAX_MS = 60_000;
+
+// The trace colours are plot definitions (lib/plots.ts); re-exported for the views.
+export { TRACE_COLOURS, traceColour } from "./plots";
 
 export class LivePlot {
   readonly spec: PlotSpec;
@@ -95,6 +143,18 @@ export class LivePlot {
   private zoomed = false;
   /** Told when the plot is zoomed away from the moving window, or back on it. */
   onZoomedChange: ((zoomed: boolean) => void) | null = null;
+  /** Told when the view changes and whenever a range of the recording is drawn or fails. */
+  onHistory: ((shown: HistoryShown) => void) | null = null;
+  private view: PlotView = { kind: "ring" };
+  private readonly loader: RangeLoader | null;
+  private readonly timer: Timer;
+  private readonly clock: () => number;
+  /** The newest answer of the recording (kept while a new range loads, to draw something). */
+  private historyData: RangeData | null = null;
+  private historyError: string | null = null;
+  private refreshHandle: unknown = null;
+  /** The range of the last history drawing (ms since the epoch). */
+  private drawnRange_ms: { readonly from: number; readonly to: number } | null = null;
   /** `revision` of the last drawing: a rebuild within the same revision keeps the zoom. */
   private drawnRevision = -1;
   /** Points in each trace now (all traces have the same count). */
@@ -115,6 +175,20 @@ export class LivePlot {
     this.window_ms = options.window_ms;
     this.visible = this.traces.map(() => true);
     this.bucketer = this.newBucketer();
+    const history = options.history;
+    this.timer = history?.timer ?? browserTimer;
+    this.clock = history?.now_ms ?? Date.now;
+    this.loader =
+      history === undefined || options.readOnly
+        ? null
+        : new RangeLoader(
+            history.fetchRange,
+            (data) => this.received(data),
+            (reason) => this.failed(reason),
+            history.debounce_ms,
+            this.timer,
+          );
+    this.view = this.viewForWindow(this.window_ms);
   }
 
   get maxPoints(): number {
@@ -127,6 +201,15 @@ export class LivePlot {
 
   get windowMs(): number {
     return this.window_ms;
+  }
+
+  /** Whether the plot can show the recording (the panel's plots; not the kiosk's). */
+  get reachesHistory(): boolean {
+    return this.loader !== null;
+  }
+
+  get viewKind(): PlotView["kind"] {
+    return this.view.kind;
   }
 
   /** Create the Plotly plot in `el` (once). */
@@ -144,7 +227,176 @@ export class LivePlot {
 
   private checkZoom(): void {
     if (this.el === null) return;
-    this.setZoomed(Object.keys(this.backend.zoomedAxes(this.el)).length > 0);
+    const axes = this.backend.zoomedAxes(this.el);
+    if (this.loader !== null) this.followPerson(axes.xaxis);
+    if (this.el === null) return;
+    const keys = Object.keys(axes);
+    // A history view sets its x range itself: only the person's y zoom counts there.
+    const zoomed =
+      this.view.kind === "fixed" ||
+      (this.view.kind === "ring" ? keys.length > 0 : keys.some((k) => k !== "xaxis"));
+    this.setZoomed(zoomed);
+  }
+
+  /**
+   * A person zoomed or panned to `x` (Plotly's x range, or undefined after an autoscale). On
+   * the ring, a view inside what the plot holds stays a zoom of the moving window (no fetch);
+   * one reaching before it goes into the recording. A history view follows every move with a
+   * debounced fetch of the new range; an autoscale there is "Back to live".
+   */
+  private followPerson(x: readonly unknown[] | undefined): void {
+    if (x === undefined) {
+      if (this.view.kind === "fixed") this.backToLive();
+      return;
+    }
+    const from_ms = axisTimeToEpochS(x[0], this.tzShift_ms) * 1000;
+    const to_ms = axisTimeToEpochS(x[1], this.tzShift_ms) * 1000;
+    if (!Number.isFinite(from_ms) || !Number.isFinite(to_ms) || !(to_ms > from_ms)) return;
+    const tolerance_ms = (to_ms - from_ms) / 1000;
+    if (this.view.kind !== "ring") {
+      const drawn = this.drawnRange_ms;
+      // Our own drawing of a range is no move of the person's.
+      if (drawn !== null && Math.abs(drawn.from - from_ms) <= tolerance_ms && Math.abs(drawn.to - to_ms) <= tolerance_ms) return;
+      this.enterView({ kind: "fixed", from_ms, to_ms }, { immediate: false, redraw: false, fresh: false });
+      return;
+    }
+    const held = this.ringHeldFrom_ms();
+    if (held === null || from_ms < held - (to_ms - from_ms) / 100) {
+      this.enterView({ kind: "fixed", from_ms, to_ms }, { immediate: false, redraw: false, fresh: false });
+    }
+  }
+
+  /** The oldest time the ring view draws: its window back from the newest frame, or the ring's oldest. */
+  private ringHeldFrom_ms(): number | null {
+    const newest = this.ring.newestTime();
+    if (newest === null) return null;
+    return Math.max(newest - this.window_ms, this.ring.timeAt(this.ring.oldestSeq));
+  }
+
+  private viewForWindow(window_ms: number): PlotView {
+    return this.loader !== null && window_ms > RING_WINDOW_MAX_MS ? { kind: "moving", span_ms: window_ms } : { kind: "ring" };
+  }
+
+  /**
+   * Show a fixed range of the past (a marker's jump, a custom range), fetched at once; the
+   * plot leaves a pause (it shows what was asked for).
+   */
+  showRange(range: TimeRange): void {
+    if (this.loader === null || !(range.to_s > range.from_s)) return;
+    this.paused = false;
+    this.enterView({ kind: "fixed", from_ms: range.from_s * 1000, to_ms: range.to_s * 1000 }, { immediate: true, redraw: true, fresh: true });
+  }
+
+  /**
+   * Switch views. `immediate`: fetch now, not after the debounce; `redraw`: draw the new range at
+   * once (with what is at hand) rather than when its answer comes (a person's move has put
+   * Plotly on the range already); `fresh`: a new `uirevision`, dropping the person's zoom.
+   */
+  private enterView(view: PlotView, how: { immediate: boolean; redraw: boolean; fresh: boolean }): void {
+    this.clearRefresh();
+    this.view = view;
+    if (how.fresh) this.revision++;
+    if (view.kind === "ring") {
+      this.loader?.stop();
+      this.historyData = null;
+      this.historyError = null;
+      this.drawnRange_ms = null;
+      this.needsRebuild = true;
+    } else {
+      this.requestRange(how.immediate);
+      if (how.redraw) this.needsRebuild = true;
+    }
+    this.setZoomed(view.kind === "fixed");
+    this.mark();
+    this.tell();
+  }
+
+  /** The range the view asks for now (ms since the epoch). */
+  private wantedRange_ms(): { from: number; to: number } {
+    const view = this.view;
+    if (view.kind === "fixed") return { from: view.from_ms, to: view.to_ms };
+    const to = this.now_ms();
+    return { from: to - (view.kind === "moving" ? view.span_ms : this.window_ms), to };
+  }
+
+  /** Now on the frames' time axis: the newest frame while frames come, else the clock. */
+  private now_ms(): number {
+    const newest = this.ring.newestTime();
+    const clock = this.clock();
+    // The receive times are the service's clock; the browser's may differ by a little.
+    return newest !== null && Math.abs(clock - newest) < 30_000 ? newest : clock;
+  }
+
+  private pointsWanted(): number {
+    const margin = plotMargin(this.spec.series.some((s) => s.axis === "y2"));
+    const width = (this.el as (HTMLElement & { clientWidth?: number }) | null)?.clientWidth;
+    return bucketsForWidth((width ?? Number.NaN) - margin.l - margin.r);
+  }
+
+  private requestRange(immediate: boolean): void {
+    if (this.loader === null || this.view.kind === "ring") return;
+    const { from, to } = this.wantedRange_ms();
+    this.loader.request({ from_s: from / 1000, to_s: to / 1000 }, this.pointsWanted(), immediate);
+  }
+
+  private received(data: RangeData): void {
+    if (this.view.kind === "ring") return;
+    this.historyData = data;
+    this.historyError = null;
+    this.needsRebuild = true;
+    if (this.view.kind === "moving") this.scheduleRefresh();
+  }
+
+  private failed(reason: string): void {
+    if (this.view.kind === "ring") return;
+    this.historyError = reason;
+    this.tell();
+    if (this.view.kind === "moving") this.scheduleRefresh();
+  }
+
+  /** A moving window from the recording asks again when about a new bucket has filled. */
+  private scheduleRefresh(): void {
+    this.clearRefresh();
+    if (this.view.kind !== "moving") return;
+    const every_ms = Math.min(MOVING_REFRESH_MAX_MS, Math.max(MOVING_REFRESH_MIN_MS, this.view.span_ms / this.pointsWanted()));
+    this.refreshHandle = this.timer.set(() => {
+      this.refreshHandle = null;
+      // Paused: frozen until resumed (which goes back to live and asks again).
+      if (this.view.kind === "moving" && !this.paused) this.requestRange(true);
+    }, every_ms);
+  }
+
+  private clearRefresh(): void {
+    if (this.refreshHandle !== null) this.timer.clear(this.refreshHandle);
+    this.refreshHandle = null;
+  }
+
+  /** The range in view now (s since the epoch): what an export of "the view" covers. */
+  visibleRange(): TimeRange | null {
+    if (this.view.kind !== "ring") {
+      const r = this.drawnRange_ms ?? this.wantedRange_ms();
+      return { from_s: r.from / 1000, to_s: r.to / 1000 };
+    }
+    const x = this.el !== null ? this.backend.zoomedAxes(this.el).xaxis : undefined;
+    if (x !== undefined) {
+      const from_s = axisTimeToEpochS(x[0], this.tzShift_ms);
+      const to_s = axisTimeToEpochS(x[1], this.tzShift_ms);
+      if (Number.isFinite(from_s) && Number.isFinite(to_s) && to_s > from_s) return { from_s, to_s };
+    }
+    const to = this.ring.newestTime() ?? this.clock();
+    return { from_s: (to - this.window_ms) / 1000, to_s: to / 1000 };
+  }
+
+  private tell(): void {
+    if (this.onHistory === null) return;
+    const r = this.view.kind === "ring" ? null : (this.drawnRange_ms ?? this.wantedRange_ms());
+    this.onHistory({
+      view: this.view.kind,
+      range: r === null ? null : { from_s: r.from / 1000, to_s: r.to / 1000 },
+      events: this.view.kind === "ring" ? [] : (this.historyData?.events ?? []),
+      error: this.historyError,
+      frames: this.historyData?.answer.frames ?? 0,
+    });
   }
 
   private setZoomed(zoomed: boolean): void {
@@ -160,9 +412,9 @@ export class LivePlot {
    */
   backToLive(): void {
     this.paused = false;
-    this.revision++;
+    // The picked window again: from the ring, or a long one from the recording (asked at once).
+    this.enterView(this.viewForWindow(this.window_ms), { immediate: true, redraw: true, fresh: true });
     this.setZoomed(false);
-    this.needsRebuild = true;
     if (this.el !== null) this.rebuild(this.el);
     this.mark();
   }
@@ -173,15 +425,18 @@ export class LivePlot {
   }
 
   unmount(): void {
+    this.loader?.stop();
+    this.clearRefresh();
     if (this.el !== null) this.backend.purge(this.el);
     this.el = null;
   }
 
+  /** A window picked: on the ring up to 2 min, longer ones from the recording (moving with now). */
   setWindow(window_ms: number): void {
-    if (window_ms === this.window_ms) return;
+    if (window_ms === this.window_ms && this.view.kind !== "fixed") return;
     this.window_ms = window_ms;
-    this.revision++; // a new window length starts from autorange, not the old zoom
-    this.needsRebuild = true;
+    // A new window length starts from autorange, not the old zoom (a new revision).
+    this.enterView(this.viewForWindow(window_ms), { immediate: true, redraw: true, fresh: true });
   }
 
   setPaused(paused: boolean): void {
@@ -214,13 +469,16 @@ export class LivePlot {
 
   /** Interactive (zoom, pan, mode bar; hover too when paused), or a static picture. */
   get interactive(): boolean {
-    return !this.options.readOnly && (this.paused || this.pointerInside);
+    // A view of the recording changes only when an answer comes: always interactive.
+    return !this.options.readOnly && (this.paused || this.pointerInside || this.view.kind !== "ring");
   }
 
   setTraceVisible(index: number, visible: boolean): void {
     if (this.visible[index] === undefined || this.visible[index] === visible) return;
     this.visible[index] = visible;
-    if (this.el !== null) this.backend.restyle(this.el, { visible }, [index]);
+    // A history drawing has several traces per signal (min, max, the ring's newest): redraw.
+    if (this.view.kind !== "ring") this.needsRebuild = true;
+    else if (this.el !== null) this.backend.restyle(this.el, { visible }, [index]);
   }
 
   isTraceVisible(index: number): boolean {
@@ -229,14 +487,24 @@ export class LivePlot {
 
   /** Whether an update would do anything now. */
   hasWork(): boolean {
-    if (this.el === null || this.paused) return false;
+    if (this.el === null) return false;
+    // A history view: only when an answer came (or a redraw was asked for), never per frame.
+    if (this.view.kind !== "ring") return this.needsRebuild;
+    if (this.paused) return false;
     return this.needsRebuild || this.readSeq !== this.ring.endSeq;
   }
 
   /** Append what arrived since the last update (or rebuild); true if Plotly was called. */
   update(now_ms: number): boolean {
     const el = this.el;
-    if (el === null || this.paused) return false;
+    if (el === null) return false;
+    if (this.view.kind !== "ring") {
+      if (!this.needsRebuild) return false;
+      this.drawHistory(el);
+      this.lastUpdate_ms = now_ms;
+      return true;
+    }
+    if (this.paused) return false;
     if (this.needsRebuild || this.readSeq < this.ring.oldestSeq) {
       this.rebuild(el);
       this.lastUpdate_ms = now_ms;
@@ -258,6 +526,10 @@ export class LivePlot {
   }
 
   private rebuild(el: HTMLElement): void {
+    if (this.view.kind !== "ring") {
+      this.drawHistory(el);
+      return;
+    }
     this.needsRebuild = false;
     this.tzShift_ms = new Date().getTimezoneOffset() * 60_000;
     this.bucketer = this.newBucketer();
@@ -284,6 +556,65 @@ export class LivePlot {
     this.mark();
   }
 
+  /**
+   * Draw the view's range from the recording: the newest answer as min/max envelopes, and what
+   * the ring holds after the answer's newest frame (not yet recorded, or no recording at all)
+   * as a line per signal; the events of the range as dotted lines on the time axis.
+   */
+  private drawHistory(el: HTMLElement): void {
+    this.needsRebuild = false;
+    this.tzShift_ms = new Date().getTimezoneOffset() * 60_000;
+    const shift = this.tzShift_ms;
+    const { from, to } = this.wantedRange_ms();
+    const data = this.historyData;
+    const sets = data !== null ? envelopeTraceSets(data.answer, this.spec, shift) : this.traces.map(() => []);
+    const recorded_s = data !== null ? newestRecorded(data.answer) : null;
+    const tailFrom = Math.max(from, recorded_s === null ? -Infinity : recorded_s * 1000 + 1e-3);
+    const points = this.pointsWanted();
+    const tail = new MinMaxBucketer(this.ringChannels, Math.max((to - from) / points, 1), points, (t) => t - shift);
+    tail.feedRing(this.ring, this.ring.firstSeqAtOrAfter(tailFrom), this.ring.firstSeqAtOrAfter(to));
+    const chunk = tail.take();
+    const traces: object[] = [];
+    let drawnPoints = 0;
+    this.traces.forEach((trace, i) => {
+      const visible = this.visible[i] ?? true;
+      const own = sets[i] ?? [];
+      for (const t of own) traces.push({ ...t, visible });
+      const tailX = chunk?.xs[i] ?? [];
+      traces.push({ ...this.traceStyle(trace, i), x: tailX, y: chunk?.ys[i] ?? [], showlegend: false });
+      if (i === 0) drawnPoints = ((own[0] as { x?: unknown[] } | undefined)?.x?.length ?? 0) + tailX.length;
+    });
+    const range_s = { from_s: from / 1000, to_s: to / 1000 };
+    const shapes = markersOf(data?.events ?? [], range_s).map((m) => ({
+      type: "line",
+      xref: "x",
+      yref: "paper",
+      x0: m.time_s * 1000 - shift,
+      x1: m.time_s * 1000 - shift,
+      y0: 0,
+      y1: 1,
+      line: { color: m.kind === "alarm" ? "#D55E00" : "#888", width: 1, dash: "dot" },
+    }));
+    // Plotly keeps a person's axis range within a `uirevision`: where it shows another range
+    // than this one (a jump, a moving window's step), a new revision makes it take this one.
+    const x = this.backend.zoomedAxes(el).xaxis;
+    const shown_from = x !== undefined ? axisTimeToEpochS(x[0], shift) * 1000 : Number.NaN;
+    const shown_to = x !== undefined ? axisTimeToEpochS(x[1], shift) * 1000 : Number.NaN;
+    const tolerance_ms = (to - from) / 1000;
+    if (!(Math.abs(shown_from - from) <= tolerance_ms && Math.abs(shown_to - to) <= tolerance_ms)) this.revision++;
+    this.drawnRevision = this.revision;
+    const layout = { ...(this.layout({ xaxis: [from - shift, to - shift] }) as Record<string, unknown>), shapes };
+    this.drawnRange_ms = { from, to };
+    this.points = drawnPoints;
+    this.backend.react(el, traces, layout, this.config());
+    this.updates++;
+    el.dataset.from = String(range_s.from_s);
+    el.dataset.to = String(range_s.to_s);
+    el.dataset.frames = String(data?.answer.frames ?? 0);
+    this.mark();
+    this.tell();
+  }
+
   private mark(): void {
     if (this.el === null) return;
     this.el.dataset.points = String(this.points);
@@ -291,6 +622,7 @@ export class LivePlot {
     this.el.dataset.windowMs = String(this.window_ms);
     this.el.dataset.interactive = this.interactive ? "true" : "false";
     this.el.dataset.zoomed = this.zoomed ? "true" : "false";
+    this.el.dataset.view = this.view.kind;
   }
 
   private newBucketer(): MinMaxBucketer {

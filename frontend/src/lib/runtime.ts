@@ -8,6 +8,8 @@ import type { PlotSpec } from "./plots";
 import { StreamClient, streamUrl } from "./stream";
 
 export interface LiveRuntime {
+  /** The robot streamed (null: the service's default robot); a plot's history is this robot's. */
+  readonly robot: string | null;
   readonly live: LiveData;
   readonly stream: StreamClient;
   readonly coordinator: PlotCoordinator;
@@ -39,6 +41,7 @@ export function createLiveRuntime(plots: readonly PlotSpec[], options: RuntimeOp
   const shared = options.coordinator !== undefined;
   const coordinator = options.coordinator ?? new PlotCoordinator();
   return {
+    robot: options.robot ?? null,
     live,
     stream,
     coordinator,

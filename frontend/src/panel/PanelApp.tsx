@@ -10,9 +10,9 @@ import { ConnectionHealth } from "../components/ConnectionHealth";
 import { ControlHolder } from "../components/ControlHolder";
 import { CustomPlots } from "../components/CustomPlots";
 import { FlagBadges } from "../components/FlagBadges";
-import { HistoryView } from "../components/HistoryView";
 import { JointTable } from "../components/JointTable";
 import { LivePlotView } from "../components/LivePlotView";
+import { PlotHistoryContext, type PlotHistoryAccess } from "../components/plotHistory";
 import { Robot3DView } from "../components/Robot3DView";
 import { RuntimeContext, useLive } from "../components/runtimeContext";
 import { StaleBanner } from "../components/StaleBanner";
@@ -22,12 +22,14 @@ import { TagNamesContext } from "../components/tagNames";
 import { ThemeSwitch, useTheme } from "../components/theme";
 import { api } from "../lib/api";
 import { FleetPoller, knownRobots, type FleetTile } from "../lib/fleet";
+import { historyFetcher } from "../lib/historyApi";
 import { ALL_PLOTS, JOINT_PLOTS, TCP_PLOTS } from "../lib/plots";
 import type { ControlStatus, User } from "../lib/protocol";
 import { chooseRobot, robotFromSearch, searchWithRobot } from "../lib/route";
 import { controlOwnership } from "../lib/controlSession";
 import { createLiveRuntime, type LiveRuntime } from "../lib/runtime";
 import type { TagNames } from "../lib/tags";
+import { PlotTimeRange } from "../lib/timeRange";
 import { AlarmCue } from "./AlarmCue";
 import { AlarmsView } from "./AlarmsView";
 import { AuditView, EventsView } from "./EventsView";
@@ -54,7 +56,6 @@ const SECTIONS = [
   ["joints", "Joints"],
   ["tcp", "TCP"],
   ["custom", "Custom plots"],
-  ["history", "History"],
   ["robot3d", "3D"],
   ["alarms", "Alarms"],
   ["io", "I/O"],
@@ -157,10 +158,6 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
               <h2>Custom plots</h2>
               <CustomPlots robot={robot} robots={robots.map((r) => r.name)} coordinator={runtime.coordinator} />
             </section>
-            <section id="history">
-              <h2>History</h2>
-              <HistoryView robot={robot} theme={theme} />
-            </section>
             <section id="robot3d">
               <h2>3D</h2>
               <Robot3DView model={robots.find((r) => r.name === robot)?.model ?? null} theme={theme} />
@@ -209,9 +206,16 @@ function RobotPanel(props: PanelProps) {
       if (window.__cobotHmi === runtime) delete window.__cobotHmi;
     };
   }, [runtime]);
+  // The plots reach the recording through the REST client; a marker's jump moves them all.
+  const plotHistory = useMemo<PlotHistoryAccess>(
+    () => ({ fetcher: (name, fields) => historyFetcher(api.client, name, fields), timeRange: new PlotTimeRange() }),
+    [],
+  );
   return (
     <RuntimeContext.Provider value={runtime}>
-      <Panel runtime={runtime} {...props} />
+      <PlotHistoryContext.Provider value={plotHistory}>
+        <Panel runtime={runtime} {...props} />
+      </PlotHistoryContext.Provider>
     </RuntimeContext.Provider>
   );
 }

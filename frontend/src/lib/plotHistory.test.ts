@@ -1,0 +1,434 @@
+// A live plot's way into the recording (lib/plotting.ts with lib/historyView.ts and
+// lib/timeRange.ts): a live window never fetches; a zoom or pan past the ring fetches its range
+// (debounced, a stale answer dropped) and draws it merged with the ring's newest samples; a long
+// window moves with now, refreshed from the recording; a marker's jump moves every plot; back
+// to live; a range on screen costs nothing per frame.
+import { describe, expect, it } from "vitest";
+import type { HistoryAnswer, HistoryEvent, RangeData, TimeRange, Timer } from "./historyView";
+import { LivePlot, MOVING_REFRESH_MIN_MS, type HistoryShown, type PlotBackend } from "./plotting";
+import { ChannelMap, JOINT_PLOTS } from "./plots";
+import { SampleRing } from "./ringBuffer";
+import { PlotTimeRange } from "./timeRange";
+
+type Call = { op: string; args: unknown[] };
+type Trace = { name?: string; x: number[]; y: (number | null)[]; visible?: boolean; fill?: string };
+type Layout = { uirevision: string; xaxis: { autorange: boolean; range?: number[] }; shapes?: { x0: number }[] };
+
+const T0 = 1_795_500_000_000; // ms since the epoch
+const spec = JOINT_PLOTS[0]!;
+
+function fakeTimer() {
+  const due: { cb: () => void; handle: number; delay_ms: number }[] = [];
+  let next = 0;
+  const timer: Timer = {
+    set: (cb, delay_ms) => {
+      const handle = ++next;
+      due.push({ cb, handle, delay_ms });
+      return handle;
+    },
+    clear: (h) => {
+      const i = due.findIndex((d) => d.handle === h);
+      if (i >= 0) due.splice(i, 1);
+    },
+  };
+  const fire = () => due.splice(0).forEach((d) => d.cb());
+  return { timer, fire, due };
+}
+
+function answerOf(range: TimeRange, over: Partial<HistoryAnswer> = {}): HistoryAnswer {
+  // Two buckets of every element: values 10…15 (min) and 20…25 (max).
+  const t = [range.from_s, range.from_s + (range.to_s - range.from_s) / 2];
+  return {
+    robot: "left",
+    from: range.from_s,
+    to: range.to_s,
+    points: 2,
+    mode: "buckets",
+    bucket_s: (range.to_s - range.from_s) / 2,
+    frames: 1000,
+    t,
+    t_last: [t[1]! - 0.01, range.to_s - 0.01],
+    series: [0, 1, 2, 3, 4, 5].map((i) => ({
+      element: `joint_position.${i}`,
+      field: "joint_position",
+      label: `J${i + 1}`,
+      unit: "degree",
+      min: [10 + i, 10 + i],
+      max: [20 + i, 20 + i],
+      first: [],
+      last: [],
+    })),
+    recording: true,
+    ...over,
+  };
+}
+
+function setup(window_ms = 10_000) {
+  const calls: Call[] = [];
+  const zoom: Record<string, unknown[]> = {};
+  let relayout: (() => void) | null = null;
+  const rec =
+    (op: string) =>
+    (...args: unknown[]) => {
+      calls.push({ op, args });
+    };
+  const backend: PlotBackend = {
+    newPlot: rec("newPlot"),
+    react: (...args: unknown[]) => {
+      calls.push({ op: "react", args });
+      // What Plotly does: an explicit x range is what it shows afterwards.
+      const layout = args[2] as Layout;
+      if (layout.xaxis.autorange === false && layout.xaxis.range !== undefined) zoom.xaxis = [...layout.xaxis.range];
+      else delete zoom.xaxis;
+    },
+    extendTraces: rec("extendTraces"),
+    restyle: rec("restyle"),
+    relayout: rec("relayout"),
+    purge: rec("purge"),
+    zoomedAxes: () => zoom,
+    onRelayout: (_el, listener) => {
+      relayout = listener;
+    },
+  };
+  const fetches: { range: TimeRange; points: number; signal: AbortSignal; resolve: (d: RangeData) => void }[] = [];
+  const { timer, fire, due } = fakeTimer();
+  const channels = new ChannelMap([spec]);
+  const ring = new SampleRing(32_768, channels.channelCount);
+  const plot = new LivePlot(spec, ring, channels, backend, {
+    window_ms,
+    theme: "light",
+    readOnly: false,
+    history: {
+      fetchRange: (range, points, signal) => new Promise<RangeData>((resolve) => fetches.push({ range, points, signal, resolve })),
+      timer,
+      debounce_ms: 200,
+      now_ms: () => ring.newestTime() ?? T0,
+    },
+  });
+  const el = { dataset: {}, clientWidth: 880 } as unknown as HTMLElement;
+  const shown: HistoryShown[] = [];
+  plot.onHistory = (s) => shown.push(s);
+  plot.mount(el);
+  const push = (t_ms: number, v = 1) => ring.push(t_ms, [v, v, v, v, v, v]);
+  const tz = new Date().getTimezoneOffset() * 60_000;
+  /** A person zooms or pans the x axis to [from, to] (epoch ms): Plotly tells its listeners. */
+  const moveTo = (from_ms: number, to_ms: number) => {
+    zoom.xaxis = [from_ms - tz, to_ms - tz];
+    relayout?.();
+  };
+  const autoscale = () => {
+    delete zoom.xaxis;
+    relayout?.();
+  };
+  const reacts = () => calls.filter((c) => c.op === "react");
+  const lastReact = () => reacts().at(-1)!;
+  const settle = () => new Promise((r) => setTimeout(r, 0));
+  /** Answer fetch `i` with buckets over its range (and `events`). */
+  const answer = async (i: number, over: Partial<HistoryAnswer> = {}, events: HistoryEvent[] = []) => {
+    const f = fetches[i]!;
+    f.resolve({ range: f.range, answer: answerOf(f.range, over), events });
+    await settle();
+  };
+  return { plot, el, ring, push, moveTo, autoscale, fetches, fire, due, calls, reacts, lastReact, answer, shown, tz, settle };
+}
+
+/** 60 s of frames at 100 Hz ending at T0. */
+function fill(push: (t: number, v?: number) => void) {
+  for (let t = T0 - 60_000; t <= T0; t += 10) push(t);
+}
+
+describe("a plot on its live window", () => {
+  it("never fetches: not while streaming, not for a zoom inside what it holds", () => {
+    const { plot, push, moveTo, fetches, fire, calls, el } = setup();
+    fill(push);
+    plot.update(0);
+    for (let k = 1; k <= 20; k++) {
+      push(T0 + k * 10);
+      plot.update(k);
+    }
+    plot.setPointerInside(true);
+    moveTo(T0 - 6000, T0 - 2000); // inside the 10 s window
+    fire();
+    expect(fetches).toHaveLength(0);
+    expect(plot.viewKind).toBe("ring");
+    expect(plot.isZoomed).toBe(true);
+    expect(el.dataset.view).toBe("ring");
+    expect(calls.some((c) => c.op === "extendTraces")).toBe(true);
+  });
+});
+
+describe("a zoom or pan past the ring", () => {
+  it("fetches its range once the view settles, about a point per pixel, and draws it", async () => {
+    const { plot, push, moveTo, fetches, fire, due, lastReact, answer, el, tz } = setup();
+    fill(push);
+    plot.update(0);
+    // Zoomed out: the view now starts 5 min back, before the 10 s the plot holds.
+    moveTo(T0 - 300_000, T0);
+    moveTo(T0 - 310_000, T0 - 10_000); // and panned on while still settling
+    expect(plot.viewKind).toBe("fixed");
+    expect(plot.isZoomed).toBe(true);
+    expect(fetches).toHaveLength(0); // debounced
+    expect(due[0]!.delay_ms).toBe(200);
+    fire();
+    expect(fetches).toHaveLength(1);
+    expect(fetches[0]!.range).toEqual({ from_s: (T0 - 310_000) / 1000, to_s: (T0 - 10_000) / 1000 });
+    expect(fetches[0]!.points).toBe(880 - 64 - 16); // the plotting area's width in px
+    expect(plot.hasWork()).toBe(false); // nothing to draw before the answer
+    await answer(0);
+    expect(plot.hasWork()).toBe(true);
+    expect(plot.update(1)).toBe(true);
+    const traces = lastReact().args[1] as Trace[];
+    // Per signal: min, max (the band filled), the ring's newest samples.
+    expect(traces).toHaveLength(6 * 3);
+    expect(traces[0]!.y).toEqual([10, 10]);
+    expect(traces[1]!.y).toEqual([20, 20]);
+    expect(traces[1]!.fill).toBe("tonexty");
+    const layout = lastReact().args[2] as Layout;
+    expect(layout.xaxis.autorange).toBe(false);
+    expect(layout.xaxis.range).toEqual([T0 - 310_000 - tz, T0 - 10_000 - tz]);
+    expect(el.dataset.view).toBe("fixed");
+    expect(Number(el.dataset.frames)).toBe(1000);
+    expect(Number(el.dataset.from)).toBe((T0 - 310_000) / 1000);
+  });
+
+  it("costs nothing per frame while the range is on screen; our own drawing is no move", async () => {
+    const { plot, push, moveTo, fetches, fire, answer, calls } = setup();
+    fill(push);
+    plot.update(0);
+    moveTo(T0 - 300_000, T0 - 200_000);
+    fire();
+    await answer(0);
+    plot.update(1);
+    const n = calls.length;
+    for (let k = 1; k <= 100; k++) push(T0 + k * 10);
+    expect(plot.hasWork()).toBe(false);
+    expect(plot.update(2)).toBe(false);
+    expect(calls).toHaveLength(n);
+    // Plotly's relayout after our drawing shows the range we drew: no new request.
+    moveTo(T0 - 300_000, T0 - 200_000);
+    fire();
+    expect(fetches).toHaveLength(1);
+  });
+
+  it("keeps fetching as the person pans on; an answer overtaken by a newer request is dropped", async () => {
+    const { plot, push, moveTo, fetches, fire, answer, lastReact, reacts } = setup();
+    fill(push);
+    plot.update(0);
+    moveTo(T0 - 300_000, T0 - 200_000);
+    fire();
+    moveTo(T0 - 400_000, T0 - 300_000);
+    fire();
+    expect(fetches).toHaveLength(2);
+    expect(fetches[0]!.signal.aborted).toBe(true);
+    const before = reacts().length;
+    await answer(0); // late, for the old range
+    expect(plot.hasWork()).toBe(false);
+    await answer(1);
+    plot.update(1);
+    expect(reacts()).toHaveLength(before + 1);
+    const from = (lastReact().args[2] as Layout).xaxis.range![0]!;
+    expect(from + new Date().getTimezoneOffset() * 60_000).toBe(T0 - 400_000);
+  });
+
+  it("merges: the ring draws only what the recording has not written yet", async () => {
+    const { plot, push, moveTo, fire, answer, lastReact, fetches, tz } = setup();
+    fill(push);
+    plot.update(0);
+    moveTo(T0 - 120_000, T0);
+    fire();
+    // The recording ends 3 s before the newest frame (the recorder's last flush).
+    const recordedTo_s = (T0 - 3000) / 1000;
+    await answer(0, { t_last: [recordedTo_s - 60, recordedTo_s] });
+    plot.update(1);
+    const traces = lastReact().args[1] as Trace[];
+    const tail = traces[2]!;
+    expect(tail.x.length).toBeGreaterThan(0);
+    expect(Math.min(...tail.x)).toBeGreaterThan(recordedTo_s * 1000 - tz);
+    expect(Math.max(...tail.x)).toBeLessThanOrEqual(T0 - tz);
+    // No recording at all (recorder off): the ring draws all it holds of the range.
+    moveTo(T0 - 120_000, T0 - 1000);
+    fire();
+    await answer(1, { frames: 0, t: [], t_last: [], series: [] });
+    plot.update(2);
+    const alone = lastReact().args[1] as Trace[];
+    expect(alone).toHaveLength(6); // each signal: its line from the ring only
+    expect(Math.min(...alone[0]!.x)).toBeLessThan(T0 - 59_000 - tz);
+    expect(fetches).toHaveLength(2);
+  });
+
+  it("an error is told, and the plot stays up", async () => {
+    const { plot, push, moveTo, fire, fetches, shown } = setup();
+    fill(push);
+    moveTo(T0 - 300_000, T0 - 200_000);
+    fire();
+    const f = fetches[0]!;
+    // The loader reports the failure of the newest request only.
+    (f as unknown as { resolve: (d: unknown) => void }).resolve(Promise.reject(new Error("HTTP 422: to")));
+    await new Promise((r) => setTimeout(r, 0));
+    expect(shown.at(-1)!.error).toBe("HTTP 422: to");
+    expect(plot.viewKind).toBe("fixed");
+  });
+});
+
+describe("long windows from the recording", () => {
+  it("a 15 min window moves with now: fetched at once, then again as a bucket fills", async () => {
+    const { plot, push, fetches, due, fire, answer, lastReact, el } = setup();
+    fill(push);
+    plot.update(0);
+    plot.setWindow(15 * 60_000);
+    expect(plot.viewKind).toBe("moving");
+    expect(plot.isZoomed).toBe(false);
+    expect(fetches).toHaveLength(1);
+    expect(fetches[0]!.range).toEqual({ from_s: (T0 - 900_000) / 1000, to_s: T0 / 1000 });
+    await answer(0);
+    plot.update(1);
+    expect(el.dataset.view).toBe("moving");
+    expect((lastReact().args[1] as Trace[]).length).toBe(18);
+    // The next request waits for about a bucket (900 s / 800 px ≈ 1.1 s; at least 2 s).
+    expect(due.map((d) => d.delay_ms)).toEqual([MOVING_REFRESH_MIN_MS]);
+    for (let k = 1; k <= 300; k++) push(T0 + k * 10); // 3 s more frames
+    expect(plot.hasWork()).toBe(false); // not per frame
+    fire();
+    expect(fetches).toHaveLength(2);
+    expect(fetches[1]!.range.to_s).toBe((T0 + 3000) / 1000);
+    // Paused: frozen, no more requests.
+    await answer(1);
+    plot.update(2);
+    plot.setPaused(true);
+    fire();
+    expect(fetches).toHaveLength(2);
+    // Back to live asks again at once.
+    plot.backToLive();
+    expect(fetches).toHaveLength(3);
+  });
+
+  it("a zoom into a long window leaves it for a fixed range", () => {
+    const { plot, push, fetches, fire, moveTo } = setup();
+    fill(push);
+    plot.setWindow(3_600_000);
+    moveTo(T0 - 1_800_000, T0 - 1_700_000);
+    fire();
+    expect(plot.viewKind).toBe("fixed");
+    expect(fetches.at(-1)!.range).toEqual({ from_s: (T0 - 1_800_000) / 1000, to_s: (T0 - 1_700_000) / 1000 });
+  });
+});
+
+describe("markers and the shared time range", () => {
+  const estop = (time_s: number) =>
+    ({ kind: "robot_state", time: time_s, id: 7, robot: "left", from: 1, from_name: "STANDALONE_RUNNING", to: 0, to_name: "EMERGENCY_STOP" }) as HistoryEvent;
+
+  it("a jump moves every listening plot to a minute around the moment, at once", async () => {
+    const a = setup();
+    const b = setup();
+    fill(a.push);
+    fill(b.push);
+    a.plot.update(0);
+    b.plot.update(0);
+    const shared = new PlotTimeRange();
+    const stopA = shared.subscribe((r) => a.plot.showRange(r));
+    shared.subscribe((r) => b.plot.showRange(r));
+    const moment_s = (T0 - 240_000) / 1000;
+    shared.jumpAround(moment_s);
+    for (const p of [a, b]) {
+      expect(p.plot.viewKind).toBe("fixed");
+      expect(p.fetches).toHaveLength(1); // no debounce for a jump
+      expect(p.fetches[0]!.range).toEqual({ from_s: moment_s - 30, to_s: moment_s + 30 });
+    }
+    expect(shared.current).toEqual({ from_s: moment_s - 30, to_s: moment_s + 30 });
+    // The answer's events become markers: dotted lines on the time axis, and told to the view.
+    await a.answer(0, {}, [estop(moment_s)]);
+    a.plot.update(1);
+    const layout = a.lastReact().args[2] as Layout;
+    expect(layout.shapes!.map((s) => s.x0)).toEqual([moment_s * 1000 - a.tz]);
+    expect(a.shown.at(-1)!.events).toHaveLength(1);
+    expect(a.shown.at(-1)!.range).toEqual({ from_s: moment_s - 30, to_s: moment_s + 30 });
+    // A plot that stopped listening stays where it is.
+    stopA();
+    shared.jumpAround(moment_s + 100);
+    expect(a.fetches).toHaveLength(1);
+    expect(b.fetches).toHaveLength(2);
+    expect(shared.listenerCount).toBe(1);
+  });
+
+  it("a paused plot leaves its pause for a jump", () => {
+    const { plot, push } = setup();
+    fill(push);
+    plot.update(0);
+    plot.setPaused(true);
+    plot.showRange({ from_s: T0 / 1000 - 100, to_s: T0 / 1000 - 40 });
+    expect(plot.isPaused).toBe(false);
+    expect(plot.viewKind).toBe("fixed");
+  });
+});
+
+describe("back to live from the recording", () => {
+  it("returns to the ring window; an answer still on its way is never drawn", async () => {
+    const { plot, push, moveTo, fire, fetches, answer, lastReact, el, reacts } = setup();
+    fill(push);
+    plot.update(0);
+    moveTo(T0 - 300_000, T0 - 200_000);
+    fire();
+    plot.backToLive();
+    expect(fetches[0]!.signal.aborted).toBe(true);
+    expect(plot.viewKind).toBe("ring");
+    expect(plot.isZoomed).toBe(false);
+    expect(el.dataset.view).toBe("ring");
+    const live = lastReact().args[2] as Layout;
+    expect(live.xaxis.autorange).toBe(true);
+    const n = reacts().length;
+    await answer(0);
+    expect(plot.hasWork()).toBe(false);
+    expect(reacts()).toHaveLength(n);
+    push(T0 + 1000);
+    expect(plot.hasWork()).toBe(true);
+  });
+
+  it("an autoscale (double click) on a range of the past is back to live too", async () => {
+    const { plot, push, moveTo, fire, autoscale, fetches } = setup();
+    fill(push);
+    plot.update(0);
+    moveTo(T0 - 300_000, T0 - 200_000);
+    fire();
+    autoscale();
+    expect(plot.viewKind).toBe("ring");
+    expect(fetches).toHaveLength(1);
+  });
+
+  it("the visible range: the range drawn, the zoom, or the moving window", async () => {
+    const { plot, push, moveTo, fire, answer } = setup();
+    fill(push);
+    plot.update(0);
+    expect(plot.visibleRange()).toEqual({ from_s: (T0 - 10_000) / 1000, to_s: T0 / 1000 });
+    moveTo(T0 - 6000, T0 - 2000);
+    expect(plot.visibleRange()).toEqual({ from_s: (T0 - 6000) / 1000, to_s: (T0 - 2000) / 1000 });
+    moveTo(T0 - 300_000, T0 - 200_000);
+    fire();
+    await answer(0);
+    plot.update(1);
+    expect(plot.visibleRange()).toEqual({ from_s: (T0 - 300_000) / 1000, to_s: (T0 - 200_000) / 1000 });
+  });
+});
+
+describe("a plot without the recording (the kiosk)", () => {
+  it("keeps long windows out and never leaves the ring", () => {
+    const channels = new ChannelMap([spec]);
+    const ring = new SampleRing(1024, channels.channelCount);
+    const noop = () => undefined;
+    const backend: PlotBackend = {
+      newPlot: noop,
+      react: noop,
+      extendTraces: noop,
+      restyle: noop,
+      relayout: noop,
+      purge: noop,
+      zoomedAxes: () => ({ xaxis: [0, 1] }),
+    };
+    const plot = new LivePlot(spec, ring, channels, backend, { window_ms: 10_000, theme: "dark", readOnly: true });
+    plot.mount({ dataset: {} } as unknown as HTMLElement);
+    expect(plot.reachesHistory).toBe(false);
+    plot.setWindow(3_600_000);
+    expect(plot.viewKind).toBe("ring");
+    plot.showRange({ from_s: 1, to_s: 2 });
+    expect(plot.viewKind).toBe("ring");
+  });
+});
