@@ -75,7 +75,7 @@ def ingest(root: Path, hours: float, pool: list[bytes]) -> tuple[float, int, int
         items = []
         for i in range(second_start, min(second_start + RATE_HZ, total)):
             seq += 1
-            items.append((seq, START_S + i / RATE_HZ, frames_pool[i % len(frames_pool)]))
+            items.append((seq, START_S + i / RATE_HZ, frames_pool[i % len(frames_pool)], seq))
         writer.append(items_to_batch(items))
         simulated_now[0] = START_S + (second_start + RATE_HZ) / RATE_HZ
         if writer.due():

@@ -98,7 +98,7 @@ class Cell:
     def aliases(self, device: str) -> dict[str, int]:
         return {m.name: m.alias for m in self.birth(device).metrics if m.name and m.alias}
 
-    def frames_seen(self, device: str) -> list[tuple[int, float, Frame]]:
+    def frames_seen(self, device: str) -> list[tuple[int, float, Frame, int]]:
         return list(self.frames[device].queue)
 
 

@@ -121,7 +121,9 @@ async def test_estop_alarm_ack_restart_reset(emu: Emulator, plc_host: str, tmp_p
             await eventually(lambda: bool(watching.alarm_events(ESTOP)))
         robot.hub.unsubscribe(frames)
         first_estop_t = next(
-            t for _, t, frame in frames.drain() if frame.robot_state == 0 or frame.emergency_stopped
+            item[1]
+            for item in frames.drain()
+            if item[2].robot_state == 0 or item[2].emergency_stopped
         )
         [event] = watching.alarm_events(ESTOP)
         EVENT.validate_python(event)

@@ -72,7 +72,7 @@ async def replayed_frames(hmi: Running, last: bytes) -> list[bytes]:
 
 
 def check_replayed(distinct: list[bytes], items: list[Item]) -> None:
-    expected = [encode_frame(frame) for _, _, frame in items]
+    expected = [encode_frame(item[2]) for item in items]
     # Every frame the service received is a recorded frame, in the recording's order ...
     positions = [expected.index(data) for data in distinct]
     assert positions == sorted(positions)
@@ -183,9 +183,9 @@ def test_parquet_export_of_some_fields_replays_the_rest_as_zero(tmp_path: Path) 
     tables = export.tables(tmp_path, "r", elements, from_s=0, to_s=4e9, fmt="parquet")
     path = tmp_path / "some.parquet"
     path.write_bytes(b"".join(export.export(tables, "r", elements, "parquet")))
-    assert pq.read_schema(path).names[2:] == [f"joint_position.{i}" for i in range(6)]
+    assert pq.read_schema(path).names[3:] == [f"joint_position.{i}" for i in range(6)]
     recording = read_recording(path)
-    for row, (_, _, frame) in zip(recording.raw, items, strict=True):
+    for row, (_, _, frame, _) in zip(recording.raw, items, strict=True):
         decoded = ReplayRobot(Recording(np.array([0.0]), row[None, :]))
         replayed = decoded.produce_frame(0.0)
         assert replayed.joint_position == frame.joint_position

@@ -1,7 +1,9 @@
 """History storage on synthetic recordings: columns from the layout round trip to the wire bytes,
 a torn journal keeps its complete batches, retention deletes the oldest first, decimated
 min/max/first/last equal a brute-force computation over the raw rows (Hypothesis), each export
-format read back by an independent reader (pyarrow, the ``mcap`` reader, Python's csv)."""
+format read back by an independent reader (pyarrow, the ``mcap`` reader, Python's csv), each
+carrying the frames' wire sequence numbers, and a recording made before the ``t2o_sequence``
+column existed still read (the column null) by queries, exports and replay."""
 
 from __future__ import annotations
 
@@ -29,6 +31,7 @@ from cobot_hmi.history.recording import RecordingError, read_recording
 from cobot_hmi.history.schema import (
     ELEMENTS,
     SCHEMA,
+    T2O_SEQUENCE,
     UnknownFieldError,
     items_to_batch,
     raw_from_columns,
@@ -38,14 +41,24 @@ from cobot_hmi.history.schema import (
 from cobot_hmi.history.times import TimeFormatError, parse_time
 from cobot_hmi.layout import T2O_ASSEMBLY
 
-Item = tuple[int, float, Frame]
+Item = tuple[int, float, Frame, int]
+"""A hub item: ``(seq, received_at, frame, t2o_sequence)``."""
 T0 = 1_800_000_000.0  # a whole second, so cells line up with the synthetic rows below
+WIRE0 = 0xFFFF_FF00
+"""The first synthetic wire sequence number: 256 frames before the 32-bit wrap."""
+
+
+def wire_number(i: int) -> int:
+    """The ``i``-th synthetic frame's wire sequence number: one per packet, a packet the
+    scanner did not deliver every 250th, across the 32-bit wrap."""
+    return (WIRE0 + i + i // 250) & 0xFFFF_FFFF
 
 
 def synthetic_items(
     n: int, start_s: float = T0, period_s: float = 0.01, seed: int = 1
 ) -> list[Item]:
-    """``n`` hub items of frames whose joints, force, state and bits all change."""
+    """``n`` hub items of frames whose joints, force, state and bits all change, their wire
+    sequence numbers from ``wire_number``."""
     rng = np.random.default_rng(seed)
     base = standing_frame()
     items = []
@@ -59,7 +72,8 @@ def synthetic_items(
             bit_output_registers=tuple(bool(b) for b in rng.integers(0, 2, 64)),
         )
         # As a robot sends it: every REAL a float32 (decoded from its wire bytes).
-        items.append((i + 1, start_s + i * period_s, decode_frame(encode_frame(frame))))
+        frame = decode_frame(encode_frame(frame))
+        items.append((i + 1, start_s + i * period_s, frame, wire_number(i)))
     return items
 
 
@@ -79,7 +93,8 @@ def write_recording(root: Path, robot: str, items: list[Item], segment_rows: int
 def test_columns_come_from_the_layout() -> None:
     count = sum(f.count for f in T2O_ASSEMBLY.fields)
     assert len(ELEMENTS) == count
-    assert SCHEMA.names[:2] == ["time", "seq"]
+    assert SCHEMA.names[:3] == ["time", "seq", "t2o_sequence"]
+    assert SCHEMA.field(T2O_SEQUENCE).type == pa.uint32()
     assert "joint_position.0" in SCHEMA.names
     assert "robot_state" in SCHEMA.names
     assert SCHEMA.field("joint_torque.5").metadata[b"unit"] == "N·m".encode()
@@ -93,11 +108,12 @@ def test_batch_round_trips_to_the_wire_bytes() -> None:
     items = synthetic_items(50)
     batch = items_to_batch(items)
     raw = raw_from_columns(batch)
-    for row, (_, _, frame) in zip(raw, items, strict=True):
+    for row, (_, _, frame, _) in zip(raw, items, strict=True):
         assert row.tobytes() == encode_frame(frame)
         assert decode_frame(row.tobytes()) == frame
     assert batch.column("seq").to_pylist() == list(range(1, 51))
-    assert time_seconds(batch).tolist() == pytest.approx([t for _, t, _ in items], abs=1e-6)
+    assert batch.column(T2O_SEQUENCE).to_pylist() == [wire_number(i) for i in range(50)]
+    assert time_seconds(batch).tolist() == pytest.approx([item[1] for item in items], abs=1e-6)
 
 
 def test_select_elements() -> None:
@@ -328,10 +344,11 @@ def check_decimation(
                 s,
                 t,
                 f._replace(joint_position=(*f.joint_position[:3], math.nan, *f.joint_position[4:])),
+                w,
             )
             if s % nan_every == 0
-            else (s, t, f)
-            for s, t, f in items
+            else (s, t, f, w)
+            for s, t, f, w in items
         ]
     write_recording(root, "r", items, segment_rows)
     duration = n * period_ms / 1000
@@ -345,8 +362,9 @@ def check_decimation(
         assert raw.num_rows <= points
         assert result.seq is not None
         assert result.seq.tolist() == raw.column("seq").to_pylist()
-        expected_seq = [s for s, t, _ in items if from_s <= round(t * 1e6) / 1e6 < to_s]
-        assert result.seq.tolist() == expected_seq
+        inside = [item for item in items if from_s <= round(item[1] * 1e6) / 1e6 < to_s]
+        assert result.seq.tolist() == [item[0] for item in inside]
+        assert result.t2o_sequence == [item[3] for item in inside]
         return "raw"
     if width >= CELL_S:
         bucket_s, first_cell, end_cell = bucket_grid(from_s, to_s, width)
@@ -364,76 +382,50 @@ def check_decimation(
     return "cells" if width >= CELL_S else "rows"
 
 
+DECIMATION_CASES: dict[str, st.SearchStrategy[dict[str, Any]]] = {
+    # Short ranges: the raw frames, or buckets reduced from them.
+    "rows": st.fixed_dictionaries(
+        {
+            "n": st.integers(1, 900),
+            "period_ms": st.sampled_from([1.0, 10.0, 37.0]),
+            "segment_rows": st.integers(50, 400),
+            "start_frac": st.floats(0, 1),
+            "span_frac": st.floats(0.01, 1.2),
+            "points": st.integers(1, 400),
+            "nan_every": st.integers(0, 7),
+        }
+    ),
+    # Long ranges: whole-second buckets from the per-second cells (closed segments and the
+    # open journal), exactly what the raw rows give.
+    "cells": st.fixed_dictionaries(
+        {
+            "n": st.integers(200, 900),
+            "period_ms": st.sampled_from([100.0, 137.0, 250.0]),
+            "segment_rows": st.integers(50, 400),
+            "start_frac": st.floats(0, 0.5),
+            "span_frac": st.floats(0.3, 1.2),
+            "points": st.integers(1, 20),
+            "nan_every": st.integers(0, 7),
+        }
+    ),
+}
+
+
+@pytest.mark.parametrize("case", list(DECIMATION_CASES))
 @HYPOTHESIS
-@given(
-    n=st.integers(1, 900),
-    period_ms=st.sampled_from([1.0, 10.0, 37.0]),
-    segment_rows=st.integers(50, 400),
-    start_frac=st.floats(0, 1),
-    span_frac=st.floats(0.01, 1.2),
-    points=st.integers(1, 400),
-    nan_every=st.integers(0, 7),
-)
+@given(data=st.data())
 def test_decimation_equals_brute_force(
-    tmp_path_factory: pytest.TempPathFactory,
-    *,
-    n: int,
-    period_ms: float,
-    segment_rows: int,
-    start_frac: float,
-    span_frac: float,
-    points: int,
-    nan_every: int,
+    tmp_path_factory: pytest.TempPathFactory, case: str, data: st.DataObject
 ) -> None:
-    """Short ranges: the raw frames, or buckets reduced from them."""
-    check_decimation(
-        tmp_path_factory.mktemp("history"),
-        n=n,
-        period_ms=period_ms,
-        segment_rows=segment_rows,
-        start_frac=start_frac,
-        span_frac=span_frac,
-        points=points,
-        nan_every=nan_every,
-    )
-
-
-@HYPOTHESIS
-@given(
-    n=st.integers(200, 900),
-    period_ms=st.sampled_from([100.0, 137.0, 250.0]),
-    segment_rows=st.integers(50, 400),
-    start_frac=st.floats(0, 0.5),
-    span_frac=st.floats(0.3, 1.2),
-    points=st.integers(1, 20),
-    nan_every=st.integers(0, 7),
-)
-def test_decimation_over_cells_equals_brute_force(
-    tmp_path_factory: pytest.TempPathFactory,
-    *,
-    n: int,
-    period_ms: float,
-    segment_rows: int,
-    start_frac: float,
-    span_frac: float,
-    points: int,
-    nan_every: int,
-) -> None:
-    """Long ranges: whole-second buckets from the per-second cells (closed segments and the
-    open journal), exactly what the raw rows give."""
-    span_s = span_frac * n * period_ms / 1000
-    points = max(1, min(points, int(span_s / CELL_S)))  # buckets of a second or more
-    path = check_decimation(
-        tmp_path_factory.mktemp("history"),
-        n=n,
-        period_ms=period_ms,
-        segment_rows=segment_rows,
-        start_frac=start_frac,
-        span_frac=span_frac,
-        points=points,
-        nan_every=nan_every,
-    )
-    assert path == "cells"
+    """Every bucket (or raw frame) of a query equals the brute force over the raw rows; a
+    ``cells`` case's buckets (a second or more wide) come from the cells."""
+    drawn = data.draw(DECIMATION_CASES[case], label=case)
+    if case == "cells":
+        span_s = drawn["span_frac"] * drawn["n"] * drawn["period_ms"] / 1000
+        drawn["points"] = max(1, min(drawn["points"], int(span_s / CELL_S)))
+    path = check_decimation(tmp_path_factory.mktemp("history"), **drawn)
+    if case == "cells":
+        assert path == "cells"
 
 
 def test_range_edges_follow_the_stored_times(tmp_path: Path) -> None:
@@ -488,8 +480,9 @@ def test_parquet_export_read_by_pyarrow(recorded: tuple[Path, list[Item]]) -> No
     assert table.schema.metadata[b"robot"] == b"cell-1"
     assert table.schema.field("joint_position.0").metadata[b"unit"] == b"degree"
     assert table.num_rows == len(items)
-    for row, (_, _, frame) in zip(raw_from_columns(table), items, strict=True):
+    for row, (_, _, frame, _) in zip(raw_from_columns(table), items, strict=True):
         assert row.tobytes() == encode_frame(frame)
+    assert table.column(T2O_SEQUENCE).to_pylist() == [item[3] for item in items]
 
 
 def test_parquet_export_read_by_duckdb(recorded: tuple[Path, list[Item]], tmp_path: Path) -> None:
@@ -501,8 +494,8 @@ def test_parquet_export_read_by_duckdb(recorded: tuple[Path, list[Item]], tmp_pa
     path.write_bytes(_export(root, "parquet", ["joint_position", "servo_on", "robot_state"]))
     with duckdb.connect() as db:
         rows = db.execute(
-            'SELECT epoch_us("time"), seq, "joint_position.3", servo_on, robot_state '
-            f"FROM read_parquet('{path}') ORDER BY seq"
+            'SELECT epoch_us("time"), seq, t2o_sequence, "joint_position.3", servo_on, '
+            f"robot_state FROM read_parquet('{path}') ORDER BY seq"
         ).fetchall()
         types = dict(
             db.execute(
@@ -513,10 +506,14 @@ def test_parquet_export_read_by_duckdb(recorded: tuple[Path, list[Item]], tmp_pa
     assert types["joint_position.3"] == "FLOAT"
     assert types["servo_on"] == "BOOLEAN"
     assert types["robot_state"] == "UTINYINT"
+    assert types["t2o_sequence"] == "UINTEGER"
     assert len(rows) == len(items)
-    for (time_us, seq, joint, servo, state), (i_seq, t, frame) in zip(rows, items, strict=True):
+    for (time_us, seq, wire, joint, servo, state), (i_seq, t, frame, i_wire) in zip(
+        rows, items, strict=True
+    ):
         assert time_us == round(t * 1e6)
         assert seq == i_seq
+        assert wire == i_wire
         assert np.float32(joint) == np.float32(frame.joint_position[3])
         assert servo == frame.servo_on
         assert state == frame.robot_state
@@ -527,18 +524,19 @@ def test_csv_export_read_by_python_csv(recorded: tuple[Path, list[Item]]) -> Non
     text = _export(root, "csv", ["joint_position", "servo_on", "robot_state"]).decode()
     rows = list(csv.reader(io.StringIO(text)))
     header = rows[0]
-    assert header[:3] == ["time", "seq", "joint_position.0 [degree]"]
+    assert header[:4] == ["time", "seq", "t2o_sequence", "joint_position.0 [degree]"]
     assert header[-2:] == ["servo_on", "robot_state"]
     assert len(rows) - 1 == len(items)
-    for row, (seq, t, frame) in zip(rows[1:], items, strict=True):
+    for row, (seq, t, frame, wire) in zip(rows[1:], items, strict=True):
         moment = datetime.fromisoformat(row[0])
         assert row[0].endswith("Z")
         assert moment.timestamp() == pytest.approx(t, abs=1e-6)
         assert int(row[1]) == seq
+        assert int(row[2]) == wire
         # Each REAL written as the shortest text that reads back as the same float32.
-        assert [np.float32(v) for v in row[2:8]] == [np.float32(v) for v in frame.joint_position]
-        assert row[8] == ("true" if frame.servo_on else "false")
-        assert int(row[9]) == frame.robot_state
+        assert [np.float32(v) for v in row[3:9]] == [np.float32(v) for v in frame.joint_position]
+        assert row[9] == ("true" if frame.servo_on else "false")
+        assert int(row[10]) == frame.robot_state
 
 
 def test_mcap_export_read_by_the_mcap_reader(recorded: tuple[Path, list[Item]]) -> None:
@@ -559,21 +557,32 @@ def test_mcap_export_read_by_the_mcap_reader(recorded: tuple[Path, list[Item]]) 
     # A field asked for in part is exported whole, and every exported field is described.
     assert schema["properties"]["joint_position"]["maxItems"] == 6
     assert "degree" in schema["properties"]["joint_position"]["description"]
-    frames, seen_events = [], []
+    assert schema["properties"]["t2o_sequence"]["type"] == ["integer", "null"]
+    frames, sequences, seen_events = [], [], []
     for _, channel, message in reader.iter_messages(log_time_order=True):
         if channel.topic == "/cell-1/frames":
             frames.append(orjson.loads(message.data))
+            sequences.append(message.sequence)
         else:
             seen_events.append(orjson.loads(message.data))
     assert seen_events == events
     assert len(frames) == len(items)
-    for message, (seq, t, frame) in zip(frames, items, strict=True):
+    # MCAP's own message sequence: the wire number (both uint32).
+    assert sequences == [item[3] for item in items]
+    for message, (seq, t, frame, wire) in zip(frames, items, strict=True):
         assert message["seq"] == seq
+        assert message["t2o_sequence"] == wire
         assert message["time"] == pytest.approx(t, abs=1e-6)
         # REALs as the shortest text of their float32: the same float32 read back.
         assert f32(message["joint_position"]) == f32(frame.joint_position)
         assert f32(message["external_force"]) == f32(frame.external_force)
-        assert set(message) == {"time", "seq", "joint_position", "external_force"}
+        assert set(message) == {
+            "time",
+            "seq",
+            "t2o_sequence",
+            "joint_position",
+            "external_force",
+        }
 
 
 def test_export_streams_one_segment_at_a_time(recorded: tuple[Path, list[Item]]) -> None:
@@ -602,7 +611,7 @@ def test_recordings_read_back_for_replay(recorded: tuple[Path, list[Item]], tmp_
         recording = read_recording(path)
         assert len(recording) == len(items)
         assert recording.robot == "cell-1"
-        for row, (_, _, frame) in zip(recording.raw, items, strict=True):
+        for row, (_, _, frame, _) in zip(recording.raw, items, strict=True):
             assert row.tobytes() == encode_frame(frame), fmt
     bad = tmp_path / "x.txt"
     bad.write_bytes(b"time,seq\n")
@@ -611,7 +620,7 @@ def test_recordings_read_back_for_replay(recorded: tuple[Path, list[Item]], tmp_
 
 
 def test_zero_frame_columns_are_zero() -> None:
-    batch = items_to_batch([(1, T0, zero_frame())])
+    batch = items_to_batch([(1, T0, zero_frame(), 0)])
     assert raw_from_columns(batch)[0].tobytes() == bytes(284)
 
 
@@ -630,12 +639,95 @@ def test_export_verb(
     base = ["export", "--state-dir", str(state), "--from", str(T0), "--to", str(T0 + 100)]
     assert main([*base, "--fields", "robot_state", "-o", str(out)]) == 0
     rows = list(csv.reader(io.StringIO(out.read_text())))
-    assert rows[0] == ["time", "seq", "robot_state"]
-    assert [int(r[2]) for r in rows[1:]] == [frame.robot_state for _, _, frame in items]
+    assert rows[0] == ["time", "seq", "t2o_sequence", "robot_state"]
+    assert [int(r[2]) for r in rows[1:]] == [item[3] for item in items]
+    assert [int(r[3]) for r in rows[1:]] == [item[2].robot_state for item in items]
     # The only robot recorded is the default; a name that is not recorded is refused.
     assert main([*base, "--robot", "nobody", "-o", str(out)]) == 2
     assert main([*base, "--fields", "nothing", "-o", str(out)]) == 2
     assert main(["export", "--state-dir", str(state), "--from", "2", "--to", "1"]) == 2
+
+
+# --------------------------------------------------------------------------- an upgrade
+
+
+OLD_SCHEMA = SCHEMA.remove(SCHEMA.get_field_index(T2O_SEQUENCE))
+"""The recording's schema before the wire sequence number was kept."""
+
+
+def write_old_recording(root: Path, robot: str, items: list[Item], segment_rows: int) -> None:
+    """``items`` as a service before ``t2o_sequence`` left them: closed segments of
+    ``segment_rows`` frames, then a journal (its crash left it open), all without the column."""
+    directory = segments.robot_dir(root, robot)
+    directory.mkdir(parents=True, exist_ok=True)
+    parts = [items[o : o + segment_rows] for o in range(0, len(items), segment_rows)]
+    for part in parts[:-1]:
+        table = pa.Table.from_batches([items_to_batch(part)]).drop_columns([T2O_SEQUENCE])
+        assert table.schema.equals(OLD_SCHEMA)
+        segments.write_segment(table, directory, robot)
+    last = pa.Table.from_batches([items_to_batch(parts[-1])]).drop_columns([T2O_SEQUENCE])
+    start_us = round(parts[-1][0][1] * 1e6)
+    with (
+        pa.OSFile(str(directory / f"{start_us}{segments.JOURNAL_SUFFIX}"), "wb") as sink,
+        pa.ipc.new_stream(sink, OLD_SCHEMA) as journal,
+    ):
+        for batch in last.to_batches(max_chunksize=50):
+            journal.write_batch(batch)
+
+
+def test_a_recording_made_before_the_wire_number_stays_readable(tmp_path: Path) -> None:
+    """Segments and a journal without ``t2o_sequence``, then the upgraded service's own: a
+    query, every export and replay read both, the old rows' wire number null (CSV: empty;
+    MCAP: null, the message sequence the service's counter), the values unchanged; the old
+    journal closes into a segment that keeps every frame."""
+    items = synthetic_items(700, start_s=T0 + 0.5)
+    old, new = items[:450], items[450:]
+    write_old_recording(tmp_path, "cell-1", old, 200)  # two segments, a journal of 50 frames
+    wires: list[int | None] = [None] * len(old) + [item[3] for item in new]
+
+    def check(root: Path) -> None:
+        elements = select_elements(["robot_state", "joint_position"])
+        raw = query(root, "cell-1", elements, from_s=T0, to_s=T0 + 100, points=5000)
+        assert raw.mode == "raw" and raw.seq is not None
+        assert raw.seq.tolist() == [item[0] for item in items]
+        assert raw.t2o_sequence == wires
+        state = next(x for x in raw.series if x.element.name == "robot_state")
+        assert state.values is not None
+        assert state.values.tolist() == [item[2].robot_state for item in items]
+        buckets = query(root, "cell-1", elements, from_s=T0, to_s=T0 + 8, points=4)
+        assert buckets.mode == "buckets" and buckets.frames == len(items)
+        table = pq.read_table(pa.BufferReader(_export(root, "parquet", None)))
+        assert table.schema.names == SCHEMA.names
+        assert table.column(T2O_SEQUENCE).to_pylist() == wires
+        for row, (_, _, frame, _) in zip(raw_from_columns(table), items, strict=True):
+            assert row.tobytes() == encode_frame(frame)
+        rows = list(csv.reader(io.StringIO(_export(root, "csv", ["robot_state"]).decode())))
+        assert [r[2] for r in rows[1:]] == ["" if w is None else str(w) for w in wires]
+        reader = make_reader(io.BytesIO(_export(root, "mcap", ["robot_state"])))
+        messages = [
+            (orjson.loads(m.data), m.sequence)
+            for _, channel, m in reader.iter_messages(log_time_order=True)
+            if channel.topic == "/cell-1/frames"
+        ]
+        assert [m["t2o_sequence"] for m, _ in messages] == wires
+        assert [sequence for _, sequence in messages] == [
+            item[0] if w is None else w for item, w in zip(items, wires, strict=True)
+        ]
+        replay = tmp_path / "replay.parquet"
+        replay.write_bytes(_export(root, "parquet", None))
+        assert len(read_recording(replay)) == len(items)
+
+    # The upgraded service: its journal after the old one (a restart records in a new one).
+    writer = segments.SegmentWriter(tmp_path, "cell-1", segment_s=1e9)
+    writer.append(items_to_batch(new))
+    writer.abandon()
+    assert len(segments.list_journals(tmp_path, "cell-1")) == 2
+    check(tmp_path)
+    # Its start closes the old journal (and its own, left by a crash) into segments.
+    made = segments.recover(tmp_path, "cell-1")
+    assert len(made) == 2 and not segments.list_journals(tmp_path, "cell-1")
+    assert pq.read_table(made[0].path).column(T2O_SEQUENCE).null_count == 50
+    check(tmp_path)
 
 
 def test_history_storage_imports_only_the_layout_and_the_codec() -> None:

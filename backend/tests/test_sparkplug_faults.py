@@ -36,7 +36,7 @@ def transitions(c: Cell, device: str, di_index: int) -> list[tuple[bool, int]]:
     """``(value, ms)`` of each change of one digital input in the frames the service received."""
     out = []
     previous = None
-    for _, t, frame in c.frames_seen(device):
+    for _, t, frame, _ in c.frames_seen(device):
         value = frame.controlbox_di[di_index]
         if previous is not None and value != previous:
             out.append((value, int(t * 1000)))
@@ -273,7 +273,7 @@ async def test_a_buffer_left_by_a_run_goes_out_with_the_next(tmp_path: Path, plc
                 await asyncio.sleep(0.15)
             seen = list(frames.queue)
             expected = []
-            for (_, _, a), (_, t, b) in itertools.pairwise(seen):
+            for (_, _, a, _), (_, t, b, _) in itertools.pairwise(seen):
                 if a.controlbox_di[4] != b.controlbox_di[4]:
                     expected.append((b.controlbox_di[4], int(t * 1000)))
             assert len(expected) >= 2

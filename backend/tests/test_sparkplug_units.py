@@ -250,7 +250,8 @@ def test_every_transition_between_two_reports() -> None:
     items = []
     for i in range(6):
         di[2] = i % 2 == 0
-        items.append((i, 1000.0 + i / 100, base._replace(controlbox_di=tuple(di), robot_state=i)))
+        frame = base._replace(controlbox_di=tuple(di), robot_state=i)
+        items.append((i, 1000.0 + i / 100, frame, i))
     changes = reporter.discrete_changes(items)
     offset = catalogue.by_name["controlbox_di/DI 3"].offset
     state = catalogue.by_name["robot_state"].offset
@@ -258,7 +259,7 @@ def test_every_transition_between_two_reports() -> None:
         (i % 2 == 0, 1000000 + i * 10) for i in range(6)
     ]
     assert [v for o, v, _ in changes if o == state] == [1, 2, 3, 4, 5]
-    assert reporter.discrete_changes([(7, 1001.0, items[-1][2])]) == []
+    assert reporter.discrete_changes([(7, 1001.0, items[-1][2], 7)]) == []
 
 
 def test_analog_deadband_is_against_the_last_reported_value() -> None:

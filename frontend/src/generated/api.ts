@@ -1536,6 +1536,12 @@ export interface components {
              * @description receive time, s since the epoch
              */
             t: number;
+            /**
+             * T2O Sequence
+             * @description the encapsulation sequence number the frame's T→O packet carried on the wire (the robot raises it per packet: a step of more than one is packets the scanner did not deliver); the recording keeps it in its t2o_sequence column
+             * @default null
+             */
+            t2o_sequence?: number | null;
         };
         /** FramesMessage */
         FramesMessage: {
@@ -1647,6 +1653,11 @@ export interface components {
              * @description raw: each frame's receive time; buckets: each non-empty bucket's start (s since the epoch)
              */
             t: number[];
+            /**
+             * T2O Sequence
+             * @description raw: each frame's T→O wire sequence number (null for a frame recorded before the service kept it)
+             */
+            t2o_sequence?: (number | null)[] | null;
             /**
              * T First
              * @description buckets: first frame's time

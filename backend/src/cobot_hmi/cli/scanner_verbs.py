@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import itertools
 from collections.abc import Callable
 
 from cobot_hmi.layout import CONNECTION_POINTS, O2T_ASSEMBLY, T2O_ASSEMBLY
@@ -200,12 +201,18 @@ def _scan(args: argparse.Namespace) -> int:
     out = sys.stdout
     seen: set[ConnectionState] = set()
 
-    def on_frame(frame: Frame, received_at: float, seq: int) -> None:
+    # ``seq`` in the lines counts the frames delivered (1, 2, …), as it always has; the
+    # callbacks' own third argument is the packet's wire sequence number.
+    delivered = itertools.count(1)
+
+    def on_frame(frame: Frame, received_at: float, _t2o_sequence: int) -> None:
+        seq = next(delivered)
         if not args.stats:
             line = {"seq": seq, "received_at": received_at, "frame": frame_to_json(frame)}
             out.write(dumps(line).decode() + "\n")
 
-    def on_data(data: bytes, received_at: float, seq: int) -> None:
+    def on_data(data: bytes, received_at: float, _t2o_sequence: int) -> None:
+        seq = next(delivered)
         if not args.stats:
             line = {"t": received_at, "seq": seq, "data_hex": data.hex()}
             out.write(dumps(line).decode() + "\n")

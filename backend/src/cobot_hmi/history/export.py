@@ -4,15 +4,18 @@ mcap.
 A range of a robot's recording as a file for the tools engineers use, produced as a stream of
 byte chunks (one segment at a time: memory does not grow with the range):
 
-- ``csv``: one column per element, its unit in the header (``joint_position.0 [degree]``), the
-  receive time in ISO 8601 UTC (``2026-11-24T06:00:00.123456Z``), then ``seq``; opens in Excel
-  and pandas.
+- ``csv``: the receive time in ISO 8601 UTC (``2026-11-24T06:00:00.123456Z``), ``seq``,
+  ``t2o_sequence`` (empty in rows recorded before it existed), then one column per element, its
+  unit in the header (``joint_position.0 [degree]``); pyarrow's writer quotes the header's
+  names and the times (strings), not the numbers and bits; opens in Excel and pandas.
 - ``parquet``: the recording's own columns (``schema``: ``time`` as ``timestamp[us, UTC]``,
-  ``seq``, ``joint_position.0`` …, units and descriptions as field metadata); pyarrow, DuckDB,
-  pandas and PlotJuggler read it.
+  ``seq``, ``t2o_sequence``, ``joint_position.0`` …, units and descriptions as field metadata);
+  pyarrow, DuckDB, pandas and PlotJuggler read it.
 - ``mcap``: a channel ``/ROBOT/frames`` of JSON messages (each frame's fields as the API's
-  frame JSON has them, plus ``time`` and ``seq``) with a JSON Schema, so Foxglove and Lichtblick
-  plot every field without configuration; a channel ``/ROBOT/events`` of the robot's events
+  frame JSON has them, plus ``time``, ``seq`` and ``t2o_sequence``) with a JSON Schema, so
+  Foxglove and Lichtblick plot every field without configuration; each message's MCAP
+  ``sequence`` is the frame's T→O wire sequence number (the service's counter modulo 2³² in
+  rows recorded before the wire number was); a channel ``/ROBOT/events`` of the robot's events
   (connection, robot state, flags, writes, control, recording, alarms) on the same time axis.
   A field asked for in part is exported whole (the message keeps the frame's shape).
 """
@@ -33,7 +36,7 @@ import pyarrow.parquet as pq
 from mcap.writer import CompressionType, Writer
 
 from cobot_hmi.history.query import iter_raw
-from cobot_hmi.history.schema import ELEMENTS, SCHEMA, SEQ, TIME, Element
+from cobot_hmi.history.schema import ELEMENTS, SCHEMA, SEQ, T2O_SEQUENCE, TIME, Element
 from cobot_hmi.history.times import compact_iso
 from cobot_hmi.layout import T2O_ASSEMBLY, Field
 
@@ -116,7 +119,7 @@ def tables(
     root: Path, robot: str, elements: Sequence[Element], *, from_s: float, to_s: float, fmt: str
 ) -> Iterator[pa.Table]:
     """The tables an export of ``fmt`` reads (MCAP: whole fields)."""
-    columns = [TIME, SEQ, *(e.name for e in export_elements(elements, fmt))]
+    columns = [TIME, SEQ, T2O_SEQUENCE, *(e.name for e in export_elements(elements, fmt))]
     return iter_raw(root, robot, columns, from_s, to_s)
 
 
@@ -136,8 +139,8 @@ def csv_header(element: Element) -> str:
 
 
 def _csv(tables_: Iterable[pa.Table], elements: Sequence[Element]) -> Iterator[bytes]:
-    names = ["time", SEQ, *(csv_header(e) for e in elements)]
-    types = [pa.string(), pa.int64(), *(e.arrow_type for e in elements)]
+    names = ["time", SEQ, T2O_SEQUENCE, *(csv_header(e) for e in elements)]
+    types = [pa.string(), pa.int64(), pa.uint32(), *(e.arrow_type for e in elements)]
     schema = pa.schema(list(zip(names, types, strict=True)))
     sink = _Sink()
     writer = pa_csv.CSVWriter(pa.PythonFile(sink, mode="w"), schema)
@@ -147,7 +150,12 @@ def _csv(tables_: Iterable[pa.Table], elements: Sequence[Element]) -> Iterator[b
         yield sink.take()
         for table in _chunks(tables_):
             times = pc.strftime(table.column(TIME), format="%Y-%m-%dT%H:%M:%SZ")
-            arrays = [times, table.column(SEQ), *(table.column(e.name) for e in elements)]
+            arrays = [
+                times,
+                table.column(SEQ),
+                table.column(T2O_SEQUENCE),
+                *(table.column(e.name) for e in elements),
+            ]
             writer.write_table(pa.Table.from_arrays(arrays, schema=schema))
             yield sink.take()
     finally:
@@ -159,7 +167,12 @@ def _csv(tables_: Iterable[pa.Table], elements: Sequence[Element]) -> Iterator[b
 
 
 def export_schema(robot: str, elements: Sequence[Element]) -> pa.Schema:
-    fields = [SCHEMA.field(TIME), SCHEMA.field(SEQ), *(SCHEMA.field(e.name) for e in elements)]
+    fields = [
+        SCHEMA.field(TIME),
+        SCHEMA.field(SEQ),
+        SCHEMA.field(T2O_SEQUENCE),
+        *(SCHEMA.field(e.name) for e in elements),
+    ]
     return pa.schema(fields, metadata={"robot": robot, "layout": T2O_ASSEMBLY.name})
 
 
@@ -192,6 +205,13 @@ def frame_json_schema(elements: Sequence[Element]) -> dict[str, object]:
     properties: dict[str, object] = {
         "time": {"type": "number", "description": "receive time, s since the epoch"},
         "seq": {"type": "integer", "description": "the service's frame counter of the robot"},
+        T2O_SEQUENCE: {
+            "type": ["integer", "null"],
+            "minimum": 0,
+            "maximum": 0xFFFFFFFF,
+            "description": "the T→O packet's encapsulation sequence number on the wire (null: "
+            "recorded before the service kept it)",
+        },
     }
     seen: list[Field] = []
     for e in elements:
@@ -290,6 +310,7 @@ def _mcap(
         times_ns = (micros.astype(np.int64) * 1000).tolist()
         times_s = (micros / 1e6).tolist()
         seqs = table.column(SEQ).to_pylist()
+        wire = table.column(T2O_SEQUENCE).to_pylist()
         values = {e.name: table.column(e.name).to_pylist() for e in elements if e.kind != "float"}
         # REAL arrays as float32 rows: orjson writes each as the shortest text that reads back
         # as the same float32 (as the CSV does), not the 17 digits of its double.
@@ -302,7 +323,11 @@ def _mcap(
         }
         for row, time_ns in enumerate(times_ns):
             events_until(time_ns)
-            message: dict[str, object] = {"time": times_s[row], "seq": seqs[row]}
+            message: dict[str, object] = {
+                "time": times_s[row],
+                "seq": seqs[row],
+                T2O_SEQUENCE: wire[row],
+            }
             # The frame's JSON shape (``codec.frame_to_json``): scalars, arrays, records.
             for f, columns in fields:
                 if f.name in blocks:
@@ -316,7 +341,9 @@ def _mcap(
                 else:
                     message[f.name] = [values[c][row] for c in columns]
             data = orjson.dumps(message, option=orjson.OPT_SERIALIZE_NUMPY)
-            writer.add_message(frames, time_ns, data, time_ns, seqs[row] & 0xFFFFFFFF)
+            # MCAP's message sequence is a uint32, as the wire number is.
+            sequence = wire[row] if wire[row] is not None else seqs[row] & 0xFFFFFFFF
+            writer.add_message(frames, time_ns, data, time_ns, sequence)
         yield sink.take()
     events_until(None)
     writer.finish()  # type: ignore[no-untyped-call]

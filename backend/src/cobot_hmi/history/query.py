@@ -39,7 +39,15 @@ from cobot_hmi.history.rollup import (
     rollup_table,
     stat_column,
 )
-from cobot_hmi.history.schema import SCHEMA, SEQ, TIME, Element, time_seconds
+from cobot_hmi.history.schema import (
+    SCHEMA,
+    SEQ,
+    T2O_SEQUENCE,
+    TIME,
+    Element,
+    conform,
+    time_seconds,
+)
 from cobot_hmi.history.segments import (
     Segment,
     list_journals,
@@ -85,6 +93,8 @@ class QueryResult:
     series: list[Series]
     bucket_s: float | None = None
     seq: npt.NDArray[np.int64] | None = None
+    t2o_sequence: list[int | None] | None = None
+    """Raw: each frame's T→O wire sequence number (``None``: recorded before the column)."""
     count: npt.NDArray[np.int64] | None = None
     t_first: F64 | None = None
     t_last: F64 | None = None
@@ -123,12 +133,13 @@ def iter_raw(
     root: Path, robot: str, columns: Sequence[str], from_s: float, to_s: float
 ) -> Iterator[pa.Table]:
     """Frames with ``from_s <= time < to_s``, ``columns`` only, a table per segment (closed
-    ones, then the open one), oldest first: memory holds one segment at a time."""
+    ones, then the open one), oldest first: memory holds one segment at a time. A column a
+    segment was written without (``t2o_sequence`` before it existed) is nulls."""
     start_us, end_us = math.floor(from_s * 1e6), math.ceil(to_s * 1e6)
     closed, journals = _sources(root, robot, start_us, end_us)
     for segment in closed:
         try:
-            table = pq.ParquetFile(segment.path).read(columns=list(columns))
+            table = conform(pq.ParquetFile(segment.path).read(columns=list(columns)), columns)
         except (OSError, pa.ArrowException):  # deleted by retention meanwhile
             continue
         # Compared as _clip compares (receive times in seconds), not by whole microseconds.
@@ -141,8 +152,9 @@ def iter_raw(
 def read_raw(
     root: Path, robot: str, elements: Sequence[Element], from_s: float, to_s: float
 ) -> pa.Table:
-    """Frames with ``from_s <= time < to_s``: ``time``, ``seq`` and the elements' columns."""
-    columns = [TIME, SEQ, *(e.name for e in elements)]
+    """Frames with ``from_s <= time < to_s``: ``time``, ``seq``, ``t2o_sequence`` and the
+    elements' columns."""
+    columns = [TIME, SEQ, T2O_SEQUENCE, *(e.name for e in elements)]
     tables = list(iter_raw(root, robot, columns, from_s, to_s))
     if not tables:
         return pa.schema([SCHEMA.field(c) for c in columns]).empty_table()
@@ -220,12 +232,22 @@ def query(
     t = time_seconds(table)
     if table.num_rows <= points:
         seq = table.column(SEQ).to_numpy(zero_copy_only=False)
+        wire = table.column(T2O_SEQUENCE).to_pylist()
         series = [
             Series(e, values=np.asarray(table.column(e.name).to_numpy(zero_copy_only=False)))
             for e in elements
         ]
         return QueryResult(
-            robot, from_s, to_s, points, "raw", t, series, seq=seq, frames=table.num_rows
+            robot,
+            from_s,
+            to_s,
+            points,
+            "raw",
+            t,
+            series,
+            seq=seq,
+            t2o_sequence=wire,
+            frames=table.num_rows,
         )
     index = np.floor((t - from_s) / width_s).astype(np.int64)
     np.clip(index, 0, points - 1, out=index)

@@ -23,7 +23,7 @@ from mcap.reader import make_reader
 
 from cobot_hmi.codec import CodecError, encode_frame, frame_from_json
 from cobot_hmi.history.export import FRAME_SCHEMA_NAME
-from cobot_hmi.history.schema import TIME, U8, raw_from_columns, time_seconds
+from cobot_hmi.history.schema import T2O_SEQUENCE, TIME, U8, raw_from_columns, time_seconds
 
 MCAP_MAGIC: Final = b"\x89MCAP"
 PARQUET_MAGIC: Final = b"PAR1"
@@ -93,6 +93,7 @@ def _read_mcap(path: Path, robot: str | None) -> Recording:
                 data = orjson.loads(message.data)
                 times.append(float(data.pop("time", message.log_time / 1e9)))
                 data.pop("seq", None)
+                data.pop(T2O_SEQUENCE, None)
                 rows.append(encode_frame(frame_from_json(data))[:284])
     except (OSError, CodecError, orjson.JSONDecodeError, ValueError) as error:
         raise RecordingError(f"{path}: not a readable MCAP recording ({error})") from None

@@ -2,8 +2,14 @@
 
 The recording's columns, derived from the layout (never written by hand): ``time`` (the receive
 time, ``timestamp[us, UTC]``), ``seq`` (the service's frame counter of that robot, rising by one
-per frame and starting again at 1 when the service restarts), then one column per element of
-the T→O assembly in the layout's order, named ``field`` for a scalar field and
+per frame and starting again at 1 when the service restarts), ``t2o_sequence`` (the
+encapsulation sequence number the frame's T→O packet carried on the wire, in its Sequenced
+Address item, CIP Vol 2 §2-6 and §3-4.2: the robot raises it by one per packet, so a step of
+more than one between rows shows packets the scanner did not deliver as frames, lost on the
+network or held back by the receive rules as no new data, where a step of ``seq`` shows frames
+the service itself lost; ``uint32``, null in rows recorded before the column existed), then one
+column per element of the T→O assembly in the layout's order, named ``field`` for a scalar
+field and
 ``field.index`` (0-based, as the API's element keys) otherwise. REALs are ``float32`` (the
 wire's own width: nothing is lost, nothing is widened), USINTs and coded bits (the analog types,
 the robot state enum) ``uint8``, flags and digital I/O ``bool`` (Parquet packs them to a bit
@@ -33,6 +39,8 @@ TIME: Final = "time"
 """Receive time column (``timestamp[us, UTC]``)."""
 SEQ: Final = "seq"
 """Frame counter column (``int64``)."""
+T2O_SEQUENCE: Final = "t2o_sequence"
+"""The T→O packet's encapsulation sequence number column (``uint32``, nullable)."""
 
 TIME_TYPE: Final = pa.timestamp("us", tz="UTC")
 
@@ -96,6 +104,11 @@ def _schema() -> pa.Schema:
     fields = [
         pa.field(TIME, TIME_TYPE, nullable=False, metadata={"description": "receive time"}),
         pa.field(SEQ, pa.int64(), nullable=False, metadata={"description": "frame counter"}),
+        pa.field(
+            T2O_SEQUENCE,
+            pa.uint32(),
+            metadata={"description": "the T→O packet's encapsulation sequence number"},
+        ),
     ]
     for e in ELEMENTS:
         meta = {"unit": e.unit, "description": e.field.description, "label": e.label}
@@ -175,22 +188,47 @@ def columns_from_raw(raw: U8) -> dict[str, np.ndarray]:
 
 
 def raw_to_batch(
-    seq: npt.ArrayLike, time_s: npt.ArrayLike, raw: U8, schema: pa.Schema = SCHEMA
+    seq: npt.ArrayLike,
+    time_s: npt.ArrayLike,
+    raw: U8,
+    t2o_sequence: npt.ArrayLike,
+    schema: pa.Schema = SCHEMA,
 ) -> pa.RecordBatch:
-    """A record batch of the recording's schema from counters, times and wire bytes."""
+    """A record batch of the recording's schema from counters, times, the packets' wire
+    sequence numbers and the frames' wire bytes."""
     columns = columns_from_raw(raw)
     arrays = [
         pa.array(time_us(time_s), type=pa.int64()).cast(TIME_TYPE),
         pa.array(np.asarray(seq, dtype=np.int64)),
+        pa.array(np.asarray(t2o_sequence, dtype=np.uint32)),
         *(pa.array(columns[e.name], type=e.arrow_type) for e in ELEMENTS),
     ]
     return pa.RecordBatch.from_arrays(arrays, schema=schema)
 
 
-def items_to_batch(items: Sequence[tuple[int, float, Frame]]) -> pa.RecordBatch:
-    """The hub's ``(seq, received_at, frame)`` items as one record batch."""
+def items_to_batch(items: Sequence[tuple[int, float, Frame, int]]) -> pa.RecordBatch:
+    """The hub's ``(seq, received_at, frame, t2o_sequence)`` items as one record batch."""
     raw = frames_to_raw(item[2] for item in items)
-    return raw_to_batch([item[0] for item in items], [item[1] for item in items], raw)
+    return raw_to_batch(
+        [item[0] for item in items],
+        [item[1] for item in items],
+        raw,
+        [item[3] for item in items],
+    )
+
+
+def conform(table: pa.Table, columns: Sequence[str]) -> pa.Table:
+    """``columns`` of ``table``, in that order. A column the table lacks (a segment or journal
+    written before the column existed: ``t2o_sequence``) comes back as nulls of its type, so
+    an upgrade never makes older recordings unreadable."""
+    names = table.schema.names
+    if all(c in names for c in columns):
+        return table.select(list(columns))
+    arrays = [
+        table.column(c) if c in names else pa.nulls(table.num_rows, SCHEMA.field(c).type)
+        for c in columns
+    ]
+    return pa.Table.from_arrays(arrays, schema=pa.schema([SCHEMA.field(c) for c in columns]))
 
 
 def raw_from_columns(table: pa.Table | pa.RecordBatch) -> U8:

@@ -39,7 +39,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from cobot_hmi.history.rollup import rollup_table
-from cobot_hmi.history.schema import ELEMENTS, SCHEMA, SEQ, TIME
+from cobot_hmi.history.schema import ELEMENTS, SCHEMA, SEQ, T2O_SEQUENCE, TIME, conform
 
 JOURNAL_SUFFIX: Final = ".journal.arrows"
 ROLLUP_SUFFIX: Final = ".cells.arrow"
@@ -52,6 +52,7 @@ _ENCODINGS: Final = {
     **dict.fromkeys(_FLOATS, "BYTE_STREAM_SPLIT"),
     TIME: "DELTA_BINARY_PACKED",
     SEQ: "DELTA_BINARY_PACKED",
+    T2O_SEQUENCE: "DELTA_BINARY_PACKED",
 }
 """Floats split into byte streams (zstd then finds the slowly changing exponent bytes), times
 and counters as deltas: 12 % smaller than the defaults and three times faster to write (a day
@@ -144,7 +145,8 @@ _CONSOLIDATE_BATCHES: Final = 128
 
 def read_journal(path: Path, columns: Sequence[str] | None = None) -> pa.Table:
     """Every complete batch of a journal (a torn last batch, from a crash, is left out),
-    ``columns`` only (default all).
+    ``columns`` only (default: every column of the recording's schema; one a journal written
+    before it existed lacks comes back as nulls, ``schema.conform``).
 
     A journal only grows, a batch a second: the batches parsed are kept per journal (the last
     few journals read), so a query of the open segment parses only the new ones; parsing all
@@ -154,8 +156,7 @@ def read_journal(path: Path, columns: Sequence[str] | None = None) -> pa.Table:
     if not batches or schema is None:
         return _empty(columns)
     table = pa.Table.from_batches(batches, schema=schema)
-    if columns is not None:
-        table = table.select(list(columns))
+    table = conform(table, SCHEMA.names if columns is None else columns)
     return table.combine_chunks()
 
 

@@ -266,10 +266,13 @@ class Originator:
         on_data: Callable[[bytes, float, int], None] | None = None,
         io_port: IoPort | None = None,
     ) -> None:
-        """``on_frame(frame, received_at, seq)``: each new T→O frame when T→O is the robot's
-        layout; ``on_data(payload, received_at, seq)``: each new T→O packet's data otherwise
-        (``settings.decodes_frames``). ``received_at``: epoch seconds the kernel received it;
-        ``seq``: the count of frames so far. ``io_port``: the UDP port to share (None: one of
+        """``on_frame(frame, received_at, t2o_sequence)``: each new T→O frame when T→O is the
+        robot's layout; ``on_data(payload, received_at, t2o_sequence)``: each new T→O packet's
+        data otherwise (``settings.decodes_frames``). ``received_at``: epoch seconds the kernel
+        received it; ``t2o_sequence``: the encapsulation sequence number its packet carried in
+        the Sequenced Address item (CIP Vol 2 §2-6, §3-4.2; UDINT, the target raises it per
+        packet), so a consumer can tell the frames it keeps apart by the wire's own numbering
+        (``frames`` counts them). ``io_port``: the UDP port to share (None: one of
         our own, opened on start and closed on stop). A ``ValueError`` when ``o2t_data`` does
         not fit the O→T size."""
         self.settings = settings
@@ -806,7 +809,7 @@ class Originator:
             self._first_data()
             if self.on_data is not None:
                 try:
-                    self.on_data(payload, received_at, self.frames)
+                    self.on_data(payload, received_at, packet.encap_seq)
                 except Exception:
                     log.exception("on_data callback failed")
             return
@@ -828,7 +831,7 @@ class Originator:
             self._seed(frame)
         if self.on_frame is not None:
             try:
-                self.on_frame(frame, received_at, self.frames)
+                self.on_frame(frame, received_at, packet.encap_seq)
             except Exception:
                 log.exception("on_frame callback failed")
 

@@ -44,8 +44,11 @@ from cobot_hmi.service.events import Event, FrameWatcher
 
 log = logging.getLogger(__name__)
 
-FrameItem = tuple[int, float, Frame]
-"""``(seq, received_at, frame)``: ``seq`` is the hub's own frame counter (monotonic)."""
+FrameItem = tuple[int, float, Frame, int]
+"""``(seq, received_at, frame, t2o_sequence)``: ``seq`` is the hub's own frame counter
+(monotonic, rising by one per frame the hub took: a step shows a frame lost after the scanner),
+``t2o_sequence`` the encapsulation sequence number the frame's T→O packet carried on the wire
+(a step of more than one shows packets the scanner did not deliver)."""
 
 SendText = Callable[[str], Awaitable[None]]
 Abort = Callable[[str], Coroutine[Any, Any, None]]
@@ -173,7 +176,7 @@ class _RateGroup:
         if not self.period_s:
             return list(range(len(items)))
         chosen = []
-        for i, (_, t, _) in enumerate(items):
+        for i, (_, t, _, _) in enumerate(items):
             due = self.next_due
             if due is None or t >= due - 0.25 * self.period_s:
                 chosen.append(i)
@@ -286,11 +289,12 @@ class Hub:
 
     # ------------------------------------------------------------ cyclic thread side
 
-    def on_frame(self, frame: Frame, received_at: float, _originator_seq: int) -> None:
-        """The originator's callback (its own thread): O(1), see the module docstring."""
+    def on_frame(self, frame: Frame, received_at: float, t2o_sequence: int) -> None:
+        """The originator's callback (its own thread): O(1), see the module docstring;
+        ``t2o_sequence`` rides in the item beside the hub's own counter."""
         with self._seq_lock:  # uncontended; guards against a second producer thread
             self._seq += 1
-            item = (self._seq, received_at, frame)
+            item = (self._seq, received_at, frame, t2o_sequence)
         self._inbox.append(item)
         self.latest = item
         for subscription in self._subscriptions:
@@ -450,7 +454,7 @@ class Hub:
             self._account(items)
             events: list[Event] = []
             alarms = self.alarms
-            for _, t, frame in items:
+            for _, t, frame, _ in items:
                 events.extend(self._watcher.observe(frame, t))
                 if alarms is not None:
                     alarm_events = alarms.observe(frame, t)
@@ -464,8 +468,15 @@ class Hub:
                         continue
                     for i in chosen:
                         if pieces[i] is None:
-                            seq, t, frame = items[i]
-                            pieces[i] = dumps({"seq": seq, "t": t, "frame": frame_to_json(frame)})
+                            seq, t, frame, wire = items[i]
+                            pieces[i] = dumps(
+                                {
+                                    "seq": seq,
+                                    "t": t,
+                                    "t2o_sequence": wire,
+                                    "frame": frame_to_json(frame),
+                                }
+                            )
                     body = b",".join(pieces[i] or b"" for i in chosen)
                     text = (b'{"type":"frames","frames":[' + body + b"]}").decode()
                     for stream_client in group.clients:
@@ -483,7 +494,7 @@ class Hub:
         self.frames_in += len(items)
         self.frames_broadcast += len(items)
         previous = self._last_interval_t
-        for _, t, _ in items:
+        for _, t, _, _ in items:
             if previous is not None:
                 interval = t - previous
                 self.interval_sum_s += interval

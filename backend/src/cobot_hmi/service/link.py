@@ -61,6 +61,8 @@ RESTART_DELAY_MAX_S: Final = 10.0
 _STABLE_RUN_S: Final = 60.0
 
 FrameCallback = Callable[[Frame, float, int], None]
+"""``(frame, received_at, t2o_sequence)``: the originator's ``on_frame``, the last argument the
+T→O packet's wire sequence number."""
 StateCallback = Callable[[ConnectionState, str | None], None]
 
 

@@ -717,6 +717,14 @@ class TagImport(BaseModel):
 class FrameItem(BaseModel):
     seq: int = Field(description="the service's frame counter for this robot: gaps are visible")
     t: float = Field(description="receive time, s since the epoch")
+    t2o_sequence: int | None = Field(
+        default=None,
+        ge=0,
+        le=0xFFFFFFFF,
+        description="the encapsulation sequence number the frame's T→O packet carried on the "
+        "wire (the robot raises it per packet: a step of more than one is packets the scanner "
+        "did not deliver); the recording keeps it in its t2o_sequence column",
+    )
     frame: Frame
 
 
@@ -874,6 +882,11 @@ class HistoryAnswer(BaseModel):
         "since the epoch)"
     )
     seq: list[int] | None = Field(default=None, description="raw: each frame's counter")
+    t2o_sequence: list[int | None] | None = Field(
+        default=None,
+        description="raw: each frame's T→O wire sequence number (null for a frame recorded "
+        "before the service kept it)",
+    )
     count: list[int] | None = Field(default=None, description="buckets: frames per bucket")
     t_first: list[float] | None = Field(default=None, description="buckets: first frame's time")
     t_last: list[float] | None = Field(default=None, description="buckets: last frame's time")

@@ -109,6 +109,7 @@ def answer_json(result: QueryResult, paused_reason: str | None, recording: bool)
         "frames": result.frames,
         "t": result.t,
         "seq": result.seq,
+        "t2o_sequence": result.t2o_sequence,
         "count": result.count,
         "t_first": result.t_first,
         "t_last": result.t_last,

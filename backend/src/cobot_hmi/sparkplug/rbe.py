@@ -25,7 +25,8 @@ from cobot_hmi.sparkplug.payload import MetricValue
 Change = tuple[int, MetricValue, int]
 """``(metric offset, value, timestamp ms)``."""
 
-FrameItem = tuple[int, float, Frame]
+FrameItem = tuple[int, float, Frame, int]
+"""The hub's ``(seq, received_at, frame, t2o_sequence)``."""
 
 
 def _getter(fields: list[str]) -> Any:
@@ -74,7 +75,7 @@ class Reporter:
         """Every discrete transition across ``items`` (oldest first), each at its frame's time."""
         changes: list[Change] = []
         last = self._last_discrete
-        for _, received_at, frame in items:
+        for _, received_at, frame, _ in items:
             values = self._discrete(frame)
             if last is None:
                 last = values
