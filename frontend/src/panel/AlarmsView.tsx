@@ -3,8 +3,9 @@
  * and Shelve (a reason and a duration) for operators, and the history of every transition with
  * filters (priority, period) and a CSV export, from `GET /api/v1/alarms/history`.
  */
-import { memo, useEffect, useState, type FormEvent } from "react";
-import { alarmHistoryCsvUrl, alarmsApi, type AlarmHistoryPage, type HistoryFilter } from "../lib/alarmsApi";
+import { memo, useCallback, useState, type FormEvent } from "react";
+import { FilterSelect, PagedTable, usePage } from "../components/PagedTable";
+import { alarmHistoryCsvUrl, alarmsApi, type HistoryFilter } from "../lib/alarmsApi";
 import {
   ALARM_PRIORITIES,
   alarmPaint,
@@ -33,6 +34,8 @@ const PERIODS = [
   ["all", "everything", null],
 ] as const;
 type Period = (typeof PERIODS)[number][0];
+const PERIOD_CHOICES = PERIODS.map(([p, words]) => [p, words] as const);
+const NO_FILTER: HistoryFilter = { priority: null, since: null, until: null };
 
 const HISTORY_PAGE = 100;
 
@@ -183,111 +186,61 @@ function AlarmRow({ alarm, canAct }: { alarm: Alarm; canAct: boolean }) {
 function AlarmHistory({ robot, newest }: { robot: string; newest: number | null }) {
   const [priority, setPriority] = useState<AlarmPriority | "">("");
   const [period, setPeriod] = useState<Period>("day");
-  const [page, setPage] = useState<AlarmHistoryPage | null>(null);
-  const [error, setError] = useState<string | null>(null);
-  // The filter as last asked (its period's start fixed then), for the CSV link.
-  const [asked, setAsked] = useState<HistoryFilter>({ priority: null, since: null, until: null });
   const seconds = PERIODS.find(([p]) => p === period)?.[2] ?? null;
-
-  // Asked again when the filter changes or an alarm changes (the stream's newest alarm event).
-  useEffect(() => {
-    let cancelled = false;
-    const timer = setTimeout(() => {
-      const filter: HistoryFilter = {
-        priority: priority === "" ? null : priority,
-        since: seconds === null ? null : Math.floor(Date.now() / 1000) - seconds,
-        until: null,
-      };
-      alarmsApi
-        .history(robot, filter, HISTORY_PAGE, 0)
-        .then((answer) => {
-          if (cancelled) return;
-          setAsked(filter);
-          if (answer.ok) {
-            setPage(answer.page);
-            setError(null);
-          } else setError(`history: ${answer.reason}`);
-        })
-        .catch((e: unknown) => !cancelled && setError(String(e)));
-    }, 300);
-    return () => {
-      cancelled = true;
-      clearTimeout(timer);
+  // The period's start is fixed when the page is asked for; the answer carries the filter it
+  // asked with, for the CSV link.
+  const request = useCallback(() => {
+    const filter: HistoryFilter = {
+      priority: priority === "" ? null : priority,
+      since: seconds === null ? null : Math.floor(Date.now() / 1000) - seconds,
+      until: null,
     };
-  }, [robot, priority, seconds, newest]);
+    return alarmsApi.history(robot, filter, HISTORY_PAGE, 0).then((answer) => ({ ...answer, filter }));
+  }, [robot, priority, seconds]);
+  // Asked again when the filter changes or an alarm changes (the stream's newest alarm event).
+  const { page, error, answer } = usePage(request, { what: "history", refresh: newest });
+  const asked = answer?.filter ?? NO_FILTER;
 
   return (
-    <div className="table-view">
-      <div className="table-view__bar">
-        <label>
-          priority{" "}
-          <select data-testid="alarm-history-priority" value={priority} onChange={(e) => setPriority(ALARM_PRIORITIES.find((p) => p === e.target.value) ?? "")}>
-            <option value="">all</option>
-            {ALARM_PRIORITIES.map((p) => (
-              <option key={p} value={p}>
-                {p}
-              </option>
-            ))}
-          </select>
-        </label>
-        <label>
-          period{" "}
-          <select data-testid="alarm-history-period" value={period} onChange={(e) => setPeriod(PERIODS.find(([p]) => p === e.target.value)?.[0] ?? "day")}>
-            {PERIODS.map(([p, words]) => (
-              <option key={p} value={p}>
-                {words}
-              </option>
-            ))}
-          </select>
-        </label>
-        <span className="table-view__source">{page !== null ? `${page.total} transitions, newest ${HISTORY_PAGE} shown` : "loading…"}</span>
-        <a data-testid="alarm-history-csv" href={alarmHistoryCsvUrl(robot, asked)} download>
-          Export CSV
-        </a>
-        {error !== null && <span className="reason">{error}</span>}
-      </div>
-      <div className="table-scroll" tabIndex={0} role="region" aria-label="Alarm history">
-        <table data-testid="alarm-history-table">
-          <thead>
-            <tr>
-              <th>time</th>
-              <th>priority</th>
-              <th>alarm</th>
-              <th>transition</th>
-              <th>state after</th>
-              <th>value</th>
-              <th>user</th>
-              <th>comment</th>
-            </tr>
-          </thead>
-          <tbody>
-            {(page?.items ?? []).map((row) => (
-              <tr key={row.id} data-testid="alarm-history-row" data-transition={row.transition} data-priority={row.priority}>
-                <td className="nowrap">{formatTimestamp(row.time)}</td>
-                <td>{row.priority}</td>
-                <td>
-                  {row.name}
-                  {tagLabel(row.label, row.tag) !== "" && !row.name.includes(tagLabel(row.label, row.tag)) ? ` · ${tagLabel(row.label, row.tag)}` : ""}
-                  {row.message !== null && row.message !== "" && <div className="hint">{row.message}</div>}
-                </td>
-                <td>{row.transition.replaceAll("_", " ")}</td>
-                <td>{alarmStateWords(row)}</td>
-                <td>{value(row.value, "")}</td>
-                <td>{row.user ?? ""}</td>
-                <td>{row.comment ?? ""}</td>
-              </tr>
-            ))}
-            {(page?.items.length ?? 0) === 0 && (
-              <tr>
-                <td colSpan={8} className="empty">
-                  no alarm transitions
-                </td>
-              </tr>
-            )}
-          </tbody>
-        </table>
-      </div>
-    </div>
+    <PagedTable
+      filters={
+        <>
+          <FilterSelect label="priority" testId="alarm-history-priority" value={priority} options={ALARM_PRIORITIES} onChange={setPriority} />
+          <FilterSelect
+            label="period"
+            testId="alarm-history-period"
+            value={period}
+            options={PERIOD_CHOICES}
+            all={null}
+            onChange={(p) => setPeriod(p === "" ? "day" : p)}
+          />
+        </>
+      }
+      source={page !== null ? `${page.total} transitions, newest ${HISTORY_PAGE} shown` : "loading…"}
+      csv={{ testId: "alarm-history-csv", href: alarmHistoryCsvUrl(robot, asked) }}
+      error={error}
+      label="Alarm history"
+      testId="alarm-history-table"
+      columns={["time", "priority", "alarm", "transition", "state after", "value", "user", "comment"]}
+      rows={page?.items ?? []}
+      row={(row) => (
+        <tr key={row.id} data-testid="alarm-history-row" data-transition={row.transition} data-priority={row.priority}>
+          <td className="nowrap">{formatTimestamp(row.time)}</td>
+          <td>{row.priority}</td>
+          <td>
+            {row.name}
+            {tagLabel(row.label, row.tag) !== "" && !row.name.includes(tagLabel(row.label, row.tag)) ? ` · ${tagLabel(row.label, row.tag)}` : ""}
+            {row.message !== null && row.message !== "" && <div className="hint">{row.message}</div>}
+          </td>
+          <td>{row.transition.replaceAll("_", " ")}</td>
+          <td>{alarmStateWords(row)}</td>
+          <td>{value(row.value, "")}</td>
+          <td>{row.user ?? ""}</td>
+          <td>{row.comment ?? ""}</td>
+        </tr>
+      )}
+      empty="no alarm transitions"
+    />
   );
 }
 

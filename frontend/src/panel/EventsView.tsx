@@ -3,36 +3,14 @@
  * live stream (anyone), filtered by kind; audit: write attempts and control changes (operators),
  * filtered by action. CSV export goes through the API.
  */
-import { memo, useEffect, useMemo, useState } from "react";
+import { memo, useCallback, useMemo, useState } from "react";
+import { FilterSelect, PagedTable, usePage } from "../components/PagedTable";
 import { alarmTitle } from "../lib/alarms";
 import { api, auditCsvUrl, eventsCsvUrl } from "../lib/api";
 import { formatTimestamp } from "../lib/health";
 import { keyLabel } from "../lib/layoutInfo";
-import { EVENT_KINDS, roleAtLeast, type AuditPage, type EventKind, type EventPage, type StreamEvent, type User } from "../lib/protocol";
+import { EVENT_KINDS, roleAtLeast, type EventKind, type StreamEvent, type User } from "../lib/protocol";
 import { pointsWords } from "../lib/tags";
-
-/** A table filter: "all" (the empty value) or one of ``options``. */
-function FilterSelect(props: {
-  label: string;
-  testId: string;
-  value: string;
-  options: readonly string[];
-  onChange: (value: string) => void;
-}) {
-  return (
-    <label>
-      {props.label}{" "}
-      <select data-testid={props.testId} value={props.value} onChange={(e) => props.onChange(e.target.value)}>
-        <option value="">all</option>
-        {props.options.map((option) => (
-          <option key={option} value={option}>
-            {option}
-          </option>
-        ))}
-      </select>
-    </label>
-  );
-}
 
 const PAGE = 100;
 
@@ -89,35 +67,15 @@ export const EventsView = memo(function EventsView({
   readonly liveEvents: readonly StreamEvent[];
 }) {
   const [kind, setKind] = useState<EventKind | "">("");
-  const [history, setHistory] = useState<EventPage | null>(null);
-  const [error, setError] = useState<string | null>(null);
   const canReadHistory = roleAtLeast(user, "operator");
   const newest = liveEvents[0];
-
-  useEffect(() => {
-    if (!canReadHistory) {
-      setHistory(null);
-      return;
-    }
-    let cancelled = false;
-    // Refetch when the filter changes or a new event arrives (debounced).
-    const timer = setTimeout(() => {
-      api
-        .events(robot, kind === "" ? null : kind, PAGE, 0)
-        .then((answer) => {
-          if (cancelled) return;
-          if (answer.ok) {
-            setHistory(answer.page);
-            setError(null);
-          } else setError(`events: ${answer.reason}`);
-        })
-        .catch((e: unknown) => !cancelled && setError(String(e)));
-    }, 300);
-    return () => {
-      cancelled = true;
-      clearTimeout(timer);
-    };
-  }, [canReadHistory, kind, newest, robot]);
+  // Asked again when the filter changes or a new event arrives.
+  const request = useCallback(() => api.events(robot, kind === "" ? null : kind, PAGE, 0), [robot, kind]);
+  const { page: history, error } = usePage(request, {
+    what: "events",
+    enabled: canReadHistory,
+    refresh: newest,
+  });
 
   const rows: Row[] = useMemo(() => {
     if (history !== null) return history.items.map((event, i) => ({ key: `log-${event.id ?? `${event.time}-${i}`}`, event }));
@@ -125,51 +83,24 @@ export const EventsView = memo(function EventsView({
   }, [history, liveEvents, kind]);
 
   return (
-    <div className="table-view">
-      <div className="table-view__bar">
-        <FilterSelect
-          label="kind"
-          testId="events-kind-filter"
-          value={kind}
-          options={EVENT_KINDS}
-          onChange={(value) => setKind(EVENT_KINDS.find((k) => k === value) ?? "")}
-        />
-        <span className="table-view__source">
-          {history !== null ? `${history.total} in the log` : "live events since this page opened (log in as an operator for the history)"}
-        </span>
-        <a data-testid="events-csv" href={eventsCsvUrl(robot, kind === "" ? null : kind)} download>
-          Export CSV
-        </a>
-        {error !== null && <span className="reason">{error}</span>}
-      </div>
-      <div className="table-scroll" tabIndex={0} role="region" aria-label="Events">
-        <table data-testid="events-table">
-          <thead>
-            <tr>
-              <th>time</th>
-              <th>kind</th>
-              <th>what</th>
-            </tr>
-          </thead>
-          <tbody>
-            {rows.map((row) => (
-              <tr key={row.key} data-kind={row.event.kind}>
-                <td className="nowrap">{formatTimestamp(row.event.time)}</td>
-                <td>{row.event.kind}</td>
-                <td>{describe(row.event)}</td>
-              </tr>
-            ))}
-            {rows.length === 0 && (
-              <tr>
-                <td colSpan={3} className="empty">
-                  no events
-                </td>
-              </tr>
-            )}
-          </tbody>
-        </table>
-      </div>
-    </div>
+    <PagedTable
+      filters={<FilterSelect label="kind" testId="events-kind-filter" value={kind} options={EVENT_KINDS} onChange={setKind} />}
+      source={history !== null ? `${history.total} in the log` : "live events since this page opened (log in as an operator for the history)"}
+      csv={{ testId: "events-csv", href: eventsCsvUrl(robot, kind === "" ? null : kind) }}
+      error={error}
+      label="Events"
+      testId="events-table"
+      columns={["time", "kind", "what"]}
+      rows={rows}
+      row={(row) => (
+        <tr key={row.key} data-kind={row.event.kind}>
+          <td className="nowrap">{formatTimestamp(row.event.time)}</td>
+          <td>{row.event.kind}</td>
+          <td>{describe(row.event)}</td>
+        </tr>
+      )}
+      empty="no events"
+    />
   );
 });
 
@@ -187,90 +118,45 @@ export const AuditView = memo(function AuditView({
   readonly user: User | null;
   readonly liveEvents: readonly StreamEvent[];
 }) {
-  const [page, setPage] = useState<AuditPage | null>(null);
   const [action, setAction] = useState("");
-  const [error, setError] = useState<string | null>(null);
   const allowed = roleAtLeast(user, "operator");
   const newestAudited = liveEvents.find((e) => e.kind === "write" || e.kind === "control" || (e.kind === "alarm" && e.user));
-
-  useEffect(() => {
-    if (!allowed) {
-      setPage(null);
-      return;
-    }
-    let cancelled = false;
-    const timer = setTimeout(() => {
-      api
-        .audit(robot, PAGE, 0)
-        .then((answer) => {
-          if (cancelled) return;
-          if (answer.ok) {
-            setPage(answer.page);
-            setError(null);
-          } else setError(`audit: ${answer.reason}`);
-        })
-        .catch((e: unknown) => !cancelled && setError(String(e)));
-    }, 300);
-    return () => {
-      cancelled = true;
-      clearTimeout(timer);
-    };
-  }, [allowed, newestAudited, robot]);
+  const request = useCallback(() => api.audit(robot, PAGE, 0), [robot]);
+  const { page, error } = usePage(request, {
+    what: "audit",
+    enabled: allowed,
+    refresh: newestAudited,
+  });
 
   if (!allowed) return <p className="hint">Log in as an operator to see the audit log.</p>;
   const actions = [...new Set((page?.items ?? []).map((i) => i.action))].sort();
   const items = (page?.items ?? []).filter((i) => action === "" || i.action === action);
   return (
-    <div className="table-view">
-      <div className="table-view__bar">
-        <FilterSelect label="action" testId="audit-action-filter" value={action} options={actions} onChange={setAction} />
-        <span className="table-view__source">{page !== null ? `${page.total} in the log, newest ${PAGE} shown` : "loading…"}</span>
-        <a data-testid="audit-csv" href={auditCsvUrl(robot)} download>
-          Export CSV
-        </a>
-        {error !== null && <span className="reason">{error}</span>}
-      </div>
-      <div className="table-scroll" tabIndex={0} role="region" aria-label="Audit">
-        <table data-testid="audit-table">
-          <thead>
-            <tr>
-              <th>time</th>
-              <th>user</th>
-              <th>client</th>
-              <th>action</th>
-              <th>fields</th>
-              <th>before</th>
-              <th>requested</th>
-              <th>outcome</th>
-              <th>reason</th>
-            </tr>
-          </thead>
-          <tbody>
-            {items.map((i) => (
-              <tr key={i.id} data-action={i.action} data-outcome={i.outcome}>
-                <td className="nowrap">{formatTimestamp(i.time)}</td>
-                <td>{i.user ?? ""}</td>
-                <td>{i.client ?? ""}</td>
-                <td>{i.action}</td>
-                <td title={short(i.fields)}>{pointsWords(i.fields, i.tags, i.labels)}</td>
-                <td title={short(i.before)}>{values(i.before)}</td>
-                <td title={short(i.requested)} data-testid="audit-summary">
-                  {i.summary ?? values(i.requested)}
-                </td>
-                <td>{i.outcome}</td>
-                <td>{i.reason ?? ""}</td>
-              </tr>
-            ))}
-            {items.length === 0 && (
-              <tr>
-                <td colSpan={9} className="empty">
-                  no entries
-                </td>
-              </tr>
-            )}
-          </tbody>
-        </table>
-      </div>
-    </div>
+    <PagedTable
+      filters={<FilterSelect label="action" testId="audit-action-filter" value={action} options={actions} onChange={setAction} />}
+      source={page !== null ? `${page.total} in the log, newest ${PAGE} shown` : "loading…"}
+      csv={{ testId: "audit-csv", href: auditCsvUrl(robot) }}
+      error={error}
+      label="Audit"
+      testId="audit-table"
+      columns={["time", "user", "client", "action", "fields", "before", "requested", "outcome", "reason"]}
+      rows={items}
+      row={(i) => (
+        <tr key={i.id} data-action={i.action} data-outcome={i.outcome}>
+          <td className="nowrap">{formatTimestamp(i.time)}</td>
+          <td>{i.user ?? ""}</td>
+          <td>{i.client ?? ""}</td>
+          <td>{i.action}</td>
+          <td title={short(i.fields)}>{pointsWords(i.fields, i.tags, i.labels)}</td>
+          <td title={short(i.before)}>{values(i.before)}</td>
+          <td title={short(i.requested)} data-testid="audit-summary">
+            {i.summary ?? values(i.requested)}
+          </td>
+          <td>{i.outcome}</td>
+          <td>{i.reason ?? ""}</td>
+        </tr>
+      )}
+      empty="no entries"
+    />
   );
 });
