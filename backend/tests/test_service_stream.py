@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import itertools
 import socket
 import time
 from collections.abc import AsyncIterator
@@ -148,7 +149,10 @@ async def test_hello_batches_rates_status(hmi: Running) -> None:
     assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))  # every frame, in order
     assert len(full.frames) / len(full.of("frames")) > 1.5  # batched: several per message
     first = full.frames[0]
-    assert set(first) == {"seq", "t", "frame"}
+    assert set(first) == {"seq", "t", "t2o_sequence", "frame"}
+    # The wire's own numbers rise with the frames (the robot's, one per T→O packet).
+    wires = [f["t2o_sequence"] for f in full.frames]
+    assert all(0 < (b - a) & 0xFFFF_FFFF < 0x8000_0000 for a, b in itertools.pairwise(wires))
     assert first["frame"]["robot_state_name"] == "STANDALONE_STANDBY"
     assert not full.of("dropped")
     # Decimated on the server to about a tenth of the frames: one per 100 ms slot on average
