@@ -1,6 +1,7 @@
 // Scenario 15: a live plot's hover shows values with units; after a zoom, "Back to live" brings
-// the moving window back (before, the plot stayed on the old range and went blank); the signal
-// picker plots a field of another robot; a plot saves as PNG.
+// the moving window back (before, the plot stayed on the old range and went blank); a pan past
+// the ring goes into the recording and "Back to live" comes back from it; the signal picker
+// plots a field of another robot; a plot saves as PNG.
 import type { Page } from "@playwright/test";
 import { expect, test } from "../support/fixtures";
 import { settings } from "../support/settings";
@@ -49,6 +50,41 @@ test("hover while live, zoom, and back to live", async ({ page }) => {
   expect(live1[1]).toBeGreaterThan(zoomed[1]);
   await expect.poll(async () => (await xRange(page))[1], { timeout: 10_000 }).toBeGreaterThan(live1[1] + 500);
   expect(Number(await plot.getAttribute("data-points"))).toBeGreaterThan(100);
+});
+
+test("a pan past the ring shows the recording; back to live from there", async ({ page }) => {
+  await page.goto(`/?robot=${settings.robotName}`);
+  const plot = page.getByTestId(PLOT);
+  await expect.poll(async () => Number(await plot.getAttribute("data-points"))).toBeGreaterThan(0);
+  const box = (await plot.boundingBox())!;
+  const y = box.y + box.height / 2;
+  await page.mouse.move(box.x + box.width * 0.5, y);
+  await expect(plot).toHaveAttribute("data-interactive", "true");
+  const before = await xRange(page);
+  // The pan tool, then a drag to the right: the view moves a window's width into the past.
+  await page.locator(`[data-testid="${PLOT}"] .modebar-btn[data-attr="dragmode"][data-val="pan"]`).click();
+  await page.mouse.move(box.x + box.width * 0.2, y);
+  await page.mouse.down();
+  await page.mouse.move(box.x + box.width * 0.9, y, { steps: 8 });
+  await page.mouse.up();
+  await expect(plot).toHaveAttribute("data-view", "fixed");
+  await expect(page.getByTestId(`${PLOT}-pause`)).toHaveCount(0); // a range of the past: nothing to pause
+  await expect(page.getByTestId(`${PLOT}-window`)).toHaveValue("range");
+  // Drawn from the recording (the range the pan reached, before what the ring's window held).
+  await expect.poll(async () => Number(await plot.getAttribute("data-frames")), { timeout: 15_000 }).toBeGreaterThan(0);
+  expect(Number(await plot.getAttribute("data-to")) * 1000).toBeLessThan(before[1] + new Date().getTimezoneOffset() * 60_000);
+  const past = await xRange(page);
+  await page.waitForTimeout(1500);
+  expect(await xRange(page)).toEqual(past); // a range of the past stays put
+
+  await page.getByTestId(`${PLOT}-live`).click();
+  await expect(plot).toHaveAttribute("data-view", "ring");
+  await expect(plot).toHaveAttribute("data-zoomed", "false");
+  await expect(page.getByTestId(`${PLOT}-window`)).toHaveValue("10000");
+  await page.mouse.move(0, 0);
+  const live = await xRange(page);
+  expect(live[1]).toBeGreaterThan(past[1]);
+  await expect.poll(async () => (await xRange(page))[1], { timeout: 10_000 }).toBeGreaterThan(live[1] + 500);
 });
 
 test("pause, zoom, resume: the plot is live again, not blank", async ({ page }) => {

@@ -1,14 +1,36 @@
-// Scenario 23 (issue 14): zoom back into history, see an e-stop marker, click it, export CSV of
-// the view. The end-to-end service records from its start, so "5 minutes back" is shortened to
-// what this run has recorded: the e-stop is caused here, and the "15 min" range (which holds it
-// and everything recorded before it) is where the marker is found; the marker's click then jumps
-// the plot a minute around it, and a zoom narrows that to a few seconds of the past.
+// Scenario 23 (issue 14), on the live plots themselves: zoom a live plot back 5 minutes into the
+// recording, see the e-stop's marker on its time axis, click it (every plot of the panel jumps to
+// a minute around it), zoom in, export the view as CSV, and back to live. The end-to-end service
+// records from its start; the e-stop is caused here, seconds before the zoom, so the 5 minutes
+// back from now hold it. A second test: a live window fetches nothing; a long window (15 min)
+// moves with now from the recording; a custom range.
 import AxeBuilder from "@axe-core/playwright";
+import type { Page, Request } from "@playwright/test";
 import { readFile } from "node:fs/promises";
 import { expect, test } from "../support/fixtures";
 import { settings } from "../support/settings";
 
-test("history: an e-stop marker, a jump to it, a zoom, and the CSV of the view", async ({ page, robot }) => {
+const PLOT = "plot-joint-position";
+
+/** Requests of the recording (a range, or its events), counted from the page. */
+function historyRequests(page: Page): string[] {
+  const seen: string[] = [];
+  page.on("request", (r: Request) => {
+    if (/\/api\/v1\/robots\/[^/]+\/history(\?|\/events\?)/.test(r.url())) seen.push(r.url());
+  });
+  return seen;
+}
+
+/** A `datetime-local` value (local time) of epoch seconds, as the page writes it. */
+function localInput(time_s: number): string {
+  const d = new Date(time_s * 1000 - new Date(time_s * 1000).getTimezoneOffset() * 60_000);
+  return d.toISOString().slice(0, 19);
+}
+
+test("a live plot: zoom back into history, the e-stop's marker, every plot jumps to it, the CSV of the view, back to live", async ({
+  page,
+  robot,
+}) => {
   // Many steps, an axe-core run and a download: generous on a busy machine.
   test.setTimeout(180_000);
   await page.goto(`/?robot=${settings.robotName}`);
@@ -22,49 +44,70 @@ test("history: an e-stop marker, a jump to it, a zoom, and the CSV of the view",
   await expect(page.getByTestId("robot-state")).toHaveAttribute("data-state-name", "STANDALONE_STANDBY");
   await page.waitForTimeout(2000);
 
-  const history = page.getByTestId("history");
-  const plot = page.getByTestId("history-plot");
-  await history.scrollIntoViewIfNeeded();
-  await page.getByTestId("history-range-15m").click();
-  await expect(page.getByTestId("history-range-15m")).toHaveAttribute("aria-pressed", "true");
-  await expect(history).toHaveAttribute("data-window-mode", "live");
+  const plot = page.getByTestId(PLOT);
+  const figure = page.getByTestId(`${PLOT}-figure`);
+  const other = page.getByTestId("plot-tcp-position");
+  await expect.poll(async () => Number(await plot.getAttribute("data-points"))).toBeGreaterThan(0);
+  await expect(plot).toHaveAttribute("data-view", "ring");
+
+  // Zoom out six times with the plot's own button (10 s → about 10 min around now): the view
+  // reaches 5 minutes back, far past the 10 s the plot holds, so the plot fetches that range
+  // from the recording.
+  const box = (await plot.boundingBox())!;
+  await page.mouse.move(box.x + box.width * 0.5, box.y + box.height * 0.5);
+  await expect(plot).toHaveAttribute("data-interactive", "true");
+  const zoomOut = page.locator(`[data-testid="${PLOT}"] .modebar-btn[data-attr="zoom"][data-val="out"]`);
+  for (let i = 0; i < 6; i++) {
+    await zoomOut.click();
+    await page.waitForTimeout(100);
+  }
+  await expect(plot).toHaveAttribute("data-view", "fixed");
+  await expect
+    .poll(async () => Number(await plot.getAttribute("data-to")) - Number(await plot.getAttribute("data-from")), { timeout: 15_000 })
+    .toBeGreaterThan(500);
+  expect(Number(await plot.getAttribute("data-from"))).toBeLessThan(pressed_s - 240);
+  await expect.poll(async () => Number(await plot.getAttribute("data-frames"))).toBeGreaterThan(1000);
+  await expect(page.getByTestId(`${PLOT}-live`)).toBeVisible();
+  // The other plots stayed live.
+  await expect(other).toHaveAttribute("data-view", "ring");
 
   // The stop's marker on the time axis (the newest, should an earlier test have stopped too).
-  // Over 15 min, events seconds apart share a marker (its time is its first event's): the
+  // Over 5 minutes, events seconds apart share a marker (its time is its first event's): the
   // program started by the test's set-up just before the stop may be in it.
-  const marker = page.locator('[data-testid="history-marker"][aria-label*="EMERGENCY_STOP"]').last();
+  const markers = page.locator(`[data-testid="${PLOT}-marker"][aria-label*="EMERGENCY_STOP"]`);
+  const marker = markers.last();
   await expect(marker).toBeVisible({ timeout: 15_000 });
   const first_s = Number(await marker.getAttribute("data-time"));
   expect(first_s).toBeGreaterThan(pressed_s - 30);
   expect(first_s).toBeLessThan(pressed_s + 5);
 
-  // Markers and controls pass axe-core (nothing serious).
-  const axe = await new AxeBuilder({ page }).include('[data-testid="history"]').analyze();
+  // Markers, range and export links pass axe-core (nothing serious).
+  const axe = await new AxeBuilder({ page }).include(`[data-testid="${PLOT}-figure"]`).analyze();
   expect(axe.violations.filter((v) => v.impact === "serious" || v.impact === "critical").map((v) => v.id)).toEqual([]);
 
-  // Clicking it jumps the plot to a minute around it: a fixed range of the past.
+  // Clicking it jumps the plots — this one and the others of the panel — to a minute around it.
   await marker.click();
-  await expect(history).toHaveAttribute("data-window-mode", "history");
-  await expect.poll(async () => Number(await plot.getAttribute("data-from"))).toBeCloseTo(first_s - 30, 1);
-  expect(Number(await plot.getAttribute("data-to"))).toBeCloseTo(first_s + 30, 1);
+  for (const p of [plot, other]) {
+    await expect(p).toHaveAttribute("data-view", "fixed");
+    await expect.poll(async () => Number(await p.getAttribute("data-from")), { timeout: 15_000 }).toBeCloseTo(first_s - 30, 1);
+    expect(Number(await p.getAttribute("data-to"))).toBeCloseTo(first_s + 30, 1);
+  }
 
   // At this zoom the stop has its own marker (with its alarm, at the same moment): on it again.
-  const stopMarker = page.locator('[data-testid="history-marker"][aria-label*="EMERGENCY_STOP"]').last();
-  await expect.poll(async () => Number(await stopMarker.getAttribute("data-time"))).toBeGreaterThan(pressed_s - 1);
-  const stop_s = Number(await stopMarker.getAttribute("data-time"));
+  await expect.poll(async () => Number(await markers.last().getAttribute("data-time"))).toBeGreaterThan(pressed_s - 1);
+  const stop_s = Number(await markers.last().getAttribute("data-time"));
   expect(stop_s).toBeLessThan(pressed_s + 5);
-  await stopMarker.click();
+  await markers.last().click();
   await expect.poll(async () => Number(await plot.getAttribute("data-from"))).toBeCloseTo(stop_s - 30, 1);
   expect(Number(await plot.getAttribute("data-to"))).toBeCloseTo(stop_s + 30, 1);
   await expect.poll(async () => Number(await plot.getAttribute("data-frames"))).toBeGreaterThan(100);
-  await expect(page.getByTestId("history-live")).toBeVisible();
 
   // Zoom into the middle of the view (a box drag): the narrower range is fetched and drawn.
-  const box = (await plot.boundingBox())!;
-  const y = box.y + box.height / 2;
-  await page.mouse.move(box.x + box.width * 0.45, y);
+  const box2 = (await plot.boundingBox())!;
+  const y = box2.y + box2.height / 2;
+  await page.mouse.move(box2.x + box2.width * 0.45, y);
   await page.mouse.down();
-  await page.mouse.move(box.x + box.width * 0.6, y + 20, { steps: 6 });
+  await page.mouse.move(box2.x + box2.width * 0.6, y + 20, { steps: 6 });
   await page.mouse.up();
   await expect
     .poll(async () => Number(await plot.getAttribute("data-to")) - Number(await plot.getAttribute("data-from")), { timeout: 10_000 })
@@ -73,20 +116,25 @@ test("history: an e-stop marker, a jump to it, a zoom, and the CSV of the view",
   const to_s = Number(await plot.getAttribute("data-to"));
   expect(from_s).toBeGreaterThan(stop_s - 30);
   expect(to_s).toBeLessThan(stop_s + 30);
-  await expect(history).toHaveAttribute("data-window-mode", "history");
+  await expect(plot).toHaveAttribute("data-view", "fixed");
 
-  // Export the view as CSV: units in the header, every row inside the view.
+  // Export the view as CSV: named after the robot and the range, units in the header, rows
+  // inside the view only.
   const downloading = page.waitForEvent("download");
-  await page.getByTestId("history-export-csv").click();
+  await page.getByTestId(`${PLOT}-export-csv`).click();
   const download = await downloading;
-  expect(download.suggestedFilename()).toMatch(new RegExp(`^${settings.robotName}_.*\\.csv$`));
+  const stamp = (t_s: number) => `${new Date(Math.floor(t_s) * 1000).toISOString().slice(0, 19).replace(/[-:]/g, "")}Z`;
+  const fromStamps = `(${stamp(from_s)}|${stamp(from_s + 0.001)})`; // the link's 3 decimals may round up
+  expect(download.suggestedFilename()).toMatch(new RegExp(`^${settings.robotName}_${fromStamps}_\\d{8}T\\d{6}Z\\.csv$`));
   const text = await readFile((await download.path())!, "utf8");
   const lines = text.trim().split(/\r?\n/);
   // CSV cells, quoted or not (none of these holds a comma: names, units, times, numbers).
   const cells = (line: string) => line.split(",").map((c) => c.replace(/^"(.*)"$/, "$1"));
   const header = cells(lines[0]!);
-  expect(header.slice(0, 3)).toEqual(["time", "seq", "joint_position.0 [degree]"]);
-  expect(header).toHaveLength(2 + 6);
+  // Times and counters first (docs/api.md "History"), then the plot's six elements with units.
+  expect(header.slice(0, 2)).toEqual(["time", "seq"]);
+  expect(header.filter((c) => c.startsWith("joint_position."))).toEqual([0, 1, 2, 3, 4, 5].map((i) => `joint_position.${i} [degree]`));
+  expect(header.filter((c) => !/^(time|seq|t2o_sequence)$/.test(c))).toHaveLength(6);
   const rows = lines.slice(1);
   expect(rows.length).toBeGreaterThan(10);
   // The export's range is the view's, to the millisecond of its link (`to` excluded).
@@ -95,27 +143,54 @@ test("history: an e-stop marker, a jump to it, a zoom, and the CSV of the view",
   expect(Math.min(...times_s)).toBeGreaterThanOrEqual(Math.floor(from_s * 1000) / 1000 - 0.001);
   expect(Math.max(...times_s)).toBeLessThan(to_s + 0.001);
 
-  // Back to live: the moving window again.
-  await page.getByTestId("history-live").click();
-  await expect(history).toHaveAttribute("data-window-mode", "live");
-  await expect(page.getByTestId("history-live")).toHaveCount(0);
+  // Back to live: the moving window of the ring again, its end moving on.
+  await page.getByTestId(`${PLOT}-live`).click();
+  await expect(plot).toHaveAttribute("data-view", "ring");
+  await expect(figure).toHaveAttribute("data-view", "ring");
+  await expect(page.getByTestId(`${PLOT}-live`)).toHaveCount(0);
+  await expect(page.getByTestId(`${PLOT}-marker`)).toHaveCount(0);
+  await expect.poll(async () => Number(await plot.getAttribute("data-points"))).toBeGreaterThan(100);
 });
 
-test("a paused live plot opens its range in the history plot", async ({ page }) => {
+test("a live window fetches nothing; a 15 min window moves with now from the recording; a custom range", async ({ page }) => {
+  test.setTimeout(120_000);
+  const requests = historyRequests(page);
   await page.goto(`/?robot=${settings.robotName}`);
-  const live = page.getByTestId("plot-joint-velocity");
-  await expect.poll(async () => Number(await live.getAttribute("data-points"))).toBeGreaterThan(0);
-  await page.getByTestId("plot-joint-velocity-pause").click();
-  const paused_s = Date.now() / 1000;
-  await page.getByTestId("plot-joint-velocity-history").click();
-  const history = page.getByTestId("history");
-  await expect(history).toHaveAttribute("data-window-mode", "history");
-  await expect(page.getByTestId("history-plot-select")).toHaveValue("plot-joint-velocity");
-  const plot = page.getByTestId("history-plot");
-  // The live plot's window (10 s) up to the pause, from the recording.
-  await expect.poll(async () => Number(await plot.getAttribute("data-to"))).toBeGreaterThan(paused_s - 2);
-  const from_s = Number(await plot.getAttribute("data-from"));
-  const to_s = Number(await plot.getAttribute("data-to"));
-  expect(to_s - from_s).toBeCloseTo(10, 0);
-  await expect.poll(async () => Number(await plot.getAttribute("data-frames"))).toBeGreaterThan(0);
+  const id = "plot-joint-velocity";
+  const plot = page.getByTestId(id);
+  await expect.poll(async () => Number(await plot.getAttribute("data-points"))).toBeGreaterThan(0);
+  // Every plot on its live window, streaming: not one request of the recording.
+  await page.waitForTimeout(3000);
+  expect(requests).toEqual([]);
+
+  // The long window: from the recording, moving with now (its end follows the newest frames).
+  await page.getByTestId(`${id}-window`).selectOption(String(15 * 60_000));
+  await expect(plot).toHaveAttribute("data-view", "moving");
+  await expect.poll(async () => Number(await plot.getAttribute("data-frames")), { timeout: 15_000 }).toBeGreaterThan(0);
+  const from0 = Number(await plot.getAttribute("data-from"));
+  const to0 = Number(await plot.getAttribute("data-to"));
+  expect(to0 - from0).toBeCloseTo(900, 0);
+  expect(Math.abs(to0 - Date.now() / 1000)).toBeLessThan(30);
+  expect(requests.length).toBeGreaterThan(0);
+  await expect(page.getByTestId(`${id}-live`)).toHaveCount(0); // it is live
+  await expect(page.getByTestId(`${id}-range`)).toContainText("(live)");
+  await expect.poll(async () => Number(await plot.getAttribute("data-to")), { timeout: 20_000 }).toBeGreaterThan(to0 + 1);
+
+  // A custom range of the past (seconds the service has surely recorded: this test's own).
+  const now_s = Math.floor(Date.now() / 1000);
+  await page.getByTestId(`${id}-window`).selectOption("custom");
+  await page.getByTestId(`${id}-custom-from`).fill(localInput(now_s - 15));
+  await page.getByTestId(`${id}-custom-to`).fill(localInput(now_s - 5));
+  await page.getByTestId(`${id}-custom-apply`).click();
+  await expect(plot).toHaveAttribute("data-view", "fixed");
+  await expect.poll(async () => Number(await plot.getAttribute("data-from"))).toBe(now_s - 15);
+  expect(Number(await plot.getAttribute("data-to"))).toBe(now_s - 5);
+  await expect.poll(async () => Number(await plot.getAttribute("data-frames")), { timeout: 15_000 }).toBeGreaterThan(0);
+
+  // A short window again: the ring, and no more requests.
+  await page.getByTestId(`${id}-window`).selectOption("10000");
+  await expect(plot).toHaveAttribute("data-view", "ring");
+  const asked = requests.length;
+  await page.waitForTimeout(3000);
+  expect(requests).toHaveLength(asked);
 });

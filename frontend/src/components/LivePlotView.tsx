@@ -15,6 +15,7 @@ import {
   customRange,
   exportUrl,
   fieldsOf,
+  markerSpacing,
   markersOf,
   type ExportFormat,
   type TimeRange,
@@ -70,6 +71,8 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
   // The plot is rebuilt with the window picked so far (a theme change recreates it).
   const windowRef = useRef(window_ms);
   const [shown, setShown] = useState<HistoryShown | null>(null);
+  // The plot's width when it last drew the recording: how close markers may be on screen.
+  const [width_px, setWidth] = useState(0);
   const [custom, setCustom] = useState<{ from: string; to: string } | null>(null);
   const [customError, setCustomError] = useState<string | null>(null);
   const traces = tracesOf(spec);
@@ -102,6 +105,7 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
     // Each drawing of the recording (not each frame): the range, its markers, an error.
     plot.onHistory = (next) => {
       setShown(next.view === "ring" ? null : next);
+      setWidth(el.clientWidth);
       setPaused(plot.isPaused);
     };
     plot.mount(el);
@@ -175,7 +179,8 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
 
   const fixed = shown?.view === "fixed";
   const range: TimeRange | null = shown?.range ?? null;
-  const markers = shown !== null && range !== null ? markersOf(shown.events, range) : [];
+  const markers =
+    shown !== null && range !== null ? markersOf(shown.events, range, markerSpacing(width_px - margin.l - margin.r)) : [];
   const windowValue = fixed ? RANGE : custom !== null ? CUSTOM : String(window_ms);
   // On the ring the range in view moves: the link's range is renewed at the click (below).
   const now_s = Date.now() / 1000;

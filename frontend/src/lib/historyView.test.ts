@@ -11,6 +11,8 @@ import {
   envelopeTraces,
   exportUrl,
   fieldsOf,
+  MARKER_SPACING,
+  markerSpacing,
   markersOf,
   newestRecorded,
   rangeAround,
@@ -153,6 +155,15 @@ describe("markers", () => {
     expect(markers[1]!.kind).toBe("robot_state");
     const zoomed = markersOf([estop, standby, later], { from_s: NOW + 20, to_s: NOW + 30 });
     expect(zoomed.map((m) => m.at)).toEqual([0.5, 0.6]);
+  });
+
+  it("on a narrow plot, markers closer than a marker's width share one", () => {
+    const soon = { ...estop, id: 8, time: NOW + 28, to_name: "STANDALONE_STANDBY" } as HistoryEvent;
+    expect(markerSpacing(2000)).toBe(MARKER_SPACING);
+    expect(markerSpacing(600)).toBe(30 / 600);
+    expect(markerSpacing(0)).toBe(MARKER_SPACING);
+    expect(markersOf([estop, soon], range)).toHaveLength(2); // 3 % apart
+    expect(markersOf([estop, soon], range, markerSpacing(600))).toHaveLength(1); // 18 px apart
   });
 
   it("leaves out events outside the range and kinds that are no markers", () => {

@@ -163,6 +163,13 @@ export interface Marker {
 
 /** Events closer than this (a share of the plotting area's width) share one marker. */
 export const MARKER_SPACING = 0.015;
+/** A marker button's width and a gap (px): markers closer than this on screen share one. */
+export const MARKER_WIDTH_PX = 30;
+
+/** The spacing of markers on a plotting area `width_px` wide. */
+export function markerSpacing(width_px: number): number {
+  return width_px > 0 ? Math.max(MARKER_SPACING, MARKER_WIDTH_PX / width_px) : MARKER_SPACING;
+}
 
 /** The words of an event on its marker. */
 export function eventLabel(event: HistoryEvent): string {
@@ -185,10 +192,11 @@ function urgent(e: MarkerEvent): boolean {
 
 /**
  * The events of `range` as markers placed on the time axis (a fraction of the plotting area);
- * events within MARKER_SPACING of a marker's first event join it, so markers never overlap
- * and each can be clicked. Zooming in separates them.
+ * events within `spacing` (MARKER_SPACING, or a marker's width on a narrow plot) of a marker's
+ * first event join it, so markers never overlap and each can be clicked. Zooming in separates
+ * them.
  */
-export function markersOf(events: readonly HistoryEvent[], range: TimeRange): Marker[] {
+export function markersOf(events: readonly HistoryEvent[], range: TimeRange, spacing = MARKER_SPACING): Marker[] {
   const span = range.to_s - range.from_s;
   if (!(span > 0)) return [];
   const groups: { first: HistoryEvent; at: number; events: MarkerEvent[] }[] = [];
@@ -197,7 +205,7 @@ export function markersOf(events: readonly HistoryEvent[], range: TimeRange): Ma
     const at = (e.time - range.from_s) / span;
     const item = { time_s: e.time, kind: e.kind, label: eventLabel(e) };
     const last = groups[groups.length - 1];
-    if (last !== undefined && at - last.at < MARKER_SPACING) last.events.push(item);
+    if (last !== undefined && at - last.at < spacing) last.events.push(item);
     else groups.push({ first: e, at, events: [item] });
   }
   return groups.map((g, i) => ({

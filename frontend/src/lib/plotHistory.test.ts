@@ -191,6 +191,26 @@ describe("a zoom or pan past the ring", () => {
     expect(Number(el.dataset.from)).toBe((T0 - 310_000) / 1000);
   });
 
+  it("a new range fits its y axis to its data (Plotly's zoom-out widened it too)", async () => {
+    const { plot, push, moveTo, fire, answer, lastReact, calls } = setup();
+    fill(push);
+    plot.update(0);
+    moveTo(T0 - 300_000, T0 - 200_000);
+    fire();
+    const before = (lastReact().args[2] as Layout).uirevision;
+    await answer(0);
+    plot.update(1);
+    const drawn = lastReact().args[2] as Layout & { yaxis: { autorange: boolean } };
+    expect(drawn.uirevision).not.toBe(before); // the person's y zoom is not carried over
+    expect(drawn.yaxis.autorange).toBe(true);
+    // Redrawn without a new answer (a signal hidden): the same revision, a y zoom kept.
+    plot.setTraceVisible(2, false);
+    plot.update(2);
+    expect((lastReact().args[2] as Layout).uirevision).toBe(drawn.uirevision);
+    expect((lastReact().args[1] as Trace[]).filter((t) => t.visible === false)).toHaveLength(3);
+    expect(calls.some((c) => c.op === "restyle")).toBe(false);
+  });
+
   it("costs nothing per frame while the range is on screen; our own drawing is no move", async () => {
     const { plot, push, moveTo, fetches, fire, answer, calls } = setup();
     fill(push);

@@ -155,6 +155,8 @@ export class LivePlot {
   private refreshHandle: unknown = null;
   /** The range of the last history drawing (ms since the epoch). */
   private drawnRange_ms: { readonly from: number; readonly to: number } | null = null;
+  /** The answer of the last history drawing. */
+  private drawnData: RangeData | null = null;
   /** `revision` of the last drawing: a rebuild within the same revision keeps the zoom. */
   private drawnRevision = -1;
   /** Points in each trace now (all traces have the same count). */
@@ -298,6 +300,7 @@ export class LivePlot {
     if (how.fresh) this.revision++;
     if (view.kind === "ring") {
       this.loader?.stop();
+      this.drawnData = null;
       this.historyData = null;
       this.historyError = null;
       this.drawnRange_ms = null;
@@ -596,12 +599,16 @@ export class LivePlot {
       line: { color: m.kind === "alarm" ? "#D55E00" : "#888", width: 1, dash: "dot" },
     }));
     // Plotly keeps a person's axis range within a `uirevision`: where it shows another range
-    // than this one (a jump, a moving window's step), a new revision makes it take this one.
+    // than this one (a jump, a moving window's step), a new revision makes it take this one. A
+    // new range of the past also fits its y axes to its data again (Plotly's zoom-out button
+    // widens y as well as x); a moving window's refresh keeps a person's y zoom.
     const x = this.backend.zoomedAxes(el).xaxis;
     const shown_from = x !== undefined ? axisTimeToEpochS(x[0], shift) * 1000 : Number.NaN;
     const shown_to = x !== undefined ? axisTimeToEpochS(x[1], shift) * 1000 : Number.NaN;
     const tolerance_ms = (to - from) / 1000;
-    if (!(Math.abs(shown_from - from) <= tolerance_ms && Math.abs(shown_to - to) <= tolerance_ms)) this.revision++;
+    const elsewhere = !(Math.abs(shown_from - from) <= tolerance_ms && Math.abs(shown_to - to) <= tolerance_ms);
+    if (elsewhere || (this.view.kind === "fixed" && data !== this.drawnData)) this.revision++;
+    this.drawnData = data;
     this.drawnRevision = this.revision;
     const layout = { ...(this.layout({ xaxis: [from - shift, to - shift] }) as Record<string, unknown>), shapes };
     this.drawnRange_ms = { from, to };
@@ -646,7 +653,10 @@ export class LivePlot {
       name: trace.name,
       yaxis: trace.axis,
       visible: this.visible[i] ?? true,
-      line: { width: 1.5, color: traceColour(i), dash: trace.axis === "y2" ? "dot" : "solid" },
+      // 1 px on the panel: the browser strokes a line of at most 1 px as a hairline, which it
+      // rasterises at about a quarter of the cost of a 1.5 px stroke (bench/ui: raster CPU per
+      // redraw). The kiosk, read from three metres, keeps the heavier line.
+      line: { width: this.options.readOnly ? 1.5 : 1, color: traceColour(i), dash: trace.axis === "y2" ? "dot" : "solid" },
       connectgaps: false,
       // The value with the layout's unit ("J 1: 12.35 degree"), the time in the hover's header.
       ...(this.options.readOnly
