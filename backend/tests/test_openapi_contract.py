@@ -191,6 +191,7 @@ def test_websocket_messages_and_events_are_components() -> None:
         "control",
         "recording",
         "alarm",
+        "session",
     }
 
 

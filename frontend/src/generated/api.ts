@@ -1285,7 +1285,7 @@ export interface components {
         /** EventMessage */
         EventMessage: {
             /** Event */
-            event: components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"] | components["schemas"]["AlarmEvent"];
+            event: components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"] | components["schemas"]["AlarmEvent"] | components["schemas"]["SessionEvent"];
             /**
              * @description discriminator enum property added by openapi-typescript
              * @enum {string}
@@ -1298,7 +1298,7 @@ export interface components {
          */
         EventPage: {
             /** Items */
-            items: (components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"] | components["schemas"]["AlarmEvent"])[];
+            items: (components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"] | components["schemas"]["AlarmEvent"] | components["schemas"]["SessionEvent"])[];
             /** Total */
             total: number;
         };
@@ -1678,7 +1678,7 @@ export interface components {
          */
         HistoryEvents: {
             /** Items */
-            items: (components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"] | components["schemas"]["AlarmEvent"])[];
+            items: (components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"] | components["schemas"]["AlarmEvent"] | components["schemas"]["SessionEvent"])[];
             /**
              * Truncated
              * @description the range holds more than `limit` events: these are its oldest `limit`
@@ -2046,6 +2046,52 @@ export interface components {
             robot_state_name: ("EMERGENCY_STOP" | "INITIALIZING" | "SAFE_OFF" | "INTERRUPTED" | "MANUAL_STANDBY" | "MANUAL_JOGGING" | "MANUAL_HANDGUIDING" | "RECOVERY_STANDBY" | "RECOVERY_JOGGING" | "BACKDRIVE_HOLD" | "BACKDRIVE_RELEASE" | "BACKDRIVE_RELEASE_BY_COCKPIT" | "RECOVERY_HANDGUIDING" | "STANDALONE_STANDBY" | "STANDALONE_RUNNING" | "COLLABORATIVE_STANDBY" | "COLLABORATIVE_RUNNING" | "HIGH_PRIORITY_RUNNING" | "AUTO_MEASURE" | "HANDGUIDING_CONTROL_STANDBY" | "HANDGUIDING_CONTROL_RUNNING" | "UNKNOWN") | null;
             /** Rpi Ms */
             rpi_ms: number;
+        };
+        /**
+         * SessionEvent
+         * @description A session ended while it had streams of this robot open: they were closed (1008).
+         */
+        SessionEvent: {
+            /**
+             * Id
+             * @description row id in the event log (log pages only)
+             */
+            id?: number | null;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            kind: "session";
+            /**
+             * Reason
+             * @description why: logged out, session expired, the user removed or given another role, the API token revoked, expired or changed
+             */
+            reason: string;
+            /**
+             * Robot
+             * @description the robot's name
+             */
+            robot?: string | null;
+            /**
+             * Session
+             * @description the session's public id (never its token)
+             */
+            session: string;
+            /**
+             * Streams Closed
+             * @description this robot's streams of it, closed
+             */
+            streams_closed: number;
+            /**
+             * Time
+             * @description s since the epoch
+             */
+            time: number;
+            /**
+             * User
+             * @description the session's user (``token:NAME`` for an API token)
+             */
+            user: string;
         };
         /** StatusMessage */
         StatusMessage: {
@@ -3302,7 +3348,7 @@ export interface operations {
         parameters: {
             query?: {
                 /** @description only events of this kind */
-                kind?: ("connection" | "robot_state" | "flag" | "write" | "control" | "recording" | "alarm") | null;
+                kind?: ("connection" | "robot_state" | "flag" | "write" | "control" | "recording" | "alarm" | "session") | null;
                 limit?: number;
                 offset?: number;
                 /** @description csv: the whole page as CSV */
@@ -4109,7 +4155,7 @@ export interface operations {
                 /** @description end of the range (excluded): ISO 8601 (2026-11-24T06:00:00Z; without an offset: UTC) or seconds since the epoch */
                 to: string;
                 /** @description only events of these kinds (repeatable) */
-                kind?: ("connection" | "robot_state" | "flag" | "write" | "control" | "recording" | "alarm")[] | null;
+                kind?: ("connection" | "robot_state" | "flag" | "write" | "control" | "recording" | "alarm" | "session")[] | null;
                 /** @description at most this many events */
                 limit?: number;
             };

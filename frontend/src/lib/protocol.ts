@@ -47,6 +47,7 @@ const EVENT_KIND_SET = {
   control: true,
   alarm: true,
   recording: true,
+  session: true,
 } as const satisfies Record<EventKind, true>;
 
 export const EVENT_KINDS = Object.keys(EVENT_KIND_SET) as (keyof typeof EVENT_KIND_SET)[];

@@ -143,6 +143,9 @@ describe("StreamClient", () => {
     client.stop();
     expect(closeReason(1000, "")).toBeNull();
     expect(closeReason(4404, "unknown robot 'x'; known: a, b")).toBe("the service has no such robot: unknown robot 'x'; known: a, b");
+    // A session that ended (logout, revoked, its user changed) closes its streams with 1008.
+    expect(closeReason(1008, "session ended: logged out")).toBe("the service closed the stream: session ended: logged out");
+    expect(closeReason(1008, "")).toBe("the service closed the stream: its session ended");
   });
 
   it("applies jitter from the random source", () => {

@@ -34,6 +34,8 @@ export interface StreamCallbacks {
 export const CLOSE_BAD_RATE = 4400;
 export const CLOSE_LOGIN_REQUIRED = 4401;
 export const CLOSE_UNKNOWN_ROBOT = 4404;
+/** Policy violation (RFC 6455): the stream's session ended (logout, revoked, its user changed). */
+export const CLOSE_SESSION_ENDED = 1008;
 
 /** A person's words for why the service closed the stream (null: an ordinary close). */
 export function closeReason(code: number | undefined, reason: string | undefined): string | null {
@@ -41,6 +43,7 @@ export function closeReason(code: number | undefined, reason: string | undefined
   if (code === CLOSE_LOGIN_REQUIRED) return `the service requires a login to view${detail}`;
   if (code === CLOSE_BAD_RATE) return `the service refused the stream rate${detail}`;
   if (code === CLOSE_UNKNOWN_ROBOT) return `the service has no such robot${detail}`;
+  if (code === CLOSE_SESSION_ENDED) return `the service closed the stream${detail !== "" ? detail : ": its session ended"}`;
   if (code !== undefined && code >= 4000) return `the service closed the stream (${code})${detail}`;
   return null;
 }

@@ -40,6 +40,8 @@ function describe(event: StreamEvent): string {
     }
     case "recording":
       return `recording ${event.state}${event.dropped ? `, ${event.dropped} frames dropped` : ""}${because(event.reason)}`;
+    case "session":
+      return `${event.user}'s session ended${because(event.reason)}: ${event.streams_closed} stream${event.streams_closed === 1 ? "" : "s"} closed`;
     default:
       // A kind this build does not describe yet (a newer service): its fields as they came.
       return JSON.stringify(event);

@@ -6,6 +6,7 @@ outlives the process that could release it). Imports only ``users`` of the servi
 
 from __future__ import annotations
 
+import logging
 import math
 import secrets
 import time
@@ -16,6 +17,11 @@ from typing import Final
 from cobot_hmi.service.users import API_TOKEN_PREFIX, User
 
 SESSION_COOKIE: Final = "cobot_session"
+
+log = logging.getLogger(__name__)
+
+SessionWatcher = Callable[[str], None]
+"""Told the reason once, when its session ends (``Sessions.watch``)."""
 
 
 @dataclass(slots=True)
@@ -31,11 +37,15 @@ class Session:
 
 
 class Sessions:
-    """Tokens → sessions. ``on_end(session, reason)`` runs when one ends (logout or expiry).
+    """Tokens → sessions. ``on_end(session, reason)`` runs when one ends (logout, expiry,
+    revocation), then each of its watchers (``watch``: its open WebSockets, which close).
 
     ``resolve_token`` (the users file's ``user_for_token``) recognises long-lived API tokens
     (``users.API_TOKEN_PREFIX``): each live one has one session, which never idles out and
-    ends as soon as the token is revoked or expires (checked on every use).
+    ends as soon as the token is revoked or expires (checked on every use and every
+    ``sweep``). ``resolve_user`` (the users file's ``user``) is a login's user as the file has
+    it now: a session whose user was removed or given another role ends the same way (its
+    rights were those of the user it logged in as).
     """
 
     def __init__(
@@ -43,16 +53,66 @@ class Sessions:
         ttl_s: float,
         on_end: Callable[[Session, str], None],
         resolve_token: Callable[[str], User | None] | None = None,
+        resolve_user: Callable[[str], User | None] | None = None,
     ) -> None:
         self.ttl_s = ttl_s
         self._on_end = on_end
         self._resolve_token = resolve_token
+        self._resolve_user = resolve_user
         self._by_token: dict[str, Session] = {}
         self._api: dict[str, Session] = {}
         """API token → its session."""
+        self._watchers: dict[str, dict[int, SessionWatcher]] = {}
+        """Session id → its watchers, by a handle of each."""
+        self._next_handle = 0
 
     def __len__(self) -> int:
         return len(self._by_token)
+
+    def live(self, session: Session) -> bool:
+        """Whether ``session`` has not ended (without renewing its idle deadline)."""
+        return (
+            self._by_token.get(session.token) is session or self._api.get(session.token) is session
+        )
+
+    def watch(self, session: Session, watcher: SessionWatcher) -> Callable[[], None]:
+        """Call ``watcher(reason)`` once when ``session`` ends (at once if it has ended
+        already); the function that stops watching (idempotent)."""
+        if not self.live(session):
+            watcher("session ended")
+            return lambda: None
+        self._next_handle += 1
+        handle = self._next_handle
+        self._watchers.setdefault(session.id, {})[handle] = watcher
+
+        def unwatch() -> None:
+            watchers = self._watchers.get(session.id)
+            if watchers is not None:
+                watchers.pop(handle, None)
+                if not watchers:
+                    del self._watchers[session.id]
+
+        return unwatch
+
+    def _ended(self, session: Session, reason: str) -> None:
+        self._on_end(session, reason)
+        for watcher in self._watchers.pop(session.id, {}).values():
+            try:
+                watcher(reason)
+            except Exception:  # one watcher's bug must not keep the others open
+                log.exception("a watcher of session %s failed", session.id)
+
+    def _user_changed(self, session: Session) -> str | None:
+        """Why a login session's user no longer has its rights (removed, another role), or
+        ``None``."""
+        if self._resolve_user is None:
+            return None
+        user = self._resolve_user(session.user.name)
+        if user is None:
+            return f"user {session.user.name} removed"
+        if user.role != session.user.role:
+            return f"user {user.name}'s role changed to {user.role.label}"
+        return None
 
     def _api_session(self, token: str) -> Session | None:
         assert self._resolve_token is not None
@@ -61,11 +121,12 @@ class Sessions:
         if user is None:
             if session is not None:
                 del self._api[token]
-                self._on_end(session, "API token revoked or expired")
+                self._ended(session, "API token revoked or expired")
             return None
         if session is None or session.user != user:
             if session is not None:  # its role changed: a new session
-                self._on_end(session, "API token changed")
+                del self._api[token]
+                self._ended(session, "API token changed")
             session = Session(token, user, time.time(), math.inf)
             self._api[token] = session
         return session
@@ -89,24 +150,36 @@ class Sessions:
         if now >= session.expires_at_mono:
             self.end(session, "session expired")
             return None
+        changed = self._user_changed(session)
+        if changed is not None:
+            self.end(session, changed)
+            return None
         session.expires_at_mono = now + self.ttl_s
         return session
 
     def end(self, session: Session, reason: str) -> None:
-        if self._by_token.pop(session.token, None) is not None:
-            self._on_end(session, reason)
+        if self._by_token.get(session.token) is session:
+            del self._by_token[session.token]
+            self._ended(session, reason)
         elif self._api.get(session.token) is session:
             del self._api[session.token]
-            self._on_end(session, reason)
+            self._ended(session, reason)
 
     def sweep(self) -> int:
-        """End every expired session and every revoked or expired API token's session (so
-        control is released on time); how many ended."""
+        """End every expired session, every session whose user was removed or given another
+        role, and every revoked or expired API token's session (so control is released and
+        WebSockets close on time); how many ended."""
         now = time.monotonic()
-        expired = [s for s in self._by_token.values() if now >= s.expires_at_mono]
-        for session in expired:
-            self.end(session, "session expired")
-        ended = len(expired)
+        ending = []
+        for session in self._by_token.values():
+            reason = (
+                "session expired" if now >= session.expires_at_mono else self._user_changed(session)
+            )
+            if reason is not None:
+                ending.append((session, reason))
+        for session, reason in ending:
+            self.end(session, reason)
+        ended = len(ending)
         for token in list(self._api):
             if self._api_session(token) is None:
                 ended += 1

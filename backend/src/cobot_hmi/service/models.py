@@ -574,6 +574,19 @@ class AlarmAnswer(BaseModel):
     changed: bool
 
 
+class SessionEvent(_EventBase):
+    """A session ended while it had streams of this robot open: they were closed (1008)."""
+
+    kind: Literal["session"]
+    user: str = Field(description="the session's user (``token:NAME`` for an API token)")
+    session: str = Field(description="the session's public id (never its token)")
+    reason: str = Field(
+        description="why: logged out, session expired, the user removed or given another "
+        "role, the API token revoked, expired or changed"
+    )
+    streams_closed: int = Field(ge=1, description="this robot's streams of it, closed")
+
+
 class RecordingEvent(_EventBase):
     """The history recorder paused (disk full, write error), resumed, or fell behind."""
 
@@ -590,10 +603,13 @@ Event = Annotated[
     | WriteEvent
     | ControlEvent
     | RecordingEvent
-    | AlarmEvent,
+    | AlarmEvent
+    | SessionEvent,
     Field(discriminator="kind"),
 ]
-EventKind = Literal["connection", "robot_state", "flag", "write", "control", "recording", "alarm"]
+EventKind = Literal[
+    "connection", "robot_state", "flag", "write", "control", "recording", "alarm", "session"
+]
 
 
 class EventPage(BaseModel):

@@ -5,7 +5,10 @@ first robot's.
 The handshake may carry the session (cookie, bearer header, or ``?token=``); control of the
 robot held by that session ends when its last stream to that robot closes. A refusal after the
 handshake is a close with an application code: 4400 (bad ``rate``), 4401 (login required) or
-4404 (unknown robot, the known ones named), the reason in the close.
+4404 (unknown robot, the known ones named), the reason in the close. When the session ends
+while the stream is open (logout, expiry, its user removed or given another role, its API
+token revoked), the stream is closed at once with 1008 (policy violation, RFC 6455 §7.4.1)
+and the reason: it must not go on showing what the session may no longer see.
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ import contextlib
 import math
 import socket
 from collections.abc import Callable
-from typing import Final
+from typing import Any, Final
 
 from fastapi import APIRouter, WebSocket
 from starlette.types import ASGIApp, Receive, Scope, Send
@@ -30,6 +33,10 @@ CLOSE_BAD_REQUEST: Final = 4400
 CLOSE_LOGIN_REQUIRED: Final = 4401
 CLOSE_UNKNOWN_ROBOT: Final = 4404
 CLOSE_STALLED: Final = 4408
+CLOSE_SESSION_ENDED: Final = 1008
+"""Policy violation (RFC 6455 §7.4.1): the stream's session ended."""
+CLOSE_REASON_BYTES: Final = 123
+"""A close frame's reason fits a control frame's 125 bytes after the 2-byte code."""
 SEND_BUFFER_BYTES: Final = 128 * 1024
 """Kernel send buffer per stream connection (Linux doubles it): ~1 s of frames at 10 ms."""
 
@@ -70,6 +77,11 @@ def _limit_send_buffer(transport: object) -> None:
     if sock is not None:
         with contextlib.suppress(OSError):
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER_BYTES)
+
+
+def close_reason(text: str) -> str:
+    """``text`` cut to what a close frame carries (UTF-8 bytes, never half a character)."""
+    return text.encode()[:CLOSE_REASON_BYTES].decode(errors="ignore")
 
 
 def _parse_rate(text: str | None) -> float | None:
@@ -135,13 +147,41 @@ async def _stream(websocket: WebSocket, name: str | None) -> None:
         client=f"{client_address(websocket)}:{websocket.client.port if websocket.client else 0}",
     )
     service.websocket_opened(session, robot)
+    ended: asyncio.Future[str] = asyncio.get_running_loop().create_future()
+
+    def session_ended(reason: str) -> None:
+        if not ended.done():
+            ended.set_result(reason)
+
+    unwatch = service.sessions.watch(session, session_ended) if session is not None else None
+    reading = asyncio.create_task(_read_until_disconnect(websocket), name="stream-read")
+    waiting: list[asyncio.Future[Any]] = [reading, ended]
     try:
-        while True:
-            message = await websocket.receive()
-            if message["type"] == "websocket.disconnect":
-                break
-            # Client messages carry nothing yet; they are read (and dropped) so the
-            # connection's receive side never backs up.
+        await asyncio.wait(waiting, return_when=asyncio.FIRST_COMPLETED)
     finally:
-        await robot.hub.remove_client(client)
+        if unwatch is not None:
+            unwatch()
+        reading.cancel()
+        with contextlib.suppress(asyncio.CancelledError, Exception):
+            await reading  # the client's disconnect (or its error) ends the stream either way
+        await robot.hub.remove_client(client)  # no frame is sent after the close below
+        if ended.done():
+            reason = close_reason(f"session ended: {ended.result()}")
+            try:
+                async with asyncio.timeout(1.0):
+                    await websocket.close(CLOSE_SESSION_ENDED, reason)
+            except Exception:  # gone meanwhile, or not reading: its connection is cut instead
+                if abort_transport is not None:
+                    abort_transport()
+        else:
+            ended.cancel()
         service.websocket_closed(session, robot)
+
+
+async def _read_until_disconnect(websocket: WebSocket) -> None:
+    """Client messages carry nothing yet; they are read (and dropped) so the connection's
+    receive side never backs up."""
+    while True:
+        message = await websocket.receive()
+        if message["type"] == "websocket.disconnect":
+            return

@@ -61,7 +61,10 @@ class Service:
         self.default_robot: RobotRuntime = next(iter(self.robots.values()))
         """The first robot: the one the deprecated single-robot paths answer for."""
         self.sessions = Sessions(
-            settings.session_ttl_s, self._on_session_end, self.users.user_for_token
+            settings.session_ttl_s,
+            self._on_session_end,
+            self.users.user_for_token,
+            self.users.user,
         )
         self.throttle = LoginThrottle(
             settings.login_free_attempts,
@@ -204,10 +207,25 @@ class Service:
     # ------------------------------------------------------------ sessions
 
     def _on_session_end(self, session: Session, reason: str) -> None:
+        """Control the session held is released; its WebSockets are closed by their own
+        handlers (``routes_stream``: a ``Sessions.watch`` each), and each robot whose streams
+        it had says so in a ``session`` event (the log and every other stream)."""
         for robot in self.robots.values():
             holder = robot.control.holder
             if holder is not None and holder.session_id == session.id:
                 robot.spawn(robot.control.drop(reason, session_id=session.id), "control-drop")
+            streams = self._ws_by_session.get((session.id, robot.name), 0)
+            if streams > 0:
+                robot.hub.publish_event(
+                    {
+                        "kind": "session",
+                        "time": time.time(),
+                        "user": session.user.name,
+                        "session": session.id,
+                        "reason": reason,
+                        "streams_closed": streams,
+                    }
+                )
 
     async def _sweep_loop(self) -> None:
         while True:

@@ -191,6 +191,15 @@ class UsersFile:
     def users(self) -> list[User]:
         return [User(name, role) for name, (role, _) in sorted(self._load().items())]
 
+    def user(self, name: str) -> User | None:
+        """The user called ``name`` as the file has it now (``None``: not in it), so a login
+        session can end when its user is removed or given another role. An unreadable file
+        keeps the last good table, as ``authenticate`` does."""
+        with contextlib.suppress(UsersError):
+            self._load()
+        entry = self._entries.get(name)
+        return None if entry is None else User(name, entry[0])
+
     def authenticate(self, name: str, password: str) -> User | None:
         """The user if ``password`` is theirs. An unknown name costs the same scrypt work."""
         try:
