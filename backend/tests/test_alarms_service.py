@@ -22,6 +22,7 @@ from websockets.asyncio.client import connect
 
 from cobot_hmi.service.alarms.persistence import HISTORY_COLUMNS
 from cobot_hmi.service.models import EVENT, STREAM_MESSAGE, AlarmHistoryPage, AlarmList
+from cobot_hmi.service.settings import ServiceSettings
 from conftest import free_tcp_port
 from emulator_harness import Emulator, running_emulator
 from service_support import (
@@ -102,15 +103,22 @@ async def emu(robot_host: str, plc_host: str) -> AsyncIterator[Emulator]:
         yield emulator_
 
 
-async def test_estop_alarm_ack_restart_reset(emu: Emulator, plc_host: str, tmp_path: Path) -> None:
-    # A connection slow to come up on a busy machine must not add an alarm of its own here.
-    settings = service_settings(
+def emulated_settings(
+    emu: Emulator, plc_host: str, tmp_path: Path, **overrides: Any
+) -> ServiceSettings:
+    """The service's settings for ``emu``'s robot. A connection slow to come up on a busy
+    machine must not add an alarm of its own here (unless ``overrides`` say otherwise)."""
+    return service_settings(
         emu.target.settings.host,
         emu.target.tcp_port,
         plc_host,
         tmp_path,
-        alarm_connection_delay_s=600,
+        **{"alarm_connection_delay_s": 600, **overrides},
     )
+
+
+async def test_estop_alarm_ack_restart_reset(emu: Emulator, plc_host: str, tmp_path: Path) -> None:
+    settings = emulated_settings(emu, plc_host, tmp_path)
     async with running_service(settings) as hmi:
         await eventually(lambda: state_is(hmi, 14))  # STANDALONE_RUNNING
         assert ESTOP not in await alarms(hmi)
@@ -221,14 +229,7 @@ async def test_estop_alarm_ack_restart_reset(emu: Emulator, plc_host: str, tmp_p
 async def test_shelving_with_expiry_and_refusals(
     emu: Emulator, plc_host: str, tmp_path: Path
 ) -> None:
-    settings = service_settings(
-        emu.target.settings.host,
-        emu.target.tcp_port,
-        plc_host,
-        tmp_path,
-        alarm_shelve_max_s=60,
-        alarm_connection_delay_s=600,
-    )
+    settings = emulated_settings(emu, plc_host, tmp_path, alarm_shelve_max_s=60)
     async with running_service(settings) as hmi:
         alarm_id = "robot:protective_stop"
         async with hmi.client(await hmi.login(OPERATOR)) as operator:
@@ -285,14 +286,8 @@ async def test_unshelve_is_authorized_and_audited_like_ack_and_shelve(
     emu: Emulator, plc_host: str, tmp_path: Path
 ) -> None:
     """Each row of an unshelve: a viewer's refusal (nothing asked: null), a no-op (``{}``,
-    "not shelved"), the real one with its summary; the alarm's history has the transition."""
-    settings = service_settings(
-        emu.target.settings.host,
-        emu.target.tcp_port,
-        plc_host,
-        tmp_path,
-        alarm_connection_delay_s=600,
-    )
+    "not shelved"), the real one with its summary."""
+    settings = emulated_settings(emu, plc_host, tmp_path)
     async with running_service(settings) as hmi:
         alarm_id = "robot:protective_stop"
         path = f"/api/v1/alarms/{alarm_id}/unshelve"
