@@ -73,6 +73,9 @@ test("a pan past the ring shows the recording; back to live from there", async (
   // Drawn from the recording (the range the pan reached, before what the ring's window held).
   await expect.poll(async () => Number(await plot.getAttribute("data-frames")), { timeout: 15_000 }).toBeGreaterThan(0);
   expect(Number(await plot.getAttribute("data-to")) * 1000).toBeLessThan(before[1] + new Date().getTimezoneOffset() * 60_000);
+  // The pan tool is still chosen once the range has come (a person pans on).
+  const dragmode = () => plot.evaluate((el) => (el as HTMLElement & { _fullLayout?: { dragmode?: string } })._fullLayout?.dragmode);
+  expect(await dragmode()).toBe("pan");
   const past = await xRange(page);
   await page.waitForTimeout(1500);
   expect(await xRange(page)).toEqual(past); // a range of the past stays put

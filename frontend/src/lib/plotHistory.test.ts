@@ -12,7 +12,12 @@ import { PlotTimeRange } from "./timeRange";
 
 type Call = { op: string; args: unknown[] };
 type Trace = { name?: string; x: number[]; y: (number | null)[]; visible?: boolean; fill?: string };
-type Layout = { uirevision: string; xaxis: { autorange: boolean; range?: number[] }; shapes?: { x0: number }[] };
+type Layout = {
+  uirevision: string;
+  xaxis: { autorange: boolean; range?: number[]; uirevision?: string };
+  yaxis: { autorange: boolean; uirevision?: string };
+  shapes?: { x0: number }[];
+};
 
 const T0 = 1_795_500_000_000; // ms since the epoch
 const spec = JOINT_PLOTS[0]!;
@@ -191,22 +196,33 @@ describe("a zoom or pan past the ring", () => {
     expect(Number(el.dataset.from)).toBe((T0 - 310_000) / 1000);
   });
 
-  it("a new range fits its y axis to its data (Plotly's zoom-out widened it too)", async () => {
+  it("a new range fits its y axis to its data (Plotly's zoom-out widened it too), the drag mode kept", async () => {
     const { plot, push, moveTo, fire, answer, lastReact, calls } = setup();
     fill(push);
     plot.update(0);
     moveTo(T0 - 300_000, T0 - 200_000);
     fire();
-    const before = (lastReact().args[2] as Layout).uirevision;
     await answer(0);
     plot.update(1);
-    const drawn = lastReact().args[2] as Layout & { yaxis: { autorange: boolean } };
-    expect(drawn.uirevision).not.toBe(before); // the person's y zoom is not carried over
-    expect(drawn.yaxis.autorange).toBe(true);
-    // Redrawn without a new answer (a signal hidden): the same revision, a y zoom kept.
-    plot.setTraceVisible(2, false);
+    const first = lastReact().args[2] as Layout;
+    moveTo(T0 - 400_000, T0 - 300_000); // the person pans on
+    fire();
+    await answer(1);
     plot.update(2);
-    expect((lastReact().args[2] as Layout).uirevision).toBe(drawn.uirevision);
+    const drawn = lastReact().args[2] as Layout;
+    expect(drawn.yaxis.uirevision).not.toBe(first.yaxis.uirevision); // the person's y zoom is not carried over
+    expect(drawn.yaxis.autorange).toBe(true);
+    expect(drawn.xaxis.uirevision).toBe(first.xaxis.uirevision); // x is where the person put it
+    expect(drawn.uirevision).toBe(first.uirevision); // so is the drag mode (a pan goes on panning)
+    // A jump elsewhere: a new x revision, so Plotly takes the range.
+    plot.showRange({ from_s: (T0 - 900_000) / 1000, to_s: (T0 - 840_000) / 1000 });
+    plot.update(3);
+    expect((lastReact().args[2] as Layout).xaxis.uirevision).not.toBe(drawn.xaxis.uirevision);
+    // Redrawn without a new answer (a signal hidden): the same y revision, a y zoom kept.
+    const jumped = lastReact().args[2] as Layout;
+    plot.setTraceVisible(2, false);
+    plot.update(4);
+    expect((lastReact().args[2] as Layout).yaxis.uirevision).toBe(jumped.yaxis.uirevision);
     expect((lastReact().args[1] as Trace[]).filter((t) => t.visible === false)).toHaveLength(3);
     expect(calls.some((c) => c.op === "restyle")).toBe(false);
   });

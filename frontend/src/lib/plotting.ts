@@ -157,6 +157,9 @@ export class LivePlot {
   private drawnRange_ms: { readonly from: number; readonly to: number } | null = null;
   /** The answer of the last history drawing. */
   private drawnData: RangeData | null = null;
+  /** Per-axis `uirevision`s of history drawings (the layout's keeps the drag mode). */
+  private xRevision = 0;
+  private yRevision = 0;
   /** `revision` of the last drawing: a rebuild within the same revision keeps the zoom. */
   private drawnRevision = -1;
   /** Points in each trace now (all traces have the same count). */
@@ -598,19 +601,27 @@ export class LivePlot {
       y1: 1,
       line: { color: m.kind === "alarm" ? "#D55E00" : "#888", width: 1, dash: "dot" },
     }));
-    // Plotly keeps a person's axis range within a `uirevision`: where it shows another range
-    // than this one (a jump, a moving window's step), a new revision makes it take this one. A
+    // Plotly keeps a person's axis range within its `uirevision`: where it shows another range
+    // than this one (a jump, a moving window's step), a new x revision makes it take this one. A
     // new range of the past also fits its y axes to its data again (Plotly's zoom-out button
-    // widens y as well as x); a moving window's refresh keeps a person's y zoom.
+    // widens y as well as x); a moving window's refresh keeps a person's y zoom. Per axis, so
+    // the layout's revision keeps the person's drag mode (a pan goes on panning).
     const x = this.backend.zoomedAxes(el).xaxis;
     const shown_from = x !== undefined ? axisTimeToEpochS(x[0], shift) * 1000 : Number.NaN;
     const shown_to = x !== undefined ? axisTimeToEpochS(x[1], shift) * 1000 : Number.NaN;
     const tolerance_ms = (to - from) / 1000;
-    const elsewhere = !(Math.abs(shown_from - from) <= tolerance_ms && Math.abs(shown_to - to) <= tolerance_ms);
-    if (elsewhere || (this.view.kind === "fixed" && data !== this.drawnData)) this.revision++;
+    if (!(Math.abs(shown_from - from) <= tolerance_ms && Math.abs(shown_to - to) <= tolerance_ms)) this.xRevision++;
+    if (this.view.kind === "fixed" && data !== this.drawnData) this.yRevision++;
     this.drawnData = data;
     this.drawnRevision = this.revision;
-    const layout = { ...(this.layout({ xaxis: [from - shift, to - shift] }) as Record<string, unknown>), shapes };
+    const layout: Record<string, unknown> = { ...(this.layout({ xaxis: [from - shift, to - shift] }) as Record<string, unknown>), shapes };
+    const axisRevision = (axis: string, revision: string) => {
+      const a = layout[axis];
+      if (typeof a === "object" && a !== null) layout[axis] = { ...a, uirevision: revision };
+    };
+    axisRevision("xaxis", `x${this.xRevision}`);
+    axisRevision("yaxis", `y${this.yRevision}`);
+    axisRevision("yaxis2", `y${this.yRevision}`);
     this.drawnRange_ms = { from, to };
     this.points = drawnPoints;
     this.backend.react(el, traces, layout, this.config());
