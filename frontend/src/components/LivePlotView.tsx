@@ -15,6 +15,8 @@ import {
   customRange,
   exportUrl,
   fieldsOf,
+  MARKER_WIDTH_PX,
+  MARKER_WIDTH_TOUCH_PX,
   markerSpacing,
   markersOf,
   type ExportFormat,
@@ -179,8 +181,10 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
 
   const fixed = shown?.view === "fixed";
   const range: TimeRange | null = shown?.range ?? null;
-  const markers =
-    shown !== null && range !== null ? markersOf(shown.events, range, markerSpacing(width_px - margin.l - margin.r)) : [];
+  // Touch screens make every button a 44 px target: markers further apart there.
+  const touch = typeof window.matchMedia === "function" && window.matchMedia("(pointer: coarse)").matches;
+  const spacing = markerSpacing(width_px - margin.l - margin.r, touch ? MARKER_WIDTH_TOUCH_PX : MARKER_WIDTH_PX);
+  const markers = shown !== null && range !== null ? markersOf(shown.events, range, spacing) : [];
   const windowValue = fixed ? RANGE : custom !== null ? CUSTOM : String(window_ms);
   // On the ring the range in view moves: the link's range is renewed at the click (below).
   const now_s = Date.now() / 1000;

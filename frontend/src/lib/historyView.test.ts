@@ -8,7 +8,6 @@ import {
   bucketsForWidth,
   customRange,
   envelopeTraceSets,
-  envelopeTraces,
   exportUrl,
   fieldsOf,
   MARKER_SPACING,
@@ -81,7 +80,7 @@ describe("envelopes", () => {
         { element: "joint_position.0", field: "joint_position", label: "J1", unit: "degree", min: [1, 2, 3], max: [4, 5, 6], first: [], last: [] },
       ],
     });
-    const traces = envelopeTraces(a, spec, 0) as { name: string; x: (number | null)[]; y: (number | null)[]; fill?: string; hovertemplate: string }[];
+    const traces = envelopeTraceSets(a, spec, 0).flat() as { name: string; x: (number | null)[]; y: (number | null)[]; fill?: string; hovertemplate: string }[];
     expect(traces.map((t) => t.name)).toEqual(["J 1 min", "J 1 max"]);
     const [min, max] = traces;
     // The bucket at +20 s is missing: a null after +10 s breaks the line.
@@ -100,7 +99,7 @@ describe("envelopes", () => {
       t: [NOW, NOW + 0.01],
       series: [{ element: "joint_position.1", field: "joint_position", label: "J2", unit: "degree", values: [7, null] }],
     });
-    const traces = envelopeTraces(a, spec, 3_600_000) as { name: string; x: number[]; y: (number | null)[] }[];
+    const traces = envelopeTraceSets(a, spec, 3_600_000).flat() as { name: string; x: number[]; y: (number | null)[] }[];
     expect(traces).toHaveLength(1);
     expect(traces[0]!.name).toBe("J 2");
     expect(traces[0]!.x).toEqual([NOW * 1000 - 3_600_000, (NOW + 0.01) * 1000 - 3_600_000]);
@@ -162,6 +161,7 @@ describe("markers", () => {
     expect(markerSpacing(2000)).toBe(MARKER_SPACING);
     expect(markerSpacing(600)).toBe(30 / 600);
     expect(markerSpacing(0)).toBe(MARKER_SPACING);
+    expect(markerSpacing(600, 48)).toBe(48 / 600); // touch: 44 px targets
     expect(markersOf([estop, soon], range)).toHaveLength(2); // 3 % apart
     expect(markersOf([estop, soon], range, markerSpacing(600))).toHaveLength(1); // 18 px apart
   });

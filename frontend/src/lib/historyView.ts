@@ -122,11 +122,6 @@ export function envelopeTraceSets(answer: HistoryAnswer, spec: PlotSpec, shift_m
   });
 }
 
-/** All of the answer's traces for `spec`, in one list (see `envelopeTraceSets`). */
-export function envelopeTraces(answer: HistoryAnswer, spec: PlotSpec, shift_ms: number): object[] {
-  return envelopeTraceSets(answer, spec, shift_ms).flat();
-}
-
 /**
  * The time (s) of the newest frame the answer holds, or null when it holds none: what comes
  * after it in the range the plot takes from its ring (frames the recorder has not written yet).
@@ -165,10 +160,12 @@ export interface Marker {
 export const MARKER_SPACING = 0.015;
 /** A marker button's width and a gap (px): markers closer than this on screen share one. */
 export const MARKER_WIDTH_PX = 30;
+/** The same on a touch screen, where a marker is a 44 px target (styles/responsive.css). */
+export const MARKER_WIDTH_TOUCH_PX = 48;
 
-/** The spacing of markers on a plotting area `width_px` wide. */
-export function markerSpacing(width_px: number): number {
-  return width_px > 0 ? Math.max(MARKER_SPACING, MARKER_WIDTH_PX / width_px) : MARKER_SPACING;
+/** The spacing of markers `marker_px` wide on a plotting area `width_px` wide. */
+export function markerSpacing(width_px: number, marker_px = MARKER_WIDTH_PX): number {
+  return width_px > 0 ? Math.max(MARKER_SPACING, marker_px / width_px) : MARKER_SPACING;
 }
 
 /** The words of an event on its marker. */
