@@ -327,15 +327,24 @@ describe("long windows from the recording", () => {
     fire();
     expect(fetches).toHaveLength(2);
     expect(fetches[1]!.range.to_s).toBe((T0 + 3000) / 1000);
-    // Paused: frozen, no more requests.
+    // Out of view: no requests, only the next turn.
+    plot.onScreen = false;
     await answer(1);
+    fire();
+    expect(fetches).toHaveLength(2);
+    expect(due).toHaveLength(1);
+    plot.onScreen = true;
+    fire();
+    expect(fetches).toHaveLength(3);
+    // Paused: frozen, no more requests.
+    await answer(2);
     plot.update(2);
     plot.setPaused(true);
     fire();
-    expect(fetches).toHaveLength(2);
+    expect(fetches).toHaveLength(3);
     // Back to live asks again at once.
     plot.backToLive();
-    expect(fetches).toHaveLength(3);
+    expect(fetches).toHaveLength(4);
   });
 
   it("a zoom into a long window leaves it for a fixed range", () => {

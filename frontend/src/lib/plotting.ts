@@ -35,6 +35,7 @@ import {
 } from "./historyView";
 import { RING_WINDOW_MAX_MS, traceColour, tracesOf, type PlotSpec, type TraceInfo } from "./plots";
 import type { SampleRing } from "./ringBuffer";
+import { TICK_SPACING_PX, timeTicks, type TimeTicks } from "./timeTicks";
 import type { ChannelMap } from "./plots";
 
 type Datum = number | null;
@@ -42,7 +43,17 @@ type Datum = number | null;
 export interface PlotBackend {
   newPlot(el: HTMLElement, data: object[], layout: object, config: object): void;
   react(el: HTMLElement, data: object[], layout: object, config: object): void;
-  extendTraces(el: HTMLElement, update: { x: Datum[][]; y: Datum[][] }, indices: number[], maxPoints: number): void;
+  /**
+   * Append points to traces; `axes`: axis attributes (e.g. a live plot's time ticks) to change
+   * in the same redraw.
+   */
+  extendTraces(
+    el: HTMLElement,
+    update: { x: Datum[][]; y: Datum[][] },
+    indices: number[],
+    maxPoints: number,
+    axes?: Readonly<Record<string, object>>,
+  ): void;
   restyle(el: HTMLElement, update: object, indices: number[]): void;
   relayout(el: HTMLElement, update: object): void;
   /** The axes a person zoomed or panned (autorange off) and their ranges now. */
@@ -54,8 +65,13 @@ export interface PlotBackend {
   purge(el: HTMLElement): void;
 }
 
-/** Buckets per window: two points each, so a trace holds at most 600 points in any window. */
-export const BUCKETS_PER_WINDOW = 300;
+/**
+ * Buckets per window: two points each, so a trace holds at most 400 points in any window, about
+ * one per pixel of a plot on a 1920 px panel (three plots abreast). A redraw's time grows with
+ * the points (Plotly's path building, the browser's path parsing and rasterising): 600 points
+ * cost about a third more for nothing the eye sees.
+ */
+export const BUCKETS_PER_WINDOW = 200;
 
 export const DEFAULT_PLOT_HEIGHT_PX = 240;
 
@@ -367,8 +383,11 @@ export class LivePlot {
     const every_ms = Math.min(MOVING_REFRESH_MAX_MS, Math.max(MOVING_REFRESH_MIN_MS, this.view.span_ms / this.pointsWanted()));
     this.refreshHandle = this.timer.set(() => {
       this.refreshHandle = null;
-      // Paused: frozen until resumed (which goes back to live and asks again).
-      if (this.view.kind === "moving" && !this.paused) this.requestRange(true);
+      // Paused: frozen until resumed (which goes back to live and asks again). Out of view: no
+      // request, only the next turn (the plot asks again within a turn of coming into view).
+      if (this.view.kind !== "moving" || this.paused) return;
+      if (this.onScreen) this.requestRange(true);
+      else this.scheduleRefresh();
     }, every_ms);
   }
 
@@ -523,7 +542,9 @@ export class LivePlot {
     const chunk = this.bucketer.take();
     if (chunk === null) return false;
     const indices = this.traces.map((_, i) => i);
-    this.backend.extendTraces(el, { x: chunk.xs, y: chunk.ys }, indices, this.maxPoints);
+    const xs = chunk.xs[0] ?? [];
+    const axes = this.liveTicks ? { xaxis: this.ticksBefore(xs[xs.length - 1] ?? Number.NaN) } : undefined;
+    this.backend.extendTraces(el, { x: chunk.xs, y: chunk.ys }, indices, this.maxPoints, axes);
     this.points = Math.min(this.maxPoints, this.points + chunk.buckets * POINTS_PER_BUCKET);
     this.lastUpdate_ms = now_ms;
     this.updates++;
@@ -677,11 +698,59 @@ export class LivePlot {
     };
   }
 
+  /**
+   * Whether the time axis is drawn with our own ticks (`timeTicks`) that each live update moves:
+   * a live plot showing the ring as a static picture, not zoomed on its time axis.
+   */
+  private liveTicks = false;
+  /** The plotting area's width (px) at the last drawing, for the number of time ticks. */
+  private areaWidth_px = Number.NaN;
+
+  /** Time ticks for the moving window ending at `newestX` (a numeric date, shifted). */
+  private ticksBefore(newestX: number): TimeTicks {
+    // A little over the window: the oldest points kept may reach a bucket further back.
+    return this.ticksOver(newestX - this.window_ms * 1.05, newestX);
+  }
+
+  private ticksOver(from: number, to: number): TimeTicks {
+    // Labels of larger text (the kiosk's) need more room each.
+    const spacing_px = Math.max(TICK_SPACING_PX, 9 * (this.options.fontSize_px ?? 11));
+    return timeTicks(from, to, this.areaWidth_px, spacing_px);
+  }
+
+  /**
+   * The time axis. A live plot nobody points at draws it as a linear axis with our own ticks: a
+   * date axis reads each sample's time through Plotly's date parser and works out date ticks on
+   * every redraw (lib/timeTicks.ts). An interactive plot or a view of the recording keeps the
+   * date axis, for its hover and for zooming into dates.
+   */
+  private timeAxis(zoom: Readonly<Record<string, readonly unknown[]>>, grid: string): { axis: object; range: number[] | null } {
+    const common = { autorange: true, gridcolor: grid, ticklabeloverflow: "allow" };
+    if (this.view.kind !== "ring" || this.interactive) {
+      this.liveTicks = false;
+      return { axis: { ...common, type: "date" }, range: null };
+    }
+    const width = (this.el as (HTMLElement & { clientWidth?: number }) | null)?.clientWidth;
+    const margin = plotMargin(this.spec.series.some((s) => s.axis === "y2"));
+    if (width !== undefined && width > 0) this.areaWidth_px = width - margin.l - margin.r;
+    // A zoom carried over from the date axis: its range may be Plotly's date text.
+    const zoomed = zoom.xaxis?.map((v) => (typeof v === "number" ? v : axisTimeToEpochS(v, 0) * 1000)) ?? null;
+    this.liveTicks = zoomed === null;
+    const newest = this.ring.newestTime();
+    const ticks =
+      zoomed !== null
+        ? this.ticksOver(zoomed[0] ?? Number.NaN, zoomed[1] ?? Number.NaN)
+        : this.ticksBefore(newest === null ? Number.NaN : newest - this.tzShift_ms);
+    return { axis: { ...common, type: "linear", tickmode: "array", ...ticks }, range: zoomed };
+  }
+
   private layout(zoom: Readonly<Record<string, readonly unknown[]>> = {}): object {
     const dark = this.options.theme === "dark";
     const fg = dark ? "#d8dde3" : "#222";
     const grid = dark ? "#2f3740" : "#e3e3e3";
     const twoAxes = this.spec.series.some((s) => s.axis === "y2");
+    const time = this.timeAxis(zoom, grid);
+    if (time.range !== null) zoom = { ...zoom, xaxis: time.range };
     const layout: Record<string, unknown> = {
       uirevision: `${this.spec.id}:${this.revision}`,
       autosize: true,
@@ -698,7 +767,7 @@ export class LivePlot {
       // measurement under the label's pixel position: with autoranged axes the labels keep
       // moving, and its text-measurement cache grew by hundreds of entries a minute.
       // "allow": Plotly otherwise measures every tick label on every redraw (a quarter of its time).
-      xaxis: { type: "date", autorange: true, gridcolor: grid, ticklabeloverflow: "allow" },
+      xaxis: time.axis,
       yaxis: {
         autorange: true,
         gridcolor: grid,
