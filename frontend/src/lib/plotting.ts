@@ -128,8 +128,6 @@ export interface HistoryShown {
   /** The events of the range drawn (markers). */
   readonly events: readonly HistoryEvent[];
   readonly error: string | null;
-  /** Frames the recording holds in the range drawn. */
-  readonly frames: number;
 }
 
 /** A moving window from the recording is fetched again this often: a bucket's width, in bounds. */
@@ -420,7 +418,6 @@ export class LivePlot {
       range: r === null ? null : { from_s: r.from / 1000, to_s: r.to / 1000 },
       events: this.view.kind === "ring" ? [] : (this.historyData?.events ?? []),
       error: this.historyError,
-      frames: this.historyData?.answer.frames ?? 0,
     });
   }
 
