@@ -118,6 +118,14 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "--speed", type=float, default=1.0, metavar="X", help="--replay: X times real time"
     )
     robot.add_argument("--loop", action="store_true", help="--replay: start again at the end")
+    robot.add_argument(
+        "--max-lag-s",
+        type=float,
+        default=1.0,
+        metavar="S",
+        help="--replay: send every recorded frame in order while at most S seconds behind "
+        "the recording's clock; further behind, skip to the instant's frame (default 1)",
+    )
     robot.add_argument("--seed", type=int, default=1, help="seed of the simulation's noise")
     robot.add_argument(
         "--no-program", action="store_true", help="do not start the demo program by itself"
@@ -212,6 +220,7 @@ def _run(args: argparse.Namespace) -> int:
     )
 
     simulated: SimulatedRobot | None = None
+    replay = None
     robot: ProcessImage
     if args.replay is not None:
         from cobot_hmi.emulator.replay_robot import ReplayRobot
@@ -220,12 +229,17 @@ def _run(args: argparse.Namespace) -> int:
         if not args.speed > 0:
             print("cobot-hmi emulator: --speed must be above 0", flush=True)
             return 2
+        if not args.max_lag_s >= 0:
+            print("cobot-hmi emulator: --max-lag-s must be 0 or more", flush=True)
+            return 2
         try:
             recording = read_recording(args.replay)
         except RecordingError as error:
             print(f"cobot-hmi emulator: {error}", flush=True)
             return 2
-        robot = ReplayRobot(recording, speed=args.speed, loop=args.loop)
+        robot = replay = ReplayRobot(
+            recording, speed=args.speed, loop=args.loop, max_lag_s=args.max_lag_s
+        )
     elif args.static:
         robot = StaticRobot(idle)
     else:
@@ -285,6 +299,8 @@ def _run(args: argparse.Namespace) -> int:
             if discovery is not None:
                 discovery.stop()
             await target.stop()
+            if replay is not None:  # how the re-run went: frames sent, any skipped to catch up
+                print(f"cobot-hmi emulator: {replay.summary()}", flush=True)
 
     try:
         with asyncio.Runner(loop_factory=precise_event_loop) as runner:
