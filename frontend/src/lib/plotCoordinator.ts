@@ -2,9 +2,15 @@
  * Layer: the plots' animation-frame scheduler, independent of React (plain TypeScript).
  *
  * One `requestAnimationFrame` loop asks each live plot (lib/plotting.ts) to append what arrived
- * since its last update, within a time budget per animation frame and round-robin, so the page
- * keeps rendering smoothly however many plots there are; a plot scrolled out of view refreshes
- * only rarely.
+ * since its last update. Each plot in view is due every `interval_ms` (10 times a second, the
+ * monitoring values' own rate), on a schedule of its own: a late redraw makes the next one come
+ * sooner, so late frames do not lower a plot's rate, and the plots keep their phases spread over
+ * the interval (one or two per animation frame, not all six in one). A frame takes a second
+ * redraw only when it fits the frame's budget. A plot out of view is not redrawn at all (it is
+ * drawn once, and again as soon as it comes into view; a history view still draws an answer
+ * when it comes). On a slow or busy machine the frame rate comes first: the share of the main
+ * thread the plots may take adapts to the frame rate the page reaches, and all plots slow down
+ * alike.
  */
 import type { LivePlot } from "./plotting";
 
@@ -23,34 +29,49 @@ export const browserScheduler: FrameScheduler = {
 
 export class PlotCoordinator {
   private readonly plots: LivePlot[] = [];
+  /** When each plot is due next (browser time, ms). */
+  private readonly dueAt = new Map<LivePlot, number>();
+  /** The plots tried in the current frame (kept, not allocated per frame). */
+  private readonly tried = new Set<LivePlot>();
   private readonly scheduler: FrameScheduler;
   private handle: number | null = null;
-  /** Browser time before which no plot is updated (duty-cycle pacing). */
-  private nextAllowed_ms = -Infinity;
-  /** Work per animation frame before the remaining plots wait for the next one. */
-  budget_ms = 8;
   /**
-   * Share of the main thread plot updates may take. A Plotly redraw of a plot costs several
-   * milliseconds; after an update of c ms the coordinator rests c·(1 − duty)/duty ms, so the page
-   * keeps producing frames (and stays responsive) however slow the machine, and plots refresh as
-   * often as that allows — often on a fast machine, less often on a slow one.
+   * Plot work the duty allows now (ms): earned at `maxDuty` ms per ms of time, at most one
+   * frame's budget, spent by each update; no update while it is not positive.
    */
-  maxDuty = 0.4;
+  private credit_ms = 0;
+  private creditSince_ms: number | null = null;
+  /**
+   * Each plot in view is redrawn this often: the monitoring values refresh every 100 ms, and a
+   * little more often than that keeps a plot at 10 redraws/s or more when a frame now and then
+   * comes too late for anything (each redraw still brings new samples: they come every 10 ms).
+   */
+  interval_ms = 95;
+  /**
+   * Plot work per animation frame: a second redraw in the same frame only when the first and
+   * the expected cost of another fit in it (a frame at 60 frames/s is 16.7 ms, and the page has
+   * its own work in it: the stream, the readouts, style, layout and paint).
+   */
+  budget_ms = 11;
+  /** Smoothed cost of one redraw (ms), to judge whether another fits in the frame. */
+  updateCost_ms = 0;
+  /**
+   * Share of the main thread plot updates may take over time (a credit earned at this rate,
+   * spent by each update), so the page keeps producing frames and stays responsive however slow
+   * the machine or expensive a redraw.
+   */
+  maxDuty = 0.5;
   /**
    * The duty adapts between these bounds to the frame rate the page actually reaches: up while
-   * frames come faster than `targetFps` with a margin, down as they near it. A fast machine
-   * refreshes plots more often; a slow or busy one keeps its frame rate.
+   * frames come faster than `targetFps` with a margin, down when they come slower. A fast machine
+   * refreshes plots as often as they are due; a slow or busy one keeps its frame rate.
    */
-  minDuty = 0.2;
-  maxDutyLimit = 0.7;
-  targetFps = 30;
+  minDuty = 0.15;
+  maxDutyLimit = 0.75;
+  targetFps = 50;
   /** Smoothed time between animation frames (ms). */
   frameInterval_ms = 1000 / 60;
   private lastTick_ms: number | null = null;
-  /** A plot on screen is not redrawn more often than this (no point beyond the eye's need). */
-  minInterval_ms = 50;
-  /** Plots out of view are refreshed this often. */
-  offscreenInterval_ms = 1000;
   ticks = 0;
   plotUpdates = 0;
   /** Time spent in plot updates (Plotly included), for the benchmark. */
@@ -62,12 +83,15 @@ export class PlotCoordinator {
   }
 
   add(plot: LivePlot): void {
-    if (!this.plots.includes(plot)) this.plots.push(plot);
+    if (this.plots.includes(plot)) return;
+    this.plots.push(plot);
+    this.dueAt.set(plot, -Infinity);
   }
 
   remove(plot: LivePlot): void {
     const i = this.plots.indexOf(plot);
     if (i >= 0) this.plots.splice(i, 1);
+    this.dueAt.delete(plot);
   }
 
   /** Per-plot figures, for the UI benchmark and the console. */
@@ -103,44 +127,84 @@ export class PlotCoordinator {
     this.frameInterval_ms = 0.9 * this.frameInterval_ms + 0.1 * (now - last);
     if (this.ticks % 30 !== 0) return;
     const fps = 1000 / this.frameInterval_ms;
-    if (fps > this.targetFps * 1.4) this.maxDuty = Math.min(this.maxDutyLimit, this.maxDuty + 0.05);
-    else if (fps < this.targetFps * 1.15) this.maxDuty = Math.max(this.minDuty, this.maxDuty - 0.05);
+    if (fps >= this.targetFps * 1.1) this.maxDuty = Math.min(this.maxDutyLimit, this.maxDuty + 0.05);
+    else if (fps < this.targetFps) this.maxDuty = Math.max(this.minDuty, this.maxDuty - 0.05);
   }
 
-  /** The plot that waited longest among those due for an update, or null. */
-  private due(now: number): LivePlot | null {
+  /**
+   * Whether the plot takes part now: a plot out of view showing the ring is not redrawn once it
+   * has been drawn (it catches up from the ring when it comes into view).
+   */
+  private wanted(plot: LivePlot): boolean {
+    if (!plot.hasWork()) return false;
+    return plot.onScreen || plot.updates === 0 || plot.viewKind !== "ring";
+  }
+
+  /**
+   * The due plot whose turn came first (not yet tried in this frame), or null; with `late_ms`,
+   * only one whose turn came at least that long ago.
+   */
+  private due(now: number, tried: ReadonlySet<LivePlot>, late_ms = 0): LivePlot | null {
     let best: LivePlot | null = null;
+    let bestDue = Infinity;
     for (const plot of this.plots) {
-      if (!plot.hasWork()) continue;
-      const interval = plot.onScreen ? this.minInterval_ms : this.offscreenInterval_ms;
-      if (now - plot.lastUpdate_ms < interval) continue;
-      if (best === null || plot.lastUpdate_ms < best.lastUpdate_ms) best = plot;
+      if (tried.has(plot) || !this.wanted(plot)) continue;
+      const due = this.dueAt.get(plot) ?? -Infinity;
+      if (due > now - late_ms) continue;
+      if (best === null || due < bestDue) {
+        best = plot;
+        bestDue = due;
+      }
     }
     return best;
   }
 
-  /** One animation frame: update the most overdue plots until the budget is spent. */
+  /** The plot's next turn: one interval after this one, or now when it is further behind. */
+  private schedule(plot: LivePlot, now: number): void {
+    const due = this.dueAt.get(plot) ?? now;
+    // A first drawing has no phase yet: its turn was now.
+    const previous = Number.isFinite(due) ? due : now;
+    // Late by less than an interval: keep the phase (the next turn comes sooner, the rate
+    // stays); later than that (a pause, a slow stretch, out of view): one more turn at once at
+    // most, no burst to make up for all that was missed.
+    this.dueAt.set(plot, Math.max(previous + this.interval_ms, now));
+  }
+
+  /** One animation frame: the due plots, earliest turn first, within the frame's budget and the duty. */
   tick(): void {
     this.ticks++;
     const start = this.scheduler.now();
     this.adaptDuty(start);
-    if (start < this.nextAllowed_ms) return;
-    for (;;) {
+    // Plot work earns credit at the duty's rate; an update spends what it cost.
+    this.credit_ms =
+      this.creditSince_ms === null
+        ? this.budget_ms
+        : Math.min(this.budget_ms, this.credit_ms + Math.max(0, start - this.creditSince_ms) * this.maxDuty);
+    this.creditSince_ms = start;
+    const tried = this.tried;
+    tried.clear();
+    let updated = 0;
+    while (this.credit_ms > 0) {
       const now = this.scheduler.now();
-      const plot = this.due(now);
+      // A second redraw in this frame only when it fits, and only for a plot behind by two
+      // frames: one merely due waits a frame, so the plots spread over the interval (one redraw
+      // a frame) rather than pair up in some frames and leave others empty.
+      if (updated > 0 && now - start + this.updateCost_ms > this.budget_ms) return;
+      const plot = this.due(now, tried, updated > 0 ? 2 * this.frameInterval_ms : 0);
       if (plot === null) return;
+      tried.add(plot);
       if (!plot.update(now)) {
-        // Nothing to draw after all (e.g. only an open bucket): do not pick it again this frame.
-        plot.lastUpdate_ms = now;
+        // Nothing to draw after all (e.g. only an open bucket): tried again next frame.
         continue;
       }
-      const end = this.scheduler.now();
-      const spent = end - now;
+      const spent = this.scheduler.now() - now;
+      updated++;
+      this.schedule(plot, now);
+      this.credit_ms -= spent;
       this.plotUpdates++;
       this.updateTime_ms += spent;
       if (spent > this.updateTimeMax_ms) this.updateTimeMax_ms = spent;
-      this.nextAllowed_ms = end + (spent * (1 - this.maxDuty)) / this.maxDuty;
-      if (end - start >= this.budget_ms || end < this.nextAllowed_ms) return;
+      this.updateCost_ms = this.updateCost_ms === 0 ? spent : 0.9 * this.updateCost_ms + 0.1 * spent;
     }
   }
 }

@@ -17,7 +17,17 @@ export const plotlyBackend: PlotBackend = {
   react(el, data, layout, config) {
     ignore(Plotly.react(el, data as never, layout as never, config as never));
   },
-  extendTraces(el, update, indices, maxPoints) {
+  extendTraces(el, update, indices, maxPoints, axes) {
+    if (axes !== undefined) {
+      // extendTraces redraws the whole plot from the element's layout (Plotly.redraw, plotly.js
+      // issue #2358): axis attributes set there now are drawn by that one redraw, where a
+      // relayout would be a second one (Plotly's docs on `redraw`: mutate, then redraw).
+      const layout = (el as HTMLElement & { layout?: Record<string, unknown> }).layout;
+      for (const [name, attributes] of Object.entries(axes)) {
+        const axis = layout?.[name];
+        if (typeof axis === "object" && axis !== null) Object.assign(axis, attributes);
+      }
+    }
     ignore(Plotly.extendTraces(el, update, indices, maxPoints));
   },
   restyle(el, update, indices) {

@@ -1,6 +1,7 @@
 import { describe, expect, it } from "vitest";
 import { TCP_PLOTS, axisTitle, axisTitles, tracesOf } from "./plots";
 import { setupPlot as setup, spec } from "./plotTestSupport";
+import { BUCKETS_PER_WINDOW } from "./plotting";
 
 describe("plot definitions", () => {
   it("name traces by the layout's channels and put the layout's units on the axes", () => {
@@ -65,7 +66,7 @@ describe("LivePlot", () => {
     const last = backend.calls.at(-1)!;
     expect(last.op).toBe("react");
     const data = last.args[1] as { x: number[] }[];
-    expect(data[0]!.x.length).toBeGreaterThanOrEqual(290); // 5 s of a 10 s window
+    expect(data[0]!.x.length).toBeGreaterThanOrEqual(BUCKETS_PER_WINDOW - 10); // 5 s of a 10 s window, 2 points a bucket
   });
 
   it("a new window rebuilds with a new uirevision; data alone keeps the zoom's uirevision", () => {
