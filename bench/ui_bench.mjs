@@ -10,10 +10,10 @@
 // values' own rate), the heap at the end within 10 % of the heap at 10 s (run with --seconds 600
 // for the 10-minute figure). Only loopback addresses are used.
 import { spawn } from "node:child_process";
-import { mkdtempSync, rmSync, writeFileSync } from "node:fs";
+import { mkdtempSync, readdirSync, readFileSync, rmSync, writeFileSync } from "node:fs";
 import { createRequire } from "node:module";
 import net from "node:net";
-import { tmpdir } from "node:os";
+import { loadavg, tmpdir } from "node:os";
 import { dirname, join, resolve } from "node:path";
 import { fileURLToPath } from "node:url";
 
@@ -43,6 +43,60 @@ const snapshotDir = snapshotIdx >= 0 ? process.argv[snapshotIdx + 1] : undefined
 // Diagnosis: a CPU profile of the page from 10 s to the end into this file (.cpuprofile).
 const profileIdx = process.argv.indexOf("--cpu-profile");
 const profileFile = profileIdx >= 0 ? process.argv[profileIdx + 1] : undefined;
+// Diagnosis: a DevTools performance trace of 5 s of the panel from 10 s on into this file (.json).
+const traceIdx = process.argv.indexOf("--trace");
+const traceFile = traceIdx >= 0 ? process.argv[traceIdx + 1] : undefined;
+// Another build of the frontend (e.g. the previous commit's, for a comparison in the same hour).
+const distIdx = process.argv.indexOf("--frontend-dir");
+const frontendDir = distIdx >= 0 ? resolve(process.argv[distIdx + 1]) : join(root, "frontend", "dist");
+
+/** The load average now, printed with every figure: the machine may be shared. */
+const load = () => loadavg().map((l) => l.toFixed(2)).join(" ");
+
+/**
+ * CPU time (ms) of the browser's processes by thread name (Linux /proc): the renderer's main
+ * thread ("chromium", JavaScript, style, layout, paint) apart from its raster workers
+ * ("ThreadPoolForeg…"). CPU time, unlike wall time, hardly grows when other programs load the
+ * machine, so it compares runs made at different loads.
+ */
+function browserCpu_ms() {
+  const children = new Map();
+  for (const d of readdirSync("/proc")) {
+    if (!/^\d+$/.test(d)) continue;
+    try {
+      const stat = readFileSync(`/proc/${d}/stat`, "utf8");
+      const ppid = Number(stat.slice(stat.lastIndexOf(")") + 2).split(" ")[1]);
+      children.set(ppid, [...(children.get(ppid) ?? []), Number(d)]);
+    } catch {
+      // gone meanwhile
+    }
+  }
+  const byThread = {};
+  // The browser's processes only: not the demo (emulator and service) this program started.
+  const stack = (children.get(process.pid) ?? []).filter((pid) => pid !== demo.pid);
+  while (stack.length > 0) {
+    const pid = stack.pop();
+    stack.push(...(children.get(pid) ?? []));
+    let tasks = [];
+    try {
+      tasks = readdirSync(`/proc/${pid}/task`);
+    } catch {
+      continue;
+    }
+    for (const tid of tasks) {
+      try {
+        const stat = readFileSync(`/proc/${pid}/task/${tid}/stat`, "utf8");
+        const name = stat.slice(stat.indexOf("(") + 1, stat.lastIndexOf(")")).replace(/\d+$/, "");
+        const f = stat.slice(stat.lastIndexOf(")") + 2).split(" ");
+        // utime + stime, in clock ticks of 10 ms.
+        byThread[name] = (byThread[name] ?? 0) + (Number(f[11]) + Number(f[12])) * 10;
+      } catch {
+        // gone meanwhile
+      }
+    }
+  }
+  return byThread;
+}
 
 function freePort(host) {
   return new Promise((resolvePort, reject) => {
@@ -92,7 +146,7 @@ const demo = spawn(
     "--control-port", String(controlPort),
     "--rpi-ms", String(rpiMs),
     "--state-dir", stateDir,
-    "--frontend-dir", join(root, "frontend", "dist"),
+    "--frontend-dir", frontendDir,
   ],
   { detached: true, stdio: ["ignore", "ignore", "pipe"] },
 );
@@ -186,6 +240,7 @@ try {
       };
     });
 
+  const loadAtStart = load();
   await page.goto(`${base}/`);
   await page.waitForFunction(
     () => Number(document.querySelector('[data-testid="plot-joint-position"]')?.getAttribute("data-points") ?? 0) > 0,
@@ -217,9 +272,16 @@ try {
     await cdp.send("Profiler.setSamplingInterval", { interval: 200 });
     await cdp.send("Profiler.start");
   }
+  if (traceFile !== undefined) {
+    await browser.startTracing(page, { path: traceFile, categories: ["devtools.timeline", "disabled-by-default-devtools.timeline", "blink", "cc"] });
+    await sleep(5000);
+    await browser.stopTracing();
+  }
   const t10 = await sample();
+  const cpu10 = browserCpu_ms();
   await sleep(Math.max(0, seconds - HEAP_FIRST_S) * 1000);
   const tEnd = await sample();
+  const cpuEnd = browserCpu_ms();
   if (profileFile !== undefined) {
     const { profile } = await cdp.send("Profiler.stop");
     writeFileSync(profileFile, JSON.stringify(profile));
@@ -247,9 +309,18 @@ try {
   const updates = tEnd.plotUpdates - t0.plotUpdates;
   const updateMean_ms = updates > 0 ? (tEnd.updateTime_ms - t0.updateTime_ms) / updates : null;
   const secondsMeasured = span(t0, tEnd);
+  const steadyS = span(t10, tEnd);
+  const cpuDelta = (re) =>
+    Object.entries(cpuEnd)
+      .filter(([name]) => re.test(name))
+      .reduce((sum, [name, ms]) => sum + ms - (cpu10[name] ?? 0), 0) / steadyS;
+  const cpuMain = cpuDelta(/^chromium$/);
+  const cpuRaster = cpuDelta(/^ThreadPool/);
+  const cpuAll = cpuDelta(/./);
+  const steadyUpdates = tEnd.plotUpdates - t10.plotUpdates;
   console.log(
     `bench/ui: panel ${width}x${height} in headless Chromium, RPI ${rpiMs} ms, ${secondsMeasured.toFixed(1)} s, ` +
-      `joint plots in view: ${inView.filter(Boolean).length}/${jointIds.length}`,
+      `joint plots in view: ${inView.filter(Boolean).length}/${jointIds.length}; load average ${loadAtStart} at the start, ${load()} at the end`,
   );
   console.log(`  rendered frames/s   ${fpsAll.toFixed(1)} over the run, ${fpsSteady.toFixed(1)} from ${HEAP_FIRST_S} s on`);
   console.log(
@@ -262,6 +333,10 @@ try {
   );
   console.log(
     `  plot updates        ${(updates / secondsMeasured).toFixed(1)}/s in all, ${updateMean_ms === null ? "—" : updateMean_ms.toFixed(1)} ms each on average (Plotly included), longest ${tEnd.updateTimeMax_ms.toFixed(0)} ms, duty ${tEnd.duty?.toFixed(2)}`,
+  );
+  console.log(
+    `  browser CPU         ${cpuAll.toFixed(0)} ms/s from ${HEAP_FIRST_S} s on: renderer main thread ${cpuMain.toFixed(0)} ms/s, raster ${cpuRaster.toFixed(0)} ms/s; ` +
+      `${steadyUpdates > 0 ? ((cpuAll * steadyS) / steadyUpdates).toFixed(1) : "—"} ms of CPU per plot update, page included`,
   );
   for (const p of plotRates) {
     console.log(`  ${p.id.padEnd(30)} ${p.updates_per_s.toFixed(1).padStart(5)} redraws/s, ${p.points} points/trace${p.onScreen ? "" : " (out of view)"}`);
@@ -295,6 +370,11 @@ try {
       robot_gaps: robotGaps,
       plot_updates_per_s: updates / secondsMeasured,
       plot_update_mean_ms: updateMean_ms,
+      load_average_start: loadAtStart,
+      load_average_end: load(),
+      browser_cpu_ms_per_s: cpuAll,
+      renderer_main_cpu_ms_per_s: cpuMain,
+      raster_cpu_ms_per_s: cpuRaster,
       plots_in_view: inViewRates.length,
       plot_redraws_per_s_slowest_in_view: slowest,
       plots: plotRates,
@@ -322,7 +402,7 @@ try {
     const drawsPerS = (d1.renders - d0.renders) / s3d;
     console.log(
       `  3D view in view (${s3d.toFixed(1)} s): ${drawsPerS.toFixed(1)} draws/s, page ${((d1.frames - d0.frames) / s3d).toFixed(1)} frames/s; ` +
-        `target >= 30 draws/s ${drawsPerS >= 30 ? "MET" : "MISSED"}`,
+        `target >= 30 draws/s ${drawsPerS >= 30 ? "MET" : "MISSED"}; load average ${load()}`,
     );
   }
 
@@ -367,7 +447,7 @@ try {
     console.log(
       `  kiosk (1920x1080, ${((k1.now - k0.now) / 1000).toFixed(1)} s): ${((k1.frames - k0.frames) / ((k1.now - k0.now) / 1000)).toFixed(1)} frames/s, ` +
         `JS heap ${kHeap10.toFixed(2)} MB at ${HEAP_FIRST_S} s, ${kHeapEnd.toFixed(2)} MB at the end (${(kGrowth * 100).toFixed(1)} %); ` +
-        `every 10 s: ${series.map((h) => h.toFixed(1)).join(" ")} MB`,
+        `every 10 s: ${series.map((h) => h.toFixed(1)).join(" ")} MB; load average ${load()}`,
     );
   }
 } catch (error) {
