@@ -19,6 +19,7 @@ import {
   MARKER_WIDTH_TOUCH_PX,
   markerSpacing,
   markersOf,
+  rangeOfMarker,
   type ExportFormat,
   type TimeRange,
 } from "../lib/historyView";
@@ -113,8 +114,11 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
     plot.mount(el);
     plotRef.current = plot;
     coordinator.add(plot);
-    // A marker's jump in any plot of the panel moves this one too.
-    const stopListening = historyAccess?.timeRange.subscribe((range) => plot.showRange(range));
+    // A marker's jump in any plot of the panel moves this one too, and back to live from it.
+    const stopListening = historyAccess?.timeRange.subscribe((event) => {
+      if (event.kind === "jump") plot.showRange(event.range);
+      else if (plot.isShowing(event.range)) plot.backToLive();
+    });
     let observer: IntersectionObserver | null = null;
     if (typeof IntersectionObserver !== "undefined") {
       observer = new IntersectionObserver((entries) => {
@@ -142,7 +146,11 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
   const backToLive = () => {
     setPaused(false);
     setCustom(null);
-    plotRef.current?.backToLive();
+    const plot = plotRef.current;
+    const shared = historyAccess?.timeRange;
+    // On the panel's shared range (a marker's jump): every plot still on it goes back.
+    if (plot !== null && shared !== undefined && shared.current !== null && plot.isShowing(shared.current)) shared.backToLive();
+    else plot?.backToLive();
   };
   const exportPng = () => {
     const stamp = new Date().toISOString().replace(/[:.]/g, "-");
@@ -360,9 +368,10 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
               data-kind={m.kind}
               data-kinds={m.events.map((e) => e.kind).join(" ")}
               data-time={m.time_s}
+              data-last={m.last_s}
               title={`${m.label} at ${localText(m.time_s)}: show this moment in every plot`}
               aria-label={`${m.label} at ${localText(m.time_s)}`}
-              onClick={() => history?.access.timeRange.jumpAround(m.time_s)}
+              onClick={() => history?.access.timeRange.jumpTo(rangeOfMarker(m))}
               style={{
                 // Kept inside the strip at its ends (no overflow of a narrow screen).
                 left: `clamp(22px, calc(${margin.l}px + (100% - ${margin.l + margin.r}px) * ${m.at}), calc(100% - 22px))`,

@@ -14,7 +14,7 @@ import {
   markerSpacing,
   markersOf,
   newestRecorded,
-  rangeAround,
+  rangeOfMarker,
   type HistoryAnswer,
   type HistoryEvent,
   type RangeData,
@@ -26,12 +26,12 @@ import { JOINT_PLOTS, TCP_PLOTS } from "./plots";
 const NOW = 1_795_500_000;
 
 describe("ranges", () => {
-  it("custom ranges are checked; a marker's range centres it", () => {
+  it("custom ranges are checked; a marker of one event is in the middle of its range", () => {
     expect(customRange(NOW - 60, NOW)).toEqual({ from_s: NOW - 60, to_s: NOW });
     expect(customRange(NOW, NOW)).toMatch(/after the start/);
     expect(customRange(Number.NaN, NOW)).toMatch(/Both times/);
-    expect(rangeAround(NOW, 60)).toEqual({ from_s: NOW - 30, to_s: NOW + 30 });
-    expect(rangeAround(NOW)).toEqual({ from_s: NOW - 30, to_s: NOW + 30 });
+    expect(rangeOfMarker({ time_s: NOW, last_s: NOW })).toEqual({ from_s: NOW - 30, to_s: NOW + 30 });
+    expect(rangeOfMarker({ time_s: NOW, last_s: NOW }, 5)).toEqual({ from_s: NOW - 5, to_s: NOW + 5 });
   });
 
   it("asks for one bucket per pixel, within the service's 1–5000", () => {
@@ -149,7 +149,11 @@ describe("markers", () => {
     const later = { ...estop, id: 9, time: NOW + 40, to_name: "STANDALONE_RUNNING" } as HistoryEvent;
     const markers = markersOf([estop, standby, later], range);
     expect(markers.map((m) => m.label)).toEqual(["State EMERGENCY_STOP; State STANDALONE_STANDBY", "State STANDALONE_RUNNING"]);
-    expect(markers[0]!.time_s).toBe(NOW + 25); // a click jumps to the first
+    expect(markers[0]!.time_s).toBe(NOW + 25);
+    expect(markers[0]!.last_s).toBe(NOW + 26);
+    // A click shows every event of the marker, half a minute either side.
+    expect(rangeOfMarker(markers[0]!)).toEqual({ from_s: NOW - 5, to_s: NOW + 56 });
+    expect(rangeOfMarker(markers[1]!)).toEqual({ from_s: NOW + 10, to_s: NOW + 70 });
     expect(markers[0]!.events).toHaveLength(2);
     expect(markers[1]!.kind).toBe("robot_state");
     const zoomed = markersOf([estop, standby, later], { from_s: NOW + 20, to_s: NOW + 30 });

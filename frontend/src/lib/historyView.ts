@@ -28,9 +28,9 @@ export function customRange(from_s: number, to_s: number): TimeRange | string {
   return { from_s, to_s };
 }
 
-/** Around a marker: `span_s` wide (default 60 s), the marker at its centre. */
-export function rangeAround(time_s: number, span_s = 60): TimeRange {
-  return { from_s: time_s - span_s / 2, to_s: time_s + span_s / 2 };
+/** Where a click on a marker jumps: `margin_s` (default 30 s) before its first event and after its last. */
+export function rangeOfMarker(marker: { readonly time_s: number; readonly last_s: number }, margin_s = 30): TimeRange {
+  return { from_s: marker.time_s - margin_s, to_s: marker.last_s + margin_s };
 }
 
 export const MAX_POINTS = 5000;
@@ -145,8 +145,10 @@ export interface MarkerEvent {
 /** One marker: an event, or events too close together to tell apart at this zoom. */
 export interface Marker {
   readonly id: string;
-  /** The first event's time: where a click jumps to. */
+  /** The first event's time. */
   readonly time_s: number;
+  /** The last event's time (the first's, for a marker of one event). */
+  readonly last_s: number;
   /** "alarm" when any of its events is an alarm or an emergency stop, else the first's kind. */
   readonly kind: HistoryEvent["kind"];
   /** Its events' words, oldest first, "; " between. */
@@ -208,6 +210,7 @@ export function markersOf(events: readonly HistoryEvent[], range: TimeRange, spa
   return groups.map((g, i) => ({
     id: `${g.first.id ?? i}-${g.first.time}`,
     time_s: g.first.time,
+    last_s: g.events[g.events.length - 1]?.time_s ?? g.first.time,
     kind: g.events.some(urgent) ? "alarm" : g.first.kind,
     label: g.events.map((e) => e.label).join("; "),
     events: g.events,

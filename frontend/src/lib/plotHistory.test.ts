@@ -8,7 +8,8 @@ import type { HistoryAnswer, HistoryEvent, RangeData, TimeRange, Timer } from ".
 import { LivePlot, MOVING_REFRESH_MIN_MS, type HistoryShown, type PlotBackend } from "./plotting";
 import { ChannelMap, JOINT_PLOTS } from "./plots";
 import { SampleRing } from "./ringBuffer";
-import { PlotTimeRange } from "./timeRange";
+import { rangeOfMarker } from "./historyView";
+import { PlotTimeRange, type SharedTimeEvent } from "./timeRange";
 
 type Call = { op: string; args: unknown[] };
 type Trace = { name?: string; x: number[]; y: (number | null)[]; visible?: boolean; fill?: string };
@@ -370,12 +371,18 @@ describe("markers and the shared time range", () => {
     a.plot.update(0);
     b.plot.update(0);
     const shared = new PlotTimeRange();
-    const stopA = shared.subscribe((r) => a.plot.showRange(r));
-    shared.subscribe((r) => b.plot.showRange(r));
+    // What each plot's view does with the panel's shared range (components/LivePlotView.tsx).
+    const follow = (plot: LivePlot) => (e: SharedTimeEvent) => {
+      if (e.kind === "jump") plot.showRange(e.range);
+      else if (plot.isShowing(e.range)) plot.backToLive();
+    };
+    const stopA = shared.subscribe(follow(a.plot));
+    shared.subscribe(follow(b.plot));
     const moment_s = (T0 - 240_000) / 1000;
-    shared.jumpAround(moment_s);
+    shared.jumpTo(rangeOfMarker({ time_s: moment_s, last_s: moment_s }));
     for (const p of [a, b]) {
       expect(p.plot.viewKind).toBe("fixed");
+      expect(p.shown.at(-1)!.range).toEqual({ from_s: moment_s - 30, to_s: moment_s + 30 }); // told at once
       expect(p.fetches).toHaveLength(1); // no debounce for a jump
       expect(p.fetches[0]!.range).toEqual({ from_s: moment_s - 30, to_s: moment_s + 30 });
     }
@@ -389,10 +396,29 @@ describe("markers and the shared time range", () => {
     expect(a.shown.at(-1)!.range).toEqual({ from_s: moment_s - 30, to_s: moment_s + 30 });
     // A plot that stopped listening stays where it is.
     stopA();
-    shared.jumpAround(moment_s + 100);
+    shared.jumpTo(rangeOfMarker({ time_s: moment_s + 100, last_s: moment_s + 100 }));
     expect(a.fetches).toHaveLength(1);
     expect(b.fetches).toHaveLength(2);
     expect(shared.listenerCount).toBe(1);
+  });
+
+  it("back to live from the shared range brings back every plot still on it, not one moved on", async () => {
+    const [a, b, c] = [setup(), setup(), setup()];
+    const shared = new PlotTimeRange();
+    for (const p of [a, b, c]) {
+      fill(p.push);
+      p.plot.update(0);
+      shared.subscribe((e) => {
+        if (e.kind === "jump") p.plot.showRange(e.range);
+        else if (p.plot.isShowing(e.range)) p.plot.backToLive();
+      });
+    }
+    shared.jumpTo({ from_s: (T0 - 270_000) / 1000, to_s: (T0 - 210_000) / 1000 });
+    expect(a.plot.isShowing(shared.current!)).toBe(true);
+    c.moveTo(T0 - 500_000, T0 - 400_000); // c panned on: a range of its own
+    expect(c.plot.isShowing(shared.current!)).toBe(false);
+    shared.backToLive();
+    expect([a, b, c].map((p) => p.plot.viewKind)).toEqual(["ring", "ring", "fixed"]);
   });
 
   it("a paused plot leaves its pause for a jump", () => {

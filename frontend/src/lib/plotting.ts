@@ -306,6 +306,14 @@ export class LivePlot {
     this.enterView({ kind: "fixed", from_ms: range.from_s * 1000, to_ms: range.to_s * 1000 }, { immediate: true, redraw: true, fresh: true });
   }
 
+  /** Whether the plot shows `range` (a fixed range of the past, to the millisecond). */
+  isShowing(range: TimeRange): boolean {
+    const view = this.view;
+    return (
+      view.kind === "fixed" && Math.abs(view.from_ms - range.from_s * 1000) < 1 && Math.abs(view.to_ms - range.to_s * 1000) < 1
+    );
+  }
+
   /**
    * Switch views. `immediate`: fetch now, not after the debounce; `redraw`: draw the new range at
    * once (with what is at hand) rather than when its answer comes (a person's move has put
@@ -412,7 +420,10 @@ export class LivePlot {
 
   private tell(): void {
     if (this.onHistory === null) return;
-    const r = this.view.kind === "ring" ? null : (this.drawnRange_ms ?? this.wantedRange_ms());
+    // A range of the past is told as soon as it is chosen (its markers with it); a moving window
+    // as last drawn.
+    const view = this.view.kind;
+    const r = view === "ring" ? null : view === "fixed" ? this.wantedRange_ms() : (this.drawnRange_ms ?? this.wantedRange_ms());
     this.onHistory({
       view: this.view.kind,
       range: r === null ? null : { from_s: r.from / 1000, to_s: r.to / 1000 },
