@@ -2,13 +2,22 @@
  * The robot in 3D, drawn from its joint angles with its model's kinematics and following the
  * frames live, with the flange's path over the last seconds. three.js is loaded with this view
  * (its own chunk, lib/robotScene3d.ts); samples go from the ring to the scene in an animation-
- * frame loop of its own, never through React state. Rotate by dragging, zoom with the wheel,
- * "Reset view" returns to the home view; the kiosk shows it without controls.
+ * frame loop of its own, never through React state. On the panel the view turns by dragging,
+ * by the arrow keys while it has the focus, or by its buttons (touch screens too); it zooms with
+ * the wheel, + and −, or its buttons; "Reset view" (or 0) returns to the home view
+ * (lib/orbitCamera.ts: the steps and limits). The kiosk shows it without controls.
+ *
+ * For tests and the benchmark the view reports, as attributes of its figure (never React
+ * state): `data-renders` (how often it drew), the camera (`data-camera-azimuth-deg`,
+ * `-elevation-deg`, `-distance-mm`, whole numbers, on every change), and at most ten times a
+ * second the joint angles drawn (`data-joints-deg`, one decimal) and the flange's path
+ * (`data-tcp-path-points`, `data-tcp-path-mm` its length).
  */
-import { useEffect, useRef, useState } from "react";
+import { useEffect, useId, useRef, useState, type KeyboardEvent } from "react";
 import { ARMS } from "../generated/arms";
 import { ArmChain, armNameOf } from "../lib/armKinematics";
-import { DEFAULT_TRAIL_MS, RobotPoseFeed } from "../lib/robotPose";
+import { actionOfKey, cameraReadout, type CameraAction } from "../lib/orbitCamera";
+import { DEFAULT_TRAIL_MS, pathLength, RobotPoseFeed } from "../lib/robotPose";
 import { useRuntime } from "./runtimeContext";
 import "../styles/robot3d.css";
 
@@ -21,6 +30,19 @@ interface Props {
   readonly height_px?: number;
 }
 
+/** The view's buttons: what each does, its symbol and its name for a screen reader. */
+const CAMERA_BUTTONS: readonly { action: CameraAction; symbol: string; label: string }[] = [
+  { action: "rotate-left", symbol: "\u25C0", label: "Turn left" },
+  { action: "rotate-right", symbol: "\u25B6", label: "Turn right" },
+  { action: "rotate-up", symbol: "\u25B2", label: "View from higher" },
+  { action: "rotate-down", symbol: "\u25BC", label: "View from lower" },
+  { action: "zoom-in", symbol: "+", label: "Zoom in" },
+  { action: "zoom-out", symbol: "\u2212", label: "Zoom out" },
+];
+
+/** How often at most the joint angles and the path are written to the page's attributes. */
+const READOUT_INTERVAL_MS = 100;
+
 /** How far an arm reaches about (m): the sum of its joint offsets. */
 function reachOf(chain: ArmChain): number {
   return chain.arm.joints.reduce((sum, j) => sum + Math.hypot(...j.originXyz_m), 0);
@@ -30,8 +52,9 @@ export function Robot3DView({ model, theme, interactive = true, height_px = 420 
   const { live } = useRuntime();
   const holder = useRef<HTMLDivElement | null>(null);
   const wrapper = useRef<HTMLDivElement | null>(null);
-  const reset = useRef<(() => void) | null>(null);
+  const act = useRef<((action: CameraAction) => void) | null>(null);
   const [problem, setProblem] = useState<string | null>(null);
+  const hintId = useId();
   const arm = armNameOf(model);
 
   useEffect(() => {
@@ -65,12 +88,38 @@ export function Robot3DView({ model, theme, interactive = true, height_px = 420 
         }
         setProblem(null);
         let dirty = true;
+        let cameraMoved = true;
         scene.onCameraChange(() => {
           dirty = true;
+          cameraMoved = true;
         });
-        reset.current = () => {
-          scene.resetView();
+        act.current = (action) => {
+          scene.cameraAction(action);
           dirty = true;
+          cameraMoved = true;
+        };
+        let trailCount = 0;
+        let readoutAt_ms = -Infinity;
+        let rendersShown = 0;
+        const report = (now_ms: number) => {
+          const data = wrapper.current?.dataset;
+          if (data === undefined) return;
+          if (scene.renders !== rendersShown) {
+            rendersShown = scene.renders;
+            data.renders = String(rendersShown);
+          }
+          if (cameraMoved) {
+            cameraMoved = false;
+            const camera = cameraReadout(scene.orbit());
+            data.cameraAzimuthDeg = String(camera.azimuth_deg);
+            data.cameraElevationDeg = String(camera.elevation_deg);
+            data.cameraDistanceMm = String(camera.distance_mm);
+          }
+          if (now_ms - readoutAt_ms < READOUT_INTERVAL_MS) return;
+          readoutAt_ms = now_ms;
+          data.jointsDeg = Array.from(feed.drawn_deg, (v) => v.toFixed(1)).join(",");
+          data.tcpPathPoints = String(trailCount);
+          data.tcpPathMm = String(Math.round(pathLength(scene.trailArray, trailCount) * 1000));
         };
         const fit = () => {
           scene.resize(el.clientWidth, el.clientHeight);
@@ -90,27 +139,28 @@ export function Robot3DView({ model, theme, interactive = true, height_px = 420 
             : null;
         visibility?.observe(el);
         let handle = 0;
-        const loop = () => {
+        const loop = (now_ms: number) => {
           handle = requestAnimationFrame(loop);
           feed.update();
           // The pose played back a little behind the newest frame, so it moves every frame.
           if (feed.poseAt(performance.now())) {
             scene.setPose(feed.frames);
-            scene.setTrailCount(feed.trailInto(scene.trailArray));
+            trailCount = feed.trailInto(scene.trailArray);
+            scene.setTrailCount(trailCount);
             dirty = true;
           }
-          if (!dirty || !feed.hasPose || !onScreen) return;
-          dirty = false;
-          scene.render();
-          // For tests and the benchmark: how often it drew (an attribute, not React state).
-          if (wrapper.current !== null) wrapper.current.dataset.renders = String(scene.renders);
+          if (dirty && feed.hasPose && onScreen) {
+            dirty = false;
+            scene.render();
+          }
+          if (feed.hasPose) report(now_ms);
         };
         handle = requestAnimationFrame(loop);
         stop = () => {
           cancelAnimationFrame(handle);
           observer?.disconnect();
           visibility?.disconnect();
-          reset.current = null;
+          act.current = null;
           scene.dispose();
         };
       })
@@ -123,6 +173,14 @@ export function Robot3DView({ model, theme, interactive = true, height_px = 420 
     };
   }, [live, arm.name, theme, interactive]);
 
+  const onKeyDown = (event: KeyboardEvent<HTMLDivElement>) => {
+    const action = actionOfKey(event.key, { ctrl: event.ctrlKey, alt: event.altKey, meta: event.metaKey });
+    if (action === null || act.current === null) return;
+    event.preventDefault(); // the arrows would scroll the page
+    act.current(action);
+  };
+  const canvasLabel = `${arm.name} in 3D`;
+
   return (
     <figure className={`robot3d robot3d--${theme}`} data-testid="robot-3d" data-arm={arm.name} data-renders="0" ref={wrapper}>
       <figcaption className="robot3d__header">
@@ -132,10 +190,27 @@ export function Robot3DView({ model, theme, interactive = true, height_px = 420 
         </span>
         {interactive && (
           <span className="robot3d__controls">
-            <span className="robot3d__hint">drag to rotate, wheel to zoom, right-drag to pan</span>
-            <button type="button" data-testid="robot-3d-reset" onClick={() => reset.current?.()}>
-              Reset view
-            </button>
+            <span className="robot3d__hint" id={hintId}>
+              drag or arrow keys to turn, wheel or + − to zoom, right-drag to pan, 0 to reset
+            </span>
+            <span className="robot3d__buttons" role="group" aria-label="3D view camera">
+              {CAMERA_BUTTONS.map(({ action, symbol, label }) => (
+                <button
+                  key={action}
+                  type="button"
+                  className="robot3d__button"
+                  data-testid={`robot-3d-${action}`}
+                  aria-label={label}
+                  title={label}
+                  onClick={() => act.current?.(action)}
+                >
+                  <span aria-hidden="true">{symbol}</span>
+                </button>
+              ))}
+              <button type="button" className="robot3d__button robot3d__button--reset" data-testid="robot-3d-reset" onClick={() => act.current?.("reset")}>
+                Reset view
+              </button>
+            </span>
           </span>
         )}
       </figcaption>
@@ -144,7 +219,22 @@ export function Robot3DView({ model, theme, interactive = true, height_px = 420 
           {problem}
         </p>
       )}
-      <div className="robot3d__canvas" ref={holder} style={{ height: `${height_px}px` }} />
+      {interactive ? (
+        // Focusable so the keys reach it; "application": a screen reader passes the arrows on.
+        <div
+          className="robot3d__canvas"
+          ref={holder}
+          style={{ height: `${height_px}px` }}
+          tabIndex={0}
+          role="application"
+          aria-label={`${canvasLabel}: arrow keys turn the view, + and − zoom, 0 resets`}
+          aria-describedby={hintId}
+          data-testid="robot-3d-canvas"
+          onKeyDown={onKeyDown}
+        />
+      ) : (
+        <div className="robot3d__canvas" ref={holder} style={{ height: `${height_px}px` }} role="img" aria-label={canvasLabel} data-testid="robot-3d-canvas" />
+      )}
     </figure>
   );
 }

@@ -3,7 +3,7 @@ import { ARMS } from "../generated/arms";
 import { ArmChain, originOf } from "./armKinematics";
 import { ChannelMap, JOINT_PLOTS } from "./plots";
 import { SampleRing } from "./ringBuffer";
-import { RobotPoseFeed, TcpTrail } from "./robotPose";
+import { pathLength, RobotPoseFeed, TcpTrail } from "./robotPose";
 
 describe("TcpTrail", () => {
   it("keeps only the window behind the newest point, oldest first", () => {
@@ -21,6 +21,20 @@ describe("TcpTrail", () => {
     const out = new Float32Array(12);
     expect(trail.copyInto(out)).toBe(4);
     expect([out[0], out[3], out[6], out[9]]).toEqual([6, 7, 8, 9]);
+  });
+});
+
+describe("pathLength", () => {
+  it("adds the straight segments between the points given, and is 0 for one point or none", () => {
+    const xyz = new Float32Array([0, 0, 0, 3, 4, 0, 3, 4, 12, 99, 99, 99]);
+    expect(pathLength(xyz, 3)).toBeCloseTo(17, 6); // 5 + 12, the fourth point not counted
+    expect(pathLength(xyz, 2)).toBeCloseTo(5, 6);
+    expect(pathLength(xyz, 1)).toBe(0);
+    expect(pathLength(xyz, 0)).toBe(0);
+  });
+
+  it("is 0 for a flange that stands still", () => {
+    expect(pathLength(new Float32Array([0.5, 0.2, 0.7, 0.5, 0.2, 0.7, 0.5, 0.2, 0.7]), 3)).toBe(0);
   });
 });
 
@@ -72,8 +86,13 @@ describe("RobotPoseFeed", () => {
     // Every animation frame moves it, without new data.
     expect(feed.poseAt(5081)).toBe(true);
     expect(tcpOf(feed)[1]).toBeCloseTo(at(21)[1], 6);
+    // The joint angles drawn are the interpolated ones, whatever the ring read since.
+    expect(feed.drawn_deg[0]).toBeCloseTo(21, 9);
+    expect(Array.from(feed.drawn_deg.subarray(1))).toEqual([0, 90, 0, 90, 0]);
     // The same moment again: nothing to draw.
     expect(feed.poseAt(5081)).toBe(false);
+    feed.update(); // reads nothing new, changes nothing drawn
+    expect(feed.drawn_deg[0]).toBeCloseTo(21, 9);
     // It never runs ahead of the data: held at the newest sample.
     expect(feed.poseAt(9000)).toBe(true);
     expect(tcpOf(feed)[1]).toBeCloseTo(at(90)[1], 6);

@@ -81,12 +81,28 @@ export class TcpTrail {
   }
 }
 
+/** The length of the path of `count` points of x, y, z in `xyz` (in the points' unit). */
+export function pathLength(xyz: Float32Array, count: number): number {
+  let length = 0;
+  for (let k = 1; k < count; k++) {
+    const i = k * 3;
+    length += Math.hypot(
+      (xyz[i] as number) - (xyz[i - 3] as number),
+      (xyz[i + 1] as number) - (xyz[i - 2] as number),
+      (xyz[i + 2] as number) - (xyz[i - 1] as number),
+    );
+  }
+  return length;
+}
+
 /** The arm's pose and flange path, fed from the sample ring. */
 export class RobotPoseFeed {
   readonly chain: ArmChain;
   /** Base frame then each link's frame for the newest sample (m, base frame). */
   readonly frames: Transform[];
   readonly trail: TcpTrail;
+  /** The joint angles of the pose drawn (degrees; `frames` is their forward kinematics). */
+  readonly drawn_deg: Float64Array;
   private readonly ring: SampleRing;
   private readonly jointChannels: readonly number[];
   private readonly joints_deg: Float64Array;
@@ -117,6 +133,7 @@ export class RobotPoseFeed {
     this.jointChannels = Array.from({ length: n }, (_, i) => channels.channelOf("joint_position", i));
     this.joints_deg = new Float64Array(n);
     this.after_deg = new Float64Array(n);
+    this.drawn_deg = new Float64Array(n);
     this.delay_ms = delay_ms;
     this.frames = chain.newFrames();
     this.scratch = chain.newFrames();
@@ -181,6 +198,7 @@ export class RobotPoseFeed {
       }
     }
     this.chain.forward(this.joints_deg, this.frames);
+    this.drawn_deg.set(this.joints_deg);
     this.drawn_ms = t;
     this.hasPose = true;
     return true;

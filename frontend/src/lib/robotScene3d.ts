@@ -32,6 +32,7 @@ import {
 } from "three";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
 import type { Transform } from "./armKinematics";
+import { orbitLimits, orbitOf, positionOf, stepOrbit, type CameraAction, type Orbit, type OrbitLimits } from "./orbitCamera";
 
 export interface RobotSceneOptions {
   readonly theme: "light" | "dark";
@@ -61,6 +62,7 @@ export class RobotScene {
   private readonly trail: Line;
   private readonly trailPositions: BufferAttribute;
   private readonly home: { position: Vector3; target: Vector3 };
+  private readonly limits: OrbitLimits;
   private readonly a = new Vector3();
   private readonly b = new Vector3();
   private readonly dir = new Vector3();
@@ -141,9 +143,15 @@ export class RobotScene {
     this.jointRadius = r * 1.25;
     this.jointLength = r * 2.6;
 
+    this.limits = orbitLimits(reach);
     if (options.interactive) {
       this.controls = new OrbitControls(this.camera, this.canvas);
       this.controls.enableDamping = false; // a change redraws once, not for a second afterwards
+      // The mouse keeps within the limits the buttons and keys do (polar angle: from +z, the up).
+      this.controls.minDistance = this.limits.minDistance_m;
+      this.controls.maxDistance = this.limits.maxDistance_m;
+      this.controls.minPolarAngle = Math.PI / 2 - this.limits.maxElevation_rad;
+      this.controls.maxPolarAngle = Math.PI / 2 - this.limits.minElevation_rad;
     } else {
       this.controls = null;
     }
@@ -171,6 +179,23 @@ export class RobotScene {
     } else {
       this.camera.lookAt(this.home.target);
     }
+  }
+
+  /** Where the camera is, around the point it looks at (m, rad; base frame, z up). */
+  orbit(): Orbit {
+    return orbitOf(this.camera.position, this.controls?.target ?? this.home.target);
+  }
+
+  /** One press of a view button or key: turn, zoom or reset, within the mouse's limits. */
+  cameraAction(action: CameraAction): void {
+    if (action === "reset") {
+      this.resetView();
+      return;
+    }
+    const target = this.controls?.target ?? this.home.target;
+    positionOf(stepOrbit(this.orbit(), action, this.limits), target, this.camera.position);
+    if (this.controls !== null) this.controls.update();
+    else this.camera.lookAt(target);
   }
 
   resize(width_px: number, height_px: number): void {
