@@ -102,7 +102,7 @@ test("a live plot: zoom back into history, the e-stop's marker, every plot jumps
   for (const p of [plot, other]) {
     await expect(p).toHaveAttribute("data-view", "fixed");
     await expect.poll(async () => Number(await p.getAttribute("data-from")), { timeout: 15_000 }).toBeCloseTo(first_s - 30, 1);
-    expect(Number(await p.getAttribute("data-to"))).toBeCloseTo(last_s + 30, 1);
+    expect(Number(await p.getAttribute("data-to"))).toBeGreaterThan(last_s + 30 - 0.05); // (or a newer last event)
   }
 
   // At this zoom the stop's marker (with its alarm, at the same moment) is its own or nearly:
@@ -114,8 +114,11 @@ test("a live plot: zoom back into history, the e-stop's marker, every plot jumps
   expect(stopFirst_s).toBeLessThan(pressed_s + 5);
   await stop.click();
   await expect.poll(async () => Number(await plot.getAttribute("data-from"))).toBeCloseTo(stopFirst_s - 30, 1);
+  // Its last event may be newer than when it was read (the newest answer brings the events
+  // since: the alarm's acknowledgement, the robot's next states), never older.
   const jumpTo_s = Number(await plot.getAttribute("data-to"));
-  expect(jumpTo_s).toBeCloseTo(stopLast_s + 30, 1);
+  expect(jumpTo_s).toBeGreaterThan(stopLast_s + 30 - 0.05);
+  expect(jumpTo_s).toBeGreaterThan(pressed_s + 25);
   await expect.poll(async () => Number(await plot.getAttribute("data-frames"))).toBeGreaterThan(100);
 
   // Zoom into the middle of the view (a box drag): the narrower range is fetched and drawn.
