@@ -2,27 +2,62 @@
 // layout's units, the state in plain words, a clock, connection health, no text under 18 px
 // and still nothing that can write.
 import type { Page } from "@playwright/test";
-import { expect, screenshot, test } from "../support/fixtures";
+import { expect, screenshot, test, type Service } from "../support/fixtures";
 import { settings } from "../support/settings";
 
-/** Every piece of text on the page smaller than 18 px (HTML text and Plotly's SVG text). */
+/**
+ * Every piece of text on the page that a person can see and that is smaller than 18 px (HTML
+ * text; Plotly's SVG text is measured apart). A text node counts as seen when it takes room on
+ * screen (its range has a box) and its element is visible (no `display: none` or
+ * `visibility: hidden` on it or above it, not fully transparent).
+ */
 async function smallText(page: Page): Promise<string[]> {
   return page.evaluate(() => {
     const small: string[] = [];
     const root = document.querySelector('[data-testid="kiosk"]');
     if (root === null) return ["no kiosk"];
     const walker = document.createTreeWalker(root, NodeFilter.SHOW_TEXT);
+    const range = document.createRange();
     for (let node = walker.nextNode(); node !== null; node = walker.nextNode()) {
       const text = node.textContent?.trim() ?? "";
       const el = node.parentElement;
       if (text === "" || el === null) continue;
-      const style = getComputedStyle(el);
-      if (style.display === "none" || style.visibility === "hidden") continue;
-      const size = parseFloat(style.fontSize);
+      if (!el.checkVisibility({ opacityProperty: true, visibilityProperty: true })) continue;
+      range.selectNodeContents(node);
+      const box = range.getBoundingClientRect();
+      if (box.width === 0 || box.height === 0) continue;
+      const size = parseFloat(getComputedStyle(el).fontSize);
       if (size < 18) small.push(`${el.tagName.toLowerCase()}.${String(el.getAttribute("class") ?? "")} "${text.slice(0, 20)}" ${size}px`);
     }
     return small;
   });
+}
+
+/** How many visible text nodes the kiosk has (so an empty page cannot pass the size check). */
+async function textCount(page: Page): Promise<number> {
+  return page.evaluate(() => {
+    const root = document.querySelector('[data-testid="kiosk"]');
+    if (root === null) return 0;
+    const walker = document.createTreeWalker(root, NodeFilter.SHOW_TEXT);
+    let n = 0;
+    for (let node = walker.nextNode(); node !== null; node = walker.nextNode()) {
+      if ((node.textContent?.trim() ?? "") !== "" && node.parentElement?.checkVisibility({ visibilityProperty: true }) === true) n++;
+    }
+    return n;
+  });
+}
+
+/**
+ * The kiosk's plot tick labels and titles (SVG text), their sizes in px: read in one go in the
+ * page, because Plotly replaces them as the live plots redraw (an element handed back to the
+ * test and measured later may be gone, and a detached element has no size).
+ */
+async function svgTextSizes(page: Page): Promise<number[]> {
+  return page.evaluate(() =>
+    Array.from(document.querySelectorAll('[data-testid="kiosk"] svg text'))
+      .filter((el) => (el.textContent?.trim() ?? "") !== "")
+      .map((el) => parseFloat(getComputedStyle(el).fontSize)),
+  );
 }
 
 test("the kiosk shows the tiles its URL chooses, the state in words, a clock; no small text", async ({ page, robot }, testInfo) => {
@@ -60,9 +95,7 @@ test("the kiosk shows the tiles its URL chooses, the state in words, a clock; no
 
   // Readable from three metres: nothing under 18 px, plot tick labels included.
   expect(await smallText(page)).toEqual([]);
-  const tickSizes = await page.locator('[data-testid="kiosk"] svg text').evaluateAll((els) =>
-    els.map((el) => parseFloat(getComputedStyle(el).fontSize)),
-  );
+  const tickSizes = await svgTextSizes(page);
   expect(tickSizes.length).toBeGreaterThan(0);
   expect(Math.min(...tickSizes)).toBeGreaterThanOrEqual(18);
 
@@ -76,3 +109,41 @@ test("a tile the robot does not report is named, not silently left out", async (
   await expect(page.getByTestId("tile-tcp-position")).toBeVisible();
   await expect(page.getByTestId("tile-unknown")).toContainText("bogus_field, servo_on");
 });
+
+test("no text under 18 px with an alarm active and the 3D view shown", async ({ page, robot, operatorApi }, testInfo) => {
+  test.setTimeout(120_000);
+  const estopAlarm = `${settings.robotName}:emergency_stop`;
+  await robot.estop();
+  try {
+    await page.goto(`/kiosk?robot=${settings.robotName}&robot3d=1&tiles=joint_position,tcp_position,joint_motor_temperature`);
+    await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
+    // Everything an alarm adds is there: the stop in large letters and the alarm banner.
+    await expect(page.getByTestId("kiosk-estop")).toBeVisible();
+    const banner = page.getByTestId("alarm-banner");
+    await expect(banner).toHaveAttribute("data-alarm", estopAlarm);
+    await expect(banner).toContainText("Emergency stop");
+    // The 3D view drew, with its title.
+    const view = page.getByTestId("robot-3d");
+    await view.scrollIntoViewIfNeeded();
+    await expect.poll(async () => Number(await view.getAttribute("data-renders")), { message: "3D view drew" }).toBeGreaterThan(0);
+    await expect(view).toContainText("M1013");
+    await expect(page.getByTestId("kiosk-tiles").locator(".tile")).toHaveCount(3);
+    // The plots drew their tick labels.
+    await expect.poll(async () => (await svgTextSizes(page)).length, { message: "plots drew" }).toBeGreaterThan(0);
+
+    // Every visible text node, the banner's, the stop's and the 3D view's included: 18 px or more.
+    expect(await textCount(page)).toBeGreaterThan(20);
+    expect(await smallText(page)).toEqual([]);
+    expect(Math.min(...(await svgTextSizes(page)))).toBeGreaterThanOrEqual(18);
+    await screenshot(page, testInfo, "kiosk-alarm-3d");
+  } finally {
+    await robot.tryPost("/reset");
+    await acknowledge(operatorApi, estopAlarm);
+  }
+});
+
+/** Acknowledge `alarmId` if it waits for it, so the scenarios after this one start quiet. */
+async function acknowledge(service: Service, alarmId: string): Promise<void> {
+  const ack = await service.api.post(`/api/v1/alarms/${encodeURIComponent(alarmId)}/ack`, { data: { comment: "e2e 13: kiosk text sizes" } });
+  expect([200, 409], await ack.text()).toContain(ack.status());
+}

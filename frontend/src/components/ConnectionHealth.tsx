@@ -1,5 +1,5 @@
 /** Connection health: connected / stale / disconnected, frame age, measured interval, gaps. */
-import { formatDuration_ms } from "../lib/health";
+import { formatDuration_ms, packetLossOf } from "../lib/health";
 import type { LiveSnapshot } from "../lib/liveData";
 
 interface Props {
@@ -21,8 +21,7 @@ export function ConnectionHealth({ live, compact = false }: Props) {
         ? `robot link ${c.state}${c.reason !== null ? `: ${c.reason}` : ""}`
         : null;
   // The service's packet-loss alarm (gaps per minute over its threshold) turns a live badge amber.
-  const lossy = live.health === "connected" && c?.packet_loss_high === true;
-  const lossWords = lossy ? `packet loss: ${c.gaps_per_min ?? "?"} gaps in the last minute` : null;
+  const { high: lossy, words: lossWords } = packetLossOf(live.health, c);
   return (
     <div className={`health health--${live.health}${lossy ? " health--amber" : ""}`} aria-label="Connection health">
       <div

@@ -1,5 +1,5 @@
 import { describe, expect, it } from "vitest";
-import { connectionHealth, formatDuration_ms } from "./health";
+import { connectionHealth, formatDuration_ms, packetLossOf } from "./health";
 import type { ConnectionStatus } from "./protocol";
 
 const connected: ConnectionStatus = {
@@ -47,5 +47,25 @@ describe("connectionHealth", () => {
     expect(formatDuration_ms(12.4)).toBe("12 ms");
     expect(formatDuration_ms(3400)).toBe("3.4 s");
     expect(formatDuration_ms(null)).toBe("—");
+  });
+});
+
+describe("packetLossOf", () => {
+  const lossy: ConnectionStatus = { ...connected, gaps: 240, gaps_per_min: 240, packet_loss_high: true };
+
+  it("turns a live badge amber while the service's packet-loss alarm is active, naming the rate", () => {
+    expect(packetLossOf("connected", lossy)).toEqual({ high: true, words: "packet loss: 240 gaps in the last minute" });
+    expect(packetLossOf("connected", { ...lossy, gaps_per_min: null }).words).toBe("packet loss: ? gaps in the last minute");
+  });
+
+  it("is normal when the service says so, whatever the gap count", () => {
+    expect(packetLossOf("connected", { ...lossy, packet_loss_high: false })).toEqual({ high: false, words: null });
+    expect(packetLossOf("connected", connected)).toEqual({ high: false, words: null }); // an older service: no field
+  });
+
+  it("leaves a stale or disconnected badge its own colour", () => {
+    expect(packetLossOf("stale", lossy).high).toBe(false);
+    expect(packetLossOf("disconnected", lossy).high).toBe(false);
+    expect(packetLossOf("connected", null).high).toBe(false);
   });
 });

@@ -30,6 +30,24 @@ export function connectionHealth(input: HealthInput): Health {
   return "connected";
 }
 
+/** Packet loss as the connection badge shows it. */
+export interface PacketLoss {
+  /** The badge turns amber (data-packet-loss="high"). */
+  readonly high: boolean;
+  /** Its tooltip's words, null when not high. */
+  readonly words: string | null;
+}
+
+/**
+ * The service's packet-loss alarm (T→O gaps per minute above its threshold) turns a live badge
+ * amber; a stale or disconnected badge keeps its own colour, which says more.
+ */
+export function packetLossOf(health: Health, connection: ConnectionStatus | null): PacketLoss {
+  if (health !== "connected" || connection === null || connection.packet_loss_high !== true) return { high: false, words: null };
+  const gaps = connection.gaps_per_min;
+  return { high: true, words: `packet loss: ${gaps === null || gaps === undefined ? "?" : gaps} gaps in the last minute` };
+}
+
 /** "12 ms", "3.4 s", "5 min" — for ages and intervals. */
 export function formatDuration_ms(ms: number | null | undefined): string {
   if (ms === null || ms === undefined || !Number.isFinite(ms)) return "—";
