@@ -9,7 +9,7 @@
  * fetched from the history API, markers whose click moves every plot of the panel, and the
  * export of the range in view (docs/architecture.md "Plots: from the ring into the recording").
  */
-import { memo, useEffect, useRef, useState, type MouseEvent } from "react";
+import { memo, useEffect, useRef, useState, type KeyboardEvent, type MouseEvent } from "react";
 import {
   EXPORT_FORMATS,
   customRange,
@@ -33,9 +33,11 @@ import {
   type PlotTheme,
 } from "../lib/plotting";
 import { DEFAULT_WINDOW_MS, HISTORY_WINDOWS_MS, WINDOWS_MS, axisTitles, tracesOf, type PlotSpec } from "../lib/plots";
+import type { PlotStep } from "../lib/plotSteps";
 import { usePlotHistory } from "./plotHistory";
 import { useRuntime } from "./runtimeContext";
 import "../styles/history.css";
+import "../styles/plotSteps.css";
 
 interface Props {
   readonly spec: PlotSpec;
@@ -57,6 +59,35 @@ function localText(time_s: number): string {
 
 const CUSTOM = "custom";
 const RANGE = "range";
+
+/**
+ * The time-axis buttons (keyboard and touch: the same steps as a person's zoom and pan with the
+ * mouse, lib/plotSteps.ts), each with its key on the focused plotting area.
+ */
+const STEP_BUTTONS: readonly { step: PlotStep; text: string; label: string; title: string }[] = [
+  { step: "zoomIn", text: "+", label: "Zoom in", title: "Zoom in: half the time range (key +)" },
+  { step: "zoomOut", text: "−", label: "Zoom out", title: "Zoom out: twice the time range, back into the recording (key −)" },
+  { step: "earlier", text: "◀", label: "Earlier", title: "Earlier: half a range back in time (key ←)" },
+  { step: "later", text: "▶", label: "Later", title: "Later: half a range on; onto now is back to live (key →)" },
+];
+
+/** The step of a key pressed on the focused plotting area, if any. */
+function stepOfKey(key: string): PlotStep | null {
+  switch (key) {
+    case "+":
+    case "=":
+      return "zoomIn";
+    case "-":
+    case "_":
+      return "zoomOut";
+    case "ArrowLeft":
+      return "earlier";
+    case "ArrowRight":
+      return "later";
+    default:
+      return null;
+  }
+}
 
 export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly = false, height_px }: Props) {
   const runtime = useRuntime();
@@ -152,6 +183,14 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
     if (plot !== null && shared !== undefined && shared.current !== null && plot.isShowing(shared.current)) shared.backToLive();
     else plot?.backToLive();
   };
+  const step = (s: PlotStep) => plotRef.current?.step(s);
+  const onAreaKey = (e: KeyboardEvent<HTMLDivElement>) => {
+    if (e.altKey || e.ctrlKey || e.metaKey) return;
+    const s = stepOfKey(e.key);
+    if (s === null) return;
+    e.preventDefault();
+    step(s);
+  };
   const exportPng = () => {
     const stamp = new Date().toISOString().replace(/[:.]/g, "-");
     plotRef.current?.exportPng(`${spec.id.replace(/^plot-/, "")}-${stamp}`);
@@ -222,6 +261,21 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
         <span className="plot__title">{spec.title}</span>
         {!readOnly && (
           <span className="plot__controls">
+            <span className="plot__steps" role="group" aria-label={`${spec.title}: time axis`}>
+              {STEP_BUTTONS.map((b) => (
+                <button
+                  key={b.step}
+                  type="button"
+                  className="plot__step"
+                  data-testid={`${spec.id}-${b.step}`}
+                  aria-label={b.label}
+                  title={b.title}
+                  onClick={() => step(b.step)}
+                >
+                  {b.text}
+                </button>
+              ))}
+            </span>
             {!fixed && (
               <button
                 type="button"
@@ -342,6 +396,18 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
         <div
           className="plot__area"
           ref={container}
+          // Focusable (not on the kiosk): arrow keys pan, + and − zoom; focus makes the plot
+          // interactive as the pointer does.
+          {...(readOnly
+            ? {}
+            : {
+                tabIndex: 0,
+                role: "group",
+                "aria-label": `${spec.title} plot: ← and → earlier and later, + and − zoom`,
+                onKeyDown: onAreaKey,
+                onFocus: () => plotRef.current?.setFocusInside(true),
+                onBlur: () => plotRef.current?.setFocusInside(false),
+              })}
           data-testid={spec.id}
           data-points="0"
           data-zoomed="false"

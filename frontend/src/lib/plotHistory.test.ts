@@ -69,7 +69,7 @@ function answerOf(range: TimeRange, over: Partial<HistoryAnswer> = {}): HistoryA
   };
 }
 
-function setup(window_ms = 10_000) {
+function setup(window_ms = 10_000, withHistory = true) {
   const calls: Call[] = [];
   const zoom: Record<string, unknown[]> = {};
   let relayout: (() => void) | null = null;
@@ -104,12 +104,17 @@ function setup(window_ms = 10_000) {
     window_ms,
     theme: "light",
     readOnly: false,
-    history: {
-      fetchRange: (range, points, signal) => new Promise<RangeData>((resolve) => fetches.push({ range, points, signal, resolve })),
-      timer,
-      debounce_ms: 200,
-      now_ms: () => ring.newestTime() ?? T0,
-    },
+    ...(withHistory
+      ? {
+          history: {
+            fetchRange: (range: TimeRange, points: number, signal: AbortSignal) =>
+              new Promise<RangeData>((resolve) => fetches.push({ range, points, signal, resolve })),
+            timer,
+            debounce_ms: 200,
+            now_ms: () => ring.newestTime() ?? T0,
+          },
+        }
+      : {}),
   });
   const el = { dataset: {}, clientWidth: 880 } as unknown as HTMLElement;
   const shown: HistoryShown[] = [];
@@ -501,5 +506,154 @@ describe("a plot without the recording (the kiosk)", () => {
     expect(plot.viewKind).toBe("ring");
     plot.showRange({ from_s: 1, to_s: 2 });
     expect(plot.viewKind).toBe("ring");
+  });
+});
+
+describe("steps from the plot's buttons and keys (the same decision as a person's zoom or pan)", () => {
+  const xRange = (layout: Layout) => layout.xaxis.range;
+
+  it("zoom in and pan inside the ring stay a ring zoom; a pan past it goes into the recording", async () => {
+    const { plot, push, fetches, fire, due, lastReact, el, tz, answer } = setup();
+    fill(push);
+    plot.update(0);
+    plot.step("zoomIn"); // 10 s → 5 s around the centre, drawn at once
+    expect(plot.viewKind).toBe("ring");
+    expect(plot.isZoomed).toBe(true);
+    expect(el.dataset.zoomed).toBe("true");
+    expect(xRange(lastReact().args[2] as Layout)).toEqual([T0 - 7500 - tz, T0 - 2500 - tz]);
+    plot.step("earlier"); // [T0 - 10 s, T0 - 5 s]: still what the ring view holds
+    expect(plot.viewKind).toBe("ring");
+    expect(xRange(lastReact().args[2] as Layout)).toEqual([T0 - 10_000 - tz, T0 - 5000 - tz]);
+    fire();
+    expect(fetches).toHaveLength(0);
+    // Streaming on keeps the step's range (the zoom is carried, as a person's).
+    push(T0 + 10);
+    plot.update(1);
+    plot.setPointerInside(true);
+    expect(xRange(lastReact().args[2] as Layout)).toEqual([T0 - 10_000 - tz, T0 - 5000 - tz]);
+    plot.step("earlier"); // [T0 - 12.5 s, T0 - 7.5 s]: before the ring view
+    expect(plot.viewKind).toBe("fixed");
+    expect(plot.hasWork()).toBe(true); // drawn at once with what is at hand, not after the answer
+    plot.update(2);
+    expect(el.dataset.view).toBe("fixed");
+    expect(xRange(lastReact().args[2] as Layout)).toEqual([T0 - 12_500 - tz, T0 - 7500 - tz]);
+    expect(due.at(-1)!.delay_ms).toBe(200); // debounced, like a person's moves
+    fire();
+    expect(fetches.map((f) => f.range)).toEqual([{ from_s: (T0 - 12_500) / 1000, to_s: (T0 - 7500) / 1000 }]);
+    await answer(0);
+    plot.update(3);
+    expect(Number(el.dataset.frames)).toBe(1000);
+  });
+
+  it("zoom out from live reaches the recording; steps before a drawing add to the view's own range", () => {
+    const { plot, push, fetches, fire } = setup();
+    fill(push);
+    plot.update(0);
+    plot.step("zoomOut"); // 20 s ending at now: before the 10 s the ring view holds
+    expect(plot.viewKind).toBe("fixed");
+    plot.step("zoomOut");
+    plot.step("earlier");
+    fire();
+    // One request (debounced), for 40 s ending 20 s before now.
+    expect(fetches.map((f) => f.range)).toEqual([{ from_s: (T0 - 60_000) / 1000, to_s: (T0 - 20_000) / 1000 }]);
+  });
+
+  it("later onto now is back to live; later while live does nothing more than that", () => {
+    const { plot, push, fetches, fire, lastReact, el } = setup();
+    fill(push);
+    plot.update(0);
+    plot.step("zoomOut");
+    plot.step("earlier"); // [T0 - 30 s, T0 - 10 s]
+    fire();
+    expect(fetches).toHaveLength(1);
+    plot.update(1);
+    plot.step("later"); // [T0 - 20 s, T0]: at now
+    expect(plot.viewKind).toBe("ring");
+    expect(plot.isZoomed).toBe(false);
+    expect(fetches[0]!.signal.aborted).toBe(true);
+    expect((lastReact().args[2] as Layout).xaxis.autorange).toBe(true);
+    expect(el.dataset.view).toBe("ring");
+    plot.step("later");
+    expect(plot.viewKind).toBe("ring");
+    fire();
+    expect(fetches).toHaveLength(1);
+  });
+
+  it("in a long moving window a step leaves it for a fixed range", () => {
+    const { plot, push, fetches, fire } = setup();
+    fill(push);
+    plot.setWindow(3_600_000);
+    fire();
+    const n = fetches.length;
+    plot.step("zoomIn"); // the hour's middle half hour
+    expect(plot.viewKind).toBe("fixed");
+    fire();
+    expect(fetches).toHaveLength(n + 1);
+    expect(fetches.at(-1)!.range).toEqual({ from_s: (T0 - 2_700_000) / 1000, to_s: (T0 - 900_000) / 1000 });
+    plot.step("later");
+    plot.step("later"); // onto now: the hour's moving window again
+    expect(plot.viewKind).toBe("moving");
+  });
+
+  it("paused: a ring zoom moves Plotly's axis and adds no data; the keyboard's focus makes it interactive", () => {
+    const { plot, push, calls, el, tz } = setup();
+    fill(push);
+    plot.update(0);
+    expect(el.dataset.interactive).toBe("false");
+    plot.setFocusInside(true);
+    expect(el.dataset.interactive).toBe("true");
+    const interactive = calls.at(-1)!;
+    expect(interactive.op).toBe("react");
+    expect((interactive.args[3] as { staticPlot?: boolean }).staticPlot).toBeUndefined();
+    plot.setFocusInside(false);
+    expect(el.dataset.interactive).toBe("false");
+    plot.setPaused(true);
+    push(T0 + 10);
+    const n = calls.length;
+    plot.step("zoomIn");
+    expect(calls.slice(n).map((c) => c.op)).toEqual(["relayout"]);
+    expect(calls.at(-1)!.args[1]).toEqual({ "xaxis.autorange": false, "xaxis.range": [T0 - 7500 - tz, T0 - 2500 - tz] });
+    expect(plot.isZoomed).toBe(true);
+    expect(plot.isPaused).toBe(true);
+  });
+});
+
+describe("steps of a plot without the recording", () => {
+  it("stay within what its ring view holds; zooming out to all of it is live again", () => {
+    const { plot, push, lastReact, tz } = setup(10_000, false);
+    fill(push);
+    plot.update(0);
+    expect(plot.reachesHistory).toBe(false);
+    plot.step("zoomIn");
+    expect(plot.isZoomed).toBe(true);
+    plot.step("earlier");
+    plot.step("earlier"); // clamped at the ring view's start
+    expect((lastReact().args[2] as Layout).xaxis.range).toEqual([T0 - 10_000 - tz, T0 - 5000 - tz]);
+    expect(plot.viewKind).toBe("ring");
+    plot.step("zoomOut"); // 10 s from the ring view's start: all of it
+    expect(plot.isZoomed).toBe(false);
+    expect(plot.viewKind).toBe("ring");
+  });
+
+  it("a read-only plot (the kiosk) takes no steps", () => {
+    const channels = new ChannelMap([spec]);
+    const ring = new SampleRing(1024, channels.channelCount);
+    const calls: string[] = [];
+    const rec = (op: string) => () => void calls.push(op);
+    const backend: PlotBackend = {
+      newPlot: rec("newPlot"),
+      react: rec("react"),
+      extendTraces: rec("extendTraces"),
+      restyle: rec("restyle"),
+      relayout: rec("relayout"),
+      purge: rec("purge"),
+      zoomedAxes: () => ({}),
+    };
+    const plot = new LivePlot(spec, ring, channels, backend, { window_ms: 10_000, theme: "dark", readOnly: true });
+    plot.mount({ dataset: {} } as unknown as HTMLElement);
+    for (let t = T0 - 20_000; t <= T0; t += 10) ring.push(t, [1, 2, 3, 4, 5, 6]);
+    for (const s of ["zoomIn", "zoomOut", "earlier", "later"] as const) plot.step(s);
+    expect(calls).toEqual(["newPlot"]);
+    expect(plot.isZoomed).toBe(false);
   });
 });

@@ -34,6 +34,7 @@ import {
   type Timer,
 } from "./historyView";
 import { RING_WINDOW_MAX_MS, traceColour, tracesOf, type PlotSpec, type TraceInfo } from "./plots";
+import { stepRange, type PlotStep, type SpanMs } from "./plotSteps";
 import type { SampleRing } from "./ringBuffer";
 import { TICK_SPACING_PX, timeTicks, type TimeTicks } from "./timeTicks";
 import type { ChannelMap } from "./plots";
@@ -151,6 +152,12 @@ export class LivePlot {
   private needsRebuild = true;
   private paused = false;
   private pointerInside = false;
+  /** The keyboard's focus is on the plotting area (interactive, as with the pointer on it). */
+  private focusInside = false;
+  /** An x range (shifted, as drawn) a step asks the next ring rebuild to show. */
+  private stepZoom: readonly number[] | null = null;
+  /** The newest frame's time when the ring view was last rebuilt (a paused picture ends there). */
+  private ringDrawnTo_ms: number | null = null;
   private visible: boolean[];
   private tzShift_ms = 0;
   private revision = 0;
@@ -276,13 +283,78 @@ export class LivePlot {
       const drawn = this.drawnRange_ms;
       // Our own drawing of a range is no move of the person's.
       if (drawn !== null && Math.abs(drawn.from - from_ms) <= tolerance_ms && Math.abs(drawn.to - to_ms) <= tolerance_ms) return;
-      this.enterView({ kind: "fixed", from_ms, to_ms }, { immediate: false, redraw: false, fresh: false });
-      return;
     }
+    // Plotly shows the person's range already: nothing to draw before its answer.
+    this.goTo({ from: from_ms, to: to_ms }, false);
+  }
+
+  /**
+   * The one decision for a new time range, a person's (Plotly shows it already) or a step's
+   * (`draw`: put Plotly on it here). A history view follows with a debounced fetch; on the ring,
+   * a range inside what the plot holds stays a zoom of the moving window (no fetch), one reaching
+   * before it goes into the recording. Without a recording (the loader) only the ring zoom.
+   */
+  private goTo(range: SpanMs, draw: boolean): void {
+    const { from, to } = range;
+    if (this.loader !== null) {
+      const held = this.ringHeldFrom_ms();
+      if (this.view.kind !== "ring" || held === null || from < held - (to - from) / 100) {
+        this.enterView({ kind: "fixed", from_ms: from, to_ms: to }, { immediate: false, redraw: draw, fresh: false });
+        return;
+      }
+    }
+    if (draw) this.zoomRing(range);
+  }
+
+  /** Show `range` as a zoom of the ring view (a step's, as a person's Plotly zoom would). */
+  private zoomRing(range: SpanMs): void {
+    const el = this.el;
+    if (el === null) return;
+    const x = [range.from - this.tzShift_ms, range.to - this.tzShift_ms];
+    if (this.paused) {
+      // Paused: the frozen picture stays (Plotly's relayout, as a person's zoom; no data added).
+      this.backend.relayout(el, { "xaxis.autorange": false, "xaxis.range": x });
+    } else {
+      this.stepZoom = x;
+      this.rebuild(el);
+    }
+    this.setZoomed(true);
+  }
+
+  /**
+   * A step of the time axis from a button or a key (lib/plotSteps.ts): zoom in or out around
+   * the centre, pan earlier or later by half the range in view. The new range takes the same
+   * decision as a person's zoom or pan (`goTo`); "Later" onto now is back to live. A plot
+   * without the recording stays within what its ring view holds.
+   */
+  step(step: PlotStep): void {
+    if (this.el === null || this.options.readOnly) return;
+    const shown = this.shownRange_ms();
+    if (shown === null) return;
+    // Without the recording, nothing is newer than the ring's newest frame.
+    const now = this.loader === null ? (this.ring.newestTime() ?? this.now_ms()) : this.now_ms();
+    let next = stepRange(shown, step, now);
+    if (next !== null && next !== "live" && this.loader === null) next = this.withinRing(next, now);
+    if (next === null) return;
+    if (next !== "live") this.goTo(next, true);
+    // Already live: nothing to redraw.
+    else if (this.paused || this.zoomed || this.view.kind === "fixed") this.backToLive();
+  }
+
+  /** The range in view (ms since the epoch): a fixed view's own (even before it is drawn). */
+  private shownRange_ms(): SpanMs | null {
+    if (this.view.kind === "fixed") return { from: this.view.from_ms, to: this.view.to_ms };
+    const r = this.visibleRange();
+    return r === null ? null : { from: r.from_s * 1000, to: r.to_s * 1000 };
+  }
+
+  /** `range` moved to start no earlier than the ring view holds; "live" once it covers it all. */
+  private withinRing(range: SpanMs, now_ms: number): SpanMs | "live" | null {
     const held = this.ringHeldFrom_ms();
-    if (held === null || from_ms < held - (to_ms - from_ms) / 100) {
-      this.enterView({ kind: "fixed", from_ms, to_ms }, { immediate: false, redraw: false, fresh: false });
-    }
+    if (held === null) return null;
+    if (range.from >= held) return range;
+    const to = Math.min(now_ms, held + (range.to - range.from));
+    return to >= now_ms ? "live" : { from: held, to };
   }
 
   /** The oldest time the ring view draws: its window back from the newest frame, or the ring's oldest. */
@@ -414,7 +486,8 @@ export class LivePlot {
       const to_s = axisTimeToEpochS(x[1], this.tzShift_ms);
       if (Number.isFinite(from_s) && Number.isFinite(to_s) && to_s > from_s) return { from_s, to_s };
     }
-    const to = this.ring.newestTime() ?? this.clock();
+    // Paused, the picture ends at the newest frame when it froze, not the ring's newest.
+    const to = (this.paused ? this.ringDrawnTo_ms : null) ?? this.ring.newestTime() ?? this.clock();
     return { from_s: (to - this.window_ms) / 1000, to_s: to / 1000 };
   }
 
@@ -496,6 +569,18 @@ export class LivePlot {
     if (inside === this.pointerInside) return;
     const before = this.interactive;
     this.pointerInside = inside;
+    this.interactiveChanged(before);
+  }
+
+  /** The keyboard's focus entered or left the plotting area: interactive as with the pointer. */
+  setFocusInside(inside: boolean): void {
+    if (inside === this.focusInside) return;
+    const before = this.interactive;
+    this.focusInside = inside;
+    this.interactiveChanged(before);
+  }
+
+  private interactiveChanged(before: boolean): void {
     // At once, not at the next tick: the person may start dragging a zoom box right away.
     if (this.interactive !== before && !this.paused && this.el !== null) this.rebuild(this.el);
   }
@@ -503,7 +588,7 @@ export class LivePlot {
   /** Interactive (zoom, pan, mode bar; hover too when paused), or a static picture. */
   get interactive(): boolean {
     // A view of the recording changes only when an answer comes: always interactive.
-    return !this.options.readOnly && (this.paused || this.pointerInside || this.view.kind !== "ring");
+    return !this.options.readOnly && (this.paused || this.pointerInside || this.focusInside || this.view.kind !== "ring");
   }
 
   setTraceVisible(index: number, visible: boolean): void {
@@ -569,6 +654,7 @@ export class LivePlot {
     this.tzShift_ms = new Date().getTimezoneOffset() * 60_000;
     this.bucketer = this.newBucketer();
     const newest = this.ring.newestTime();
+    this.ringDrawnTo_ms = newest;
     const end = this.ring.endSeq;
     if (newest !== null) {
       const from = this.ring.firstSeqAtOrAfter(newest - this.window_ms);
@@ -584,7 +670,10 @@ export class LivePlot {
     this.points = Math.min(this.maxPoints, (chunk?.buckets ?? 0) * POINTS_PER_BUCKET);
     // `uirevision` keeps a zoom across a redraw, but not across a change of config (Plotly
     // starts over then, as when the plot turns static or interactive): carry it explicitly.
-    const zoom = this.drawnRevision === this.revision ? this.backend.zoomedAxes(el) : {};
+    const kept = this.drawnRevision === this.revision ? this.backend.zoomedAxes(el) : {};
+    // A step's x range (zoomRing), with the person's y zoom kept.
+    const zoom = this.stepZoom !== null ? { ...kept, xaxis: this.stepZoom } : kept;
+    this.stepZoom = null;
     this.drawnRevision = this.revision;
     this.backend.react(el, data, this.layout(zoom), this.config());
     this.updates++;

@@ -1,0 +1,56 @@
+// The steps of a plot's time axis from its buttons and keys (lib/plotSteps.ts): zoom ×½ / ×2
+// around the centre, pan by half the span, "Later" onto now is live, spans within limits.
+import { describe, expect, it } from "vitest";
+import { MAX_STEP_SPAN_MS, MIN_STEP_SPAN_MS, stepRange } from "./plotSteps";
+
+const NOW = 1_795_500_000_000;
+
+describe("stepRange", () => {
+  const past = { from: NOW - 100_000, to: NOW - 60_000 }; // 40 s, ending 60 s ago
+
+  it("zooms in to half the span around the centre", () => {
+    expect(stepRange(past, "zoomIn", NOW)).toEqual({ from: NOW - 90_000, to: NOW - 70_000 });
+  });
+
+  it("zooms out to twice the span around the centre", () => {
+    expect(stepRange(past, "zoomOut", NOW)).toEqual({ from: NOW - 120_000, to: NOW - 40_000 });
+  });
+
+  it("a zoom out never reaches past now: the doubled span ends at now", () => {
+    const live = { from: NOW - 10_000, to: NOW };
+    expect(stepRange(live, "zoomOut", NOW)).toEqual({ from: NOW - 20_000, to: NOW });
+    const near = { from: NOW - 30_000, to: NOW - 10_000 };
+    expect(stepRange(near, "zoomOut", NOW)).toEqual({ from: NOW - 40_000, to: NOW });
+  });
+
+  it("pans by half the span, earlier and later", () => {
+    expect(stepRange(past, "earlier", NOW)).toEqual({ from: NOW - 120_000, to: NOW - 80_000 });
+    expect(stepRange(past, "later", NOW)).toEqual({ from: NOW - 80_000, to: NOW - 40_000 });
+  });
+
+  it("later onto now, or from a range at now, is live", () => {
+    expect(stepRange({ from: NOW - 30_000, to: NOW - 10_000 }, "later", NOW)).toBe("live");
+    expect(stepRange({ from: NOW - 40_000, to: NOW - 20_000 }, "later", NOW)).toEqual({ from: NOW - 30_000, to: NOW - 10_000 });
+    expect(stepRange({ from: NOW - 10_000, to: NOW }, "later", NOW)).toBe("live");
+    // Axis rounding: a range a hair before now is at now.
+    expect(stepRange({ from: NOW - 10_000, to: NOW - 5 }, "later", NOW)).toBe("live");
+  });
+
+  it("keeps the span within its limits; a step at a limit changes nothing", () => {
+    expect(stepRange({ from: NOW - 61_500, to: NOW - 60_000 }, "zoomIn", NOW)).toEqual({
+      from: NOW - 60_750 - MIN_STEP_SPAN_MS / 2,
+      to: NOW - 60_750 + MIN_STEP_SPAN_MS / 2,
+    });
+    expect(stepRange({ from: NOW - 61_000, to: NOW - 60_000 }, "zoomIn", NOW)).toBeNull();
+    const week = { from: NOW - MAX_STEP_SPAN_MS, to: NOW };
+    expect(stepRange(week, "zoomOut", NOW)).toBeNull();
+    const fiveDays = { from: NOW - 5 * 86_400_000, to: NOW };
+    expect(stepRange(fiveDays, "zoomOut", NOW)).toEqual(week);
+  });
+
+  it("no range, no step", () => {
+    expect(stepRange({ from: NOW, to: NOW }, "zoomOut", NOW)).toBeNull();
+    expect(stepRange({ from: NOW, to: NOW - 1 }, "earlier", NOW)).toBeNull();
+    expect(stepRange({ from: Number.NaN, to: NOW }, "zoomIn", NOW)).toBeNull();
+  });
+});
