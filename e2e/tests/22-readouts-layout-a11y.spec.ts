@@ -1,11 +1,12 @@
 // Issue 13, numbers and every screen: the joint table shows the frame's values; a 390 × 844
-// phone has no horizontal scrolling, a short sticky header, dialogs on screen and 44 px touch
-// targets; the confirmation dialog keeps focus, Escape cancels and Enter confirms (with a
+// phone has no horizontal scrolling, a compact sticky header (a fifth of the height at most,
+// nothing scrolling inside it, the essentials shown, the rest behind its menu), dialogs on
+// screen and 44 px touch targets; the confirmation dialog keeps focus, Escape cancels and Enter confirms (with a
 // warning during an emergency stop); axe-core finds nothing serious on the panel, the login
 // and the kiosk, light and dark.
 import AxeBuilder from "@axe-core/playwright";
 import type { Page } from "@playwright/test";
-import { expect, operatorWithControl, test } from "../support/fixtures";
+import { expect, loginInPanel, operatorWithControl, test } from "../support/fixtures";
 import { settings } from "../support/settings";
 
 const DO16_INDEX = 15; // DO 1–16 are indexes 0–15 of controlbox_do
@@ -76,7 +77,7 @@ test("the joint table equals the frame's values", async ({ page, robot, request 
   await expect(page.getByTestId("tcp-readout")).toContainText("Position [mm]");
 });
 
-test("the phone layout has no overflow", async ({ browser }) => {
+test("the phone layout has no overflow and a compact header", async ({ browser, robot }) => {
   const context = await browser.newContext({ viewport: { width: 390, height: 844 }, hasTouch: true, isMobile: true });
   const page = await context.newPage();
   try {
@@ -100,10 +101,29 @@ test("the phone layout has no overflow", async ({ browser }) => {
       }));
       expect(width, `${where}: ${wide.join("; ")}`).toBeLessThanOrEqual(390);
     };
-    const headerShort = async () => {
-      const box = await page.locator(".panel-header").boundingBox();
-      expect(box?.height ?? 999, "sticky header height").toBeLessThanOrEqual(0.2 * 844 + 0.5);
+    // The sticky header: at most a fifth of the height, nothing scrolling inside it, and each
+    // essential item (by test id) shown whole within it.
+    const headerCompact = async (where: string, essentials: string[]) => {
+      const shown = await page.getByTestId("panel-header").evaluate((header, ids) => {
+        const box = header.getBoundingClientRect();
+        return {
+          height: box.height,
+          scrollHeight: header.scrollHeight,
+          clientHeight: header.clientHeight,
+          missing: ids.filter((id) => {
+            const el = header.querySelector<HTMLElement>(`[data-testid="${id}"]`);
+            if (el === null) return true;
+            const r = el.getBoundingClientRect();
+            const inside = r.top >= box.top - 0.5 && r.bottom <= box.bottom + 0.5 && r.left >= -0.5 && r.right <= 390.5;
+            return !(r.width > 0 && r.height > 0 && inside && getComputedStyle(el).visibility !== "hidden");
+          }),
+        };
+      }, essentials);
+      expect(shown.height, `${where}: sticky header height`).toBeLessThanOrEqual(0.2 * 844 + 0.5);
+      expect(shown.scrollHeight, `${where}: the header scrolls inside itself`).toBeLessThanOrEqual(shown.clientHeight + 1);
+      expect(shown.missing, `${where}: essentials not shown in the header`).toEqual([]);
     };
+    const ESSENTIALS = ["robot-select", "robot-state", "connection-status", "control-holder", "header-menu"];
     const touchTargetsBigEnough = async () => {
       const small = await page.evaluate(() => {
         const out: string[] = [];
@@ -120,13 +140,31 @@ test("the phone layout has no overflow", async ({ browser }) => {
 
     await page.goto("/");
     await expect(page.getByTestId("joint-table")).toBeVisible();
+    await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
     await noOverflow("panel, logged out");
-    await headerShort();
+    await headerCompact("logged out", [...ESSENTIALS, "login-open"]);
     await touchTargetsBigEnough();
 
-    await operatorWithControl(page);
+    // The rest is behind the menu: "Log in" opens it at the form; Escape closes it again.
+    const menu = page.getByTestId("header-menu");
+    await expect(page.getByTestId("login-username")).toBeHidden();
+    await expect(page.getByTestId("flag-servo-on")).toBeHidden();
+    await menu.click();
+    await expect(menu).toHaveAttribute("aria-expanded", "true");
+    await expect(page.getByTestId("flag-servo-on")).toBeVisible();
+    await expect(page.getByTestId("frame-age")).toBeVisible();
+    await noOverflow("panel, header menu open");
+    await page.keyboard.press("Escape");
+    await expect(menu).toHaveAttribute("aria-expanded", "false");
+    await page.getByTestId("login-open").click();
+    await expect(page.getByTestId("login-username")).toBeFocused();
+    await loginInPanel(page, settings.operator);
+    // Logged in: back to the essentials, with the session's action among them.
+    await expect(menu).toHaveAttribute("aria-expanded", "false");
+    await page.getByTestId("take-control").click();
+    await expect(page.getByTestId("control-holder")).toHaveAttribute("data-holder", settings.operator.name);
     await noOverflow("panel, operator with control");
-    await headerShort();
+    await headerCompact("operator with control", [...ESSENTIALS, "release-control"]);
     await touchTargetsBigEnough();
 
     // A dialog is fully on screen.
@@ -145,6 +183,13 @@ test("the phone layout has no overflow", async ({ browser }) => {
     }
     await page.getByTestId("confirm-no").click();
     await expect(dialog).toHaveCount(0);
+
+    // An emergency stop: its alarm banner joins the essentials, the header stays compact.
+    await robot.estop();
+    await expect(page.getByTestId("robot-state")).toHaveAttribute("data-state-name", "EMERGENCY_STOP");
+    await expect(page.getByTestId("alarm-banner")).toBeVisible({ timeout: 15_000 });
+    await noOverflow("panel, alarm");
+    await headerCompact("alarm", [...ESSENTIALS, "release-control", "alarm-banner"]);
 
     await page.goto("/kiosk");
     await expect(page.getByTestId("robot-state")).toHaveAttribute("data-state-name", /.+/);

@@ -100,20 +100,52 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
   const ownership = controlOwnership(live.control, user, live.session);
   const newestAlarmEvent = live.events.find((e) => e.kind === "alarm")?.time ?? null;
   const [tags, setTags] = useState<TagNames>({});
+  // A phone's header shows only the essentials; the rest opens below them (styles/responsive.css).
+  const [menuOpen, setMenuOpen] = useState(false);
+  const openMenu = useCallback(() => setMenuOpen(true), []);
 
   return (
     <TagNamesContext.Provider value={tags}>
       <WriteProvider robot={robot} user={user} live={live}>
         <div className="panel" data-testid="panel" data-robot={robot} data-stale={stale ? "true" : "false"}>
-          <header className="panel-header">
+          <header
+            id="panel-header"
+            className={`panel-header${menuOpen ? " is-menu-open" : ""}`}
+            data-testid="panel-header"
+            onKeyDown={(e) => {
+              if (e.key === "Escape" && menuOpen) setMenuOpen(false);
+            }}
+          >
             <RobotSwitcher robot={robot} robots={robots} onSelect={onSelect} />
             <StateBadge value={live.frame?.robot_state} stale={stale} size="panel" />
             <FlagBadges frame={live.frame} stale={stale} />
             <ConnectionHealth live={live} />
             <div className="panel-header__control">
               <ControlHolder control={live.control} ownership={ownership} />
-              <SessionBar robot={robot} user={user} ownership={ownership} onUser={onSessionUser} onControl={onControl} />
+              <SessionBar
+                robot={robot}
+                user={user}
+                ownership={ownership}
+                onUser={(next) => {
+                  // Logged in or out: the phone's header back to its essentials.
+                  setMenuOpen(false);
+                  onSessionUser(next);
+                }}
+                onControl={onControl}
+                onLoginWanted={openMenu}
+              />
             </div>
+            <button
+              type="button"
+              className="panel-header__menu"
+              data-testid="header-menu"
+              aria-expanded={menuOpen}
+              aria-controls="panel-header"
+              title={menuOpen ? "Show only the essentials" : "Flags, connection figures, links and session"}
+              onClick={() => setMenuOpen((open) => !open)}
+            >
+              <span aria-hidden="true">{menuOpen ? "✕" : "☰"}</span> {menuOpen ? "Less" : "More"}
+            </button>
             {/* In the sticky header: an alarm stays in view wherever the page is scrolled. */}
             <AlarmBanner alarms={live.alarms} size="panel" listHref="#alarms">
               <AlarmCue alarms={live.alarms} />

@@ -13,9 +13,14 @@ interface Props {
   readonly ownership: Ownership;
   readonly onUser: (user: User | null) => void;
   readonly onControl: (control: ControlStatus) => void;
+  /**
+   * A phone's compact header shows a "Log in" button rather than the form (styles/responsive.css):
+   * it opens the header's menu, where the form is.
+   */
+  readonly onLoginWanted?: () => void;
 }
 
-export function SessionBar({ robot, user, ownership, onUser, onControl }: Props) {
+export function SessionBar({ robot, user, ownership, onUser, onControl, onLoginWanted }: Props) {
   const [username, setUsername] = useState("");
   const [password, setPassword] = useState("");
   const [busy, setBusy] = useState(false);
@@ -58,33 +63,49 @@ export function SessionBar({ robot, user, ownership, onUser, onControl }: Props)
 
   if (user === null) {
     return (
-      <form className="session session--login" onSubmit={(e) => void submit(e)} aria-label="Operator login">
-        <input
-          aria-label="User name"
-          placeholder="user"
-          autoComplete="username"
-          data-testid="login-username"
-          value={username}
-          onChange={(e) => setUsername(e.target.value)}
-        />
-        <input
-          aria-label="Password"
-          placeholder="password"
-          type="password"
-          autoComplete="current-password"
-          data-testid="login-password"
-          value={password}
-          onChange={(e) => setPassword(e.target.value)}
-        />
-        <button type="submit" data-testid="login-submit" disabled={busy || username === ""}>
-          Log in
-        </button>
-        {loginError !== null && (
-          <span className="reason" data-testid="login-error" role="alert">
-            {loginError}
-          </span>
+      <>
+        {onLoginWanted !== undefined && (
+          <button
+            type="button"
+            className="session__login-open"
+            data-testid="login-open"
+            onClick={() => {
+              onLoginWanted();
+              // The form shows with the menu, in the next frame: the cursor goes into its first field.
+              requestAnimationFrame(() => document.querySelector<HTMLInputElement>('[data-testid="login-username"]')?.focus());
+            }}
+          >
+            Log in
+          </button>
         )}
-      </form>
+        <form className="session session--login" onSubmit={(e) => void submit(e)} aria-label="Operator login">
+          <input
+            aria-label="User name"
+            placeholder="user"
+            autoComplete="username"
+            data-testid="login-username"
+            value={username}
+            onChange={(e) => setUsername(e.target.value)}
+          />
+          <input
+            aria-label="Password"
+            placeholder="password"
+            type="password"
+            autoComplete="current-password"
+            data-testid="login-password"
+            value={password}
+            onChange={(e) => setPassword(e.target.value)}
+          />
+          <button type="submit" data-testid="login-submit" disabled={busy || username === ""}>
+            Log in
+          </button>
+          {loginError !== null && (
+            <span className="reason" data-testid="login-error" role="alert">
+              {loginError}
+            </span>
+          )}
+        </form>
+      </>
     );
   }
 
@@ -113,6 +134,7 @@ export function SessionBar({ robot, user, ownership, onUser, onControl }: Props)
       )}
       <button
         type="button"
+        className="session__logout"
         data-testid="logout"
         disabled={busy}
         onClick={() => {
