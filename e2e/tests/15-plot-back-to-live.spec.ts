@@ -1,12 +1,37 @@
 // Scenario 15: a live plot's hover shows values with units; after a zoom, "Back to live" brings
 // the moving window back (before, the plot stayed on the old range and went blank); a pan past
 // the ring goes into the recording and "Back to live" comes back from it; the signal picker
-// plots a field of another robot; a plot saves as PNG.
-import type { Page } from "@playwright/test";
+// plots a field of another robot; a plot saves as PNG. By keyboard only (issues 13/14): Tab to
+// a plot's "Zoom out", Enter until the view is in the recording, "Earlier", then "Back to live";
+// the focused plotting area takes arrow keys and + / −.
+import type { Page, Request } from "@playwright/test";
 import { expect, test } from "../support/fixtures";
 import { settings } from "../support/settings";
 
 const PLOT = "plot-joint-position";
+
+/** Requests of the recording's ranges, counted from the page. */
+function historyRequests(page: Page): string[] {
+  const seen: string[] = [];
+  page.on("request", (r: Request) => {
+    if (/\/api\/v1\/robots\/[^/]+\/history\?/.test(r.url())) seen.push(r.url());
+  });
+  return seen;
+}
+
+/** The focused element's test id. */
+async function focused(page: Page): Promise<string | null> {
+  return page.evaluate(() => document.activeElement?.getAttribute("data-testid") ?? null);
+}
+
+/** Tab (forwards) until the element with test id `id` has the focus; keyboard only. */
+async function tabTo(page: Page, id: string): Promise<void> {
+  for (let i = 0; i < 300; i++) {
+    if ((await focused(page)) === id) return;
+    await page.keyboard.press("Tab");
+  }
+  throw new Error(`${id} never had the focus in 300 presses of Tab`);
+}
 
 /** The x range Plotly shows now (ms since the epoch, local time as the plot shows it). */
 async function xRange(page: Page): Promise<[number, number]> {
@@ -128,4 +153,80 @@ test("the signal picker plots a field of another robot; a plot saves as PNG", as
   await page.getByTestId(`${PLOT}-png`).click();
   const file = await download;
   expect(file.suggestedFilename()).toMatch(/^joint-position-.*\.png$/);
+});
+
+test("by keyboard: zoom out and pan into the recording, then back to live", async ({ page }) => {
+  const requests = historyRequests(page);
+  await page.goto(`/?robot=${settings.robotName}`);
+  const plot = page.getByTestId(PLOT);
+  const figure = page.getByTestId(`${PLOT}-figure`);
+  await expect.poll(async () => Number(await plot.getAttribute("data-points"))).toBeGreaterThan(0);
+  await page.mouse.move(0, 0);
+  await tabTo(page, `${PLOT}-zoomOut`);
+  await expect(page.getByTestId(`${PLOT}-zoomOut`)).toHaveAccessibleName("Zoom out");
+  // Zoom out until the view reaches before what the live window holds: the recording.
+  for (let i = 0; i < 6 && (await figure.getAttribute("data-view")) !== "fixed"; i++) {
+    await page.keyboard.press("Enter");
+  }
+  await expect(figure).toHaveAttribute("data-view", "fixed");
+  await expect(plot).toHaveAttribute("data-view", "fixed");
+  await expect.poll(() => requests.length, { timeout: 15_000 }).toBeGreaterThan(0);
+  await expect.poll(async () => Number(await plot.getAttribute("data-frames")), { timeout: 15_000 }).toBeGreaterThan(0);
+  const out_from = Number(await plot.getAttribute("data-from"));
+  const out_to = Number(await plot.getAttribute("data-to"));
+  expect(await focused(page)).toBe(`${PLOT}-zoomOut`); // the focus stays on the button
+
+  // "Earlier": half a range back, fetched from the recording again.
+  await page.keyboard.press("Tab");
+  expect(await focused(page)).toBe(`${PLOT}-earlier`);
+  const asked = requests.length;
+  await page.keyboard.press("Enter");
+  const half = (out_to - out_from) / 2;
+  await expect.poll(async () => Number(await plot.getAttribute("data-to")), { timeout: 15_000 }).toBeCloseTo(out_to - half, 1);
+  expect(Number(await plot.getAttribute("data-from"))).toBeCloseTo(out_from - half, 1);
+  await expect.poll(() => requests.length, { timeout: 15_000 }).toBeGreaterThan(asked);
+  await expect(figure).toHaveAttribute("data-view", "fixed");
+
+  // "Back to live" by keyboard.
+  await tabTo(page, `${PLOT}-live`);
+  await page.keyboard.press("Enter");
+  await expect(figure).toHaveAttribute("data-view", "ring");
+  await expect(plot).toHaveAttribute("data-zoomed", "false");
+  await expect(page.getByTestId(`${PLOT}-window`)).toHaveValue("10000");
+  const live = await xRange(page);
+  await expect.poll(async () => (await xRange(page))[1], { timeout: 10_000 }).toBeGreaterThan(live[1] + 500);
+});
+
+test("by keyboard on the plotting area: focus makes it interactive, ← goes back, → returns to live", async ({ page }) => {
+  const requests = historyRequests(page);
+  await page.goto(`/?robot=${settings.robotName}`);
+  const plot = page.getByTestId(PLOT);
+  const figure = page.getByTestId(`${PLOT}-figure`);
+  await expect.poll(async () => Number(await plot.getAttribute("data-points"))).toBeGreaterThan(0);
+  await page.mouse.move(0, 0);
+  await expect(plot).toHaveAttribute("data-interactive", "false");
+  await tabTo(page, PLOT);
+  await expect(plot).toHaveAttribute("data-interactive", "true");
+  // + zooms into the moving window (no request), → from there is live again.
+  await page.keyboard.press("+");
+  await expect(plot).toHaveAttribute("data-zoomed", "true");
+  await expect(figure).toHaveAttribute("data-view", "ring");
+  const zoomed = await xRange(page);
+  expect(zoomed[1] - zoomed[0]).toBeLessThan(6_000);
+  expect(requests).toHaveLength(0);
+  await page.keyboard.press("ArrowRight");
+  await expect(plot).toHaveAttribute("data-zoomed", "false");
+  // ← reaches before the live window: the recording.
+  await page.keyboard.press("ArrowLeft");
+  await expect(figure).toHaveAttribute("data-view", "fixed");
+  await expect.poll(() => requests.length, { timeout: 15_000 }).toBeGreaterThan(0);
+  // → onto now is back to live (a press or two, as now moves on).
+  for (let i = 0; i < 4 && (await figure.getAttribute("data-view")) !== "ring"; i++) {
+    await page.keyboard.press("ArrowRight");
+  }
+  await expect(figure).toHaveAttribute("data-view", "ring");
+  await expect(plot).toHaveAttribute("data-zoomed", "false");
+  // Leaving the area by keyboard makes the live plot a static picture again.
+  await page.keyboard.press("Tab");
+  await expect(plot).toHaveAttribute("data-interactive", "false");
 });

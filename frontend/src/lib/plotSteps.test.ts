@@ -32,8 +32,10 @@ describe("stepRange", () => {
     expect(stepRange({ from: NOW - 30_000, to: NOW - 10_000 }, "later", NOW)).toBe("live");
     expect(stepRange({ from: NOW - 40_000, to: NOW - 20_000 }, "later", NOW)).toEqual({ from: NOW - 30_000, to: NOW - 10_000 });
     expect(stepRange({ from: NOW - 10_000, to: NOW }, "later", NOW)).toBe("live");
-    // Axis rounding: a range a hair before now is at now.
-    expect(stepRange({ from: NOW - 10_000, to: NOW - 5 }, "later", NOW)).toBe("live");
+    // Frames keep coming between steps: within a tenth of the span of now is at now.
+    expect(stepRange({ from: NOW - 10_000, to: NOW - 900 }, "later", NOW)).toBe("live");
+    expect(stepRange({ from: NOW - 15_500, to: NOW - 5500 }, "later", NOW)).toBe("live"); // onto now - 0.5 s
+    expect(stepRange({ from: NOW - 22_000, to: NOW - 12_000 }, "later", NOW)).toEqual({ from: NOW - 17_000, to: NOW - 7000 });
   });
 
   it("keeps the span within its limits; a step at a limit changes nothing", () => {

@@ -24,9 +24,9 @@ export const MIN_STEP_SPAN_MS = 1000;
 export const MAX_STEP_SPAN_MS = 7 * 24 * 3_600_000;
 
 /**
- * The range a step leads to from `range`, or "live" when it reaches past `now_ms`: "Later" onto
- * now is the moving window again (the newest data is what live shows, and a fixed range ending
- * at now would be out of date at the next frame). A zoom out never reaches past now either: it
+ * The range a step leads to from `range`, or "live" when "Later" reaches now (within a tenth of
+ * the span): the moving window again, since the newest data is what live shows and a fixed range
+ * ending at now would be out of date at the next frame. A zoom out never reaches past now either: it
  * keeps its span and ends at now (the recording holds nothing newer). Spans stay within
  * [MIN_STEP_SPAN_MS, MAX_STEP_SPAN_MS]; null when the step changes nothing (a zoom at its limit)
  * or `range` is no range.
@@ -35,8 +35,10 @@ export function stepRange(range: SpanMs, step: PlotStep, now_ms: number): SpanMs
   const span = range.to - range.from;
   if (!Number.isFinite(span) || !(span > 0) || !Number.isFinite(now_ms)) return null;
   const centre = range.from + span / 2;
-  // A range ending at or after now (within a thousandth of it: axis rounding) counts as at now.
-  const atNow = range.to >= now_ms - span / 1000;
+  // Within a tenth of the span of now counts as at now: frames keep coming between the steps, and
+  // a range that ends a moment before now shows what live shows.
+  const nearNow_ms = now_ms - span / 10;
+  const atNow = range.to >= nearNow_ms;
   switch (step) {
     case "zoomIn": {
       const next = Math.max(MIN_STEP_SPAN_MS, span / 2);
@@ -54,7 +56,7 @@ export function stepRange(range: SpanMs, step: PlotStep, now_ms: number): SpanMs
     case "later": {
       if (atNow) return "live";
       const to = range.to + span / 2;
-      return to >= now_ms - span / 1000 ? "live" : { from: range.from + span / 2, to };
+      return to >= nearNow_ms ? "live" : { from: range.from + span / 2, to };
     }
   }
 }
