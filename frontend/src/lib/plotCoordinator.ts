@@ -6,11 +6,11 @@
  * monitoring values' own rate), on a schedule of its own: a late redraw makes the next one come
  * sooner, so late frames do not lower a plot's rate, and the plots keep their phases spread over
  * the interval (one or two per animation frame, not all six in one). A frame takes a second
- * redraw only when it fits the frame's budget. A plot out of view is not redrawn at all (it is
- * drawn once, and again as soon as it comes into view; a history view still draws an answer
- * when it comes). On a slow or busy machine the frame rate comes first: the share of the main
- * thread the plots may take adapts to the frame rate the page reaches, and all plots slow down
- * alike.
+ * redraw only when it fits the frame's budget. A plot out of view is redrawn only every few
+ * seconds (so it is never far behind, and what reads its data attributes sees it move), and at
+ * once when it comes into view; a history view draws an answer when it comes. On a slow or busy
+ * machine the frame rate comes first: the share of the main thread the plots may take adapts
+ * to the frame rate the page reaches, and all plots slow down alike.
  */
 import type { LivePlot } from "./plotting";
 
@@ -31,6 +31,8 @@ export class PlotCoordinator {
   private readonly plots: LivePlot[] = [];
   /** When each plot is due next (browser time, ms). */
   private readonly dueAt = new Map<LivePlot, number>();
+  /** When each plot was last drawn (browser time, ms). */
+  private readonly drawnAt = new Map<LivePlot, number>();
   /** The plots tried in the current frame (kept, not allocated per frame). */
   private readonly tried = new Set<LivePlot>();
   private readonly scheduler: FrameScheduler;
@@ -47,6 +49,8 @@ export class PlotCoordinator {
    * comes too late for anything (each redraw still brings new samples: they come every 10 ms).
    */
   interval_ms = 95;
+  /** A plot out of view is redrawn this often (it catches up at once when it comes into view). */
+  offscreenInterval_ms = 5000;
   /**
    * Plot work per animation frame: a second redraw in the same frame only when the first and
    * the expected cost of another fit in it (a frame at 60 frames/s is 16.7 ms, and the page has
@@ -86,12 +90,14 @@ export class PlotCoordinator {
     if (this.plots.includes(plot)) return;
     this.plots.push(plot);
     this.dueAt.set(plot, -Infinity);
+    this.drawnAt.set(plot, -Infinity);
   }
 
   remove(plot: LivePlot): void {
     const i = this.plots.indexOf(plot);
     if (i >= 0) this.plots.splice(i, 1);
     this.dueAt.delete(plot);
+    this.drawnAt.delete(plot);
   }
 
   /** Per-plot figures, for the UI benchmark and the console. */
@@ -132,12 +138,12 @@ export class PlotCoordinator {
   }
 
   /**
-   * Whether the plot takes part now: a plot out of view showing the ring is not redrawn once it
-   * has been drawn (it catches up from the ring when it comes into view).
+   * When the plot's turn comes: its own schedule in view (or for a history view's answer); out
+   * of view, a while after its last drawing.
    */
-  private wanted(plot: LivePlot): boolean {
-    if (!plot.hasWork()) return false;
-    return plot.onScreen || plot.updates === 0 || plot.viewKind !== "ring";
+  private turnOf(plot: LivePlot): number {
+    if (plot.onScreen || plot.viewKind !== "ring") return this.dueAt.get(plot) ?? -Infinity;
+    return (this.drawnAt.get(plot) ?? -Infinity) + this.offscreenInterval_ms;
   }
 
   /**
@@ -148,8 +154,8 @@ export class PlotCoordinator {
     let best: LivePlot | null = null;
     let bestDue = Infinity;
     for (const plot of this.plots) {
-      if (tried.has(plot) || !this.wanted(plot)) continue;
-      const due = this.dueAt.get(plot) ?? -Infinity;
+      if (tried.has(plot) || !plot.hasWork()) continue;
+      const due = this.turnOf(plot);
       if (due > now - late_ms) continue;
       if (best === null || due < bestDue) {
         best = plot;
@@ -200,6 +206,7 @@ export class PlotCoordinator {
       const spent = this.scheduler.now() - now;
       updated++;
       this.schedule(plot, now);
+      this.drawnAt.set(plot, now);
       this.credit_ms -= spent;
       this.plotUpdates++;
       this.updateTime_ms += spent;
