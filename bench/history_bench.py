@@ -12,10 +12,14 @@ baseline measured in the same run.
    thread's CPU time (``cobot_hmi_history_cpu_seconds_total``) over the window, per robot
    (target ≤ 2 % of a core per robot), and the service's whole CPU against the same cell with
    ``--no-history`` (baseline).
-3. Query: 1 min, 1 h and 24 h ranges at 1000 points, 12 elements (joint positions, external
-   force, TCP position), decimated and serialized as the REST answer is, cold (first) and warm
-   (median of the next runs) (targets: 1 h < 100 ms, 24 h < 500 ms). Baseline: reading the
-   same range's raw rows of those elements with pyarrow.
+3. Query: 1 min, 1 h and 24 h ranges at 1000 points of the 12 fields of issue 14's target
+   (``FIELDS``: every joint array, TCP position, orientation and their velocities, external
+   force and moment: 54 elements), decimated and serialized as the REST answer is, cold (the
+   first query, the process' cells cache emptied before each range; the files are in the
+   page cache, as on a running service) and warm (median of the next runs), each held
+   against the targets (1 h < 100 ms, 24 h < 500 ms). A second line does the same for 12
+   elements (``FIELDS_SMALL``). Baseline: reading the same range's raw rows of those elements
+   with pyarrow.
 4. Crash: ``kill -9`` of the service while it records one robot, a few times at different
    moments: the newest frame it had received (``/frame``) minus the newest frame on disk
    (bound: 2 s).
@@ -50,7 +54,23 @@ SEGMENT_S = 600.0
 TARGET_REALTIME_X = 50
 TARGET_CORE_PCT_PER_ROBOT = 2.0
 TARGETS_MS = {"1 min": None, "1 h": 100.0, "24 h": 500.0}
-FIELDS = ["joint_position", "external_force", "tcp_position"]
+FIELDS = [
+    "joint_position",
+    "joint_velocity",
+    "joint_motor_current",
+    "joint_motor_temperature",
+    "joint_torque",
+    "joint_external_torque",
+    "tcp_position",
+    "tcp_orientation",
+    "tcp_velocity",
+    "tcp_angular_velocity",
+    "external_force",
+    "external_moment",
+]
+"""12 numeric fields of the layout (54 elements): the target is for 12 fields."""
+FIELDS_SMALL = ["joint_position", "external_force", "tcp_position"]
+"""12 elements (3 fields), the figure reported before."""
 START_S = 1_900_000_000.0
 
 
@@ -107,9 +127,11 @@ def raw_floor(root: Path, frames: int, pool: list[bytes]) -> float:
     return elapsed
 
 
-def query_latency(root: Path, hours: float, runs: int) -> dict[str, tuple[float, float, float]]:
+def query_latency(
+    root: Path, hours: float, runs: int, fields: list[str]
+) -> dict[str, tuple[float, float, float]]:
     """Per range: (cold ms, warm median ms, raw-read baseline ms)."""
-    elements = select_elements(FIELDS)
+    elements = select_elements(fields)
     end = START_S + hours * 3600
     out = {}
     for label, span in (("1 min", 60.0), ("1 h", 3600.0), ("24 h", 86400.0)):
@@ -123,6 +145,7 @@ def query_latency(root: Path, hours: float, runs: int) -> dict[str, tuple[float,
             answer_json(result, None, recording=True)
             return (time.perf_counter() - started) * 1000
 
+        segments.forget_cells()  # cold: nothing read by an earlier range or run
         cold = once()
         warm = statistics.median(once() for _ in range(runs))
         started = time.perf_counter()
@@ -247,15 +270,21 @@ def main() -> int:
         print(f"  on disk {per_hour / 1e6:.1f} MB per hour (segments + cells) vs raw "
               f"{raw_per_hour / 1e6:.1f} MB: {raw_per_hour / per_hour:.1f}x smaller")  # fmt: skip
         print(f"  segments: {len(segments.list_segments(root, 'r1'))}")
-        print("\nquery, 12 elements, 1000 points (cold / warm median / raw read of the range):")
-        for label, (cold, warm, baseline) in query_latency(
-            root, args.hours, args.query_runs
-        ).items():
-            target = TARGETS_MS[label]
-            verdict = "" if target is None else (
-                f" (target < {target:.0f} ms) {'OK' if warm < target else 'MISSED'}"
-            )  # fmt: skip
-            print(f"  {label:>5}: {cold:7.1f} ms / {warm:7.1f} ms / {baseline:8.1f} ms{verdict}")
+        print(f"  load average now: {os.getloadavg()}")
+        for fields in (FIELDS, FIELDS_SMALL):
+            count = len(select_elements(fields))
+            print(f"\nquery, {len(fields)} fields ({count} elements), 1000 points "
+                  "(cold / warm median / raw read of the range, the baseline):")  # fmt: skip
+            for label, (cold, warm, baseline) in query_latency(
+                root, args.hours, args.query_runs, fields
+            ).items():
+                target = TARGETS_MS[label]
+                verdict = "" if target is None else (
+                    f" (target < {target:.0f} ms) cold {'OK' if cold < target else 'MISSED'},"
+                    f" warm {'OK' if warm < target else 'MISSED'}"
+                )  # fmt: skip
+                print(f"  {label:>5}: {cold:7.1f} ms / {warm:7.1f} ms / {baseline:8.1f} ms"
+                      f"{verdict}")  # fmt: skip
     if not args.skip_live:
         print(f"\nlive: {args.robots} robots at RPI 10 ms, {args.live_seconds:g} s each way")
         figures = live(args.live_seconds, args.robots)

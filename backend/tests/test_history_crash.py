@@ -94,7 +94,8 @@ async def test_kill_9_keeps_what_was_recorded(
         counters: list[int] = []
         for segment in closed:
             counters += pq.read_table(segment.path).column("seq").to_pylist()
-            assert segments.read_cells_file(segment.rollup_path, ["cell"]).num_rows >= 1
+            cells = segments.read_cells_file(segment.rollup_path, ["cell"])
+            assert cells is not None and cells.num_rows >= 1
         for _, journal in journals:
             counters += segments.read_journal(journal).column("seq").to_pylist()
         assert counters == list(range(1, len(counters) + 1))

@@ -238,8 +238,8 @@ async def test_history_answer_equals_brute_force_over_the_recorded_rows(
                 export = await client.get(
                     f"/api/v1/robots/{ROBOT}/export",
                     params={
-                        "from": grid[1],
-                        "to": grid[2],
+                        "from": grid.first_cell,
+                        "to": grid.end_cell,
                         "format": "parquet",
                         "fields": ",".join(names),
                     },
@@ -260,7 +260,8 @@ async def test_history_answer_equals_brute_force_over_the_recorded_rows(
         assert body["mode"] == "buckets"
         width = (to_s - from_s) / points
         if width >= CELL_S:
-            bucket_s, first, end = bucket_grid(from_s, to_s, width)
+            grid = bucket_grid(from_s, to_s, width)
+            bucket_s, first, end = grid.bucket_s, grid.first_cell, grid.end_cell
             edges = [(float(b), float(b + bucket_s)) for b in range(first, end, bucket_s)]
             rows = table
         else:

@@ -26,8 +26,17 @@ from mcap.reader import make_reader
 from cobot_hmi.codec import Frame, decode_frame, encode_frame, zero_frame
 from cobot_hmi.emulator.static_robot import standing_frame
 from cobot_hmi.history import export, retention, segments
-from cobot_hmi.history.query import CELL_S, QueryError, QueryResult, bucket_grid, query, read_raw
+from cobot_hmi.history.query import (
+    CELL_S,
+    QueryError,
+    QueryResult,
+    bucket_grid,
+    iter_raw,
+    query,
+    read_raw,
+)
 from cobot_hmi.history.recording import RecordingError, read_recording
+from cobot_hmi.history.rollup import LEVELS_S
 from cobot_hmi.history.schema import (
     ELEMENTS,
     SCHEMA,
@@ -207,7 +216,8 @@ def test_cells_read_in_parts_equal_the_file(tmp_path: Path) -> None:
         writer_segment.rollup_path, ["robot_state:max", "servo_on:min", "cell"]
     )
     with pa.memory_map(str(writer_segment.rollup_path)) as source:
-        whole = pa.ipc.open_file(source).read_all()
+        whole = pa.Table.from_batches([pa.ipc.open_file(source).get_batch(0)])  # 1 s cells
+        assert both is not None and first is not None
         assert both.equals(whole.select(["robot_state:max", "servo_on:min", "cell"]))
         assert first.equals(whole.select(["cell", "robot_state:max"]))
     assert both.num_rows == 15
@@ -334,9 +344,12 @@ def check_decimation(
     span_frac: float,
     points: int,
     nan_every: int,
+    old_cells: bool = False,
 ) -> str:
     """Record synthetic frames, query, and compare every bucket with the brute force; the path
-    the query took (raw, buckets from the raw rows, buckets from the cells)."""
+    the query took (raw, buckets from the raw rows, ``cells 1``/``cells 10``/``cells 60``:
+    buckets from the cells of that width). ``old_cells``: the closed segments' cells files
+    as written before the coarser levels existed (per-second cells only, no metadata)."""
     items = synthetic_items(n, start_s=T0 + 0.123, period_s=period_ms / 1000, seed=n)
     if nan_every:
         items = [
@@ -351,6 +364,9 @@ def check_decimation(
             for s, t, f, w in items
         ]
     write_recording(root, "r", items, segment_rows)
+    if old_cells:
+        for segment in segments.list_segments(root, "r"):
+            downgrade_cells(segment.rollup_path)
     duration = n * period_ms / 1000
     from_s = T0 + start_frac * duration
     to_s = from_s + max(span_frac * duration, 0.001)
@@ -367,8 +383,12 @@ def check_decimation(
         assert result.t2o_sequence == [item[3] for item in inside]
         return "raw"
     if width >= CELL_S:
-        bucket_s, first_cell, end_cell = bucket_grid(from_s, to_s, width)
+        grid = bucket_grid(from_s, to_s, width)
+        bucket_s, first_cell, end_cell = grid.bucket_s, grid.first_cell, grid.end_cell
         assert result.bucket_s == bucket_s
+        assert result.cells_s == grid.cells_s and bucket_s % grid.cells_s == 0
+        # Never fewer than 80 % of the buckets asked (LEVEL_SLACK).
+        assert bucket_s <= max(1, math.ceil(width - 1e-9)) * 1.25
         edges = [(float(b), float(b + bucket_s)) for b in range(first_cell, end_cell, bucket_s)]
         table = read_raw(root, "r", elements, first_cell, end_cell)
     else:
@@ -379,7 +399,18 @@ def check_decimation(
     assert result.frames == table.num_rows
     for name in NAMES:
         assert same(answer_buckets(result, name), brute_force(table, name, edges)), name
-    return "cells" if width >= CELL_S else "rows"
+    return f"cells {grid.cells_s}" if width >= CELL_S else "rows"
+
+
+def downgrade_cells(path: Path) -> None:
+    """Rewrite a cells file as before the coarser levels: its per-second batch only, no
+    metadata."""
+    with pa.memory_map(str(path)) as source:
+        reader = pa.ipc.open_file(source)
+        assert reader.schema.metadata[segments.CELL_WIDTHS_KEY] == b"1,10,60"
+        seconds = pa.Table.from_batches([reader.get_batch(0)]).replace_schema_metadata(None)
+    with pa.OSFile(str(path), "wb") as sink, pa.ipc.new_file(sink, seconds.schema) as writer:
+        writer.write_table(seconds)
 
 
 DECIMATION_CASES: dict[str, st.SearchStrategy[dict[str, Any]]] = {
@@ -408,6 +439,21 @@ DECIMATION_CASES: dict[str, st.SearchStrategy[dict[str, Any]]] = {
             "nan_every": st.integers(0, 7),
         }
     ),
+    # Days in miniature: buckets of tens of seconds to minutes from the 10 s and 1 min cells
+    # (made from the per-second ones), or, for a recording older than those, from the
+    # per-second cells coarsened at query time.
+    "coarse cells": st.fixed_dictionaries(
+        {
+            "n": st.integers(150, 600),
+            "period_ms": st.sampled_from([700.0, 1000.0, 2300.0]),
+            "segment_rows": st.integers(30, 400),
+            "start_frac": st.floats(0, 0.5),
+            "span_frac": st.floats(0.3, 1.2),
+            "points": st.integers(1, 12),
+            "nan_every": st.integers(0, 7),
+            "old_cells": st.booleans(),
+        }
+    ),
 }
 
 
@@ -420,12 +466,80 @@ def test_decimation_equals_brute_force(
     """Every bucket (or raw frame) of a query equals the brute force over the raw rows; a
     ``cells`` case's buckets (a second or more wide) come from the cells."""
     drawn = data.draw(DECIMATION_CASES[case], label=case)
-    if case == "cells":
+    if case != "rows":
         span_s = drawn["span_frac"] * drawn["n"] * drawn["period_ms"] / 1000
-        drawn["points"] = max(1, min(drawn["points"], int(span_s / CELL_S)))
+        # Buckets of at least a cell; in the coarse case at least 36 s, which a 10 s or 1 min
+        # level always serves (rounded up to them, they grow by at most a quarter).
+        least_s = 36.0 if case == "coarse cells" else CELL_S
+        drawn["points"] = max(1, min(drawn["points"], int(span_s / least_s)))
     path = check_decimation(tmp_path_factory.mktemp("history"), **drawn)
     if case == "cells":
-        assert path == "cells"
+        assert path.startswith("cells")
+    if case == "coarse cells":
+        assert path in ("cells 10", "cells 60")
+
+
+@pytest.mark.parametrize(
+    ("width_s", "bucket_s", "cells_s"),
+    [(0.5, 1, 1), (3.6, 4, 1), (11.0, 11, 1), (13.0, 13, 1), (19.0, 20, 10), (61.0, 70, 10),
+     (86.4, 90, 10), (131.0, 140, 10), (150.0, 180, 60), (604.8, 660, 60)],
+)  # fmt: skip
+def test_bucket_grid_picks_the_coarsest_cells_that_keep_the_points(
+    width_s: float, bucket_s: int, cells_s: int
+) -> None:
+    grid = bucket_grid(T0, T0 + width_s * 1000, width_s)
+    assert (grid.bucket_s, grid.cells_s) == (bucket_s, cells_s)
+    assert grid.first_cell % bucket_s == 0 and grid.end_cell % bucket_s == 0
+
+
+def test_coarse_cells_are_kept_beside_each_segment(tmp_path: Path) -> None:
+    """Each closed segment's cells file holds a batch per width; each coarse level equals the
+    per-second cells of the raw frames coarsened, and its frame counts add up."""
+    items = synthetic_items(400, start_s=T0 + 3.3, period_s=0.7)
+    write_recording(tmp_path, "r", items, 250)
+    segment = segments.list_segments(tmp_path, "r")[0]
+    columns = ["cell", "count", "t_first", "t_last", "joint_position.3:min", "servo_on:max",
+               "robot_state:first", "external_force.1:last"]  # fmt: skip
+    seconds = segments.read_cells_file(segment.rollup_path, columns)
+    assert seconds is not None
+    frames = pq.read_table(segment.path)
+    for width in LEVELS_S[1:]:
+        level = segments.read_cells_file(segment.rollup_path, columns, width)
+        assert level is not None
+        cells = level.column("cell").to_pylist()
+        assert all(c % width == 0 for c in cells) and cells == sorted(set(cells))
+        assert sum(level.column("count").to_pylist()) == frames.num_rows
+        t = time_seconds(frames)
+        for row, cell in enumerate(cells):
+            inside = (t >= cell) & (t < cell + width)
+            joint = frames.column("joint_position.3").to_numpy()[inside]
+            assert level.column("joint_position.3:min")[row].as_py() == pytest.approx(joint.min())
+            servo = frames.column("servo_on").to_numpy(zero_copy_only=False)[inside]
+            assert level.column("servo_on:max")[row].as_py() == bool(servo.max())
+            state = frames.column("robot_state").to_numpy()[inside]
+            assert level.column("robot_state:first")[row].as_py() == state[0]
+            force = frames.column("external_force.1").to_numpy()[inside]
+            assert level.column("external_force.1:last")[row].as_py() == pytest.approx(force[-1])
+    downgrade_cells(segment.rollup_path)
+    fresh = segment.rollup_path.with_name("old.cells.arrow")  # not in the cache
+    segment.rollup_path.rename(fresh)
+    assert segments.read_cells_file(fresh, columns, 60) is None
+    old = segments.read_cells_file(fresh, columns)
+    assert old is not None and old.equals(seconds)
+
+
+def test_a_journal_closed_while_a_range_is_read_is_read_as_its_segment(tmp_path: Path) -> None:
+    """A streamed export lists the journal, reads the older segments, and meanwhile the
+    recorder closes the journal: its frames come from the segment it became."""
+    items = synthetic_items(300)
+    write_recording(tmp_path, "r", items, 100)  # two closed segments, then a journal
+    reading = iter_raw(tmp_path, "r", ["time", "seq"], T0, T0 + 10)
+    seqs = next(reading).column("seq").to_pylist()  # listed, the first segment read
+    [(_, journal)] = segments.list_journals(tmp_path, "r")
+    assert segments.close_journal(journal, "r") is not None
+    for table in reading:
+        seqs += table.column("seq").to_pylist()
+    assert seqs == list(range(1, 301))
 
 
 def test_range_edges_follow_the_stored_times(tmp_path: Path) -> None:

@@ -8,15 +8,19 @@ through them has every extreme of the raw frames):
 - buckets narrower than a second: buckets of ``(to - from) / points`` from ``from``, reduced
   from the raw frames;
 - buckets of a second or more: a whole number of seconds wide, their edges whole multiples of
-  the width since the epoch, reduced from the per-second cells (``rollup``): exact (a bucket is
-  a union of whole cells), and a day is 86,400 cells instead of 8.64 million frames. The first
-  and last bucket may then reach past ``from`` and ``to`` to their edges.
+  the width since the epoch, reduced from the cells (``rollup``): exact (a bucket is a union of
+  whole cells). The cells are the coarsest of ``rollup.LEVELS_S`` (1 s, 10 s, 1 min) whose
+  width the bucket can be a multiple of while it grows by at most ``LEVEL_SLACK`` (so an
+  answer keeps at least 80 % of the points asked): a day at 1000 points has buckets of 90 s
+  made of 8,640 ten-second cells instead of 86,400 per-second ones or 8.64 million frames.
+  The first and last bucket may then reach past ``from`` and ``to`` to their edges.
 
 Only non-empty buckets are answered; ``count`` says how many frames each holds.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
@@ -31,11 +35,14 @@ import pyarrow.parquet as pq
 from cobot_hmi.history.rollup import (
     CELL,
     COUNT,
+    LEVELS_S,
     STATS,
     T_FIRST,
     T_LAST,
     cell_starts,
+    coarsen,
     reduce_runs,
+    reduce_stat,
     rollup_table,
     stat_column,
 )
@@ -58,7 +65,9 @@ from cobot_hmi.history.segments import (
 
 MAX_POINTS: Final = 5000
 CELL_S: Final = 1.0
-"""Width of a rollup cell, s."""
+"""Width of the finest rollup cell, s."""
+LEVEL_SLACK: Final = 1.25
+"""How much wider than asked a bucket may grow to be made of coarser cells."""
 
 F64 = npt.NDArray[np.float64]
 
@@ -100,6 +109,8 @@ class QueryResult:
     t_last: F64 | None = None
     frames: int = 0
     """Frames the answer covers."""
+    cells_s: int | None = None
+    """Buckets from the cells: the width of the cells read, s."""
 
 
 def check_range(from_s: float, to_s: float, points: int) -> None:
@@ -119,7 +130,8 @@ def _sources(
 ) -> tuple[list[Segment], list[Path]]:
     """The closed segments and the journals a range reads. The journals are listed first: one
     the recorder closes meanwhile shows up as its segment in the listing after, and a journal
-    seen with its segment (closed, not yet deleted) is read as the segment only."""
+    seen with its segment (closed, not yet deleted) is read as the segment only. One closed
+    after both listings, before it is read, is read as its segment (``_journal_frames``)."""
     journals = list_journals(root, robot)
     closed = list_segments(root, robot)
     starts = {s.start_us for s in closed}
@@ -127,6 +139,21 @@ def _sources(
         [s for s in closed if s.end_us >= start_us and s.start_us < end_us],
         [path for start, path in journals if start < end_us and start not in starts],
     )
+
+
+def _journal_frames(root: Path, robot: str, path: Path, columns: Sequence[str]) -> pa.Table:
+    """A journal's frames; if the recorder closed it since it was listed (it is gone), its
+    closed segment's (named by the same first receive time): a streamed export or a query
+    reading the older segments first must not lose the newest ones."""
+    table = read_journal(path, columns)
+    if table.num_rows or path.exists():
+        return table
+    start_us = int(path.name.partition(".")[0])
+    for segment in list_segments(root, robot):
+        if segment.start_us == start_us:
+            with contextlib.suppress(OSError, pa.ArrowException):
+                return conform(pq.ParquetFile(segment.path).read(columns=list(columns)), columns)
+    return table
 
 
 def iter_raw(
@@ -146,7 +173,7 @@ def iter_raw(
         partial = segment.start_us / 1e6 < from_s or segment.end_us / 1e6 >= to_s
         yield _clip(table, from_s, to_s, partial)
     for path in journals:
-        yield _clip(read_journal(path, columns), from_s, to_s, True)
+        yield _clip(_journal_frames(root, robot, path, columns), from_s, to_s, True)
 
 
 def read_raw(
@@ -170,28 +197,41 @@ def _clip(table: pa.Table, from_s: float, to_s: float, needed: bool) -> pa.Table
 
 
 def read_cells(
-    root: Path, robot: str, elements: Sequence[Element], first_cell: int, end_cell: int
+    root: Path,
+    robot: str,
+    elements: Sequence[Element],
+    first_cell: int,
+    end_cell: int,
+    *,
+    width_s: int = 1,
 ) -> pa.Table:
-    """Per-second cells ``first_cell <= cell < end_cell`` of closed segments and journals."""
+    """Cells of ``width_s`` seconds (one of ``rollup.LEVELS_S``), ``first_cell <= cell <
+    end_cell`` (multiples of ``width_s``), of closed segments and journals, in time order."""
     columns = [CELL, COUNT, T_FIRST, T_LAST]
     columns += [stat_column(e.name, s) for e in elements for s in STATS]
     start_us, end_us = first_cell * 1_000_000, end_cell * 1_000_000
     tables = []
     closed, journals = _sources(root, robot, start_us, end_us)
     for segment in closed:
+        table: pa.Table | None
         try:
-            table = read_cells_file(segment.rollup_path, columns)
+            table = read_cells_file(segment.rollup_path, columns, width_s)
+            if table is None:  # a recording older than the coarser cells
+                seconds = read_cells_file(segment.rollup_path, columns)
+                table = None if seconds is None else coarsen(seconds, width_s)
         except (OSError, pa.ArrowException):
+            table = None
+        if table is None:
             try:  # a rollup lost or unreadable: made again from the frames
                 raw = pq.ParquetFile(segment.path).read()
             except (OSError, pa.ArrowException):
                 continue
-            table = rollup_table(raw, list(elements)).select(columns)
+            table = coarsen(rollup_table(raw, list(elements)).select(columns), width_s)
         whole = segment.start_us >= start_us and segment.end_us < end_us
         tables.append(table if whole else _clip_cells(table, first_cell, end_cell))
     for path in journals:
-        journal = read_journal(path, [TIME, *(e.name for e in elements)])
-        cells = rollup_table(journal, list(elements)).select(columns)
+        journal = _journal_frames(root, robot, path, [TIME, *(e.name for e in elements)])
+        cells = coarsen(rollup_table(journal, list(elements)).select(columns), width_s)
         tables.append(_clip_cells(cells, first_cell, end_cell))
     if not tables:
         return pa.schema([]).empty_table()
@@ -273,14 +313,35 @@ def query(
     )
 
 
-def bucket_grid(from_s: float, to_s: float, width_s: float) -> tuple[int, int, int]:
-    """``(bucket_s, first_cell, end_cell)`` of whole-second buckets aligned on the epoch."""
+@dataclass(frozen=True, slots=True)
+class Grid:
+    """Whole-second buckets aligned on the epoch, and the cells they are made of."""
+
+    bucket_s: int
+    first_cell: int
+    """Start of the first bucket, epoch s."""
+    end_cell: int
+    """End of the last bucket, epoch s."""
+    cells_s: int
+    """Width of the cells read (a divisor of ``bucket_s``), s."""
+
+
+def bucket_grid(from_s: float, to_s: float, width_s: float) -> Grid:
+    """The buckets of at least ``width_s`` (≥ 1 s) covering ``from_s``…``to_s``: as wide as
+    asked rounded up to a whole second, or to a multiple of the coarsest cell width that makes
+    them at most ``LEVEL_SLACK`` times wider (module docstring)."""
     bucket_s = max(1, math.ceil(width_s - 1e-9))
+    cells_s = LEVELS_S[0]
+    asked = bucket_s
+    for level in LEVELS_S[1:]:
+        rounded = math.ceil(asked / level) * level
+        if rounded <= asked * LEVEL_SLACK:
+            bucket_s, cells_s = rounded, level
     first_cell = math.floor(from_s / bucket_s) * bucket_s
     end_cell = math.ceil(to_s / bucket_s) * bucket_s
     if end_cell <= first_cell:
         end_cell = first_cell + bucket_s
-    return bucket_s, first_cell, end_cell
+    return Grid(bucket_s, first_cell, end_cell, cells_s)
 
 
 def _from_cells(
@@ -295,8 +356,9 @@ def _from_cells(
 ) -> QueryResult | None:
     """Whole-second buckets from the cells; ``None`` when the range holds ≤ ``points`` frames
     (the caller answers them raw)."""
-    bucket_s, first_cell, end_cell = bucket_grid(from_s, to_s, width_s)
-    cells = read_cells(root, robot, elements, first_cell, end_cell)
+    grid = bucket_grid(from_s, to_s, width_s)
+    bucket_s, first_cell = grid.bucket_s, grid.first_cell
+    cells = read_cells(root, robot, elements, first_cell, grid.end_cell, width_s=grid.cells_s)
     if cells.num_rows == 0:
         return None
     counts = cells.column(COUNT).to_numpy().astype(np.int64)
@@ -311,7 +373,7 @@ def _from_cells(
         stats = {}
         for s in STATS:
             values = np.asarray(cells.column(stat_column(e.name, s)).to_numpy(zero_copy_only=False))
-            stats[s] = reduce_runs(e, values, starts)[s]
+            stats[s] = reduce_stat(e, s, values, starts)
         series.append(Series(e, stats=stats))
     t_first = cells.column(T_FIRST).to_numpy()
     t_last = cells.column(T_LAST).to_numpy()
@@ -328,4 +390,5 @@ def _from_cells(
         t_first=t_first[starts],
         t_last=t_last[ends - 1],
         frames=int(counts.sum()),
+        cells_s=grid.cells_s,
     )

@@ -11,10 +11,13 @@ A robot's recording is a directory of segments (``HISTORY_DIR/ROBOT/``):
   frames plus the recorder's queue, within the 2 s bound. The journal is fsync'd every
   ``JOURNAL_SYNC_S`` (10 s), which bounds what a power cut takes.
 - closed segments: ``START-END.parquet`` (the frames, zstd, one row group per 64 Ki rows) and
-  ``START-END.cells.arrow`` (per-second cells, ``rollup``, an Arrow IPC file compressed with
-  LZ4: a query memory-maps it and decompresses only the columns it reads, about 0.7 ms a file
-  where Parquet's footer of 750 columns alone costs several). Both are written to a temporary
-  name, fsync'd, renamed into place and the directory fsync'd, cells first: a ``.parquet``
+  ``START-END.cells.arrow`` (the cells, ``rollup``: an Arrow IPC file compressed with LZ4, one
+  record batch per cell width of ``rollup.LEVELS_S``, 1 s, 10 s and 1 min, named in the
+  schema's ``cell_widths_s`` metadata; a query memory-maps it and decompresses only the
+  columns of the one batch it reads, about 0.7 ms a file where Parquet's footer of 750 columns
+  alone costs several). A cells file written before the coarser widths existed holds the
+  per-second batch only and no metadata; a query then coarsens those. Both are written to a
+  temporary name, fsync'd, renamed into place and the directory fsync'd, cells first: a ``.parquet``
   exists only complete. Then the journal goes.
 
 ``START``/``END`` are the first and last frame's receive times in epoch microseconds, so a
@@ -38,7 +41,7 @@ from typing import Final
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from cobot_hmi.history.rollup import rollup_table
+from cobot_hmi.history.rollup import LEVELS_S, levels, rollup_schema, rollup_table
 from cobot_hmi.history.schema import ELEMENTS, SCHEMA, SEQ, T2O_SEQUENCE, TIME, conform
 
 JOURNAL_SUFFIX: Final = ".journal.arrows"
@@ -60,6 +63,8 @@ of the simulated robot, bench/history)."""
 _DICTIONARY_COLUMNS: Final = [name for name in SCHEMA.names if name not in _ENCODINGS]
 _SEGMENT_NAME: Final = re.compile(r"^(\d+)-(\d+)\.parquet$")
 _JOURNAL_NAME: Final = re.compile(r"^(\d+)\.journal\.arrows$")
+CELL_WIDTHS_KEY: Final = b"cell_widths_s"
+"""Schema metadata of a cells file: its batches' cell widths, s, in order (``1,10,60``)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -254,14 +259,19 @@ def _write_parquet(table: pa.Table, path: Path, row_group_rows: int) -> None:
         raise
 
 
-def _write_cells(table: pa.Table, path: Path) -> None:
-    """The cells as an Arrow IPC file (LZ4), fsync'd, renamed in place."""
+def _write_cells(cells: pa.Table, path: Path) -> None:
+    """The per-second cells and their coarser levels as an Arrow IPC file (LZ4), a record
+    batch per level, fsync'd, renamed in place."""
     temporary = path.with_name(path.name + ".tmp")
     options = pa.ipc.IpcWriteOptions(compression="lz4")
+    widths = ",".join(str(w) for w in LEVELS_S).encode()
+    schema = cells.schema.with_metadata({CELL_WIDTHS_KEY: widths})
     try:
         with open(temporary, "wb") as sink:
-            with pa.ipc.new_file(sink, table.schema, options=options) as writer:
-                writer.write_table(table)
+            with pa.ipc.new_file(sink, schema, options=options) as writer:
+                for level in levels(cells):
+                    # One batch per level: the reader finds a level by its index.
+                    writer.write_batch(level.combine_chunks().to_batches()[0])
             sink.flush()
             os.fsync(sink.fileno())
         os.replace(temporary, path)
@@ -271,68 +281,114 @@ def _write_cells(table: pa.Table, path: Path) -> None:
         raise
 
 
+_CellsKey = tuple[Path, int]
+"""A cells file and a cell width, s."""
+
+
 class _CellsCache:
-    """Columns of closed segments' cells files, the most recently used first out last, up to
-    ``max_bytes``: a closed segment's files never change."""
+    """Columns of closed segments' cells files, per cell width, the most recently used first
+    out last, up to ``max_bytes``: a closed segment's files never change. An entry is one
+    table (whatever columns were read), so a query's work per file is a few calls, not one per
+    column."""
 
     def __init__(self, max_bytes: int) -> None:
         self.max_bytes = max_bytes
         self.bytes = 0
-        self._entries: OrderedDict[Path, dict[str, pa.Array]] = OrderedDict()
+        self._entries: OrderedDict[_CellsKey, pa.Table] = OrderedDict()
         self._lock = threading.Lock()
 
-    def get(self, path: Path) -> dict[str, pa.Array] | None:
+    def get(self, key: _CellsKey) -> pa.Table | None:
         with self._lock:
-            entry = self._entries.get(path)
+            entry = self._entries.get(key)
             if entry is not None:
-                self._entries.move_to_end(path)
-                return dict(entry)
-            return None
+                self._entries.move_to_end(key)
+            return entry
 
-    def keep(self, path: Path, columns: dict[str, pa.Array]) -> None:
+    def keep(self, key: _CellsKey, table: pa.Table) -> None:
+        """``table`` replaces the entry (it holds the entry's columns and more)."""
         with self._lock:
-            entry = self._entries.setdefault(path, {})
-            for name, array in columns.items():
-                if name not in entry:
-                    entry[name] = array
-                    self.bytes += array.nbytes
-            self._entries.move_to_end(path)
+            old = self._entries.pop(key, None)
+            if old is not None:
+                self.bytes -= old.nbytes
+            self._entries[key] = table
+            self.bytes += table.nbytes
             while self.bytes > self.max_bytes and len(self._entries) > 1:
                 _, evicted = self._entries.popitem(last=False)
-                self.bytes -= sum(a.nbytes for a in evicted.values())
+                self.bytes -= evicted.nbytes
+
+    def clear(self) -> None:
+        with self._lock:
+            self._entries.clear()
+            self.bytes = 0
 
 
 _CELLS: Final = _CellsCache(128 * 1024 * 1024)
+_CELLS_SCHEMA: Final = rollup_schema()
+"""The cells files' columns (their order locates a column without parsing a file twice)."""
 
 
-def read_cells_file(path: Path, columns: list[str]) -> pa.Table:
-    """``columns`` of a cells file (``OSError``/``ArrowException``). The columns read are kept
-    (``_CellsCache``, 128 MiB), so a plot that pans and zooms over days reads each file once."""
-    cached = _CELLS.get(path) or {}
-    missing = [c for c in columns if c not in cached]
+def forget_cells() -> None:
+    """Empty the cells cache (a benchmark's cold query)."""
+    _CELLS.clear()
+
+
+def read_cells_file(path: Path, columns: list[str], width_s: int = 1) -> pa.Table | None:
+    """``columns`` of a cells file's cells of ``width_s`` seconds (``OSError``/
+    ``ArrowException``); ``None`` when the file has no such level (written before it existed).
+    The columns read are kept (``_CellsCache``, 128 MiB), so a plot that pans and zooms over
+    days reads each file once."""
+    key = (path, width_s)
+    cached = _CELLS.get(key)
+    have = set() if cached is None else set(cached.column_names)
+    missing = [c for c in columns if c not in have]
     if missing:
-        read = _read_cells_columns(path, missing)
-        _CELLS.keep(path, read)
-        cached.update(read)
-    return pa.table({c: cached[c] for c in columns})
+        read = _read_cells_columns(path, missing, width_s)
+        if read is None:
+            return None
+        if cached is not None:
+            read = pa.Table.from_arrays(
+                [*cached.columns, *read.columns], names=[*cached.column_names, *missing]
+            )
+        _CELLS.keep(key, read)
+        cached = read
+    assert cached is not None
+    return cached.select(columns)
 
 
-def _read_cells_columns(path: Path, columns: list[str]) -> dict[str, pa.Array]:
+def _read_cells_columns(path: Path, columns: list[str], width_s: int) -> pa.Table | None:
+    """``columns`` (in that order, one chunk each) of the cells of ``width_s`` seconds."""
     with pa.memory_map(str(path)) as source:
-        schema = pa.ipc.open_file(source).schema
-        indices = [schema.get_field_index(c) for c in columns]
-        if min(indices, default=0) < 0:
-            raise pa.ArrowInvalid(f"{path}: a column is missing")
-        options = pa.ipc.IpcReadOptions(included_fields=indices, use_threads=False)
-        table = pa.ipc.open_file(source, options=options).read_all()
-        # Copied out of the mapping before it closes: one chunk per column.
-        table = table.select(columns).combine_chunks()
-    return {
-        c: table.column(c).chunk(0)
-        if table.column(c).num_chunks
-        else pa.array([], table.schema.field(c).type)
-        for c in columns
-    }
+        indices = [_CELLS_SCHEMA.get_field_index(c) for c in columns]
+        reader = _open_cells(source, indices)
+        if reader is None or set(reader.schema.names) != set(columns):
+            # Columns elsewhere than today's layout puts them: found by name.
+            schema = pa.ipc.open_file(source).schema
+            indices = [schema.get_field_index(c) for c in columns]
+            if min(indices, default=0) < 0:
+                raise pa.ArrowInvalid(f"{path}: a column is missing")
+            reader = _open_cells(source, indices)
+            assert reader is not None
+        widths = (reader.schema.metadata or {}).get(CELL_WIDTHS_KEY)
+        if widths is None:  # written before the coarser levels: per-second cells only
+            if width_s != 1:
+                return None
+            table = reader.read_all().combine_chunks()
+        else:
+            order = [int(w) for w in widths.decode().split(",")]
+            if width_s not in order:
+                return None
+            # Decompressed out of the mapping: nothing refers to it once it closes.
+            table = pa.Table.from_batches([reader.get_batch(order.index(width_s))])
+    return table.select(columns)
+
+
+def _open_cells(
+    source: pa.MemoryMappedFile, indices: list[int]
+) -> pa.ipc.RecordBatchFileReader | None:
+    if min(indices, default=0) < 0:
+        return None
+    options = pa.ipc.IpcReadOptions(included_fields=indices, use_threads=False)
+    return pa.ipc.open_file(source, options=options)
 
 
 def write_segment(table: pa.Table, directory: Path, robot: str) -> Segment | None:
