@@ -230,3 +230,29 @@ test("by keyboard on the plotting area: focus makes it interactive, ← goes bac
   await page.keyboard.press("Tab");
   await expect(plot).toHaveAttribute("data-interactive", "false");
 });
+
+test("on a touch screen the time-axis buttons are 44 × 44 px and a tap on Zoom out reaches the recording", async ({ browser }) => {
+  const context = await browser.newContext({ viewport: { width: 390, height: 844 }, hasTouch: true, isMobile: true });
+  const page = await context.newPage();
+  try {
+    await page.goto(`/?robot=${settings.robotName}`);
+    const plot = page.getByTestId(PLOT);
+    await expect.poll(async () => Number(await plot.getAttribute("data-points"))).toBeGreaterThan(0);
+    const buttons = page.getByRole("group", { name: "Joint position: time axis" }).getByRole("button");
+    await expect(buttons).toHaveCount(4);
+    for (const b of await buttons.all()) {
+      await b.scrollIntoViewIfNeeded();
+      const box = (await b.boundingBox())!;
+      const name = (await b.getAttribute("aria-label")) ?? "";
+      expect(box.width, name).toBeGreaterThanOrEqual(44);
+      expect(box.height, name).toBeGreaterThanOrEqual(44);
+    }
+    await page.getByTestId(`${PLOT}-zoomOut`).tap();
+    await expect(page.getByTestId(`${PLOT}-figure`)).toHaveAttribute("data-view", "fixed");
+    await page.getByTestId(`${PLOT}-later`).tap(); // onto now: live again
+    await expect(page.getByTestId(`${PLOT}-figure`)).toHaveAttribute("data-view", "ring");
+    expect(await page.evaluate(() => document.documentElement.scrollWidth)).toBeLessThanOrEqual(390);
+  } finally {
+    await context.close();
+  }
+});
