@@ -406,6 +406,12 @@ async def test_unwritable_disk_pauses_recording_and_the_service_keeps_running(
             async with hmi.client(await hmi.login(OPERATOR)) as client:
                 events = await _wait_event(client, "paused")
                 assert "cannot write" in events[0]["reason"]
+                # The robot's built-in alarm, high priority, for the banner and the cue.
+                alarm = await _recording_alarm(client, active=True)
+                assert alarm["priority"] == "high" and alarm["kind"] == "recording"
+                assert alarm["state"] == "active_unacknowledged"
+                assert alarm["name"] == "Recording paused: disk full"
+                assert "cannot write" in alarm["message"]
                 # The service keeps serving frames and the stream.
                 frame = await client.get(f"/api/v1/robots/{ROBOT}/frame")
                 assert frame.status_code == 200 and frame.json()["frame"] is not None
@@ -416,6 +422,10 @@ async def test_unwritable_disk_pauses_recording_and_the_service_keeps_running(
                 blocker.mkdir()
                 events = await _wait_event(client, "recording")
                 assert events[0]["reason"] == "recording resumed"
+                # The alarm returns to normal; unacknowledged, it waits for an operator.
+                alarm = await _recording_alarm(client, active=False)
+                assert alarm["state"] == "returned_unacknowledged"
+                assert alarm["message"] == "recording resumed"
                 seen = await stream_frames(hmi, 50)
                 await wait_recorded(client, seen[0]["t"], seen[-1]["seq"])
             metrics = await hmi.metrics()
@@ -438,11 +448,26 @@ async def test_low_free_space_pauses_recording(
             async with client:
                 events = await _wait_event(client, "paused")
                 assert "disk nearly full" in events[0]["reason"]
+                alarm = await _recording_alarm(client, active=True)
+                assert "disk nearly full" in alarm["message"]
                 answer = await client.get(
                     f"/api/v1/robots/{ROBOT}/history", params={"from": "0", "to": "1"}
                 )
                 assert answer.json()["recording"] is False
                 assert "disk nearly full" in answer.json()["recording_paused_reason"]
+
+
+async def _recording_alarm(client: httpx.AsyncClient, *, active: bool) -> dict[str, Any]:
+    """The robot's ``recording_paused`` alarm once it is ``active`` (or not): it is raised on
+    the web loop right after the event."""
+    alarm_id = f"{ROBOT}:recording_paused"
+    for _ in range(int(DEADLINE_S * 40)):
+        answer = await client.get(f"/api/v1/alarms/{alarm_id}")
+        assert answer.status_code == 200, answer.text
+        if answer.json()["active"] is active:
+            return dict(answer.json())
+        await asyncio.sleep(0.1)
+    raise AssertionError(f"{alarm_id} not active={active}")
 
 
 async def _wait_event(client: httpx.AsyncClient, state: str) -> list[dict[str, Any]]:

@@ -684,14 +684,14 @@ export interface components {
             id: string;
             /**
              * Key
-             * @description emergency_stop, protective_stop, safe_off, connection_lost, forward_open_refused, packet_loss, motor_temperature.0–5 (0-based: motor_temperature.2 is J 3), user.NAME
+             * @description emergency_stop, protective_stop, safe_off, connection_lost, forward_open_refused, packet_loss, recording_paused, motor_temperature.0–5 (0-based: motor_temperature.2 is J 3), user.NAME
              */
             key: string;
             /**
              * Kind
              * @enum {string}
              */
-            kind: "state" | "connection" | "rate" | "limit" | "bit";
+            kind: "state" | "connection" | "rate" | "limit" | "bit" | "recording";
             /**
              * Label
              * @description its label as the robot prints it (J 3, DO 3)

@@ -468,7 +468,7 @@ class Alarm(BaseModel):
     robot: str
     key: str = Field(
         description="emergency_stop, protective_stop, safe_off, connection_lost, "
-        "forward_open_refused, packet_loss, motor_temperature.0–5 (0-based: "
+        "forward_open_refused, packet_loss, recording_paused, motor_temperature.0–5 (0-based: "
         "motor_temperature.2 is J 3), user.NAME"
     )
     name: str = Field(description="in words")
@@ -479,7 +479,7 @@ class Alarm(BaseModel):
         description="the pendant's colour: a robot state's own, else the priority's (critical "
         "red, high orange, medium yellow, low blue)"
     )
-    kind: Literal["state", "connection", "rate", "limit", "bit"]
+    kind: Literal["state", "connection", "rate", "limit", "bit", "recording"]
     element: str | None = Field(description="the watched frame element, ``name.index``")
     label: str | None = Field(description="its label as the robot prints it (J 3, DO 3)")
     tag: str | None = Field(description="its tag name, when an admin gave one")

@@ -15,9 +15,12 @@ needs no GIL; bench/history compares the receive interval with and without recor
 
 A disk that fills (or any write error: read-only, removed directory) pauses recording for every
 robot with a ``recording`` event (state ``paused`` and the reason) on each robot's stream and
-log; so does free space under ``history_min_free_bytes``. The service keeps running; frames
-meanwhile are counted as not recorded. Every ``RETRY_S`` the recorder checks again and resumes
-(event state ``recording``). A queue that overflowed is reported by an event (state
+log, and raises each robot's built-in alarm ``recording_paused`` (high priority, so the banner
+and the audible cue show it); so does free space under ``history_min_free_bytes``. The service
+keeps running; frames meanwhile are counted as not recorded. Every ``RETRY_S`` the recorder
+checks again and resumes (event state ``recording``; the alarm returns to normal, and waits
+for an acknowledgement if none came, as ISA-18.2 has it). A restart that records again clears
+an alarm a pause before it left active. A queue that overflowed is reported by an event (state
 ``overflow``, at most once per ``RETRY_S`` per robot) and in ``/metrics``.
 """
 
@@ -25,6 +28,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import logging
 import shutil
 import threading
@@ -111,6 +115,9 @@ class Recorder:
             track.dropped_reported = 0
             with contextlib.suppress(OSError, pa.ArrowException):  # a crash's journals first
                 await asyncio.to_thread(segments.recover, self.root, name)
+            # Persisted from a pause before a restart: recording starts again (a disk still
+            # full pauses it again at the first check).
+            self._alarm_now(track.robot, paused=False, reason="recording resumed")
         self._thread = threading.Thread(target=self._run, name="history recorder", daemon=True)
         self._thread.start()
 
@@ -248,6 +255,7 @@ class Recorder:
         self.paused_reason = None
         for track in self.tracks.values():
             self._event(track, "recording", "recording resumed")
+            self._alarm(track, paused=False, reason="recording resumed")
 
     def _pause(self, reason: str) -> None:
         if self.paused_reason is not None:
@@ -259,6 +267,7 @@ class Recorder:
         for track in self.tracks.values():
             track.writer.abandon()
             self._event(track, "paused", reason)
+            self._alarm(track, paused=True, reason=f"recording paused: {reason}")
 
     def _retention(self) -> None:
         days = self.settings.history_retention_days
@@ -290,6 +299,22 @@ class Recorder:
             return
         with contextlib.suppress(RuntimeError):  # the loop closed during shutdown
             loop.call_soon_threadsafe(track.robot.hub.publish_event, event)
+
+    def _alarm(self, track: _Track, *, paused: bool, reason: str) -> None:
+        """The robot's ``recording_paused`` alarm, on the web loop (from this thread): the
+        alarm engine is the loop's."""
+        loop = self._loop
+        if loop is None:
+            return
+        with contextlib.suppress(RuntimeError):  # the loop closed during shutdown
+            loop.call_soon_threadsafe(
+                functools.partial(self._alarm_now, track.robot, paused=paused, reason=reason)
+            )
+
+    @staticmethod
+    def _alarm_now(robot: RobotRuntime, *, paused: bool, reason: str) -> None:
+        for event in robot.alarms.recording(paused=paused, reason=reason, now_s=time.time()):
+            robot.hub.publish_event(event)
 
     # ------------------------------------------------------------ /metrics
 

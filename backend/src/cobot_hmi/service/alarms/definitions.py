@@ -47,7 +47,7 @@ PRIORITY_COLOURS: Final = {
     Priority.LOW: _STATE_COLOUR["MANUAL_STANDBY"],
 }
 
-AlarmKind = Literal["state", "connection", "rate", "limit", "bit"]
+AlarmKind = Literal["state", "connection", "rate", "limit", "bit", "recording"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -80,6 +80,7 @@ SAFE_OFF: Final = "safe_off"
 CONNECTION_LOST: Final = "connection_lost"
 FORWARD_OPEN_REFUSED: Final = "forward_open_refused"
 PACKET_LOSS: Final = "packet_loss"
+RECORDING_PAUSED: Final = "recording_paused"
 MOTOR_TEMPERATURE: Final = "motor_temperature"
 USER_PREFIX: Final = "user."
 
@@ -130,6 +131,15 @@ def builtin_definitions(
             PRIORITY_COLOURS[Priority.MEDIUM],
             high=gap_rate_per_min,
             unit="gaps/min",
+        ),
+        AlarmDefinition(
+            RECORDING_PAUSED,
+            "Recording paused: disk full",
+            Priority.HIGH,
+            "recording",
+            "the history recorder cannot write (disk full, free space under "
+            "history_min_free_bytes, or a write error): frames go unrecorded until it resumes",
+            PRIORITY_COLOURS[Priority.HIGH],
         ),
         *(
             AlarmDefinition(

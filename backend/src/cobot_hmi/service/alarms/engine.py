@@ -318,6 +318,14 @@ class AlarmEngine:
         event = self._process(alarm, active, now_s, self.gaps_per_min, words)
         return [] if event is None else [event]
 
+    def recording(self, *, paused: bool, reason: str, now_s: float) -> list[Event]:
+        """The history recorder paused (``reason`` says why) or resumed: its alarm."""
+        alarm = self.alarms[d.RECORDING_PAUSED]
+        if paused == alarm.status.state.active:
+            return []
+        event = self._process(alarm, paused, now_s, None, reason)
+        return [] if event is None else [event]
+
     def expire_shelving(self, now_s: float) -> list[Event]:
         events = []
         for alarm in self.alarms.values():
