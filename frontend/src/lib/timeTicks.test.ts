@@ -12,16 +12,22 @@ describe("timeTicks", () => {
   });
 
   it("labels minutes without seconds and tenths below a second", () => {
-    expect(timeTicks(at("09:00:30"), at("09:10:30"), 540).ticktext).toEqual(["09:02", "09:04", "09:06", "09:08", "09:10"]);
+    expect(timeTicks(at("09:00:30"), at("09:11:00"), 540).ticktext).toEqual(["09:02", "09:04", "09:06", "09:08", "09:10"]);
     expect(tickLabel(at("09:00:01.5"), 500)).toBe("09:00:01.5");
     expect(tickStep(120_000, 5)).toBe(30_000);
     expect(tickStep(1e12, 5)).toBe(86_400_000);
   });
 
+  it("leaves out a tick whose label the plot's right edge would cut", () => {
+    // 10 s over 540 px: a label's half is about 0.6 s of the axis.
+    expect(timeTicks(at("09:01:02"), at("09:01:12.3"), 540).ticktext.at(-1)).toBe("09:01:10");
+    expect(timeTicks(at("09:01:02"), at("09:01:13"), 540).ticktext.at(-1)).toBe("09:01:12");
+  });
+
   it("gives no ticks for an empty or invalid range, and at least two for a narrow plot", () => {
     expect(timeTicks(5, 5, 500).tickvals).toEqual([]);
     expect(timeTicks(Number.NaN, 5, 500).tickvals).toEqual([]);
-    expect(timeTicks(at("09:00:00"), at("09:00:10"), 100).tickvals).toHaveLength(3); // a 5 s step
+    expect(timeTicks(at("09:00:00"), at("09:00:10"), 100).ticktext).toEqual(["09:00:00", "09:00:05"]); // a 5 s step
     expect(timeTicks(at("09:00:00"), at("09:00:10"), Number.NaN).tickvals.length).toBeGreaterThan(2);
   });
 });

@@ -22,9 +22,9 @@ export interface TimeTicks {
   readonly ticktext: string[];
 }
 
-/** The round step that gives about `count` ticks over `span_ms`. */
+/** The round step that gives about `count` ticks over `span_ms` (a few more rather than half). */
 export function tickStep(span_ms: number, count: number): number {
-  const wanted = span_ms / Math.max(1, count);
+  const wanted = (0.75 * span_ms) / Math.max(1, count);
   for (const step of STEPS_MS) if (step >= wanted) return step;
   return STEPS_MS[STEPS_MS.length - 1]!;
 }
@@ -50,9 +50,12 @@ export function timeTicks(from: number, to: number, width_px: number, spacing_px
   const tickvals: number[] = [];
   const ticktext: string[] = [];
   if (!Number.isFinite(from) || !Number.isFinite(to) || !(to > from)) return { tickvals, ticktext };
-  const count = Math.max(2, Math.round((Number.isFinite(width_px) ? width_px : 500) / spacing_px));
+  const width = Number.isFinite(width_px) && width_px > 0 ? width_px : 500;
+  const count = Math.max(2, Math.round(width / spacing_px));
   const step = tickStep(to - from, count);
-  for (let x = Math.ceil(from / step) * step; x <= to; x += step) {
+  // No tick so near the newest end that half its label would be cut off by the plot's edge.
+  const last = to - ((to - from) / width) * 0.3 * spacing_px;
+  for (let x = Math.ceil(from / step) * step; x <= last; x += step) {
     tickvals.push(x);
     ticktext.push(tickLabel(x, step));
   }
