@@ -2349,9 +2349,10 @@ export interface operations {
                 since?: number | null;
                 /** @description before this time, s since the epoch */
                 until?: number | null;
-                limit?: number;
-                offset?: number;
-                /** @description csv: the page as CSV */
+                /** @description page size (JSON: 100 unless given) */
+                limit?: number | null;
+                offset?: number | null;
+                /** @description csv: the whole filtered history (or the page asked for) as CSV */
                 format?: "json" | "csv";
                 /** @description only this robot's rows */
                 robot?: string | null;
@@ -2362,7 +2363,7 @@ export interface operations {
         };
         requestBody?: never;
         responses: {
-            /** @description a page, newest first (format=csv: as CSV, the total in X-Total-Count) */
+            /** @description a page, newest first (format=csv: the whole filtered history as CSV, streamed, unless limit or offset asks for a page; the total in X-Total-Count) */
             200: {
                 headers: {
                     [name: string]: unknown;

@@ -105,9 +105,10 @@ export class AlarmsApi {
 /** The panel's client: the page's REST client (same origin, the session cookie). */
 export const alarmsApi = new AlarmsApi(api.client);
 
-/** The history as CSV (the browser downloads it with the session cookie). */
+/** The whole filtered history as CSV, streamed (no limit: not a page); the browser downloads it
+ * with the session cookie. */
 export function alarmHistoryCsvUrl(robot: string, filter: HistoryFilter): string {
-  const q = new URLSearchParams({ format: "csv", limit: "100000" });
+  const q = new URLSearchParams({ format: "csv" });
   for (const [k, v] of Object.entries(historyQuery(robot, filter))) q.set(k, String(v));
   return `${API}/alarms/history?${q.toString()}`;
 }

@@ -9,16 +9,17 @@ the robot part picks the robot's engine (``RobotRuntime.alarms``). Every change 
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import AsyncIterator, Callable
 from dataclasses import dataclass
 from typing import Annotated, Any, Final, Literal, TypeVar
 
 from fastapi import APIRouter, Body, Path, Query, Request, Response
+from fastapi.responses import StreamingResponse
 
 from cobot_hmi.codec import dumps
 from cobot_hmi.service import models
 from cobot_hmi.service.alarms.engine import AlarmEngine, AlarmRefusedError, UnknownAlarmError
-from cobot_hmi.service.alarms.persistence import HISTORY_COLUMNS
+from cobot_hmi.service.alarms.persistence import HISTORY_COLUMNS, AlarmStore
 from cobot_hmi.service.api_docs import CSV_RESPONSE, errors
 from cobot_hmi.service.deps import RobotFilterDep, ServiceDep, ViewerDep, WriterDep
 from cobot_hmi.service.errors import ApiError, conflict, not_found
@@ -95,8 +96,7 @@ def _urgency(alarm: dict[str, object]) -> tuple[int, float]:
     )
 
 
-Limit = Annotated[int, Query(ge=1, le=MAX_PAGE)]
-Offset = Annotated[int, Query(ge=0)]
+DEFAULT_PAGE: Final = 100
 
 
 @router.get(
@@ -105,7 +105,8 @@ Offset = Annotated[int, Query(ge=0)]
     responses={
         200: {
             "model": models.AlarmHistoryPage,
-            "description": "a page, newest first (format=csv: as CSV, the total in X-Total-Count)",
+            "description": "a page, newest first (format=csv: the whole filtered history as "
+            "CSV, streamed, unless limit or offset asks for a page; the total in X-Total-Count)",
             "content": CSV_RESPONSE,
         },
         **errors(401, 404, 422),
@@ -123,13 +124,25 @@ async def alarm_history(
         float | None, Query(description="from this time on, s since the epoch")
     ] = None,
     until: Annotated[float | None, Query(description="before this time, s since the epoch")] = None,
-    limit: Limit = 100,
-    offset: Offset = 0,
-    format: Annotated[Literal["json", "csv"], Query(description="csv: the page as CSV")] = "json",
+    limit: Annotated[
+        int | None, Query(ge=1, le=MAX_PAGE, description="page size (JSON: 100 unless given)")
+    ] = None,
+    offset: Annotated[int | None, Query(ge=0)] = None,
+    format: Annotated[
+        Literal["json", "csv"],
+        Query(description="csv: the whole filtered history (or the page asked for) as CSV"),
+    ] = "json",
 ) -> Response:
     store = service.default_robot.alarm_store
+    if format == "csv" and limit is None and offset is None:
+        return await _history_csv(store, robot=robot, priority=priority, since=since, until=until)
     page = await store.history_page(
-        limit, offset, robot=robot, priority=priority, since=since, until=until
+        limit or DEFAULT_PAGE,
+        offset or 0,
+        robot=robot,
+        priority=priority,
+        since=since,
+        until=until,
     )
     if format == "csv":
         return Response(
@@ -142,6 +155,38 @@ async def alarm_history(
         )
     return Response(
         dumps({"items": page.items, "total": page.total}), media_type="application/json"
+    )
+
+
+async def _history_csv(
+    store: AlarmStore,
+    *,
+    robot: str | None,
+    priority: str | None,
+    since: float | None,
+    until: float | None,
+) -> StreamingResponse:
+    """The whole filtered history as CSV, newest first, streamed a batch of rows at a time
+    (memory does not grow with the history), as of the request: later transitions are not in
+    it, so the rows match X-Total-Count."""
+    total, newest_id = await store.history_count(
+        robot=robot, priority=priority, since=since, until=until
+    )
+
+    async def body() -> AsyncIterator[str]:
+        yield to_csv([], HISTORY_COLUMNS)
+        async for items in store.history_all(
+            newest_id, robot=robot, priority=priority, since=since, until=until
+        ):
+            yield to_csv(items, HISTORY_COLUMNS, header=False)
+
+    return StreamingResponse(
+        body(),
+        media_type="text/csv; charset=utf-8",
+        headers={
+            "Content-Disposition": 'attachment; filename="alarm-history.csv"',
+            "X-Total-Count": str(total),
+        },
     )
 
 

@@ -384,12 +384,15 @@ def to_csv(
     columns: Sequence[str],
     *,
     time_columns: Sequence[str] = ("time",),
+    header: bool = True,
 ) -> str:
-    """A page as CSV with a header row; nested values as JSON text; ``time_columns`` (seconds
-    since the epoch) as ISO 8601 with offset."""
+    """A page as CSV with a header row (unless not ``header``: a streamed export's later
+    parts); nested values as JSON text; ``time_columns`` (seconds since the epoch) as ISO 8601
+    with offset."""
     out = io.StringIO()
     writer = csv.writer(out)
-    writer.writerow(columns)
+    if header:
+        writer.writerow(columns)
     for item in items:
         row = []
         for name in columns:

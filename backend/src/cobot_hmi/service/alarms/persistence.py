@@ -15,6 +15,7 @@ import asyncio
 import functools
 import logging
 import sqlite3
+from collections.abc import AsyncIterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final
 
@@ -54,6 +55,8 @@ CREATE TABLE IF NOT EXISTS alarm_history (
 CREATE INDEX IF NOT EXISTS alarm_history_robot ON alarm_history (robot, id);
 """
 
+HISTORY_BATCH_ROWS: Final = 1000
+"""Rows a streamed CSV of the alarm history reads at a time."""
 HISTORY_COLUMNS: Final = (
     "id",
     "time",
@@ -177,18 +180,7 @@ class AlarmStore:
         """Transitions, newest first, optionally of one robot, one priority, a time range."""
         from cobot_hmi.service.store import Page
 
-        clauses: list[str] = []
-        params: list[object] = []
-        for column, op, value in (
-            ("robot", "=", robot),
-            ("priority", "=", priority),
-            ("time", ">=", since),
-            ("time", "<", until),
-        ):
-            if value is not None:
-                clauses.append(f"{column} {op} ?")
-                params.append(value)
-        where = ("WHERE " + " AND ".join(clauses)) if clauses else ""
+        where, params = _history_filter(robot, priority, since, until)
 
         def read(db: sqlite3.Connection) -> tuple[int, list[tuple[object, ...]]]:
             total = db.execute(f"SELECT count(*) FROM alarm_history {where}", params).fetchone()
@@ -200,14 +192,89 @@ class AlarmStore:
             return int(total[0]), rows
 
         total, rows = await self._store.call(read, fsync=False)
-        items = []
-        for row in rows:
-            item = dict(zip(HISTORY_COLUMNS, row, strict=True))
-            item["shelved"] = bool(item["shelved"])
-            text = item["value"]
-            item["value"] = orjson.loads(text) if isinstance(text, str) else None
-            items.append(item)
-        return Page(items, total)
+        return Page([_history_item(row) for row in rows], total)
+
+    async def history_count(
+        self,
+        *,
+        robot: str | None = None,
+        priority: str | None = None,
+        since: float | None = None,
+        until: float | None = None,
+    ) -> tuple[int, int]:
+        """``(total, newest id)`` of the transitions a filter selects (``history_all`` reads
+        up to that id: one snapshot, whatever comes meanwhile)."""
+        where, params = _history_filter(robot, priority, since, until)
+
+        def read(db: sqlite3.Connection) -> tuple[int, int]:
+            total, newest = db.execute(
+                f"SELECT count(*), max(id) FROM alarm_history {where}", params
+            ).fetchone()
+            return int(total), int(newest or 0)
+
+        result: tuple[int, int] = await self._store.call(read, fsync=False)
+        return result
+
+    async def history_all(
+        self,
+        newest_id: int,
+        *,
+        robot: str | None = None,
+        priority: str | None = None,
+        since: float | None = None,
+        until: float | None = None,
+        batch_rows: int = HISTORY_BATCH_ROWS,
+    ) -> AsyncIterator[list[dict[str, object]]]:
+        """Every transition a filter selects with an id up to ``newest_id``, newest first, in
+        batches of ``batch_rows`` (each a keyset query: ``id < last``, so memory holds one
+        batch and the database is not held between batches)."""
+        where, params = _history_filter(robot, priority, since, until)
+        joiner = " AND " if where else "WHERE "
+        below = newest_id + 1
+        while True:
+
+            def read(db: sqlite3.Connection, below: int = below) -> list[tuple[object, ...]]:
+                rows: list[tuple[object, ...]] = db.execute(
+                    f"SELECT {', '.join(HISTORY_COLUMNS)} FROM alarm_history {where}"
+                    f"{joiner}id < ? ORDER BY id DESC LIMIT ?",
+                    (*params, below, batch_rows),
+                ).fetchall()
+                return rows
+
+            rows = await self._store.call(read, fsync=False)
+            if not rows:
+                return
+            yield [_history_item(row) for row in rows]
+            if len(rows) < batch_rows:
+                return
+            last = rows[-1][0]
+            assert isinstance(last, int)
+            below = last
+
+
+def _history_filter(
+    robot: str | None, priority: str | None, since: float | None, until: float | None
+) -> tuple[str, list[object]]:
+    clauses: list[str] = []
+    params: list[object] = []
+    for column, op, value in (
+        ("robot", "=", robot),
+        ("priority", "=", priority),
+        ("time", ">=", since),
+        ("time", "<", until),
+    ):
+        if value is not None:
+            clauses.append(f"{column} {op} ?")
+            params.append(value)
+    return ("WHERE " + " AND ".join(clauses)) if clauses else "", params
+
+
+def _history_item(row: tuple[object, ...]) -> dict[str, object]:
+    item = dict(zip(HISTORY_COLUMNS, row, strict=True))
+    item["shelved"] = bool(item["shelved"])
+    text = item["value"]
+    item["value"] = orjson.loads(text) if isinstance(text, str) else None
+    return item
 
 
 def _write_sync(db: sqlite3.Connection, changes: list[AlarmChange]) -> None:
