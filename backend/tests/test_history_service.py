@@ -291,11 +291,21 @@ def _json(value: object) -> object:
 async def test_exports_read_back_by_independent_readers(
     robot_host: str, plc_host: str, tmp_path: Path
 ) -> None:
-    async with emulator(robot_host, simulated()) as target:
+    robot = simulated()
+    async with emulator(robot_host, robot) as target:
         settings = history_settings(target.tcp_port, robot_host, plc_host, tmp_path)
         async with running_service(settings) as hmi:
             started = hmi.service.started_at
-            seen = await stream_frames(hmi, 200)
+            seen = await stream_frames(hmi, 100)
+            # An emergency stop: its alarm goes into the events channel beside the frames.
+            robot.estop(time.time())
+            for _ in range(int(DEADLINE_S * 10)):
+                seen += await stream_frames(hmi, 10)
+                if seen[-1]["frame"]["robot_state"] == 0:
+                    break
+            else:
+                raise AssertionError("the emergency stop never showed")
+            seen += await stream_frames(hmi, 10)
             async with hmi.client() as client:
                 await wait_recorded(client, seen[0]["t"], seen[-1]["seq"])
                 await hmi.service.store.flush_events()
@@ -352,8 +362,17 @@ async def test_exports_read_back_by_independent_readers(
             if name.endswith("_name"):
                 continue
             assert f32(message[name]) == f32(value), name
-    # The connection coming up is on the same time axis, in its own channel.
+    # The connection coming up is on the same time axis, in its own channel; so is the
+    # emergency stop's alarm, at the first frame that showed it.
     assert any(e["kind"] == "connection" and e["state"] == "connected" for e in events)
+    stopped_at = next(i["t"] for i in seen if i["frame"]["robot_state"] == 0)
+    alarms = [e for e in events if e["kind"] == "alarm"]
+    estop = [e for e in alarms if e["alarm"]["key"] == "emergency_stop"]
+    assert [e["transition"] for e in estop] == ["activated"], alarms
+    assert estop[0]["time"] == pytest.approx(stopped_at, abs=1e-6)
+    assert estop[0]["alarm"]["priority"] == "critical" and estop[0]["robot"] == ROBOT
+    times = [e["time"] for e in events]
+    assert times == sorted(times)
 
 
 async def test_refusals_name_the_parameter(robot_host: str, plc_host: str, tmp_path: Path) -> None:
