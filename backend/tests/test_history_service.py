@@ -28,6 +28,7 @@ from websockets.asyncio.client import connect
 
 from cobot_hmi.emulator.robot import RobotSettings as SimulationSettings
 from cobot_hmi.emulator.robot import SimulatedRobot
+from cobot_hmi.history import segments
 from cobot_hmi.history.query import CELL_S, bucket_grid
 from cobot_hmi.history.schema import ELEMENTS, Element, raw_from_columns, time_seconds
 from cobot_hmi.service.settings import ServiceSettings
@@ -551,6 +552,57 @@ async def test_events_of_a_range_and_the_recording_status(
     assert after_stop[-1]["t"] <= state["last"]
     assert state["bytes"] > 0
     assert state["retention_days"] == 7.0
+
+
+async def test_retention_by_age_deletes_the_oldest_while_recording_goes_on(
+    robot_host: str, plc_host: str, tmp_path: Path
+) -> None:
+    """Recordings older than 3 s (segments of 1 s): the running service deletes the oldest
+    segments first, the query no longer finds their frames, and recording goes on."""
+    age_s = 3.0
+    async with emulator(robot_host) as target:
+        settings = history_settings(
+            target.tcp_port,
+            robot_host,
+            plc_host,
+            tmp_path,
+            history_segment_s=1.0,
+            history_retention_days=age_s / 86400,
+        )
+        async with running_service(settings) as hmi, hmi.client() as client:
+            root = hmi.settings.history_path
+            # Generous deadlines: a loaded machine closes segments late, never wrongly.
+            for _ in range(int(DEADLINE_S * 30)):
+                closed = segments.list_segments(root, ROBOT)
+                if closed:
+                    break
+                await asyncio.sleep(0.1)
+            else:
+                raise AssertionError("no segment closed")
+            oldest = closed[0]
+            for _ in range(int(DEADLINE_S * 30)):
+                if not oldest.path.exists():
+                    break
+                # The oldest first: no newer segment goes while the oldest is still there.
+                newer_gone = [s.path.name for s in closed[1:] if not s.path.exists()]
+                assert not newer_gone or not oldest.path.exists(), newer_gone
+                await asyncio.sleep(0.1)
+            else:
+                raise AssertionError(f"{oldest.path.name} kept past {age_s} s")
+            gone = await client.get(
+                f"/api/v1/robots/{ROBOT}/history",
+                params={"from": oldest.start_us / 1e6, "to": oldest.end_us / 1e6 + 1e-6},
+            )
+            # Recording goes on: frames received after the deletion reach the recording.
+            seen = await stream_frames(hmi, 30)
+            await wait_recorded(client, seen[0]["t"], seen[-1]["seq"])
+            metrics = await hmi.metrics()
+    assert not oldest.rollup_path.exists()
+    assert gone.status_code == 200 and gone.json()["frames"] == 0
+    deleted = re.search(
+        r"^cobot_hmi_history_retention_deleted_segments_total (\S+)$", metrics, re.MULTILINE
+    )
+    assert deleted and float(deleted[1]) >= 1
 
 
 async def test_a_recorder_that_falls_behind_drops_its_oldest_and_says_so(
