@@ -191,6 +191,8 @@ test("by keyboard: zoom out and pan into the recording, then back to live", asyn
   await tabTo(page, `${PLOT}-live`);
   await page.keyboard.press("Enter");
   await expect(figure).toHaveAttribute("data-view", "ring");
+  // The button is gone once live: the focus is on Pause, drawn again, not lost to the page.
+  await expect(page.getByTestId(`${PLOT}-pause`)).toBeFocused();
   await expect(plot).toHaveAttribute("data-zoomed", "false");
   await expect(page.getByTestId(`${PLOT}-window`)).toHaveValue("10000");
   const live = await xRange(page);
@@ -214,14 +216,17 @@ test("by keyboard on the plotting area: focus makes it interactive, ← goes bac
   const zoomed = await xRange(page);
   expect(zoomed[1] - zoomed[0]).toBeLessThan(6_000);
   expect(requests).toHaveLength(0);
-  await page.keyboard.press("ArrowRight");
+  // → onto now is live again: a press or more, as now moves on meanwhile (each moves 2.5 s on).
+  for (let i = 0; i < 20 && (await plot.getAttribute("data-zoomed")) !== "false"; i++) {
+    await page.keyboard.press("ArrowRight");
+  }
   await expect(plot).toHaveAttribute("data-zoomed", "false");
   // ← reaches before the live window: the recording.
   await page.keyboard.press("ArrowLeft");
   await expect(figure).toHaveAttribute("data-view", "fixed");
   await expect.poll(() => requests.length, { timeout: 15_000 }).toBeGreaterThan(0);
-  // → onto now is back to live (a press or two, as now moves on).
-  for (let i = 0; i < 4 && (await figure.getAttribute("data-view")) !== "ring"; i++) {
+  // → onto now is back to live (a press or more, as now moves on).
+  for (let i = 0; i < 20 && (await figure.getAttribute("data-view")) !== "ring"; i++) {
     await page.keyboard.press("ArrowRight");
   }
   await expect(figure).toHaveAttribute("data-view", "ring");
@@ -249,8 +254,10 @@ test("on a touch screen the time-axis buttons are 44 × 44 px and a tap on Zoom 
     }
     await page.getByTestId(`${PLOT}-zoomOut`).tap();
     await expect(page.getByTestId(`${PLOT}-figure`)).toHaveAttribute("data-view", "fixed");
-    await page.getByTestId(`${PLOT}-later`).tap(); // onto now: live again
-    await expect(page.getByTestId(`${PLOT}-figure`)).toHaveAttribute("data-view", "ring");
+    // Onto now: live again (a tap or more, as now moves on meanwhile).
+    const figure = page.getByTestId(`${PLOT}-figure`);
+    for (let i = 0; i < 10 && (await figure.getAttribute("data-view")) !== "ring"; i++) await page.getByTestId(`${PLOT}-later`).tap();
+    await expect(figure).toHaveAttribute("data-view", "ring");
     expect(await page.evaluate(() => document.documentElement.scrollWidth)).toBeLessThanOrEqual(390);
   } finally {
     await context.close();

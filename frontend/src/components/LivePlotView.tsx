@@ -118,6 +118,13 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
   const titleTop = `${margin.t + (height - margin.t - margin.b) / 2}px`;
   const [visible, setVisible] = useState<boolean[]>(() => traces.map(() => true));
   const historyAccess = history?.access ?? null;
+  const pauseButton = useRef<HTMLButtonElement | null>(null);
+  const refocusPause = useRef(false);
+  useEffect(() => {
+    if (!refocusPause.current) return;
+    refocusPause.current = false;
+    pauseButton.current?.focus();
+  });
   const historyRobot = history?.robot ?? null;
 
   useEffect(() => {
@@ -174,7 +181,9 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
     setPaused(next);
     plotRef.current?.setPaused(next);
   };
-  const backToLive = () => {
+  const backToLive = (e?: MouseEvent<HTMLButtonElement>) => {
+    // The button goes once live: its focus moves on to Pause (drawn again), not to the page.
+    refocusPause.current = e !== undefined && document.activeElement === e.currentTarget;
     setPaused(false);
     setCustom(null);
     const plot = plotRef.current;
@@ -278,6 +287,7 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
             </span>
             {!fixed && (
               <button
+                ref={pauseButton}
                 type="button"
                 className="plot__pause"
                 data-testid={`${spec.id}-pause`}
