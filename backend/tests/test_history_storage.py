@@ -864,3 +864,36 @@ def test_history_storage_imports_only_the_layout_and_the_codec() -> None:
             for name in names:
                 if name.startswith("cobot_hmi"):
                     assert name.startswith(allowed), f"{source.name} imports {name}"
+
+
+async def test_export_events_are_read_a_batch_at_a_time(tmp_path: Path) -> None:
+    """The MCAP export's events from the real event log, a few at a time (times shared by
+    several events, other robots' and outside the range left out): the same as one read."""
+    from cobot_hmi.service.history_events import events_between, iter_events
+    from cobot_hmi.service.store import Store
+
+    database = tmp_path / "hmi.db"
+    store = Store(database)
+    await store.open()
+    try:
+        for i in range(40):
+            for robot in ("cell-1", "other"):
+                store.log_event(
+                    {
+                        "kind": "flag",
+                        "time": T0 + i // 3,
+                        "robot": robot,
+                        "flag": "servo_on",
+                        "value": i % 2 == 0,
+                        "n": i,
+                    }
+                )
+        await store.flush_events()
+    finally:
+        await store.close()
+    whole = events_between(database, "cell-1", T0 + 1, T0 + 12)
+    assert [e["n"] for e in whole] == list(range(3, 36))
+    for batch_rows in (1, 4, 33, 1000):
+        batched = list(iter_events(database, "cell-1", T0 + 1, T0 + 12, batch_rows=batch_rows))
+        assert batched == whole, batch_rows
+    assert list(iter_events(tmp_path / "none.db", "cell-1", T0, T0 + 1)) == []

@@ -105,7 +105,8 @@ def export(
     fmt: str,
     events: Iterable[Mapping[str, object]] = (),
 ) -> Iterator[bytes]:
-    """The export's bytes, chunk by chunk, from ``tables_`` as ``tables`` gives them."""
+    """The export's bytes, chunk by chunk, from ``tables_`` as ``tables`` gives them; MCAP
+    also ``events``, in time order (read as the frames pass them, one at a time)."""
     if fmt == "csv":
         return _csv(tables_, elements)
     if fmt == "parquet":
@@ -285,19 +286,19 @@ def _mcap(
     )
     frames = writer.register_channel(f"/{robot}/frames", "json", frame_schema)
     event_channel = writer.register_channel(f"/{robot}/events", "json", event_schema)
-    pending = sorted(events, key=_event_time_ns)
-    next_event = 0
+    # In time order as given (the service's reader streams them so): one event held at a time.
+    pending = iter(events)
+    upcoming = next(pending, None)
 
     def events_until(time_ns: int | None) -> None:
-        nonlocal next_event
-        while next_event < len(pending):
-            event = pending[next_event]
-            event_ns = _event_time_ns(event)
+        nonlocal upcoming
+        while upcoming is not None:
+            event_ns = _event_time_ns(upcoming)
             if time_ns is not None and event_ns > time_ns:
                 return
-            data = orjson.dumps(event, option=orjson.OPT_NON_STR_KEYS)
+            data = orjson.dumps(upcoming, option=orjson.OPT_NON_STR_KEYS)
             writer.add_message(event_channel, event_ns, data, event_ns)
-            next_event += 1
+            upcoming = next(pending, None)
 
     fields: list[tuple[Field, list[str]]] = []
     for e in elements:

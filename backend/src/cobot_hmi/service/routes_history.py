@@ -24,7 +24,7 @@ from cobot_hmi.service import models
 from cobot_hmi.service.api_docs import READ, errors
 from cobot_hmi.service.deps import RobotDep, ServiceDep, ViewerDep
 from cobot_hmi.service.errors import ApiError
-from cobot_hmi.service.history_events import events_between
+from cobot_hmi.service.history_events import events_between, iter_events
 from cobot_hmi.service.recorder import Recorder
 from cobot_hmi.service.runtime import Service
 from cobot_hmi.service.settings import ServiceSettings
@@ -258,7 +258,7 @@ def export_chunks(
     fmt: str,
 ) -> Iterator[bytes]:
     """The export's bytes (also ``cobot-hmi export``): frames and, for MCAP, the events."""
-    events = events_between(database, robot, from_s, to_s) if fmt == "mcap" else []
+    events = iter_events(database, robot, from_s, to_s) if fmt == "mcap" else iter(())
     tables = history_export.tables(root, robot, elements, from_s=from_s, to_s=to_s, fmt=fmt)
     for chunk in history_export.export(tables, robot, elements, fmt, events):
         if chunk:
