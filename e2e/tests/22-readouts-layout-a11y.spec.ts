@@ -1,7 +1,8 @@
 // Issue 13, numbers and every screen: the joint table shows the frame's values; a 390 × 844
 // phone has no horizontal scrolling, a compact sticky header (a fifth of the height at most,
 // nothing scrolling inside it, the essentials shown, the rest behind its menu), dialogs on
-// screen and 44 px touch targets; the confirmation dialog keeps focus, Escape cancels and Enter confirms (with a
+// screen and 44 px touch targets (every link and button); at 1280 × 800 and 1920 × 1080 the
+// header with an alarm within a fifth of the height, the banner whole in it; the confirmation dialog keeps focus, Escape cancels and Enter confirms (with a
 // warning during an emergency stop); axe-core finds nothing serious on the panel, the login
 // and the kiosk, light and dark.
 import AxeBuilder from "@axe-core/playwright";
@@ -127,7 +128,7 @@ test("the phone layout has no overflow and a compact header", async ({ browser, 
     const touchTargetsBigEnough = async () => {
       const small = await page.evaluate(() => {
         const out: string[] = [];
-        for (const el of Array.from(document.querySelectorAll<HTMLElement>(".panel button, .panel select, .panel input, .panel-nav a"))) {
+        for (const el of Array.from(document.querySelectorAll<HTMLElement>("a, button, select, input"))) {
           const target = el instanceof HTMLInputElement && (el.type === "checkbox" || el.type === "radio") ? (el.closest("label") ?? el) : el;
           const r = target.getBoundingClientRect();
           if (r.width === 0 || r.height === 0 || getComputedStyle(el).visibility === "hidden") continue; // not shown
@@ -190,6 +191,7 @@ test("the phone layout has no overflow and a compact header", async ({ browser, 
     await expect(page.getByTestId("alarm-banner")).toBeVisible({ timeout: 15_000 });
     await noOverflow("panel, alarm");
     await headerCompact("alarm", [...ESSENTIALS, "release-control", "alarm-banner"]);
+    await touchTargetsBigEnough(); // the alarm banner's link to the alarm list among them
 
     await page.goto("/kiosk");
     await expect(page.getByTestId("robot-state")).toHaveAttribute("data-state-name", /.+/);
@@ -198,6 +200,55 @@ test("the phone layout has no overflow and a compact header", async ({ browser, 
     await context.close();
   }
 });
+
+// Issue 13 on wider screens: with an emergency stop's alarm, the sticky header stays within a
+// fifth of the height, nothing scrolls inside it, and the alarm banner is shown whole in it.
+for (const viewport of [
+  { width: 1280, height: 800 },
+  { width: 1920, height: 1080 },
+]) {
+  test(`the ${viewport.width} × ${viewport.height} header keeps the alarm in view`, async ({ browser, robot }) => {
+    const context = await browser.newContext({ viewport });
+    const page = await context.newPage();
+    try {
+      await page.goto("/");
+      await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
+      await loginInPanel(page, settings.operator);
+      await page.getByTestId("take-control").click();
+      await expect(page.getByTestId("control-holder")).toHaveAttribute("data-holder", settings.operator.name);
+      await robot.estop();
+      await expect(page.getByTestId("robot-state")).toHaveAttribute("data-state-name", "EMERGENCY_STOP");
+      await expect(page.getByTestId("alarm-banner")).toBeVisible({ timeout: 15_000 });
+      const shown = await page.getByTestId("panel-header").evaluate((header) => {
+        const box = header.getBoundingClientRect();
+        const banner = header.querySelector<HTMLElement>('[data-testid="alarm-banner"]');
+        const r = banner?.getBoundingClientRect();
+        return {
+          height: box.height,
+          scrollHeight: header.scrollHeight,
+          clientHeight: header.clientHeight,
+          banner: r === undefined ? null : { top: r.top, bottom: r.bottom, left: r.left, right: r.right, width: r.width, height: r.height },
+          box: { top: box.top, bottom: box.bottom },
+          rows: Array.from(header.children).map((c) => `${c.className} ${Math.round(c.getBoundingClientRect().top)}+${Math.round(c.getBoundingClientRect().height)}`),
+        };
+      });
+      const where = `${viewport.width} × ${viewport.height}: ${shown.rows.join("; ")}`;
+      expect(shown.height, `${where}: sticky header height`).toBeLessThanOrEqual(0.2 * viewport.height + 0.5);
+      expect(shown.scrollHeight, `${where}: the header scrolls inside itself`).toBeLessThanOrEqual(shown.clientHeight + 1);
+      expect(shown.banner, `${where}: the alarm banner`).not.toBeNull();
+      if (shown.banner !== null) {
+        expect(shown.banner.width * shown.banner.height).toBeGreaterThan(0);
+        expect(shown.banner.top, where).toBeGreaterThanOrEqual(shown.box.top - 0.5);
+        expect(shown.banner.bottom, where).toBeLessThanOrEqual(shown.box.bottom + 0.5);
+        expect(shown.banner.left).toBeGreaterThanOrEqual(-0.5);
+        expect(shown.banner.right).toBeLessThanOrEqual(viewport.width + 0.5);
+      }
+      await expect(page.getByTestId("alarm-banner")).toBeInViewport({ ratio: 1 });
+    } finally {
+      await context.close();
+    }
+  });
+}
 
 test("Escape closes the dialog, focus stays inside, Enter confirms", async ({ page, robot, operatorApi }) => {
   await operatorApi.write({ controlbox_do: { [DO16_INDEX]: false } }); // whatever a failed run left
