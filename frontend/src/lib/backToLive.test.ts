@@ -1,34 +1,15 @@
 // Back to live after a zoom, hover with units while live, PNG export (lib/plotting.ts).
 import { describe, expect, it } from "vitest";
-import { BUCKETS_PER_WINDOW, LivePlot, type PlotBackend } from "./plotting";
+import { BUCKETS_PER_WINDOW, LivePlot } from "./plotting";
 import { ChannelMap, JOINT_PLOTS } from "./plots";
 import { SampleRing } from "./ringBuffer";
+import { fakeBackend } from "./plotTestSupport";
 
-type Call = { op: string; args: unknown[] };
 type Layout = { uirevision: string; hovermode: unknown; xaxis: { autorange: boolean; range?: unknown[] }; yaxis: { autorange: boolean; range?: unknown[] } };
 
 function setup() {
-  const calls: Call[] = [];
-  const zoom: Record<string, unknown[]> = {};
-  let relayout: (() => void) | null = null;
-  const rec =
-    (op: string) =>
-    (...args: unknown[]) => {
-      calls.push({ op, args });
-    };
-  const backend: PlotBackend = {
-    newPlot: rec("newPlot"),
-    react: rec("react"),
-    extendTraces: rec("extendTraces"),
-    restyle: rec("restyle"),
-    relayout: rec("relayout"),
-    purge: rec("purge"),
-    downloadPng: rec("downloadPng"),
-    zoomedAxes: () => zoom,
-    onRelayout: (_el, listener) => {
-      relayout = listener;
-    },
-  };
+  const backend = fakeBackend();
+  const { calls, zoom } = backend;
   const spec = JOINT_PLOTS[0]!;
   const channels = new ChannelMap([spec]);
   const ring = new SampleRing(4096, channels.channelCount);
@@ -41,7 +22,7 @@ function setup() {
   /** A person zooms the x axis into [from, to] (Plotly then tells its relayout listeners). */
   const zoomTo = (from: number, to: number) => {
     zoom.xaxis = [from, to];
-    relayout?.();
+    backend.fireRelayout();
   };
   const unzoomInPlotly = () => {
     delete zoom.xaxis;

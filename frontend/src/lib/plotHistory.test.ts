@@ -10,8 +10,8 @@ import { ChannelMap, JOINT_PLOTS } from "./plots";
 import { SampleRing } from "./ringBuffer";
 import { rangeOfMarker } from "./historyView";
 import { PlotTimeRange, type SharedTimeEvent } from "./timeRange";
+import { fakeBackend } from "./plotTestSupport";
 
-type Call = { op: string; args: unknown[] };
 type Trace = { name?: string; x: number[]; y: (number | null)[]; visible?: boolean; fill?: string };
 type Layout = {
   uirevision: string;
@@ -70,32 +70,8 @@ function answerOf(range: TimeRange, over: Partial<HistoryAnswer> = {}): HistoryA
 }
 
 function setup(window_ms = 10_000, withHistory = true) {
-  const calls: Call[] = [];
-  const zoom: Record<string, unknown[]> = {};
-  let relayout: (() => void) | null = null;
-  const rec =
-    (op: string) =>
-    (...args: unknown[]) => {
-      calls.push({ op, args });
-    };
-  const backend: PlotBackend = {
-    newPlot: rec("newPlot"),
-    react: (...args: unknown[]) => {
-      calls.push({ op: "react", args });
-      // What Plotly does: an explicit x range is what it shows afterwards.
-      const layout = args[2] as Layout;
-      if (layout.xaxis.autorange === false && layout.xaxis.range !== undefined) zoom.xaxis = [...layout.xaxis.range];
-      else delete zoom.xaxis;
-    },
-    extendTraces: rec("extendTraces"),
-    restyle: rec("restyle"),
-    relayout: rec("relayout"),
-    purge: rec("purge"),
-    zoomedAxes: () => zoom,
-    onRelayout: (_el, listener) => {
-      relayout = listener;
-    },
-  };
+  const backend = fakeBackend({ plotlyReact: true });
+  const { calls, zoom } = backend;
   const fetches: { range: TimeRange; points: number; signal: AbortSignal; resolve: (d: RangeData) => void }[] = [];
   const { timer, fire, due } = fakeTimer();
   const channels = new ChannelMap([spec]);
@@ -125,11 +101,11 @@ function setup(window_ms = 10_000, withHistory = true) {
   /** A person zooms or pans the x axis to [from, to] (epoch ms): Plotly tells its listeners. */
   const moveTo = (from_ms: number, to_ms: number) => {
     zoom.xaxis = [from_ms - tz, to_ms - tz];
-    relayout?.();
+    backend.fireRelayout();
   };
   const autoscale = () => {
     delete zoom.xaxis;
-    relayout?.();
+    backend.fireRelayout();
   };
   const reacts = () => calls.filter((c) => c.op === "react");
   const lastReact = () => reacts().at(-1)!;

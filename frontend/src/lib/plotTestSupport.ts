@@ -3,23 +3,51 @@ import { LivePlot, type PlotBackend } from "./plotting";
 import { ChannelMap, JOINT_PLOTS } from "./plots";
 import { SampleRing } from "./ringBuffer";
 
-type Call = { op: string; args: unknown[] };
+export type Call = { op: string; args: unknown[] };
 
-export function fakeBackend(): PlotBackend & { calls: Call[]; zoom: Record<string, unknown[]> } {
+type XAxisLayout = { xaxis?: { autorange?: boolean; range?: unknown[] } };
+
+export interface FakeBackendOptions {
+  /**
+   * `react` behaves as Plotly's does for the x axis: an explicit range is what it shows
+   * afterwards (`zoomedAxes`), an autoranged axis is no zoom.
+   */
+  readonly plotlyReact?: boolean;
+}
+
+/**
+ * A Plotly stand-in that records every call. `zoom` is what `zoomedAxes` reports; `fireRelayout`
+ * tells the plot's relayout listener, as Plotly does after a person's zoom or pan.
+ */
+export function fakeBackend(
+  options: FakeBackendOptions = {},
+): PlotBackend & { calls: Call[]; zoom: Record<string, unknown[]>; fireRelayout: () => void } {
   const calls: Call[] = [];
   const zoom: Record<string, unknown[]> = {};
+  let listener: (() => void) | null = null;
   const rec = (op: string) => (...args: unknown[]) => {
     calls.push({ op, args });
   };
   return {
     calls,
     zoom,
+    fireRelayout: () => listener?.(),
     zoomedAxes: () => zoom,
+    onRelayout: (_el, l) => {
+      listener = l;
+    },
     newPlot: rec("newPlot"),
-    react: rec("react"),
+    react: (...args: unknown[]) => {
+      calls.push({ op: "react", args });
+      if (options.plotlyReact !== true) return;
+      const x = (args[2] as XAxisLayout).xaxis;
+      if (x?.autorange === false && x.range !== undefined) zoom.xaxis = [...x.range];
+      else delete zoom.xaxis;
+    },
     extendTraces: rec("extendTraces"),
     restyle: rec("restyle"),
     relayout: rec("relayout"),
+    downloadPng: rec("downloadPng"),
     purge: rec("purge"),
   };
 }
