@@ -12,10 +12,8 @@ frame the live stream never does, so the test tells its own frames apart by thei
 
 from __future__ import annotations
 
-import asyncio
 import itertools
 import socket
-from collections.abc import Callable
 
 import pytest
 
@@ -25,6 +23,7 @@ from cobot_hmi.enip import io
 from cobot_hmi.layout import ROBOT_STATES
 from cobot_hmi.scanner.originator import Originator, OriginatorSettings
 from cobot_hmi.service.hub import Hub
+from emulator_harness import eventually
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -32,15 +31,6 @@ DEADLINE_S = 20.0
 EMERGENCY_STOP = next(s.value for s in ROBOT_STATES if s.name == "EMERGENCY_STOP")
 JUMP: int = 0x7FFF_FFF0
 """Ahead of the last number by just under half the 32-bit range: newer (Vol 2 §3-4.2)."""
-
-
-async def eventually(check: Callable[[], bool], timeout_s: float = DEADLINE_S) -> None:
-    """Wait until ``check()`` holds (a generous functional deadline, not a timing figure)."""
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout_s
-    while not check():
-        assert loop.time() < end, "condition not reached in time"
-        await asyncio.sleep(0.01)
 
 
 @pytest.mark.both_pumps
@@ -59,7 +49,7 @@ async def test_on_frame_carries_each_packets_wire_sequence_number(
     await originator.start()
     try:
         assert await originator.wait_connected(DEADLINE_S)
-        await eventually(lambda: len(seen) >= 50)
+        await eventually(lambda: len(seen) >= 50, DEADLINE_S)
         # The live stream: one number per packet, so consecutive frames step by one except
         # where the scanner counted packets it did not deliver.
         live = [wire for _, wire in seen]
@@ -91,7 +81,9 @@ async def test_on_frame_carries_each_packets_wire_sequence_number(
                     link.t2o_id, wire, (last_cip + 1 + n) & 0xFFFF, encode_frame(frame)
                 )
                 sender.sendto(packet, (plc_host, 2222))
-        await eventually(lambda: sum(f.robot_state == EMERGENCY_STOP for f, _ in seen) >= 4)
+        await eventually(
+            lambda: sum(f.robot_state == EMERGENCY_STOP for f, _ in seen) >= 4, DEADLINE_S
+        )
     finally:
         await originator.stop()
     delivered = [(frame, wire) for frame, wire in seen if frame.robot_state == EMERGENCY_STOP]
