@@ -41,12 +41,17 @@ async function xRange(page: Page): Promise<[number, number]> {
   });
 }
 
-test("hover while live, zoom, and back to live", async ({ page }) => {
+/** The panel with the plot drawing live data: the plot, its box and the height of its middle. */
+async function openLivePlot(page: Page) {
   await page.goto(`/?robot=${settings.robotName}`);
   const plot = page.getByTestId(PLOT);
   await expect.poll(async () => Number(await plot.getAttribute("data-points"))).toBeGreaterThan(0);
   const box = (await plot.boundingBox())!;
-  const y = box.y + box.height / 2;
+  return { plot, box, y: box.y + box.height / 2 };
+}
+
+test("hover while live, zoom, and back to live", async ({ page }) => {
+  const { plot, box, y } = await openLivePlot(page);
 
   // Pointing at the plot makes it interactive while it keeps streaming; hover names the unit.
   await page.mouse.move(box.x + box.width * 0.7, y);
@@ -78,11 +83,7 @@ test("hover while live, zoom, and back to live", async ({ page }) => {
 });
 
 test("a pan past the ring shows the recording; back to live from there", async ({ page }) => {
-  await page.goto(`/?robot=${settings.robotName}`);
-  const plot = page.getByTestId(PLOT);
-  await expect.poll(async () => Number(await plot.getAttribute("data-points"))).toBeGreaterThan(0);
-  const box = (await plot.boundingBox())!;
-  const y = box.y + box.height / 2;
+  const { plot, box, y } = await openLivePlot(page);
   await page.mouse.move(box.x + box.width * 0.5, y);
   await expect(plot).toHaveAttribute("data-interactive", "true");
   const before = await xRange(page);
