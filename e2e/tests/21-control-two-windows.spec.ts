@@ -50,3 +50,38 @@ test("the same user in a second window sees control held by you in another windo
     await second.close();
   }
 });
+
+// Logging out ends this window's session, so the service closes its stream (1008, "session
+// ended"). The window itself asked for it: it reconnects at once without showing that notice,
+// and the same user's other window keeps its own session and stream.
+test("a window's own logout reconnects quietly; the other window stays logged in", async ({ browser }) => {
+  const first = await browser.newContext({ baseURL, viewport: { width: 1600, height: 1000 } });
+  const second = await browser.newContext({ baseURL, viewport: { width: 1600, height: 1000 } });
+  try {
+    const a = await first.newPage();
+    const b = await second.newPage();
+    for (const page of [a, b]) {
+      await page.goto("/");
+      await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
+      await loginInPanel(page, settings.operator);
+    }
+    // Every reason the badge gives from now on (its title), however briefly shown.
+    await a.getByTestId("connection-status").evaluate((badge) => {
+      const seen: string[] = [];
+      (window as unknown as { __reasons: string[] }).__reasons = seen;
+      new MutationObserver(() => seen.push(badge.getAttribute("title") ?? "")).observe(badge, { attributes: true });
+    });
+
+    await a.getByTestId("logout").click();
+    await expect(a.getByTestId("login-username")).toBeVisible();
+    await expect(a.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
+    const reasons = await a.evaluate(() => (window as unknown as { __reasons: string[] }).__reasons);
+    expect(reasons.filter((r) => /session|closed the stream/i.test(r))).toEqual([]);
+
+    await expect(b.getByTestId("current-user")).toContainText(settings.operator.name);
+    await expect(b.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
+  } finally {
+    await first.close();
+    await second.close();
+  }
+});

@@ -185,6 +185,62 @@ describe("StreamClient", () => {
     expect(vi.getTimerCount()).toBe(0);
   });
 
+  it("reconnects at once, with no reason shown, when this page's own logout ends the session", () => {
+    const reasons: (string | null)[] = [];
+    const states: SocketState[] = [];
+    const sockets: FakeSocket[] = [];
+    const client = new StreamClient(
+      () => "ws://h/api/v1/stream",
+      { onMessage: () => undefined, onSocketState: (s) => states.push(s), onCloseReason: (r) => reasons.push(r) },
+      {
+        random: () => 0,
+        socketFactory: (url) => {
+          const socket = new FakeSocket(url);
+          sockets.push(socket);
+          return socket;
+        },
+      },
+    );
+    client.start();
+    (sockets[0] as FakeSocket).open();
+    client.expectSessionEnd();
+    (sockets[0] as FakeSocket).drop(1008, "session ended: logged out");
+    expect(sockets).toHaveLength(2); // at once, no back-off timer
+    expect(reasons.filter((r) => r !== null)).toEqual([]);
+    expect(states).not.toContain("closed");
+    // Expected once: another session's end later (revoked, by an admin) is news again.
+    (sockets[1] as FakeSocket).open();
+    (sockets[1] as FakeSocket).drop(1008, "session ended: revoked");
+    expect(reasons.at(-1)).toBe("the service closed the stream: session ended: revoked");
+    expect(states.at(-1)).toBe("closed");
+    expect(sockets).toHaveLength(2);
+    client.stop();
+  });
+
+  it("an expected session end that never came does not hide a later one", () => {
+    const reasons: (string | null)[] = [];
+    const sockets: FakeSocket[] = [];
+    const client = new StreamClient(
+      () => "ws://h/api/v1/stream",
+      { onMessage: () => undefined, onSocketState: () => undefined, onCloseReason: (r) => reasons.push(r) },
+      {
+        random: () => 0,
+        socketFactory: (url) => {
+          const socket = new FakeSocket(url);
+          sockets.push(socket);
+          return socket;
+        },
+      },
+    );
+    client.start();
+    client.expectSessionEnd();
+    client.restart(); // the logout's answer came first: the page reconnected by itself
+    (sockets[1] as FakeSocket).open();
+    (sockets[1] as FakeSocket).drop(1008, "session ended: revoked");
+    expect(reasons.at(-1)).toBe("the service closed the stream: session ended: revoked");
+    client.stop();
+  });
+
   it("restart opens a fresh socket at once", () => {
     const { client, sockets } = setup();
     client.start();

@@ -87,6 +87,8 @@ export class StreamClient {
   private retryTimer: ReturnType<typeof setTimeout> | null = null;
   private silenceTimer: ReturnType<typeof setTimeout> | null = null;
   private running = false;
+  /** This page is ending its own session: the service's 1008 close that follows is expected. */
+  private sessionEndExpected = false;
   /** Number of connection attempts after the first. */
   reconnects = 0;
   badMessages = 0;
@@ -115,9 +117,19 @@ export class StreamClient {
     this.callbacks.onSocketState("closed");
   }
 
+  /**
+   * This page is about to end its own session (its user logs out): the service will close this
+   * socket with 1008. That close is then no news to show ("session ended") and no reason to back
+   * off: the client reconnects at once instead, as it does on `restart()`.
+   */
+  expectSessionEnd(): void {
+    this.sessionEndExpected = true;
+  }
+
   /** Reconnect now (e.g. after a login, so the new socket carries the session). */
   restart(): void {
     if (!this.running) return;
+    this.sessionEndExpected = false;
     this.clearTimers();
     this.dropSocket();
     this.backoff.reset();
@@ -161,6 +173,13 @@ export class StreamClient {
       if (this.socket !== socket) return;
       this.socket = null;
       this.clearSilence();
+      if (this.sessionEndExpected && ev.code === CLOSE_SESSION_ENDED) {
+        this.sessionEndExpected = false;
+        this.callbacks.onCloseReason?.(null);
+        this.backoff.reset();
+        if (this.running) this.connect();
+        return;
+      }
       this.callbacks.onCloseReason?.(closeReason(ev.code, ev.reason));
       this.callbacks.onSocketState("closed");
       this.scheduleRetry();

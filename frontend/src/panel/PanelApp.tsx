@@ -97,6 +97,8 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
     [runtime, onUser],
   );
   const onControl = useCallback((control: ControlStatus) => runtime.live.setControl(control), [runtime]);
+  // Our own logout closes our stream (1008): reconnect at once rather than show "session ended".
+  const expectSessionEnd = useCallback(() => runtime.stream.expectSessionEnd(), [runtime]);
   const ownership = controlOwnership(live.control, user, live.session);
   const newestAlarmEvent = live.events.find((e) => e.kind === "alarm")?.time ?? null;
   const [tags, setTags] = useState<TagNames>({});
@@ -133,6 +135,7 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
                 }}
                 onControl={onControl}
                 onLoginWanted={openMenu}
+                onLoggingOut={expectSessionEnd}
               />
             </div>
             <button

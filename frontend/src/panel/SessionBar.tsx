@@ -18,9 +18,11 @@ interface Props {
    * it opens the header's menu, where the form is.
    */
   readonly onLoginWanted?: () => void;
+  /** Right before the logout is asked for: the service will close this session's streams. */
+  readonly onLoggingOut?: () => void;
 }
 
-export function SessionBar({ robot, user, ownership, onUser, onControl, onLoginWanted }: Props) {
+export function SessionBar({ robot, user, ownership, onUser, onControl, onLoginWanted, onLoggingOut }: Props) {
   const [username, setUsername] = useState("");
   const [password, setPassword] = useState("");
   const [busy, setBusy] = useState(false);
@@ -138,6 +140,7 @@ export function SessionBar({ robot, user, ownership, onUser, onControl, onLoginW
         data-testid="logout"
         disabled={busy}
         onClick={() => {
+          onLoggingOut?.();
           void api.logout().finally(() => onUser(null));
         }}
       >
