@@ -24,15 +24,10 @@ import {
   type TimeRange,
 } from "../lib/historyView";
 import { plotlyBackend } from "../lib/plotlyAdapter";
-import {
-  DEFAULT_PLOT_HEIGHT_PX,
-  LivePlot,
-  plotMargin,
-  traceColour,
-  type HistoryShown,
-  type PlotTheme,
-} from "../lib/plotting";
-import { DEFAULT_WINDOW_MS, HISTORY_WINDOWS_MS, WINDOWS_MS, axisTitles, tracesOf, type PlotSpec } from "../lib/plots";
+import { DEFAULT_PLOT_HEIGHT_PX, plotMargin, type PlotTheme } from "../lib/plotAppearance";
+import type { HistoryShown } from "../lib/plotRecordingView";
+import { LivePlot } from "../lib/plotting";
+import { DEFAULT_WINDOW_MS, HISTORY_WINDOWS_MS, WINDOWS_MS, axisTitles, traceColour, tracesOf, type PlotSpec } from "../lib/plots";
 import type { PlotStep } from "../lib/plotSteps";
 import { usePlotHistory } from "./plotHistory";
 import { useRuntime } from "./runtimeContext";

@@ -1,6 +1,7 @@
 // Back to live after a zoom, hover with units while live, PNG export (lib/plotting.ts).
 import { describe, expect, it } from "vitest";
-import { BUCKETS_PER_WINDOW, LivePlot } from "./plotting";
+import { BUCKETS_PER_WINDOW } from "./plotAppearance";
+import { LivePlot } from "./plotting";
 import { ChannelMap, JOINT_PLOTS } from "./plots";
 import { SampleRing } from "./ringBuffer";
 import { fakeBackend } from "./plotTestSupport";

@@ -5,7 +5,8 @@
 // to live; a range on screen costs nothing per frame.
 import { describe, expect, it } from "vitest";
 import type { HistoryAnswer, HistoryEvent, RangeData, TimeRange, Timer } from "./historyView";
-import { LivePlot, MOVING_REFRESH_MIN_MS, type HistoryShown, type PlotBackend } from "./plotting";
+import { LivePlot, type PlotBackend } from "./plotting";
+import { MOVING_REFRESH_MIN_MS, type HistoryShown } from "./plotRecordingView";
 import { ChannelMap, JOINT_PLOTS } from "./plots";
 import { SampleRing } from "./ringBuffer";
 import { rangeOfMarker } from "./historyView";

@@ -1,7 +1,7 @@
 import { describe, expect, it } from "vitest";
 import { TCP_PLOTS, axisTitle, axisTitles, tracesOf } from "./plots";
 import { setupPlot as setup, spec } from "./plotTestSupport";
-import { BUCKETS_PER_WINDOW } from "./plotting";
+import { BUCKETS_PER_WINDOW } from "./plotAppearance";
 
 describe("plot definitions", () => {
   it("name traces by the layout's channels and put the layout's units on the axes", () => {

@@ -17,27 +17,43 @@
  * of the past: a zoom or pan reaching before what the ring holds, a marker's jump, a custom
  * range). A history view fetches through a `RangeLoader` (debounced, a stale answer dropped) and
  * draws only when an answer arrives: in between `hasWork()` is false and a frame costs nothing.
+ *
+ * This module is `LivePlot`'s state: the view (ring, moving, fixed) and the moves between views
+ * (a person's zoom or pan, a step, a jump, back to live), pause, visibility, interactivity, and
+ * `update()` for the coordinator. How a plot looks (trace style, time axis, layout, config) is
+ * lib/plotAppearance.ts; a view of the recording's fetching and traces is
+ * lib/plotRecordingView.ts. Must not import Plotly (only through `PlotBackend`) or React.
  */
 import { bucketWidthMs, MinMaxBucketer, POINTS_PER_BUCKET } from "./decimate";
+import { axisTimeToEpochS, markersOf, type RangeData, type TimeRange } from "./historyView";
 import {
-  RangeLoader,
-  axisTimeToEpochS,
-  browserTimer,
-  bucketsForWidth,
-  envelopeTraceSets,
-  markersOf,
-  newestRecorded,
-  type FetchRange,
-  type HistoryEvent,
-  type RangeData,
-  type TimeRange,
-  type Timer,
-} from "./historyView";
-import { RING_WINDOW_MAX_MS, traceColour, tracesOf, type PlotSpec, type TraceInfo } from "./plots";
+  BUCKETS_PER_WINDOW,
+  emptyTraces,
+  historyLayout,
+  markerShapes,
+  plotAreaWidth_px,
+  plotConfig,
+  plotLayout,
+  ticksBefore,
+  timeAxis,
+  traceStyle,
+  type AxisRanges,
+  type PlotLook,
+} from "./plotAppearance";
+import {
+  PlotRecording,
+  historyTraces,
+  nowOnFrames,
+  pointsWanted,
+  rangeWanted,
+  type DrawnPlot,
+  type HistoryShown,
+  type PlotHistorySource,
+  type PlotView,
+} from "./plotRecordingView";
+import { RING_WINDOW_MAX_MS, tracesOf, type ChannelMap, type PlotSpec, type TraceInfo } from "./plots";
 import { stepRange, type PlotStep, type SpanMs } from "./plotSteps";
 import type { SampleRing } from "./ringBuffer";
-import { TICK_SPACING_PX, timeTicks, type TimeTicks } from "./timeTicks";
-import type { ChannelMap } from "./plots";
 
 type Datum = number | null;
 
@@ -66,77 +82,11 @@ export interface PlotBackend {
   purge(el: HTMLElement): void;
 }
 
-/**
- * Buckets per window: two points each, so a trace holds at most 400 points in any window, about
- * one per pixel of a plot on a 1920 px panel (three plots abreast). A redraw's time grows with
- * the points (Plotly's path building, the browser's path parsing and rasterising): 600 points
- * cost about a third more for nothing the eye sees.
- */
-export const BUCKETS_PER_WINDOW = 200;
-
-export const DEFAULT_PLOT_HEIGHT_PX = 240;
-
-/** Plot margins (px) around the plotting area; the view places the axis titles in them. */
-export interface PlotMargin {
-  readonly l: number;
-  readonly r: number;
-  readonly t: number;
-  readonly b: number;
-}
-
-export function plotMargin(twoAxes: boolean): PlotMargin {
-  return { l: 64, r: twoAxes ? 64 : 16, t: 8, b: 36 };
-}
-
-export type PlotTheme = "light" | "dark";
-
-export interface LivePlotOptions {
+export interface LivePlotOptions extends PlotLook {
   readonly window_ms: number;
-  readonly theme: PlotTheme;
-  /** Kiosk: a static picture, no zoom, no mode bar, no hover. */
-  readonly readOnly: boolean;
-  readonly height_px?: number;
-  /** Tick labels' size (px); the kiosk's are large (no text under 18 px there). */
-  readonly fontSize_px?: number;
   /** The plot's way into the recording (the panel's plots); none: the ring only (the kiosk). */
   readonly history?: PlotHistorySource;
 }
-
-/** Where a plot reads the recording of its fields (lib/historyApi.ts in the panel, a fake in tests). */
-export interface PlotHistorySource {
-  readonly fetchRange: FetchRange;
-  /** Requests while a person moves the view wait this long for the view to settle (ms). */
-  readonly debounce_ms?: number;
-  readonly timer?: Timer;
-  /** The time now (ms since the epoch), when the ring has no recent frame to tell it. */
-  readonly now_ms?: () => number;
-}
-
-/**
- * What a plot shows: its moving window from the ring; a long moving window from the recording
- * (and the ring's newest seconds); or a fixed range of the past (times in ms since the epoch).
- */
-export type PlotView =
-  | { readonly kind: "ring" }
-  | { readonly kind: "moving"; readonly span_ms: number }
-  | { readonly kind: "fixed"; readonly from_ms: number; readonly to_ms: number };
-
-/** What a plot showing the recording tells its view (markers, range, export links, errors). */
-export interface HistoryShown {
-  readonly view: PlotView["kind"];
-  /** The range shown (s since the epoch); null on the ring. */
-  readonly range: TimeRange | null;
-  /** The events of the range drawn (markers). */
-  readonly events: readonly HistoryEvent[];
-  readonly error: string | null;
-}
-
-/** A moving window from the recording is fetched again this often: a bucket's width, in bounds. */
-export const MOVING_REFRESH_MIN_MS = 2000;
-export const MOVING_REFRESH_MAX_MS = 60_000;
-
-// The trace colours are plot definitions (lib/plots.ts); re-exported for the views.
-export { TRACE_COLOURS, traceColour } from "./plots";
 
 export class LivePlot {
   readonly spec: PlotSpec;
@@ -158,8 +108,16 @@ export class LivePlot {
   private stepZoom: readonly number[] | null = null;
   /** The newest frame's time when the ring view was last rebuilt (a paused picture ends there). */
   private ringDrawnTo_ms: number | null = null;
-  private visible: boolean[];
+  private readonly visible: boolean[];
   private tzShift_ms = 0;
+  /**
+   * Whether the time axis is drawn with our own ticks (`ticksBefore`) that each live update moves:
+   * a live plot showing the ring as a static picture, not zoomed on its time axis.
+   */
+  private liveTicks = false;
+  /** The plotting area's width (px) at the last drawing, for the number of time ticks. */
+  private areaWidth_px = Number.NaN;
+
   private revision = 0;
   private zoomed = false;
   /** Told when the plot is zoomed away from the moving window, or back on it. */
@@ -167,15 +125,16 @@ export class LivePlot {
   /** Told when the view changes and whenever a range of the recording is drawn or fails. */
   onHistory: ((shown: HistoryShown) => void) | null = null;
   private view: PlotView = { kind: "ring" };
-  private readonly loader: RangeLoader | null;
-  private readonly timer: Timer;
+  /** The plot's requests to the recording; null: the ring only (the kiosk). */
+  private readonly recording: PlotRecording | null;
   private readonly clock: () => number;
+  /** What a drawing of the recording draws from (made once). */
+  private readonly drawnPlot: DrawnPlot;
   /** The newest answer of the recording (kept while a new range loads, to draw something). */
   private historyData: RangeData | null = null;
   private historyError: string | null = null;
-  private refreshHandle: unknown = null;
   /** The range of the last history drawing (ms since the epoch). */
-  private drawnRange_ms: { readonly from: number; readonly to: number } | null = null;
+  private drawnRange_ms: SpanMs | null = null;
   /** The answer of the last history drawing. */
   private drawnData: RangeData | null = null;
   /** Per-axis `uirevision`s of history drawings (the layout's keeps the drag mode). */
@@ -202,18 +161,23 @@ export class LivePlot {
     this.visible = this.traces.map(() => true);
     this.bucketer = this.newBucketer();
     const history = options.history;
-    this.timer = history?.timer ?? browserTimer;
     this.clock = history?.now_ms ?? Date.now;
-    this.loader =
+    this.recording =
       history === undefined || options.readOnly
         ? null
-        : new RangeLoader(
-            history.fetchRange,
-            (data) => this.received(data),
-            (reason) => this.failed(reason),
-            history.debounce_ms,
-            this.timer,
-          );
+        : new PlotRecording(history, {
+            answered: (data) => this.received(data),
+            failed: (reason) => this.failed(reason),
+            refreshDue: () => this.refreshDue(),
+          });
+    this.drawnPlot = {
+      spec,
+      traces: this.traces,
+      visible: this.visible,
+      readOnly: options.readOnly,
+      ring,
+      ringChannels: this.ringChannels,
+    };
     this.view = this.viewForWindow(this.window_ms);
   }
 
@@ -231,7 +195,7 @@ export class LivePlot {
 
   /** Whether the plot can show the recording (the panel's plots; not the kiosk's). */
   get reachesHistory(): boolean {
-    return this.loader !== null;
+    return this.recording !== null;
   }
 
   get viewKind(): PlotView["kind"] {
@@ -241,7 +205,7 @@ export class LivePlot {
   /** Create the Plotly plot in `el` (once). */
   mount(el: HTMLElement): void {
     this.el = el;
-    this.backend.newPlot(el, this.emptyData(), this.layout(), this.config());
+    this.backend.newPlot(el, emptyTraces(this.traces, this.visible, this.options.readOnly), this.layout(), plotConfig(this.interactive));
     this.backend.onRelayout?.(el, () => this.checkZoom());
     this.needsRebuild = true;
   }
@@ -254,7 +218,7 @@ export class LivePlot {
   private checkZoom(): void {
     if (this.el === null) return;
     const axes = this.backend.zoomedAxes(this.el);
-    if (this.loader !== null) this.followPerson(axes.xaxis);
+    if (this.recording !== null) this.followPerson(axes.xaxis);
     if (this.el === null) return;
     const keys = Object.keys(axes);
     // A history view sets its x range itself: only the person's y zoom counts there.
@@ -296,7 +260,7 @@ export class LivePlot {
    */
   private goTo(range: SpanMs, draw: boolean): void {
     const { from, to } = range;
-    if (this.loader !== null) {
+    if (this.recording !== null) {
       const held = this.ringHeldFrom_ms();
       if (this.view.kind !== "ring" || held === null || from < held - (to - from) / 100) {
         this.enterView({ kind: "fixed", from_ms: from, to_ms: to }, { immediate: false, redraw: draw, fresh: false });
@@ -332,9 +296,9 @@ export class LivePlot {
     const shown = this.shownRange_ms();
     if (shown === null) return;
     // Without the recording, nothing is newer than the ring's newest frame.
-    const now = this.loader === null ? (this.ring.newestTime() ?? this.now_ms()) : this.now_ms();
+    const now = this.recording === null ? (this.ring.newestTime() ?? this.now_ms()) : this.now_ms();
     let next = stepRange(shown, step, now);
-    if (next !== null && next !== "live" && this.loader === null) next = this.withinRing(next, now);
+    if (next !== null && next !== "live" && this.recording === null) next = this.withinRing(next, now);
     if (next === null) return;
     if (next !== "live") this.goTo(next, true);
     // Already live: nothing to redraw.
@@ -365,7 +329,7 @@ export class LivePlot {
   }
 
   private viewForWindow(window_ms: number): PlotView {
-    return this.loader !== null && window_ms > RING_WINDOW_MAX_MS ? { kind: "moving", span_ms: window_ms } : { kind: "ring" };
+    return this.recording !== null && window_ms > RING_WINDOW_MAX_MS ? { kind: "moving", span_ms: window_ms } : { kind: "ring" };
   }
 
   /**
@@ -373,7 +337,7 @@ export class LivePlot {
    * plot leaves a pause (it shows what was asked for).
    */
   showRange(range: TimeRange): void {
-    if (this.loader === null || !(range.to_s > range.from_s)) return;
+    if (this.recording === null || !(range.to_s > range.from_s)) return;
     this.paused = false;
     this.enterView({ kind: "fixed", from_ms: range.from_s * 1000, to_ms: range.to_s * 1000 }, { immediate: true, redraw: true, fresh: true });
   }
@@ -396,7 +360,7 @@ export class LivePlot {
     this.view = view;
     if (how.fresh) this.revision++;
     if (view.kind === "ring") {
-      this.loader?.stop();
+      this.recording?.stopRequests();
       this.drawnData = null;
       this.historyData = null;
       this.historyError = null;
@@ -412,31 +376,27 @@ export class LivePlot {
   }
 
   /** The range the view asks for now (ms since the epoch). */
-  private wantedRange_ms(): { from: number; to: number } {
-    const view = this.view;
-    if (view.kind === "fixed") return { from: view.from_ms, to: view.to_ms };
-    const to = this.now_ms();
-    return { from: to - (view.kind === "moving" ? view.span_ms : this.window_ms), to };
+  private wantedRange_ms(): SpanMs {
+    return rangeWanted(this.view, this.now_ms(), this.window_ms);
   }
 
   /** Now on the frames' time axis: the newest frame while frames come, else the clock. */
   private now_ms(): number {
-    const newest = this.ring.newestTime();
-    const clock = this.clock();
-    // The receive times are the service's clock; the browser's may differ by a little.
-    return newest !== null && Math.abs(clock - newest) < 30_000 ? newest : clock;
+    return nowOnFrames(this.ring.newestTime(), this.clock());
+  }
+
+  /** The element's width (px), when it has one (the tests' fake elements may not). */
+  private elementWidth_px(): number | undefined {
+    return (this.el as (HTMLElement & { clientWidth?: number }) | null)?.clientWidth;
   }
 
   private pointsWanted(): number {
-    const margin = plotMargin(this.spec.series.some((s) => s.axis === "y2"));
-    const width = (this.el as (HTMLElement & { clientWidth?: number }) | null)?.clientWidth;
-    return bucketsForWidth((width ?? Number.NaN) - margin.l - margin.r);
+    return pointsWanted(this.spec, this.elementWidth_px());
   }
 
   private requestRange(immediate: boolean): void {
-    if (this.loader === null || this.view.kind === "ring") return;
-    const { from, to } = this.wantedRange_ms();
-    this.loader.request({ from_s: from / 1000, to_s: to / 1000 }, this.pointsWanted(), immediate);
+    if (this.recording === null || this.view.kind === "ring") return;
+    this.recording.request(this.wantedRange_ms(), this.pointsWanted(), immediate);
   }
 
   private received(data: RangeData): void {
@@ -458,20 +418,19 @@ export class LivePlot {
   private scheduleRefresh(): void {
     this.clearRefresh();
     if (this.view.kind !== "moving") return;
-    const every_ms = Math.min(MOVING_REFRESH_MAX_MS, Math.max(MOVING_REFRESH_MIN_MS, this.view.span_ms / this.pointsWanted()));
-    this.refreshHandle = this.timer.set(() => {
-      this.refreshHandle = null;
-      // Paused: frozen until resumed (which goes back to live and asks again). Out of view: no
-      // request, only the next turn (the plot asks again within a turn of coming into view).
-      if (this.view.kind !== "moving" || this.paused) return;
-      if (this.onScreen) this.requestRange(true);
-      else this.scheduleRefresh();
-    }, every_ms);
+    this.recording?.scheduleRefresh(this.view.span_ms, this.pointsWanted());
+  }
+
+  private refreshDue(): void {
+    // Paused: frozen until resumed (which goes back to live and asks again). Out of view: no
+    // request, only the next turn (the plot asks again within a turn of coming into view).
+    if (this.view.kind !== "moving" || this.paused) return;
+    if (this.onScreen) this.requestRange(true);
+    else this.scheduleRefresh();
   }
 
   private clearRefresh(): void {
-    if (this.refreshHandle !== null) this.timer.clear(this.refreshHandle);
-    this.refreshHandle = null;
+    this.recording?.clearRefresh();
   }
 
   /** The range in view now (s since the epoch): what an export of "the view" covers. */
@@ -531,7 +490,7 @@ export class LivePlot {
   }
 
   unmount(): void {
-    this.loader?.stop();
+    this.recording?.stopRequests();
     this.clearRefresh();
     if (this.el !== null) this.backend.purge(this.el);
     this.el = null;
@@ -636,7 +595,9 @@ export class LivePlot {
     if (chunk === null) return false;
     const indices = this.traces.map((_, i) => i);
     const xs = chunk.xs[0] ?? [];
-    const axes = this.liveTicks ? { xaxis: this.ticksBefore(xs[xs.length - 1] ?? Number.NaN) } : undefined;
+    const axes = this.liveTicks
+      ? { xaxis: ticksBefore(xs[xs.length - 1] ?? Number.NaN, this.window_ms, this.areaWidth_px, this.options.fontSize_px) }
+      : undefined;
     this.backend.extendTraces(el, { x: chunk.xs, y: chunk.ys }, indices, this.maxPoints, axes);
     this.points = Math.min(this.maxPoints, this.points + chunk.buckets * POINTS_PER_BUCKET);
     this.lastUpdate_ms = now_ms;
@@ -663,7 +624,7 @@ export class LivePlot {
     this.readSeq = end;
     const chunk = this.bucketer.take();
     const data = this.traces.map((trace, i) => ({
-      ...this.traceStyle(trace, i),
+      ...traceStyle(trace, i, this.visible[i] ?? true, this.options.readOnly),
       x: chunk?.xs[i] ?? [],
       y: chunk?.ys[i] ?? [],
     }));
@@ -675,7 +636,7 @@ export class LivePlot {
     const zoom = this.stepZoom !== null ? { ...kept, xaxis: this.stepZoom } : kept;
     this.stepZoom = null;
     this.drawnRevision = this.revision;
-    this.backend.react(el, data, this.layout(zoom), this.config());
+    this.backend.react(el, data, this.layout(zoom), plotConfig(this.interactive));
     this.updates++;
     this.mark();
   }
@@ -689,36 +650,12 @@ export class LivePlot {
     this.needsRebuild = false;
     this.tzShift_ms = new Date().getTimezoneOffset() * 60_000;
     const shift = this.tzShift_ms;
-    const { from, to } = this.wantedRange_ms();
+    const range = this.wantedRange_ms();
+    const { from, to } = range;
     const data = this.historyData;
-    const sets = data !== null ? envelopeTraceSets(data.answer, this.spec, shift) : this.traces.map(() => []);
-    const recorded_s = data !== null ? newestRecorded(data.answer) : null;
-    const tailFrom = Math.max(from, recorded_s === null ? -Infinity : recorded_s * 1000 + 1e-3);
-    const points = this.pointsWanted();
-    const tail = new MinMaxBucketer(this.ringChannels, Math.max((to - from) / points, 1), points, (t) => t - shift);
-    tail.feedRing(this.ring, this.ring.firstSeqAtOrAfter(tailFrom), this.ring.firstSeqAtOrAfter(to));
-    const chunk = tail.take();
-    const traces: object[] = [];
-    let drawnPoints = 0;
-    this.traces.forEach((trace, i) => {
-      const visible = this.visible[i] ?? true;
-      const own = sets[i] ?? [];
-      for (const t of own) traces.push({ ...t, visible });
-      const tailX = chunk?.xs[i] ?? [];
-      traces.push({ ...this.traceStyle(trace, i), x: tailX, y: chunk?.ys[i] ?? [], showlegend: false });
-      if (i === 0) drawnPoints = ((own[0] as { x?: unknown[] } | undefined)?.x?.length ?? 0) + tailX.length;
-    });
+    const drawing = historyTraces(this.drawnPlot, data, range, this.pointsWanted(), shift);
     const range_s = { from_s: from / 1000, to_s: to / 1000 };
-    const shapes = markersOf(data?.events ?? [], range_s).map((m) => ({
-      type: "line",
-      xref: "x",
-      yref: "paper",
-      x0: m.time_s * 1000 - shift,
-      x1: m.time_s * 1000 - shift,
-      y0: 0,
-      y1: 1,
-      line: { color: m.kind === "alarm" ? "#D55E00" : "#888", width: 1, dash: "dot" },
-    }));
+    const shapes = markerShapes(markersOf(data?.events ?? [], range_s), shift);
     // Plotly keeps a person's axis range within its `uirevision`: where it shows another range
     // than this one (a jump, a moving window's step), a new x revision makes it take this one. A
     // new range of the past also fits its y axes to its data again (Plotly's zoom-out button
@@ -732,17 +669,10 @@ export class LivePlot {
     if (this.view.kind === "fixed" && data !== this.drawnData) this.yRevision++;
     this.drawnData = data;
     this.drawnRevision = this.revision;
-    const layout: Record<string, unknown> = { ...(this.layout({ xaxis: [from - shift, to - shift] }) as Record<string, unknown>), shapes };
-    const axisRevision = (axis: string, revision: string) => {
-      const a = layout[axis];
-      if (typeof a === "object" && a !== null) layout[axis] = { ...a, uirevision: revision };
-    };
-    axisRevision("xaxis", `x${this.xRevision}`);
-    axisRevision("yaxis", `y${this.yRevision}`);
-    axisRevision("yaxis2", `y${this.yRevision}`);
+    const layout = historyLayout(this.layout({ xaxis: [from - shift, to - shift] }), shapes, this.xRevision, this.yRevision);
     this.drawnRange_ms = { from, to };
-    this.points = drawnPoints;
-    this.backend.react(el, traces, layout, this.config());
+    this.points = drawing.points;
+    this.backend.react(el, drawing.traces, layout, plotConfig(this.interactive));
     this.updates++;
     el.dataset.from = String(range_s.from_s);
     el.dataset.to = String(range_s.to_s);
@@ -771,134 +701,19 @@ export class LivePlot {
     );
   }
 
-  private emptyData(): object[] {
-    return this.traces.map((trace, i) => ({ ...this.traceStyle(trace, i), x: [], y: [] }));
-  }
-
-  private traceStyle(trace: TraceInfo, i: number): object {
-    return {
-      type: "scatter",
-      mode: "lines",
-      name: trace.name,
-      yaxis: trace.axis,
-      visible: this.visible[i] ?? true,
-      // 1 px on the panel: the browser strokes a line of at most 1 px as a hairline, which it
-      // rasterises at about a quarter of the cost of a 1.5 px stroke (bench/ui: raster CPU per
-      // redraw). The kiosk, read from three metres, keeps the heavier line.
-      line: { width: this.options.readOnly ? 1.5 : 1, color: traceColour(i), dash: trace.axis === "y2" ? "dot" : "solid" },
-      connectgaps: false,
-      // The value with the layout's unit ("J 1: 12.35 degree"), the time in the hover's header.
-      ...(this.options.readOnly
-        ? { hoverinfo: "skip" }
-        : { hovertemplate: `${trace.name}: %{y:.4~r} ${trace.field.unit}<extra></extra>` }),
-      hoverlabel: { namelength: -1 },
-    };
-  }
-
-  /**
-   * Whether the time axis is drawn with our own ticks (`timeTicks`) that each live update moves:
-   * a live plot showing the ring as a static picture, not zoomed on its time axis.
-   */
-  private liveTicks = false;
-  /** The plotting area's width (px) at the last drawing, for the number of time ticks. */
-  private areaWidth_px = Number.NaN;
-
-  /** Time ticks for the moving window ending at `newestX` (a numeric date, shifted). */
-  private ticksBefore(newestX: number): TimeTicks {
-    // A little over the window: the oldest points kept may reach a bucket further back.
-    return this.ticksOver(newestX - this.window_ms * 1.05, newestX);
-  }
-
-  private ticksOver(from: number, to: number): TimeTicks {
-    // Labels of larger text (the kiosk's) need more room each.
-    const spacing_px = Math.max(TICK_SPACING_PX, 9 * (this.options.fontSize_px ?? 11));
-    return timeTicks(from, to, this.areaWidth_px, spacing_px);
-  }
-
-  /**
-   * The time axis. A live plot nobody points at draws it as a linear axis with our own ticks: a
-   * date axis reads each sample's time through Plotly's date parser and works out date ticks on
-   * every redraw (lib/timeTicks.ts). An interactive plot or a view of the recording keeps the
-   * date axis, for its hover and for zooming into dates.
-   */
-  private timeAxis(zoom: Readonly<Record<string, readonly unknown[]>>, grid: string): { axis: object; range: number[] | null } {
-    const common = { autorange: true, gridcolor: grid, ticklabeloverflow: "allow" };
-    if (this.view.kind !== "ring" || this.interactive) {
-      this.liveTicks = false;
-      return { axis: { ...common, type: "date" }, range: null };
+  /** Plotly's layout now, with `zoom`'s axis ranges (lib/plotAppearance.ts). */
+  private layout(zoom: AxisRanges = {}): Record<string, unknown> {
+    const interactive = this.interactive;
+    const ringStatic = this.view.kind === "ring" && !interactive;
+    let newestX = Number.NaN;
+    if (ringStatic) {
+      const width = this.elementWidth_px();
+      if (width !== undefined && width > 0) this.areaWidth_px = plotAreaWidth_px(this.spec, width);
+      const newest = this.ring.newestTime();
+      if (newest !== null) newestX = newest - this.tzShift_ms;
     }
-    const width = (this.el as (HTMLElement & { clientWidth?: number }) | null)?.clientWidth;
-    const margin = plotMargin(this.spec.series.some((s) => s.axis === "y2"));
-    if (width !== undefined && width > 0) this.areaWidth_px = width - margin.l - margin.r;
-    // A zoom carried over from the date axis: its range may be Plotly's date text.
-    const zoomed = zoom.xaxis?.map((v) => (typeof v === "number" ? v : axisTimeToEpochS(v, 0) * 1000)) ?? null;
-    this.liveTicks = zoomed === null;
-    const newest = this.ring.newestTime();
-    const ticks =
-      zoomed !== null
-        ? this.ticksOver(zoomed[0] ?? Number.NaN, zoomed[1] ?? Number.NaN)
-        : this.ticksBefore(newest === null ? Number.NaN : newest - this.tzShift_ms);
-    return { axis: { ...common, type: "linear", tickmode: "array", ...ticks }, range: zoomed };
-  }
-
-  private layout(zoom: Readonly<Record<string, readonly unknown[]>> = {}): object {
-    const dark = this.options.theme === "dark";
-    const fg = dark ? "#d8dde3" : "#222";
-    const grid = dark ? "#2f3740" : "#e3e3e3";
-    const twoAxes = this.spec.series.some((s) => s.axis === "y2");
-    const time = this.timeAxis(zoom, grid);
-    if (time.range !== null) zoom = { ...zoom, xaxis: time.range };
-    const layout: Record<string, unknown> = {
-      uirevision: `${this.spec.id}:${this.revision}`,
-      autosize: true,
-      height: this.options.height_px ?? DEFAULT_PLOT_HEIGHT_PX,
-      margin: plotMargin(twoAxes),
-      showlegend: false,
-      paper_bgcolor: dark ? "#12161b" : "#ffffff",
-      plot_bgcolor: dark ? "#12161b" : "#ffffff",
-      font: { color: fg, size: this.options.fontSize_px ?? 11 },
-      // Hover whenever the plot is interactive (the pointer on it, or paused): live too.
-      hovermode: this.interactive ? "x" : false,
-      // No Plotly axis titles: the view draws them (axisTitles in plots.ts) beside the plot. With a
-      // title, Plotly measures every tick label against it on every redraw and caches each
-      // measurement under the label's pixel position: with autoranged axes the labels keep
-      // moving, and its text-measurement cache grew by hundreds of entries a minute.
-      // "allow": Plotly otherwise measures every tick label on every redraw (a quarter of its time).
-      xaxis: time.axis,
-      yaxis: {
-        autorange: true,
-        gridcolor: grid,
-        zeroline: false,
-        ticklabeloverflow: "allow",
-      },
-    };
-    if (twoAxes) {
-      layout.yaxis2 = {
-        autorange: true,
-        overlaying: "y",
-        side: "right",
-        zeroline: false,
-        showgrid: false,
-        ticklabeloverflow: "allow",
-      };
-    }
-    for (const [axis, range] of Object.entries(zoom)) {
-      const current = layout[axis];
-      if (typeof current === "object" && current !== null) {
-        layout[axis] = { ...current, autorange: false, range: [...range] };
-      }
-    }
-    return layout;
-  }
-
-  private config(): object {
-    if (!this.interactive) {
-      return { staticPlot: true, displayModeBar: false, responsive: true };
-    }
-    return {
-      responsive: true,
-      displaylogo: false,
-      modeBarButtonsToRemove: ["select2d", "lasso2d", "toImage"],
-    };
+    const time = timeAxis(this.options, ringStatic, zoom, newestX, this.window_ms, this.areaWidth_px);
+    this.liveTicks = time.ownTicks;
+    return plotLayout(this.spec, this.options, this.revision, interactive, time, zoom);
   }
 }
