@@ -117,7 +117,18 @@ function setup(window_ms = 10_000, withHistory = true) {
     f.resolve({ range: f.range, answer: answerOf(f.range, over), events });
     await settle();
   };
-  return { plot, el, ring, push, moveTo, autoscale, fetches, fire, due, calls, reacts, lastReact, answer, shown, tz, settle };
+  let drawings = 0;
+  /**
+   * A person pans into the past to [from, to] (epoch ms; by default 5 to 3 min back), the view
+   * settles, the fetch is answered (with `over`) and the plot draws it.
+   */
+  const showPast = async (from_ms = T0 - 300_000, to_ms = T0 - 200_000, over: Partial<HistoryAnswer> = {}) => {
+    moveTo(from_ms, to_ms);
+    fire();
+    await answer(fetches.length - 1, over);
+    plot.update(++drawings);
+  };
+  return { plot, el, ring, push, moveTo, autoscale, fetches, fire, due, calls, reacts, lastReact, answer, showPast, shown, tz, settle };
 }
 
 /** 60 s of frames at 100 Hz ending at T0. */
@@ -180,18 +191,12 @@ describe("a zoom or pan past the ring", () => {
   });
 
   it("a new range fits its y axis to its data (Plotly's zoom-out widened it too), the drag mode kept", async () => {
-    const { plot, push, moveTo, fire, answer, lastReact, calls } = setup();
+    const { plot, push, showPast, lastReact, calls } = setup();
     fill(push);
     plot.update(0);
-    moveTo(T0 - 300_000, T0 - 200_000);
-    fire();
-    await answer(0);
-    plot.update(1);
+    await showPast();
     const first = lastReact().args[2] as Layout;
-    moveTo(T0 - 400_000, T0 - 300_000); // the person pans on
-    fire();
-    await answer(1);
-    plot.update(2);
+    await showPast(T0 - 400_000, T0 - 300_000); // the person pans on
     const drawn = lastReact().args[2] as Layout;
     expect(drawn.yaxis.uirevision).not.toBe(first.yaxis.uirevision); // the person's y zoom is not carried over
     expect(drawn.yaxis.autorange).toBe(true);
@@ -211,13 +216,10 @@ describe("a zoom or pan past the ring", () => {
   });
 
   it("costs nothing per frame while the range is on screen; our own drawing is no move", async () => {
-    const { plot, push, moveTo, fetches, fire, answer, calls } = setup();
+    const { plot, push, moveTo, fetches, fire, showPast, calls } = setup();
     fill(push);
     plot.update(0);
-    moveTo(T0 - 300_000, T0 - 200_000);
-    fire();
-    await answer(0);
-    plot.update(1);
+    await showPast();
     const n = calls.length;
     for (let k = 1; k <= 100; k++) push(T0 + k * 10);
     expect(plot.hasWork()).toBe(false);
@@ -250,25 +252,19 @@ describe("a zoom or pan past the ring", () => {
   });
 
   it("merges: the ring draws only what the recording has not written yet", async () => {
-    const { plot, push, moveTo, fire, answer, lastReact, fetches, tz } = setup();
+    const { plot, push, showPast, lastReact, fetches, tz } = setup();
     fill(push);
     plot.update(0);
-    moveTo(T0 - 120_000, T0);
-    fire();
     // The recording ends 3 s before the newest frame (the recorder's last flush).
     const recordedTo_s = (T0 - 3000) / 1000;
-    await answer(0, { t_last: [recordedTo_s - 60, recordedTo_s] });
-    plot.update(1);
+    await showPast(T0 - 120_000, T0, { t_last: [recordedTo_s - 60, recordedTo_s] });
     const traces = lastReact().args[1] as Trace[];
     const tail = traces[2]!;
     expect(tail.x.length).toBeGreaterThan(0);
     expect(Math.min(...tail.x)).toBeGreaterThan(recordedTo_s * 1000 - tz);
     expect(Math.max(...tail.x)).toBeLessThanOrEqual(T0 - tz);
     // No recording at all (recorder off): the ring draws all it holds of the range.
-    moveTo(T0 - 120_000, T0 - 1000);
-    fire();
-    await answer(1, { frames: 0, t: [], t_last: [], series: [] });
-    plot.update(2);
+    await showPast(T0 - 120_000, T0 - 1000, { frames: 0, t: [], t_last: [], series: [] });
     const alone = lastReact().args[1] as Trace[];
     expect(alone).toHaveLength(6); // each signal: its line from the ring only
     expect(Math.min(...alone[0]!.x)).toBeLessThan(T0 - 59_000 - tz);
@@ -448,16 +444,13 @@ describe("back to live from the recording", () => {
   });
 
   it("the visible range: the range drawn, the zoom, or the moving window", async () => {
-    const { plot, push, moveTo, fire, answer } = setup();
+    const { plot, push, moveTo, showPast } = setup();
     fill(push);
     plot.update(0);
     expect(plot.visibleRange()).toEqual({ from_s: (T0 - 10_000) / 1000, to_s: T0 / 1000 });
     moveTo(T0 - 6000, T0 - 2000);
     expect(plot.visibleRange()).toEqual({ from_s: (T0 - 6000) / 1000, to_s: (T0 - 2000) / 1000 });
-    moveTo(T0 - 300_000, T0 - 200_000);
-    fire();
-    await answer(0);
-    plot.update(1);
+    await showPast();
     expect(plot.visibleRange()).toEqual({ from_s: (T0 - 300_000) / 1000, to_s: (T0 - 200_000) / 1000 });
   });
 });
