@@ -80,6 +80,34 @@ test("the joint table equals the frame's values", async ({ page, robot, request 
   await expect(page.getByTestId("tcp-readout")).toContainText("Position [mm]");
 });
 
+// Values that change ten times a second must not move what is beside them: a value that gains a
+// digit or a minus sign used to widen its table column or push the connection figures sideways
+// (the browser's layout-shift entries name the moved nodes). Counted over readout updates, not time.
+test("live readouts move nothing sideways", async ({ page, robot }) => {
+  await robot.setProgram(true);
+  await page.goto("/");
+  const table = page.getByTestId("joint-table");
+  await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
+  await expect(table.locator("td").first()).not.toHaveText("—");
+  await page.evaluate(() => {
+    const moved: string[] = [];
+    (window as unknown as { __moved: string[] }).__moved = moved;
+    new PerformanceObserver((list) => {
+      for (const entry of list.getEntries() as (PerformanceEntry & { sources?: { node?: Node | null }[] })[]) {
+        for (const source of entry.sources ?? []) {
+          const node = source.node;
+          const el = node instanceof Element ? node : (node?.parentElement ?? null);
+          const inside = el?.closest(".readout, .health__figures");
+          if (inside) moved.push(`${el?.tagName.toLowerCase()}.${el?.className} in ${inside.className}`);
+        }
+      }
+    }).observe({ type: "layout-shift" });
+  });
+  const first = Number(await table.getAttribute("data-frames"));
+  await expect.poll(async () => Number(await table.getAttribute("data-frames")), { timeout: 30_000 }).toBeGreaterThan(first + 40);
+  expect(await page.evaluate(() => (window as unknown as { __moved: string[] }).__moved)).toEqual([]);
+});
+
 test("the phone layout has no overflow and a compact header", async ({ browser, robot }) => {
   const context = await browser.newContext({ viewport: { width: 390, height: 844 }, hasTouch: true, isMobile: true });
   const page = await context.newPage();
