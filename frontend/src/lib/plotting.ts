@@ -91,6 +91,8 @@ export interface LivePlotOptions extends PlotLook {
 export class LivePlot {
   readonly spec: PlotSpec;
   readonly traces: readonly TraceInfo[];
+  /** 0 … traces − 1, made once: every live redraw names all its traces to Plotly. */
+  private readonly traceIndices: number[];
   private readonly ring: SampleRing;
   private readonly ringChannels: number[];
   private readonly backend: PlotBackend;
@@ -153,6 +155,7 @@ export class LivePlot {
   constructor(spec: PlotSpec, ring: SampleRing, channels: ChannelMap, backend: PlotBackend, options: LivePlotOptions) {
     this.spec = spec;
     this.traces = tracesOf(spec);
+    this.traceIndices = this.traces.map((_, i) => i);
     this.ring = ring;
     this.ringChannels = this.traces.map((t) => channels.channelOf(t.fieldName, t.channel));
     this.backend = backend;
@@ -593,12 +596,11 @@ export class LivePlot {
     this.readSeq = end;
     const chunk = this.bucketer.take();
     if (chunk === null) return false;
-    const indices = this.traces.map((_, i) => i);
     const xs = chunk.xs[0] ?? [];
     const axes = this.liveTicks
       ? { xaxis: ticksBefore(xs[xs.length - 1] ?? Number.NaN, this.window_ms, this.areaWidth_px, this.options.fontSize_px) }
       : undefined;
-    this.backend.extendTraces(el, { x: chunk.xs, y: chunk.ys }, indices, this.maxPoints, axes);
+    this.backend.extendTraces(el, { x: chunk.xs, y: chunk.ys }, this.traceIndices, this.maxPoints, axes);
     this.points = Math.min(this.maxPoints, this.points + chunk.buckets * POINTS_PER_BUCKET);
     this.lastUpdate_ms = now_ms;
     this.updates++;
