@@ -19,9 +19,9 @@ import {
   type HistoryEvent,
   type RangeData,
   type TimeRange,
-  type Timer,
 } from "./historyView";
 import { JOINT_PLOTS, TCP_PLOTS } from "./plots";
+import { fakeTimer } from "./timerTestSupport";
 
 const NOW = 1_795_500_000;
 
@@ -192,24 +192,6 @@ describe("export", () => {
 });
 
 describe("RangeLoader", () => {
-  function fakeTimer() {
-    const due: { cb: () => void; handle: number }[] = [];
-    let next = 0;
-    const timer: Timer = {
-      set: (cb) => {
-        const handle = ++next;
-        due.push({ cb, handle });
-        return handle;
-      },
-      clear: (h) => {
-        const i = due.findIndex((d) => d.handle === h);
-        if (i >= 0) due.splice(i, 1);
-      },
-    };
-    const fire = () => due.splice(0).forEach((d) => d.cb());
-    return { timer, fire, due };
-  }
-
   function deferredFetch() {
     const calls: { range: TimeRange; points: number; signal: AbortSignal; resolve: (d: RangeData) => void; reject: (e: Error) => void }[] = [];
     const fetchRange = (range: TimeRange, points: number, signal: AbortSignal) =>

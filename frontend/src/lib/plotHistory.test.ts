@@ -4,7 +4,7 @@
 // window moves with now, refreshed from the recording; a marker's jump moves every plot; back
 // to live; a range on screen costs nothing per frame.
 import { describe, expect, it } from "vitest";
-import type { HistoryAnswer, HistoryEvent, RangeData, TimeRange, Timer } from "./historyView";
+import type { HistoryAnswer, HistoryEvent, RangeData, TimeRange } from "./historyView";
 import { LivePlot, type PlotBackend } from "./plotting";
 import { MOVING_REFRESH_MIN_MS, type HistoryShown } from "./plotRecordingView";
 import { ChannelMap, JOINT_PLOTS } from "./plots";
@@ -12,6 +12,7 @@ import { SampleRing } from "./ringBuffer";
 import { rangeOfMarker } from "./historyView";
 import { PlotTimeRange, type SharedTimeEvent } from "./timeRange";
 import { fakeBackend } from "./plotTestSupport";
+import { fakeTimer } from "./timerTestSupport";
 
 type Trace = { name?: string; x: number[]; y: (number | null)[]; visible?: boolean; fill?: string };
 type Layout = {
@@ -23,24 +24,6 @@ type Layout = {
 
 const T0 = 1_795_500_000_000; // ms since the epoch
 const spec = JOINT_PLOTS[0]!;
-
-function fakeTimer() {
-  const due: { cb: () => void; handle: number; delay_ms: number }[] = [];
-  let next = 0;
-  const timer: Timer = {
-    set: (cb, delay_ms) => {
-      const handle = ++next;
-      due.push({ cb, handle, delay_ms });
-      return handle;
-    },
-    clear: (h) => {
-      const i = due.findIndex((d) => d.handle === h);
-      if (i >= 0) due.splice(i, 1);
-    },
-  };
-  const fire = () => due.splice(0).forEach((d) => d.cb());
-  return { timer, fire, due };
-}
 
 function answerOf(range: TimeRange, over: Partial<HistoryAnswer> = {}): HistoryAnswer {
   // Two buckets of every element: values 10…15 (min) and 20…25 (max).

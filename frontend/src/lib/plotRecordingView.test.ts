@@ -2,7 +2,7 @@
 // asks for, how often a moving window asks again, its requests and refresh through a timer, and
 // the traces of a drawing (the answer's envelopes, the ring's newest samples not yet recorded).
 import { describe, expect, it } from "vitest";
-import type { HistoryAnswer, RangeData, TimeRange, Timer } from "./historyView";
+import type { HistoryAnswer, RangeData, TimeRange } from "./historyView";
 import {
   MOVING_REFRESH_MAX_MS,
   MOVING_REFRESH_MIN_MS,
@@ -16,6 +16,7 @@ import {
 } from "./plotRecordingView";
 import { ChannelMap, JOINT_PLOTS, TCP_PLOTS, tracesOf } from "./plots";
 import { SampleRing } from "./ringBuffer";
+import { fakeTimer } from "./timerTestSupport";
 
 const T0 = 1_795_500_000_000; // ms since the epoch
 const joints = JOINT_PLOTS[0]!;
@@ -47,23 +48,6 @@ describe("what a view of the recording asks for", () => {
     expect(movingRefresh_ms(7 * 24 * 3_600_000, 800)).toBe(MOVING_REFRESH_MAX_MS);
   });
 });
-
-function fakeTimer() {
-  const due: { cb: () => void; handle: number; delay_ms: number }[] = [];
-  let next = 0;
-  const timer: Timer = {
-    set: (cb, delay_ms) => {
-      const handle = ++next;
-      due.push({ cb, handle, delay_ms });
-      return handle;
-    },
-    clear: (h) => {
-      const i = due.findIndex((d) => d.handle === h);
-      if (i >= 0) due.splice(i, 1);
-    },
-  };
-  return { timer, due };
-}
 
 describe("a plot's requests to the recording", () => {
   it("asks in seconds, debounced unless at once; stopped, nothing more is delivered", async () => {
