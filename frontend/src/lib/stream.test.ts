@@ -36,9 +36,10 @@ function setup(random = () => 0) {
   const sockets: FakeSocket[] = [];
   const states: SocketState[] = [];
   const messages: ServerMessage[] = [];
+  const reasons: (string | null)[] = [];
   const client = new StreamClient(
     () => "ws://h/api/v1/stream",
-    { onMessage: (m) => messages.push(m), onSocketState: (s) => states.push(s) },
+    { onMessage: (m) => messages.push(m), onSocketState: (s) => states.push(s), onCloseReason: (r) => reasons.push(r) },
     {
       backoff: { initial_ms: 100, max_ms: 1000, factor: 2, jitter: 0.5 },
       random,
@@ -50,7 +51,7 @@ function setup(random = () => 0) {
       },
     },
   );
-  return { client, sockets, states, messages };
+  return { client, sockets, states, messages, reasons };
 }
 
 describe("StreamClient", () => {
@@ -117,20 +118,7 @@ describe("StreamClient", () => {
   });
 
   it("reports the service's close codes in words and keeps retrying", () => {
-    const reasons: (string | null)[] = [];
-    const sockets: FakeSocket[] = [];
-    const client = new StreamClient(
-      () => "ws://h/api/v1/stream",
-      { onMessage: () => undefined, onSocketState: () => undefined, onCloseReason: (r) => reasons.push(r) },
-      {
-        random: () => 0,
-        socketFactory: (url) => {
-          const socket = new FakeSocket(url);
-          sockets.push(socket);
-          return socket;
-        },
-      },
-    );
+    const { client, sockets, reasons } = setup();
     client.start();
     (sockets[0] as FakeSocket).drop(4401, "login required");
     expect(reasons.at(-1)).toBe("the service requires a login to view: login required");
@@ -186,21 +174,7 @@ describe("StreamClient", () => {
   });
 
   it("reconnects at once, with no reason shown, when this page's own logout ends the session", () => {
-    const reasons: (string | null)[] = [];
-    const states: SocketState[] = [];
-    const sockets: FakeSocket[] = [];
-    const client = new StreamClient(
-      () => "ws://h/api/v1/stream",
-      { onMessage: () => undefined, onSocketState: (s) => states.push(s), onCloseReason: (r) => reasons.push(r) },
-      {
-        random: () => 0,
-        socketFactory: (url) => {
-          const socket = new FakeSocket(url);
-          sockets.push(socket);
-          return socket;
-        },
-      },
-    );
+    const { client, sockets, states, reasons } = setup();
     client.start();
     (sockets[0] as FakeSocket).open();
     client.expectSessionEnd();
@@ -218,20 +192,7 @@ describe("StreamClient", () => {
   });
 
   it("an expected session end that never came does not hide a later one", () => {
-    const reasons: (string | null)[] = [];
-    const sockets: FakeSocket[] = [];
-    const client = new StreamClient(
-      () => "ws://h/api/v1/stream",
-      { onMessage: () => undefined, onSocketState: () => undefined, onCloseReason: (r) => reasons.push(r) },
-      {
-        random: () => 0,
-        socketFactory: (url) => {
-          const socket = new FakeSocket(url);
-          sockets.push(socket);
-          return socket;
-        },
-      },
-    );
+    const { client, sockets, reasons } = setup();
     client.start();
     client.expectSessionEnd();
     client.restart(); // the logout's answer came first: the page reconnected by itself
