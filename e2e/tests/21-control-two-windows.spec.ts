@@ -2,21 +2,27 @@
 // two browsers: the one that took control shows Release and live toggles; the other says
 // "held by you in another window", has no Release and no Take control, and its toggles stay
 // disabled — whether it learns of the control live (an event) or from its hello (a reload).
+import type { Browser } from "@playwright/test";
 import { expect, loginInPanel, test } from "../support/fixtures";
 import { baseURL, settings } from "../support/settings";
 
-test("the same user in a second window sees control held by you in another window", async ({ browser }) => {
-  // Two contexts: two cookie jars, so two login sessions of the same user.
+/** The operator logged in in two windows: two contexts, two cookie jars, two login sessions. */
+async function operatorInTwoWindows(browser: Browser) {
   const first = await browser.newContext({ baseURL, viewport: { width: 1600, height: 1000 } });
   const second = await browser.newContext({ baseURL, viewport: { width: 1600, height: 1000 } });
+  const a = await first.newPage();
+  const b = await second.newPage();
+  for (const page of [a, b]) {
+    await page.goto("/");
+    await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
+    await loginInPanel(page, settings.operator);
+  }
+  return { a, b, close: async () => Promise.all([first.close(), second.close()]) };
+}
+
+test("the same user in a second window sees control held by you in another window", async ({ browser }) => {
+  const { a, b, close } = await operatorInTwoWindows(browser);
   try {
-    const a = await first.newPage();
-    const b = await second.newPage();
-    for (const page of [a, b]) {
-      await page.goto("/");
-      await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
-      await loginInPanel(page, settings.operator);
-    }
 
     await a.getByTestId("take-control").click();
     await expect(a.getByTestId("control-holder")).toHaveAttribute("data-ownership", "you");
@@ -46,8 +52,7 @@ test("the same user in a second window sees control held by you in another windo
     await expect(b.getByTestId("control-holder")).toHaveAttribute("data-holder", "");
     await expect(b.getByTestId("take-control")).toBeVisible();
   } finally {
-    await first.close();
-    await second.close();
+    await close();
   }
 });
 
@@ -55,16 +60,8 @@ test("the same user in a second window sees control held by you in another windo
 // ended"). The window itself asked for it: it reconnects at once without showing that notice,
 // and the same user's other window keeps its own session and stream.
 test("a window's own logout reconnects quietly; the other window stays logged in", async ({ browser }) => {
-  const first = await browser.newContext({ baseURL, viewport: { width: 1600, height: 1000 } });
-  const second = await browser.newContext({ baseURL, viewport: { width: 1600, height: 1000 } });
+  const { a, b, close } = await operatorInTwoWindows(browser);
   try {
-    const a = await first.newPage();
-    const b = await second.newPage();
-    for (const page of [a, b]) {
-      await page.goto("/");
-      await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
-      await loginInPanel(page, settings.operator);
-    }
     // Every reason the badge gives from now on (its title), however briefly shown.
     await a.getByTestId("connection-status").evaluate((badge) => {
       const seen: string[] = [];
@@ -81,7 +78,6 @@ test("a window's own logout reconnects quietly; the other window stays logged in
     await expect(b.getByTestId("current-user")).toContainText(settings.operator.name);
     await expect(b.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
   } finally {
-    await first.close();
-    await second.close();
+    await close();
   }
 });
