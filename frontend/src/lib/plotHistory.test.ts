@@ -11,7 +11,7 @@ import { ChannelMap, JOINT_PLOTS } from "./plots";
 import { SampleRing } from "./ringBuffer";
 import { rangeOfMarker } from "./historyView";
 import { PlotTimeRange, type SharedTimeEvent } from "./timeRange";
-import { fakeBackend } from "./plotTestSupport";
+import { fakeBackend, historyAnswerOf as answerOf } from "./plotTestSupport";
 import { fakeTimer } from "./timerTestSupport";
 
 type Trace = { name?: string; x: number[]; y: (number | null)[]; visible?: boolean; fill?: string };
@@ -24,34 +24,6 @@ type Layout = {
 
 const T0 = 1_795_500_000_000; // ms since the epoch
 const spec = JOINT_PLOTS[0]!;
-
-function answerOf(range: TimeRange, over: Partial<HistoryAnswer> = {}): HistoryAnswer {
-  // Two buckets of every element: values 10…15 (min) and 20…25 (max).
-  const t = [range.from_s, range.from_s + (range.to_s - range.from_s) / 2];
-  return {
-    robot: "left",
-    from: range.from_s,
-    to: range.to_s,
-    points: 2,
-    mode: "buckets",
-    bucket_s: (range.to_s - range.from_s) / 2,
-    frames: 1000,
-    t,
-    t_last: [t[1]! - 0.01, range.to_s - 0.01],
-    series: [0, 1, 2, 3, 4, 5].map((i) => ({
-      element: `joint_position.${i}`,
-      field: "joint_position",
-      label: `J${i + 1}`,
-      unit: "degree",
-      min: [10 + i, 10 + i],
-      max: [20 + i, 20 + i],
-      first: [],
-      last: [],
-    })),
-    recording: true,
-    ...over,
-  };
-}
 
 function setup(window_ms = 10_000, withHistory = true) {
   const backend = fakeBackend({ plotlyReact: true });

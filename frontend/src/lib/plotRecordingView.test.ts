@@ -16,6 +16,7 @@ import {
 } from "./plotRecordingView";
 import { ChannelMap, JOINT_PLOTS, TCP_PLOTS, tracesOf } from "./plots";
 import { SampleRing } from "./ringBuffer";
+import { historyAnswerOf } from "./plotTestSupport";
 import { fakeTimer } from "./timerTestSupport";
 
 const T0 = 1_795_500_000_000; // ms since the epoch
@@ -109,28 +110,8 @@ describe("the traces of a drawing", () => {
     for (let t = T0 - 60_000; t <= T0; t += 10) ring.push(t, [1, 2, 3, 4, 5, 6]);
     return plot;
   };
-  const answerOf = (range: TimeRange, recordedTo_s: number): HistoryAnswer => ({
-    robot: "left",
-    from: range.from_s,
-    to: range.to_s,
-    points: 2,
-    mode: "buckets",
-    bucket_s: (range.to_s - range.from_s) / 2,
-    frames: 1000,
-    t: [range.from_s, (range.from_s + range.to_s) / 2],
-    t_last: [recordedTo_s - 1, recordedTo_s],
-    series: [0, 1, 2, 3, 4, 5].map((i) => ({
-      element: `joint_position.${i}`,
-      field: "joint_position",
-      label: `J${i + 1}`,
-      unit: "degree",
-      min: [10 + i, 10 + i],
-      max: [20 + i, 20 + i],
-      first: [],
-      last: [],
-    })),
-    recording: true,
-  });
+  const answerOf = (range: TimeRange, recordedTo_s: number): HistoryAnswer =>
+    historyAnswerOf(range, { t: [range.from_s, (range.from_s + range.to_s) / 2], t_last: [recordedTo_s - 1, recordedTo_s] });
 
   it("before an answer: the ring's line per signal over the range, the picker's choice kept", () => {
     const plot = setup();

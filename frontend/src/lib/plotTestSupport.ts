@@ -1,4 +1,5 @@
 /** Fakes shared by the plot tests: a recording Plotly backend and a plot over a fresh ring. */
+import type { HistoryAnswer, TimeRange } from "./historyView";
 import { LivePlot, type PlotBackend } from "./plotting";
 import { ChannelMap, JOINT_PLOTS } from "./plots";
 import { SampleRing } from "./ringBuffer";
@@ -67,4 +68,33 @@ export function setupPlot() {
   plot.mount(el);
   const push = (t_ms: number) => ring.push(t_ms, [1, 2, 3, 4, 5, 6]);
   return { ring, backend, plot, el, push };
+}
+
+/** The recording's answer for J1…J6 positions over `range`, changed by `over`. */
+export function historyAnswerOf(range: TimeRange, over: Partial<HistoryAnswer> = {}): HistoryAnswer {
+  // Two buckets of every element: values 10…15 (min) and 20…25 (max).
+  const t = [range.from_s, range.from_s + (range.to_s - range.from_s) / 2];
+  return {
+    robot: "left",
+    from: range.from_s,
+    to: range.to_s,
+    points: 2,
+    mode: "buckets",
+    bucket_s: (range.to_s - range.from_s) / 2,
+    frames: 1000,
+    t,
+    t_last: [t[1]! - 0.01, range.to_s - 0.01],
+    series: [0, 1, 2, 3, 4, 5].map((i) => ({
+      element: `joint_position.${i}`,
+      field: "joint_position",
+      label: `J${i + 1}`,
+      unit: "degree",
+      min: [10 + i, 10 + i],
+      max: [20 + i, 20 + i],
+      first: [],
+      last: [],
+    })),
+    recording: true,
+    ...over,
+  };
 }
