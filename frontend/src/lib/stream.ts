@@ -120,7 +120,7 @@ export class StreamClient {
   /**
    * This page is about to end its own session (its user logs out): the service will close this
    * socket with 1008. That close is then no news to show ("session ended") and no reason to back
-   * off: the client reconnects at once instead, as it does on `restart()`.
+   * off: the client restarts at once instead (which also forgets the expectation).
    */
   expectSessionEnd(): void {
     this.sessionEndExpected = true;
@@ -174,10 +174,8 @@ export class StreamClient {
       this.socket = null;
       this.clearSilence();
       if (this.sessionEndExpected && ev.code === CLOSE_SESSION_ENDED) {
-        this.sessionEndExpected = false;
         this.callbacks.onCloseReason?.(null);
-        this.backoff.reset();
-        if (this.running) this.connect();
+        this.restart();
         return;
       }
       this.callbacks.onCloseReason?.(closeReason(ev.code, ev.reason));
