@@ -38,7 +38,7 @@ export function ConnectionHealth({ live, compact = false }: Props) {
       <dl className="health__figures">
         <div>
           <dt>frame age</dt>
-          <dd data-testid="frame-age" data-age-ms={live.frameAge_ms === null ? "" : Math.round(live.frameAge_ms)}>
+          <dd className="health__age" data-testid="frame-age" data-age-ms={live.frameAge_ms === null ? "" : Math.round(live.frameAge_ms)}>
             {formatDuration_ms(live.frameAge_ms)}
           </dd>
         </div>
