@@ -131,9 +131,20 @@ def euler_zyz_deg(t: Transform) -> Vector3:
 
 
 def rotation_angle_deg(a: Transform, b: Transform) -> float:
-    """The angle of the rotation that takes ``a``'s orientation to ``b``'s (geodesic distance)."""
-    trace = sum(a[i] * b[i] + a[4 + i] * b[4 + i] + a[8 + i] * b[8 + i] for i in range(3))
-    return math.degrees(math.acos(max(-1.0, min(1.0, (trace - 1.0) / 2.0))))
+    """The angle of the rotation that takes ``a``'s orientation to ``b``'s (geodesic distance).
+
+    Read as ``atan2(sin, cos)`` of the relative rotation ``M = Raᵀ·Rb`` (its sine from the
+    skew-symmetric part, its cosine from the trace), not ``acos`` of the trace alone: acos is
+    flat at 0°, where one rounding (1e-16) in the trace reads as almost 1e-6° between two equal
+    rotations (the golden vectors' tolerance, ``codegen/arm_vectors.py``).
+    """
+
+    def m(i: int, j: int) -> float:
+        return a[i] * b[j] + a[4 + i] * b[4 + j] + a[8 + i] * b[8 + j]
+
+    cos_angle = (m(0, 0) + m(1, 1) + m(2, 2) - 1.0) / 2.0
+    sin_angle = math.hypot(m(2, 1) - m(1, 2), m(0, 2) - m(2, 0), m(1, 0) - m(0, 1)) / 2.0
+    return math.degrees(math.atan2(sin_angle, cos_angle))
 
 
 class Kinematics(NamedTuple):
