@@ -1,4 +1,5 @@
-"""Layer: layout tooling. Imports only ``cobot_hmi.layout`` and ``cobot_hmi.arms``.
+"""Layer: layout tooling. Imports ``cobot_hmi.layout``, ``cobot_hmi.arms`` and, for the golden
+vectors only, the emulator's pure robot model (``emulator.robot.models`` and ``.kinematics``).
 
 Writes every file that derives from the layout table, so that nothing else repeats an offset, a
 name or a state value:
@@ -11,6 +12,9 @@ name or a state value:
 - ``frontend/src/generated/layout.ts`` (``typescript``): types and constants for the frontend;
 - ``frontend/src/generated/arms.ts`` (``arms_ts``): the arms' joint chains (``cobot_hmi.arms``) for
   the panel's 3D view;
+- ``frontend/src/generated/armKinematicsVectors.json`` (``arm_vectors``): golden forward-kinematics
+  vectors of every arm computed by the emulator's model, which pytest and Vitest check the Python
+  and the TypeScript kinematics against;
 - ``docs/assembly.md`` (``markdown``): the map a human reads;
 - ``backend/src/cobot_hmi/generated/sparkplug_b_pb2.py`` and ``.pyi`` (``sparkplug_proto``): the
   Sparkplug B payload classes, compiled from ``sparkplug/sparkplug_b.proto`` by grpcio-tools.
@@ -25,6 +29,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from cobot_hmi.codegen.arm_vectors import arm_vectors_json
 from cobot_hmi.codegen.arms_ts import arms_ts
 from cobot_hmi.codegen.layout_json import layout_document, layout_json
 from cobot_hmi.codegen.markdown import assembly_doc
@@ -32,10 +37,11 @@ from cobot_hmi.codegen.python_frames import frames_module
 from cobot_hmi.codegen.sparkplug_proto import sparkplug_modules
 from cobot_hmi.codegen.typescript import layout_ts
 
-__all__ = ["layout_document", "main", "outputs", "stale_outputs"]
+__all__ = ["ARM_VECTORS_FILE", "layout_document", "main", "outputs", "stale_outputs"]
 
 PACKAGE_DIR = Path(__file__).resolve().parents[1]
 REPO_ROOT = Path(__file__).resolve().parents[4]
+ARM_VECTORS_FILE = REPO_ROOT / "frontend" / "src" / "generated" / "armKinematicsVectors.json"
 
 
 def outputs() -> dict[Path, str]:
@@ -45,6 +51,7 @@ def outputs() -> dict[Path, str]:
         PACKAGE_DIR / "generated" / "layout.json": layout_json(),
         REPO_ROOT / "frontend" / "src" / "generated" / "layout.ts": layout_ts(),
         REPO_ROOT / "frontend" / "src" / "generated" / "arms.ts": arms_ts(),
+        ARM_VECTORS_FILE: arm_vectors_json(),
         REPO_ROOT / "docs" / "assembly.md": assembly_doc(),
         **{PACKAGE_DIR / "generated" / name: text for name, text in sparkplug_modules().items()},
     }
