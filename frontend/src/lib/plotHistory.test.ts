@@ -470,6 +470,24 @@ describe("steps from the plot's buttons and keys (the same decision as a person'
     expect(Number(el.dataset.frames)).toBe(1000);
   });
 
+  it("while the ring holds less than the window, a zoom in of what it draws stays a ring zoom", () => {
+    // Shortly after the page opened: 3 s of frames, drawn autoranged over those 3 s.
+    const { plot, push, fetches, fire, lastReact, tz } = setup();
+    for (let t = T0 - 3000; t <= T0; t += 10) push(t);
+    plot.update(0);
+    expect(plot.visibleRange()).toEqual({ from_s: (T0 - 3000) / 1000, to_s: T0 / 1000 });
+    plot.step("zoomIn"); // the middle 1.5 s of the 3 s drawn, not of a 10 s window not yet filled
+    expect(plot.viewKind).toBe("ring");
+    expect(plot.isZoomed).toBe(true);
+    expect(xRange(lastReact().args[2] as Layout)).toEqual([T0 - 2250 - tz, T0 - 750 - tz]);
+    fire();
+    expect(fetches).toHaveLength(0);
+    // Before what the ring holds is the recording, as with a full ring.
+    plot.step("earlier");
+    plot.step("earlier");
+    expect(plot.viewKind).toBe("fixed");
+  });
+
   it("zoom out from live reaches the recording; steps before a drawing add to the view's own range", () => {
     const { plot, push, fetches, fire } = setup();
     fill(push);

@@ -108,8 +108,9 @@ export class LivePlot {
   private focusInside = false;
   /** An x range (shifted, as drawn) a step asks the next ring rebuild to show. */
   private stepZoom: readonly number[] | null = null;
-  /** The newest frame's time when the ring view was last rebuilt (a paused picture ends there). */
+  /** The range of the ring view's last rebuild (a paused picture shows it). */
   private ringDrawnTo_ms: number | null = null;
+  private ringDrawnFrom_ms: number | null = null;
   private readonly visible: boolean[];
   private tzShift_ms = 0;
   /**
@@ -327,8 +328,18 @@ export class LivePlot {
   /** The oldest time the ring view draws: its window back from the newest frame, or the ring's oldest. */
   private ringHeldFrom_ms(): number | null {
     const newest = this.ring.newestTime();
-    if (newest === null) return null;
-    return Math.max(newest - this.window_ms, this.ring.timeAt(this.ring.oldestSeq));
+    return newest === null ? null : this.ringStart_ms(newest);
+  }
+
+  /**
+   * Where a ring view ending at `to_ms` starts: its window back, or the ring's oldest frame while
+   * the ring holds less (just after the page opened), as the autoranged axis shows it.
+   */
+  private ringStart_ms(to_ms: number): number {
+    const from = to_ms - this.window_ms;
+    if (this.ring.newestTime() === null) return from;
+    const oldest = this.ring.timeAt(this.ring.oldestSeq);
+    return oldest < to_ms ? Math.max(from, oldest) : from;
   }
 
   private viewForWindow(window_ms: number): PlotView {
@@ -448,9 +459,12 @@ export class LivePlot {
       const to_s = axisTimeToEpochS(x[1], this.tzShift_ms);
       if (Number.isFinite(from_s) && Number.isFinite(to_s) && to_s > from_s) return { from_s, to_s };
     }
-    // Paused, the picture ends at the newest frame when it froze, not the ring's newest.
-    const to = (this.paused ? this.ringDrawnTo_ms : null) ?? this.ring.newestTime() ?? this.clock();
-    return { from_s: (to - this.window_ms) / 1000, to_s: to / 1000 };
+    // Paused: the range of the picture as it froze, not up to the ring's newest.
+    if (this.paused && this.ringDrawnTo_ms !== null && this.ringDrawnFrom_ms !== null) {
+      return { from_s: this.ringDrawnFrom_ms / 1000, to_s: this.ringDrawnTo_ms / 1000 };
+    }
+    const to = this.ring.newestTime() ?? this.clock();
+    return { from_s: this.ringStart_ms(to) / 1000, to_s: to / 1000 };
   }
 
   private tell(): void {
@@ -618,6 +632,7 @@ export class LivePlot {
     this.bucketer = this.newBucketer();
     const newest = this.ring.newestTime();
     this.ringDrawnTo_ms = newest;
+    this.ringDrawnFrom_ms = newest === null ? null : this.ringStart_ms(newest);
     const end = this.ring.endSeq;
     if (newest !== null) {
       const from = this.ring.firstSeqAtOrAfter(newest - this.window_ms);
