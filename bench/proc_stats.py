@@ -18,3 +18,15 @@ def own_cpu_s() -> float:
     """User + system CPU seconds of this process."""
     times = os.times()
     return times.user + times.system
+
+
+def process_figures(pid: int) -> tuple[int, int, int]:
+    """Resident memory (bytes), open file descriptors and threads of a process, from /proc."""
+    rss_kib = threads = 0
+    with open(f"/proc/{pid}/status") as status:
+        for line in status:
+            if line.startswith("VmRSS:"):
+                rss_kib = int(line.split()[1])
+            elif line.startswith("Threads:"):
+                threads = int(line.split()[1])
+    return rss_kib * 1024, len(os.listdir(f"/proc/{pid}/fd")), threads

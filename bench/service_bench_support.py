@@ -8,8 +8,11 @@ tests and other benches on the same machine.
 from __future__ import annotations
 
 import functools
+import os
 import random
 import re
+import shutil
+import signal
 import socket
 import subprocess
 import sys
@@ -98,6 +101,7 @@ def _wait(
     what: str,
     process: subprocess.Popen[bytes],
     timeout_s: float,
+    interval_s: float = 0.1,
 ) -> None:
     end = time.monotonic() + timeout_s
     while time.monotonic() < end:
@@ -108,7 +112,7 @@ def _wait(
                 return
         except OSError:
             pass
-        time.sleep(0.1)
+        time.sleep(interval_s)
     raise SystemExit(f"{what}: not ready within {timeout_s:.0f} s")
 
 
@@ -199,6 +203,60 @@ def stack(
                     except subprocess.TimeoutExpired:
                         process.kill()
                         process.wait()
+
+
+class Mosquitto:
+    """Debian's ``mosquitto`` on ``host`` (a fresh port unless given), no persistence; it can be
+    stopped and started again on the same port (a broker restart)."""
+
+    def __init__(self, host: str, directory: Path, port: int | None = None) -> None:
+        binary = shutil.which("mosquitto") or "/usr/sbin/mosquitto"
+        if not os.access(binary, os.X_OK):
+            raise SystemExit("this bench needs Debian's mosquitto (apt-get install mosquitto)")
+        self.host = host
+        self.port = port or free_port(host)
+        self.config = directory / "mosquitto.conf"
+        self.config.write_text(
+            f"listener {self.port} {host}\nallow_anonymous true\npersistence false\nlog_dest none\n"
+        )
+        self.binary = binary
+        self.process: subprocess.Popen[bytes] | None = None
+
+    @property
+    def url(self) -> str:
+        return f"mqtt://{self.host}:{self.port}"
+
+    def start(self, interval_s: float = 0.1) -> None:
+        """Start it and return once it accepts connections."""
+        self.process = subprocess.Popen([self.binary, "-c", str(self.config)])
+        _wait(
+            functools.partial(_accepts, self.host, self.port),
+            "mosquitto",
+            self.process,
+            15,
+            interval_s,
+        )
+
+    def stop(self) -> None:
+        if self.process is not None and self.process.poll() is None:
+            self.process.send_signal(signal.SIGTERM)
+            try:
+                self.process.wait(10)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait()
+
+
+@contextmanager
+def broker(host: str, directory: Path) -> Iterator[tuple[int, subprocess.Popen[bytes]]]:
+    """A Mosquitto on a fresh port of ``host``: (its port, its process); stopped at the end."""
+    mosquitto = Mosquitto(host, directory)
+    try:
+        mosquitto.start()
+        assert mosquitto.process is not None
+        yield mosquitto.port, mosquitto.process
+    finally:
+        mosquitto.stop()
 
 
 _SAMPLE = re.compile(r"^(?P<name>[a-z_]+)(?:\{(?P<labels>[^}]*)\})? (?P<value>\S+)$")

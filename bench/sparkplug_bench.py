@@ -22,17 +22,14 @@ Targets: latency p99 ≤ 50 ms, ratio ≤ 1.1, publisher CPU ≤ 5 % of a core p
 from __future__ import annotations
 
 import argparse
-import contextlib
 import functools
 import os
-import shutil
 import signal
 import statistics
 import subprocess
 import tempfile
 import threading
 import time
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -43,6 +40,7 @@ from service_bench_support import (
     _accepts,
     _cli,
     _wait,
+    broker,
     free_port,
     histogram_quantile,
     loopback_cell,
@@ -114,25 +112,6 @@ class Phase:
 
 def _sum(samples: dict[tuple[str, str], float], name: str) -> float:
     return sum(v for (metric, _), v in samples.items() if metric == name)
-
-
-@contextlib.contextmanager
-def broker(host: str, directory: Path) -> Iterator[tuple[int, subprocess.Popen[bytes]]]:
-    binary = shutil.which("mosquitto") or "/usr/sbin/mosquitto"
-    if not os.access(binary, os.X_OK):
-        raise SystemExit("bench/sparkplug needs Debian's mosquitto (apt-get install mosquitto)")
-    port = free_port(host)
-    config = directory / "mosquitto.conf"
-    config.write_text(
-        f"listener {port} {host}\nallow_anonymous true\npersistence false\nlog_dest none\n"
-    )
-    process = subprocess.Popen([binary, "-c", str(config)])
-    try:
-        _wait(functools.partial(_accepts, host, port), "mosquitto", process, 15)
-        yield port, process
-    finally:
-        process.send_signal(signal.SIGTERM)
-        process.wait(10)
 
 
 def _ready(base_url: str, names: list[str]) -> bool:
