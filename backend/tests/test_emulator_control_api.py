@@ -57,6 +57,7 @@ async def test_status_shows_the_frame_the_robot_and_the_emulator(emulator: Emula
     assert status["faults"] == {
         "t2o_drop_percent": 0.0,
         "t2o_delay_ms": 0.0,
+        "t2o_interval_factor": 1.0,
         "t2o_silent": False,
         "t2o_corrupt_count": 0,
         "refuse_next_forward_open": None,
@@ -147,6 +148,7 @@ async def test_valid_commands_answer_the_robot_view(emulator: Emulator) -> None:
     assert answer["faults"] == {
         "t2o_drop_percent": 0.0,
         "t2o_delay_ms": 2.5,
+        "t2o_interval_factor": 1.0,
         "t2o_silent": False,
         "t2o_corrupt_count": 0,
         "refuse_next_forward_open": 262,

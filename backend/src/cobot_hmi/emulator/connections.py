@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 from collections import deque
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import StrEnum
 
@@ -22,6 +23,35 @@ class ConnectionKind(StrEnum):
     OWNER = "owner"
     INPUT_ONLY = "input-only"
     LISTEN_ONLY = "listen-only"
+
+
+@dataclass(frozen=True, slots=True)
+class ConnectionInfo:
+    """A snapshot of one class 1 connection, for a status API."""
+
+    o2t_connection_id: int
+    t2o_connection_id: int
+    kind: str
+    peer: str
+    """Where T→O goes, ``host:port``."""
+    o2t_rpi_us: int
+    t2o_rpi_us: int
+    timeout_multiplier: int
+    run: bool
+    packets_in: int
+    packets_out: int
+    opened_at: float
+    o2t_gaps: int = 0
+    o2t_duplicates: int = 0
+    o2t_intervals: int = 0
+    o2t_interval_p50_ms: float | None = None
+    o2t_interval_p99_ms: float | None = None
+    o2t_interval_max_ms: float | None = None
+    o2t_data_hex: str | None = None
+    """The O→T data (after the run/idle header) of the owner's last new packet, run or idle."""
+    o2t_data_changes: int = 0
+    """New O→T packets whose data differed from the one before (0: every packet so far
+    carried ``o2t_data_hex``)."""
 
 
 @dataclass(eq=False)
@@ -59,6 +89,10 @@ class IoConnection:
     last_o2t_at: float | None = None
     o2t_intervals_ms: deque[float] = field(default_factory=lambda: deque(maxlen=16_384))
     """Recent O→T arrival intervals (new data only), for the status API and the bench."""
+    o2t_data: bytes | None = None
+    """The data of the owner's last new O→T packet, run or idle."""
+    o2t_data_changes: int = 0
+    """New O→T packets of the owner whose data differed from the one before."""
     t2o_last_due: float = 0.0
     """Loop time the last T→O packet handed to the cyclic pump is due (a drift-free schedule:
     + RPI each packet)."""
@@ -81,6 +115,26 @@ class IoConnection:
             self.watchdog.cancel()
         self.watchdog = None
 
+    def info(self) -> ConnectionInfo:
+        return ConnectionInfo(
+            self.o2t_id,
+            self.t2o_id,
+            str(self.kind),
+            f"{self.peer[0]}:{self.peer[1]}",
+            self.o2t_rpi_us,
+            self.t2o_rpi_us,
+            self.timeout_multiplier,
+            self.run,
+            self.packets_in,
+            self.packets_out,
+            self.opened_at,
+            self.o2t_gaps,
+            self.duplicates,
+            *_interval_figures(self.o2t_intervals_ms),
+            self.o2t_data.hex() if self.o2t_data is not None else None,
+            self.o2t_data_changes,
+        )
+
     @property
     def timeout_s(self) -> float:
         """Watchdog: O→T RPI × (4 << multiplier) (CIP Vol 1 §3-5.4.1; docs/protocol.md)."""
@@ -90,3 +144,13 @@ class IoConnection:
     def produces(self) -> bool:
         """Whether T→O production depends on this connection alone (not listen-only)."""
         return self.kind is not ConnectionKind.LISTEN_ONLY
+
+
+def _interval_figures(
+    intervals_ms: Iterable[float],
+) -> tuple[int, float | None, float | None, float | None]:
+    values = sorted(intervals_ms)
+    n = len(values)
+    if not n:
+        return 0, None, None, None
+    return n, values[n // 2], values[min(n - 1, int(n * 0.99))], values[-1]

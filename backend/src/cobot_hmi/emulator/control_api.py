@@ -57,6 +57,9 @@ DEFAULT_CONTROL_PORT: Final = 8081
 
 MAX_DELAY_MS: Final = 10_000.0
 """Longest T→O delay the API accepts (longer is a silence: use ``t2o_silent``)."""
+MAX_INTERVAL_FACTOR: Final = 100.0
+"""Slowest T→O the interval fault makes, in granted RPIs (slower is a silence: the
+originator's watchdog spans at most 512 RPIs, and its default 16)."""
 MAX_CORRUPT_COUNT: Final = 1_000_000
 MAX_EXTENDED_STATUS: Final = 0xFFFF
 
@@ -373,6 +376,7 @@ def create_control_app(
     fault_fields: Final = (
         "t2o_drop_percent",
         "t2o_delay_ms",
+        "t2o_interval_factor",
         "t2o_silent",
         "t2o_corrupt_count",
         "refuse_next_forward_open",
@@ -388,6 +392,10 @@ def create_control_app(
             changes["t2o_drop_percent"] = _number(data, "t2o_drop_percent", 0.0, 100.0)
         if "t2o_delay_ms" in data:
             changes["t2o_delay_ms"] = _number(data, "t2o_delay_ms", 0.0, MAX_DELAY_MS)
+        if "t2o_interval_factor" in data:
+            changes["t2o_interval_factor"] = _number(
+                data, "t2o_interval_factor", 1.0, MAX_INTERVAL_FACTOR
+            )
         if "t2o_silent" in data:
             changes["t2o_silent"] = _bool(data, "t2o_silent")
         if "t2o_corrupt_count" in data:

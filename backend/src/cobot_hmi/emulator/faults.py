@@ -19,6 +19,11 @@ class TargetFaults:
     """Extra delay before each T→O packet leaves."""
     t2o_silent: bool = False
     """Stop producing T→O entirely (the TCP session and the connection stay open)."""
+    t2o_interval_factor: float = 1.0
+    """T→O leaves every this many granted RPIs (the Forward Open reply still grants the RPI
+    asked for): 5 makes a target that grants 2 ms and sends every 10 ms, as an adapter whose
+    timer ticks slower than the RPIs it accepts. Its sequence numbers rise by one per packet
+    sent: the originator sees no gap, only a slow target."""
     t2o_corrupt_count: int = 0
     """Corrupt the next N T→O packets (each sent malformed), counting down."""
     refuse_next_forward_open: int | None = None
@@ -27,12 +32,21 @@ class TargetFaults:
     def per_packet(self) -> bool:
         """Whether a fault decides packet by packet (so T→O cannot be a periodic stream)."""
         return bool(
-            self.t2o_drop_percent or self.t2o_delay_ms or self.t2o_silent or self.t2o_corrupt_count
+            self.t2o_drop_percent
+            or self.t2o_delay_ms
+            or self.t2o_silent
+            or self.t2o_corrupt_count
+            or self.t2o_interval_factor != 1.0
         )
+
+    def t2o_period_s(self, rpi_us: int) -> float:
+        """How often T→O of a connection granted ``rpi_us`` leaves, in seconds."""
+        return rpi_us * self.t2o_interval_factor / 1e6
 
     def reset(self) -> None:
         self.t2o_drop_percent = 0.0
         self.t2o_delay_ms = 0.0
         self.t2o_silent = False
+        self.t2o_interval_factor = 1.0
         self.t2o_corrupt_count = 0
         self.refuse_next_forward_open = None

@@ -16,10 +16,9 @@ import asyncio
 import logging
 import random
 import time
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from collections.abc import Callable
 
-from cobot_hmi.emulator.connections import ConnectionKind, IoConnection
+from cobot_hmi.emulator.connections import ConnectionInfo, ConnectionKind, IoConnection
 from cobot_hmi.emulator.counters import TargetCounters
 from cobot_hmi.emulator.faults import TargetFaults
 from cobot_hmi.emulator.process_image import ProcessImage
@@ -43,30 +42,6 @@ O→T is read as it arrives."""
 HORIZON_MARGIN_S = 0.001
 """How far past the next wake-up T→O is built ahead: a wake-up that comes up to this late still
 finds the pump with a packet to send."""
-
-
-@dataclass(frozen=True, slots=True)
-class ConnectionInfo:
-    """A snapshot of one class 1 connection, for a status API."""
-
-    o2t_connection_id: int
-    t2o_connection_id: int
-    kind: str
-    peer: str
-    """Where T→O goes, ``host:port``."""
-    o2t_rpi_us: int
-    t2o_rpi_us: int
-    timeout_multiplier: int
-    run: bool
-    packets_in: int
-    packets_out: int
-    opened_at: float
-    o2t_gaps: int = 0
-    o2t_duplicates: int = 0
-    o2t_intervals: int = 0
-    o2t_interval_p50_ms: float | None = None
-    o2t_interval_p99_ms: float | None = None
-    o2t_interval_max_ms: float | None = None
 
 
 class IoConnections:
@@ -189,25 +164,7 @@ class IoConnections:
         """A snapshot of every connection (the counts of streamed packets brought up to date,
         in ``counters`` too)."""
         self._sync_streamed()
-        return [
-            ConnectionInfo(
-                c.o2t_id,
-                c.t2o_id,
-                str(c.kind),
-                f"{c.peer[0]}:{c.peer[1]}",
-                c.o2t_rpi_us,
-                c.t2o_rpi_us,
-                c.timeout_multiplier,
-                c.run,
-                c.packets_in,
-                c.packets_out,
-                c.opened_at,
-                c.o2t_gaps,
-                c.duplicates,
-                *_interval_figures(c.o2t_intervals_ms),
-            )
-            for c in self._by_o2t.values()
-        ]
+        return [c.info() for c in self._by_o2t.values()]
 
     def pump_counters(self) -> dict[str, int]:
         """The class 1 socket's cyclic pump (``UdpEndpoint.counters``): T→O packets sent and
@@ -323,8 +280,10 @@ class IoConnections:
                 self._stop_stream(conn)
         producers = [c for c in self._by_o2t.values() if not c.t2o_streaming]
         while producers:
-            conn = min(producers, key=lambda c: c.t2o_last_due + c.t2o_rpi_us / 1e6)
-            period_s = conn.t2o_rpi_us / 1e6
+            # A target slower than its grant (the interval fault) sends every period, not RPI.
+            period = self.faults.t2o_period_s
+            conn = min(producers, key=lambda c: c.t2o_last_due + period(c.t2o_rpi_us))
+            period_s = period(conn.t2o_rpi_us)
             due = conn.t2o_last_due + period_s
             if due > horizon:
                 return
@@ -586,6 +545,10 @@ class IoConnections:
             conn.o2t_intervals_ms.append((now - conn.last_o2t_at) * 1e3)
         conn.last_o2t_at = now
         run, command = io.split_run_idle(payload)
+        if command != conn.o2t_data:
+            if conn.o2t_data is not None:
+                conn.o2t_data_changes += 1
+            conn.o2t_data = command
         if run:
             conn.run = True
             if command != conn.last_applied:
@@ -599,14 +562,4 @@ class IoConnections:
             self.process_image_changed()
 
 
-def _interval_figures(
-    intervals_ms: Iterable[float],
-) -> tuple[int, float | None, float | None, float | None]:
-    values = sorted(intervals_ms)
-    n = len(values)
-    if not n:
-        return 0, None, None, None
-    return n, values[n // 2], values[min(n - 1, int(n * 0.99))], values[-1]
-
-
-__all__ = ["HORIZON_MARGIN_S", "TICK_READ_MAX_RPI_US", "ConnectionInfo", "IoConnections"]
+__all__ = ["HORIZON_MARGIN_S", "TICK_READ_MAX_RPI_US", "IoConnections"]

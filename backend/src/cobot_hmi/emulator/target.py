@@ -17,14 +17,13 @@ import socket
 
 from cobot_hmi.emulator.assembly import AssemblyObject
 from cobot_hmi.emulator.connection_manager import ConnectionManager, RefusalCount
-from cobot_hmi.emulator.connections import IoConnection
+from cobot_hmi.emulator.connections import ConnectionInfo, IoConnection
 from cobot_hmi.emulator.counters import TargetCounters
 from cobot_hmi.emulator.encap_server import EncapSession, SessionContext
 from cobot_hmi.emulator.faults import TargetFaults
 from cobot_hmi.emulator.io_connections import (
     HORIZON_MARGIN_S,
     TICK_READ_MAX_RPI_US,
-    ConnectionInfo,
     IoConnections,
 )
 from cobot_hmi.emulator.objects import MessageRouter
