@@ -8,8 +8,9 @@ change) are also fsync'd (``synchronous=FULL``): they survive power loss too. A 
 fsync (``synchronous=NORMAL``); the outcome's fsync a few milliseconds later covers it too (the
 WAL is one sequential file), which keeps one disk flush instead of two on every write's path.
 Events (robot state, flags, connection) arrive in bursts from the broadcast loop; they are
-queued and written a batch per transaction, without fsync of their own. Imports nothing of the
-project.
+queued and written a batch per transaction, without fsync of their own. The tables (these two,
+the alarms' and the tag names') are created and upgraded by ``migrations`` when the store opens;
+imports nothing else of the project.
 """
 
 from __future__ import annotations
@@ -30,44 +31,9 @@ from typing import Any, Final, TypeVar
 
 import orjson
 
+from cobot_hmi.service import migrations
+
 _T = TypeVar("_T")
-
-_SCHEMA: Final = """
-CREATE TABLE IF NOT EXISTS audit (
-    id INTEGER PRIMARY KEY AUTOINCREMENT,
-    time REAL NOT NULL,
-    user TEXT,
-    client TEXT,
-    action TEXT NOT NULL,
-    fields TEXT NOT NULL,
-    before TEXT,
-    requested TEXT,
-    outcome TEXT NOT NULL,
-    reason TEXT
-);
-CREATE TABLE IF NOT EXISTS events (
-    id INTEGER PRIMARY KEY AUTOINCREMENT,
-    time REAL NOT NULL,
-    kind TEXT NOT NULL,
-    data TEXT NOT NULL
-);
-CREATE INDEX IF NOT EXISTS events_kind ON events (kind, id);
-"""
-
-_ADDED_COLUMNS: Final = (
-    ("audit", "robot", "TEXT"),
-    ("audit", "origin", "TEXT"),
-    ("events", "robot", "TEXT"),
-    ("audit", "summary", "TEXT"),
-    ("audit", "tags", "TEXT"),
-)
-"""Columns added after the first release: a database from before gets them (``NULL`` in its old
-rows) when it is opened; no row is lost."""
-
-_INDEXES: Final = """
-CREATE INDEX IF NOT EXISTS events_robot ON events (robot, id);
-CREATE INDEX IF NOT EXISTS audit_robot ON audit (robot, id);
-"""
 
 AUDIT_COLUMNS: Final = (
     "id",
@@ -137,9 +103,16 @@ class Store:
         self.event_write_errors = 0
 
     async def open(self) -> None:
+        """Open (or create) the database and bring its schema to this code's version
+        (``migrations``); ``SchemaTooNewError`` for a database of a newer cobot-hmi."""
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="store")
-        await self._run(self._open_sync)
+        try:
+            await self._run(self._open_sync)
+        except BaseException:
+            self._executor.shutdown(wait=True)
+            self._executor = None
+            raise
         self._writer = asyncio.create_task(self._write_events(), name="store-events")
 
     def _open_sync(self) -> None:
@@ -155,14 +128,15 @@ class Store:
             with contextlib.suppress(FileNotFoundError):
                 os.chmod(f"{self.path}{suffix}", 0o600)
         connection = sqlite3.connect(self.path, check_same_thread=False)
-        connection.execute("PRAGMA journal_mode=WAL")
-        connection.execute("PRAGMA synchronous=FULL")
-        connection.executescript(_SCHEMA)
-        for table, column, kind in _ADDED_COLUMNS:
-            present = {row[1] for row in connection.execute(f"PRAGMA table_info({table})")}
-            if column not in present:
-                connection.execute(f"ALTER TABLE {table} ADD COLUMN {column} {kind}")
-        connection.executescript(_INDEXES)
+        try:
+            # A newer cobot-hmi's database is refused before anything is written to it.
+            migrations.check_version(connection, self.path)
+            connection.execute("PRAGMA journal_mode=WAL")
+            connection.execute("PRAGMA synchronous=FULL")
+            migrations.migrate(connection, self.path)
+        except BaseException:
+            connection.close()
+            raise
         self._connection = connection
 
     async def close(self) -> None:

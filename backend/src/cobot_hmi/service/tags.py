@@ -8,7 +8,8 @@ and a command (O→T), such as ``controlbox_do``, is one point with one name. Th
 are the layout's I/O and bit register channels (not the analog type codings).
 
 ``TagBook`` holds every robot's names in memory (lookups on the event path are dict reads) and
-writes changes through the ``Store`` (``Store.call``, its worker thread). CSV: ``key,label,name``
+writes changes through the ``Store`` (``Store.call``, its worker thread) into the ``tags`` table
+(created by ``service.migrations``). CSV: ``key,label,name``
 with a header; an import names each point by its key, its label, or both (then they must agree:
 a sheet edited with "DO 3" next to ``controlbox_do.3`` is refused, not half-applied).
 """
@@ -31,15 +32,6 @@ if TYPE_CHECKING:
 MAX_TAG_CHARS: Final = 64
 CSV_COLUMNS: Final = ("key", "label", "name")
 _TAGGABLE_GROUPS: Final = frozenset({"I/O", "Bit Registers"})
-
-_SCHEMA: Final = """
-CREATE TABLE IF NOT EXISTS tags (
-    robot TEXT NOT NULL,
-    key TEXT NOT NULL,
-    name TEXT NOT NULL,
-    PRIMARY KEY (robot, key)
-);
-"""
 
 
 @dataclass(frozen=True, slots=True)
@@ -177,7 +169,6 @@ class TagBook:
         """Read the robot's names (at start, after ``store.open``)."""
 
         def read(db: sqlite3.Connection) -> list[tuple[str, str]]:
-            db.executescript(_SCHEMA)
             rows: list[tuple[str, str]] = db.execute(
                 "SELECT key, name FROM tags WHERE robot = ?", (self.robot,)
             ).fetchall()
@@ -192,7 +183,6 @@ class TagBook:
         robot = self.robot
 
         def write(db: sqlite3.Connection) -> None:
-            db.executescript(_SCHEMA)
             db.execute("DELETE FROM tags WHERE robot = ?", (robot,))
             db.executemany(
                 "INSERT INTO tags (robot, key, name) VALUES (?, ?, ?)",

@@ -2,11 +2,11 @@
 keeps the active and unacknowledged ones, their acknowledgements and shelving) and the history
 of every transition.
 
-Two tables beside the audit and the events (``service.store``), written through the store's
-one worker thread (``Store.call``). A transition is queued where it happens (the frame path
-never waits on the disk) and written in order by one writer task, a batch per transaction;
-an operator's acknowledgement or shelving waits for its batch (``flush``) before the answer,
-committed with fsync.
+Two tables beside the audit and the events (``service.store``; created by
+``service.migrations``), written through the store's one worker thread (``Store.call``). A
+transition is queued where it happens (the frame path never waits on the disk) and written in
+order by one writer task, a batch per transaction; an operator's acknowledgement or shelving
+waits for its batch (``flush``) before the answer, committed with fsync.
 """
 
 from __future__ import annotations
@@ -25,35 +25,6 @@ if TYPE_CHECKING:
     from cobot_hmi.service.store import Page, Store
 
 log = logging.getLogger(__name__)
-
-_SCHEMA: Final = """
-CREATE TABLE IF NOT EXISTS alarm_state (
-    id TEXT PRIMARY KEY,
-    robot TEXT NOT NULL,
-    key TEXT NOT NULL,
-    data TEXT NOT NULL,
-    time REAL NOT NULL
-);
-CREATE TABLE IF NOT EXISTS alarm_history (
-    id INTEGER PRIMARY KEY AUTOINCREMENT,
-    time REAL NOT NULL,
-    robot TEXT NOT NULL,
-    alarm_id TEXT NOT NULL,
-    key TEXT NOT NULL,
-    name TEXT NOT NULL,
-    priority TEXT NOT NULL,
-    transition TEXT NOT NULL,
-    state TEXT NOT NULL,
-    shelved INTEGER NOT NULL,
-    message TEXT,
-    value TEXT,
-    label TEXT,
-    tag TEXT,
-    user TEXT,
-    comment TEXT
-);
-CREATE INDEX IF NOT EXISTS alarm_history_robot ON alarm_history (robot, id);
-"""
 
 HISTORY_BATCH_ROWS: Final = 1000
 """Rows a streamed CSV of the alarm history reads at a time."""
@@ -111,7 +82,6 @@ class AlarmStore:
         self.write_errors = 0
 
     async def open(self) -> None:
-        await self._store.call(lambda db: db.executescript(_SCHEMA))
         if self._writer is None:
             self._writer = asyncio.create_task(self._write(), name="alarm-store")
 
