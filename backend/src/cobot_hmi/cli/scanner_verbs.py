@@ -63,11 +63,21 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "scan",
         help="hold a class 1 connection and print the frames",
         description=(
-            "Hold a class 1 connection (exclusive owner, idle; or --input-only) to any adapter "
-            "and print one JSON line per frame (the robot's frame when T→O has its layout's "
-            "size or more, else the data as hex), or per second with --stats, then a summary "
-            "with the counters. Exit 0 if the connection held, 2 if it was refused, 3 if it was "
-            "lost or never came up."
+            "Hold a class 1 connection (exclusive owner, or --input-only) to any adapter and "
+            "print one JSON line per frame (the robot's frame when T→O has its layout's size or "
+            "more, else the data as hex), or per second with --stats, then a summary with the "
+            "counters. The connection sends IDLE from start to end (run/idle header, run bit "
+            "0): the adapter receives every O→T packet but does not apply its data to its "
+            "outputs, which it holds or clears as its idle behaviour says. Exit 0 if the "
+            "connection held, 2 if it was refused, 3 if it was lost or never came up."
+        ),
+        epilog=(
+            "Counters: gaps = T→O packets lost on the way (CIP sequence count jumps); "
+            "duplicates = packets repeating the count (no new data); late = frames more than "
+            "1.5 × the granted T→O interval (API) after the one before, for whatever reason; "
+            "slow_target = the adapter sends T→O less often than it granted (median over a "
+            "second above 1.5 × API), said once in words on stderr and in the summary, and "
+            "once more when it keeps its grant again."
         ),
     )
     scan.add_argument("host")
@@ -100,7 +110,12 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         type=_hex_bytes,
         default=None,
         metavar="HEX",
-        help="O→T data, zero-filled to the O→T size (default: the assembly's, read first)",
+        help=(
+            "O→T data, zero-filled to the O→T size, in every O→T packet as given until the "
+            "scan ends (default: the O→T assembly's, read first where the adapter allows it; "
+            "at the robot's sizes, the robot's outputs from the first frame: bumpless "
+            "takeover). Sent idle: the adapter does not apply it to its outputs"
+        ),
     )
     scan.add_argument(
         "--api-range-us",
@@ -175,7 +190,13 @@ def _scan(args: argparse.Namespace) -> int:
 
     from cobot_hmi.codec import Frame, dumps, frame_to_json
     from cobot_hmi.eventloop import freeze_startup_heap, precise_event_loop
-    from cobot_hmi.scanner.originator import ConnectionState, Originator, OriginatorSettings
+    from cobot_hmi.scanner.originator import (
+        ConnectionState,
+        ConnectionStats,
+        Originator,
+        OriginatorSettings,
+    )
+    from cobot_hmi.scanner.t2o_pace import SlowTarget
 
     cfg, o2t, t2o = args.instances
     o2t_size, t2o_size = args.sizes
@@ -221,9 +242,29 @@ def _scan(args: argparse.Namespace) -> int:
         seen.add(state)
         print(f"cobot-hmi scan: {state}{': ' + reason if reason else ''}", file=sys.stderr)
 
+    found: list[SlowTarget] = []
+
+    def on_slow_target(slow: SlowTarget | None) -> None:
+        if slow is not None:
+            found.append(slow)
+            print(f"cobot-hmi scan: {slow.words()}", file=sys.stderr)
+        elif found:
+            print(f"cobot-hmi scan: {found[-1].kept_words()}", file=sys.stderr)
+
+    def stats_json(stats: ConnectionStats) -> dict[str, object]:
+        """The counters, the slow target in words (null while it keeps its grant)."""
+        slow = stats.slow_target
+        return {**asdict(stats), "slow_target": slow.words() if slow is not None else None}
+
     async def run() -> int:
         try:
-            originator = Originator(settings, on_frame=on_frame, on_state=on_state, on_data=on_data)
+            originator = Originator(
+                settings,
+                on_frame=on_frame,
+                on_state=on_state,
+                on_data=on_data,
+                on_slow_target=on_slow_target,
+            )
         except ValueError as error:  # --o2t-hex longer than O→T, or not a command image
             print(f"cobot-hmi scan: {error}", file=sys.stderr)
             return 1
@@ -242,10 +283,10 @@ def _scan(args: argparse.Namespace) -> int:
                 with contextlib.suppress(TimeoutError):
                     await asyncio.wait_for(stop.wait(), remaining)
                 if args.stats:
-                    stats = asdict(originator.stats())
+                    stats = stats_json(originator.stats())
                     out.write(dumps({"t": time.time(), **stats}).decode() + "\n")
                 out.flush()
-            summary = asdict(originator.stats())
+            summary = stats_json(originator.stats())
         finally:
             await originator.stop()
         out.write(dumps({"summary": summary}).decode() + "\n")

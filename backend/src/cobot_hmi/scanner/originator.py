@@ -24,7 +24,12 @@ Bumpless takeover: every connection starts **idle**, and its command image is se
 robot's actual outputs in the first T→O frame (and the bit input registers from an explicit
 read of the O→T assembly where the target allows it: that read, done before the Forward Open,
 is also what the first O→T packet carries), so switching to run changes nothing until someone
-writes. The state is CONNECTED only once that first frame has arrived.
+writes. O→T data given in the settings (``o2t_data``, ``scan --o2t-hex``) is never taken over:
+every packet carries it until it is changed. The state is CONNECTED only once that first frame
+has arrived.
+
+A target sending T→O less often than the API it granted is reported once, and once again
+when it keeps its grant (``scanner.t2o_pace``): ``on_slow_target`` and ``stats().slow_target``.
 """
 
 from __future__ import annotations
@@ -71,6 +76,7 @@ from cobot_hmi.scanner.io_port import IoPort
 from cobot_hmi.scanner.o2t_stream import O2TStream
 from cobot_hmi.scanner.session import EnipSession, SessionError
 from cobot_hmi.scanner.stats import IntervalWindow
+from cobot_hmi.scanner.t2o_pace import PaceWatch, SlowTarget
 from cobot_hmi.udp_endpoint import BATCH_PERIOD_S, QueueFullError
 
 log = logging.getLogger(__name__)
@@ -122,8 +128,10 @@ class OriginatorSettings:
     heartbeat_o2t_size: int = 0
     """O→T connection size of an input-only connection (targets accept 0, 2 or 6)."""
     o2t_data: bytes | None = None
-    """The O→T data to start with, zero-filled to ``o2t_size``. None: what an explicit read of
-    the O→T assembly returns (where the target allows it), else zeros."""
+    """The O→T data to send, zero-filled to ``o2t_size``, in every packet until it is changed
+    (never replaced by the bumpless takeover). None: what an explicit read of the O→T assembly
+    returns (where the target allows it), else zeros, and at the robot layout's sizes the
+    takeover of the robot's outputs from the first frame."""
     raw: bool = False
     """Hand every T→O packet's data to ``on_data`` even when its size is the robot layout's."""
     api_bounds_us: tuple[int, int] | None = None
@@ -195,11 +203,14 @@ class ConnectionStats:
     packets_in: int
     packets_out: int
     gaps: int
-    """T→O packets missing (CIP sequence count jumps), summed."""
+    """T→O packets lost on the way: the CIP sequence count's jumps past one, summed (a
+    target sending slower than its grant makes none)."""
     duplicates: int
     """T→O packets repeating the last CIP sequence count (no new data)."""
     late: int
-    """T→O frames that came more than 1.5 RPI after the previous one."""
+    """T→O frames (new data) received more than 1.5 × the granted T→O API after the frame
+    before: after a gap or duplicates, or from a target slower than its grant (``slow_target``
+    says when it is that)."""
     malformed: int
     interval_mean_ms: float | None
     interval_p99_ms: float | None
@@ -217,6 +228,8 @@ class ConnectionStats:
     interval_p50_ms: float | None = None
     rpi_us: int | None = None
     """The T→O actual packet interval of the connection (the target's reply)."""
+    slow_target: SlowTarget | None = None
+    """The target sends T→O less often than it granted (``scanner.t2o_pace``), while it does."""
 
 
 class _RefusedError(Exception):
@@ -264,6 +277,7 @@ class Originator:
         on_frame: Callable[[Frame, float, int], None] | None = None,
         on_state: Callable[[ConnectionState, str | None], None] | None = None,
         on_data: Callable[[bytes, float, int], None] | None = None,
+        on_slow_target: Callable[[SlowTarget | None], None] | None = None,
         io_port: IoPort | None = None,
     ) -> None:
         """``on_frame(frame, received_at, t2o_sequence)``: each new T→O frame when T→O is the
@@ -272,13 +286,16 @@ class Originator:
         received it; ``t2o_sequence``: the encapsulation sequence number its packet carried in
         the Sequenced Address item (CIP Vol 2 §2-6, §3-4.2; UDINT, the target raises it per
         packet), so a consumer can tell the frames it keeps apart by the wire's own numbering
-        (``frames`` counts them). ``io_port``: the UDP port to share (None: one of
+        (``frames`` counts them). ``on_slow_target(slow)``: the target was found sending T→O
+        slower than its grant (a ``SlowTarget``), or keeping it again (None), once each time
+        (``scanner.t2o_pace``). ``io_port``: the UDP port to share (None: one of
         our own, opened on start and closed on stop). A ``ValueError`` when ``o2t_data`` does
         not fit the O→T size."""
         self.settings = settings
         self.on_frame = on_frame
         self.on_state = on_state
         self.on_data = on_data
+        self.on_slow_target = on_slow_target
         self.state = ConnectionState.IDLE
         self.reason: str | None = None
         self.latest: tuple[Frame, float] | None = None
@@ -305,6 +322,7 @@ class Originator:
         self._seeded = False
         self._stopping = False
         self._window = IntervalWindow()
+        self._pace = PaceWatch()
         self._connected_since: float | None = None
         self.packets_in = 0
         self._packets_out_closed = 0
@@ -373,6 +391,7 @@ class Originator:
             frames=self.frames,
             interval_p50_ms=figures.p50_ms,
             rpi_us=link.t2o_api_us if link is not None and link.o2t is not None else None,
+            slow_target=self._pace.slow if link is not None else None,
         )
 
     @property
@@ -565,6 +584,7 @@ class Originator:
         self.run = False
         self._seeded = False
         self._window.clear()
+        self._pace.restart(s.rpi_us)  # again with the API the reply grants
         self._lost = loop.create_future()
         self._first_frame = loop.create_future()
         self._link = link
@@ -594,6 +614,7 @@ class Originator:
         link.o2t_id = reply.o2t_connection_id
         link.o2t_api_us = reply.o2t_api_us or s.rpi_us
         link.t2o_api_us = reply.t2o_api_us or s.rpi_us
+        self._pace.restart(link.t2o_api_us)
         link.o2t_addr = (link.target_host, ENIP_UDP_PORT)
         for item in items:
             if item.type_id == ItemType.SOCKADDR_O2T:
@@ -797,6 +818,8 @@ class Originator:
             return
         link.last_rx = arrived
         self.packets_in += 1
+        if self._pace.packet(arrived, packet.encap_seq):
+            self._report_pace()
         if verdict is DUPLICATE:
             self.duplicates += 1
             return
@@ -845,14 +868,27 @@ class Originator:
                 self.late += 1
         self.frames += 1
 
+    def _report_pace(self) -> None:
+        slow, found = self._pace.slow, self._pace.found
+        if slow is not None:
+            log.info("T→O of %s: %s", self.settings.robot_host, slow.words())
+        elif found is not None:
+            log.info("T→O of %s: %s", self.settings.robot_host, found.kept_words())
+        if self.on_slow_target is not None:
+            try:
+                self.on_slow_target(slow)
+            except Exception:
+                log.exception("on_slow_target callback failed")
+
     def _first_data(self) -> None:
         if self._first_frame is not None and not self._first_frame.done():
             self._first_frame.set_result(None)
 
     def _seed(self, frame: Frame) -> None:
-        """Bumpless takeover: the command image becomes what the robot does now."""
+        """Bumpless takeover: the command image becomes what the robot does now, unless the
+        O→T data was given (``o2t_data``: what is sent is what was asked for)."""
         self._seeded = True
-        if self.settings.o2t_is_command:
+        if self.settings.o2t_is_command and self.settings.o2t_data is None:
             bits = self._explicit_bits or self.command.bit_input_registers
             self.command = CommandImage(
                 controlbox_do=frame.controlbox_do,
