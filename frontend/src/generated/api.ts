@@ -1161,9 +1161,15 @@ export interface components {
         ConnectionStatus: {
             /** Connected Since */
             connected_since: number | null;
-            /** Duplicates */
+            /**
+             * Duplicates
+             * @description T→O packets repeating the count (no new data)
+             */
             duplicates: number;
-            /** Gaps */
+            /**
+             * Gaps
+             * @description T→O packets lost on the way (CIP sequence count jumps past one)
+             */
             gaps: number;
             /**
              * Gaps Per Min
@@ -1178,7 +1184,10 @@ export interface components {
             interval_p99_ms: number | null;
             /** Last Frame Age S */
             last_frame_age_s: number | null;
-            /** Late */
+            /**
+             * Late
+             * @description T→O frames more than 1.5 × the granted T→O interval after the one before, for whatever reason: a gap, duplicates or a robot slower than its grant
+             */
             late: number;
             /** Malformed */
             malformed: number;
@@ -1212,6 +1221,11 @@ export interface components {
              * @description requested packet interval, ms
              */
             rpi_ms: number;
+            /**
+             * Slow Target
+             * @description the robot sends T→O less often than it granted, in words ("the robot grants 2 ms but sends every 10 ms"; median over a second above 1.5 × the grant); null while it keeps its grant
+             */
+            slow_target?: string | null;
             /** Stale */
             stale: boolean;
             /**

@@ -45,6 +45,7 @@ from cobot_hmi.scanner.originator import (
     Originator,
     OriginatorSettings,
 )
+from cobot_hmi.scanner.t2o_pace import SlowTarget
 
 log = logging.getLogger(__name__)
 
@@ -64,6 +65,8 @@ FrameCallback = Callable[[Frame, float, int], None]
 """``(frame, received_at, t2o_sequence)``: the originator's ``on_frame``, the last argument the
 T→O packet's wire sequence number."""
 StateCallback = Callable[[ConnectionState, str | None], None]
+SlowTargetCallback = Callable[[SlowTarget | None], None]
+"""The originator's ``on_slow_target``, handed to the web loop."""
 
 
 class CyclicLoop:
@@ -346,12 +349,14 @@ class RobotLink:
         *,
         on_frame: FrameCallback,
         on_state: StateCallback,
+        on_slow_target: SlowTargetCallback | None = None,
     ) -> None:
         self.name = name
         self.settings = settings
         self.cyclic = cyclic
         self._on_frame = on_frame
         self._on_state = on_state
+        self._on_slow_target = on_slow_target
         self._originator: Originator | None = None
         self._dead: str | None = None
         """Why the cyclic thread that ran our originator died (until a new one runs)."""
@@ -363,6 +368,7 @@ class RobotLink:
             self.settings,
             on_frame=self._on_frame,
             on_state=self._state_from_thread,
+            on_slow_target=self._slow_target_from_thread,
             io_port=port,
         )
         self._originator = originator
@@ -371,6 +377,12 @@ class RobotLink:
 
     def _state_from_thread(self, state: ConnectionState, reason: str | None) -> None:
         self._to_web_loop(state, reason)
+
+    def _slow_target_from_thread(self, slow: SlowTarget | None) -> None:
+        loop = self.cyclic._web_loop
+        if self._on_slow_target is not None and loop is not None and not loop.is_closed():
+            with contextlib.suppress(RuntimeError):
+                loop.call_soon_threadsafe(self._on_slow_target, slow)
 
     def _to_web_loop(self, state: ConnectionState, reason: str | None) -> None:
         loop = self.cyclic._web_loop

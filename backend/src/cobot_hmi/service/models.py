@@ -226,9 +226,15 @@ class ConnectionStatus(BaseModel):
     rpi_ms: float = Field(description="requested packet interval, ms")
     packets_in: int = Field(ge=0)
     packets_out: int = Field(ge=0)
-    gaps: int = Field(ge=0)
-    duplicates: int = Field(ge=0)
-    late: int = Field(ge=0)
+    gaps: int = Field(
+        ge=0, description="T→O packets lost on the way (CIP sequence count jumps past one)"
+    )
+    duplicates: int = Field(ge=0, description="T→O packets repeating the count (no new data)")
+    late: int = Field(
+        ge=0,
+        description="T→O frames more than 1.5 × the granted T→O interval after the one before, "
+        "for whatever reason: a gap, duplicates or a robot slower than its grant",
+    )
     malformed: int = Field(ge=0)
     interval_mean_ms: float | None
     interval_p99_ms: float | None
@@ -244,6 +250,12 @@ class ConnectionStatus(BaseModel):
         default=False,
         description="the packet loss alarm is active: gaps_per_min is above "
         "alarm_gap_rate_per_min (the connection badge turns amber)",
+    )
+    slow_target: str | None = Field(
+        default=None,
+        description='the robot sends T→O less often than it granted, in words ("the robot '
+        'grants 2 ms but sends every 10 ms"; median over a second above 1.5 × the grant); '
+        "null while it keeps its grant",
     )
 
 

@@ -25,6 +25,7 @@ from cobot_hmi.enip.identity import IdentityInfo
 from cobot_hmi.layout import LAYOUT_VERSION
 from cobot_hmi.scanner.originator import ConnectionState
 from cobot_hmi.scanner.session import EnipSession, SessionError
+from cobot_hmi.scanner.t2o_pace import SlowTarget
 from cobot_hmi.service import models
 from cobot_hmi.service.alarms.engine import TICK_S, AlarmEngine, UserAlarm
 from cobot_hmi.service.alarms.persistence import AlarmStore
@@ -115,6 +116,7 @@ class RobotRuntime:
             cyclic,
             on_frame=self.hub.on_frame,
             on_state=self._on_state,
+            on_slow_target=self._on_slow_target,
         )
         self.control = Control(self.link, store, self.hub, input_only=settings.input_only)
         self.commander = Commander(
@@ -153,6 +155,8 @@ class RobotRuntime:
         """Times it went from connected to lost."""
         self.down_since: float | None = time.monotonic()
         """``time.monotonic()`` since the robot is not connected (``None``: connected)."""
+        self._slow_target: SlowTarget | None = None
+        """The last slowness of T→O reported (for the words once it clears)."""
         self._tasks: list[asyncio.Task[None]] = []
         self._background: set[asyncio.Task[None]] = set()
 
@@ -214,6 +218,20 @@ class RobotRuntime:
         self.hub.reset_interval_baseline()
         if self.control.holder is not None:
             self.spawn(self.control.drop(f"connection {state.value}"), "control-drop")
+
+    def _on_slow_target(self, slow: SlowTarget | None) -> None:
+        """On the web loop: the robot sends T→O slower than it granted, or keeps its grant
+        again (``scanner.t2o_pace``): a connection event in words, once each."""
+        if slow is not None:
+            self._slow_target = slow
+            reason = slow.words("robot")
+        elif self._slow_target is not None:
+            reason = self._slow_target.kept_words("robot")
+        else:
+            return
+        self.hub.publish_event(
+            {"kind": "connection", "time": time.time(), "state": "connected", "reason": reason}
+        )
 
     async def _read_identity(self) -> None:
         try:
@@ -311,6 +329,7 @@ class RobotRuntime:
             "connected_since": stats.connected_since,
             "gaps_per_min": self.alarms.gaps_per_min,
             "packet_loss_high": self.alarms.packet_loss_high,
+            "slow_target": stats.slow_target.words("robot") if stats.slow_target else None,
         }
 
     async def status(self) -> models.RobotStatus:
