@@ -220,10 +220,10 @@ async def test_estop_alarm_ack_restart_reset(emu: Emulator, plc_host: str, tmp_p
             when = datetime.fromisoformat(row[1])
             assert when.tzinfo is not None and when.utcoffset() is not None
         metrics = await hmi.metrics()
-        assert 'cobot_hmi_alarms{robot="robot",priority="high",state="unacknowledged"} 1.0' in (
+        assert 'cobot_hmi_alarms{priority="high",robot="robot",state="unacknowledged"} 1.0' in (
             metrics
         )
-        assert 'cobot_hmi_alarms{robot="robot",priority="critical",state="active"} 0.0' in metrics
+        assert 'cobot_hmi_alarms{priority="critical",robot="robot",state="active"} 0.0' in metrics
 
 
 async def test_shelving_with_expiry_and_refusals(

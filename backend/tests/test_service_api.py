@@ -79,8 +79,8 @@ async def test_read_endpoints(hmi: Running) -> None:
         }
         metrics = (await client.get("/metrics")).text
         assert 'cobot_hmi_connection_state{robot="robot",state="connected"} 1.0' in metrics
-        assert 'cobot_hmi_frame_receive_interval_seconds_bucket{robot="robot",le=' in metrics
-        assert 'cobot_hmi_writes_total{robot="robot",outcome="confirmed"}' in metrics
+        assert 'interval_seconds_bucket{le="0.01000",robot="robot"}' in metrics
+        assert 'cobot_hmi_writes_total{outcome="confirmed",robot="robot"}' in metrics
         assert (await client.get("/docs")).status_code == 200
         openapi = (await client.get("/openapi.json")).json()
         assert "/api/v1/command" in openapi["paths"]
@@ -317,7 +317,7 @@ async def test_write_refusals(hmi: Running, robot: StaticRobot) -> None:
         assert outcomes.count("invalid") == 7
         assert outcomes.count("refused") == 2
     metrics = await hmi.metrics()
-    assert 'cobot_hmi_writes_total{robot="robot",outcome="invalid"} 7.0' in metrics
+    assert 'cobot_hmi_writes_total{outcome="invalid",robot="robot"} 7.0' in metrics
 
 
 async def test_write_timeout_reports_what_the_robot_shows(

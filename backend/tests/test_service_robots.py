@@ -238,8 +238,8 @@ async def test_control_and_writes_stay_with_their_robot(
     metrics = await hmi.metrics()
     for name in ("left", "right"):
         assert f'cobot_hmi_connection_state{{robot="{name}",state="connected"}} 1.0' in metrics
-        assert f'cobot_hmi_writes_total{{robot="{name}",outcome="confirmed"}} 1.0' in metrics
-    assert 'cobot_hmi_writes_total{robot="right",outcome="refused"} 1.0' in metrics
+        assert f'cobot_hmi_writes_total{{outcome="confirmed",robot="{name}"}} 1.0' in metrics
+    assert 'cobot_hmi_writes_total{outcome="refused",robot="right"} 1.0' in metrics
     assert 'cobot_hmi_control_held{robot="left"} 1.0' in metrics
     assert 'cobot_hmi_control_held{robot="right"} 0.0' in metrics
     # Each metric's HELP and TYPE once, before every robot's samples.
@@ -313,8 +313,8 @@ async def test_malformed_write_bodies_are_422_naming_the_field_and_audited(
     assert row["reason"] == detail["reason"]
     assert row["origin"] == "PATCH /api/v1/robots/right/command"
     metrics = await hmi.metrics()
-    assert 'cobot_hmi_writes_total{robot="right",outcome="invalid"} 1.0' in metrics
-    assert re.search(r'writes_total\{robot="left",outcome="invalid"\} 0\.0', metrics)
+    assert 'cobot_hmi_writes_total{outcome="invalid",robot="right"} 1.0' in metrics
+    assert re.search(r'writes_total\{outcome="invalid",robot="left"\} 0\.0', metrics)
 
 
 async def test_each_robot_streams_its_own_frames_and_events(

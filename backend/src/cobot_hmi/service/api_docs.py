@@ -14,6 +14,7 @@ from typing import Any, Final
 
 from fastapi import FastAPI
 from fastapi.openapi.utils import get_openapi
+from prometheus_client.exposition import CONTENT_TYPE_PLAIN_0_0_4
 from pydantic import TypeAdapter
 
 from cobot_hmi.service.models import ApiErrorResponse, CommandPatch, StreamMessage
@@ -62,7 +63,8 @@ CSV_RESPONSE: Final[dict[str, Any]] = {
         }
     }
 }
-PROMETHEUS_CONTENT_TYPE: Final = "text/plain; version=0.0.4; charset=utf-8"
+PROMETHEUS_CONTENT_TYPE: Final = CONTENT_TYPE_PLAIN_0_0_4
+"""The text format 0.0.4 that ``prometheus_client.generate_latest`` writes (``/metrics``)."""
 
 _REF_TEMPLATE: Final = "#/components/schemas/{model}"
 

@@ -30,6 +30,7 @@ from cobot_hmi.service import (
 )
 from cobot_hmi.service.api_docs import openapi_document
 from cobot_hmi.service.errors import ApiError, UnknownRobotError
+from cobot_hmi.service.metrics import HttpCollector, ServiceMetrics
 from cobot_hmi.service.runtime import Service
 
 _API_PREFIXES = ("api/", "healthz", "readyz", "metrics", "docs", "openapi.json", "redoc")
@@ -70,7 +71,13 @@ def create_app(
     app.add_middleware(routes_stream.TransportAbortMiddleware)
     # Body limit, Host/Origin/content-type checks, anonymous write gate, security headers:
     # outside everything else (service/security.py).
-    security.install(app, security.policy_from_settings(service.settings))
+    refusals = security.install(app, security.policy_from_settings(service.settings))
+    # One Prometheus registry per service (``GET /metrics``); the connection bounds' counters
+    # come with the server (``server.uvicorn_config``), after the app.
+    app.state.metrics = ServiceMetrics(
+        service,
+        HttpCollector(refusals, lambda: getattr(app.state, "connection_counters", None)),
+    )
 
     @app.exception_handler(ApiError)
     async def api_error(_: Request, error: ApiError) -> Response:

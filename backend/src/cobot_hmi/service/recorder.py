@@ -45,6 +45,7 @@ from cobot_hmi.history.segments import SegmentWriter
 from cobot_hmi.service.hub import FrameSubscription
 
 if TYPE_CHECKING:
+    from cobot_hmi.service.metrics import MetricFamily
     from cobot_hmi.service.robot import RobotRuntime
     from cobot_hmi.service.settings import ServiceSettings
 
@@ -55,8 +56,6 @@ RETRY_S: Final = 5.0
 events of one robot."""
 RETENTION_INTERVAL_S: Final = 30.0
 SUBSCRIPTION_NAME: Final = "history"
-
-MetricFamily = tuple[str, str, str, list[tuple[dict[str, str], float]]]
 
 
 @dataclass(slots=True)

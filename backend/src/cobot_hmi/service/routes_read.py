@@ -19,12 +19,12 @@ from fastapi.responses import JSONResponse
 
 from cobot_hmi.codec import command_to_json, dumps, frame_to_json
 from cobot_hmi.scanner.originator import ConnectionState
-from cobot_hmi.service import models, security
+from cobot_hmi.service import models
 from cobot_hmi.service.api_docs import PROMETHEUS_CONTENT_TYPE, READ, errors
 from cobot_hmi.service.auth import Session
 from cobot_hmi.service.deps import DefaultRobotDep, RobotDep, ServiceDep, ViewerDep
 from cobot_hmi.service.errors import UnknownRobotError
-from cobot_hmi.service.metrics import render_metrics
+from cobot_hmi.service.metrics import ServiceMetrics
 from cobot_hmi.service.robot import RobotRuntime
 from cobot_hmi.service.runtime import Service
 
@@ -293,9 +293,6 @@ async def robot_readyz(robot: RobotDep) -> OrjsonResponse:
         }
     },
 )
-async def metrics(request: Request, service: ServiceDep) -> Response:
-    stats = {name: await robot.link.stats() for name, robot in service.robots.items()}
-    text = render_metrics(service, stats) + security.render_metrics(
-        request.app.state.security_counters, getattr(request.app.state, "connection_counters", None)
-    )
-    return Response(text, media_type=PROMETHEUS_CONTENT_TYPE)
+async def metrics(request: Request) -> Response:
+    registry: ServiceMetrics = request.app.state.metrics
+    return Response(await registry.exposition(), media_type=PROMETHEUS_CONTENT_TYPE)

@@ -28,8 +28,8 @@ Outermost first (``install``):
    client address has a token-bucket budget for such refusals, beyond which it gets 429.
 
 Every refusal is a JSON ``{"detail": {"reason": …}}`` as the routes' own (docs/api.md), and
-is counted in ``SecurityCounters`` (``/metrics``). Imports only ``auth`` and ``deps`` (the
-session cookie and token) and ``http_limits`` (its counters, rendered with these).
+is counted in ``SecurityCounters`` (``/metrics``, ``service.metrics``). Imports only ``auth``
+and ``deps`` (the session cookie and token).
 """
 
 from __future__ import annotations
@@ -51,7 +51,6 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from cobot_hmi.service.auth import SESSION_COOKIE
 from cobot_hmi.service.deps import session_token
-from cobot_hmi.service.http_limits import ConnectionCounters
 
 if TYPE_CHECKING:
     from fastapi import FastAPI
@@ -107,11 +106,23 @@ def _csp_for(host: str | None) -> bytes:
     return CSP.encode()
 
 
+REFUSAL_REASONS: Final = (
+    "host",
+    "body_too_large",
+    "body_too_slow",
+    "cross_site",
+    "content_type",
+    "anonymous_write",
+    "anonymous_throttled",
+    "websocket_origin",
+)
+"""Why a request was refused: the keys of ``SecurityCounters.refusals`` (``/metrics`` writes
+each, zero or not)."""
+
+
 @dataclass(slots=True)
 class SecurityCounters:
-    """Refusals by reason, for ``/metrics``: ``host``, ``body_too_large``, ``body_too_slow``,
-    ``cross_site``,
-    ``content_type``, ``anonymous_write``, ``anonymous_throttled``, ``websocket_origin``."""
+    """Refusals by reason (``REFUSAL_REASONS``), for ``/metrics`` (``service.metrics``)."""
 
     refusals: Counter[str] = field(default_factory=Counter)
 
@@ -553,52 +564,16 @@ def install(app: FastAPI, policy: SecurityPolicy) -> SecurityCounters:
     )
     app.add_middleware(HostCheck, allowed=policy.allowed_hosts, counters=counters)
     app.add_middleware(SecurityHeaders)
-    app.state.security_counters = counters
     return counters
-
-
-def render_metrics(counters: SecurityCounters, connections: ConnectionCounters | None) -> str:
-    """Prometheus text lines of the refusals and connection bounds (appended to ``/metrics``)."""
-    lines = [
-        "# HELP cobot_hmi_http_refusals_total HTTP requests refused by the security checks",
-        "# TYPE cobot_hmi_http_refusals_total counter",
-    ]
-    for reason in (
-        "host",
-        "body_too_large",
-        "body_too_slow",
-        "cross_site",
-        "content_type",
-        "anonymous_write",
-        "anonymous_throttled",
-        "websocket_origin",
-    ):
-        lines.append(
-            f'cobot_hmi_http_refusals_total{{reason="{reason}"}} '
-            f"{float(counters.refusals[reason])!r}"
-        )
-    if connections is not None:
-        lines.append(
-            "# HELP cobot_hmi_http_connections_closed_total TCP connections the service closed "
-            "to stay within its bounds (idle_closed: no request in time; evicted: idle, made "
-            "room for a new one; refused: new, every slot busy)"
-        )
-        lines.append("# TYPE cobot_hmi_http_connections_closed_total counter")
-        for reason in ("idle_closed", "evicted", "refused"):
-            lines.append(
-                f'cobot_hmi_http_connections_closed_total{{reason="{reason}"}} '
-                f"{float(connections.closed[reason])!r}"
-            )
-    return "\n".join(lines) + "\n"
 
 
 __all__ = [
     "CSP",
+    "REFUSAL_REASONS",
     "SecurityCounters",
     "SecurityPolicy",
     "TokenBuckets",
     "host_allowed",
     "install",
     "policy_from_settings",
-    "render_metrics",
 ]

@@ -76,6 +76,7 @@ from cobot_hmi.sparkplug.topics import MessageType, Topics
 if TYPE_CHECKING:
     import paho.mqtt.client as mqtt
 
+    from cobot_hmi.service.metrics import MetricFamily
     from cobot_hmi.service.robot import RobotRuntime
     from cobot_hmi.service.settings import ServiceSettings
 
@@ -86,9 +87,6 @@ QUEUE_FRAMES: Final = 4096
 REPLAY_BATCH: Final = 50
 """Historical messages published between two yields of the web loop."""
 LAYOUT_VERSION_METRIC: Final = "Node Info/Layout Version"
-
-MetricFamily = tuple[str, str, str, list[tuple[dict[str, str], float]]]
-"""``(name, type, help, [(labels, value)])`` for ``/metrics``."""
 
 
 def _any_frame(_frame: Frame) -> bool:

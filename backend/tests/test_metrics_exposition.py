@@ -1,0 +1,93 @@
+"""``GET /metrics`` through prometheus_client keeps the exposition of 58f13a2, where it was
+written by hand: every family's name, type and label names, the histogram's bounds as written,
+the content type. ``legacy/metrics-58f13a2.json`` is that code's scrape of a service with the
+recorder and a Sparkplug edge node (``legacy/make_legacy.py``); the same kind of service runs
+here and its scrape is parsed by prometheus_client's own parser.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import pytest
+from prometheus_client import REGISTRY, generate_latest
+from prometheus_client.core import Metric
+from prometheus_client.parser import text_string_to_metric_families
+from prometheus_client.registry import Collector, CollectorRegistry
+
+from cobot_hmi.service.metrics import family_of
+from legacy.make_legacy import histogram_bounds, metrics_shape
+from mosquitto_support import needs_mosquitto
+from sparkplug_support import cell
+
+LEGACY = Path(__file__).parent / "legacy"
+
+
+@needs_mosquitto
+@pytest.mark.timeout(180)
+async def test_metrics_keep_the_names_types_and_labels_of_58f13a2(
+    tmp_path: Path, plc_host: str
+) -> None:
+    before: dict[str, Any] = json.loads((LEGACY / "metrics-58f13a2.json").read_text())
+    async with cell(tmp_path, plc_host) as c, c.running.client() as client:
+        answer = await client.get("/metrics")
+    assert answer.status_code == 200
+    assert answer.headers["content-type"] == before["content_type"]
+    text = answer.text
+    now = metrics_shape(text)
+
+    def without_help(shape: dict[str, Any]) -> dict[str, Any]:
+        return {
+            name: {"type": family["type"], "samples": family["samples"]}
+            for name, family in shape.items()
+        }
+
+    assert without_help(now) == without_help(before["families"])
+    assert list(now) == list(before["families"])  # and in the same order
+    assert all(family["help"] for family in now.values())
+    assert histogram_bounds(text) == before["histogram_le"]
+    # Each family once, HELP then TYPE, as Prometheus reads it.
+    for name, family in now.items():
+        written = name + "_total" if family["type"] == "counter" else name
+        assert text.count(f"# TYPE {written} {family['type']}\n") == 1, name
+    # The service's registry is its own: the process-wide default one has none of it.
+    assert b"cobot_hmi_" not in generate_latest(REGISTRY)
+
+
+def test_a_reported_family_keeps_its_samples_labels() -> None:
+    counter = family_of(
+        (
+            "sparkplug_messages_total",
+            "counter",
+            "Sparkplug messages by type",
+            [({"type": "NBIRTH"}, 1.0), ({"robot": "left", "type": "DBIRTH"}, 2.0)],
+        )
+    )
+    text = generate_latest(_registry(counter)).decode()
+    assert "# TYPE cobot_hmi_sparkplug_messages_total counter\n" in text
+    assert 'cobot_hmi_sparkplug_messages_total{type="NBIRTH"} 1.0\n' in text
+    assert 'cobot_hmi_sparkplug_messages_total{robot="left",type="DBIRTH"} 2.0\n' in text
+    gauge = family_of(("history_recording", "gauge", "1 while recording", [({}, 0.0)]))
+    parsed = list(text_string_to_metric_families(generate_latest(_registry(gauge)).decode()))
+    assert [(f.name, f.type, [s.value for s in f.samples]) for f in parsed] == [
+        ("cobot_hmi_history_recording", "gauge", [0.0])
+    ]
+    with pytest.raises(ValueError, match="_total"):
+        family_of(("frames", "counter", "a counter without _total", []))
+
+
+class _Families(Collector):
+    def __init__(self, *families: Metric) -> None:
+        self._families = families
+
+    def collect(self) -> Iterable[Metric]:
+        return self._families
+
+
+def _registry(*families: Metric) -> CollectorRegistry:
+    registry = CollectorRegistry(auto_describe=False)
+    registry.register(_Families(*families))
+    return registry
