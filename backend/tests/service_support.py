@@ -11,7 +11,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import functools
-from collections.abc import AsyncIterator, Callable, Generator
+from collections.abc import AsyncIterator, Awaitable, Callable, Generator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -43,6 +43,17 @@ async def eventually(check: Callable[[], object], timeout_s: float = DEADLINE_S)
     loop = asyncio.get_running_loop()
     end = loop.time() + timeout_s
     while not check():
+        assert loop.time() < end, "condition not reached in time"
+        await asyncio.sleep(0.02)
+
+
+async def eventually_async(
+    check: Callable[[], Awaitable[object]], timeout_s: float = DEADLINE_S
+) -> None:
+    """``eventually`` for a check that awaits (an HTTP request, say)."""
+    loop = asyncio.get_running_loop()
+    end = loop.time() + timeout_s
+    while not await check():
         assert loop.time() < end, "condition not reached in time"
         await asyncio.sleep(0.02)
 

@@ -6,40 +6,31 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import os
 import signal
 import socket
-import sys
 import tempfile
-from collections.abc import AsyncIterator, Callable
+from asyncio.subprocess import Process
 from pathlib import Path
 
 import httpx
 import pytest
 
 from conftest import _next_host, free_tcp_port
-from service_support import DEADLINE_S
+from process_support import (
+    PIPE,
+    PROCESS_DEADLINE_S,
+    alive,
+    all_ended,
+    children,
+    cli_process,
+    read_until,
+)
+from service_support import DEADLINE_S, eventually_async
 
 
-@contextlib.asynccontextmanager
-async def demo_process(*args: str) -> AsyncIterator[asyncio.subprocess.Process]:
-    """``cobot-hmi demo ARGS``; killed (and reaped) at the end whatever happens."""
-    process = await asyncio.create_subprocess_exec(
-        sys.executable,
-        "-m",
-        "cobot_hmi.cli",
-        "demo",
-        *args,
-        stdout=asyncio.subprocess.PIPE,
-        stderr=asyncio.subprocess.PIPE,
-        env={**os.environ, "PYTHONUNBUFFERED": "1"},
-    )
-    try:
-        yield process
-    finally:
-        if process.returncode is None:
-            process.kill()
-        await process.communicate()
+def demo_process(*args: str) -> contextlib.AbstractAsyncContextManager[Process]:
+    """``cobot-hmi demo ARGS``, its stderr apart; killed (and reaped) at the end."""
+    return cli_process("demo", *args, stderr=PIPE)
 
 
 def _addresses(robots: int) -> tuple[list[str], list[str]]:
@@ -64,42 +55,9 @@ def _addresses(robots: int) -> tuple[list[str], list[str]]:
     return hosts, flags
 
 
-async def _read_until_password(process: asyncio.subprocess.Process) -> list[str]:
-    """The demo's stdout lines up to the one with the password (the state line follows it)."""
-    assert process.stdout is not None
-    lines: list[str] = []
-    while not any("with password" in line for line in lines):
-        line = (await asyncio.wait_for(process.stdout.readline(), DEADLINE_S * 3)).decode()
-        assert line, "the demo ended early:\n" + "".join(lines)
-        lines.append(line)
-    lines.append((await asyncio.wait_for(process.stdout.readline(), DEADLINE_S)).decode())
-    return lines
-
-
-def _children(pid: int) -> list[int]:
-    """The processes ``pid`` started (Linux ``/proc``)."""
-    children: list[int] = []
-    for task in Path(f"/proc/{pid}/task").iterdir():
-        text = (task / "children").read_text()
-        children.extend(int(part) for part in text.split())
-    return children
-
-
-def _alive(pid: int) -> bool:
-    """Not ended (a zombie has ended: it only waits for its parent to reap it)."""
-    try:
-        status = Path(f"/proc/{pid}/stat").read_text()
-    except FileNotFoundError:
-        return False
-    return status.rsplit(")", 1)[1].split()[0] != "Z"
-
-
-async def _eventually(check: Callable[[], object], timeout_s: float = DEADLINE_S * 3) -> None:
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout_s
-    while not check():
-        assert loop.time() < end, "condition not reached in time"
-        await asyncio.sleep(0.1)
+async def _read_until_password(process: Process) -> list[str]:
+    """The demo's stdout lines up to the one with the password, and the state line after it."""
+    return await read_until(process, "with password") + await read_until(process, "state in")
 
 
 async def test_two_robots_fresh_state_and_emulators_end_after_kill_9() -> None:
@@ -113,21 +71,23 @@ async def test_two_robots_fresh_state_and_emulators_end_after_kill_9() -> None:
         # A fresh temporary directory, not the user's state directory shared by every demo.
         assert state_dir.is_relative_to(tempfile.gettempdir())
         assert "removed at the end" in state_line
-        await _eventually((state_dir / "users.json").exists)
-        emulators = _children(demo.pid)
+        assert (state_dir / "users.json").exists()  # written before the password is shown
+        emulators = children(demo.pid)
         assert len(emulators) == 2, emulators
-        assert all(_alive(pid) for pid in emulators)
+        assert all(alive(pid) for pid in emulators)
         base_url = next(line for line in lines if "HMI at" in line).split("HMI at ")[1].strip()
         async with httpx.AsyncClient(base_url=base_url, timeout=DEADLINE_S) as client:
-            for _ in range(int(DEADLINE_S * 10)):
+
+            async def all_connected() -> bool:
                 with contextlib.suppress(httpx.HTTPError):
                     answer = await client.get("/api/v1/robots")
-                    if answer.status_code == 200 and all(
+                    return answer.status_code == 200 and all(
                         r["connection"] == "connected" and r["model"]
                         for r in answer.json()["robots"]
-                    ):
-                        break
-                await asyncio.sleep(0.2)
+                    )
+                return False
+
+            await eventually_async(all_connected, PROCESS_DEADLINE_S)
             robots = (await client.get("/api/v1/robots")).json()["robots"]
         assert [(r["name"], r["host"]) for r in robots] == [
             ("m1013", hosts[0]),
@@ -142,7 +102,7 @@ async def test_two_robots_fresh_state_and_emulators_end_after_kill_9() -> None:
         demo.send_signal(signal.SIGKILL)
         await demo.wait()
         # The emulators end by themselves (PR_SET_PDEATHSIG), their addresses free again.
-        await _eventually(lambda: not any(_alive(pid) for pid in emulators))
+        await all_ended(emulators)
     for host in hosts:
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
             probe.bind((host, 2222))
@@ -155,10 +115,10 @@ async def test_one_robot_and_the_state_dir_goes_at_the_end() -> None:
         state_line = next(line for line in lines if "state in" in line)
         state_dir = Path(state_line.split("state in ")[1].split(" (")[0].strip())
         assert "m0609" not in "".join(lines)
-        assert len(_children(demo.pid)) == 1
-        await _eventually((state_dir / "users.json").exists)
+        assert len(children(demo.pid)) == 1
+        assert (state_dir / "users.json").exists()
         demo.send_signal(signal.SIGINT)
-        out, _ = await asyncio.wait_for(demo.communicate(), DEADLINE_S * 3)
+        out, _ = await asyncio.wait_for(demo.communicate(), PROCESS_DEADLINE_S)
     assert demo.returncode == 0, out.decode()
     assert "cobot-hmi demo: stopped." in out.decode()
     assert not await asyncio.to_thread(state_dir.exists)
@@ -176,7 +136,7 @@ async def test_a_taken_address_ends_the_demo_before_any_password(taken: str) -> 
         holder.bind(address)
         holder.listen()
         async with demo_process(*flags) as demo:
-            out, err = await asyncio.wait_for(demo.communicate(), DEADLINE_S * 3)
+            out, err = await asyncio.wait_for(demo.communicate(), PROCESS_DEADLINE_S)
     assert demo.returncode == 2
     message = err.decode()
     assert f"{address[0]}:{address[1]} is taken" in message, message

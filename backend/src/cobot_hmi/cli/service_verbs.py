@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
+import errno
 import getpass
 import math
 import os
@@ -257,17 +258,42 @@ class _DemoError(Exception):
     """Why the demo cannot start; printed as it is."""
 
 
-def _check_free(host: str, port: int, kind: int, what: str) -> None:
-    """``_DemoError`` when ``host:port`` cannot be bound now (someone else holds it)."""
+TAKEN_GRACE_S: Final = 3.0
+"""How long a taken address is probed again before the demo gives up: an emulator of a demo
+that was just killed (it ends on its parent's death) lets go of its addresses within moments,
+and a supervisor restarting the demo at once must not be refused for it."""
+
+
+def _probe(host: str, port: int, kind: int) -> None:
+    """Bind ``host:port`` as its real owner will (``OSError`` when someone else holds it).
+
+    TCP: with ``SO_REUSEADDR``, as the emulator's and the service's listeners bind, so the last
+    run's connections still in TIME-WAIT or FIN-WAIT-2 do not count; on Linux the bind still
+    fails while another socket listens there. UDP has no such leftovers: a plain bind, as the
+    class 1 sockets bind, fails exactly while another socket is bound there."""
     with socket.socket(socket.AF_INET, kind) as probe:
+        if kind == socket.SOCK_STREAM:
+            probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        probe.bind((host, port))
+
+
+def _check_free(host: str, port: int, kind: int, what: str) -> None:
+    """``_DemoError`` when another socket holds ``host:port`` (a listener, for TCP), still
+    after ``TAKEN_GRACE_S``."""
+    deadline = time.monotonic() + TAKEN_GRACE_S
+    while True:
         try:
-            probe.bind((host, port))
+            _probe(host, port, kind)
         except OSError as error:
+            if error.errno == errno.EADDRINUSE and time.monotonic() < deadline:
+                time.sleep(0.05)
+                continue
             proto = "TCP" if kind == socket.SOCK_STREAM else "UDP"
             raise _DemoError(
                 f"{what}: {proto} {host}:{port} is taken ({error.strerror}); is another demo or "
                 "emulator running? Stop it, or give other addresses (cobot-hmi demo --help)"
             ) from None
+        return
 
 
 def _bind_http(host: str, port: int) -> socket.socket:
