@@ -96,6 +96,21 @@ def _cli(*args: str, log: Path, niceness: int = 0) -> subprocess.Popen[bytes]:
         )
 
 
+def stop_process(
+    process: subprocess.Popen[bytes] | None, timeout_s: float = 10.0, sig: int = signal.SIGINT
+) -> None:
+    """Stop a child (SIGINT by default: a clean stop, the service's Forward Closes), killed
+    if it is not gone within ``timeout_s``. Nothing for one that is not running."""
+    if process is None or process.poll() is not None:
+        return
+    process.send_signal(sig)
+    try:
+        process.wait(timeout_s)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait()
+
+
 def _wait(
     check: Callable[[], bool],
     what: str,
@@ -196,13 +211,7 @@ def stack(
             yield running
         finally:
             for process in (service, *emulators):
-                if process is not None and process.poll() is None:
-                    process.send_signal(2)  # SIGINT: a clean stop (Forward Close)
-                    try:
-                        process.wait(10)
-                    except subprocess.TimeoutExpired:
-                        process.kill()
-                        process.wait()
+                stop_process(process)
 
 
 class Mosquitto:
@@ -238,13 +247,7 @@ class Mosquitto:
         )
 
     def stop(self) -> None:
-        if self.process is not None and self.process.poll() is None:
-            self.process.send_signal(signal.SIGTERM)
-            try:
-                self.process.wait(10)
-            except subprocess.TimeoutExpired:
-                self.process.kill()
-                self.process.wait()
+        stop_process(self.process, sig=signal.SIGTERM)
 
 
 @contextmanager

@@ -24,7 +24,6 @@ from __future__ import annotations
 import argparse
 import functools
 import os
-import signal
 import statistics
 import subprocess
 import tempfile
@@ -45,6 +44,7 @@ from service_bench_support import (
     histogram_quantile,
     loopback_cell,
     metrics,
+    stop_process,
 )
 
 from cobot_hmi.service.users import Role, UsersFile
@@ -181,12 +181,7 @@ def run_phase(
         cpu1 = (process_cpu_s(service.pid), process_cpu_s(broker_pid), own_cpu_s())
         after = _scrape(base_url)
     finally:
-        service.send_signal(signal.SIGINT)
-        try:
-            service.wait(20)
-        except subprocess.TimeoutExpired:
-            service.kill()
-            service.wait()
+        stop_process(service, 20)
     p99: dict[str, float] = {}
     counts: dict[str, int] = {}
     for name in names:
@@ -298,12 +293,7 @@ def main() -> int:
                         each.loop_stop()
         finally:
             for process in emulators:
-                process.send_signal(signal.SIGINT)
-                try:
-                    process.wait(10)
-                except subprocess.TimeoutExpired:
-                    process.kill()
-                    process.wait()
+                stop_process(process)
     report(args, names, phases, subscription)
     return 0
 
