@@ -21,14 +21,20 @@ from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
 
-# 127.<a>.<b>.<c>: <a> from the process id keeps concurrent pytest runs apart.
-_PROCESS_OCTET = 10 + os.getpid() % 200
+# 127.<a>.<b>.<c>: <a> from the pytest run's process id keeps concurrent runs apart; under
+# pytest-xdist each worker (its parent is the run's process) has a range of <b> of its own.
+_XDIST_WORKER = os.environ.get("PYTEST_XDIST_WORKER")  # "gw0", "gw1", ... under xdist
+_RUN_PID = os.getppid() if _XDIST_WORKER else os.getpid()
+_PROCESS_OCTET = 10 + _RUN_PID % 200
+_WORKER_INDEX = int(_XDIST_WORKER.removeprefix("gw")) if _XDIST_WORKER else 0
+_THIRD_OCTETS = 250 // max(1, int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")))
 _HOSTS = itertools.count(1)
 
 
 def _next_host() -> str:
     n = next(_HOSTS)
-    return f"127.{_PROCESS_OCTET}.{(n // 250) % 250}.{n % 250 + 2}"
+    third = _WORKER_INDEX * _THIRD_OCTETS + (n // 250) % _THIRD_OCTETS
+    return f"127.{_PROCESS_OCTET}.{third}.{n % 250 + 2}"
 
 
 @pytest.fixture
