@@ -23,8 +23,9 @@ from cobot_hmi.generated.frames import Frame
 from cobot_hmi.layout import flag_fields
 from cobot_hmi.scanner.originator import ConnectionState, Originator, OriginatorSettings
 from conftest import free_tcp_port
+from waiting import WAIT_DEADLINE_S
 
-DEADLINE_S = 10.0
+DEADLINE_S = WAIT_DEADLINE_S
 """A generous functional deadline, never a timing figure."""
 
 FAST_TIMINGS = StateTimings(initializing_s=0.4, program_start_delay_s=0.4, safe_off_s=0.3)
@@ -107,14 +108,6 @@ class Emulator:
         data = response.json()
         assert isinstance(data, dict)
         return data
-
-
-async def eventually(check: Callable[[], bool], timeout_s: float = DEADLINE_S) -> None:
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout_s
-    while not check():
-        assert loop.time() < end, "condition not reached in time"
-        await asyncio.sleep(0.01)
 
 
 @contextlib.asynccontextmanager

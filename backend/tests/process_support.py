@@ -9,10 +9,12 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import os
+import resource
 import signal
 import sys
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Callable
 from pathlib import Path
+from typing import IO, Any
 
 import httpx
 
@@ -27,13 +29,25 @@ STDOUT = asyncio.subprocess.STDOUT
 DEVNULL = asyncio.subprocess.DEVNULL
 
 
+def _limit_files(limit: int) -> Callable[[], None]:
+    def in_child() -> None:  # between fork and exec
+        resource.setrlimit(resource.RLIMIT_NOFILE, (limit, limit))
+
+    return in_child
+
+
 @contextlib.asynccontextmanager
 async def cli_process(
-    *args: str, stdout: int = PIPE, stderr: int = STDOUT, interrupt_first: bool = False
+    *args: str,
+    stdout: int | IO[Any] = PIPE,
+    stderr: int | IO[Any] = STDOUT,
+    interrupt_first: bool = False,
+    files_limit: int | None = None,
 ) -> AsyncIterator[asyncio.subprocess.Process]:
-    """``cobot-hmi ARGS`` as a child process. At the end, if it still runs: SIGINT and up to
-    ``PROCESS_DEADLINE_S`` for a clean stop when ``interrupt_first`` (a demo stops its
-    emulators itself then), else SIGKILL; reaped (its pipes read to their end) in any case."""
+    """``cobot-hmi ARGS`` as a child process (with ``files_limit`` open files, soft and hard,
+    if given). At the end, if it still runs: SIGINT and up to ``PROCESS_DEADLINE_S`` for a
+    clean stop when ``interrupt_first`` (a demo stops its emulators itself then), else SIGKILL;
+    reaped (its pipes read to their end) in any case."""
     process = await asyncio.create_subprocess_exec(
         sys.executable,
         "-m",
@@ -42,6 +56,7 @@ async def cli_process(
         stdout=stdout,
         stderr=stderr,
         env={**os.environ, "PYTHONUNBUFFERED": "1"},
+        preexec_fn=None if files_limit is None else _limit_files(files_limit),
     )
     try:
         yield process
@@ -69,15 +84,17 @@ async def read_until(
     return lines
 
 
-async def wait_ready(base_url: str, process: asyncio.subprocess.Process) -> None:
-    """Until the service at ``base_url`` answers ``/readyz`` with 200 (it fails if ``process``
+async def wait_ready(
+    base_url: str, process: asyncio.subprocess.Process, path: str = "/readyz"
+) -> None:
+    """Until the service at ``base_url`` answers ``path`` with 200 (it fails if ``process``
     ends first)."""
     async with httpx.AsyncClient(base_url=base_url, timeout=DEADLINE_S) as client:
 
         async def ready() -> bool:
             assert process.returncode is None, "the service exited"
             with contextlib.suppress(httpx.HTTPError):
-                return (await client.get("/readyz")).status_code == 200
+                return (await client.get(path)).status_code == 200
             return False
 
         await eventually_async(ready, PROCESS_DEADLINE_S)

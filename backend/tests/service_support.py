@@ -11,7 +11,10 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import functools
-from collections.abc import AsyncIterator, Awaitable, Callable, Generator
+import json
+import os
+import tempfile
+from collections.abc import AsyncIterator, Generator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -30,32 +33,15 @@ from cobot_hmi.service.server import uvicorn_config
 from cobot_hmi.service.settings import ServiceSettings
 from cobot_hmi.service.users import Role, UsersFile
 from conftest import free_tcp_port
+from waiting import eventually, eventually_async
 
 DEADLINE_S = 10.0
+"""The HTTP clients' timeout (a request answered in milliseconds when all is well)."""
+__all__ = ["eventually", "eventually_async"]  # (the tests import the waits from here too)
 OPERATOR = ("olivia", "olivia-password")
 OPERATOR_2 = ("oscar", "oscar-password")
 VIEWER = ("victor", "victor-password")
 ADMIN = ("ada", "ada-password-1")
-
-
-async def eventually(check: Callable[[], object], timeout_s: float = DEADLINE_S) -> None:
-    """Wait until ``check()`` is truthy (a generous functional deadline, not a timing figure)."""
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout_s
-    while not check():
-        assert loop.time() < end, "condition not reached in time"
-        await asyncio.sleep(0.02)
-
-
-async def eventually_async(
-    check: Callable[[], Awaitable[object]], timeout_s: float = DEADLINE_S
-) -> None:
-    """``eventually`` for a check that awaits (an HTTP request, say)."""
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout_s
-    while not await check():
-        assert loop.time() < end, "condition not reached in time"
-        await asyncio.sleep(0.02)
 
 
 class QuietServer(uvicorn.Server):
@@ -117,15 +103,36 @@ def cell_settings(
     )
 
 
+@functools.cache
+def _test_users() -> dict[str, Any]:
+    """The users file's entries of the four test users, hashed once per process (scrypt is made
+    to be slow: four hashes for each service a test starts added up to minutes)."""
+    with tempfile.TemporaryDirectory() as directory:
+        path = Path(directory) / "users.json"
+        users = UsersFile(path)
+        for (name, password), role in (
+            (OPERATOR, Role.OPERATOR),
+            (OPERATOR_2, Role.OPERATOR),
+            (VIEWER, Role.VIEWER),
+            (ADMIN, Role.ADMIN),
+        ):
+            users.add(name, role, password)
+        entries: dict[str, Any] = json.loads(path.read_text())["users"]
+        return entries
+
+
 def add_users(settings: ServiceSettings) -> None:
-    users = UsersFile(settings.users_path)
-    for (name, password), role in (
-        (OPERATOR, Role.OPERATOR),
-        (OPERATOR_2, Role.OPERATOR),
-        (VIEWER, Role.VIEWER),
-        (ADMIN, Role.ADMIN),
-    ):
-        users.add(name, role, password)
+    """The four test users in ``settings``' users file (beside any it holds), written as
+    ``UsersFile`` writes it: whole, private, then renamed into place."""
+    path = settings.users_path
+    document = json.loads(path.read_text()) if path.exists() else {}
+    document.setdefault("users", {}).update(_test_users())
+    path.parent.mkdir(parents=True, exist_ok=True)
+    temporary = path.with_name(f".{path.name}.test.tmp")
+    fd = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    with os.fdopen(fd, "w", encoding="utf-8") as file:
+        file.write(json.dumps(document, indent=2) + "\n")
+    temporary.replace(path)
 
 
 @dataclass

@@ -11,7 +11,6 @@ from __future__ import annotations
 import asyncio
 import socket
 import time
-from collections.abc import Callable
 
 import pytest
 
@@ -22,17 +21,10 @@ from cobot_hmi.enip import io
 from cobot_hmi.scanner.o2t_stream import O2TStream
 from cobot_hmi.scanner.originator import ConnectionState, Originator, OriginatorSettings
 from cobot_hmi.udp_endpoint import UdpEndpoint
+from waiting import WAIT_DEADLINE_S, eventually
 
 pytestmark = pytest.mark.both_pumps  # conftest: native and pure-Python pump
-DEADLINE_S = 5.0
-
-
-async def eventually(check: Callable[[], bool], timeout_s: float = DEADLINE_S) -> None:
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout_s
-    while not check():
-        assert loop.time() < end, "condition not reached in time"
-        await asyncio.sleep(0.01)
+DEADLINE_S = WAIT_DEADLINE_S
 
 
 # --------------------------------------------------------------------------- O→T stream
@@ -70,7 +62,7 @@ async def test_stream_sends_at_once_then_every_rpi_waking_once_per_batch(
     )
     try:
         stream.start()
-        await eventually(lambda: len(receiver.packets) >= 1, 1.0)
+        await eventually(lambda: len(receiver.packets) >= 1)
         await eventually(lambda: len(receiver.packets) >= 100)
         stream.stop()
         await asyncio.sleep(0.05)

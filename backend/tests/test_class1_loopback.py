@@ -37,18 +37,10 @@ from cobot_hmi.scanner.originator import (
 )
 from cobot_hmi.scanner.session import EnipSession
 from conftest import _next_host as next_host
+from waiting import WAIT_DEADLINE_S, eventually
 
 pytestmark = pytest.mark.both_pumps  # conftest: native and pure-Python pump
-DEADLINE_S = 5.0
-
-
-async def eventually(check: Callable[[], bool], timeout_s: float = DEADLINE_S) -> None:
-    """Wait until ``check()`` holds (a generous functional deadline, not a timing figure)."""
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout_s
-    while not check():
-        assert loop.time() < end, "condition not reached in time"
-        await asyncio.sleep(0.01)
+DEADLINE_S = WAIT_DEADLINE_S
 
 
 Factory = Callable[..., Awaitable[Originator]]

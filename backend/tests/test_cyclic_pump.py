@@ -16,24 +16,17 @@ import os
 import socket
 import struct
 import threading
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator
 
 import pytest
 
 from cobot_hmi.native import pure
 from cobot_hmi.udp_endpoint import PERIODIC_MAX, RING_SLOTS, QueueFullError, UdpEndpoint
+from waiting import WAIT_DEADLINE_S, eventually
 
 pytestmark = pytest.mark.both_pumps  # conftest: native and pure-Python pump
-DEADLINE_S = 5.0
+DEADLINE_S = WAIT_DEADLINE_S
 Received = list[tuple[bytes, tuple[str, int], float]]
-
-
-async def eventually(check: Callable[[], bool], timeout_s: float = DEADLINE_S) -> None:
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout_s
-    while not check():
-        assert loop.time() < end, "condition not reached in time"
-        await asyncio.sleep(0.005)
 
 
 @pytest.fixture

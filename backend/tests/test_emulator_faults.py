@@ -9,7 +9,8 @@ import pytest
 
 from cobot_hmi.scanner.originator import ConnectionState
 from cobot_hmi.scanner.session import EnipSession, SessionError
-from emulator_harness import DEADLINE_S, Emulator, eventually, running_emulator
+from emulator_harness import DEADLINE_S, Emulator, running_emulator
+from waiting import eventually
 
 CONNECTED = ConnectionState.CONNECTED
 

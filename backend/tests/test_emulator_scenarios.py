@@ -18,11 +18,11 @@ from cobot_hmi.scanner.originator import Originator, OriginatorSettings
 from emulator_harness import (
     FAST_TIMINGS,
     Emulator,
-    eventually,
     flags,
     observe,
     running_emulator,
 )
+from waiting import eventually
 
 S = RobotState
 SERVO = flags(servo_on=True)

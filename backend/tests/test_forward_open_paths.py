@@ -13,7 +13,7 @@ from __future__ import annotations
 import asyncio
 import socket
 import struct
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator
 from dataclasses import dataclass
 
 import pytest
@@ -23,23 +23,15 @@ from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
 from cobot_hmi.scanner.originator import ConnectionState
 from emulator_harness import running_emulator
+from waiting import WAIT_DEADLINE_S, eventually
 
-DEADLINE_S = 5.0
+DEADLINE_S = WAIT_DEADLINE_S
 
 ENCAP: struct.Struct = struct.Struct("<HHII8sI")  # command, length, session, status, context, opts
 REGISTER_SESSION, SEND_RR_DATA = 0x65, 0x6F
 FORWARD_OPEN, LARGE_FORWARD_OPEN, FORWARD_CLOSE, GET_ATTRIBUTE_SINGLE = 0x54, 0x5B, 0x4E, 0x0E
 POINT_TO_POINT_SCHEDULED_16 = 2 << 13 | 2 << 10
 POINT_TO_POINT_SCHEDULED_32 = 2 << 29 | 2 << 26
-
-
-async def eventually(check: Callable[[], bool], timeout_s: float = DEADLINE_S) -> None:
-    """Wait until ``check()`` holds (a generous functional deadline, not a timing figure)."""
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout_s
-    while not check():
-        assert loop.time() < end, "condition not reached in time"
-        await asyncio.sleep(0.01)
 
 
 def logical(kind: int, value: int, width: int) -> bytes:

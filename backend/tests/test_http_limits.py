@@ -15,8 +15,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import resource
-import sys
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator
 from pathlib import Path
 
 import httpx
@@ -24,7 +23,8 @@ import pytest
 
 from cobot_hmi.emulator.target import Target
 from conftest import free_tcp_port
-from service_support import DEADLINE_S, emulator, eventually
+from process_support import PROCESS_DEADLINE_S, cli_process, wait_ready
+from service_support import DEADLINE_S, emulator, eventually, eventually_async
 
 pytestmark = pytest.mark.timeout(240)
 
@@ -38,13 +38,6 @@ async def target(robot_host: str) -> AsyncIterator[Target]:
         yield target
 
 
-def _limit_files(limit: int) -> Callable[[], None]:
-    def in_child() -> None:  # before exec
-        resource.setrlimit(resource.RLIMIT_NOFILE, (limit, limit))
-
-    return in_child
-
-
 @contextlib.asynccontextmanager
 async def serve(
     target: Target,
@@ -55,52 +48,20 @@ async def serve(
     files_limit: int = SERVICE_FILES_LIMIT,
 ) -> AsyncIterator[str]:
     """``cobot-hmi serve`` as a child process with ``files_limit`` files; its base URL once it
-    answers."""
+    is ready (connected to ``target``)."""
     port = free_tcp_port(plc_host)
-    log = (tmp_path / "service.log").open("wb")
-    process = await asyncio.create_subprocess_exec(
-        sys.executable,
-        "-m",
-        "cobot_hmi.cli",
-        "serve",
-        "--robot",
-        robot_host,
-        "--robot-tcp-port",
-        str(target.tcp_port),
-        "--local-host",
-        plc_host,
-        "--timeout-multiplier",
-        "5",
-        "--host",
-        plc_host,
-        "--port",
-        str(port),
-        "--state-dir",
-        str(tmp_path),
-        *flags,
-        stdout=log,
-        stderr=log,
-        preexec_fn=_limit_files(files_limit),
-    )
+    args = ["serve", "--robot", robot_host, "--robot-tcp-port", str(target.tcp_port)]
+    args += ["--local-host", plc_host, "--timeout-multiplier", "5", "--host", plc_host]
+    args += ["--port", str(port), "--state-dir", str(tmp_path), *flags]
     base_url = f"http://{plc_host}:{port}"
-    try:
-        async with httpx.AsyncClient(base_url=base_url, timeout=2.0) as client:
-            for _ in range(int(DEADLINE_S * 5)):
-                assert process.returncode is None, (tmp_path / "service.log").read_text()
-                with contextlib.suppress(httpx.HTTPError):
-                    if (await client.get("/healthz")).status_code in (200, 503):
-                        break
-                await asyncio.sleep(0.2)
-        yield base_url
-    finally:
-        if process.returncode is None:
-            process.terminate()
+    with (tmp_path / "service.log").open("wb") as log:
+        async with cli_process(*args, stdout=log, stderr=log, files_limit=files_limit) as process:
             try:
-                await asyncio.wait_for(process.wait(), DEADLINE_S)
-            except TimeoutError:
-                process.kill()
-                await process.wait()
-        log.close()
+                await wait_ready(base_url, process)
+            except BaseException:
+                print((tmp_path / "service.log").read_text())
+                raise
+            yield base_url
 
 
 def _raise_own_files_limit(needed: int) -> None:
@@ -189,12 +150,14 @@ async def test_the_link_reconnects_while_idle_connections_hold_descriptors_past_
             ready_now: list[int] = []
 
             async def poll_ready(expected: int) -> None:
-                for _ in range(int(DEADLINE_S * 6)):
+                async def now_expected() -> bool:
                     ready_now.append(await ready())
-                    if ready_now[-1] == expected:
-                        return
-                    await asyncio.sleep(0.5)
-                raise AssertionError(f"readyz never {expected}: {ready_now[-5:]}")
+                    return ready_now[-1] == expected
+
+                try:
+                    await eventually_async(now_expected, PROCESS_DEADLINE_S)
+                except AssertionError:
+                    raise AssertionError(f"readyz never {expected}: {ready_now[-5:]}") from None
 
             await poll_ready(200)
             idle = await _open_idle(plc_host, port, IDLE_CONNECTIONS)

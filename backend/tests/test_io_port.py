@@ -16,7 +16,7 @@ import asyncio
 import contextlib
 import dataclasses
 import socket
-from collections.abc import AsyncIterator, Callable
+from collections.abc import AsyncIterator
 
 import pytest
 
@@ -40,18 +40,10 @@ from cobot_hmi.scanner.io_port import IoPort
 from cobot_hmi.scanner.originator import ConnectionState, Originator, OriginatorSettings
 from cobot_hmi.udp_endpoint import UdpEndpoint
 from conftest import _next_host as next_host
+from waiting import WAIT_DEADLINE_S, eventually
 
-DEADLINE_S = 10.0
+DEADLINE_S = WAIT_DEADLINE_S
 EMERGENCY_STOP = next(s.value for s in ROBOT_STATES if s.name == "EMERGENCY_STOP")
-
-
-async def eventually(check: Callable[[], bool], timeout_s: float = DEADLINE_S) -> None:
-    """Wait until ``check()`` holds (a generous functional deadline, not a timing figure)."""
-    loop = asyncio.get_running_loop()
-    end = loop.time() + timeout_s
-    while not check():
-        assert loop.time() < end, "condition not reached in time"
-        await asyncio.sleep(0.01)
 
 
 # --------------------------------------------------------------------------- dispatch

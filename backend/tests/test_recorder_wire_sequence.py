@@ -23,7 +23,7 @@ from cobot_hmi.enip import io
 from cobot_hmi.layout import ROBOT_STATES
 from cobot_hmi.scanner.originator import Originator, OriginatorSettings
 from cobot_hmi.service.hub import Hub
-from emulator_harness import eventually
+from waiting import eventually
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -43,7 +43,7 @@ async def test_on_frame_carries_each_packets_wire_sequence_number(
         tcp_port=target.tcp_port,
         local_host=plc_host,
         rpi_us=10_000,
-        timeout_multiplier=5,  # RPI × 128: the live stream goes stale once ours are ahead
+        timeout_multiplier=7,  # RPI × 512: the connection outlives the silence below
     )
     originator = Originator(settings, on_frame=lambda frame, _at, wire: seen.append((frame, wire)))
     await originator.start()
@@ -58,6 +58,19 @@ async def test_on_frame_carries_each_packets_wire_sequence_number(
         stats = originator.stats()
         assert sum(step - 1 for step in steps) <= stats.gaps + stats.duplicates
 
+        # The live stream falls silent, and what it sent has arrived, before ours go: the
+        # second jump brings the numbers round the 32-bit circle close behind the live ones, so
+        # a live packet arriving between ours would be newer than it and ours after it stale.
+        target.faults.t2o_silent = True
+        (connection,) = target._by_o2t.values()
+
+        def drained() -> bool:
+            (info,) = target.connections()
+            return (
+                not connection.t2o_streaming and originator.stats().packets_in >= info.packets_out
+            )
+
+        await eventually(drained, DEADLINE_S)
         link = originator._link  # the live connection's numbers, as a sniffer would see them
         assert link is not None and link.sequence.last_encap_seq is not None
         last_encap = link.sequence.last_encap_seq

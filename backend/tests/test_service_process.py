@@ -6,11 +6,8 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import os
 import signal
 import sqlite3
-import sys
-from collections.abc import AsyncIterator
 from pathlib import Path
 
 import httpx
@@ -20,6 +17,7 @@ from websockets.asyncio.client import connect
 
 from cobot_hmi.service.users import Role, UsersFile
 from conftest import free_tcp_port
+from process_support import PROCESS_DEADLINE_S, cli_process, read_until, wait_ready
 from service_support import (
     DEADLINE_S,
     OPERATOR,
@@ -30,37 +28,6 @@ from service_support import (
 )
 
 pytestmark = pytest.mark.timeout(180)
-
-
-@contextlib.asynccontextmanager
-async def cli_process(*args: str) -> AsyncIterator[asyncio.subprocess.Process]:
-    """``cobot-hmi ARGS`` as a child process; killed (and reaped) at the end whatever happens."""
-    process = await asyncio.create_subprocess_exec(
-        sys.executable,
-        "-m",
-        "cobot_hmi.cli",
-        *args,
-        stdout=asyncio.subprocess.PIPE,
-        stderr=asyncio.subprocess.STDOUT,
-        env={**os.environ, "PYTHONUNBUFFERED": "1"},
-    )
-    try:
-        yield process
-    finally:
-        if process.returncode is None:
-            process.kill()
-        await process.communicate()
-
-
-async def wait_ready(base_url: str, process: asyncio.subprocess.Process) -> None:
-    async with httpx.AsyncClient(base_url=base_url, timeout=2.0) as client:
-        for _ in range(int(DEADLINE_S * 5)):
-            assert process.returncode is None, "the service exited"
-            with contextlib.suppress(httpx.HTTPError):
-                if (await client.get("/readyz")).status_code == 200:
-                    return
-            await asyncio.sleep(0.2)
-    raise AssertionError("the service did not become ready")
 
 
 async def test_audit_survives_kill_9(robot_host: str, plc_host: str, tmp_path: Path) -> None:
@@ -166,15 +133,8 @@ async def test_demo_runs_and_stops_cleanly(robot_host: str, plc_host: str, tmp_p
         "--frontend-dir",
         str(dist),
     ) as demo:
-        assert demo.stdout is not None
-        output: list[str] = []
-        password = None
-        while password is None:
-            line = (await asyncio.wait_for(demo.stdout.readline(), DEADLINE_S * 3)).decode()
-            assert line, "the demo ended early:\n" + "".join(output)
-            output.append(line)
-            if "with password" in line:
-                password = line.split("with password ")[1].split("'")[1]
+        output = await read_until(demo, "with password")
+        password = output[-1].split("with password ")[1].split("'")[1]
         await wait_ready(base_url, demo)
         async with httpx.AsyncClient(base_url=base_url, timeout=DEADLINE_S) as client:
             assert "demo HMI" in (await client.get("/")).text
@@ -184,7 +144,7 @@ async def test_demo_runs_and_stops_cleanly(robot_host: str, plc_host: str, tmp_p
             assert login.status_code == 200
             assert login.json()["user"]["role"] == "operator"
         demo.send_signal(signal.SIGINT)
-        rest, _ = await asyncio.wait_for(demo.communicate(), DEADLINE_S * 2)
+        rest, _ = await asyncio.wait_for(demo.communicate(), PROCESS_DEADLINE_S)
     text = "".join(output) + rest.decode()
     assert demo.returncode == 0, text
     assert text.count(password) == 1  # shown once

@@ -7,13 +7,10 @@ certificate as the identity, and ``cobot-hmi demo --mqtt-url``."""
 from __future__ import annotations
 
 import asyncio
-import contextlib
 import os
 import shutil
 import signal
 import subprocess
-import sys
-from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +25,7 @@ from mosquitto_support import (
     mosquitto,
     needs_mosquitto,
 )
+from process_support import cli_process, read_until
 from service_support import cell_settings, emulator, eventually, running_service
 from sparkplug_support import BOOLEAN, FLOAT, GROUP, NODE, Panel, cell, reported
 
@@ -222,36 +220,12 @@ async def test_tls_and_a_password(tmp_path: Path, plc_host: str) -> None:
             assert node is not None and node.connect_refusals == 0
 
 
-@contextlib.asynccontextmanager
-async def demo_process(*args: str) -> AsyncIterator[asyncio.subprocess.Process]:
-    process = await asyncio.create_subprocess_exec(
-        sys.executable,
-        "-m",
-        "cobot_hmi.cli",
-        "demo",
-        *args,
-        stdout=asyncio.subprocess.PIPE,
-        stderr=asyncio.subprocess.STDOUT,
-        env={**os.environ, "PYTHONUNBUFFERED": "1"},
-    )
-    try:
-        yield process
-    finally:
-        if process.returncode is None:
-            process.send_signal(signal.SIGINT)
-            try:
-                async with asyncio.timeout(30):
-                    await process.wait()
-            except TimeoutError:
-                process.kill()
-                await process.wait()
-
-
 async def test_demo_passes_the_broker_on(robot_host: str, plc_host: str, tmp_path: Path) -> None:
     async with (
         mosquitto(plc_host, tmp_path) as broker,
         Subscriber(broker) as subscriber,
-        demo_process(
+        cli_process(
+            "demo",
             "--robots",
             "1",
             "--robot-host",
@@ -270,16 +244,11 @@ async def test_demo_passes_the_broker_on(robot_host: str, plc_host: str, tmp_pat
             str(tmp_path / "state"),
             "--mqtt-url",
             broker.url,
+            interrupt_first=True,
         ) as demo,
     ):
-        assert demo.stdout is not None
-        said = b""
-        async with asyncio.timeout(SLOW_S):
-            while b"Ctrl-C stops all" not in said:
-                line = await demo.stdout.readline()
-                assert line, f"the demo ended: {said.decode(errors='replace')}"
-                said += line
-        assert f"Sparkplug B to {broker.url}: spBv1.0/cobot-hmi/+/".encode() in said
+        said = "".join(await read_until(demo, "Ctrl-C stops all", SLOW_S))
+        assert f"Sparkplug B to {broker.url}: spBv1.0/cobot-hmi/+/" in said
         await subscriber.wait_for(lambda ms: any(m.kind == "DBIRTH" for m in ms), SLOW_S)
         assert subscriber.of("DBIRTH")[0].device == "m1013"
 

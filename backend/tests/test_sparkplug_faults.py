@@ -9,11 +9,9 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import itertools
-import os
 import signal
-import sys
 import time
-from collections.abc import AsyncIterator
+from asyncio.subprocess import Process
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +21,7 @@ import pytest
 from cobot_hmi.service.settings import ServiceSettings
 from conftest import _next_host, free_tcp_port
 from mosquitto_support import Message, Subscriber, encode_command, mosquitto, needs_mosquitto
+from process_support import DEVNULL, cli_process
 from service_support import cell_settings, emulator, eventually, running_service
 from sparkplug_support import BOOLEAN, GROUP, NODE, Cell, Panel, cell, node_messages, reported
 
@@ -48,24 +47,8 @@ def bd_seq(message: Message) -> Any:
     return next(m.value for m in message.metrics if m.name == "bdSeq")
 
 
-@contextlib.asynccontextmanager
-async def serve_process(*args: str) -> AsyncIterator[asyncio.subprocess.Process]:
-    process = await asyncio.create_subprocess_exec(
-        sys.executable,
-        "-m",
-        "cobot_hmi.cli",
-        "serve",
-        *args,
-        stdout=asyncio.subprocess.DEVNULL,
-        stderr=asyncio.subprocess.DEVNULL,
-        env={**os.environ, "PYTHONUNBUFFERED": "1"},
-    )
-    try:
-        yield process
-    finally:
-        if process.returncode is None:
-            process.kill()
-        await process.wait()
+def serve_process(*args: str) -> contextlib.AbstractAsyncContextManager[Process]:
+    return cli_process("serve", *args, stdout=DEVNULL, stderr=DEVNULL)
 
 
 async def test_ndeath_on_kill_9_and_bdseq_goes_on(
