@@ -1,84 +1,15 @@
 /**
  * End-to-end tests: Debian's Chromium against the real emulators and the real service, on
- * loopback, nothing mocked. Playwright's webServer starts two emulated robots (an M1013 and an
- * M0609, each under a small supervisor so that a test can kill and restart it) and the service
- * with both as `[[robots]]`; the tests drive the robots through the emulators' control APIs.
- * One worker: every test shares the same robots.
+ * loopback, nothing mocked. Each worker starts its own cell (support/cell.ts, a worker-scoped
+ * fixture): two emulated robots (an M1013 and an M0609) and the service with both as
+ * `[[robots]]`, on the worker's own addresses; the tests drive the robots through the
+ * emulators' control APIs. The tests of one worker share its cell, one after the other.
  */
 import { defineConfig } from "@playwright/test";
-import path from "node:path";
-import {
-  baseURL,
-  control2URL,
-  controlURL,
-  E2E_DIR,
-  emulator2PidFile,
-  emulatorPidFile,
-  serviceConfigFile,
-  settings,
-} from "./support/settings";
+import { baseURL } from "./support/settings";
 
-/** A shell word: the webServer commands run through /bin/sh. */
-function sh(word: string | number): string {
-  return `'${String(word).replaceAll("'", `'\\''`)}'`;
-}
-
-const cli = sh(settings.cobotHmi);
-const stateDir = sh(settings.stateDir);
-
-/** An emulated robot of `model` at `host`, under the supervisor that records its pid. */
-const emulatorCommand = (pidFile: string, host: string, model: string) =>
-  [
-    "node",
-    sh(path.join(E2E_DIR, "support", "emulator-supervisor.mjs")),
-    sh(pidFile),
-    "--",
-    cli,
-    "emulator",
-    "--host", sh(host),
-    "--tcp-port", sh(settings.robotTcpPort),
-    "--udp-port", sh(settings.robotUdpPort),
-    "--control-port", sh(settings.controlPort),
-    "--model", sh(model),
-    // Two emulators on one machine: only the service's own connections, no discovery answers.
-    "--no-discovery",
-  ].join(" ");
-
-/** The service's two robots, in the TOML the service reads (the first is its default robot). */
-const robotsToml = [
-  "[[robots]]",
-  `name = "${settings.robotName}"`,
-  `host = "${settings.robotHost}"`,
-  `tcp_port = ${settings.robotTcpPort}`,
-  "",
-  "[[robots]]",
-  `name = "${settings.robot2Name}"`,
-  `host = "${settings.robot2Host}"`,
-  `tcp_port = ${settings.robotTcpPort}`,
-];
-
-const addUser = (user: { name: string }, role: string, passwordVar: string) =>
-  `printf '%s\\n' "$${passwordVar}" | ${cli} users add ${sh(user.name)} --role ${role} --password-stdin --state-dir ${stateDir}`;
-
-const serviceCommand = [
-  `printf '%s\\n' ${robotsToml.map(sh).join(" ")} > ${sh(serviceConfigFile)}`,
-  addUser(settings.operator, "operator", "E2E_OPERATOR_PASSWORD"),
-  addUser(settings.viewer, "viewer", "E2E_VIEWER_PASSWORD"),
-  [
-    "exec",
-    cli,
-    "serve",
-    "--config", sh(serviceConfigFile),
-    "--local-host", sh(settings.localHost),
-    "--local-udp-port", sh(settings.localUdpPort),
-    "--rpi-ms", sh(settings.rpiMs),
-    "--timeout-multiplier", sh(settings.timeoutMultiplier),
-    "--host", sh(settings.httpHost),
-    "--port", sh(settings.httpPort),
-    "--state-dir", stateDir,
-    "--frontend-dir", sh(settings.frontendDir),
-  ].join(" "),
-].join(" && ");
+/** Workers (each with its own cell): E2E_WORKERS, 2 by default (measured on a 2-core machine). */
+const workers = Number(process.env.E2E_WORKERS ?? "2");
 
 const chromiumArgs = [
   "--no-sandbox",
@@ -91,12 +22,15 @@ const chromiumArgs = [
 export default defineConfig({
   testDir: "./tests",
   outputDir: "./test-results",
-  fullyParallel: false,
-  workers: 1,
+  globalTeardown: "./support/teardown.ts",
+  // Test by test: a long scenario (09's minute of packet loss) runs beside the others.
+  fullyParallel: true,
+  workers,
   retries: 0,
   forbidOnly: !!process.env.CI,
-  timeout: 60_000,
-  expect: { timeout: 10_000 },
+  // Slack that a busy machine cannot exhaust: a green test never waits for these.
+  timeout: 120_000,
+  expect: { timeout: 20_000 },
   reporter: [
     ["list"],
     ["html", { open: "never", outputFolder: "playwright-report" }],
@@ -108,40 +42,9 @@ export default defineConfig({
     headless: true,
     viewport: { width: 1600, height: 1000 },
     screenshot: "only-on-failure",
-    trace: "retain-on-failure",
+    // A trace snapshots the page at every step of every test, failing or not: on a page that
+    // redraws plots all the time that doubled a test's time. E2E_TRACE=retain-on-failure to debug.
+    trace: (process.env.E2E_TRACE ?? "off") as "off" | "on" | "retain-on-failure" | "on-first-retry",
     launchOptions: { executablePath: process.env.E2E_CHROMIUM ?? "/usr/bin/chromium", args: chromiumArgs },
   },
-  webServer: [
-    {
-      name: "emulator",
-      command: emulatorCommand(emulatorPidFile, settings.robotHost, "M1013"),
-      url: `${controlURL}/status`,
-      timeout: 60_000,
-      reuseExistingServer: false,
-      stdout: "pipe",
-      stderr: "pipe",
-      gracefulShutdown: { signal: "SIGTERM", timeout: 10_000 },
-    },
-    {
-      name: "emulator2",
-      command: emulatorCommand(emulator2PidFile, settings.robot2Host, "M0609"),
-      url: `${control2URL}/status`,
-      timeout: 60_000,
-      reuseExistingServer: false,
-      stdout: "pipe",
-      stderr: "pipe",
-      gracefulShutdown: { signal: "SIGTERM", timeout: 10_000 },
-    },
-    {
-      name: "service",
-      command: serviceCommand,
-      // /readyz answers 200 only once the class 1 connections are up: tests start on live data.
-      url: `${baseURL}/readyz`,
-      timeout: 60_000,
-      reuseExistingServer: false,
-      stdout: "pipe",
-      stderr: "pipe",
-      gracefulShutdown: { signal: "SIGTERM", timeout: 10_000 },
-    },
-  ],
 });

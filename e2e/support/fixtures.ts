@@ -1,12 +1,12 @@
 /**
- * Test fixtures: the emulator's control API (to cause things on the robot), the service's API
- * as a script would use it (to set up and to check what is not on screen), the emulator
- * process (to kill and restart it), and a reset of the robot before every test, because every
- * test shares the one emulator.
+ * Test fixtures: the worker's cell (support/cell.ts: its emulators, which a test may kill and
+ * restart, and its service), the emulators' control API (to cause things on the robot), the
+ * service's API as a script would use it (to set up and to check what is not on screen), and a
+ * reset of the robot before every test, because the tests of a worker share its cell.
  */
 import { expect, request as playwrightRequest, test as base, type APIRequestContext, type Page, type TestInfo } from "@playwright/test";
-import { readFileSync } from "node:fs";
-import { baseURL, control2URL, controlURL, emulatorPidFile, settings } from "./settings";
+import { Cell } from "./cell";
+import { baseURL, control2URL, controlURL, settings } from "./settings";
 
 export interface EmulatorStatus {
   readonly frame: Record<string, unknown> & {
@@ -68,11 +68,11 @@ export class Robot {
       expect([200, 409]).toContain(await this.tryPost("/reset"));
     }
     await expect
-      .poll(async () => (status = await this.status()).robot.phase, { timeout: 10_000, message: "robot back in its normal phase" })
+      .poll(async () => (status = await this.status()).robot.phase, { message: "robot back in its normal phase" })
       .toBe("normal");
     await this.setProgram(true);
     await expect
-      .poll(async () => (await this.status()).frame.robot_state_name, { timeout: 5_000 })
+      .poll(async () => (await this.status()).frame.robot_state_name)
       .toBe("STANDALONE_RUNNING");
   }
 }
@@ -127,27 +127,6 @@ export class Service {
   dispose = () => this.api.dispose();
 }
 
-/** The emulator process (under the supervisor started by the webServer). */
-export const emulatorProcess = {
-  pids(): { supervisor: number; emulator: number | null } {
-    return JSON.parse(readFileSync(emulatorPidFile, "utf8")) as { supervisor: number; emulator: number | null };
-  },
-  kill(): number {
-    const { emulator } = this.pids();
-    if (emulator === null) throw new Error("the emulator is not running");
-    process.kill(emulator, "SIGKILL");
-    return emulator;
-  },
-  /** Start it again (no-op while it runs); resolves once the new process is recorded. */
-  async restart(): Promise<number> {
-    const { supervisor } = this.pids();
-    process.kill(supervisor, "SIGUSR1");
-    let pid: number | null = null;
-    await expect.poll(() => (pid = this.pids().emulator), { timeout: 10_000, message: "emulator restarted" }).not.toBeNull();
-    return pid as unknown as number;
-  },
-};
-
 /** A screenshot kept with the test's results (attached to the report and as a file). */
 export async function screenshot(page: Page, testInfo: TestInfo, name: string): Promise<void> {
   const file = testInfo.outputPath(`${name}.png`);
@@ -170,7 +149,31 @@ interface Fixtures {
   operatorApi: Service;
 }
 
-export const test = base.extend<Fixtures & { healthyRobot: void }>({
+interface WorkerFixtures {
+  /** The worker's emulators and service, started once per worker. */
+  cell: Cell;
+}
+
+export const test = base.extend<Fixtures & { healthyRobot: void }, WorkerFixtures>({
+  cell: [
+    async ({}, use) => {
+      const cell = new Cell();
+      try {
+        try {
+          await cell.start();
+        } catch (error) {
+          throw new Error(`the worker's cell did not start: ${String(error)}\n${cell.output}`);
+        }
+        await use(cell);
+      } finally {
+        await cell.stop();
+      }
+    },
+    // Two emulators and a service started on a busy machine: generous.
+    { scope: "worker", auto: true, timeout: 180_000 },
+  ],
+  // The worker's own service (what the config's `use.baseURL` names too, in the worker).
+  baseURL: async ({ cell }, use) => use(cell.baseURL),
   robot: async ({}, use) => {
     const api = await playwrightRequest.newContext({ baseURL: controlURL });
     await use(new Robot(api));
@@ -189,8 +192,8 @@ export const test = base.extend<Fixtures & { healthyRobot: void }>({
   // Before every test: the emulator runs, the robot is healthy and moving, the service is
   // connected to it, and nobody holds control.
   healthyRobot: [
-    async ({ robot }, use) => {
-      if (emulatorProcess.pids().emulator === null) await emulatorProcess.restart();
+    async ({ cell, robot }, use, testInfo) => {
+      if (!cell.robot.running) await cell.robot.restart();
       await expect.poll(async () => (await robot.tryPost("/faults/clear")), { timeout: 20_000, message: "emulator control API up" }).toBe(200);
       await robot.normalize();
       const anonymous = await playwrightRequest.newContext({ baseURL });
@@ -199,6 +202,7 @@ export const test = base.extend<Fixtures & { healthyRobot: void }>({
         .toBe(200);
       await anonymous.dispose();
       await use();
+      if (testInfo.status !== testInfo.expectedStatus) await testInfo.attach("cell output", { body: cell.output, contentType: "text/plain" });
     },
     { auto: true },
   ],
@@ -273,4 +277,84 @@ export async function noteWhen(page: Page, name: string, testId: string, wanted:
 
 export async function seenAt(page: Page, name: string): Promise<number | undefined> {
   return page.evaluate((name) => (window as unknown as { __e2eTimes?: Record<string, number> }).__e2eTimes?.[name], name);
+}
+
+/**
+ * Before `page` loads anything: every WebSocket message the page receives can be noted by
+ * `noteMessage` (the moment the page's handler starts on it). With `noteWhen`, that times the
+ * page's own share of a change's way to the screen, which a busy machine cannot stretch the way
+ * it stretches the whole way (the emulator, the service, the network), a speed figure of bench/.
+ */
+export async function watchMessages(page: Page): Promise<void> {
+  await page.addInitScript(() => {
+    const w = window as unknown as { __e2eWanted: Record<string, string>; __e2eArrived: Record<string, number> };
+    w.__e2eWanted = {};
+    w.__e2eArrived = {};
+    const own = Object.getOwnPropertyDescriptor(WebSocket.prototype, "onmessage");
+    if (own?.set === undefined || own.get === undefined) return;
+    const { get, set } = own;
+    Object.defineProperty(WebSocket.prototype, "onmessage", {
+      configurable: true,
+      enumerable: own.enumerable,
+      get() {
+        return get.call(this);
+      },
+      set(handler: ((this: WebSocket, ev: MessageEvent) => unknown) | null) {
+        if (typeof handler !== "function") {
+          set.call(this, handler);
+          return;
+        }
+        set.call(this, function (this: WebSocket, ev: MessageEvent) {
+          const arrived_ms = Date.now();
+          if (typeof ev.data === "string") {
+            for (const [name, source] of Object.entries(w.__e2eWanted)) {
+              if (w.__e2eArrived[name] === undefined && new RegExp(source).test(ev.data)) w.__e2eArrived[name] = arrived_ms;
+            }
+          }
+          return handler.call(this, ev);
+        });
+      },
+    });
+  });
+}
+
+/** From now on, note when the page first receives a WebSocket message matching `pattern`. */
+export async function noteMessage(page: Page, name: string, pattern: RegExp): Promise<void> {
+  await page.evaluate(
+    ({ name, source }) => {
+      const w = window as unknown as { __e2eWanted?: Record<string, string>; __e2eArrived?: Record<string, number> };
+      if (w.__e2eWanted === undefined || w.__e2eArrived === undefined) throw new Error("watchMessages(page) before the page loads");
+      delete w.__e2eArrived[name];
+      w.__e2eWanted[name] = source;
+    },
+    { name, source: pattern.source },
+  );
+}
+
+/** When the page received the message `noteMessage` named `name` (ms since the epoch). */
+export async function messageAt(page: Page, name: string): Promise<number | undefined> {
+  return page.evaluate((name) => (window as unknown as { __e2eArrived?: Record<string, number> }).__e2eArrived?.[name], name);
+}
+
+/**
+ * Until the panel has received `frames` more frames (its joint table counts them): the data has
+ * moved on, however slowly a busy machine delivers it. 100 frames are 1 s at RPI 10 ms.
+ */
+export async function framesFlow(page: Page, frames: number): Promise<void> {
+  const table = page.getByTestId("joint-table");
+  const from = Number(await table.getAttribute("data-frames"));
+  await expect.poll(async () => Number(await table.getAttribute("data-frames")), { message: `${frames} more frames` }).toBeGreaterThan(from + frames);
+}
+
+/** The first robot's recording, its range on disk (`history/status`: its oldest and newest frame, s since the epoch). */
+export async function recorded(request: APIRequestContext): Promise<{ first: number; last: number }> {
+  const answer = await request.get(`/api/v1/robots/${settings.robotName}/history/status`);
+  expect(answer.status(), await answer.text()).toBe(200);
+  const { first, last } = (await answer.json()) as { first: number | null; last: number | null };
+  return { first: first ?? Number.NaN, last: last ?? Number.NaN };
+}
+
+/** Until the recording holds frames up to `time_s` (the recorder writes at least every second). */
+export async function recordedUntil(request: APIRequestContext, time_s: number, what: string): Promise<void> {
+  await expect.poll(async () => (await recorded(request)).last, { message: what }).toBeGreaterThanOrEqual(time_s);
 }

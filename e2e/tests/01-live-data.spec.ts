@@ -1,5 +1,5 @@
 // Scenario 1: live data. The state badge shows STANDALONE_RUNNING, the joint plots grow, and
-// the frame age stays small.
+// the frame age is renewed as frames arrive.
 import { expect, screenshot, test } from "../support/fixtures";
 
 const JOINT_PLOTS = [
@@ -30,7 +30,6 @@ test("the panel shows the running robot live", async ({ page }, testInfo) => {
     }, JOINT_PLOTS);
   await expect.poll(async () => (await plotState()).every((p) => p.points > 0), { message: "every joint plot has points" }).toBe(true);
   const before = await plotState();
-  await page.waitForTimeout(1500);
   await expect
     .poll(
       async () => {
@@ -44,19 +43,21 @@ test("the panel shows the running robot live", async ({ page }, testInfo) => {
     )
     .toEqual(JOINT_PLOTS);
 
-  // The frame age stays small over a few seconds (the display calls a frame stale after 1 s).
+  // The frame age is renewed as frames arrive: it changes, and comes back under the 1 s after
+  // which the display calls a frame stale. (How small it stays is a speed figure: bench/ui.)
+  const frameAge = page.getByTestId("frame-age");
   const ages: number[] = [];
-  for (let i = 0; i < 10; i++) {
-    const age = await page.getByTestId("frame-age").getAttribute("data-age-ms");
-    ages.push(Number(age));
-    await page.waitForTimeout(300);
-  }
+  await expect
+    .poll(
+      async () => {
+        ages.push(Number(await frameAge.getAttribute("data-age-ms")));
+        return new Set(ages).size >= 3 && ages.some((age) => age < 1000);
+      },
+      { message: "the frame age is renewed" },
+    )
+    .toBe(true);
   testInfo.annotations.push({ type: "frame ages (ms)", description: ages.join(", ") });
-  // Small: never old enough to be called stale, and typically a few batches (50 ms) old.
-  const sorted = [...ages].sort((a, b) => a - b);
-  expect(Math.max(...ages), `frame ages ${ages.join(", ")} ms`).toBeLessThan(1000);
-  expect(sorted[Math.floor(sorted.length / 2)], `median of ${ages.join(", ")} ms`).toBeLessThan(300);
-  await expect(page.getByTestId("frame-age")).toContainText("ms");
+  await expect(frameAge).toHaveText(/^\d+(\.\d)? (ms|s)$/);
   await expect(page.getByTestId("robot-state")).toHaveAttribute("data-state-name", "STANDALONE_RUNNING");
 
   await screenshot(page, testInfo, "panel");

@@ -17,11 +17,18 @@ test("every robot state forced in turn shows its name", async ({ page, robot, re
   await page.goto("/");
   const badge = page.getByTestId("robot-state");
   await expect(badge).toHaveAttribute("data-state-name", "STANDALONE_RUNNING");
+  // What the badge shows, read in one go (a busy page answers each question slowly).
+  const shown = () =>
+    badge.evaluate((el) => ({
+      name: el.getAttribute("data-state-name"),
+      value: el.getAttribute("data-state-value"),
+      text: el.textContent,
+      title: el.getAttribute("title"),
+    }));
   for (const state of layout.robot_states) {
     await robot.setState(state.value);
-    await expect(badge, `state ${state.value}`).toHaveAttribute("data-state-name", state.name);
-    await expect(badge).toHaveAttribute("data-state-value", String(state.value));
-    await expect(badge).toHaveText(state.label);
-    await expect(badge).toHaveAttribute("title", `${state.description} (${state.name})`);
+    await expect
+      .poll(shown, { message: `state ${state.value}` })
+      .toEqual({ name: state.name, value: String(state.value), text: state.label, title: `${state.description} (${state.name})` });
   }
 });

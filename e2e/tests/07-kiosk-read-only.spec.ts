@@ -26,8 +26,9 @@ test("the kiosk has no write control anywhere", async ({ page }, testInfo) => {
   await expect(page.getByText(/log in|take control/i)).toHaveCount(0);
 
   // It only ever reads: no request but GET (the WebSocket's upgrade is a GET too), and never
-  // to the login, control or command endpoints.
-  await page.waitForTimeout(2000);
+  // to the login, control or command endpoints; checked once the page's requests have settled
+  // (no request for half a second: the stream goes on over its WebSocket).
+  await page.waitForLoadState("networkidle");
   expect(requests.filter((r) => !r.startsWith("GET "))).toEqual([]);
   expect(requests.filter((r) => /\/api\/v1\/(auth|control|command)/.test(r))).toEqual([]);
 

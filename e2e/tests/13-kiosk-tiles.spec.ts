@@ -91,7 +91,7 @@ test("the kiosk shows the tiles its URL chooses, the state in words, a clock; no
   await expect(page.getByTestId("kiosk-state-words")).toContainText("The task program is being executed.");
   const clock = page.getByTestId("kiosk-clock");
   const first = await clock.textContent();
-  await expect.poll(async () => await clock.textContent(), { timeout: 5_000 }).not.toBe(first);
+  await expect.poll(async () => await clock.textContent()).not.toBe(first);
 
   // Readable from three metres: nothing under 18 px, plot tick labels included.
   expect(await smallText(page)).toEqual([]);

@@ -70,7 +70,7 @@ test("the joint table equals the frame's values", async ({ page, robot, request 
         }
         return cells.length === 36 ? wrong : [`${cells.length} cells`];
       },
-      { timeout: 15_000, message: "joint table = frame" },
+      { message: "joint table = frame" },
     )
     .toEqual([]);
 
@@ -218,7 +218,7 @@ test("the phone layout has no overflow and a compact header", async ({ browser, 
     // An emergency stop: its alarm banner joins the essentials, the header stays compact.
     await robot.estop();
     await expect(page.getByTestId("robot-state")).toHaveAttribute("data-state-name", "EMERGENCY_STOP");
-    await expect(page.getByTestId("alarm-banner")).toBeVisible({ timeout: 15_000 });
+    await expect(page.getByTestId("alarm-banner")).toBeVisible();
     await noOverflow("panel, alarm");
     await headerCompact("alarm", [...ESSENTIALS, "release-control", "alarm-banner"]);
     await touchTargetsBigEnough(); // the alarm banner's link to the alarm list among them
@@ -261,7 +261,7 @@ for (const { touch, ...viewport } of [
       await expect(page.getByTestId("control-holder")).toHaveAttribute("data-holder", settings.operator.name);
       await robot.estop();
       await expect(page.getByTestId("robot-state")).toHaveAttribute("data-state-name", "EMERGENCY_STOP");
-      await expect(page.getByTestId("alarm-banner")).toBeVisible({ timeout: 15_000 });
+      await expect(page.getByTestId("alarm-banner")).toBeVisible();
       const shown = await page.getByTestId("panel-header").evaluate((header) => {
         const box = header.getBoundingClientRect();
         const banner = header.querySelector<HTMLElement>('[data-testid="alarm-banner"]');

@@ -1,14 +1,14 @@
-// Scenario 24 (issue 14, Replay): an incident re-run from its recording. The shared robot runs
-// its program and is e-stopped; the shared service's recording of those seconds is exported
+// Scenario 24 (issue 14, Replay): an incident re-run from its recording. The worker's robot runs
+// its program and is e-stopped; the worker's service's recording of those seconds is exported
 // (MCAP, as a person would from the panel or the API) and replayed by its own
 // `cobot-hmi emulator --replay FILE --loop` on an address of its own, watched by its own
-// `cobot-hmi serve` (support/replay.ts: the shared webServer and its two robots stay as they
+// `cobot-hmi serve` (support/replay.ts: the worker's cell and its two robots stay as they
 // are). That panel shows the incident again: the state in the e-stop's plain words, the alarm
 // banner, and the joint table holding the recorded values of the stopped arm.
 import type { Page } from "@playwright/test";
 import { writeFileSync } from "node:fs";
 import { LAYOUT } from "../../frontend/src/generated/layout";
-import { expect, screenshot, Service, test } from "../support/fixtures";
+import { expect, recordedUntil, screenshot, Service, test } from "../support/fixtures";
 import { type Child, replaySettings, startReplayCell } from "../support/replay";
 import { settings } from "../support/settings";
 
@@ -70,22 +70,20 @@ test("a recorded e-stop replayed with --loop re-runs on its own HMI: the state's
   test.setTimeout(180_000);
   const viewer = await Service.login(settings.viewer);
   try {
-    // The incident, recorded by the shared service: the program running, then an e-stop.
-    await page.waitForTimeout(RUNNING_S * 1000);
-    const from_s = Date.now() / 1000 - RUNNING_S;
+    // The incident, recorded by the worker's service: the program running (since the test's
+    // set-up) for RUNNING_S, then an e-stop for STOPPED_S.
+    const from_s = Date.now() / 1000;
+    await recordedUntil(viewer.api, from_s + RUNNING_S, "the program running recorded");
     await robot.estop();
     await expect.poll(async () => (await robot.status()).frame.robot_state_name).toBe("EMERGENCY_STOP");
-    await page.waitForTimeout(STOPPED_S * 1000);
+    await recordedUntil(viewer.api, Date.now() / 1000 + STOPPED_S, "the stop recorded");
     const to_s = Date.now() / 1000;
     await robot.reset();
 
     // Once the recorder has flushed the range (it does at least every second): its rows.
     let rows: Row[] = [];
     await expect
-      .poll(async () => (rows = await recordedRows(viewer, from_s, to_s)).at(-1)?.time_s ?? 0, {
-        timeout: 15_000,
-        message: "the range recorded",
-      })
+      .poll(async () => (rows = await recordedRows(viewer, from_s, to_s)).at(-1)?.time_s ?? 0, { message: "the range recorded" })
       .toBeGreaterThan(to_s - 0.5);
     const states = rows.map((row) => row.robot_state);
     expect(states[0], "the recording starts with the program running").toBe(RUNNING.value);
@@ -118,7 +116,7 @@ test("a recorded e-stop replayed with --loop re-runs on its own HMI: the state's
     await expect(badge).toHaveText(ESTOP.label);
     // ... and the alarm banner, raised by the replayed stop.
     const banner = page.getByTestId("alarm-banner");
-    await expect(banner).toHaveAttribute("data-alarm", `${replaySettings.robotName}:emergency_stop`, { timeout: 15_000 });
+    await expect(banner).toHaveAttribute("data-alarm", `${replaySettings.robotName}:emergency_stop`);
     await screenshot(page, testInfo, "replayed-emergency-stop");
 
     // While stopped, the joint table shows the recording's joints (float32 on the wire and in
