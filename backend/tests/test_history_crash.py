@@ -20,7 +20,7 @@ from cobot_hmi.emulator.robot import SimulatedRobot
 from cobot_hmi.history import segments
 from conftest import free_tcp_port
 from process_support import cli_process, wait_ready
-from service_support import DEADLINE_S, emulator, running_service, service_settings
+from service_support import DEADLINE_S, emulator, eventually, running_service, service_settings
 
 pytestmark = pytest.mark.timeout(240)
 
@@ -78,12 +78,9 @@ async def test_kill_9_keeps_what_was_recorded(
             async with httpx.AsyncClient(base_url=base_url, timeout=DEADLINE_S) as client:
                 # Record until at least three segments (a second each) are closed, then note
                 # the newest frame the service says it has recorded, and kill it at once.
-                for _ in range(int(DEADLINE_S * 20)):
-                    if len(segments.list_segments(tmp_path / "history", ROBOT)) >= 3:
-                        break
-                    await asyncio.sleep(0.1)
-                else:
-                    raise AssertionError("no three closed segments")
+                await eventually(
+                    lambda: len(segments.list_segments(tmp_path / "history", ROBOT)) >= 3
+                )
                 reported = await recorded_seq(client)
                 service.send_signal(signal.SIGKILL)
             await service.wait()
@@ -122,10 +119,9 @@ async def test_kill_9_keeps_what_was_recorded(
         crashed_segments = {s.path for s in closed}
         async with cli_process(*args) as service:
             await wait_ready(base_url, service)
-            for _ in range(int(DEADLINE_S * 20)):
-                if len(segments.list_segments(tmp_path / "history", ROBOT)) >= len(closed) + 2:
-                    break
-                await asyncio.sleep(0.1)
+            await eventually(
+                lambda: len(segments.list_segments(tmp_path / "history", ROBOT)) >= len(closed) + 2
+            )
             service.send_signal(signal.SIGTERM)
             await asyncio.wait_for(service.wait(), DEADLINE_S * 3)
     after = segments.list_segments(tmp_path / "history", ROBOT)
@@ -160,14 +156,15 @@ async def test_retention_runs_while_recording(
         async with running_service(settings) as hmi:
             recorder = hmi.service.recorder
             assert recorder is not None
-            for _ in range(int(DEADLINE_S * 30)):
-                kept = segments.list_segments(settings.history_path, ROBOT)
-                if recorder.retention_deleted_segments >= 2 and kept:
-                    break
-                await asyncio.sleep(0.1)
-            else:
-                raise AssertionError("retention deleted nothing")
-            deleted_up_to = min(s.start_us for s in kept)
+            await eventually(
+                lambda: (
+                    recorder.retention_deleted_segments >= 2
+                    and bool(segments.list_segments(settings.history_path, ROBOT))
+                )
+            )
+            deleted_up_to = min(
+                s.start_us for s in segments.list_segments(settings.history_path, ROBOT)
+            )
             metrics = await hmi.metrics()
     assert "cobot_hmi_history_retention_deleted_segments_total" in metrics
     # What is left once the service stopped (retention went on deleting while it ran, so the
