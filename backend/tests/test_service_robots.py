@@ -7,6 +7,7 @@ and every answer checked against its model in the contract."""
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import re
 from collections.abc import AsyncIterator
 from pathlib import Path
@@ -16,6 +17,7 @@ import httpx
 import hypothesis
 import orjson
 import pytest
+import pytest_asyncio
 from hypothesis import strategies as st
 from pydantic import BaseModel
 from websockets.asyncio.client import connect
@@ -51,25 +53,24 @@ def right_robot() -> StaticRobot:
     return StaticRobot()
 
 
-@pytest.fixture
-async def cell(
-    robot_host: str,
-    plc_host: str,
-    tmp_path: Path,
-    left_robot: StaticRobot,
-    right_robot: StaticRobot,
-) -> AsyncIterator[tuple[Running, Target, Target]]:
+Cell = tuple[Running, Target, Target]
+
+
+@contextlib.asynccontextmanager
+async def two_robot_cell(
+    plc_host: str, state_dir: Path, left_robot: StaticRobot, right_robot: StaticRobot
+) -> AsyncIterator[Cell]:
     async with (
-        emulator(robot_host, left_robot) as left,
+        emulator(next_host(), left_robot) as left,
         emulator(next_host(), right_robot) as right,
     ):
         settings = cell_settings(
             [
-                ("left", robot_host, left.tcp_port),
+                ("left", left.settings.host, left.tcp_port),
                 ("right", right.settings.host, right.tcp_port),
             ],
             plc_host,
-            tmp_path,
+            state_dir,
             # No test here is about the confirmation timeout: a busy machine must not fail one.
             write_timeout_ms=10_000.0,
         )
@@ -77,13 +78,43 @@ async def cell(
             yield running, left, right
 
 
+@pytest.fixture
+async def cell(
+    plc_host: str, tmp_path: Path, left_robot: StaticRobot, right_robot: StaticRobot
+) -> AsyncIterator[Cell]:
+    """A cell of the test's own: for the tests that take control or write."""
+    async with two_robot_cell(plc_host, tmp_path, left_robot, right_robot) as running:
+        yield running
+
+
+@pytest_asyncio.fixture(scope="module", loop_scope="module")
+async def shared_robots() -> tuple[StaticRobot, StaticRobot]:
+    return StaticRobot(), StaticRobot()
+
+
+@pytest_asyncio.fixture(scope="module", loop_scope="module")
+async def shared_cell(
+    tmp_path_factory: pytest.TempPathFactory, shared_robots: tuple[StaticRobot, StaticRobot]
+) -> AsyncIterator[Cell]:
+    """One cell for the module's tests that only read, or whose every write is refused and
+    leaves the robots' command images as they were (each releases what it takes)."""
+    state_dir = tmp_path_factory.mktemp("shared-cell")
+    async with two_robot_cell(next_host(), state_dir, *shared_robots) as running:
+        yield running
+
+
+SHARED = pytest.mark.asyncio(loop_scope="module")
+"""The tests on ``shared_cell`` run in the module's event loop, where it runs."""
+
+
 def _valid(model: type[BaseModel], data: Any) -> Any:
     model.model_validate(data)
     return data
 
 
-async def test_robot_list_and_per_robot_reads(cell: tuple[Running, Target, Target]) -> None:
-    hmi, left, right = cell
+@SHARED
+async def test_robot_list_and_per_robot_reads(shared_cell: Cell) -> None:
+    hmi, left, right = shared_cell
     async with hmi.client() as client:
         listing = _valid(models.RobotList, (await client.get("/api/v1/robots")).json())
         robots = {r["name"]: r for r in listing["robots"]}
@@ -125,10 +156,10 @@ async def test_robot_list_and_per_robot_reads(cell: tuple[Running, Target, Targe
         models.LayoutDocument.model_validate(layout)
 
 
-async def test_unknown_robot_is_a_404_naming_the_known_ones(
-    cell: tuple[Running, Target, Target],
-) -> None:
-    hmi, _, _ = cell
+@SHARED
+async def test_unknown_robot_is_a_404_naming_the_known_ones(shared_cell: Cell) -> None:
+    hmi, _, _ = shared_cell
+    audited = (await hmi.service.store.audit_page(10, 0)).total
     token = await hmi.login(OPERATOR)
     async with hmi.client(token) as client:
         for method, path in (
@@ -161,7 +192,7 @@ async def test_unknown_robot_is_a_404_naming_the_known_ones(
     assert closed.value.rcvd.code == 4404
     assert "known: left, right" in closed.value.rcvd.reason
     # Nothing of it reached the audit trail: nobody wrote to a robot.
-    assert (await hmi.service.store.audit_page(10, 0)).total == 0
+    assert (await hmi.service.store.audit_page(10, 0)).total == audited
 
 
 async def test_control_and_writes_stay_with_their_robot(
@@ -288,13 +319,16 @@ async def test_deprecated_single_robot_paths_answer_for_the_first_robot(
         (b"{", None),
     ],
 )
+@SHARED
 async def test_malformed_write_bodies_are_422_naming_the_field_and_audited(
-    cell: tuple[Running, Target, Target],
-    right_robot: StaticRobot,
+    shared_cell: Cell,
+    shared_robots: tuple[StaticRobot, StaticRobot],
     body: bytes,
     field: str | None,
 ) -> None:
-    hmi, _, _ = cell
+    hmi, _, _ = shared_cell
+    right_robot = shared_robots[1]
+    invalid_before = _invalid_writes(await hmi.metrics(), "right")
     async with hmi.client(await hmi.login(OPERATOR)) as client:
         assert (await client.post("/api/v1/robots/right/control/take")).status_code == 200
         before = (await client.get("/api/v1/robots/right/command")).json()["image"]
@@ -307,14 +341,24 @@ async def test_malformed_write_bodies_are_422_naming_the_field_and_audited(
         assert (await client.get("/api/v1/robots/right/command")).json()["image"] == before
         assert right_robot.command_image().controlbox_do[3] is False
         rows = (await client.get("/api/v1/audit?robot=right&limit=1")).json()["items"]
+        assert (await client.post("/api/v1/robots/right/control/release")).status_code == 200
     _valid(models.AuditPage, {"items": rows, "total": 1})
-    (row,) = rows
+    (row,) = rows  # the newest
     assert (row["action"], row["outcome"], row["user"]) == ("write", "invalid", OPERATOR[0])
     assert row["reason"] == detail["reason"]
     assert row["origin"] == "PATCH /api/v1/robots/right/command"
     metrics = await hmi.metrics()
-    assert 'cobot_hmi_writes_total{outcome="invalid",robot="right"} 1.0' in metrics
-    assert re.search(r'writes_total\{outcome="invalid",robot="left"\} 0\.0', metrics)
+    assert _invalid_writes(metrics, "right") == invalid_before + 1
+    assert _invalid_writes(metrics, "left") == 0  # nobody writes to the left robot here
+
+
+def _invalid_writes(metrics: str, robot: str) -> float:
+    """``cobot_hmi_writes_total{outcome="invalid",robot=ROBOT}`` in a /metrics text."""
+    found = re.search(
+        rf'cobot_hmi_writes_total\{{outcome="invalid",robot="{robot}"\}} (\S+)', metrics
+    )
+    assert found is not None, metrics
+    return float(found[1])
 
 
 async def test_each_robot_streams_its_own_frames_and_events(
