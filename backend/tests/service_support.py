@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 import httpx
+import pytest
 import uvicorn
 
 from cobot_hmi.emulator.faults import TargetFaults
@@ -171,6 +172,21 @@ class Running:
 
 def _has_frame(robot: Any) -> bool:
     return robot.hub.latest is not None
+
+
+def hmi_fixture(**overrides: Any) -> Any:
+    """A test module's ``hmi`` fixture (``hmi = hmi_fixture(...)``): the service, with the
+    settings ``overrides``, against the test's ``target`` emulator (conftest)."""
+
+    @pytest.fixture
+    async def hmi(
+        target: Target, robot_host: str, plc_host: str, tmp_path: Path
+    ) -> AsyncIterator[Running]:
+        settings = service_settings(robot_host, target.tcp_port, plc_host, tmp_path, **overrides)
+        async with running_service(settings) as running:
+            yield running
+
+    return hmi
 
 
 @contextlib.asynccontextmanager

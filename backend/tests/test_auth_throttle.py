@@ -11,7 +11,6 @@ import asyncio
 import subprocess
 import sys
 from collections.abc import AsyncIterator
-from pathlib import Path
 
 import httpx
 import pytest
@@ -23,8 +22,7 @@ from service_support import (
     OPERATOR,
     Running,
     emulator,
-    running_service,
-    service_settings,
+    hmi_fixture,
 )
 
 pytestmark = pytest.mark.timeout(120)
@@ -38,21 +36,11 @@ async def target(robot_host: str) -> AsyncIterator[Target]:
         yield target
 
 
-@pytest.fixture
-async def hmi(
-    target: Target, robot_host: str, plc_host: str, tmp_path: Path
-) -> AsyncIterator[Running]:
-    settings = service_settings(
-        robot_host,
-        target.tcp_port,
-        plc_host,
-        tmp_path,
-        login_free_attempts=2,
-        login_delay_max_s=600.0,
-        login_user_delay_max_s=USER_DELAY_MAX_S,
-    )
-    async with running_service(settings) as running:
-        yield running
+hmi = hmi_fixture(
+    login_free_attempts=2,
+    login_delay_max_s=600.0,
+    login_user_delay_max_s=USER_DELAY_MAX_S,
+)
 
 
 def _client_at(hmi: Running, address: str) -> httpx.AsyncClient:

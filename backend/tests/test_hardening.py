@@ -31,6 +31,7 @@ from service_support import (
     OPERATOR,
     Running,
     emulator,
+    hmi_fixture,
     running_service,
     service_settings,
 )
@@ -49,21 +50,7 @@ async def target(robot_host: str, robot: StaticRobot) -> AsyncIterator[Target]:
         yield target
 
 
-@pytest.fixture
-async def hmi(
-    target: Target, robot_host: str, plc_host: str, tmp_path: Path
-) -> AsyncIterator[Running]:
-    settings = service_settings(
-        robot_host,
-        target.tcp_port,
-        plc_host,
-        tmp_path,
-        max_body_bytes=4096,
-        anonymous_write_burst=5,
-        anonymous_writes_per_s=0.01,
-    )
-    async with running_service(settings) as running:
-        yield running
+hmi = hmi_fixture(max_body_bytes=4096, anonymous_write_burst=5, anonymous_writes_per_s=0.01)
 
 
 def _origin(hmi: Running, port: int | None = None) -> Origin:

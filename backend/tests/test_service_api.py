@@ -23,6 +23,7 @@ from service_support import (
     Running,
     emulator,
     eventually,
+    hmi_fixture,
     running_service,
     service_settings,
 )
@@ -41,13 +42,7 @@ async def target(robot_host: str, robot: StaticRobot) -> AsyncIterator[Target]:
         yield target
 
 
-@pytest.fixture
-async def hmi(
-    target: Target, robot_host: str, plc_host: str, tmp_path: Path
-) -> AsyncIterator[Running]:
-    settings = service_settings(robot_host, target.tcp_port, plc_host, tmp_path)
-    async with running_service(settings) as running:
-        yield running
+hmi = hmi_fixture()
 
 
 # --------------------------------------------------------------------------- reading

@@ -28,6 +28,7 @@ from service_support import (
     Running,
     emulator,
     eventually,
+    hmi_fixture,
     running_service,
     service_settings,
 )
@@ -41,23 +42,13 @@ async def target(robot_host: str) -> AsyncIterator[Target]:
         yield target
 
 
-@pytest.fixture
-async def hmi(
-    target: Target, robot_host: str, plc_host: str, tmp_path: Path
-) -> AsyncIterator[Running]:
-    settings = service_settings(
-        robot_host,
-        target.tcp_port,
-        plc_host,
-        tmp_path,
-        ws_queue_frames=20,
-        # Stalled: one send stuck this long. A slow reader still drains the send buffer
-        # within a fraction of it; a client that stopped reading never does.
-        ws_stall_timeout_s=2.0,
-        status_interval_s=0.5,
-    )
-    async with running_service(settings) as running:
-        yield running
+hmi = hmi_fixture(
+    ws_queue_frames=20,
+    # Stalled: one send stuck this long. A slow reader still drains the send buffer
+    # within a fraction of it; a client that stopped reading never does.
+    ws_stall_timeout_s=2.0,
+    status_interval_s=0.5,
+)
 
 
 class Recorder:

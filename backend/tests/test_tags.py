@@ -27,6 +27,7 @@ from service_support import (
     OPERATOR,
     Running,
     emulator,
+    hmi_fixture,
     running_service,
     service_settings,
 )
@@ -40,13 +41,7 @@ async def target(robot_host: str) -> AsyncIterator[Target]:
         yield target_
 
 
-@pytest.fixture
-async def hmi(
-    target: Target, robot_host: str, plc_host: str, tmp_path: Path
-) -> AsyncIterator[Running]:
-    settings = service_settings(robot_host, target.tcp_port, plc_host, tmp_path)
-    async with running_service(settings) as running:
-        yield running
+hmi = hmi_fixture()
 
 
 async def test_tag_names_round_trip_json_and_csv(
