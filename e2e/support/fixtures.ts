@@ -236,15 +236,32 @@ export async function confirmIfAsked(page: Page): Promise<void> {
   if (await dialog.isVisible()) await page.getByTestId("confirm-yes").click();
 }
 
-/** Open the panel, log in as the operator and take control. */
-export async function operatorWithControl(page: Page): Promise<void> {
-  await page.goto("/");
-  await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
-  await loginInPanel(page, settings.operator);
+/**
+ * Log `user` in for `page`'s browser context as the login form would (the same request from the
+ * context, so the session cookie lands in its jar), without the form: for tests about something
+ * else. The form itself is tested where logging in is the subject (04, 10, 21, 22's phone and
+ * headers).
+ */
+export async function loggedIn(page: Page, user: { name: string; password: string }): Promise<void> {
+  const answer = await page.request.post("/api/v1/auth/login", { data: { username: user.name, password: user.password } });
+  expect(answer.status(), await answer.text()).toBe(200);
+}
+
+/** Take control in the panel (logged in as the operator) and see it held. */
+export async function takeControl(page: Page): Promise<void> {
   await page.getByTestId("take-control").click();
   await expect(page.getByTestId("control-holder")).toHaveAttribute("data-holder", settings.operator.name);
   await expect(page.getByTestId("control-holder")).toContainText(settings.operator.name);
   await expect(page.getByTestId("release-control")).toBeVisible();
+}
+
+/** Open the panel logged in as the operator (`loggedIn`) and take control. */
+export async function operatorWithControl(page: Page): Promise<void> {
+  await loggedIn(page, settings.operator);
+  await page.goto("/");
+  await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
+  await expect(page.getByTestId("current-user")).toContainText(settings.operator.name);
+  await takeControl(page);
 }
 
 /**

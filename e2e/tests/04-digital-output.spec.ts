@@ -1,12 +1,16 @@
 // Scenario 4: an operator logs in, takes control and switches DO 3 on: the toggle shows
 // pending, then on, and the emulator's status confirms the output is on; off likewise.
-import { expect, operatorWithControl, seenStates, test, watchStates } from "../support/fixtures";
+import { expect, loginInPanel, seenStates, takeControl, test, watchStates } from "../support/fixtures";
+import { settings } from "../support/settings";
 
 const DO3_INDEX = 2; // DO 1–16 are indexes 0–15 of controlbox_do
 
 test("an operator switches DO 3 on and off", async ({ page, robot, operatorApi }) => {
   await operatorApi.write({ controlbox_do: { [DO3_INDEX]: false } }); // whatever a failed run left
-  await operatorWithControl(page);
+  await page.goto("/");
+  await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
+  await loginInPanel(page, settings.operator);
+  await takeControl(page);
   const toggle = page.getByTestId("do-3");
   await expect(toggle).toHaveAttribute("data-state", "off");
   await expect(toggle).toBeEnabled();

@@ -8,8 +8,8 @@
 // The view reports what it does as attributes of its figure (components/Robot3DView.tsx):
 // data-renders, data-camera-azimuth-deg / -elevation-deg / -distance-mm, data-joints-deg,
 // data-tcp-path-points, data-tcp-path-mm.
-import AxeBuilder from "@axe-core/playwright";
 import type { Locator, Page } from "@playwright/test";
+import { seriousViolations } from "../support/a11y";
 import { expect, screenshot, test } from "../support/fixtures";
 import { settings } from "../support/settings";
 
@@ -215,14 +215,6 @@ test("on a touch screen the view's buttons are at least 44 × 44 px", async ({ b
   }
 });
 
-/** axe-core's serious and critical findings inside the 3D view. */
-async function viewViolations(page: Page): Promise<string[]> {
-  const results = await new AxeBuilder({ page }).include('[data-testid="robot-3d"]').analyze();
-  return results.violations
-    .filter((v) => v.impact === "serious" || v.impact === "critical")
-    .map((v) => `${v.id} (${v.impact}): ${v.nodes.map((n) => n.target.join(" ")).slice(0, 5).join(", ")}`);
-}
-
 for (const colorScheme of ["light", "dark"] as const) {
   test(`axe-core finds nothing serious in the 3D view, its controls or the kiosk's (${colorScheme})`, async ({ page }) => {
     test.setTimeout(180_000);
@@ -231,10 +223,10 @@ for (const colorScheme of ["light", "dark"] as const) {
     const view = await shownView(page);
     await expect(view).toHaveClass(new RegExp(`robot3d--${colorScheme}`));
     await expect(view.getByTestId("robot-3d-canvas")).toHaveAttribute("role", "application");
-    expect(await viewViolations(page), "panel").toEqual([]);
+    expect(await seriousViolations(page, '[data-testid="robot-3d"]'), "panel").toEqual([]);
     await page.goto(`/kiosk?robot=${settings.robotName}&robot3d=1`);
     await shownView(page);
-    expect(await viewViolations(page), "kiosk").toEqual([]);
+    expect(await seriousViolations(page, '[data-testid="robot-3d"]'), "kiosk").toEqual([]);
   });
 }
 

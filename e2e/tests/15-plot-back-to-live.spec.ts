@@ -112,8 +112,14 @@ test("a pan past the ring shows the recording; back to live from there", async (
   const { plot, box, y } = await openLivePlot(page);
   await page.mouse.move(box.x + box.width * 0.5, y);
   await expect(plot).toHaveAttribute("data-interactive", "true");
-  // The pan tool, then a drag to the right: the view moves most of its width into the past.
-  await page.locator(`[data-testid="${PLOT}"] .modebar-btn[data-attr="dragmode"][data-val="pan"]`).click();
+  // The pan tool (chosen once Plotly says so: a click landing as the live plot redraws its mode
+  // bar may be lost, and a person would click again), then a drag to the right: the view moves
+  // most of its width into the past.
+  const dragmode = () => plot.evaluate((el) => (el as HTMLElement & { _fullLayout?: { dragmode?: string } })._fullLayout?.dragmode);
+  await expect(async () => {
+    if ((await dragmode()) !== "pan") await page.locator(`[data-testid="${PLOT}"] .modebar-btn[data-attr="dragmode"][data-val="pan"]`).click();
+    expect(await dragmode()).toBe("pan");
+  }).toPass();
   await page.mouse.move(box.x + box.width * 0.2, y);
   await page.mouse.down();
   await page.mouse.move(box.x + box.width * 0.9, y, { steps: 8 });
@@ -127,7 +133,6 @@ test("a pan past the ring shows the recording; back to live from there", async (
   const [from_s, to_s] = [Number(await plot.getAttribute("data-from")), Number(await plot.getAttribute("data-to"))];
   expect(to_s).toBeLessThan(Date.now() / 1000 - (to_s - from_s) / 2);
   // The pan tool is still chosen once the range has come (a person pans on).
-  const dragmode = () => plot.evaluate((el) => (el as HTMLElement & { _fullLayout?: { dragmode?: string } })._fullLayout?.dragmode);
   expect(await dragmode()).toBe("pan");
   const past = await xRange(page);
   await framesFlow(page, 100);

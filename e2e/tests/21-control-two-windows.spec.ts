@@ -21,6 +21,8 @@ async function operatorInTwoWindows(browser: Browser) {
 }
 
 test("the same user in a second window sees control held by you in another window", async ({ browser }) => {
+  // Two live panels at once: generous on a busy machine.
+  test.setTimeout(240_000);
   const { a, b, close } = await operatorInTwoWindows(browser);
   try {
 
@@ -60,6 +62,7 @@ test("the same user in a second window sees control held by you in another windo
 // ended"). The window itself asked for it: it reconnects at once without showing that notice,
 // and the same user's other window keeps its own session and stream.
 test("a window's own logout reconnects quietly; the other window stays logged in", async ({ browser }) => {
+  test.setTimeout(240_000); // two live panels at once
   const { a, b, close } = await operatorInTwoWindows(browser);
   try {
     // Every reason the badge gives from now on (its title), however briefly shown.

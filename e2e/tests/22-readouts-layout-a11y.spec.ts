@@ -7,8 +7,8 @@
 // the banner whole in it; the confirmation dialog keeps focus, Escape cancels and Enter confirms (with a
 // warning during an emergency stop); axe-core finds nothing serious on the panel, the login
 // and the kiosk, light and dark.
-import AxeBuilder from "@axe-core/playwright";
 import type { Page } from "@playwright/test";
+import { seriousViolations } from "../support/a11y";
 import { expect, loginInPanel, operatorWithControl, test } from "../support/fixtures";
 import { settings } from "../support/settings";
 
@@ -338,13 +338,6 @@ test("Escape closes the dialog, focus stays inside, Enter confirms", async ({ pa
   await page.getByTestId("confirm-yes").click();
   await expect(toggle).toHaveAttribute("data-state", "off");
 });
-
-async function seriousViolations(page: Page): Promise<string[]> {
-  const results = await new AxeBuilder({ page }).analyze();
-  return results.violations
-    .filter((v) => v.impact === "serious" || v.impact === "critical")
-    .map((v) => `${v.id} (${v.impact}): ${v.nodes.map((n) => n.target.join(" ")).slice(0, 5).join(", ")}`);
-}
 
 for (const colorScheme of ["light", "dark"] as const) {
   test(`axe-core clean: login, panel and kiosk (${colorScheme})`, async ({ page }) => {

@@ -5,9 +5,9 @@
 // records from its start; the e-stop is caused here, seconds before the zoom, so the 5 minutes
 // back from now hold it. A second test: a live window fetches nothing; a long window (15 min)
 // moves with now from the recording; a custom range.
-import AxeBuilder from "@axe-core/playwright";
 import type { Page, Request } from "@playwright/test";
 import { readFile } from "node:fs/promises";
+import { seriousViolations } from "../support/a11y";
 import { expect, framesFlow, recorded, recordedUntil, test } from "../support/fixtures";
 import { settings } from "../support/settings";
 
@@ -96,8 +96,7 @@ test("a live plot: zoom back into history, the e-stop's marker, every plot jumps
   expect(last_s).toBeGreaterThan(pressed_s - 1);
 
   // Markers, range and export links pass axe-core (nothing serious).
-  const axe = await new AxeBuilder({ page }).include(`[data-testid="${PLOT}-figure"]`).analyze();
-  expect(axe.violations.filter((v) => v.impact === "serious" || v.impact === "critical").map((v) => v.id)).toEqual([]);
+  expect(await seriousViolations(page, `[data-testid="${PLOT}-figure"]`)).toEqual([]);
 
   // Clicking it jumps the plots — this one and the others of the panel — to its events and half
   // a minute either side.
