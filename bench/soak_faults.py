@@ -213,12 +213,14 @@ def _fill(path: Path) -> int:
 
 
 async def fill_state_dir(soak: Soak) -> FaultRecord:
-    """Recovery: the recorder records again (``cobot_hmi_history_recording`` back to 1, polled;
-    the time is the ``recording`` event's, when the monitor has it)."""
+    """Recovery: the recorder records again. Polled here (``cobot_hmi_history_recording`` back
+    to 1, or the monitor's ``recording`` event, whichever says so first: an upper bound on a
+    busy machine), then read from the recording at the end (its first frame after the space
+    was freed, soak_report.settle)."""
     monitor = soak.monitors[soak.cell.robots[0].name]
     path = soak.cell.state / "soak-filler.bin"
     pauses = value_of(await soak.scrape(), "cobot_hmi_history_pauses_total")
-    record = FaultRecord(DISK, "tmpfs", time.time())
+    record = FaultRecord(DISK, "tmpfs", time.time(), pending=True)
     record.bound_s = RETRY_S + RECOVERY_S
     written = await asyncio.to_thread(_fill, path)
     await asyncio.sleep(soak.fault_s)

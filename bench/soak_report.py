@@ -106,9 +106,10 @@ def settle(faults: list[FaultRecord], recordings: dict[str, Recording]) -> None:
                 fault.recovered = float(tail.max())
             else:
                 fault.recovered = first_after(rec, fault.ended)
-        elif fault.kind == DISK and fault.recovered is not None:
+        elif fault.kind == DISK:
+            fault.pending = False
             again = [first_after(rec, fault.ended) for rec in recordings.values()]
-            if all(t is not None for t in again):
+            if fault.recovered is not None and all(t is not None for t in again):
                 fault.recovered = min(fault.recovered, max(t for t in again if t is not None))
 
 
@@ -228,14 +229,18 @@ def check_writes(
     not_recorded: list[WriteRecord] = []
     unrecordable = 0
     for w in confirmed:
-        rec = recordings[w.robot]
-        first, last = np.searchsorted(rec.t, [w.sent - 0.01, w.done + 0.01])
-        if np.any(rec.outputs[first:last] == w.pattern):
+        if _shown(recordings[w.robot], w, 0.01):
             continue
         if any(a <= w.done and w.sent <= b for a, b in disk):
             unrecordable += 1
         else:
             not_recorded.append(w)
+    # A write that was not confirmed must not have reached the robot either, unless it timed
+    # out (the robot may show it later): one that did, answered with an error, is a write
+    # the writer was told failed although it took effect.
+    applied_unconfirmed = [
+        w for w in writes if w.status not in (200, 504) and _shown(recordings[w.robot], w, 2.0)
+    ]
     return {
         "attempts": len(writes),
         "confirmed": len(confirmed),
@@ -248,7 +253,15 @@ def check_writes(
         "audited_not_told": (audited - told).total(),
         "not_recorded": not_recorded,
         "unrecordable": unrecordable,
+        "applied_unconfirmed": applied_unconfirmed,
     }
+
+
+def _shown(rec: Recording, write: WriteRecord, after_s: float) -> bool:
+    """Whether a frame of the recording shows the write's outputs, from its request until
+    ``after_s`` after its answer."""
+    first, last = np.searchsorted(rec.t, [write.sent - 0.01, write.done + after_s])
+    return bool(np.any(rec.outputs[first:last] == write.pattern))
 
 
 def alarm_counts(history: list[dict[str, Any]]) -> dict[tuple[str, str], Counter[str]]:

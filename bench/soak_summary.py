@@ -19,6 +19,7 @@ from soak_cell import Cell, Sample, sample
 from soak_clients import MqttWatcher
 from soak_faults import Soak
 from soak_report import (
+    alarm_counts,
     check_writes,
     client_losses,
     recording_losses,
@@ -148,8 +149,8 @@ def print_writes(
         f"writes: {checked['attempts']} attempts, {checked['confirmed']} confirmed; answers "
         + ", ".join(f"{s or 'none'}: {n}" for s, n in sorted(checked["by_status"].items()))
     )
-    for reason, n in checked["reasons"].most_common(6):
-        print(f"    {n}× {reason}")
+    for reason, n in checked["reasons"].most_common(10):
+        print(f"    {n}× {reason or '(no reason)'}")
     print(
         f"  audit: {checked['audit_rows']} write rows, "
         + ", ".join(f"{o} {n}" for o, n in checked["audit_outcomes"].most_common())
@@ -162,6 +163,16 @@ def print_writes(
     )
     for w in (checked["not_audited"] + checked["not_recorded"])[:5]:
         print(f"    write {w.number} to {w.robot} ({w.pattern:#06x}) at {run.at(w.sent)}")
+    applied = checked["applied_unconfirmed"]
+    print(
+        f"  not confirmed to the writer but applied (the recording shows its outputs): "
+        f"{len(applied)}"
+        + "".join(
+            f"; write {w.number} to {w.robot} at {run.at(w.sent)} answered {w.status or 'none'}"
+            f" ({w.reason})"
+            for w in applied[:5]
+        )
+    )
     missing_audit, missing_rec = len(checked["not_audited"]), len(checked["not_recorded"])
     run.target(
         missing_audit == 0 and missing_rec == 0,
@@ -180,9 +191,7 @@ def print_alarms(
     """Raised vs cleared as the streams told them (the monitors see every event), beside the
     alarm history in the database: a transition it lacks could not be stored (while the disk
     was full; counted in ``alarm_write_errors_total``)."""
-    stored: dict[tuple[str, str], Counter[str]] = {}
-    for row in rows:
-        stored.setdefault((row["robot"], row["key"]), Counter())[row["transition"]] += 1
+    stored = alarm_counts(rows)
     seen = stream_alarm_counts(soak.monitors)
     keys = sorted({(robot, key) for robot, key, _ in seen} | set(stored))
     print("alarms (raised, cleared on the streams; in brackets the alarm history's):")
