@@ -10,6 +10,7 @@ from __future__ import annotations
 import asyncio
 import subprocess
 import sys
+import time
 from collections.abc import AsyncIterator
 
 import httpx
@@ -61,6 +62,7 @@ async def test_a_guesser_elsewhere_cannot_lock_a_user_out(hmi: Running) -> None:
         # waited out: refused attempts do not count).
         failures = 0
         while True:
+            asked_at = time.monotonic()
             answer = await _login(guesser, "not-the-password")
             if answer.status_code == 429:
                 wait_s = int(answer.headers["retry-after"])
@@ -80,10 +82,17 @@ async def test_a_guesser_elsewhere_cannot_lock_a_user_out(hmi: Running) -> None:
                 assert int(answer.headers["retry-after"]) <= USER_DELAY_MAX_S
                 await asyncio.sleep(USER_DELAY_MAX_S)
             assert answer.status_code == 200, answer.text
-        # The guesser is still held back, even with the right password.
+        # The guesser is still held back, even with the right password: by its own address's
+        # wait, what is left of it (not the user's short one). The throttle runs on real time:
+        # what is left is reckoned from the clock (Retry-After is whole seconds, rounded up),
+        # so a machine busy for seconds in between only makes it smaller.
         answer = await _login(guesser, OPERATOR[1])
-        assert answer.status_code == 429
-        assert int(answer.headers["retry-after"]) > USER_DELAY_MAX_S
+        left_s = wait_s - 1 - (time.monotonic() - asked_at)
+        if left_s > 0:
+            assert answer.status_code == 429, answer.text
+            assert int(answer.headers["retry-after"]) >= left_s
+        else:  # (this side stalled for longer than the wait itself)
+            assert answer.status_code in (200, 429), answer.text
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess[str]:

@@ -151,19 +151,29 @@ async def test_broker_restart_replays_the_buffer_as_historical(
             SLOW_S,
         )
         await eventually(lambda: edge.buffer.records_buffered == 0, SLOW_S)
+
+        def historical_after_rebirth(messages: list[Message]) -> list[tuple[Any, int | None]]:
+            after = messages[messages.index(c.subscriber.of("NBIRTH")[1]) :]
+            return [
+                (metric.value, metric.timestamp)
+                for m in after
+                if m.kind == "DDATA" and m.device == "m1013"
+                for metric in m.metrics
+                if metric.alias == alias and metric.is_historical
+            ]
+
+        # Sent from the buffer is not yet received: wait until the subscriber has them all.
+        await c.subscriber.wait_for(
+            lambda ms: len(historical_after_rebirth(ms)) >= len(expected), SLOW_S
+        )
         messages = c.subscriber.snapshot()
         assert bd_seq(c.subscriber.of("NBIRTH")[1]) == (first_bd_seq + 1) % 256
         # After the reconnect: NBIRTH, both DBIRTHs, then the history.
         after = messages[messages.index(c.subscriber.of("NBIRTH")[1]) :]
         assert [m.kind for m in after[:3]] == ["NBIRTH", "DBIRTH", "DBIRTH"]
-        historical = [
-            (metric.value, metric.timestamp)
-            for m in after
-            if m.kind == "DDATA" and m.device == "m1013"
-            for metric in m.metrics
-            if metric.alias == alias and metric.is_historical
-        ]
-        assert historical == expected  # every transition of the outage, in order, as it was
+        # Every transition of the outage, in order, as it was.
+        historical = historical_after_rebirth(messages)
+        assert historical == expected
         # Live data after the replay is not historical, and DI 5 reads the same as the robot.
         live = reported(c.subscriber.snapshot(), "m1013", alias)
         assert live[-1][0] == c.frames_seen("m1013")[-1][2].controlbox_di[4]
