@@ -11,15 +11,9 @@
 // for the 10-minute figure). Only loopback addresses are used.
 import { spawn } from "node:child_process";
 import { mkdtempSync, readdirSync, readFileSync, rmSync, writeFileSync } from "node:fs";
-import { createRequire } from "node:module";
-import net from "node:net";
-import { loadavg, tmpdir } from "node:os";
-import { dirname, join, resolve } from "node:path";
-import { fileURLToPath } from "node:url";
-
-const root = resolve(dirname(fileURLToPath(import.meta.url)), "..");
-const require = createRequire(join(root, "frontend", "package.json"));
-const { chromium } = require("playwright-core");
+import { tmpdir } from "node:os";
+import { join, resolve } from "node:path";
+import { CHROMIUM, CHROMIUM_ARGS, chromium, freePort, load, loopbackPair, option, root, sleep } from "./ui_support.mjs";
 
 const TARGET_FPS = 50;
 /** Redraws per second each plot in view must reach (monitoring values refresh every 100 ms). */
@@ -27,10 +21,6 @@ const TARGET_PLOT_REDRAWS = 10;
 const TARGET_HEAP_GROWTH = 0.1;
 const HEAP_FIRST_S = 10;
 
-function option(name, fallback) {
-  const i = process.argv.indexOf(`--${name}`);
-  return i >= 0 && process.argv[i + 1] !== undefined ? Number(process.argv[i + 1]) : fallback;
-}
 const seconds = option("seconds", 60);
 const rpiMs = option("rpi-ms", 10);
 const kioskSeconds = option("kiosk-seconds", 60);
@@ -50,8 +40,6 @@ const traceFile = traceIdx >= 0 ? process.argv[traceIdx + 1] : undefined;
 const distIdx = process.argv.indexOf("--frontend-dir");
 const frontendDir = distIdx >= 0 ? resolve(process.argv[distIdx + 1]) : join(root, "frontend", "dist");
 
-/** The load average now, printed with every figure: the machine may be shared. */
-const load = () => loadavg().map((l) => l.toFixed(2)).join(" ");
 
 /**
  * CPU time (ms) of the browser's processes by thread name (Linux /proc): the renderer's main
@@ -98,16 +86,6 @@ function browserCpu_ms() {
   return byThread;
 }
 
-function freePort(host) {
-  return new Promise((resolvePort, reject) => {
-    const server = net.createServer();
-    server.once("error", reject);
-    server.listen(0, host, () => {
-      const { port } = server.address();
-      server.close(() => resolvePort(port));
-    });
-  });
-}
 
 /**
  * The page's JS heap (MB) right after a full GC, read in the same task as the GC: Chrome's
@@ -124,7 +102,6 @@ const liveHeapMb = (page) =>
     return performance.memory.usedJSHeapSize / 1e6;
   });
 
-const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
 async function waitReady(url, deadlineMs) {
   const end = Date.now() + deadlineMs;
@@ -140,11 +117,7 @@ async function waitReady(url, deadlineMs) {
   throw new Error(`${url} not ready within ${deadlineMs} ms`);
 }
 
-// 127.<a>.<b>.x: <a> from the process id keeps concurrent runs apart (as the tests do).
-const a = (process.pid % 200) + 20;
-const b = 200 + (process.pid % 50);
-const serviceHost = `127.${a}.${b}.1`;
-const robotHost = `127.${a}.${b}.2`;
+const { serviceHost, robotHost } = loopbackPair(200);
 const httpPort = await freePort(serviceHost);
 const controlPort = await freePort(robotHost);
 const stateDir = mkdtempSync(join(tmpdir(), "cobot-hmi-bench-ui-"));
@@ -194,13 +167,9 @@ let exitCode = 0;
 try {
   await waitReady(`${base}/readyz`, 30_000);
   browser = await chromium.launch({
-    executablePath: "/usr/bin/chromium",
+    executablePath: CHROMIUM,
     args: [
-      "--no-sandbox",
-      "--disable-gpu",
-      "--disable-background-networking",
-      "--disable-component-update",
-      "--no-first-run",
+      ...CHROMIUM_ARGS,
       // For liveHeapMb(): gc() in the page, and performance.memory unrounded.
       "--js-flags=--expose-gc",
       "--enable-precise-memory-info",
