@@ -255,12 +255,17 @@ export async function takeControl(page: Page): Promise<void> {
   await expect(page.getByTestId("release-control")).toBeVisible();
 }
 
-/** Open the panel logged in as the operator (`loggedIn`) and take control. */
-export async function operatorWithControl(page: Page): Promise<void> {
+/** Open the panel, live, logged in as the operator (`loggedIn`). */
+export async function operatorPanel(page: Page): Promise<void> {
   await loggedIn(page, settings.operator);
   await page.goto("/");
   await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
   await expect(page.getByTestId("current-user")).toContainText(settings.operator.name);
+}
+
+/** Open the panel logged in as the operator and take control. */
+export async function operatorWithControl(page: Page): Promise<void> {
+  await operatorPanel(page);
   await takeControl(page);
 }
 

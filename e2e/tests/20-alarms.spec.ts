@@ -5,7 +5,7 @@
 // the list, the history keeps every transition). Shelving (a reason is required) takes an alarm
 // off both banners while it stays listed; unshelving brings it back.
 import type { Page } from "@playwright/test";
-import { expect, loggedIn, messageAt, noteMessage, screenshot, test, watchMessages, type Service } from "../support/fixtures";
+import { expect, messageAt, noteMessage, operatorPanel, screenshot, test, watchMessages, type Service } from "../support/fixtures";
 import { settings } from "../support/settings";
 
 const ESTOP_ID = `${settings.robotName}:emergency_stop`;
@@ -63,10 +63,7 @@ test("an emergency stop raises the alarm banner within 1 s and acknowledging cle
   test.setTimeout(120_000);
   await acknowledgeAll(operatorApi);
   await watchMessages(page);
-  await loggedIn(page, settings.operator);
-  await page.goto("/");
-  await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
-  await expect(page.getByTestId("current-user")).toContainText(settings.operator.name);
+  await operatorPanel(page);
   await expect(page.locator(`[data-testid="alarm-row"][data-alarm="${ESTOP_ID}"]`)).toHaveCount(0);
   await noteBanner(page, ESTOP_ID);
   await noteMessage(page, "alarm", new RegExp(`"kind":\\s*"alarm".*"id":\\s*"${ESTOP_ID}"`));
@@ -140,10 +137,7 @@ test("a shelved alarm stays listed but leaves the banners; unshelved, it is back
   // Generous: on a loaded machine the panel redraws its plots slowly (no timing is asserted here).
   test.setTimeout(120_000);
   await acknowledgeAll(operatorApi);
-  await loggedIn(page, settings.operator);
-  await page.goto("/");
-  await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
-  await expect(page.getByTestId("current-user")).toContainText(settings.operator.name);
+  await operatorPanel(page);
   await robot.estop();
   const banner = page.getByTestId("alarm-banner");
   await expect(banner).toHaveAttribute("data-alarm", ESTOP_ID);
