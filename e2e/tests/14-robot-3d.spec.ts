@@ -32,9 +32,11 @@ interface Camera {
   readonly distance_mm: number;
 }
 
-/** The camera the view reports, read in one go (a busy page answers each question slowly). */
+/**
+ * The camera the view reports, read in one go (a busy page answers each question slowly); the
+ * test waits for the view's first report before reading it.
+ */
 async function cameraOf(view: Locator): Promise<Camera> {
-  await expect(view).toHaveAttribute("data-camera-distance-mm", /^\d+$/);
   return view.evaluate((el) => ({
     azimuth_deg: Number(el.getAttribute("data-camera-azimuth-deg")),
     elevation_deg: Number(el.getAttribute("data-camera-elevation-deg")),
@@ -107,6 +109,7 @@ test("the camera turns and zooms by mouse, keyboard and buttons; reset returns h
   test.setTimeout(120_000);
   await page.goto(`/?robot=${settings.robotName}`);
   const view = await shownView(page);
+  await expect(view).toHaveAttribute("data-camera-distance-mm", /^\d+$/);
   const home = await cameraOf(view);
   const near = (a: number, b: number, slack: number) => Math.abs(a - b) <= slack;
   const resetHome = async (how: () => Promise<void>) => {

@@ -3,7 +3,7 @@
 // "held by you in another window", has no Release and no Take control, and its toggles stay
 // disabled — whether it learns of the control live (an event) or from its hello (a reload).
 import type { Browser } from "@playwright/test";
-import { expect, loginInPanel, test } from "../support/fixtures";
+import { expect, operatorPanel, test } from "../support/fixtures";
 import { baseURL, settings } from "../support/settings";
 
 /** The operator logged in in two windows: two contexts, two cookie jars, two login sessions. */
@@ -12,11 +12,9 @@ async function operatorInTwoWindows(browser: Browser) {
   const second = await browser.newContext({ baseURL, viewport: { width: 1600, height: 1000 } });
   const a = await first.newPage();
   const b = await second.newPage();
-  for (const page of [a, b]) {
-    await page.goto("/");
-    await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
-    await loginInPanel(page, settings.operator);
-  }
+  // Each window's own login session (the form's request from each context; the form itself is
+  // 04's, 10's and 22's subject).
+  await Promise.all([a, b].map((page) => operatorPanel(page)));
   return { a, b, close: async () => Promise.all([first.close(), second.close()]) };
 }
 
