@@ -88,7 +88,12 @@ export const settings = {
   /** The built frontend the service serves. */
   frontendDir: env("E2E_FRONTEND_DIR", path.join(REPO_DIR, "frontend", "dist")),
   /** Fresh for each run: each cell's users file, database and recording in a directory of its own. */
-  stateDir: once("E2E_STATE_DIR", () => mkdtempSync(path.join(tmpdir(), "cobot-hmi-e2e-"))),
+  stateDir: once("E2E_STATE_DIR", () => {
+    // Made here, so removed at the end of the run (support/teardown.ts); a directory given in
+    // E2E_STATE_DIR is the caller's own and stays.
+    process.env.E2E_STATE_DIR_MADE = "1";
+    return mkdtempSync(path.join(tmpdir(), "cobot-hmi-e2e-"));
+  }),
   operator: { name: "e2e-operator", password: once("E2E_OPERATOR_PASSWORD", () => randomBytes(12).toString("hex")) },
   viewer: { name: "e2e-viewer", password: once("E2E_VIEWER_PASSWORD", () => randomBytes(12).toString("hex")) },
 } as const;
