@@ -57,6 +57,8 @@ from soak_summary import (
 from cobot_hmi.service.recorder import RETRY_S
 
 MONITOR_RATE_HZ = 100
+WARM_UP_MAX_S = 30.0
+SETTLE_S = 5.0
 
 
 async def main_async(args: argparse.Namespace, cell: Cell) -> int:
@@ -103,8 +105,10 @@ async def main_async(args: argparse.Namespace, cell: Cell) -> int:
         # The monitors watch on until the report has what it needs (alarms clear late).
         watching = asyncio.Event()
         watch = [asyncio.create_task(m.run(watching)) for m in monitors.values()]
-        sampler = asyncio.create_task(run.minutes(stop))
         try:
+            await _warm_up(clients, monitors)
+            run.started = time.time()
+            tasks.append(asyncio.create_task(run.minutes(stop)))
             for number, at in enumerate(fault_times):
                 await asyncio.sleep(max(0.0, run.started + at - time.time()))
                 if not _service_alive(run):
@@ -131,7 +135,7 @@ async def main_async(args: argparse.Namespace, cell: Cell) -> int:
                 with contextlib.suppress(TimeoutError):
                     await asyncio.wait_for(stop.wait(), max(0.0, min(1.0, left)))
             stop.set()
-            await asyncio.gather(*tasks, sampler, return_exceptions=True)
+            await asyncio.gather(*tasks, return_exceptions=True)
             watcher.stop()
             if cell.service is None or cell.service.poll() is not None:
                 print("bench/soak: the service is gone; no report. See its log.")
@@ -140,9 +144,19 @@ async def main_async(args: argparse.Namespace, cell: Cell) -> int:
         finally:
             stop.set()
             watching.set()
-            await asyncio.gather(*tasks, *watch, sampler, return_exceptions=True)
+            await asyncio.gather(*tasks, *watch, return_exceptions=True)
             watcher.stop()
     return 1 if run.failures else 0
+
+
+async def _warm_up(
+    clients: dict[str, list[StreamClient]], monitors: dict[str, StreamClient]
+) -> None:
+    """The run starts once every client reads frames and the start-up has settled (losses
+    before it are shown apart, not judged)."""
+    readers = [c for group in clients.values() for c in group] + list(monitors.values())
+    await asyncio.gather(*(c.first_frame_after(0.0, WARM_UP_MAX_S) for c in readers))
+    await asyncio.sleep(SETTLE_S)
 
 
 def _service_alive(run: Run) -> bool:

@@ -10,7 +10,8 @@ The ``Writer`` logs in as an operator, holds control of every robot and makes on
 in turn to each robot: all sixteen ControlBox outputs set to the write's number (mod 2¹⁶), so each
 write's image is its own and can be found again in the audit and in the recording.
 
-The ``MqttWatcher`` subscribes to ``spBv1.0/#`` on the local broker and counts what arrives.
+The ``MqttWatcher`` subscribes to ``spBv1.0/#`` on the local broker and counts what arrives;
+a ``BirthProbe`` waits for the edge node's birth after a broker restart.
 """
 
 from __future__ import annotations
@@ -305,3 +306,33 @@ class MqttWatcher:
             self.historical += historical
             if kind == "NBIRTH":
                 self.node_births.append(time.time())
+
+
+@dataclass
+class BirthProbe:
+    """A subscriber to NBIRTH alone, connected the moment a restarted broker accepts
+    connections: it is in before the edge node's first reconnect attempt (paho waits at least
+    a second), so the time its birth arrives is the service's recovery, to the millisecond."""
+
+    host: str
+    port: int
+    born_at: float | None = None
+    client: mqtt.Client | None = None
+
+    def start(self) -> None:
+        client = mqtt.Client(CallbackAPIVersion.VERSION2, protocol=mqtt.MQTTv311)
+        client.on_message = self._on_message
+        client.connect(self.host, self.port)
+        client.subscribe("spBv1.0/+/NBIRTH/+", qos=0)
+        client.loop_start()
+        self.client = client
+
+    def stop(self) -> None:
+        if self.client is not None:
+            self.client.disconnect()
+            self.client.loop_stop()
+            self.client = None
+
+    def _on_message(self, *_: object) -> None:
+        if self.born_at is None:
+            self.born_at = time.time()

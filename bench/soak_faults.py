@@ -20,7 +20,7 @@ from pathlib import Path
 import httpx
 from service_bench_support import metrics, value_of
 from soak_cell import READY_POLL_S, Cell
-from soak_clients import StreamClient, Writer
+from soak_clients import BirthProbe, StreamClient, Writer
 
 from cobot_hmi.service.recorder import RETRY_S
 from cobot_hmi.sparkplug.mqtt_client import RECONNECT_MAX_S, RECONNECT_MIN_S
@@ -148,16 +148,29 @@ async def restart_broker(soak: Soak) -> FaultRecord:
     down_s = record.ended - record.started
     record.bound_s = _broker_bound_s(down_s)
     record.notes.append(f"broker down {down_s:.2f} s")
-    deadline = record.ended + RECOVERY_WAIT_S
-    while time.time() < deadline:
-        now = await soak.scrape()
-        if (
-            value_of(now, "cobot_hmi_sparkplug_reconnects_total") > reconnects
-            and value_of(now, "cobot_hmi_sparkplug_born") == 1
-        ):
-            record.recovered = time.time()
-            break
-        await asyncio.sleep(0.05)
+    probe = BirthProbe(broker.host, broker.port)
+    await asyncio.to_thread(probe.start)
+    try:
+        # The probe's NBIRTH is exact; /metrics (born again after a reconnect) is the fallback
+        # when the edge node got in first, an upper bound (a scrape takes its time).
+        deadline = record.ended + RECOVERY_WAIT_S
+        while time.time() < deadline and probe.born_at is None:
+            now = await soak.scrape()
+            if (
+                value_of(now, "cobot_hmi_sparkplug_reconnects_total") > reconnects
+                and value_of(now, "cobot_hmi_sparkplug_born") == 1
+            ):
+                record.recovered = time.time()
+                break
+            await asyncio.sleep(0.05)
+        if probe.born_at is None and record.recovered is not None:
+            await asyncio.sleep(0.5)  # its NBIRTH may still be on its way to the probe
+        if probe.born_at is not None:
+            record.recovered = probe.born_at
+        else:
+            record.notes.append("the edge node was born before the probe subscribed: polled")
+    finally:
+        await asyncio.to_thread(probe.stop)
     return record
 
 

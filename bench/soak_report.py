@@ -29,7 +29,8 @@ from soak_clients import OUTPUTS, WIRE_RESTART_STEP, StreamClient, WriteRecord
 from soak_faults import DISK, KILL, LOSS, LOSS_SETTLE_S, RECOVERY_S, STALL, FaultRecord
 
 EXPECTED, OTHER, OUTSIDE = "the fault's own", "in another fault's window", "outside faults"
-HEAPS = (EXPECTED, OTHER, OUTSIDE)
+STARTUP = "while starting"
+HEAPS = (EXPECTED, OTHER, OUTSIDE, STARTUP)
 RECORDER_LAG_S = 2.0
 """A full disk can cost the frames of the batch being written when it filled (flushed every
 1–1.5 s): the disk fault's window opens this much before the disk filled."""
@@ -114,10 +115,13 @@ def settle(faults: list[FaultRecord], recordings: dict[str, Recording]) -> None:
 
 
 class Heaps:
-    """Frames lost, by heap (the fault's own, another fault's window, outside faults)."""
+    """Frames lost, by heap: the fault's own, another fault's window, outside faults, or while
+    starting (before ``started``: the service up, the clients connecting; not judged)."""
 
-    def __init__(self, own: list[tuple[float, float]], every: list[tuple[float, float]]) -> None:
-        self.own, self.every = own, every
+    def __init__(
+        self, own: list[tuple[float, float]], every: list[tuple[float, float]], started: float
+    ) -> None:
+        self.own, self.every, self.started = own, every, started
         self.frames: Counter[str] = Counter()
         self.events: Counter[str] = Counter()
         self.outside_at: list[float] = []
@@ -125,7 +129,9 @@ class Heaps:
     def add(self, t: float, frames: int, own: list[tuple[float, float]] | None = None) -> None:
         """A loss of ``frames`` at ``t``; ``own``: this loss's own fault windows, if not the
         heaps'."""
-        if any(a <= t <= b for a, b in (self.own if own is None else own)):
+        if t < self.started:
+            heap = STARTUP
+        elif any(a <= t <= b for a, b in (self.own if own is None else own)):
             heap = EXPECTED
         elif any(a <= t <= b for a, b in self.every):
             heap = OTHER
@@ -136,7 +142,11 @@ class Heaps:
         self.events[heap] += 1
 
     def text(self) -> str:
-        return ", ".join(f"{self.frames[h]} {h} ({self.events[h]} gaps)" for h in HEAPS)
+        return ", ".join(
+            f"{self.frames[h]} {h} ({self.events[h]} gaps)"
+            for h in HEAPS
+            if h != STARTUP or self.frames[h]
+        )
 
 
 def every_window(faults: list[FaultRecord]) -> list[tuple[float, float]]:
@@ -152,14 +162,19 @@ def disk_windows(faults: list[FaultRecord]) -> list[tuple[float, float]]:
 
 
 def recording_losses(
-    rec: Recording, faults: list[FaultRecord], robot: str, *, retention_deleted: bool
+    rec: Recording,
+    faults: list[FaultRecord],
+    robot: str,
+    *,
+    started: float,
+    retention_deleted: bool,
 ) -> dict[str, Any]:
     """Frames the recorder did not keep and packets the wire lost, in heaps. Frames before the
     first one kept are a loss unless retention deleted segments (then they are its)."""
     every = every_window(faults)
-    recorder = Heaps(disk_windows(faults), every)
-    wire = Heaps(wire_windows(faults, robot), every)
-    restarts = Heaps(wire_windows(faults, robot), every)
+    recorder = Heaps(disk_windows(faults), every, started)
+    wire = Heaps(wire_windows(faults, robot), every, started)
+    restarts = Heaps(wire_windows(faults, robot), every, started)
     before_first = int(rec.seq[0] - 1) if len(rec.seq) else 0
     if before_first and not retention_deleted:
         recorder.add(float(rec.t[0]), before_first)
@@ -186,13 +201,16 @@ def recording_losses(
 
 
 def client_losses(
-    clients: dict[str, list[StreamClient]], faults: list[FaultRecord], stall_robot: str
+    clients: dict[str, list[StreamClient]],
+    faults: list[FaultRecord],
+    stall_robot: str,
+    started: float,
 ) -> Heaps:
     """Frames WebSocket clients missed (``seq`` steps), in heaps: the stalled client's during
     its stall are the fault's own."""
     every = every_window(faults)
     stalls = [f.window(0.0, 0.5) for f in faults if f.kind == STALL]
-    heaps = Heaps([], every)
+    heaps = Heaps([], every, started)
     for robot, group in clients.items():
         for client in group:
             own = stalls if (robot, client.index) == (stall_robot, 0) else []

@@ -19,6 +19,7 @@ from soak_cell import Cell, Sample, sample
 from soak_clients import MqttWatcher
 from soak_faults import Soak
 from soak_report import (
+    OUTSIDE,
     alarm_counts,
     check_writes,
     client_losses,
@@ -106,7 +107,9 @@ def print_frames(
     outside = 0
     deleted = value_of(final, "cobot_hmi_history_retention_deleted_segments_total") > 0
     for robot, rec in recordings.items():
-        losses = recording_losses(rec, soak.faults, robot, retention_deleted=deleted)
+        losses = recording_losses(
+            rec, soak.faults, robot, started=run.started, retention_deleted=deleted
+        )
         received, recorded = losses["received"], losses["recorded"]
         if losses["deleted"]:
             print(f"  {robot}: the first {losses['deleted']} frames deleted by retention")
@@ -126,18 +129,18 @@ def print_frames(
         )
         if losses["backwards"]:
             print(f"    seq went backwards {losses['backwards']}×")
-        outside += losses["recorder"].frames["outside faults"]
-        outside += losses["wire"].frames["outside faults"] + losses["backwards"]
-        outside += losses["restarts"].frames["outside faults"]
+        outside += losses["recorder"].frames[OUTSIDE]
+        outside += losses["wire"].frames[OUTSIDE] + losses["backwards"]
+        outside += losses["restarts"].frames[OUTSIDE]
         for heap in (losses["recorder"], losses["wire"], losses["restarts"]):
             for t in heap.outside_at[:5]:
                 print(f"    outside faults at {run.at(t)}")
-    ws = client_losses(soak.clients, soak.faults, soak.stall_robot)
+    ws = client_losses(soak.clients, soak.faults, soak.stall_robot, run.started)
     frames = sum(c.frames for group in soak.clients.values() for c in group)
     print(f"  WebSocket clients: {frames} frames read; missed {ws.text()}")
     for t in ws.outside_at[:5]:
         print(f"    a client missed frames outside faults at {run.at(t)}")
-    outside += ws.frames["outside faults"]
+    outside += ws.frames[OUTSIDE]
     run.target(outside == 0, f"frames lost outside the injected faults: {outside}")
 
 
