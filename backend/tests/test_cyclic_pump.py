@@ -103,16 +103,20 @@ async def test_queued_datagrams_leave_in_due_order_and_can_be_taken_back(
 ) -> None:
     sender, received = pair
     peer = sender.peer  # type: ignore[attr-defined]
-    now = asyncio.get_running_loop().time()
-    for label, delay_s in ((b"c", 0.06), (b"a", 0.02), (b"b", 0.04), (b"x", 0.5), (b"y", 0.6)):
+    loop = asyncio.get_running_loop()
+    now = loop.time()
+    # Due half a second on: all is queued (and x, y taken back) by a few calls without an
+    # await between them, long before, however busy the machine.
+    dues = ((b"c", 0.56), (b"a", 0.52), (b"b", 0.54), (b"x", 1.0), (b"y", 1.1))
+    for label, delay_s in dues:
         sender.send_at(now + delay_s, label, peer, tag=7 if label in b"xy" else 1)
     assert sender.queued(7) == 2
     count, first_due = sender.cancel(7)
     assert count == 2
-    assert first_due == pytest.approx(now + 0.5, abs=1e-6)
+    assert first_due == pytest.approx(now + 1.0, abs=1e-6)
     await eventually(lambda: len(received) == 3)
     assert [d for d, _, _ in received] == [b"a", b"b", b"c"]
-    await asyncio.sleep(0.7)
+    await asyncio.sleep(now + 1.2 - loop.time())  # past the due times of x and y
     assert len(received) == 3, "what was taken back never left"
     assert sender.counters()["sent"] == 3
 
@@ -243,8 +247,17 @@ async def test_watching_in_batches_wakes_the_owner_once_per_batch(plc_host: str)
         await eventually(lambda: len(received) == 20)
     finally:
         endpoint.close()
-    assert len(batches) <= 3, f"20 datagrams in {len(batches)} wake-ups"
     assert [d[0] for d, _, _ in received] == list(range(20))
+    # Once per batch window (50 ms from a batch's first datagram), counted on the kernel's
+    # arrival times: a busy machine may spread the sends over more windows, never more
+    # wake-ups than windows (one more where a datagram lands while a batch is handed on).
+    windows, opened = 0, -1.0
+    for _, _, arrived in received:
+        if arrived >= opened + 0.05:
+            windows, opened = windows + 1, arrived
+    assert len(batches) <= windows + 1, (
+        f"20 datagrams in {len(batches)} wake-ups, {windows} windows"
+    )
 
 
 async def test_silence_wakes_the_owner_once(plc_host: str) -> None:
