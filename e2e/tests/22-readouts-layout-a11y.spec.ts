@@ -5,10 +5,9 @@
 // 1440 × 920, in short windows (1366 × 657, 1024 × 600), on a tablet (768 × 1024) and on a phone held sideways
 // (844 × 390), the header with an alarm within a fifth of the height,
 // the banner whole in it; the confirmation dialog keeps focus, Escape cancels and Enter confirms (with a
-// warning during an emergency stop); axe-core finds nothing serious on the panel, the login
-// and the kiosk, light and dark.
+// warning during an emergency stop). (axe-core's audits of the panel, the login and the kiosk:
+// 11-accessibility.spec.ts.)
 import type { Page } from "@playwright/test";
-import { seriousViolations } from "../support/a11y";
 import { expect, loginInPanel, operatorWithControl, test } from "../support/fixtures";
 import { settings } from "../support/settings";
 
@@ -338,26 +337,6 @@ test("Escape closes the dialog, focus stays inside, Enter confirms", async ({ pa
   await page.getByTestId("confirm-yes").click();
   await expect(toggle).toHaveAttribute("data-state", "off");
 });
-
-for (const colorScheme of ["light", "dark"] as const) {
-  test(`axe-core clean: login, panel and kiosk (${colorScheme})`, async ({ page }) => {
-    // An audit of a page that redraws plots and numbers all the time is slow on a busy machine.
-    test.setTimeout(300_000);
-    await page.emulateMedia({ colorScheme });
-    await page.goto("/");
-    await expect(page.getByTestId("login-username")).toBeVisible();
-    await expect(page.getByTestId("joint-table")).toHaveAttribute("data-frames", /[1-9]/);
-    expect(await page.evaluate(() => document.documentElement.dataset.theme)).toBe(colorScheme);
-    expect(await seriousViolations(page), "login and panel").toEqual([]);
-
-    await operatorWithControl(page);
-    expect(await seriousViolations(page), "panel with control").toEqual([]);
-
-    await page.goto("/kiosk");
-    await expect(page.getByTestId("robot-state")).toHaveAttribute("data-state-name", /.+/);
-    expect(await seriousViolations(page), "kiosk").toEqual([]);
-  });
-}
 
 test("the theme switch is remembered", async ({ page }) => {
   await page.emulateMedia({ colorScheme: "light" });
