@@ -260,26 +260,33 @@ def _reason(answer: httpx.Response) -> str:
 
 
 @dataclass
-class MqttWatcher:
-    """``spBv1.0/#`` on the local broker: messages by type, births' times, historical DDATA."""
+class Subscriber:
+    """A paho client of the local broker on its own network thread."""
 
     host: str
     port: int
-    counts: dict[str, int] = field(default_factory=dict)
-    node_births: list[float] = field(default_factory=list)
-    historical: int = 0
-    connects: int = 0
-    lock: threading.Lock = field(default_factory=threading.Lock)
     client: mqtt.Client | None = None
 
-    def start(self) -> None:
+    def _open(self, topic: str, *, resubscribe: bool = False) -> None:
+        """Connect, subscribe to ``topic`` (again after each reconnect: ``resubscribe``)."""
         client = mqtt.Client(CallbackAPIVersion.VERSION2, protocol=mqtt.MQTTv311)
-        client.reconnect_delay_set(1, 2)
-        client.on_connect = self._on_connect
         client.on_message = self._on_message
+        if resubscribe:
+            client.reconnect_delay_set(1, 2)
+            client.on_connect = lambda c, *_: self._on_connect(c, topic)
         client.connect(self.host, self.port)
+        if not resubscribe:
+            client.subscribe(topic, qos=0)
         client.loop_start()
         self.client = client
+
+    def _on_connect(self, client: mqtt.Client, topic: str) -> None:
+        client.subscribe(topic, qos=0)
+
+    def _on_message(
+        self, _client: mqtt.Client, _userdata: object, message: mqtt.MQTTMessage
+    ) -> None:
+        raise NotImplementedError
 
     def stop(self) -> None:
         if self.client is not None:
@@ -287,10 +294,25 @@ class MqttWatcher:
             self.client.loop_stop()
             self.client = None
 
-    def _on_connect(self, client: mqtt.Client, *_: object) -> None:
+
+@dataclass
+class MqttWatcher(Subscriber):
+    """``spBv1.0/#`` on the local broker: messages by type, births' times, historical DDATA;
+    it subscribes again after each reconnect."""
+
+    counts: dict[str, int] = field(default_factory=dict)
+    node_births: list[float] = field(default_factory=list)
+    historical: int = 0
+    connects: int = 0
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def start(self) -> None:
+        self._open("spBv1.0/#", resubscribe=True)
+
+    def _on_connect(self, client: mqtt.Client, topic: str) -> None:
         with self.lock:
             self.connects += 1
-        client.subscribe("spBv1.0/#", qos=0)
+        super()._on_connect(client, topic)
 
     def _on_message(
         self, _client: mqtt.Client, _userdata: object, message: mqtt.MQTTMessage
@@ -309,30 +331,18 @@ class MqttWatcher:
 
 
 @dataclass
-class BirthProbe:
+class BirthProbe(Subscriber):
     """A subscriber to NBIRTH alone, connected the moment a restarted broker accepts
     connections: it is in before the edge node's first reconnect attempt (paho waits at least
     a second), so the time its birth arrives is the service's recovery, to the millisecond."""
 
-    host: str
-    port: int
     born_at: float | None = None
-    client: mqtt.Client | None = None
 
     def start(self) -> None:
-        client = mqtt.Client(CallbackAPIVersion.VERSION2, protocol=mqtt.MQTTv311)
-        client.on_message = self._on_message
-        client.connect(self.host, self.port)
-        client.subscribe("spBv1.0/+/NBIRTH/+", qos=0)
-        client.loop_start()
-        self.client = client
+        self._open("spBv1.0/+/NBIRTH/+")
 
-    def stop(self) -> None:
-        if self.client is not None:
-            self.client.disconnect()
-            self.client.loop_stop()
-            self.client = None
-
-    def _on_message(self, *_: object) -> None:
+    def _on_message(
+        self, _client: mqtt.Client, _userdata: object, message: mqtt.MQTTMessage
+    ) -> None:
         if self.born_at is None:
             self.born_at = time.time()
