@@ -140,7 +140,16 @@ class OriginatorSettings:
     would have us send a datagram per microsecond, one granting hours would leave a dead
     connection looking alive."""
     backoff_initial_s: float = 0.1
-    backoff_max_s: float = 5.0
+    backoff_max_s: float = 1.0
+    """Longest wait between two attempts at an absent or lost robot: 0.1 s doubling to this.
+    About a PLC's own retry period, so a robot back from a restart or a cable pull carries
+    frames again within about a second of accepting connections; one TCP connect a second is
+    nothing to an absent host (on a network, each attempt to a host that does not answer also
+    waits ``tcp_timeout_s`` first)."""
+    refused_backoff_max_s: float = 5.0
+    """The same for a robot that answers and refuses (a Forward Open error: a wrong
+    assembly, a connection another scanner owns): nothing changes for that within a second,
+    and every attempt costs the robot a line in its log."""
     tcp_timeout_s: float = 5.0
     first_frame_timeout_s: float = 2.0
     """How long after a Forward Open the first T→O frame may take (at least the watchdog)."""
@@ -517,7 +526,8 @@ class Originator:
                 self._set_state(ConnectionState.LOST, reason)
                 await self._teardown(forward_close=True)
             await asyncio.sleep(backoff_s)
-            backoff_s = min(backoff_s * 2, s.backoff_max_s)
+            refused = self.state is ConnectionState.REFUSED
+            backoff_s = min(backoff_s * 2, s.refused_backoff_max_s if refused else s.backoff_max_s)
 
     async def _open_port(self) -> IoPort:
         """The shared port (opened on first use), or our own on the local address: the one
