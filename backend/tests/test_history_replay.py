@@ -492,10 +492,30 @@ def test_parquet_export_of_some_fields_replays_the_rest_as_zero(tmp_path: Path) 
     tables = export.tables(tmp_path, "r", elements, from_s=0, to_s=4e9, fmt="parquet")
     path = tmp_path / "some.parquet"
     path.write_bytes(b"".join(export.export(tables, "r", elements, "parquet")))
-    assert pq.read_schema(path).names[3:] == [f"joint_position.{i}" for i in range(6)]
+    assert pq.read_schema(path).names[3:] == [f"joint_position.J{i}" for i in range(1, 7)]
     recording = read_recording(path)
     for row, (_, _, frame, _) in zip(recording.raw, items, strict=True):
         decoded_robot = ReplayRobot(Recording(np.array([0.0]), row[None, :]))
         replayed = decoded_robot.produce_frame(0.0)
         assert replayed.joint_position == frame.joint_position
         assert replayed.robot_state == 0
+
+
+def test_an_export_with_the_old_column_names_still_replays(tmp_path: Path) -> None:
+    """Exports before the columns carried the screen's labels named them as the recording
+    does (``joint_position.0`` for J 1): read back the same."""
+    items = synthetic_items(4)
+    write_recording(tmp_path, "r", items, 4)
+    elements = select_elements(None)
+    tables = export.tables(tmp_path, "r", elements, from_s=0, to_s=4e9, fmt="parquet")
+    path = tmp_path / "new.parquet"
+    path.write_bytes(b"".join(export.export(tables, "r", elements, "parquet")))
+    table = pq.read_table(path)
+    old = tmp_path / "old.parquet"
+    recorded_names = [*table.schema.names[:3], *(e.name for e in elements)]
+    pq.write_table(table.rename_columns(recorded_names), old)
+    assert pq.read_schema(old).names[3] == "controlbox_di.0"
+    assert pq.read_schema(path).names[3] == "controlbox_di.DI1"
+    for name in (path, old):
+        recording = read_recording(name)
+        assert [row.tobytes() for row in recording.raw] == [encode_frame(i[2]) for i in items]

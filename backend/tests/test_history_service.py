@@ -333,8 +333,8 @@ async def test_exports_read_back_by_independent_readers(
     )
     # The text as docs/api.md shows it: names and times quoted, numbers and bits not.
     header, first_row = csv_answer.text.splitlines()[:2]
-    assert header.startswith('"time","seq","t2o_sequence","joint_position.0 [degree]",')
-    assert header.endswith(',"joint_position.5 [degree]","robot_state"')
+    assert header.startswith('"time","seq","t2o_sequence","joint_position.J1 [degree]",')
+    assert header.endswith(',"joint_position.J6 [degree]","robot_state"')
     assert re.fullmatch(
         r'"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{6}Z",\d+,\d+(,-?[\d.e+-]+){6},\d+', first_row
     ), first_row

@@ -589,10 +589,12 @@ def _export(
 def test_parquet_export_read_by_pyarrow(recorded: tuple[Path, list[Item]]) -> None:
     root, items = recorded
     table = pq.read_table(pa.BufferReader(_export(root, "parquet", None)))
-    assert table.schema.names == SCHEMA.names
+    # Columns named as the screen labels them (J 1 is joint_position.J1), the API key beside.
+    assert table.schema.names == [*SCHEMA.names[:3], *(e.export_name for e in ELEMENTS)]
     assert table.schema.field("time").type == pa.timestamp("us", tz="UTC")
     assert table.schema.metadata[b"robot"] == b"cell-1"
-    assert table.schema.field("joint_position.0").metadata[b"unit"] == b"degree"
+    meta = table.schema.field("joint_position.J1").metadata
+    assert (meta[b"unit"], meta[b"label"], meta[b"key"]) == (b"degree", b"J 1", b"joint_position.0")
     assert table.num_rows == len(items)
     for row, (_, _, frame, _) in zip(raw_from_columns(table), items, strict=True):
         assert row.tobytes() == encode_frame(frame)
@@ -608,7 +610,7 @@ def test_parquet_export_read_by_duckdb(recorded: tuple[Path, list[Item]], tmp_pa
     path.write_bytes(_export(root, "parquet", ["joint_position", "servo_on", "robot_state"]))
     with duckdb.connect() as db:
         rows = db.execute(
-            'SELECT epoch_us("time"), seq, t2o_sequence, "joint_position.3", servo_on, '
+            'SELECT epoch_us("time"), seq, t2o_sequence, "joint_position.J4", servo_on, '
             f"robot_state FROM read_parquet('{path}') ORDER BY seq"
         ).fetchall()
         types = dict(
@@ -617,7 +619,7 @@ def test_parquet_export_read_by_duckdb(recorded: tuple[Path, list[Item]], tmp_pa
             ).fetchall()
         )
     assert types["time"] == "TIMESTAMP WITH TIME ZONE"
-    assert types["joint_position.3"] == "FLOAT"
+    assert types["joint_position.J4"] == "FLOAT"
     assert types["servo_on"] == "BOOLEAN"
     assert types["robot_state"] == "UTINYINT"
     assert types["t2o_sequence"] == "UINTEGER"
@@ -638,7 +640,7 @@ def test_csv_export_read_by_python_csv(recorded: tuple[Path, list[Item]]) -> Non
     text = _export(root, "csv", ["joint_position", "servo_on", "robot_state"]).decode()
     rows = list(csv.reader(io.StringIO(text)))
     header = rows[0]
-    assert header[:4] == ["time", "seq", "t2o_sequence", "joint_position.0 [degree]"]
+    assert header[:4] == ["time", "seq", "t2o_sequence", "joint_position.J1 [degree]"]
     assert header[-2:] == ["servo_on", "robot_state"]
     assert len(rows) - 1 == len(items)
     for row, (seq, t, frame, wire) in zip(rows[1:], items, strict=True):
@@ -671,6 +673,11 @@ def test_mcap_export_read_by_the_mcap_reader(recorded: tuple[Path, list[Item]]) 
     # A field asked for in part is exported whole, and every exported field is described.
     assert schema["properties"]["joint_position"]["maxItems"] == 6
     assert "degree" in schema["properties"]["joint_position"]["description"]
+    # The columns as the CSV and Parquet name them, and where a message holds each.
+    [record] = list(reader.iter_metadata())
+    assert record.name == "cobot_hmi.columns"
+    assert record.metadata["joint_position.J3"] == "joint_position[2] [degree]"
+    assert record.metadata["external_force.X"] == "external_force[0] [N]"
     assert schema["properties"]["t2o_sequence"]["type"] == ["integer", "null"]
     frames, sequences, seen_events = [], [], []
     for _, channel, message in reader.iter_messages(log_time_order=True):

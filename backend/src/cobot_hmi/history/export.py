@@ -4,20 +4,26 @@ mcap.
 A range of a robot's recording as a file for the tools engineers use, produced as a stream of
 byte chunks (one segment at a time: memory does not grow with the range):
 
+Every format names an element as the screen labels it (``schema.Element.export_name``:
+``joint_position.J1`` is J 1's position, ``controlbox_do.DO3`` is DO 3):
+
 - ``csv``: the receive time in ISO 8601 UTC (``2026-11-24T06:00:00.123456Z``), ``seq``,
   ``t2o_sequence`` (empty in rows recorded before it existed), then one column per element, its
-  unit in the header (``joint_position.0 [degree]``); pyarrow's writer quotes the header's
+  unit in the header (``joint_position.J1 [degree]``); pyarrow's writer quotes the header's
   names and the times (strings), not the numbers and bits; opens in Excel and pandas.
-- ``parquet``: the recording's own columns (``schema``: ``time`` as ``timestamp[us, UTC]``,
-  ``seq``, ``t2o_sequence``, ``joint_position.0`` …, units and descriptions as field metadata);
-  pyarrow, DuckDB, pandas and PlotJuggler read it.
+- ``parquet``: the recording's columns (``schema``: ``time`` as ``timestamp[us, UTC]``,
+  ``seq``, ``t2o_sequence``, ``joint_position.J1`` …, each with its ``unit``, ``description``,
+  ``label`` (``J 1``) and ``key`` (the API's element key, ``joint_position.0``) as field
+  metadata); pyarrow, DuckDB, pandas and PlotJuggler read it.
 - ``mcap``: a channel ``/ROBOT/frames`` of JSON messages (each frame's fields as the API's
   frame JSON has them, plus ``time``, ``seq`` and ``t2o_sequence``) with a JSON Schema, so
   Foxglove and Lichtblick plot every field without configuration; each message's MCAP
   ``sequence`` is the frame's T→O wire sequence number (the service's counter modulo 2³² in
   rows recorded before the wire number was); a channel ``/ROBOT/events`` of the robot's events
   (connection, robot state, flags, writes, control, recording, alarms) on the same time axis.
-  A field asked for in part is exported whole (the message keeps the frame's shape).
+  A field asked for in part is exported whole (the message keeps the frame's shape); a
+  metadata record ``cobot_hmi.columns`` names each element as the other formats do, with
+  where it is in a message and its unit (``joint_position.J1`` → ``joint_position[0] [degree]``).
 """
 
 from __future__ import annotations
@@ -136,7 +142,9 @@ def export_elements(elements: Sequence[Element], fmt: str) -> list[Element]:
 
 
 def csv_header(element: Element) -> str:
-    return f"{element.name} [{element.unit}]" if element.unit else element.name
+    """``joint_position.J1 [degree]``; a column without a unit is its name alone."""
+    name = element.export_name
+    return f"{name} [{element.unit}]" if element.unit else name
 
 
 def _csv(tables_: Iterable[pa.Table], elements: Sequence[Element]) -> Iterator[bytes]:
@@ -167,12 +175,19 @@ def _csv(tables_: Iterable[pa.Table], elements: Sequence[Element]) -> Iterator[b
 # --------------------------------------------------------------------------- Parquet
 
 
+def _export_field(element: Element) -> pa.Field:
+    """The recording's column, named as exports name it, its API key in the metadata."""
+    recorded = SCHEMA.field(element.name)
+    metadata = {**(recorded.metadata or {}), b"key": element.name.encode()}
+    return recorded.with_name(element.export_name).with_metadata(metadata)
+
+
 def export_schema(robot: str, elements: Sequence[Element]) -> pa.Schema:
     fields = [
         SCHEMA.field(TIME),
         SCHEMA.field(SEQ),
         SCHEMA.field(T2O_SEQUENCE),
-        *(SCHEMA.field(e.name) for e in elements),
+        *(_export_field(e) for e in elements),
     ]
     return pa.schema(fields, metadata={"robot": robot, "layout": T2O_ASSEMBLY.name})
 
@@ -181,12 +196,14 @@ def _parquet(
     tables_: Iterable[pa.Table], robot: str, elements: Sequence[Element]
 ) -> Iterator[bytes]:
     schema = export_schema(robot, elements)
+    recorded = [TIME, SEQ, T2O_SEQUENCE, *(e.name for e in elements)]
     sink = _Sink()
     writer = pq.ParquetWriter(pa.PythonFile(sink, mode="w"), schema, compression="zstd")
     try:
         for table in tables_:
             if table.num_rows:
-                writer.write_table(table.select(schema.names).cast(schema))
+                named = table.select(recorded).rename_columns(schema.names)
+                writer.write_table(named.cast(schema))
                 yield sink.take()
     finally:
         writer.close()
@@ -261,6 +278,27 @@ EVENT_JSON_SCHEMA: Final = {
 }
 
 
+COLUMNS_METADATA: Final = "cobot_hmi.columns"
+"""The MCAP metadata record naming each exported element as the CSV and Parquet do."""
+
+
+def mcap_columns(elements: Sequence[Element]) -> dict[str, str]:
+    """``{"joint_position.J1": "joint_position[0] [degree]", "robot_state": "robot_state",
+    "controller_version.major": "controller_version.major"}``: each element's export name →
+    where a ``/ROBOT/frames`` message holds it, and its unit."""
+    out: dict[str, str] = {}
+    for e in elements:
+        f = e.field
+        if f.scalar:
+            path = f.name
+        elif f.element_names:
+            path = f"{f.name}.{f.element_names[e.index]}"
+        else:
+            path = f"{f.name}[{e.index}]"
+        out[e.export_name] = f"{path} [{e.unit}]" if e.unit else path
+    return out
+
+
 def _event_time_ns(event: Mapping[str, object]) -> int:
     t = event.get("time")
     return int(float(t) * 1e9) if isinstance(t, int | float) else 0
@@ -286,6 +324,7 @@ def _mcap(
     )
     frames = writer.register_channel(f"/{robot}/frames", "json", frame_schema)
     event_channel = writer.register_channel(f"/{robot}/events", "json", event_schema)
+    writer.add_metadata(COLUMNS_METADATA, mcap_columns(elements))
     # In time order as given (the service's reader streams them so): one event held at a time.
     pending = iter(events)
     upcoming = next(pending, None)

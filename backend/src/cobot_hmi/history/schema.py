@@ -16,6 +16,13 @@ the robot state enum) ``uint8``, flags and digital I/O ``bool`` (Parquet packs t
 each and run-length encodes them). Each column carries its unit and description as field
 metadata, so a Parquet export is self-describing.
 
+Exports name an element as the screen labels it (``Element.export_name``): the field and the
+channel's label without its spaces, ``joint_position.J1`` for ``joint_position.0`` (J 1),
+``controlbox_do.DO3``, ``tool_di.ToolDI1``, ``analog_input.AI0``, ``tcp_position.X``,
+``bit_output_registers.Register40``, ``controller_version.major``; a scalar field keeps its name
+(``robot_state``). The recording's own segments keep the 0-based names (the API's element keys);
+a file read back (``raw_from_columns``) may use either.
+
 Frames are converted whole batches at a time: the recorder re-encodes each decoded frame to its
 284 wire bytes (one precompiled ``struct`` pack) and this module slices the columns out of the
 ``(n, 284)`` byte matrix with numpy, by the layout's offsets and bit positions; the reverse
@@ -58,7 +65,9 @@ class Element:
     kind: str
     """``float``, ``int`` or ``bool`` (the layout's value kind)."""
     label: str
-    """The channel's label (``J1``), else the field's description."""
+    """The channel's label (``J 1``), else the field's description."""
+    export_name: str
+    """The column's name in an export: ``joint_position.J1`` (module docstring)."""
 
     @property
     def unit(self) -> str:
@@ -84,19 +93,31 @@ class Element:
         return self.field.offset + size * self.index
 
 
+def _export_name(f: Field, index: int) -> str:
+    if f.scalar:
+        return f.name
+    if f.channels:
+        return f"{f.name}.{f.channels[index].replace(' ', '')}"
+    if f.element_names:
+        return f"{f.name}.{f.element_names[index]}"
+    return f"{f.name}.{index}"
+
+
 def _elements() -> tuple[Element, ...]:
     out = []
     for f in T2O_ASSEMBLY.fields:
         for index in range(f.count):
             name = f.name if f.scalar else f"{f.name}.{index}"
             label = f.channels[index] if f.channels else f.description
-            out.append(Element(name, f, index, f.value_kind, label))
+            out.append(Element(name, f, index, f.value_kind, label, _export_name(f, index)))
     return tuple(out)
 
 
 ELEMENTS: Final = _elements()
 """Every element of the T→O assembly, in the layout's order."""
 ELEMENT_BY_NAME: Final = {e.name: e for e in ELEMENTS}
+ELEMENT_BY_EXPORT_NAME: Final = {e.export_name: e for e in ELEMENTS}
+assert len(ELEMENT_BY_EXPORT_NAME) == len(ELEMENTS), "two elements share an export name"
 FIELD_NAMES: Final = tuple(f.name for f in T2O_ASSEMBLY.fields)
 
 
@@ -232,14 +253,19 @@ def conform(table: pa.Table, columns: Sequence[str]) -> pa.Table:
 
 
 def raw_from_columns(table: pa.Table | pa.RecordBatch) -> U8:
-    """The ``(n, 284)`` wire bytes of a table with element columns (missing ones are 0)."""
+    """The ``(n, 284)`` wire bytes of a table with element columns, named as the recording
+    names them (``joint_position.0``) or as an export does (``joint_position.J1``); missing
+    ones are 0."""
     n = table.num_rows
     raw = np.zeros((n, T2O_SIZE), dtype=np.uint8)
     names = set(table.schema.names)
     for e in ELEMENTS:
-        if e.name not in names:
+        if e.name in names:
+            column = table.column(e.name)
+        elif e.export_name in names:
+            column = table.column(e.export_name)
+        else:
             continue
-        column = table.column(e.name)
         values = column.to_numpy(zero_copy_only=False)
         f = e.field
         if f.cip_type is CipType.REAL:
