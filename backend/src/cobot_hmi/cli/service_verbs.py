@@ -117,6 +117,18 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         action="store_true",
         help="with --mqtt-url: accept DCMD writes (through control, audited)",
     )
+    demo.add_argument(
+        "--opcua-url",
+        default=None,
+        metavar="URL",
+        help="also serve the cell over OPC UA (opc.tcp://HOST[:PORT], port 4840 by default; "
+        "docs/operations.md, 'OPC UA')",
+    )
+    demo.add_argument(
+        "--opcua-writes",
+        action="store_true",
+        help="with --opcua-url: clients may write the command image (through control, audited)",
+    )
     demo.set_defaults(handler=_demo)
 
     users = subparsers.add_parser("users", help="manage the service's users file")
@@ -455,6 +467,9 @@ def _demo(args: argparse.Namespace) -> int:
         if args.mqtt_url is not None:
             flags["mqtt_url"] = args.mqtt_url
             flags["mqtt_writes"] = args.mqtt_writes
+        if args.opcua_url is not None:
+            flags["opcua_url"] = args.opcua_url
+            flags["opcua_writes"] = args.opcua_writes
         try:
             settings = load_settings(flags)
         except SettingsError as error:
@@ -509,6 +524,12 @@ def _run_demo(
                 f"\n  Sparkplug B to {settings.mqtt_url}: spBv1.0/{settings.sparkplug_group}/+/"
                 f"{settings.sparkplug_node_id}/# (writes {'on' if settings.mqtt_writes else 'off'})"
                 if settings.mqtt_url
+                else ""
+            )
+            + (
+                f"\n  OPC UA at {settings.opcua_url} (writes "
+                f"{'on' if settings.opcua_writes else 'off'})"
+                if settings.opcua_url
                 else ""
             )
             + "\n  Ctrl-C stops all.",

@@ -19,6 +19,9 @@ import time
 from collections import Counter
 from typing import TYPE_CHECKING, Final
 
+# OPC UA (issue 22): wired here until the composition root (issue 21) builds the consumers.
+from cobot_hmi.opcua.feed import ServiceFeed
+from cobot_hmi.opcua.server import OpcUaServer
 from cobot_hmi.service.auth import LoginThrottle, Session, Sessions
 from cobot_hmi.service.commander import Commander
 from cobot_hmi.service.control import Control
@@ -85,6 +88,8 @@ class Service:
             Recorder(settings, self.robots) if settings.history else None
         )
         """Every frame of every robot into its recording (``service.recorder``), unless off."""
+        self.opcua: OpcUaServer | None = None  # OPC UA (issue 22)
+        """The OPC UA server (``cobot_hmi.opcua``), when ``opcua_url`` is set."""
 
     def robot(self, name: str) -> RobotRuntime:
         """The robot called ``name``; ``UnknownRobotError`` naming the known ones."""
@@ -130,11 +135,17 @@ class Service:
         await self.cyclic.start()
         if self.edge_node is not None:
             await self.edge_node.start()
+        if self.settings.opcua_enabled:  # OPC UA (issue 22): its own thread, after the links
+            feed = ServiceFeed(self.robots, self.users, self.settings, asyncio.get_running_loop())
+            self.opcua = OpcUaServer(self.settings, self.settings.state_dir, feed)
+            await self.opcua.start()
         self._tasks.append(asyncio.create_task(self._status_loop(), name="status"))
         self._tasks.append(asyncio.create_task(self._sweep_loop(), name="sessions"))
 
     async def stop(self) -> None:
         """Release control, close the connections (Forward Close), stop everything else."""
+        if self.opcua is not None:  # OPC UA (issue 22): no more client requests
+            await self.opcua.stop()
         if self.edge_node is not None:  # DDEATHs and NDEATH while the robots are still up
             await self.edge_node.stop()
         await asyncio.gather(

@@ -54,6 +54,7 @@ from pydantic_settings import SettingsError as PydanticSettingsError
 from pydantic_settings.sources.utils import parse_env_vars
 
 from cobot_hmi import connection_params as cp
+from cobot_hmi.opcua.settings import OpcUaSettings  # OPC UA (issue 22): its opcua_* fields
 
 if TYPE_CHECKING:
     from cobot_hmi.scanner.originator import OriginatorSettings
@@ -358,7 +359,7 @@ _INHERITED: Final = {
 # --------------------------------------------------------------------------- the service
 
 
-class ServiceSettings(BaseSettings):
+class ServiceSettings(OpcUaSettings, BaseSettings):  # OPC UA (issue 22)
     """Everything ``cobot-hmi serve`` can be told. Field names are the TOML keys."""
 
     model_config = SettingsConfigDict(

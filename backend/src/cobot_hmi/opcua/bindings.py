@@ -1,0 +1,89 @@
+"""Layer: service (OPC UA). Where each variable's value comes from: the builders' output, the
+updater's input.
+
+A ``Binding`` ties one variable to a function of the newest frame (or of the command image
+the service sends); ``RobotNodes`` holds every binding of one robot and the few nodes that
+change with something else than a frame (its identity, its analog channels' types, its status).
+Pure data: imports only asyncua's types and the codec's.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from asyncua import ua
+
+from cobot_hmi.codec import CommandImage, Frame
+
+
+@dataclass(frozen=True, slots=True)
+class Binding:
+    """One variable whose value is ``read(frame)`` (or ``read(image)``), of ``variant``."""
+
+    node: ua.NodeId
+    read: Callable[[Frame], object]
+    variant: ua.VariantType
+
+
+@dataclass(frozen=True, slots=True)
+class CommandBinding:
+    """One variable of the command image: ``field`` and channel ``index`` (``None``: scalar)."""
+
+    node: ua.NodeId
+    read: Callable[[CommandImage], object]
+    variant: ua.VariantType
+    field: str
+    index: int | None
+
+
+@dataclass(frozen=True, slots=True)
+class AnalogUnit:
+    """An analog channel whose engineering unit and range follow its type channel."""
+
+    units: ua.NodeId
+    """The ``EngineeringUnits`` property."""
+    range: ua.NodeId
+    """The ``EURange`` property."""
+    type_name: Callable[[object], str]
+    """The channel's type name (``current``, ``voltage``) from the frame or the image."""
+    from_command: bool
+
+
+@dataclass(frozen=True, slots=True)
+class JointRange:
+    """A joint's ``EURange`` property: the arm's position or speed limit of joint ``joint``."""
+
+    node: ua.NodeId
+    joint: int
+    speed: bool
+
+
+@dataclass
+class RobotNodes:
+    """Every node of one robot that the updater writes (see the module docstring)."""
+
+    robot: str
+    namespace: int
+    frame: list[Binding] = field(default_factory=list)
+    command: list[CommandBinding] = field(default_factory=list)
+    analog_units: list[AnalogUnit] = field(default_factory=list)
+    joint_ranges: list[JointRange] = field(default_factory=list)
+    models: list[ua.NodeId] = field(default_factory=list)
+    """``Model`` properties: the identity's product name."""
+    serial_numbers: list[ua.NodeId] = field(default_factory=list)
+    product_codes: list[ua.NodeId] = field(default_factory=list)
+    software_revisions: list[ua.NodeId] = field(default_factory=list)
+    """``SoftwareRevision`` properties: the frame's controller version."""
+    connection_state: ua.NodeId | None = None
+    control_holder: ua.NodeId | None = None
+    take_control: ua.NodeId | None = None
+    release_control: ua.NodeId | None = None
+    constants: list[tuple[ua.NodeId, ua.Variant]] = field(default_factory=list)
+    """Values that never change (nameplates, engineering units), written once."""
+    unsupported: list[ua.NodeId] = field(default_factory=list)
+    """Mandatory members the implicit I/O does not carry: Null, ``BadNotSupported``."""
+
+    @property
+    def command_by_node(self) -> dict[ua.NodeId, CommandBinding]:
+        return {binding.node: binding for binding in self.command}

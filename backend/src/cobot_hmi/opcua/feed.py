@@ -1,0 +1,178 @@
+"""Layer: service (OPC UA). The OPC UA server's one contact with the service: this adapter.
+
+Everything the server takes from the service, and every request it makes of it, goes through
+``ServiceFeed``; no other module of ``cobot_hmi.opcua`` imports ``cobot_hmi.service``.
+
+- **Frames**: a ``Hub.subscribe`` queue per robot (the cyclic thread's O(1) append, the oldest
+  dropped and counted when full), drained on the server's own thread at each monitoring tick
+  (``sample``): only the period's newest frame is used. With it the link state, the command
+  image, the control holder and the identity, read as they are (attribute reads; the web loop
+  and the cyclic thread never wait for this thread).
+- **Users**: ``authenticate`` checks a user name and password against the service's users file
+  (scrypt, on the server's thread), behind a login throttle of its own (``service.auth``'s
+  two budgets: per client address and per user name); a refusal during a wait is immediate.
+- **Writes and control**: through the one write pipeline (``service.write_pipeline``), run on
+  the service's web loop (``_on_service``); the server's coroutine awaits the outcome.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import secrets
+import time
+from collections.abc import Coroutine, Mapping
+from typing import TYPE_CHECKING, Any, Final, TypeVar
+
+from cobot_hmi.opcua.values import Identity, Sample
+from cobot_hmi.scanner.originator import ConnectionState
+from cobot_hmi.service.auth import LoginThrottle, Session
+from cobot_hmi.service.errors import ApiError
+from cobot_hmi.service.hub import FrameSubscription
+from cobot_hmi.service.users import User, UsersFile
+from cobot_hmi.service.write_pipeline import (
+    WriteOutcome,
+    Writer,
+    release_control,
+    submit_write,
+    take_control,
+)
+
+if TYPE_CHECKING:
+    from cobot_hmi.service.robot import RobotRuntime
+    from cobot_hmi.service.settings import ServiceSettings
+
+SUBSCRIPTION_NAME: Final = "opcua"
+QUEUE_S: Final = 1.0
+"""Frames a robot's queue holds: this long at its RPI (a tick drains it every 100 ms)."""
+
+T = TypeVar("T")
+
+__all__ = ["ApiError", "ServiceFeed", "Session", "User", "WriteOutcome", "Writer"]
+"""The service's types the server's other modules use, named through this adapter."""
+
+
+class ServiceFeed:
+    """See the module docstring. Built on the web loop; used from the server's thread."""
+
+    def __init__(
+        self,
+        robots: Mapping[str, RobotRuntime],
+        users: UsersFile,
+        settings: ServiceSettings,
+        web_loop: asyncio.AbstractEventLoop,
+    ) -> None:
+        self._robots = robots
+        self._users = users
+        self._web_loop = web_loop
+        self.anonymous_reads = not settings.view_requires_login
+        """Whether a session without a login may read (the service's own rule for the API)."""
+        self._throttle = LoginThrottle(
+            settings.login_free_attempts,
+            settings.login_delay_max_s,
+            settings.login_user_delay_max_s,
+        )
+        self._subscriptions: dict[str, FrameSubscription] = {}
+        self.logins_refused = 0
+
+    @property
+    def robot_names(self) -> list[str]:
+        return list(self._robots)
+
+    # ------------------------------------------------------------ frames
+
+    def open(self) -> None:
+        """Subscribe to every robot's frames (before the first tick)."""
+        for name, robot in self._robots.items():
+            frames = max(8, math.ceil(QUEUE_S * 1000 / robot.settings.rpi_ms))
+            self._subscriptions[name] = robot.hub.subscribe(SUBSCRIPTION_NAME, frames)
+
+    def close(self) -> None:
+        for name, subscription in self._subscriptions.items():
+            self._robots[name].hub.unsubscribe(subscription)
+        self._subscriptions.clear()
+
+    def dropped(self, name: str) -> int:
+        """Frames the robot's queue lost while this thread was late (``FrameSubscription``)."""
+        subscription = self._subscriptions.get(name)
+        return 0 if subscription is None else subscription.dropped
+
+    def sample(self, name: str) -> Sample:
+        """The robot as it is now, with the newest frame since the last sample (if any)."""
+        robot = self._robots[name]
+        subscription = self._subscriptions.get(name)
+        items = subscription.drain() if subscription is not None else []
+        frame, received_at = (items[-1][2], items[-1][1]) if items else (None, 0.0)
+        state = robot.link.state
+        try:
+            command = robot.link.command
+        except AssertionError:  # the cyclic thread not started yet
+            command = None
+        holder = robot.control.holder
+        identity = robot.identity
+        return Sample(
+            frame=frame,
+            received_at=received_at,
+            connected=state is ConnectionState.CONNECTED,
+            connection_state=state.value,
+            command=command,
+            control_holder="" if holder is None else holder.user,
+            identity=None
+            if identity is None
+            else Identity(
+                identity.product_name, str(identity.serial_number), str(identity.product_code)
+            ),
+        )
+
+    # ------------------------------------------------------------ users
+
+    def authenticate(self, name: str, password: str, client: str) -> User | None:
+        """The user if the password is theirs and no throttle wait is running, else ``None``."""
+        if self._throttle.retry_after_s(name, client) > 0:
+            self.logins_refused += 1
+            return None
+        user = self._users.authenticate(name, password)
+        if user is None:
+            self._throttle.failed(name, client)
+            self.logins_refused += 1
+            return None
+        self._throttle.succeeded(name, client)
+        return user
+
+    def current(self, user: User) -> User | None:
+        """``user`` as the users file has it now (``None``: removed)."""
+        return self._users.user(user.name)
+
+    @staticmethod
+    def session_for(user: User) -> Session:
+        """A control session of the service for one OPC UA session (it never idles out: the
+        OPC UA session's end releases its control, ``drop_control``)."""
+        return Session(secrets.token_urlsafe(24), user, time.time(), math.inf)
+
+    # ------------------------------------------------------------ writes and control
+
+    async def _on_service(self, coroutine: Coroutine[Any, Any, T]) -> T:
+        """Run ``coroutine`` on the service's web loop; its result here."""
+        future = asyncio.run_coroutine_threadsafe(coroutine, self._web_loop)
+        return await asyncio.wrap_future(future)
+
+    async def write(
+        self, name: str, writer: Writer, body: dict[str, dict[str, object]], origin: str
+    ) -> WriteOutcome:
+        return await self._on_service(submit_write(self._robots[name], writer, body, origin=origin))
+
+    async def take_control(self, name: str, writer: Writer, origin: str) -> dict[str, object]:
+        """The control status; ``ApiError`` for a refusal."""
+        return await self._on_service(take_control(self._robots[name], writer, origin=origin))
+
+    async def release_control(self, name: str, writer: Writer, origin: str) -> dict[str, object]:
+        return await self._on_service(release_control(self._robots[name], writer, origin=origin))
+
+    async def drop_control(self, session: Session, reason: str) -> None:
+        """The control ``session`` holds of any robot ends (its OPC UA session closed)."""
+
+        async def drop() -> None:
+            for robot in self._robots.values():
+                await robot.control.drop(reason, session_id=session.id)
+
+        await self._on_service(drop())

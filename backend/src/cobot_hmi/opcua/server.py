@@ -1,0 +1,224 @@
+"""Layer: service (OPC UA). The OPC UA server's lifecycle: its own thread and event loop.
+
+``OpcUaServer.start`` (on the service's web loop) starts a thread running an event loop of its
+own (epoll, ``eventloop.precise_event_loop``) on which asyncua runs: the certificates
+(``security``), the companion models (``companion``), every robot's nodes
+(``address_space``), the users (``auth``), the robots' writes (``writes``, ``sessions``), then
+the listening socket; ``start`` returns once the server listens, or raises what stopped it
+(``OpcUaStartError``: a taken port, an unreadable certificate …), so a misconfigured server
+never passes unnoticed. Then, every monitoring period, one tick updates every robot's values
+from its newest frame (``values``, fed by ``feed``). Nothing here runs on the cyclic thread or
+the web loop, and neither ever waits for this thread: frames reach it through bounded queues,
+writes are handed to the web loop and awaited here.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import threading
+import time
+from collections.abc import Mapping
+from concurrent.futures import Future
+from pathlib import Path
+from typing import Final
+
+from asyncua import Server, ua
+
+from cobot_hmi.eventloop import precise_event_loop
+from cobot_hmi.opcua import security
+from cobot_hmi.opcua.address_space import build
+from cobot_hmi.opcua.auth import Permissions, UserManager
+from cobot_hmi.opcua.companion import load
+from cobot_hmi.opcua.feed import ServiceFeed
+from cobot_hmi.opcua.sessions import RobotInternalServer
+from cobot_hmi.opcua.settings import OpcUaSettings
+from cobot_hmi.opcua.values import RobotValues
+from cobot_hmi.opcua.writes import CommandWrites
+
+log = logging.getLogger(__name__)
+
+SERVER_NAME: Final = "cobot-hmi"
+PRODUCT_URI: Final = "urn:cobot-hmi"
+_JOIN_TIMEOUT_S: Final = 10.0
+
+
+class OpcUaStartError(RuntimeError):
+    """The OPC UA server could not start; the message says why."""
+
+
+class OpcUaServer:
+    """See the module docstring. ``start`` and ``stop`` once each, on the web loop."""
+
+    def __init__(self, settings: OpcUaSettings, state_dir: Path, feed: ServiceFeed) -> None:
+        self.settings = settings
+        self.feed = feed
+        self.host, self.port = settings.opcua_bind
+        self.certificates = security.Certificates(
+            settings.opcua_pki_dir(state_dir), settings.opcua_trusted_dir(state_dir), self.host
+        )
+        self.period_s = 1.0 / settings.opcua_monitoring_hz
+        self.values: dict[str, RobotValues] = {}
+        self.routes: CommandWrites | None = None
+        self.users: UserManager | None = None
+        self.ticks = 0
+        self.late_ticks = 0
+        """Ticks that started more than a period late (the thread starved)."""
+        self.cpu_seconds = 0.0
+        """CPU time of the server's thread since it started (asyncua and the updates), s."""
+        self.startup_s: dict[str, float] = {}
+        self._thread: threading.Thread | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._stop: asyncio.Event | None = None
+        self._started: Future[None] = Future()
+
+    @property
+    def endpoint(self) -> str:
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        return f"opc.tcp://{host}:{self.port}"
+
+    async def start(self) -> None:
+        self._thread = threading.Thread(target=self._run, name="opcua server", daemon=True)
+        self._thread.start()
+        try:
+            await asyncio.wrap_future(self._started)
+        except Exception as error:
+            await asyncio.to_thread(self._thread.join, _JOIN_TIMEOUT_S)
+            raise OpcUaStartError(f"OPC UA server at {self.endpoint}: {error}") from error
+        log.info(
+            "%s (startup %s)",
+            security.describe(
+                self.host,
+                self.port,
+                loopback=self.settings.opcua_loopback,
+                allow_no_security=self.settings.opcua_allow_no_security,
+            ),
+            ", ".join(f"{k} {v:.1f} s" for k, v in self.startup_s.items()),
+        )
+
+    async def stop(self) -> None:
+        loop, stop, thread = self._loop, self._stop, self._thread
+        if loop is not None and stop is not None and not loop.is_closed():
+            with contextlib.suppress(RuntimeError):  # the loop closed meanwhile
+                loop.call_soon_threadsafe(stop.set)
+        if thread is not None:
+            await asyncio.to_thread(thread.join, _JOIN_TIMEOUT_S)
+        self._thread = None
+
+    # ------------------------------------------------------------ the server's thread
+
+    def _run(self) -> None:
+        library_log = logging.getLogger("asyncua")
+        if library_log.level == logging.NOTSET:  # its INFO is a line per session and request
+            library_log.setLevel(logging.WARNING)
+        loop = precise_event_loop()
+        self._loop = loop
+        asyncio.set_event_loop(loop)
+        try:
+            loop.run_until_complete(self._main())
+        except Exception as error:  # before it started: start() raises it; after: logged
+            if not self._started.done():
+                self._started.set_exception(error)
+            else:
+                log.exception("the OPC UA server stopped")
+        finally:
+            loop.run_until_complete(loop.shutdown_asyncgens())
+            loop.close()
+
+    async def _main(self) -> None:
+        self._stop = asyncio.Event()
+        server = await self._make_server()
+        try:
+            self.feed.open()
+            for values in self.values.values():
+                await values.start()
+            await server.start()
+        except BaseException:
+            self.feed.close()
+            raise
+        self._started.set_result(None)
+        try:
+            await self._ticks()
+        finally:
+            self.cpu_seconds = time.thread_time()
+            self.feed.close()
+            await server.stop()
+
+    async def _make_server(self) -> Server:
+        settings = self.settings
+        mark = time.perf_counter()
+        await asyncio.to_thread(self.certificates.ensure)
+        self.users = UserManager(self.feed)
+        internal = RobotInternalServer(self.users)
+        server = Server(iserver=internal)
+        await server.init()
+        self.startup_s["base address space"] = time.perf_counter() - mark
+        server.set_endpoint(self.endpoint)
+        server.set_server_name(SERVER_NAME)
+        server.product_uri = PRODUCT_URI
+        await server.set_application_uri(self.certificates.application_uri)
+        server.set_security_policy(
+            security.policies(
+                loopback=settings.opcua_loopback,
+                allow_no_security=settings.opcua_allow_no_security,
+            ),
+            permission_ruleset=Permissions(),
+        )
+        tokens: list[type] = [ua.UserNameIdentityToken]
+        if self.feed.anonymous_reads:
+            tokens.insert(0, ua.AnonymousIdentityToken)
+        server.set_identity_tokens(tokens)
+        await security.load_into(server, self.certificates)
+        server.set_certificate_validator(self.certificates.validator())
+        companion = await load(server)
+        self.startup_s["companion models"] = companion.import_s
+        nodes, build_s = await build(
+            server, companion, self.feed.robot_names, writable=settings.opcua_writes
+        )
+        self.startup_s["robots"] = build_s
+        self.values = {name: RobotValues(server, robot) for name, robot in nodes.items()}
+        self.routes = CommandWrites(
+            self.feed, nodes, enabled=settings.opcua_writes, written=self._refresh
+        )
+        internal.routes = self.routes
+        return server
+
+    async def _refresh(self, name: str) -> None:
+        """After a confirmed write: the robot's variables now, not at the next tick."""
+        await self.values[name].update(self.feed.sample(name))
+
+    async def _ticks(self) -> None:
+        """One update of every robot per period, on absolute deadlines, until stopped."""
+        assert self._stop is not None
+        loop = asyncio.get_running_loop()
+        deadline = loop.time()
+        while not self._stop.is_set():
+            if loop.time() - deadline > self.period_s:
+                self.late_ticks += 1
+                deadline = loop.time()  # restart the schedule instead of bursting
+            for name, values in self.values.items():
+                try:
+                    await values.update(self.feed.sample(name))
+                except Exception:  # one robot's bug must not stop the others' values
+                    log.exception("OPC UA: updating %s failed", name)
+            self.ticks += 1
+            self.cpu_seconds = time.thread_time()
+            deadline += self.period_s
+            try:
+                async with asyncio.timeout_at(deadline):
+                    await self._stop.wait()
+            except TimeoutError:
+                pass
+
+    def counters(self) -> Mapping[str, float]:
+        """For the bench and the log: ticks, CPU, writes, frames the queues dropped."""
+        out: dict[str, float] = {
+            "ticks": self.ticks,
+            "late_ticks": self.late_ticks,
+            "cpu_seconds": self.cpu_seconds,
+        }
+        for name, values in self.values.items():
+            out[f"{name}.values_written"] = values.writes
+            out[f"{name}.frames_dropped"] = self.feed.dropped(name)
+        return out

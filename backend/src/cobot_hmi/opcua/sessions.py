@@ -1,0 +1,109 @@
+"""Layer: service (OPC UA). asyncua's sessions, taught which requests are the robots'.
+
+asyncua hands a Write to its attribute service and a Call to its method service without
+saying which session sent it. ``RobotSession`` (the class of every client's session, made by
+``RobotInternalServer.create_session``) takes the Write values and method calls that belong
+to the robots (``writes.CommandWrites``) with its own user, peer and id, and passes the rest
+on unchanged; it also sets the peer for the login throttle while a session is activated
+(``auth.PEER``) and tells ``CommandWrites`` when it closes.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from typing import Any
+
+from asyncua import ua
+from asyncua.crypto.permission_rules import User, UserRole
+from asyncua.server.internal_server import InternalServer
+from asyncua.server.internal_session import InternalSession
+from asyncua.server.user_managers import UserManager
+
+from cobot_hmi.opcua.auth import PEER
+from cobot_hmi.opcua.writes import Caller, CommandWrites
+
+log = logging.getLogger(__name__)
+
+_ANONYMOUS = User(role=UserRole.Anonymous)
+
+
+class RobotInternalServer(InternalServer):
+    """asyncua's internal server whose client sessions are ``RobotSession``s."""
+
+    def __init__(self, user_manager: UserManager | Any) -> None:
+        super().__init__(user_manager=user_manager)
+        self.routes: CommandWrites | None = None
+        """Set once the robots' nodes exist (before the server listens)."""
+        self._closing: set[asyncio.Task[None]] = set()
+
+    def create_session(
+        self, name: str, user: User = _ANONYMOUS, external: bool = False
+    ) -> InternalSession:
+        if not external:
+            return super().create_session(name, user, external)
+        return RobotSession(self, name, user)
+
+    def session_closed(self, user: User) -> None:
+        routes = self.routes
+        if routes is None:
+            return
+        task = asyncio.get_running_loop().create_task(routes.closed(user))
+        self._closing.add(task)
+        task.add_done_callback(self._closing.discard)
+
+
+class RobotSession(InternalSession):
+    """A client's session (see the module docstring)."""
+
+    def __init__(self, server: RobotInternalServer, name: str, user: User) -> None:
+        super().__init__(
+            server, server.aspace, server.subscription_service, name, user=user, external=True
+        )
+        self._server = server
+
+    def _caller(self) -> Caller:
+        return Caller(self.user, str(self.name), self.session_id.to_string())
+
+    def activate_session(
+        self, params: ua.ActivateSessionParameters, peer_certificate: bytes | None
+    ) -> ua.ActivateSessionResult:
+        token = PEER.set(str(self.name))
+        try:
+            return super().activate_session(params, peer_certificate)
+        finally:
+            PEER.reset(token)
+
+    async def write(self, params: ua.WriteParameters) -> list[ua.StatusCode]:
+        routes = self._server.routes
+        values = params.NodesToWrite
+        mine = [i for i, v in enumerate(values) if routes is not None and routes.owns_write(v)]
+        if not mine or routes is None:
+            passed: list[ua.StatusCode] = await super().write(params)
+            return passed
+        results: list[ua.StatusCode | None] = [None] * len(values)
+        statuses = await routes.write(self._caller(), [values[i] for i in mine])
+        for position, status in zip(mine, statuses, strict=True):
+            results[position] = status
+        others = [i for i in range(len(values)) if results[i] is None]
+        if others:
+            rest = ua.WriteParameters(NodesToWrite=[values[i] for i in others])
+            for position, status in zip(others, await super().write(rest), strict=True):
+                results[position] = status
+        return [
+            r if r is not None else ua.StatusCode(ua.StatusCodes.BadInternalError) for r in results
+        ]
+
+    async def call(self, params: list[ua.CallMethodRequest]) -> list[ua.CallMethodResult]:
+        routes = self._server.routes
+        results = []
+        for request in params:
+            if routes is not None and routes.owns_call(request):
+                results.append(await routes.call(self._caller(), request))
+            else:
+                results.extend(await super().call([request]))
+        return results
+
+    async def close_session(self, delete_subs: bool = True) -> None:
+        await super().close_session(delete_subs)
+        self._server.session_closed(self.user)

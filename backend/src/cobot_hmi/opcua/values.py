@@ -1,0 +1,203 @@
+"""Layer: service (OPC UA). The variables follow the robot: one update per monitoring period.
+
+``RobotValues.update`` takes one robot's ``Sample`` (the newest frame of the period, the link,
+the command image, the control holder, the identity: ``feed``) and writes, on the server's
+loop, only what changed since the last period: OPC UA's SourceTimestamp is the time of a
+value's last change (Part 4 §7.7.3), here the frame's kernel receive time. A subscription
+therefore gets a notification per change, at most one per variable per period.
+
+While the robot's link is down every frame-derived variable is Null with
+``BadCommunicationError`` (its SourceTimestamp the moment the link went), and Good again with
+the first frame after it returns; before the first frame they are ``BadWaitingForInitialData``.
+The command image is the service's own (what it sends, or would send): always Good. The
+nameplates (identity) and the software revision keep their last value.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from typing import Final
+
+from asyncua import Server, ua
+
+from cobot_hmi.arms import ARMS, Arm
+from cobot_hmi.codec import CommandImage, Frame
+from cobot_hmi.opcua.bindings import RobotNodes
+from cobot_hmi.opcua.units import analog_unit
+
+log = logging.getLogger(__name__)
+
+_VALUE: Final = ua.AttributeIds.Value
+GOOD: Final = ua.StatusCode(ua.StatusCodes.Good)
+COMMUNICATION_ERROR: Final = ua.StatusCode(ua.StatusCodes.BadCommunicationError)
+WAITING: Final = ua.StatusCode(ua.StatusCodes.BadWaitingForInitialData)
+NOT_SUPPORTED: Final = ua.StatusCode(ua.StatusCodes.BadNotSupported)
+_NULL: Final = ua.Variant()
+
+
+@dataclass(frozen=True, slots=True)
+class Identity:
+    """What the robot's CIP identity says, as the nameplates show it."""
+
+    product_name: str
+    serial_number: str
+    product_code: str
+
+    @property
+    def arm(self) -> Arm:
+        """The arm its product name names (``M1013`` in "Doosan M1013"), else the first."""
+        upper = self.product_name.upper()
+        return next((arm for arm in ARMS if arm.name in upper), ARMS[0])
+
+
+@dataclass(frozen=True, slots=True)
+class Sample:
+    """One robot at one monitoring tick (``feed.ServiceFeed.sample``)."""
+
+    frame: Frame | None
+    """The newest frame of the period; ``None`` when no new one came."""
+    received_at: float
+    """Its kernel receive time, epoch seconds."""
+    connected: bool
+    connection_state: str
+    command: CommandImage | None
+    control_holder: str
+    identity: Identity | None
+
+
+def _utc(epoch_s: float) -> datetime:
+    return datetime.fromtimestamp(epoch_s, UTC)
+
+
+class RobotValues:
+    """The values of one robot's variables as last written (see the module docstring)."""
+
+    def __init__(self, server: Server, nodes: RobotNodes) -> None:
+        self._aspace = server.iserver.aspace
+        self.nodes = nodes
+        self._frame_values: list[object] = [None] * len(nodes.frame)
+        self._command_values: list[object] = [None] * len(nodes.command)
+        self._analog_types: list[str | None] = [None] * len(nodes.analog_units)
+        self._frame_status: ua.StatusCode | None = None
+        self._revision: str | None = None
+        self._identity: Identity | None = None
+        self._state: str | None = None
+        self._holder: str | None = None
+        self.writes = 0
+        """Values written (a counter: the bench reads it)."""
+        self.write_errors = 0
+
+    async def _write(
+        self, node: ua.NodeId, variant: ua.Variant, status: ua.StatusCode, source: datetime
+    ) -> None:
+        value = ua.DataValue(
+            variant, StatusCode=status, SourceTimestamp=source, ServerTimestamp=_utc(time.time())
+        )
+        self.writes += 1
+        result = await self._aspace.write_attribute_value(node, _VALUE, value)
+        if not result.is_good():
+            self.write_errors += 1
+            if self.write_errors == 1:  # a bug in a binding: said once, the rest counted
+                log.error("%s: writing %s refused: %s", self.nodes.robot, node, result)
+
+    async def start(self) -> None:
+        """The values that never change, the unsupported members, and no data yet."""
+        now = _utc(time.time())
+        for node, variant in self.nodes.constants:
+            await self._write(node, variant, GOOD, now)
+        for node in self.nodes.unsupported:
+            await self._write(node, _NULL, NOT_SUPPORTED, now)
+        for node in (*self.nodes.models, *self.nodes.serial_numbers, *self.nodes.product_codes):
+            await self._write(node, _NULL, WAITING, now)
+        await self._frames_status(WAITING, now)
+
+    async def update(self, sample: Sample) -> None:
+        now = time.time()
+        if sample.connection_state != self._state and self.nodes.connection_state is not None:
+            self._state = sample.connection_state
+            text = ua.Variant(sample.connection_state, ua.VariantType.String)
+            await self._write(self.nodes.connection_state, text, GOOD, _utc(now))
+        if sample.control_holder != self._holder and self.nodes.control_holder is not None:
+            self._holder = sample.control_holder
+            holder = ua.Variant(sample.control_holder, ua.VariantType.String)
+            await self._write(self.nodes.control_holder, holder, GOOD, _utc(now))
+        if sample.identity is not None and sample.identity != self._identity:
+            await self._nameplates(sample.identity, _utc(now))
+        if sample.command is not None:
+            await self._command(sample.command, _utc(now))
+        if not sample.connected:
+            if self._frame_status is GOOD:
+                await self._frames_status(COMMUNICATION_ERROR, _utc(now))
+            return
+        if sample.frame is not None:
+            await self._frame(sample.frame, _utc(sample.received_at))
+
+    async def _frames_status(self, status: ua.StatusCode, source: datetime) -> None:
+        """Every frame-derived variable Null with ``status`` (the link down, no data yet)."""
+        self._frame_status = status
+        for index, binding in enumerate(self.nodes.frame):
+            self._frame_values[index] = None
+            await self._write(binding.node, _NULL, status, source)
+
+    async def _frame(self, frame: Frame, source: datetime) -> None:
+        force = self._frame_status is not GOOD
+        self._frame_status = GOOD
+        values = self._frame_values
+        for index, binding in enumerate(self.nodes.frame):
+            value = binding.read(frame)
+            if force or value != values[index]:
+                values[index] = value
+                await self._write(binding.node, ua.Variant(value, binding.variant), GOOD, source)
+        for index, analog in enumerate(self.nodes.analog_units):
+            if not analog.from_command:
+                await self._analog(index, analog.type_name(frame), source)
+        version = frame.controller_version
+        revision = f"{version.major}.{version.minor}.{version.patch}"
+        if revision != self._revision:
+            self._revision = revision
+            for node in self.nodes.software_revisions:
+                await self._write(node, ua.Variant(revision, ua.VariantType.String), GOOD, source)
+
+    async def _command(self, image: CommandImage, source: datetime) -> None:
+        values = self._command_values
+        for index, binding in enumerate(self.nodes.command):
+            value = binding.read(image)
+            if value != values[index]:
+                values[index] = value
+                await self._write(binding.node, ua.Variant(value, binding.variant), GOOD, source)
+        for index, analog in enumerate(self.nodes.analog_units):
+            if analog.from_command:
+                await self._analog(index, analog.type_name(image), source)
+
+    async def _analog(self, index: int, type_name: str, source: datetime) -> None:
+        """An analog channel's unit and range, when its type changed."""
+        if self._analog_types[index] == type_name:
+            return
+        self._analog_types[index] = type_name
+        analog = self.nodes.analog_units[index]
+        unit, eu_range = analog_unit(type_name)
+        extension = ua.VariantType.ExtensionObject
+        await self._write(analog.units, ua.Variant(unit.information(), extension), GOOD, source)
+        await self._write(analog.range, ua.Variant(eu_range, extension), GOOD, source)
+
+    async def _nameplates(self, identity: Identity, source: datetime) -> None:
+        self._identity = identity
+        model = ua.Variant(ua.LocalizedText(identity.product_name), ua.VariantType.LocalizedText)
+        for node in self.nodes.models:
+            await self._write(node, model, GOOD, source)
+        serial = ua.Variant(identity.serial_number, ua.VariantType.String)
+        for node in self.nodes.serial_numbers:
+            await self._write(node, serial, GOOD, source)
+        code = ua.Variant(identity.product_code, ua.VariantType.String)
+        for node in self.nodes.product_codes:
+            await self._write(node, code, GOOD, source)
+        arm = identity.arm
+        for joint_range in self.nodes.joint_ranges:
+            joint = arm.joints[joint_range.joint]
+            limit = joint.max_speed_deg_s if joint_range.speed else joint.limit_deg
+            span = ua.Range(Low=-limit, High=limit)
+            variant = ua.Variant(span, ua.VariantType.ExtensionObject)
+            await self._write(joint_range.node, variant, GOOD, source)
