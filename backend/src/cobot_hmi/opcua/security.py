@@ -17,6 +17,7 @@
 
 from __future__ import annotations
 
+import contextvars
 import ipaddress
 import logging
 import os
@@ -143,6 +144,12 @@ class Certificates:
         return ClientValidator(self.trusted_dir, self.rejected_dir)
 
 
+SECURE_CHANNEL: Final[contextvars.ContextVar[bool]] = contextvars.ContextVar(
+    "opcua_secure_channel", default=True
+)
+"""Whether the session being created came over a signed channel (``sessions`` sets it)."""
+
+
 class ClientValidator:
     """Checks a client's certificate at CreateSession: its validity period, that its
     subjectAltName names the client's application URI, and that it is trusted; an untrusted
@@ -164,24 +171,38 @@ class ClientValidator:
     async def __call__(
         self, certificate: x509.Certificate, description: ua.ApplicationDescription
     ) -> None:
-        await self._store.load_trust()  # a file just added to trusted/ counts at once
+        if not SECURE_CHANNEL.get():  # Part 4 §5.6.2: with None the certificate is ignored
+            return
         try:
+            await self._store.load_trust()  # a file just added to trusted/ counts at once
             await self._validator.validate(certificate, description)
+        except ValueError:  # no certificate in the trusted directory: nobody is trusted
+            error = ServiceError(ua.StatusCodes.BadCertificateUntrusted)
+            self._reject(certificate, description, error)
+            raise error from None
         except ServiceError as error:
-            self.rejected += 1
-            name = certificate.fingerprint(hashes.SHA1()).hex()
-            path = self._rejected_dir / f"{name}.der"
-            if not path.exists():
-                path.write_bytes(certificate.public_bytes(serialization.Encoding.DER))
-            log.warning(
-                "OPC UA: client certificate of %s refused (%s); saved as %s: move it into %s "
-                "to trust it",
-                description.ApplicationUri,
-                ua.StatusCode(error.code).name,
-                path,
-                self._trusted_dir,
-            )
+            self._reject(certificate, description, error)
             raise
+
+    def _reject(
+        self,
+        certificate: x509.Certificate,
+        description: ua.ApplicationDescription,
+        error: ServiceError,
+    ) -> None:
+        self.rejected += 1
+        name = certificate.fingerprint(hashes.SHA1()).hex()
+        path = self._rejected_dir / f"{name}.der"
+        if not path.exists():
+            path.write_bytes(certificate.public_bytes(serialization.Encoding.DER))
+        log.warning(
+            "OPC UA: client certificate of %s refused (%s); saved as %s: move it into %s "
+            "to trust it",
+            description.ApplicationUri,
+            ua.StatusCode(error.code).name,
+            path,
+            self._trusted_dir,
+        )
 
 
 async def load_into(server: Server, certificates: Certificates) -> None:

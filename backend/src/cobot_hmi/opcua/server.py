@@ -128,12 +128,13 @@ class OpcUaServer:
 
     async def _main(self) -> None:
         self._stop = asyncio.Event()
-        server = await self._make_server()
+        server, internal = await self._make_server()
         try:
             self.feed.open()
             for values in self.values.values():
                 await values.start()
             await server.start()
+            internal.binary_server = server.bserver
         except BaseException:
             self.feed.close()
             raise
@@ -145,7 +146,7 @@ class OpcUaServer:
             self.feed.close()
             await server.stop()
 
-    async def _make_server(self) -> Server:
+    async def _make_server(self) -> tuple[Server, RobotInternalServer]:
         settings = self.settings
         mark = time.perf_counter()
         await asyncio.to_thread(self.certificates.ensure)
@@ -182,7 +183,7 @@ class OpcUaServer:
             self.feed, nodes, enabled=settings.opcua_writes, written=self._refresh
         )
         internal.routes = self.routes
-        return server
+        return server, internal
 
     async def _refresh(self, name: str) -> None:
         """After a confirmed write: the robot's variables now, not at the next tick."""

@@ -5,7 +5,9 @@ saying which session sent it. ``RobotSession`` (the class of every client's sess
 ``RobotInternalServer.create_session``) takes the Write values and method calls that belong
 to the robots (``writes.CommandWrites``) with its own user, peer and id, and passes the rest
 on unchanged; it also sets the peer for the login throttle while a session is activated
-(``auth.PEER``) and tells ``CommandWrites`` when it closes.
+(``auth.PEER``), whether its channel is signed while it is created (``security.SECURE_CHANNEL``:
+a client certificate over SecurityPolicy None is ignored, Part 4 §5.6.2), and tells
+``CommandWrites`` when it closes.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from asyncua.server.internal_session import InternalSession
 from asyncua.server.user_managers import UserManager
 
 from cobot_hmi.opcua.auth import PEER
+from cobot_hmi.opcua.security import SECURE_CHANNEL
 from cobot_hmi.opcua.writes import Caller, CommandWrites
 
 log = logging.getLogger(__name__)
@@ -35,6 +38,8 @@ class RobotInternalServer(InternalServer):
         super().__init__(user_manager=user_manager)
         self.routes: CommandWrites | None = None
         """Set once the robots' nodes exist (before the server listens)."""
+        self.binary_server: Any = None
+        """asyncua's ``BinaryServer`` (its open connections), set once the server listens."""
         self._closing: set[asyncio.Task[None]] = set()
 
     def create_session(
@@ -43,6 +48,17 @@ class RobotInternalServer(InternalServer):
         if not external:
             return super().create_session(name, user, external)
         return RobotSession(self, name, user)
+
+    def channel_is_signed(self, session: InternalSession) -> bool:
+        """Whether ``session`` came over a Sign or SignAndEncrypt channel. asyncua tells only
+        its connection (``UaProcessor``, whose secure connection is private): found by the
+        session it created; not found, the session counts as signed (its certificate checked)."""
+        for protocol in getattr(self.binary_server, "clients", ()):
+            processor = getattr(protocol, "processor", None)
+            if processor is not None and processor.session is session:
+                policy = processor._connection.security_policy
+                return bool(policy.Mode != ua.MessageSecurityMode.None_)
+        return True
 
     def session_closed(self, user: User) -> None:
         routes = self.routes
@@ -64,6 +80,15 @@ class RobotSession(InternalSession):
 
     def _caller(self) -> Caller:
         return Caller(self.user, str(self.name), self.session_id.to_string())
+
+    async def create_session(
+        self, params: ua.CreateSessionParameters, sockname: tuple[str, int] | None = None
+    ) -> ua.CreateSessionResult:
+        token = SECURE_CHANNEL.set(self._server.channel_is_signed(self))
+        try:
+            return await super().create_session(params, sockname=sockname)
+        finally:
+            SECURE_CHANNEL.reset(token)
 
     def activate_session(
         self, params: ua.ActivateSessionParameters, peer_certificate: bytes | None
