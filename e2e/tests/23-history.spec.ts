@@ -155,7 +155,8 @@ test("a live plot: zoom back into history, the e-stop's marker, every plot jumps
   const header = cells(lines[0]!);
   // Times and counters first (docs/api.md "History"), then the plot's six elements with units.
   expect(header.slice(0, 2)).toEqual(["time", "seq"]);
-  expect(header.filter((c) => c.startsWith("joint_position."))).toEqual([0, 1, 2, 3, 4, 5].map((i) => `joint_position.${i} [degree]`));
+  // Named as the screen labels them (J 1 is joint_position.J1), not by the API's 0-based keys.
+  expect(header.filter((c) => c.startsWith("joint_position."))).toEqual([1, 2, 3, 4, 5, 6].map((j) => `joint_position.J${j} [degree]`));
   expect(header.filter((c) => !/^(time|seq|t2o_sequence)$/.test(c))).toHaveLength(6);
   const rows = lines.slice(1);
   expect(rows.length).toBeGreaterThan(10);

@@ -39,7 +39,8 @@ async function recordedRows(service: Service, from_s: number, to_s: number): Pro
   const [header, ...lines] = (await answer.text()).trim().split(/\r?\n/);
   const names = header!.split(",").map((name) => name.replaceAll('"', ""));
   const column = (name: string) => names.findIndex((n) => n === name || n.startsWith(`${name} [`));
-  const joints = [0, 1, 2, 3, 4, 5].map((i) => column(`joint_position.${i}`));
+  // Export columns carry the screen's labels (J 1 … J 6: joint_position.J1 …).
+  const joints = [1, 2, 3, 4, 5, 6].map((j) => column(`joint_position.J${j}`));
   const state = column("robot_state");
   const time = column("time");
   expect(Math.min(state, time, ...joints), header).toBeGreaterThanOrEqual(0);
