@@ -3,7 +3,7 @@
  * It adapts Plotly to `PlotBackend`; nothing else in the app calls Plotly directly.
  */
 import Plotly from "plotly.js-basic-dist-min";
-import type { PlotBackend } from "./plotting";
+import type { PlotBackend } from "./plotBackend";
 
 function ignore(promise: Promise<unknown>): void {
   // Plotly's promises reject only when the element was purged meanwhile: nothing to do.

@@ -21,11 +21,13 @@
  * This module is `LivePlot`'s state: the view (ring, moving, fixed) and the moves between views
  * (a person's zoom or pan, a step, a jump, back to live), pause, visibility, interactivity, and
  * `update()` for the coordinator. How a plot looks (trace style, time axis, layout, config) is
- * lib/plotAppearance.ts; a view of the recording's fetching and traces is
- * lib/plotRecordingView.ts. Must not import Plotly (only through `PlotBackend`) or React.
+ * lib/plotAppearance.ts; each view's own side is a module of its own: the ring's reading
+ * (lib/plotRingView.ts), the moving window's policy (lib/plotMovingView.ts), a fixed range's
+ * decisions (lib/plotFixedView.ts), and the recording's fetching and traces
+ * (lib/plotRecordingView.ts). Must not import Plotly (only through `PlotBackend`) or React.
  */
-import { bucketWidthMs, MinMaxBucketer, POINTS_PER_BUCKET } from "./decimate";
-import { axisTimeToEpochS, markersOf, type RangeData, type TimeRange } from "./historyView";
+import { POINTS_PER_BUCKET } from "./decimate";
+import { markersOf, type RangeData, type TimeRange } from "./historyView";
 import {
   BUCKETS_PER_WINDOW,
   emptyTraces,
@@ -51,36 +53,15 @@ import {
   type PlotHistorySource,
   type PlotView,
 } from "./plotRecordingView";
-import { RING_WINDOW_MAX_MS, tracesOf, type ChannelMap, type PlotSpec, type TraceInfo } from "./plots";
+import { axisSpan_ms, reachesRecording, RecordingRevisions, sameSpan, showsRange } from "./plotFixedView";
+import { refreshAction, viewForWindow } from "./plotMovingView";
+import { RingView } from "./plotRingView";
+import { tracesOf, type ChannelMap, type PlotSpec, type TraceInfo } from "./plots";
 import { stepRange, type PlotStep, type SpanMs } from "./plotSteps";
+import type { PlotBackend } from "./plotBackend";
 import type { SampleRing } from "./ringBuffer";
 
-type Datum = number | null;
-
-export interface PlotBackend {
-  newPlot(el: HTMLElement, data: object[], layout: object, config: object): void;
-  react(el: HTMLElement, data: object[], layout: object, config: object): void;
-  /**
-   * Append points to traces; `axes`: axis attributes (e.g. a live plot's time ticks) to change
-   * in the same redraw.
-   */
-  extendTraces(
-    el: HTMLElement,
-    update: { x: Datum[][]; y: Datum[][] },
-    indices: number[],
-    maxPoints: number,
-    axes?: Readonly<Record<string, object>>,
-  ): void;
-  restyle(el: HTMLElement, update: object, indices: number[]): void;
-  relayout(el: HTMLElement, update: object): void;
-  /** The axes a person zoomed or panned (autorange off) and their ranges now. */
-  zoomedAxes(el: HTMLElement): Readonly<Record<string, readonly unknown[]>>;
-  /** Call `listener` after each zoom, pan or autoscale a person makes (Plotly's relayout). */
-  onRelayout?(el: HTMLElement, listener: () => void): void;
-  /** Save the plot as it is drawn now as a PNG file. */
-  downloadPng?(el: HTMLElement, filename: string): void;
-  purge(el: HTMLElement): void;
-}
+export type { PlotBackend } from "./plotBackend";
 
 export interface LivePlotOptions extends PlotLook {
   readonly window_ms: number;
@@ -99,8 +80,8 @@ export class LivePlot {
   private readonly options: LivePlotOptions;
   private el: HTMLElement | null = null;
   private window_ms: number;
-  private bucketer: MinMaxBucketer;
-  private readSeq = 0;
+  /** The ring view's reading of the ring (its buckets, what it holds). */
+  private readonly ringView: RingView;
   private needsRebuild = true;
   private paused = false;
   private pointerInside = false;
@@ -108,9 +89,6 @@ export class LivePlot {
   private focusInside = false;
   /** An x range (shifted, as drawn) a step asks the next ring rebuild to show. */
   private stepZoom: readonly number[] | null = null;
-  /** The range of the ring view's last rebuild (a paused picture shows it). */
-  private ringDrawnTo_ms: number | null = null;
-  private ringDrawnFrom_ms: number | null = null;
   private readonly visible: boolean[];
   private tzShift_ms = 0;
   /**
@@ -138,11 +116,8 @@ export class LivePlot {
   private historyError: string | null = null;
   /** The range of the last history drawing (ms since the epoch). */
   private drawnRange_ms: SpanMs | null = null;
-  /** The answer of the last history drawing. */
-  private drawnData: RangeData | null = null;
   /** Per-axis `uirevision`s of history drawings (the layout's keeps the drag mode). */
-  private xRevision = 0;
-  private yRevision = 0;
+  private readonly revisions = new RecordingRevisions();
   /** `revision` of the last drawing: a rebuild within the same revision keeps the zoom. */
   private drawnRevision = -1;
   /** Points in each trace now (all traces have the same count). */
@@ -163,7 +138,7 @@ export class LivePlot {
     this.options = options;
     this.window_ms = options.window_ms;
     this.visible = this.traces.map(() => true);
-    this.bucketer = this.newBucketer();
+    this.ringView = new RingView(ring, this.ringChannels, this.window_ms);
     const history = options.history;
     this.clock = history?.now_ms ?? Date.now;
     this.recording =
@@ -243,17 +218,12 @@ export class LivePlot {
       if (this.view.kind === "fixed") this.backToLive();
       return;
     }
-    const from_ms = axisTimeToEpochS(x[0], this.tzShift_ms) * 1000;
-    const to_ms = axisTimeToEpochS(x[1], this.tzShift_ms) * 1000;
-    if (!Number.isFinite(from_ms) || !Number.isFinite(to_ms) || !(to_ms > from_ms)) return;
-    const tolerance_ms = (to_ms - from_ms) / 1000;
-    if (this.view.kind !== "ring") {
-      const drawn = this.drawnRange_ms;
-      // Our own drawing of a range is no move of the person's.
-      if (drawn !== null && Math.abs(drawn.from - from_ms) <= tolerance_ms && Math.abs(drawn.to - to_ms) <= tolerance_ms) return;
-    }
+    const range = axisSpan_ms(x, this.tzShift_ms);
+    if (range === null) return;
+    // Our own drawing of a range is no move of the person's.
+    if (this.view.kind !== "ring" && sameSpan(range, this.drawnRange_ms)) return;
     // Plotly shows the person's range already: nothing to draw before its answer.
-    this.goTo({ from: from_ms, to: to_ms }, false);
+    this.goTo(range, false);
   }
 
   /**
@@ -263,13 +233,9 @@ export class LivePlot {
    * before it goes into the recording. Without a recording (the loader) only the ring zoom.
    */
   private goTo(range: SpanMs, draw: boolean): void {
-    const { from, to } = range;
-    if (this.recording !== null) {
-      const held = this.ringHeldFrom_ms();
-      if (this.view.kind !== "ring" || held === null || from < held - (to - from) / 100) {
-        this.enterView({ kind: "fixed", from_ms: from, to_ms: to }, { immediate: false, redraw: draw, fresh: false });
-        return;
-      }
+    if (this.recording !== null && reachesRecording(this.view.kind, this.ringView.heldFrom_ms(), range)) {
+      this.enterView({ kind: "fixed", from_ms: range.from, to_ms: range.to }, { immediate: false, redraw: draw, fresh: false });
+      return;
     }
     if (draw) this.zoomRing(range);
   }
@@ -302,7 +268,7 @@ export class LivePlot {
     // Without the recording, nothing is newer than the ring's newest frame.
     const now = this.recording === null ? (this.ring.newestTime() ?? this.now_ms()) : this.now_ms();
     let next = stepRange(shown, step, now);
-    if (next !== null && next !== "live" && this.recording === null) next = this.withinRing(next, now);
+    if (next !== null && next !== "live" && this.recording === null) next = this.ringView.within(next, now);
     if (next === null) return;
     if (next !== "live") this.goTo(next, true);
     // Already live: nothing to redraw.
@@ -316,34 +282,8 @@ export class LivePlot {
     return r === null ? null : { from: r.from_s * 1000, to: r.to_s * 1000 };
   }
 
-  /** `range` moved to start no earlier than the ring view holds; "live" once it covers it all. */
-  private withinRing(range: SpanMs, now_ms: number): SpanMs | "live" | null {
-    const held = this.ringHeldFrom_ms();
-    if (held === null) return null;
-    if (range.from >= held) return range;
-    const to = Math.min(now_ms, held + (range.to - range.from));
-    return to >= now_ms ? "live" : { from: held, to };
-  }
-
-  /** The oldest time the ring view draws: its window back from the newest frame, or the ring's oldest. */
-  private ringHeldFrom_ms(): number | null {
-    const newest = this.ring.newestTime();
-    return newest === null ? null : this.ringStart_ms(newest);
-  }
-
-  /**
-   * Where a ring view ending at `to_ms` starts: its window back, or the ring's oldest frame while
-   * the ring holds less (just after the page opened), as the autoranged axis shows it.
-   */
-  private ringStart_ms(to_ms: number): number {
-    const from = to_ms - this.window_ms;
-    if (this.ring.newestTime() === null) return from;
-    const oldest = this.ring.timeAt(this.ring.oldestSeq);
-    return oldest < to_ms ? Math.max(from, oldest) : from;
-  }
-
   private viewForWindow(window_ms: number): PlotView {
-    return this.recording !== null && window_ms > RING_WINDOW_MAX_MS ? { kind: "moving", span_ms: window_ms } : { kind: "ring" };
+    return viewForWindow(this.recording !== null, window_ms);
   }
 
   /**
@@ -358,10 +298,7 @@ export class LivePlot {
 
   /** Whether the plot shows `range` (a fixed range of the past, to the millisecond). */
   isShowing(range: TimeRange): boolean {
-    const view = this.view;
-    return (
-      view.kind === "fixed" && Math.abs(view.from_ms - range.from_s * 1000) < 1 && Math.abs(view.to_ms - range.to_s * 1000) < 1
-    );
+    return showsRange(this.view, range);
   }
 
   /**
@@ -375,7 +312,7 @@ export class LivePlot {
     if (how.fresh) this.revision++;
     if (view.kind === "ring") {
       this.recording?.stopRequests();
-      this.drawnData = null;
+      this.revisions.reset();
       this.historyData = null;
       this.historyError = null;
       this.drawnRange_ms = null;
@@ -436,11 +373,9 @@ export class LivePlot {
   }
 
   private refreshDue(): void {
-    // Paused: frozen until resumed (which goes back to live and asks again). Out of view: no
-    // request, only the next turn (the plot asks again within a turn of coming into view).
-    if (this.view.kind !== "moving" || this.paused) return;
-    if (this.onScreen) this.requestRange(true);
-    else this.scheduleRefresh();
+    const action = refreshAction(this.view.kind, this.paused, this.onScreen);
+    if (action === "ask") this.requestRange(true);
+    else if (action === "later") this.scheduleRefresh();
   }
 
   private clearRefresh(): void {
@@ -453,18 +388,13 @@ export class LivePlot {
       const r = this.drawnRange_ms ?? this.wantedRange_ms();
       return { from_s: r.from / 1000, to_s: r.to / 1000 };
     }
-    const x = this.el !== null ? this.backend.zoomedAxes(this.el).xaxis : undefined;
-    if (x !== undefined) {
-      const from_s = axisTimeToEpochS(x[0], this.tzShift_ms);
-      const to_s = axisTimeToEpochS(x[1], this.tzShift_ms);
-      if (Number.isFinite(from_s) && Number.isFinite(to_s) && to_s > from_s) return { from_s, to_s };
-    }
+    const zoom = axisSpan_ms(this.el !== null ? this.backend.zoomedAxes(this.el).xaxis : undefined, this.tzShift_ms);
+    if (zoom !== null) return { from_s: zoom.from / 1000, to_s: zoom.to / 1000 };
     // Paused: the range of the picture as it froze, not up to the ring's newest.
-    if (this.paused && this.ringDrawnTo_ms !== null && this.ringDrawnFrom_ms !== null) {
-      return { from_s: this.ringDrawnFrom_ms / 1000, to_s: this.ringDrawnTo_ms / 1000 };
-    }
+    const frozen = this.paused ? this.ringView.drawnRange() : null;
+    if (frozen !== null) return { from_s: frozen.from / 1000, to_s: frozen.to / 1000 };
     const to = this.ring.newestTime() ?? this.clock();
-    return { from_s: this.ringStart_ms(to) / 1000, to_s: to / 1000 };
+    return { from_s: this.ringView.start_ms(to) / 1000, to_s: to / 1000 };
   }
 
   private tell(): void {
@@ -517,6 +447,7 @@ export class LivePlot {
   setWindow(window_ms: number): void {
     if (window_ms === this.window_ms && this.view.kind !== "fixed") return;
     this.window_ms = window_ms;
+    this.ringView.setWindow(window_ms);
     // A new window length starts from autorange, not the old zoom (a new revision).
     this.enterView(this.viewForWindow(window_ms), { immediate: true, redraw: true, fresh: true });
   }
@@ -585,7 +516,7 @@ export class LivePlot {
     // A history view: only when an answer came (or a redraw was asked for), never per frame.
     if (this.view.kind !== "ring") return this.needsRebuild;
     if (this.paused) return false;
-    return this.needsRebuild || this.readSeq !== this.ring.endSeq;
+    return this.needsRebuild || this.ringView.hasNew();
   }
 
   /** Append what arrived since the last update (or rebuild); true if Plotly was called. */
@@ -599,16 +530,12 @@ export class LivePlot {
       return true;
     }
     if (this.paused) return false;
-    if (this.needsRebuild || this.readSeq < this.ring.oldestSeq) {
+    if (this.needsRebuild || this.ringView.fellBehind()) {
       this.rebuild(el);
       this.lastUpdate_ms = now_ms;
       return true;
     }
-    const end = this.ring.endSeq;
-    if (this.readSeq === end) return false;
-    this.bucketer.feedRing(this.ring, this.readSeq, end);
-    this.readSeq = end;
-    const chunk = this.bucketer.take();
+    const chunk = this.ringView.takeNew();
     if (chunk === null) return false;
     const xs = chunk.xs[0] ?? [];
     const axes = this.liveTicks
@@ -629,17 +556,8 @@ export class LivePlot {
     }
     this.needsRebuild = false;
     this.tzShift_ms = new Date().getTimezoneOffset() * 60_000;
-    this.bucketer = this.newBucketer();
-    const newest = this.ring.newestTime();
-    this.ringDrawnTo_ms = newest;
-    this.ringDrawnFrom_ms = newest === null ? null : this.ringStart_ms(newest);
-    const end = this.ring.endSeq;
-    if (newest !== null) {
-      const from = this.ring.firstSeqAtOrAfter(newest - this.window_ms);
-      this.bucketer.feedRing(this.ring, from, end);
-    }
-    this.readSeq = end;
-    const chunk = this.bucketer.take();
+    this.ringView.shift_ms = this.tzShift_ms;
+    const chunk = this.ringView.rebuild();
     const data = this.traces.map((trace, i) => ({
       ...traceStyle(trace, i, this.visible[i] ?? true, this.options.readOnly),
       x: chunk?.xs[i] ?? [],
@@ -673,20 +591,10 @@ export class LivePlot {
     const drawing = historyTraces(this.drawnPlot, data, range, this.pointsWanted(), shift);
     const range_s = { from_s: from / 1000, to_s: to / 1000 };
     const shapes = markerShapes(markersOf(data?.events ?? [], range_s), shift);
-    // Plotly keeps a person's axis range within its `uirevision`: where it shows another range
-    // than this one (a jump, a moving window's step), a new x revision makes it take this one. A
-    // new range of the past also fits its y axes to its data again (Plotly's zoom-out button
-    // widens y as well as x); a moving window's refresh keeps a person's y zoom. Per axis, so
-    // the layout's revision keeps the person's drag mode (a pan goes on panning).
-    const x = this.backend.zoomedAxes(el).xaxis;
-    const shown_from = x !== undefined ? axisTimeToEpochS(x[0], shift) * 1000 : Number.NaN;
-    const shown_to = x !== undefined ? axisTimeToEpochS(x[1], shift) * 1000 : Number.NaN;
-    const tolerance_ms = (to - from) / 1000;
-    if (!(Math.abs(shown_from - from) <= tolerance_ms && Math.abs(shown_to - to) <= tolerance_ms)) this.xRevision++;
-    if (this.view.kind === "fixed" && data !== this.drawnData) this.yRevision++;
-    this.drawnData = data;
+    // A new x revision where Plotly shows another range, a new y one for a new range of the past.
+    this.revisions.next(this.view.kind, range, axisSpan_ms(this.backend.zoomedAxes(el).xaxis, shift), data);
     this.drawnRevision = this.revision;
-    const layout = historyLayout(this.layout({ xaxis: [from - shift, to - shift] }), shapes, this.xRevision, this.yRevision);
+    const layout = historyLayout(this.layout({ xaxis: [from - shift, to - shift] }), shapes, this.revisions.x, this.revisions.y);
     this.drawnRange_ms = { from, to };
     this.points = drawing.points;
     this.backend.react(el, drawing.traces, layout, plotConfig(this.interactive));
@@ -706,16 +614,6 @@ export class LivePlot {
     this.el.dataset.interactive = this.interactive ? "true" : "false";
     this.el.dataset.zoomed = this.zoomed ? "true" : "false";
     this.el.dataset.view = this.view.kind;
-  }
-
-  private newBucketer(): MinMaxBucketer {
-    return new MinMaxBucketer(
-      this.ringChannels,
-      bucketWidthMs(this.window_ms, BUCKETS_PER_WINDOW),
-      BUCKETS_PER_WINDOW,
-      // Plotly shows numeric dates in UTC: shift to the browser's local time of day.
-      (t) => t - this.tzShift_ms,
-    );
   }
 
   /** Plotly's layout now, with `zoom`'s axis ranges (lib/plotAppearance.ts). */
