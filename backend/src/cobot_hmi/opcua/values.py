@@ -15,11 +15,10 @@ nameplates (identity) and the software revision keep their last value.
 
 from __future__ import annotations
 
-import logging
 import time
 from dataclasses import dataclass
 from datetime import UTC, datetime
-from typing import Final
+from typing import Any, Final
 
 from asyncua import Server, ua
 
@@ -27,8 +26,6 @@ from cobot_hmi.arms import ARMS, Arm
 from cobot_hmi.codec import CommandImage, Frame
 from cobot_hmi.opcua.bindings import RobotNodes
 from cobot_hmi.opcua.units import analog_unit
-
-log = logging.getLogger(__name__)
 
 _VALUE: Final = ua.AttributeIds.Value
 GOOD: Final = ua.StatusCode(ua.StatusCodes.Good)
@@ -88,24 +85,34 @@ class RobotValues:
         self._holder: str | None = None
         self.writes = 0
         """Values written (a counter: the bench reads it)."""
-        self.write_errors = 0
+        self._attributes: dict[ua.NodeId, Any] = {}
+        """asyncua's value attribute of each variable written (found once)."""
+        self._now = _utc(time.time())
+        """The ServerTimestamp of this update's writes."""
 
     async def _write(
         self, node: ua.NodeId, variant: ua.Variant, status: ua.StatusCode, source: datetime
     ) -> None:
+        """One value as asyncua's own ``write_attribute_value`` stores it (the value, then each
+        monitored item's callback), without its per-write checks: every variable here is
+        written with its own data type, and a Bad status always with a Null value."""
+        attribute = self._attributes.get(node)
+        if attribute is None:
+            attribute = self._attributes[node] = self._aspace[node].attributes[_VALUE]
         value = ua.DataValue(
-            variant, StatusCode=status, SourceTimestamp=source, ServerTimestamp=_utc(time.time())
+            variant, StatusCode=status, SourceTimestamp=source, ServerTimestamp=self._now
         )
         self.writes += 1
-        result = await self._aspace.write_attribute_value(node, _VALUE, value)
-        if not result.is_good():
-            self.write_errors += 1
-            if self.write_errors == 1:  # a bug in a binding: said once, the rest counted
-                log.error("%s: writing %s refused: %s", self.nodes.robot, node, result)
+        attribute.value = value
+        attribute.value_callback = None
+        callbacks = attribute.datachange_callbacks
+        if callbacks:
+            for handle, callback in list(callbacks.items()):
+                await callback(handle, value)
 
     async def start(self) -> None:
         """The values that never change, the unsupported members, and no data yet."""
-        now = _utc(time.time())
+        now = self._now = _utc(time.time())
         for node, variant in self.nodes.constants:
             await self._write(node, variant, GOOD, now)
         for node in self.nodes.unsupported:
@@ -116,6 +123,7 @@ class RobotValues:
 
     async def update(self, sample: Sample) -> None:
         now = time.time()
+        self._now = _utc(now)
         if sample.connection_state != self._state and self.nodes.connection_state is not None:
             self._state = sample.connection_state
             text = ua.Variant(sample.connection_state, ua.VariantType.String)
