@@ -1,0 +1,86 @@
+"""The OPC UA server's pure parts: its settings, the layout's units as UN/CEFACT codes, the
+safety state's reading of the frame, and the bundled NodeSets' provenance."""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+
+import pytest
+
+from cobot_hmi.codec import zero_frame
+from cobot_hmi.generated.frames import RobotState
+from cobot_hmi.layout import ANALOG_OUTPUT_RANGES, O2T_FIELDS, T2O_FIELDS
+from cobot_hmi.opcua import companion, robotics
+from cobot_hmi.opcua.settings import DEFAULT_PORT
+from cobot_hmi.opcua.units import PER_TYPE, analog_unit, unit_for
+from cobot_hmi.service.settings import ServiceSettings, SettingsError, load_settings
+
+UA_NS = "{http://opcfoundation.org/UA/2011/03/UANodeSet.xsd}"
+
+
+@pytest.mark.parametrize(
+    ("url", "bind", "loopback"),
+    [
+        ("opc.tcp://127.0.0.1", ("127.0.0.1", DEFAULT_PORT), True),
+        ("opc.tcp://localhost:4841/", ("localhost", 4841), True),
+        ("opc.tcp://[::1]:4842", ("::1", 4842), True),
+        ("opc.tcp://0.0.0.0:4840", ("0.0.0.0", 4840), False),
+        ("opc.tcp://cell.example.org", ("cell.example.org", DEFAULT_PORT), False),
+    ],
+)
+def test_the_url_names_the_bind(url: str, bind: tuple[str, int], loopback: bool) -> None:
+    settings = ServiceSettings(robot_host="127.0.0.2", opcua_url=url)
+    assert settings.opcua_enabled
+    assert settings.opcua_bind == bind
+    assert settings.opcua_loopback is loopback
+
+
+def test_off_by_default_and_a_bad_url_is_refused_naming_it() -> None:
+    settings = ServiceSettings(robot_host="127.0.0.2")
+    assert not settings.opcua_enabled and not settings.opcua_writes
+    assert settings.opcua_monitoring_hz == 10.0
+    with pytest.raises(SettingsError, match="opcua_url"):
+        load_settings({"robot_host": "127.0.0.2", "opcua_url": "http://example.org"})
+
+
+def test_every_unit_of_the_layout_has_a_unece_code() -> None:
+    for field in (*T2O_FIELDS, *O2T_FIELDS):
+        if field.unit and field.unit != PER_TYPE:
+            assert unit_for(field.unit).code
+    for kind, (low, high, symbol) in ANALOG_OUTPUT_RANGES.items():
+        unit, span = analog_unit(kind)
+        assert unit.symbol == symbol and (span.Low, span.High) == (low, high)
+    # Part 8's packing: the code's characters, the last one lowest.
+    assert unit_for("°C").unit_id == 4408652  # "CEL"
+    assert unit_for("degree").unit_id == 0x4444  # "DD"
+
+
+def test_the_safety_state_reads_the_frame() -> None:
+    frame = zero_frame()._replace(robot_state=int(RobotState.STANDALONE_RUNNING))
+    assert not robotics.emergency_stop(frame) and not robotics.protective_stop(frame)
+    assert robotics.operational_mode(frame) == companion.MODE_AUTOMATIC
+    assert robotics.emergency_stop(frame._replace(emergency_stopped=True))
+    assert robotics.emergency_stop(frame._replace(robot_state=int(RobotState.EMERGENCY_STOP)))
+    assert robotics.protective_stop(frame._replace(robot_state=int(RobotState.INTERRUPTED)))
+    manual = frame._replace(robot_state=int(RobotState.MANUAL_JOGGING))
+    assert robotics.operational_mode(manual) == companion.MODE_MANUAL_REDUCED_SPEED
+    other = frame._replace(robot_state=int(RobotState.SAFE_OFF))
+    assert robotics.operational_mode(other) == companion.MODE_OTHER
+
+
+def test_the_bundled_nodesets_are_the_models_named() -> None:
+    """Each bundled file declares the model it is loaded as, carries the OPC Foundation's
+    licence, and holds every node ``companion`` names under its browse name."""
+    for file_name, uri in companion.NODESETS:
+        path = companion.NODESET_DIR / file_name
+        text = path.read_text(encoding="utf-8")
+        assert "OPC Foundation MIT License 1.00" in text
+        root = ET.parse(path).getroot()
+        models = [m.get("ModelUri") for m in root.iter(f"{UA_NS}Model")]
+        assert models == [uri]
+        uris = [u.text for u in root.find(f"{UA_NS}NamespaceUris") or []]
+        index = uris.index(uri) + 1
+        names = {el.get("NodeId"): el.get("BrowseName") for el in root if el.get("NodeId")}
+        for ref in companion.ALL_REFS:
+            if ref.uri == uri:
+                assert names[f"ns={index};i={ref.identifier}"] == f"{index}:{ref.name}", ref
