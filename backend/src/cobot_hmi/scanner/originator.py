@@ -526,8 +526,12 @@ class Originator:
                 self._set_state(ConnectionState.LOST, reason)
                 await self._teardown(forward_close=True)
             await asyncio.sleep(backoff_s)
-            refused = self.state is ConnectionState.REFUSED
-            backoff_s = min(backoff_s * 2, s.refused_backoff_max_s if refused else s.backoff_max_s)
+            cap_s = (
+                s.refused_backoff_max_s
+                if self.state is ConnectionState.REFUSED
+                else s.backoff_max_s
+            )
+            backoff_s = min(backoff_s * 2, cap_s)
 
     async def _open_port(self) -> IoPort:
         """The shared port (opened on first use), or our own on the local address: the one
