@@ -38,12 +38,14 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+import history_memory
 from proc_stats import process_cpu_s
 from service_bench_support import Stack, histogram_quantile, metrics, stack, value_of
 
 from cobot_hmi.codec import T2O_SIZE, decode_frame, encode_frame
 from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot
 from cobot_hmi.history import segments
+from cobot_hmi.history.cells import forget_cells
 from cobot_hmi.history.query import query, read_raw
 from cobot_hmi.history.schema import items_to_batch, select_elements, time_seconds
 from cobot_hmi.service.routes_history import answer_json
@@ -145,7 +147,7 @@ def query_latency(
             answer_json(result, None, recording=True)
             return (time.perf_counter() - started) * 1000
 
-        segments.forget_cells()  # cold: nothing read by an earlier range or run
+        forget_cells()  # cold: nothing read by an earlier range or run
         cold = once()
         warm = statistics.median(once() for _ in range(runs))
         started = time.perf_counter()
@@ -252,7 +254,15 @@ def main() -> int:
     parser.add_argument("--query-runs", type=int, default=7)
     parser.add_argument("--skip-live", action="store_true")
     parser.add_argument("--crash-trials", type=int, default=5, help="kill -9 trials (0: none)")
+    parser.add_argument(
+        "--memory",
+        action="store_true",
+        help="only the recorder's memory across segment closes at RPI 2 ms (history_memory.py)",
+    )
+    parser.add_argument("--closes", type=int, default=4, help="segment closes of --memory")
     args = parser.parse_args()
+    if args.memory:
+        return history_memory.main(args.closes)
     print(f"load average before: {os.getloadavg()}")
     pool = frame_pool(POOL_S)
     with tempfile.TemporaryDirectory(prefix="cobot-history-bench-") as directory:

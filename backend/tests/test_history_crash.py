@@ -18,6 +18,7 @@ import pytest
 from cobot_hmi.emulator.robot import RobotSettings as SimulationSettings
 from cobot_hmi.emulator.robot import SimulatedRobot
 from cobot_hmi.history import segments
+from cobot_hmi.history.cells import read_cells_file
 from conftest import free_tcp_port
 from process_support import cli_process, wait_ready
 from service_support import DEADLINE_S, emulator, eventually, running_service, service_settings
@@ -91,7 +92,7 @@ async def test_kill_9_keeps_what_was_recorded(
         counters: list[int] = []
         for segment in closed:
             counters += pq.read_table(segment.path).column("seq").to_pylist()
-            cells = segments.read_cells_file(segment.rollup_path, ["cell"])
+            cells = read_cells_file(segment.rollup_path, ["cell"])
             assert cells is not None and cells.num_rows >= 1
         for _, journal in journals:
             counters += segments.read_journal(journal).column("seq").to_pylist()

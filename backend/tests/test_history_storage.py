@@ -26,6 +26,7 @@ from mcap.reader import make_reader
 from cobot_hmi.codec import Frame, decode_frame, encode_frame, zero_frame
 from cobot_hmi.emulator.static_robot import standing_frame
 from cobot_hmi.history import export, retention, segments
+from cobot_hmi.history.cells import CELL_WIDTHS_KEY, read_cells_file
 from cobot_hmi.history.query import (
     CELL_S,
     QueryError,
@@ -211,10 +212,8 @@ def test_cells_read_in_parts_equal_the_file(tmp_path: Path) -> None:
     items = synthetic_items(300, period_s=0.1)
     write_recording(tmp_path, "r", items, 150)  # a closed segment of 15 s, then a journal
     writer_segment = segments.list_segments(tmp_path, "r")[0]
-    first = segments.read_cells_file(writer_segment.rollup_path, ["cell", "robot_state:max"])
-    both = segments.read_cells_file(
-        writer_segment.rollup_path, ["robot_state:max", "servo_on:min", "cell"]
-    )
+    first = read_cells_file(writer_segment.rollup_path, ["cell", "robot_state:max"])
+    both = read_cells_file(writer_segment.rollup_path, ["robot_state:max", "servo_on:min", "cell"])
     with pa.memory_map(str(writer_segment.rollup_path)) as source:
         whole = pa.Table.from_batches([pa.ipc.open_file(source).get_batch(0)])  # 1 s cells
         assert both is not None and first is not None
@@ -407,7 +406,7 @@ def downgrade_cells(path: Path) -> None:
     metadata."""
     with pa.memory_map(str(path)) as source:
         reader = pa.ipc.open_file(source)
-        assert reader.schema.metadata[segments.CELL_WIDTHS_KEY] == b"1,10,60"
+        assert reader.schema.metadata[CELL_WIDTHS_KEY] == b"1,10,60"
         seconds = pa.Table.from_batches([reader.get_batch(0)]).replace_schema_metadata(None)
     with pa.OSFile(str(path), "wb") as sink, pa.ipc.new_file(sink, seconds.schema) as writer:
         writer.write_table(seconds)
@@ -500,11 +499,11 @@ def test_coarse_cells_are_kept_beside_each_segment(tmp_path: Path) -> None:
     segment = segments.list_segments(tmp_path, "r")[0]
     columns = ["cell", "count", "t_first", "t_last", "joint_position.3:min", "servo_on:max",
                "robot_state:first", "external_force.1:last"]  # fmt: skip
-    seconds = segments.read_cells_file(segment.rollup_path, columns)
+    seconds = read_cells_file(segment.rollup_path, columns)
     assert seconds is not None
     frames = pq.read_table(segment.path)
     for width in LEVELS_S[1:]:
-        level = segments.read_cells_file(segment.rollup_path, columns, width)
+        level = read_cells_file(segment.rollup_path, columns, width)
         assert level is not None
         cells = level.column("cell").to_pylist()
         assert all(c % width == 0 for c in cells) and cells == sorted(set(cells))
@@ -523,8 +522,8 @@ def test_coarse_cells_are_kept_beside_each_segment(tmp_path: Path) -> None:
     downgrade_cells(segment.rollup_path)
     fresh = segment.rollup_path.with_name("old.cells.arrow")  # not in the cache
     segment.rollup_path.rename(fresh)
-    assert segments.read_cells_file(fresh, columns, 60) is None
-    old = segments.read_cells_file(fresh, columns)
+    assert read_cells_file(fresh, columns, 60) is None
+    old = read_cells_file(fresh, columns)
     assert old is not None and old.equals(seconds)
 
 

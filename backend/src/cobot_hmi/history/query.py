@@ -32,6 +32,7 @@ import numpy.typing as npt
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from cobot_hmi.history.cells import read_cells_file
 from cobot_hmi.history.rollup import (
     CELL,
     COUNT,
@@ -55,13 +56,7 @@ from cobot_hmi.history.schema import (
     conform,
     time_seconds,
 )
-from cobot_hmi.history.segments import (
-    Segment,
-    list_journals,
-    list_segments,
-    read_cells_file,
-    read_journal,
-)
+from cobot_hmi.history.segments import Segment, list_journals, list_segments, read_journal
 
 MAX_POINTS: Final = 5000
 CELL_S: Final = 1.0

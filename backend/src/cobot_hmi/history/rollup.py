@@ -142,9 +142,22 @@ def coarsen(cells: pa.Table, width_s: int) -> pa.Table:
     if width_s == 1 or cells.num_rows == 0:
         return cells
     cell = cells.column(CELL).to_numpy()
-    coarse = cell // width_s * width_s
+    return _combine(cells, cell // width_s * width_s)
+
+
+def join_split_cells(cells: pa.Table) -> pa.Table:
+    """The cells of consecutive parts of one recording (in time order, ``rollup_table`` of
+    each) as the whole's: a cell split between two parts (its number ending one part and
+    starting the next) becomes one, exactly what its frames give (the statistics compose)."""
+    if cells.num_rows == 0:
+        return cells
+    return _combine(cells, cells.column(CELL).to_numpy())
+
+
+def _combine(cells: pa.Table, coarse: npt.NDArray[np.int64]) -> pa.Table:
+    """One cell per run of equal ``coarse`` numbers (rows in time order), numbered by it."""
     starts = cell_starts(coarse)
-    ends = np.concatenate([starts[1:], [cell.size]]).astype(np.intp)
+    ends = np.concatenate([starts[1:], [coarse.size]]).astype(np.intp)
     arrays: list[pa.Array] = []
     for name in cells.column_names:
         values = np.asarray(cells.column(name).to_numpy(zero_copy_only=False))

@@ -1,4 +1,5 @@
-"""Layer: history storage. Imports only the history schema and rollup, and pyarrow.
+"""Layer: history storage. Imports only the codec, the history schema, rollup and cells, numpy
+and pyarrow.
 
 A robot's recording is a directory of segments (``HISTORY_DIR/ROBOT/``):
 
@@ -11,14 +12,10 @@ A robot's recording is a directory of segments (``HISTORY_DIR/ROBOT/``):
   frames plus the recorder's queue, within the 2 s bound. The journal is fsync'd every
   ``JOURNAL_SYNC_S`` (10 s), which bounds what a power cut takes.
 - closed segments: ``START-END.parquet`` (the frames, zstd, one row group per 64 Ki rows) and
-  ``START-END.cells.arrow`` (the cells, ``rollup``: an Arrow IPC file compressed with LZ4, one
-  record batch per cell width of ``rollup.LEVELS_S``, 1 s, 10 s and 1 min, named in the
-  schema's ``cell_widths_s`` metadata; a query memory-maps it and decompresses only the
-  columns of the one batch it reads, about 0.7 ms a file where Parquet's footer of 750 columns
-  alone costs several). A cells file written before the coarser widths existed holds the
-  per-second batch only and no metadata; a query then coarsens those. Both are written to a
-  temporary name, fsync'd, renamed into place and the directory fsync'd, cells first: a ``.parquet``
-  exists only complete. Then the journal goes.
+  ``START-END.cells.arrow`` (their cells at 1 s, 10 s and 1 min, ``cells``). A journal
+  becomes a segment a row group at a time (``close_journal``): memory holds one row group, not
+  the journal. Both are written to a temporary name, fsync'd, renamed into place and the
+  directory fsync'd, cells first: a ``.parquet`` exists only complete. Then the journal goes.
 
 ``START``/``END`` are the first and last frame's receive times in epoch microseconds, so a
 query picks its segments from the names alone. On start, ``recover`` closes every journal left
@@ -28,21 +25,33 @@ by a crash (its complete batches), and recording resumes in a new journal.
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import os
 import re
 import threading
 import time
 from collections import OrderedDict
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Final
+from typing import Any, Final
 
+import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from cobot_hmi.history.rollup import LEVELS_S, levels, rollup_schema, rollup_table
-from cobot_hmi.history.schema import ELEMENTS, SCHEMA, SEQ, T2O_SEQUENCE, TIME, conform
+from cobot_hmi.codec import T2O_SIZE
+from cobot_hmi.history.cells import write_cells, write_cells_to
+from cobot_hmi.history.rollup import join_split_cells, rollup_table
+from cobot_hmi.history.schema import (
+    ELEMENTS,
+    SCHEMA,
+    SEQ,
+    T2O_SEQUENCE,
+    TIME,
+    conform,
+    raw_to_batch,
+)
 
 JOURNAL_SUFFIX: Final = ".journal.arrows"
 ROLLUP_SUFFIX: Final = ".cells.arrow"
@@ -63,8 +72,6 @@ of the simulated robot, bench/history)."""
 _DICTIONARY_COLUMNS: Final = [name for name in SCHEMA.names if name not in _ENCODINGS]
 _SEGMENT_NAME: Final = re.compile(r"^(\d+)-(\d+)\.parquet$")
 _JOURNAL_NAME: Final = re.compile(r"^(\d+)\.journal\.arrows$")
-CELL_WIDTHS_KEY: Final = b"cell_widths_s"
-"""Schema metadata of a cells file: its batches' cell widths, s, in order (``1,10,60``)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -234,187 +241,160 @@ def _fsync_dir(directory: Path) -> None:
         os.close(fd)
 
 
-def _write_parquet(table: pa.Table, path: Path, row_group_rows: int) -> None:
-    """Without the Arrow schema in the footer (the columns' types read back the same; the
-    units and descriptions would add kilobytes to every segment), fsync'd, renamed in place."""
-    temporary = path.with_name(path.name + ".tmp")
+def _write_parquet(groups: Iterator[pa.Table], sink: Any) -> tuple[pa.Table, int, int] | None:
+    """``groups`` (tables of one schema, ``ROW_GROUP_ROWS`` rows each but the last) as Parquet
+    into ``sink``, a row group each; their per-second cells (a cell split between two groups
+    is one, ``rollup.join_split_cells``) and the first and last receive time, µs; ``None`` for
+    no rows. Memory holds one group at a time. Without the Arrow schema in the footer (the
+    columns' types read back the same; the units and descriptions would add kilobytes to
+    every segment)."""
+    cells: list[pa.Table] = []
+    writer: pq.ParquetWriter | None = None
+    first_us = last_us = 0
     try:
-        with open(temporary, "wb") as sink:
-            pq.write_table(
-                table,
-                sink,
-                compression="zstd",
-                row_group_size=row_group_rows,
-                write_statistics=True,
-                store_schema=False,
-                use_dictionary=_DICTIONARY_COLUMNS,
-                column_encoding=_ENCODINGS,
-            )
-            sink.flush()
-            os.fsync(sink.fileno())
-        os.replace(temporary, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            temporary.unlink()
-        raise
-
-
-def _write_cells(cells: pa.Table, path: Path) -> None:
-    """The per-second cells and their coarser levels as an Arrow IPC file (LZ4), a record
-    batch per level, fsync'd, renamed in place."""
-    temporary = path.with_name(path.name + ".tmp")
-    options = pa.ipc.IpcWriteOptions(compression="lz4")
-    widths = ",".join(str(w) for w in LEVELS_S).encode()
-    schema = cells.schema.with_metadata({CELL_WIDTHS_KEY: widths})
-    try:
-        with open(temporary, "wb") as sink:
-            with pa.ipc.new_file(sink, schema, options=options) as writer:
-                for level in levels(cells):
-                    # One batch per level: the reader finds a level by its index.
-                    writer.write_batch(level.combine_chunks().to_batches()[0])
-            sink.flush()
-            os.fsync(sink.fileno())
-        os.replace(temporary, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            temporary.unlink()
-        raise
-
-
-_CellsKey = tuple[Path, int]
-"""A cells file and a cell width, s."""
-
-
-class _CellsCache:
-    """Columns of closed segments' cells files, per cell width, the most recently used first
-    out last, up to ``max_bytes``: a closed segment's files never change. An entry is one
-    table (whatever columns were read), so a query's work per file is a few calls, not one per
-    column."""
-
-    def __init__(self, max_bytes: int) -> None:
-        self.max_bytes = max_bytes
-        self.bytes = 0
-        self._entries: OrderedDict[_CellsKey, pa.Table] = OrderedDict()
-        self._lock = threading.Lock()
-
-    def get(self, key: _CellsKey) -> pa.Table | None:
-        with self._lock:
-            entry = self._entries.get(key)
-            if entry is not None:
-                self._entries.move_to_end(key)
-            return entry
-
-    def keep(self, key: _CellsKey, table: pa.Table) -> None:
-        """``table`` replaces the entry (it holds the entry's columns and more)."""
-        with self._lock:
-            # get_total_buffer_size: a sum, where nbytes looks for shared buffers (20x slower).
-            old = self._entries.pop(key, None)
-            if old is not None:
-                self.bytes -= old.get_total_buffer_size()
-            self._entries[key] = table
-            self.bytes += table.get_total_buffer_size()
-            while self.bytes > self.max_bytes and len(self._entries) > 1:
-                _, evicted = self._entries.popitem(last=False)
-                self.bytes -= evicted.get_total_buffer_size()
-
-    def clear(self) -> None:
-        with self._lock:
-            self._entries.clear()
-            self.bytes = 0
-
-
-_CELLS: Final = _CellsCache(128 * 1024 * 1024)
-_CELLS_SCHEMA: Final = rollup_schema()
-"""The cells files' columns (their order locates a column without parsing a file twice)."""
-
-
-def forget_cells() -> None:
-    """Empty the cells cache (a benchmark's cold query)."""
-    _CELLS.clear()
-
-
-def read_cells_file(path: Path, columns: list[str], width_s: int = 1) -> pa.Table | None:
-    """``columns`` of a cells file's cells of ``width_s`` seconds (``OSError``/
-    ``ArrowException``); ``None`` when the file has no such level (written before it existed).
-    The columns read are kept (``_CellsCache``, 128 MiB), so a plot that pans and zooms over
-    days reads each file once."""
-    key = (path, width_s)
-    cached = _CELLS.get(key)
-    have = set() if cached is None else set(cached.column_names)
-    missing = [c for c in columns if c not in have]
-    if missing:
-        read = _read_cells_columns(path, missing, width_s)
-        if read is None:
-            return None
-        if cached is not None:
-            read = pa.Table.from_arrays(
-                [*cached.columns, *read.columns], names=[*cached.column_names, *read.column_names]
-            )
-        _CELLS.keep(key, read)
-        cached = read
-    assert cached is not None
-    # By position: selecting 200 columns by name searches the names 200 times.
-    position = {name: i for i, name in enumerate(cached.column_names)}
-    return cached.select([position[c] for c in columns])
-
-
-def _read_cells_columns(path: Path, columns: list[str], width_s: int) -> pa.Table | None:
-    """``columns`` (in the file's order, one chunk each) of the cells of ``width_s`` seconds."""
-    with pa.memory_map(str(path)) as source:
-        indices = [_CELLS_SCHEMA.get_field_index(c) for c in columns]
-        reader = _open_cells(source, indices)
-        if reader is None or set(reader.schema.names) != set(columns):
-            # Columns elsewhere than today's layout puts them: found by name.
-            schema = pa.ipc.open_file(source).schema
-            indices = [schema.get_field_index(c) for c in columns]
-            if min(indices, default=0) < 0:
-                raise pa.ArrowInvalid(f"{path}: a column is missing")
-            reader = _open_cells(source, indices)
-            assert reader is not None
-        widths = (reader.schema.metadata or {}).get(CELL_WIDTHS_KEY)
-        if widths is None:  # written before the coarser levels: per-second cells only
-            if width_s != 1:
-                return None
-            table = reader.read_all().combine_chunks()
-        else:
-            order = [int(w) for w in widths.decode().split(",")]
-            if width_s not in order:
-                return None
-            # Decompressed out of the mapping: nothing refers to it once it closes.
-            table = pa.Table.from_batches([reader.get_batch(order.index(width_s))])
-    return table
-
-
-def _open_cells(
-    source: pa.MemoryMappedFile, indices: list[int]
-) -> pa.ipc.RecordBatchFileReader | None:
-    if min(indices, default=0) < 0:
+        for group in groups:
+            if group.num_rows == 0:
+                continue
+            if writer is None:
+                writer = pq.ParquetWriter(
+                    sink,
+                    group.schema,
+                    compression="zstd",
+                    write_statistics=True,
+                    store_schema=False,
+                    use_dictionary=_DICTIONARY_COLUMNS,
+                    column_encoding=_ENCODINGS,
+                )
+                first_us = _time_us(group, 0)
+            writer.write_table(group, row_group_size=ROW_GROUP_ROWS)
+            last_us = _time_us(group, -1)
+            cells.append(rollup_table(group))
+            del group  # before the next is read
+    finally:
+        if writer is not None:
+            writer.close()
+    if not cells:
         return None
-    options = pa.ipc.IpcReadOptions(included_fields=indices, use_threads=False)
-    return pa.ipc.open_file(source, options=options)
+    return join_split_cells(pa.concat_tables(cells).combine_chunks()), first_us, last_us
+
+
+def _time_us(table: pa.Table, row: int) -> int:
+    """One row's receive time, epoch µs."""
+    return int(table.column(TIME)[row].cast(pa.int64()).as_py())
 
 
 def write_segment(table: pa.Table, directory: Path, robot: str) -> Segment | None:
     """Write ``table`` (sorted by time) as a closed segment; ``None`` for an empty table."""
     if table.num_rows == 0:
         return None
-    micros = table.column(TIME).cast(pa.int64())
-    start_us, end_us = int(micros[0].as_py()), int(micros[-1].as_py())
-    segment = Segment(robot, directory / f"{start_us}-{end_us}{SEGMENT_SUFFIX}", start_us, end_us)
-    _write_cells(rollup_table(table), segment.rollup_path)
-    _write_parquet(table, segment.path, ROW_GROUP_ROWS)
-    _fsync_dir(directory)
-    return segment
+    groups = (table.slice(o, ROW_GROUP_ROWS) for o in range(0, table.num_rows, ROW_GROUP_ROWS))
+    return _write_segment(groups, directory, robot, str(_time_us(table, 0)))
+
+
+def _write_segment(
+    groups: Iterator[pa.Table], directory: Path, robot: str, scratch: str
+) -> Segment | None:
+    """``groups`` (in time order) as a closed segment, through temporary files named after
+    ``scratch`` (the cells renamed into place first, then the Parquet: a ``.parquet`` exists
+    only complete, with its cells); ``None`` for no rows."""
+    parquet_tmp = directory / f"{scratch}{SEGMENT_SUFFIX}.tmp"
+    try:
+        with open(parquet_tmp, "wb") as sink:
+            written = _write_parquet(groups, sink)
+            sink.flush()
+            os.fsync(sink.fileno())
+        if written is None:
+            return None
+        cells, start_us, end_us = written
+        name = f"{start_us}-{end_us}{SEGMENT_SUFFIX}"
+        segment = Segment(robot, directory / name, start_us, end_us)
+        write_cells(cells, segment.rollup_path)
+        os.replace(parquet_tmp, segment.path)
+        _fsync_dir(directory)
+        return segment
+    finally:
+        with contextlib.suppress(OSError):
+            parquet_tmp.unlink()
+
+
+def _journal_groups(path: Path) -> Iterator[pa.Table]:
+    """A journal's complete batches (a torn last one, from a crash, left out) in tables of
+    ``ROW_GROUP_ROWS`` rows (the last one shorter) of the recording's schema
+    (``schema.conform``), read a batch at a time and never copied: memory holds one group's
+    batches (about 20 MB at 300 bytes a frame), never the whole journal."""
+    pending: list[pa.RecordBatch] = []
+    rows = 0
+    with pa.OSFile(str(path), "rb") as source:
+        try:
+            reader = pa.ipc.open_stream(source)
+        except (OSError, pa.ArrowException):  # empty, or its schema torn
+            return
+        while True:
+            try:
+                batch = reader.read_next_batch()
+            except StopIteration:
+                break
+            except (OSError, pa.ArrowException):  # a batch torn by a crash: the end
+                break
+            pending.append(batch)
+            rows += batch.num_rows
+            while rows >= ROW_GROUP_ROWS:
+                table = pa.Table.from_batches(pending, schema=reader.schema)
+                pending = table.slice(ROW_GROUP_ROWS).to_batches()
+                rows -= ROW_GROUP_ROWS
+                group = conform(table.slice(0, ROW_GROUP_ROWS), SCHEMA.names)
+                del table  # the group holds its batches; the next ones are read meanwhile
+                yield group
+                del group
+        if rows:
+            yield conform(pa.Table.from_batches(pending, schema=reader.schema), SCHEMA.names)
 
 
 def close_journal(path: Path, robot: str) -> Segment | None:
-    """Turn a journal into a closed segment and delete it (also after a crash)."""
+    """Turn a journal into a closed segment and delete it (also after a crash), a row group at
+    a time (memory holds about one, 64 Ki rows, and its cells), then hand the memory it took
+    back to the system (``release_memory``)."""
     forget_journal(path)
-    table = read_journal(path)
-    forget_journal(path)
-    segment = write_segment(table, path.parent, robot) if table.num_rows else None
+    try:
+        segment = _write_segment(_journal_groups(path), path.parent, robot, path.name)
+    finally:
+        release_memory()
     path.unlink(missing_ok=True)
     return segment
+
+
+def release_memory() -> None:
+    """Hand the memory a segment's closing freed back to the system: pyarrow's allocator
+    (mimalloc) and the C library's (numpy's arrays) both keep freed memory for reuse, which
+    showed as a lasting step of the service's RSS after its first segment closed."""
+    pa.default_memory_pool().release_unused()
+    if _MALLOC_TRIM is not None:
+        _MALLOC_TRIM(0)
+
+
+def _malloc_trim() -> Callable[[int], int] | None:
+    """glibc's ``malloc_trim`` (``None`` on a C library without it)."""
+    try:
+        function: Callable[[int], int] = ctypes.CDLL(None).malloc_trim
+    except (OSError, AttributeError):
+        return None
+    return function
+
+
+_MALLOC_TRIM: Final = _malloc_trim()
+
+
+def load_writers() -> None:
+    """Write a one-frame segment to memory and drop it. The first segment a process writes
+    loads the Parquet, zstd and LZ4 code and builds their tables, about 20 MiB that stay for
+    the process's life (``bench/history --memory``); the recorder pays that when it starts,
+    so the service's memory does not step up at its first segment ten minutes later."""
+    raw = np.zeros((1, T2O_SIZE), dtype=np.uint8)
+    table = pa.Table.from_batches([raw_to_batch([1], [0.0], raw, [0])])
+    written = _write_parquet(iter([table]), pa.BufferOutputStream())
+    assert written is not None
+    write_cells_to(written[0], pa.BufferOutputStream())
+    release_memory()
 
 
 def recover(root: Path, robot: str) -> list[Segment]:
@@ -498,11 +478,16 @@ class SegmentWriter:
 
     def close_segment(self) -> Segment | None:
         """Close the journal and turn it into a closed segment (``None``: nothing open)."""
+        path = self.finish_journal()
+        return None if path is None else close_journal(path, self.robot)
+
+    def finish_journal(self) -> Path | None:
+        """Close the journal's file and give its path, for ``close_journal`` here or on
+        another thread (``closer``); the next batch opens a new journal. ``None``: nothing
+        open."""
         path = self._path
-        if path is None:
-            return None
         self._abandon()
-        return close_journal(path, self.robot)
+        return path
 
     def _abandon(self) -> None:
         """Close the journal's file without compacting it (after a write error: it stays on

@@ -6,20 +6,26 @@ append on the cyclic thread into a bounded queue of ``history_queue_frames``, th
 and counted when full: the cyclic connection never waits). One thread of the recorder's own
 drains the queues every ``history_flush_s``, turns the frames into one record batch per robot
 (numpy over the wire bytes, ``history.schema``) and appends it to the robot's open segment;
-every ``history_segment_s`` the segment is closed into Parquet (``history.segments``; one
-robot's per cycle, about 0.25 s of work), and retention (``history.retention``) runs. The work
-holds the GIL in short stretches (a second of frames is converted in a few milliseconds;
-pyarrow's encoding and writing release it); the cyclic connection does not depend on it for its
-timing (its receive times are the kernel's, its O→T packets are sent by the C pump thread, which
-needs no GIL; bench/history compares the receive interval with and without recording).
+every ``history_segment_s`` it closes the segment's journal and records on in a new one at
+once, while a thread of its own turns the closed journal into Parquet (``history.closer``:
+seconds of work for ten minutes at RPI 2 ms, which on this thread held every robot's frames in
+their queues), and retention (``history.retention``) runs. The work holds the GIL in short
+stretches (a second of frames is converted in a few milliseconds; pyarrow's encoding and
+writing release it); the cyclic connection does not depend on it for its timing (its receive
+times are the kernel's, its O→T packets are sent by the C pump thread, which needs no GIL;
+bench/history compares the receive interval with and without recording). The Parquet writer
+is loaded when the recorder starts (``JournalCloser.start``), so the service's memory does not
+step up when the first segment closes.
 
 A disk that fills (or any write error: read-only, removed directory) pauses recording for every
 robot with a ``recording`` event (state ``paused`` and the reason) on each robot's stream and
 log, and raises each robot's built-in alarm ``recording_paused`` (high priority, so the banner
 and the audible cue show it); so does free space under ``history_min_free_bytes``. The service
 keeps running; frames meanwhile are counted as not recorded. Every ``RETRY_S`` the recorder
-checks again and resumes (event state ``recording``; the alarm returns to normal, and waits
-for an acknowledgement if none came, as ISA-18.2 has it). A restart that records again clears
+checks again (free space, and ``RESUME_PROBE_BYTES`` written and removed) and resumes at once
+in new journals, the ones the pause left handed to the closer (event state ``recording``; the
+alarm returns to normal, and waits for an acknowledgement if none came, as ISA-18.2 has it).
+A restart that records again clears
 an alarm a pause before it left active. A queue that overflowed is reported by an event (state
 ``overflow``, at most once per ``RETRY_S`` per robot) and in ``/metrics``.
 """
@@ -30,6 +36,7 @@ import asyncio
 import contextlib
 import functools
 import logging
+import os
 import shutil
 import threading
 import time
@@ -40,8 +47,9 @@ from typing import TYPE_CHECKING, Final
 import pyarrow as pa
 
 from cobot_hmi.history import retention, segments
+from cobot_hmi.history.closer import JournalCloser
 from cobot_hmi.history.schema import items_to_batch
-from cobot_hmi.history.segments import SegmentWriter
+from cobot_hmi.history.segments import Segment, SegmentWriter
 from cobot_hmi.service.hub import FrameSubscription
 
 if TYPE_CHECKING:
@@ -55,6 +63,10 @@ RETRY_S: Final = 5.0
 """How often a paused recorder checks the disk again, and the least time between two overflow
 events of one robot."""
 RETENTION_INTERVAL_S: Final = 30.0
+RESUME_PROBE_BYTES: Final = 1024 * 1024
+"""A paused recorder resumes only once this much can be written under the history directory
+(several seconds of frames of a robot at RPI 2 ms): a disk with a few kilobytes free would
+pause it again at the next flush."""
 SUBSCRIPTION_NAME: Final = "history"
 
 
@@ -101,7 +113,7 @@ class Recorder:
         self._next_retry = 0.0
         self._next_retention = 0.0
         self._next_space_check = 0.0
-        self._closed_this_cycle = False
+        self.closer = JournalCloser(retry_s=RETRY_S, on_closed=self._closed)
 
     # ------------------------------------------------------------ lifecycle (web loop)
 
@@ -112,11 +124,12 @@ class Recorder:
                 SUBSCRIPTION_NAME, self.settings.history_queue_frames
             )
             track.dropped_reported = 0
-            with contextlib.suppress(OSError, pa.ArrowException):  # a crash's journals first
-                await asyncio.to_thread(segments.recover, self.root, name)
+            for _, path in segments.list_journals(self.root, name):  # left by a crash
+                self.closer.submit(name, path)
             # Persisted from a pause before a restart: recording starts again (a disk still
             # full pauses it again at the first check).
             self._alarm_now(track.robot, paused=False, reason="recording resumed")
+        await asyncio.to_thread(self.closer.start)
         self._thread = threading.Thread(target=self._run, name="history recorder", daemon=True)
         self._thread.start()
 
@@ -126,6 +139,7 @@ class Recorder:
         if thread is not None:
             await asyncio.to_thread(thread.join)
         self._thread = None
+        await asyncio.to_thread(self.closer.stop)  # every closed journal into its segment
         for track in self.tracks.values():
             if track.subscription is not None:
                 track.robot.hub.unsubscribe(track.subscription)
@@ -163,7 +177,6 @@ class Recorder:
             self._check_space()
         if self.paused_reason is not None and now >= self._next_retry:
             self._try_resume()
-        self._closed_this_cycle = False
         for track in self.tracks.values():
             self._record(track, now)
         if self.paused_reason is None and now >= self._next_retention:
@@ -194,14 +207,8 @@ class Recorder:
                 track.writer.append(items_to_batch(items))
                 track.frames_recorded += len(items)
                 track.last_time_s = items[-1][1]
-            # One segment closed per cycle (about 0.25 s for ten minutes of frames): robots
-            # whose segments fell due together close in turn, so no robot's frames wait in
-            # the queue much longer than a flush period (the crash-loss bound).
-            if track.writer.due() and not self._closed_this_cycle:
-                self._closed_this_cycle = True
-                if track.writer.close_segment() is not None:
-                    track.segments_closed += 1
-                self._next_retention = 0.0
+            if track.writer.due():
+                self._hand_over(track)
         except (OSError, pa.ArrowException) as error:
             track.frames_not_recorded += len(items)
             self.write_errors += 1
@@ -209,14 +216,23 @@ class Recorder:
             reason = error.strerror if isinstance(error, OSError) else None
             self._pause(f"cannot write {self.root}: {reason or error}")
 
+    def _hand_over(self, track: _Track) -> None:
+        """The open journal to the closer (it becomes a segment there); the next batch starts
+        a new one."""
+        path = track.writer.finish_journal()
+        if path is not None:
+            self.closer.submit(track.robot.name, path)
+
+    def _closed(self, robot: str, segment: Segment | None) -> None:
+        """A journal became a segment (on the closer's thread)."""
+        track = self.tracks.get(robot)
+        if track is not None and segment is not None:
+            track.segments_closed += 1
+        self._next_retention = 0.0
+
     def _close_all(self) -> None:
         for track in self.tracks.values():
-            try:
-                if track.writer.close_segment() is not None:
-                    track.segments_closed += 1
-            except (OSError, pa.ArrowException) as error:
-                track.writer.abandon()
-                log.warning("history of %s: segment not closed: %s", track.robot.name, error)
+            self._hand_over(track)
 
     def _check_space(self) -> None:
         minimum = self.settings.history_min_free_bytes
@@ -244,17 +260,34 @@ class Recorder:
         try:
             if minimum and shutil.disk_usage(self._existing_parent()).free < minimum:
                 return
-            for name in self.tracks:
-                # Journals left by the pause (complete batches) become segments first.
-                segments.recover(self.root, name)
             self.root.mkdir(parents=True, exist_ok=True)
+            self._probe()
+            journals = {name: segments.list_journals(self.root, name) for name in self.tracks}
         except OSError:
             return
+        # The journals the pause left (their complete batches) become segments on the
+        # closer's thread; recording goes on at once in new ones.
+        for name, found in journals.items():
+            for _, path in found:
+                self.closer.submit(name, path)
         log.warning("history: recording resumed")
         self.paused_reason = None
         for track in self.tracks.values():
             self._event(track, "recording", "recording resumed")
             self._alarm(track, paused=False, reason="recording resumed")
+
+    def _probe(self) -> None:
+        """Write ``RESUME_PROBE_BYTES`` under the history directory and remove them
+        (``OSError`` while they do not fit)."""
+        probe = self.root / ".resume-probe"
+        try:
+            with probe.open("wb") as file:
+                file.write(bytes(RESUME_PROBE_BYTES))
+                file.flush()
+                os.fsync(file.fileno())
+        finally:
+            with contextlib.suppress(OSError):
+                probe.unlink()
 
     def _pause(self, reason: str) -> None:
         if self.paused_reason is not None:
@@ -340,6 +373,12 @@ class Recorder:
              per_robot("segments_closed")),
             ("history_write_errors_total", "counter", "failed writes (each pauses recording)",
              [({}, float(self.write_errors))]),
+            ("history_journals_closing", "gauge",
+             "closed journals waiting to become segments (or being converted)",
+             [({}, float(self.closer.pending))]),
+            ("history_journal_close_errors_total", "counter",
+             "conversions of a closed journal that failed (each tried again; the journal kept)",
+             [({}, float(self.closer.errors))]),
             ("history_pauses_total", "counter", "times recording paused",
              [({}, float(self.pauses))]),
             ("history_retention_deleted_segments_total", "counter",

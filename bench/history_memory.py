@@ -1,0 +1,165 @@
+"""``bench/history --memory``: the recorder's memory across segment closes of a robot at RPI 2 ms.
+
+Records simulated time as fast as it goes through the recorder's own path (hub items → record
+batches of a second → the journal; every 10 minutes the journal handed to the closer's thread,
+``history.closer``, which turns it into Parquet and cells), after the closer loaded the Parquet
+writer as the recorder's start has it. Prints the process's RSS (anonymous + file-backed, as ``ps`` and the
+soak read it) before each close, its peak while the closer works (sampled every 2 ms) and
+after, and the drift from simulated minute 5 to the end against the soak's target (±5 %).
+Baseline, the same run: one of those ten-minute journals converted the way it was before
+(read whole into memory, then written) in a fresh process, its peak and what stayed.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+from cobot_hmi.codec import decode_frame, encode_frame
+from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot
+from cobot_hmi.history import segments
+from cobot_hmi.history.closer import JournalCloser
+from cobot_hmi.history.schema import items_to_batch
+
+RATE_HZ = 500
+"""RPI 2 ms."""
+SEGMENT_S = 600.0
+START_S = 1_900_000_000.0
+TARGET_DRIFT = 0.05
+
+
+def rss_mib(pid: int | None = None) -> float:
+    """Resident set size of a process (this one by default), MiB."""
+    with open(f"/proc/{pid or 'self'}/status") as status:
+        for line in status:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024
+    return 0.0
+
+
+class PeakSampler:
+    """RSS sampled every 2 ms on a thread: the highest since ``reset``."""
+
+    def __init__(self) -> None:
+        self.peak = 0.0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def reset(self) -> None:
+        self.peak = rss_mib()
+
+    def _run(self) -> None:
+        while not self._stop.wait(0.002):
+            self.peak = max(self.peak, rss_mib())
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join()
+
+
+def measure(closes: int, root: Path) -> Path | None:
+    """Record until ``closes`` segments closed; print the figures; a copy of the first
+    ten-minute journal for the baseline."""
+    robot = SimulatedRobot(RobotSettings(), start_s=START_S - 5)
+    pool = [
+        decode_frame(encode_frame(robot.produce_frame(START_S + i / RATE_HZ)))
+        for i in range(RATE_HZ * 10)
+    ]
+    simulated_now = [START_S]
+    writer = segments.SegmentWriter(root, "r", SEGMENT_S, clock=lambda: simulated_now[0])
+    closer = JournalCloser(retry_s=5.0)
+    closer.start()  # loads the Parquet writer on its thread, as the recorder's start does
+    sampler = PeakSampler()
+    kept: Path | None = None
+    minute_5: float | None = None
+    after_each: list[float] = []
+    print(f"  start (Parquet writer loaded): RSS {rss_mib():.1f} MiB")
+    seq = second = 0
+    closing: tuple[float, float] | None = None
+    """RSS before the hand-over and its time, while the closer works."""
+    try:
+        while len(after_each) < closes:
+            items = []
+            for i in range(RATE_HZ):
+                seq += 1
+                items.append((seq, START_S + second + i / RATE_HZ, pool[seq % len(pool)], seq))
+            writer.append(items_to_batch(items))
+            second += 1
+            simulated_now[0] = START_S + second
+            if second == 300:
+                minute_5 = rss_mib()
+            if closing is not None and closer.pending == 0:
+                before, started = closing
+                closing = None
+                took = time.perf_counter() - started
+                after = rss_mib()
+                after_each.append(after)
+                print(f"  close {len(after_each)}: RSS before {before:.1f} MiB, peak "
+                      f"{sampler.peak:.1f} (+{sampler.peak - before:.1f}), after {after:.1f} "
+                      f"({after - before:+.1f}); {took:.1f} s while recording on")  # fmt: skip
+                for segment in segments.list_segments(root, "r"):  # the disk stays small
+                    segment.path.unlink()
+                    segment.rollup_path.unlink()
+            if not writer.due():
+                continue
+            before = rss_mib()
+            path = writer.finish_journal()
+            assert path is not None
+            if kept is None:
+                kept = root / "baseline.journal"
+                shutil.copyfile(path, kept)
+            sampler.reset()
+            closing = (before, time.perf_counter())
+            closer.submit("r", path)
+    finally:
+        sampler.stop()
+        closer.stop()
+    if minute_5 is not None:
+        low, high = min(after_each), max(after_each)
+        drift = max(abs(low - minute_5), abs(high - minute_5)) / minute_5
+        verdict = "OK" if drift <= TARGET_DRIFT else "MISSED"
+        print(f"  RSS at minute 5 {minute_5:.1f} MiB, after the closes {low:.1f} … {high:.1f}: "
+              f"{drift * 100:.1f} % (target ±{TARGET_DRIFT * 100:.0f} %) {verdict}")  # fmt: skip
+    return kept
+
+
+def baseline(journal: Path) -> None:
+    """In a fresh process: the journal read whole, then written (the way before)."""
+    code = (
+        "import sys, threading, time\n"
+        "from pathlib import Path\n"
+        f"sys.path.insert(0, {str(Path(__file__).parent)!r})\n"
+        "from history_memory import PeakSampler, rss_mib\n"
+        "from cobot_hmi.history import segments\n"
+        "journal = Path(sys.argv[1])\n"
+        "segments.load_writers()\n"
+        "sampler = PeakSampler(); before = rss_mib(); sampler.reset()\n"
+        "started = time.perf_counter()\n"
+        "segments.write_segment(segments.read_journal(journal), journal.parent, 'r')\n"
+        "took = time.perf_counter() - started; after = rss_mib(); sampler.stop()\n"
+        "print(f'  baseline, the journal read whole then written (fresh process): RSS before '\n"
+        "      f'{before:.1f} MiB, peak {sampler.peak:.1f} (+{sampler.peak - before:.1f}), '\n"
+        "      f'after {after:.1f} ({after - before:+.1f}); {took:.1f} s')\n"
+    )
+    subprocess.run([sys.executable, "-c", code, str(journal)], check=True)
+
+
+def main(closes: int) -> int:
+    print(f"load average before: {os.getloadavg()}")
+    print(f"\nmemory: a robot at RPI 2 ms ({RATE_HZ} frames/s), {closes} segments of "
+          f"{SEGMENT_S / 60:.0f} minutes closed while recording:")  # fmt: skip
+    with tempfile.TemporaryDirectory(prefix="cobot-history-memory-") as directory:
+        kept = measure(closes, Path(directory))
+        if kept is not None:
+            size_mib = kept.stat().st_size / 2**20
+            print(f"  (a ten-minute journal: {size_mib:.0f} MiB)")
+            baseline(kept)
+    print(f"\nload average after: {os.getloadavg()}")
+    return 0
