@@ -17,6 +17,7 @@ from fastapi.responses import JSONResponse, Response
 
 from cobot_hmi import __version__
 from cobot_hmi.service import (
+    compression,
     routes_alarms,
     routes_auth,
     routes_history,
@@ -69,6 +70,9 @@ def create_app(
     )
     app.state.service = service
     app.add_middleware(routes_stream.TransportAbortMiddleware)
+    # The API's answers of 1 kB or more gzipped when the request accepts it (compression.py);
+    # inside the security middlewares, so their refusals and headers are untouched.
+    app.add_middleware(compression.ApiGZipMiddleware, prefixes=_API_PREFIXES)
     # Body limit, Host/Origin/content-type checks, anonymous write gate, security headers:
     # outside everything else (service/security.py).
     refusals = security.install(app, security.policy_from_settings(service.settings))
