@@ -189,19 +189,20 @@ async def test_estop_alarm_ack_restart_reset(emu: Emulator, plc_host: str, tmp_p
         assert acks[1]["summary"] == "Emergency stop: acknowledged — cell checked"
 
         # Reset: the e-stop returns to normal (acknowledged before: C → A); SAFE_OFF passes by
-        # unacknowledged (B → D): it stays in the list until someone acknowledges it.
+        # as its consequence, suppressed by design (A → G → A): nothing is left to acknowledge.
         await emu.post("/reset")
         await eventually(lambda: state_is(hmi, 13))  # STANDALONE_STANDBY
         await eventually(
             lambda: hmi.service.default_robot.alarms.find(ESTOP).status.state == "normal"
         )
         safe_off = hmi.service.default_robot.alarms.find("robot:safe_off").status
-        await eventually(lambda: safe_off.state == "returned_unacknowledged")
+        await eventually(lambda: safe_off.state == "normal" and safe_off.cleared_at is not None)
         current = await alarms(hmi)
-        assert ESTOP not in current
-        assert current["robot:safe_off"]["state"] == "returned_unacknowledged"
+        assert ESTOP not in current and "robot:safe_off" not in current
         everything = await alarms(hmi, "?which=all")
         assert everything[ESTOP]["state"] == "normal"
+        assert everything[ESTOP]["message"] == "robot state now Safe off (servo off)"
+        assert everything["robot:safe_off"]["suppressed_by"] == ESTOP
 
         await hmi.service.default_robot.alarm_store.flush()
         async with hmi.client() as client:
@@ -211,6 +212,12 @@ async def test_estop_alarm_ack_restart_reset(emu: Emulator, plc_host: str, tmp_p
         transitions = [(i["key"], i["transition"]) for i in reversed(page["items"])]
         estop_transitions = [t for k, t in transitions if k == "emergency_stop"]
         assert estop_transitions == ["activated", "acknowledged", "cleared"]
+        safe_off_rows = [
+            (i["transition"], i["state"], i["suppressed_by"])
+            for i in reversed(page["items"])
+            if i["key"] == "safe_off"
+        ]
+        assert safe_off_rows == [("activated", "suppressed", ESTOP), ("cleared", "normal", None)]
         assert history_csv.status_code == 200
         assert history_csv.headers["content-type"].startswith("text/csv")
         rows = list(csv.reader(io.StringIO(history_csv.text)))
@@ -220,7 +227,7 @@ async def test_estop_alarm_ack_restart_reset(emu: Emulator, plc_host: str, tmp_p
             when = datetime.fromisoformat(row[1])
             assert when.tzinfo is not None and when.utcoffset() is not None
         metrics = await hmi.metrics()
-        assert 'cobot_hmi_alarms{priority="high",robot="robot",state="unacknowledged"} 1.0' in (
+        assert 'cobot_hmi_alarms{priority="high",robot="robot",state="unacknowledged"} 0.0' in (
             metrics
         )
         assert 'cobot_hmi_alarms{priority="critical",robot="robot",state="active"} 0.0' in metrics

@@ -30,7 +30,13 @@ from cobot_hmi.emulator.robot import RobotSettings as SimulationSettings
 from cobot_hmi.emulator.robot import SimulatedRobot
 from cobot_hmi.history import segments
 from cobot_hmi.history.query import CELL_S, bucket_grid
-from cobot_hmi.history.schema import ELEMENTS, Element, raw_from_columns, time_seconds
+from cobot_hmi.history.schema import (
+    ELEMENT_BY_EXPORT_NAME,
+    ELEMENTS,
+    Element,
+    raw_from_columns,
+    time_seconds,
+)
 from cobot_hmi.service.settings import ServiceSettings
 from conftest import _next_host
 from service_support import (
@@ -79,6 +85,17 @@ async def wait_recorded(client: httpx.AsyncClient, from_s: float, last_seq: int)
             return  # (buckets: more than 5000 frames recorded since ``from_s``)
         await asyncio.sleep(0.1)
     raise AssertionError(f"frame {last_seq} not recorded in time")
+
+
+def as_recorded(table: pa.Table) -> pa.Table:
+    """An export's table with the recording's column names (``joint_position.J1`` is
+    ``joint_position.0``), to compare with the API's element keys."""
+    return table.rename_columns(
+        [
+            ELEMENT_BY_EXPORT_NAME[n].name if n in ELEMENT_BY_EXPORT_NAME else n
+            for n in table.column_names
+        ]
+    )
 
 
 def element_value(frame: Mapping[str, Any], element: Element) -> object:
@@ -172,7 +189,7 @@ async def test_a_recorded_minute_equals_the_frames_the_scanner_saw(
                 )
             metrics = await hmi.metrics()
     assert export.status_code == 200, export.text
-    table = pq.read_table(pa.BufferReader(export.content))
+    table = as_recorded(pq.read_table(pa.BufferReader(export.content)))
     seqs = table.column("seq").to_pylist()
     first, last = seqs.index(seen[0]["seq"]), seqs.index(seen[-1]["seq"])
     table = table.slice(first, last - first + 1)
@@ -252,7 +269,7 @@ async def test_history_answer_equals_brute_force_over_the_recorded_rows(
                         "fields": ",".join(names),
                     },
                 )
-    table = pq.read_table(pa.BufferReader(export.content))
+    table = as_recorded(pq.read_table(pa.BufferReader(export.content)))
     t = time_seconds(table)
     raw = answers[5000]
     assert raw["mode"] == "raw"
@@ -343,7 +360,7 @@ async def test_exports_read_back_by_independent_readers(
         "time",
         "seq",
         "t2o_sequence",
-        *(f"joint_position.{i} [degree]" for i in range(6)),
+        *(f"joint_position.J{i} [degree]" for i in range(1, 7)),
         "robot_state",
     ]
     by_seq = {int(r[1]): r for r in rows[1:]}

@@ -263,7 +263,7 @@ async def test_control_and_writes_stay_with_their_robot(
         writes = (await left_op.get("/api/v1/events?kind=write&robot=left")).json()["items"]
         assert [w["fields"] for w in writes] == [["controlbox_do.2"]]
         csv_text = (await left_op.get("/api/v1/events?robot=left&format=csv")).text
-        assert csv_text.splitlines()[0] == "id,time,robot,kind,data"
+        assert csv_text.splitlines()[0] == "id,time,robot,kind,text,data"
 
     # Per-robot metrics.
     metrics = await hmi.metrics()

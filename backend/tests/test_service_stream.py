@@ -349,6 +349,7 @@ async def test_events_and_holder_disconnect_release_control(hmi: Running) -> Non
         "robot": "robot",
         "holder": None,
         "reason": "holder disconnected",
+        "text": "Control free, nobody holds it: holder disconnected",
     }
     writes = [e for e in events if e["kind"] == "write"]
     assert writes[0]["fields"] == ["tool_do.2"]

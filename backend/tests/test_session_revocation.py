@@ -100,6 +100,7 @@ async def test_logout_closes_the_sessions_streams_and_says_so(hmi: Running) -> N
         "session": first.messages[0]["session"],
         "reason": "logged out",
         "streams_closed": 2,
+        "text": f"Session of {OPERATOR[0]} ended (logged out): 2 streams closed",
     }
     # The event log keeps it.
     await hmi.service.store.flush_events()

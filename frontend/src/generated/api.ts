@@ -24,6 +24,28 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/v1/alarms/ack": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /**
+         * Acknowledge several alarms (operator): the ids given, or every unacknowledged, annunciated alarm of one robot; one audited action per alarm
+         * @description Every alarm named must exist (else 404, nothing acknowledged, nothing audited); a
+         *     writer below the operator role is refused with one audit row per alarm (401/403); then
+         *     each alarm is acknowledged and audited in turn, as ``POST /alarms/{id}/ack`` does it.
+         */
+        post: operations["acknowledge_many_api_v1_alarms_ack_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/alarms/history": {
         parameters: {
             query?: never;
@@ -33,6 +55,23 @@ export interface paths {
         };
         /** Every alarm transition, newest first (JSON, or CSV with ISO 8601 times) */
         get: operations["alarm_history_api_v1_alarms_history_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/alarms/summary": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /** Every robot's alarms at a glance: counts by priority and the most urgent one */
+        get: operations["alarm_summary_api_v1_alarms_summary_get"];
         put?: never;
         post?: never;
         delete?: never;
@@ -642,7 +681,7 @@ export interface components {
             ack_comment: string | null;
             /**
              * Acknowledged
-             * @description state normal or active_acknowledged
+             * @description nothing to acknowledge: state normal, active_acknowledged or suppressed
              */
             acknowledged: boolean;
             /** Acknowledged At */
@@ -653,7 +692,7 @@ export interface components {
             activated_at: number | null;
             /**
              * Active
-             * @description the condition is there (state active_*)
+             * @description the condition is there (state active_* or suppressed)
              */
             active: boolean;
             /**
@@ -731,9 +770,20 @@ export interface components {
             shelved_until: number | null;
             /**
              * State
+             * @description ISA-18.2: normal, active_unacknowledged, active_acknowledged, returned_unacknowledged, or suppressed (by design: the condition is there as the consequence of the alarm suppressed_by names; not annunciated, nothing to acknowledge)
              * @enum {string}
              */
-            state: "normal" | "active_unacknowledged" | "active_acknowledged" | "returned_unacknowledged";
+            state: "normal" | "active_unacknowledged" | "active_acknowledged" | "returned_unacknowledged" | "suppressed";
+            /**
+             * Suppressed By
+             * @description the id of the alarm whose consequence this one's current (or last) activation is (state suppressed while it holds): group it under that alarm
+             */
+            suppressed_by?: string | null;
+            /**
+             * Suppressed By Name
+             * @description that alarm's name in words
+             */
+            suppressed_by_name?: string | null;
             /**
              * Tag
              * @description its tag name, when an admin gave one
@@ -756,6 +806,59 @@ export interface components {
             comment?: string | null;
         };
         /**
+         * AlarmAckMany
+         * @description ``POST /api/v1/alarms/ack``: acknowledge the alarms named (``ids``), or every
+         *     unacknowledged, annunciated alarm of one robot (``robot``); exactly one of the two.
+         */
+        AlarmAckMany: {
+            /**
+             * Comment
+             * @description for every one
+             */
+            comment?: string | null;
+            /**
+             * Ids
+             * @description alarm ids (``robot:key``), e.g. the ones a list shows
+             */
+            ids?: string[] | null;
+            /**
+             * Robot
+             * @description every alarm of this robot that is unacknowledged and annunciated (not shelved, not suppressed), as of the request
+             */
+            robot?: string | null;
+        };
+        /**
+         * AlarmAckManyAnswer
+         * @description ``POST /api/v1/alarms/ack``: one result per alarm, in the order asked.
+         */
+        AlarmAckManyAnswer: {
+            /**
+             * Acknowledged
+             * @description how many changed
+             */
+            acknowledged: number;
+            /** Items */
+            items: components["schemas"]["AlarmAckResult"][];
+        };
+        /**
+         * AlarmAckResult
+         * @description What became of one alarm of an ``AlarmAckMany`` (each its own audit row).
+         */
+        AlarmAckResult: {
+            /** @description the alarm after it */
+            alarm: components["schemas"]["Alarm"];
+            /** Id */
+            id: string;
+            /**
+             * Outcome
+             * @description acknowledged; unchanged (nothing left to acknowledge: acknowledged already, or suppressed); refused (normal: nothing to acknowledge, the reason says)
+             * @enum {string}
+             */
+            outcome: "acknowledged" | "unchanged" | "refused";
+            /** Reason */
+            reason?: string | null;
+        };
+        /**
          * AlarmAnswer
          * @description An operator's change of one alarm: the alarm after it, and whether anything changed.
          */
@@ -763,6 +866,56 @@ export interface components {
             alarm: components["schemas"]["Alarm"];
             /** Changed */
             changed: boolean;
+        };
+        /**
+         * AlarmBrief
+         * @description An alarm named in a few fields (the most urgent of a robot or of the cell): the fields of
+         *     ``Alarm`` a banner line needs, in the service's words.
+         */
+        AlarmBrief: {
+            /** Activated At */
+            activated_at: number | null;
+            /** Active */
+            active: boolean;
+            /** Changed At */
+            changed_at: number | null;
+            /** Colour */
+            colour: string;
+            /**
+             * Id
+             * @description ``robot:key``
+             */
+            id: string;
+            /** Key */
+            key: string;
+            /** Label */
+            label: string | null;
+            /**
+             * Message
+             * @description the condition in words at the last change
+             */
+            message: string | null;
+            /**
+             * Name
+             * @description in words: "Emergency stop"
+             */
+            name: string;
+            /**
+             * Priority
+             * @enum {string}
+             */
+            priority: "critical" | "high" | "medium" | "low";
+            /** Priority Rank */
+            priority_rank: number;
+            /** Robot */
+            robot: string;
+            /**
+             * State
+             * @enum {string}
+             */
+            state: "normal" | "active_unacknowledged" | "active_acknowledged" | "returned_unacknowledged" | "suppressed";
+            /** Tag */
+            tag: string | null;
         };
         /**
          * AlarmEvent
@@ -790,6 +943,11 @@ export interface components {
              * @description the robot's name
              */
             robot?: string | null;
+            /**
+             * Text
+             * @description the event in words, as the service says it everywhere (the event log, its CSV, exports): "Servo on flag cleared", "Emergency stop activated: robot state Emergency stop, Emergency stopped flag set"
+             */
+            text: string;
             /**
              * Time
              * @description s since the epoch
@@ -846,7 +1004,12 @@ export interface components {
              * @description the state after the transition
              * @enum {string}
              */
-            state: "normal" | "active_unacknowledged" | "active_acknowledged" | "returned_unacknowledged";
+            state: "normal" | "active_unacknowledged" | "active_acknowledged" | "returned_unacknowledged" | "suppressed";
+            /**
+             * Suppressed By
+             * @description state suppressed: the id of the alarm it is a consequence of
+             */
+            suppressed_by?: string | null;
             /** Tag */
             tag: string | null;
             /**
@@ -892,18 +1055,48 @@ export interface components {
         };
         /**
          * AlarmSummary
-         * @description A robot's alarms at a glance (the fleet tile, the banner's colour).
+         * @description A robot's alarms at a glance (the fleet tile, the robot switcher's mark, a banner line
+         *     naming another robot).
          */
         AlarmSummary: {
-            /** Active */
+            /**
+             * Active
+             * @description the condition is there (shelved and suppressed too)
+             */
             active: number;
             /**
+             * Annunciated
+             * @description alarms a person must see: not normal, not shelved, not suppressed
+             * @default 0
+             */
+            annunciated?: number;
+            /**
+             * By Priority
+             * @description annunciated alarms per priority (every priority present)
+             */
+            by_priority?: {
+                [key: string]: components["schemas"]["PriorityCounts"];
+            } | null;
+            /**
              * Highest Priority
-             * @description the most urgent priority of the alarms not normal and not shelved
+             * @description the most urgent priority of the annunciated alarms
              */
             highest_priority: ("critical" | "high" | "medium" | "low") | null;
+            /**
+             * Robot
+             * @description the robot's name
+             */
+            robot?: string | null;
             /** Shelved */
             shelved: number;
+            /**
+             * Suppressed
+             * @description consequences of another alarm, suppressed by design
+             * @default 0
+             */
+            suppressed?: number;
+            /** @description the most urgent annunciated alarm (active before returned, then priority, then the newest change), null: none */
+            top?: components["schemas"]["AlarmBrief"] | null;
             /** Unacknowledged */
             unacknowledged: number;
         };
@@ -1037,6 +1230,27 @@ export interface components {
             user: string | null;
         };
         /**
+         * CellAlarmSummary
+         * @description ``GET /api/v1/alarms/summary`` and the stream's status ``cell_alarms``: every robot's
+         *     alarms at a glance, and the cell's most urgent annunciated alarm.
+         */
+        CellAlarmSummary: {
+            /**
+             * Annunciated
+             * @description annunciated alarms of every robot
+             */
+            annunciated: number;
+            /** Highest Priority */
+            highest_priority: ("critical" | "high" | "medium" | "low") | null;
+            /**
+             * Robots
+             * @description every robot, in the settings' order
+             */
+            robots: components["schemas"]["AlarmSummary"][];
+            /** @description the cell's most urgent annunciated alarm */
+            top: components["schemas"]["AlarmBrief"] | null;
+        };
+        /**
          * CommandImage
          * @description PLC (originator) → robot (target): digital, tool and analog outputs, bit input registers (20 bytes), whole.
          */
@@ -1149,6 +1363,11 @@ export interface components {
              */
             state: "idle" | "connecting" | "connected" | "lost" | "refused";
             /**
+             * Text
+             * @description the event in words, as the service says it everywhere (the event log, its CSV, exports): "Servo on flag cleared", "Emergency stop activated: robot state Emergency stop, Emergency stopped flag set"
+             */
+            text: string;
+            /**
              * Time
              * @description s since the epoch
              */
@@ -1255,6 +1474,11 @@ export interface components {
              */
             robot?: string | null;
             /**
+             * Text
+             * @description the event in words, as the service says it everywhere (the event log, its CSV, exports): "Servo on flag cleared", "Emergency stop activated: robot state Emergency stop, Emergency stopped flag set"
+             */
+            text: string;
+            /**
              * Time
              * @description s since the epoch
              */
@@ -1350,6 +1574,11 @@ export interface components {
              * @description the robot's name
              */
             robot?: string | null;
+            /**
+             * Text
+             * @description the event in words, as the service says it everywhere (the event log, its CSV, exports): "Servo on flag cleared", "Emergency stop activated: robot state Emergency stop, Emergency stopped flag set"
+             */
+            text: string;
             /**
              * Time
              * @description s since the epoch
@@ -1584,6 +1813,11 @@ export interface components {
              * @description the robot's alarms that are active or unacknowledged when the stream opens, most urgent first; changes follow as `alarm` events
              */
             alarms?: components["schemas"]["Alarm"][];
+            /**
+             * @description every robot's alarms at a glance when the stream opens; each `status` message brings them again
+             * @default null
+             */
+            cell_alarms?: components["schemas"]["CellAlarmSummary"] | null;
             connection: components["schemas"]["ConnectionStatus"];
             control: components["schemas"]["ControlStatus"];
             /**
@@ -1894,6 +2128,27 @@ export interface components {
         Me: {
             user: components["schemas"]["User"] | null;
         };
+        /**
+         * PriorityCounts
+         * @description Annunciated alarms of one priority (not normal, not shelved, not suppressed).
+         */
+        PriorityCounts: {
+            /**
+             * Active
+             * @description of those, the condition is there
+             */
+            active: number;
+            /**
+             * Annunciated
+             * @description what a banner counts: active or unacknowledged
+             */
+            annunciated: number;
+            /**
+             * Unacknowledged
+             * @description of those, nobody acknowledged them yet
+             */
+            unacknowledged: number;
+        };
         /** RangeDoc */
         RangeDoc: {
             /** High */
@@ -1945,6 +2200,11 @@ export interface components {
              */
             state: "recording" | "paused" | "overflow";
             /**
+             * Text
+             * @description the event in words, as the service says it everywhere (the event log, its CSV, exports): "Servo on flag cleared", "Emergency stop activated: robot state Emergency stop, Emergency stopped flag set"
+             */
+            text: string;
+            /**
              * Time
              * @description s since the epoch
              */
@@ -1995,6 +2255,11 @@ export interface components {
              */
             robot?: string | null;
             /**
+             * Text
+             * @description the event in words, as the service says it everywhere (the event log, its CSV, exports): "Servo on flag cleared", "Emergency stop activated: robot state Emergency stop, Emergency stopped flag set"
+             */
+            text: string;
+            /**
              * Time
              * @description s since the epoch
              */
@@ -2034,6 +2299,21 @@ export interface components {
              * @description the robot the deprecated single-robot paths answer for
              */
             default: boolean;
+            /**
+             * Frame Age S
+             * @description how old the newest frame is, s (null: no frame yet)
+             */
+            frame_age_s?: number | null;
+            /**
+             * Gaps
+             * @description T→O packets lost on the way on the current connection, at the last 0.5 s alarm tick (null: not connected)
+             */
+            gaps?: number | null;
+            /**
+             * Gaps Per Min
+             * @description T→O sequence gaps in the last minute (null: not connected)
+             */
+            gaps_per_min?: number | null;
             /** @description who holds control (null: nobody) */
             holder: components["schemas"]["Holder"] | null;
             /** Host */
@@ -2052,6 +2332,12 @@ export interface components {
             /** Name */
             name: string;
             /**
+             * Packet Loss High
+             * @description the packet loss alarm is active (gaps_per_min too high)
+             * @default false
+             */
+            packet_loss_high?: boolean;
+            /**
              * Robot State
              * @description the latest frame's robot state, if any
              */
@@ -2060,6 +2346,12 @@ export interface components {
             robot_state_name: ("EMERGENCY_STOP" | "INITIALIZING" | "SAFE_OFF" | "INTERRUPTED" | "MANUAL_STANDBY" | "MANUAL_JOGGING" | "MANUAL_HANDGUIDING" | "RECOVERY_STANDBY" | "RECOVERY_JOGGING" | "BACKDRIVE_HOLD" | "BACKDRIVE_RELEASE" | "BACKDRIVE_RELEASE_BY_COCKPIT" | "RECOVERY_HANDGUIDING" | "STANDALONE_STANDBY" | "STANDALONE_RUNNING" | "COLLABORATIVE_STANDBY" | "COLLABORATIVE_RUNNING" | "HIGH_PRIORITY_RUNNING" | "AUTO_MEASURE" | "HANDGUIDING_CONTROL_STANDBY" | "HANDGUIDING_CONTROL_RUNNING" | "UNKNOWN") | null;
             /** Rpi Ms */
             rpi_ms: number;
+            /**
+             * Stale
+             * @description not connected, or no frame for longer than stale_after_ms
+             * @default true
+             */
+            stale?: boolean;
         };
         /**
          * SessionEvent
@@ -2097,6 +2389,11 @@ export interface components {
              */
             streams_closed: number;
             /**
+             * Text
+             * @description the event in words, as the service says it everywhere (the event log, its CSV, exports): "Servo on flag cleared", "Emergency stop activated: robot state Emergency stop, Emergency stopped flag set"
+             */
+            text: string;
+            /**
              * Time
              * @description s since the epoch
              */
@@ -2109,6 +2406,11 @@ export interface components {
         };
         /** StatusMessage */
         StatusMessage: {
+            /**
+             * @description every robot's alarms at a glance (as GET /api/v1/alarms/summary): a panel or kiosk of one robot shows the others' from it
+             * @default null
+             */
+            cell_alarms?: components["schemas"]["CellAlarmSummary"] | null;
             connection: components["schemas"]["ConnectionStatus"];
             /**
              * Robot
@@ -2270,6 +2572,11 @@ export interface components {
                 [key: string]: string;
             } | null;
             /**
+             * Text
+             * @description the event in words, as the service says it everywhere (the event log, its CSV, exports): "Servo on flag cleared", "Emergency stop activated: robot state Emergency stop, Emergency stopped flag set"
+             */
+            text: string;
+            /**
              * Time
              * @description s since the epoch
              */
@@ -2354,6 +2661,102 @@ export interface operations {
             };
         };
     };
+    acknowledge_many_api_v1_alarms_ack_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["AlarmAckMany"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["AlarmAckManyAnswer"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the role is too low, or the request is not same-origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the body is larger than the service accepts */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description a body that is not application/json */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description invalid request: the answer names the field; nothing was applied */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description too many attempts: wait as Retry-After says */
+            429: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
     alarm_history_api_v1_alarms_history_get: {
         parameters: {
             query?: {
@@ -2416,6 +2819,44 @@ export interface operations {
             };
             /** @description invalid request: the answer names the field; nothing was applied */
             422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    alarm_summary_api_v1_alarms_summary_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["CellAlarmSummary"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
                 headers: {
                     [name: string]: unknown;
                 };

@@ -34,9 +34,12 @@ export function alarmPaint(colour: string): Paint {
   return colour === "orange" ? ORANGE : paintOf(colour);
 }
 
-/** Whether an alarm needs a person: its condition is there or nobody acknowledged it yet. */
+/**
+ * Whether an alarm needs a person: its condition is there or nobody acknowledged it yet. An
+ * alarm suppressed by design (a consequence of the alarm `suppressed_by` names) does not.
+ */
 export function isAnnunciated(alarm: Alarm): boolean {
-  return alarm.state !== "normal" && !alarm.shelved;
+  return alarm.state !== "normal" && alarm.state !== "suppressed" && !alarm.shelved;
 }
 
 export function isUnacknowledged(alarm: Alarm): boolean {
@@ -116,7 +119,7 @@ export function bannerView(alarms: readonly Alarm[]): BannerView {
       shelved++;
       continue;
     }
-    if (alarm.state === "normal") continue;
+    if (alarm.state === "normal" || alarm.state === "suppressed") continue;
     count++;
     if (alarm.active) active++;
     if (isUnacknowledged(alarm)) unacknowledged++;
@@ -149,6 +152,7 @@ const STATE_WORDS: Readonly<Record<AlarmState, string>> = {
   active_unacknowledged: "active, unacknowledged",
   active_acknowledged: "active, acknowledged",
   returned_unacknowledged: "returned to normal, unacknowledged",
+  suppressed: "active, suppressed by design",
 };
 
 export function alarmStateWords(alarm: Pick<Alarm, "state" | "shelved">): string {

@@ -93,13 +93,13 @@ describe("LiveData", () => {
     // A service of another layout version: its hello is outside this build's contract on purpose.
     live.handle({ type: "hello", robot: "r1", layout_version: 99, connection, control: { holder: null }, rate_hz: null } as unknown as ServerMessage);
     expect(live.getSnapshot().layoutMismatch).toBe(99);
-    live.handle({ type: "event", event: { kind: "connection", time: 1, state: "lost", reason: "timeout" } });
+    live.handle({ type: "event", event: { kind: "connection", time: 1, state: "lost", reason: "timeout", text: "Connection lost: timeout" } });
     expect(live.getSnapshot().connection?.state).toBe("lost");
     expect(live.getSnapshot().health).toBe("disconnected");
-    live.handle({ type: "event", event: { kind: "control", time: 2, holder: { user: "alice", since: 2 }, reason: null } });
+    live.handle({ type: "event", event: { kind: "control", time: 2, holder: { user: "alice", since: 2 }, reason: null, text: "Control held by alice" } });
     expect(live.getSnapshot().control.holder?.user).toBe("alice");
     for (let i = 0; i < EVENT_LIMIT + 50; i++) {
-      live.handle({ type: "event", event: { kind: "flag", time: i, flag: "servo_on", value: true } });
+      live.handle({ type: "event", event: { kind: "flag", time: i, flag: "servo_on", value: true, text: "Servo on flag set" } });
     }
     expect(live.getSnapshot().events).toHaveLength(EVENT_LIMIT);
     expect(live.getSnapshot().events[0]?.time).toBe(EVENT_LIMIT + 49);

@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 from typing import Any, Final, Protocol
 
 from cobot_hmi.codec import Frame, dumps, frame_to_json
-from cobot_hmi.service.events import Event, FrameWatcher
+from cobot_hmi.service.events import Event, FrameWatcher, with_text
 
 log = logging.getLogger(__name__)
 
@@ -428,9 +428,10 @@ class Hub:
         self._broadcast_events([event])
 
     def _broadcast_events(self, events: list[Event]) -> None:
-        if self.robot is not None:
-            for event in events:
+        for event in events:
+            if self.robot is not None:
                 event.setdefault("robot", self.robot)
+            with_text(event)  # in words, once: the stream, the log and exports carry it
         if self._on_events is not None:
             self._on_events(events)
         for event in events:

@@ -7,7 +7,8 @@ and here only from ``cobot_hmi.layout`` (its ``channels``): ``controlbox_do.2`` 
 ``tool_do.0`` is Tool DO 1, ``analog_output.0`` is AO 0, ``bit_input_registers.40`` is
 Register 40. A coded field (the analog output type) is labelled after its channel with
 "type" (``analog_output_type.1`` is "AO 1 type"), so a type and a value written together are
-not both "AO 1". Imports only the layout.
+not both "AO 1". Robot states and flags are named in words too (``robot_state_words``,
+``flag_words``): an event or an alarm never shows a bare state number. Imports only the layout.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from typing import Final
 from cobot_hmi.layout import (
     ANALOG_OUTPUT_RANGES,
     O2T_FIELDS,
+    ROBOT_STATES,
     T2O_FIELDS,
     Field,
 )
@@ -27,6 +29,7 @@ _BY_NAME: Final[dict[str, Field]] = {}
 for _field in (*T2O_FIELDS, *O2T_FIELDS):  # T→O first: the actual output's description
     _BY_NAME.setdefault(_field.name, _field)
 
+_STATE_LABELS: Final = {s.value: s.label or s.name for s in ROBOT_STATES}
 _ANALOG_TYPES: Final = ("current", "voltage")
 _PER_TYPE_UNIT: Final = "mA or V per its type"
 
@@ -142,3 +145,21 @@ def write_summary(
             analog_type = analog_types[index] if index < len(analog_types) else None
         parts.append(f"{named(key, tags)} = {value_words(key, value, analog_type)}")
     return ", ".join(parts)
+
+
+def robot_state_words(value: int | None) -> str:
+    """A robot state as people read it: the layout's label ("Safe off (servo off)"); a value
+    outside the table as "state 42 (unknown)"; ``None`` as "unknown (no frame)"."""
+    if value is None:
+        return "unknown (no frame)"
+    label = _STATE_LABELS.get(value)
+    return label if label is not None else f"state {value} (unknown)"
+
+
+def flag_words(name: str, value: bool) -> str:
+    """A status flag's change in words: "Servo on flag set", "Emergency stopped flag cleared"
+    (the flag's description is itself a state, so "on"/"off" after it would read "Servo on
+    on")."""
+    f = _BY_NAME.get(name)
+    label = f.description if f is not None else name
+    return f"{label} flag {'set' if value else 'cleared'}"

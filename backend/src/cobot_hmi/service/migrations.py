@@ -128,6 +128,11 @@ MIGRATIONS: Final = (
 )""",
         ),
     ),
+    Migration(
+        4,
+        "alarm history: the cause of an alarm suppressed by design",
+        ("ALTER TABLE alarm_history ADD COLUMN suppressed_by TEXT",),
+    ),
 )
 SCHEMA_VERSION: Final = MIGRATIONS[-1].version
 """The version this code writes and reads."""

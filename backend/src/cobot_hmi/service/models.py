@@ -312,6 +312,15 @@ class RobotStatus(BaseModel):
     control: ControlStatus
 
 
+AlarmStateName = Literal[
+    "normal",
+    "active_unacknowledged",
+    "active_acknowledged",
+    "returned_unacknowledged",
+    "suppressed",
+]
+
+
 class Identity(BaseModel):
     """The robot's CIP Identity object (Vol 1 §5A-2), when it was read."""
 
@@ -323,15 +332,74 @@ class Identity(BaseModel):
     product_name: str
 
 
-class AlarmSummary(BaseModel):
-    """A robot's alarms at a glance (the fleet tile, the banner's colour)."""
+AlarmPriority = Literal["critical", "high", "medium", "low"]
 
-    active: int = Field(ge=0)
+
+class AlarmBrief(BaseModel):
+    """An alarm named in a few fields (the most urgent of a robot or of the cell): the fields of
+    ``Alarm`` a banner line needs, in the service's words."""
+
+    id: str = Field(description="``robot:key``")
+    robot: str
+    key: str
+    name: str = Field(description='in words: "Emergency stop"')
+    priority: AlarmPriority
+    priority_rank: int = Field(ge=0, le=3)
+    colour: str
+    state: AlarmStateName
+    active: bool
+    label: str | None
+    tag: str | None
+    message: str | None = Field(description="the condition in words at the last change")
+    activated_at: float | None
+    changed_at: float | None
+
+
+class PriorityCounts(BaseModel):
+    """Annunciated alarms of one priority (not normal, not shelved, not suppressed)."""
+
+    annunciated: int = Field(ge=0, description="what a banner counts: active or unacknowledged")
+    active: int = Field(ge=0, description="of those, the condition is there")
+    unacknowledged: int = Field(ge=0, description="of those, nobody acknowledged them yet")
+
+
+class AlarmSummary(BaseModel):
+    """A robot's alarms at a glance (the fleet tile, the robot switcher's mark, a banner line
+    naming another robot)."""
+
+    robot: str | None = Field(default=None, description="the robot's name")
+    active: int = Field(ge=0, description="the condition is there (shelved and suppressed too)")
     unacknowledged: int = Field(ge=0)
     shelved: int = Field(ge=0)
-    highest_priority: Literal["critical", "high", "medium", "low"] | None = Field(
-        description="the most urgent priority of the alarms not normal and not shelved"
+    suppressed: int = Field(
+        default=0, ge=0, description="consequences of another alarm, suppressed by design"
     )
+    annunciated: int = Field(
+        default=0,
+        ge=0,
+        description="alarms a person must see: not normal, not shelved, not suppressed",
+    )
+    highest_priority: AlarmPriority | None = Field(
+        description="the most urgent priority of the annunciated alarms"
+    )
+    by_priority: dict[AlarmPriority, PriorityCounts] | None = Field(
+        default=None, description="annunciated alarms per priority (every priority present)"
+    )
+    top: AlarmBrief | None = Field(
+        default=None,
+        description="the most urgent annunciated alarm (active before returned, then priority, "
+        "then the newest change), null: none",
+    )
+
+
+class CellAlarmSummary(BaseModel):
+    """``GET /api/v1/alarms/summary`` and the stream's status ``cell_alarms``: every robot's
+    alarms at a glance, and the cell's most urgent annunciated alarm."""
+
+    robots: list[AlarmSummary] = Field(description="every robot, in the settings' order")
+    annunciated: int = Field(ge=0, description="annunciated alarms of every robot")
+    highest_priority: AlarmPriority | None
+    top: AlarmBrief | None = Field(description="the cell's most urgent annunciated alarm")
 
 
 class RobotSummary(BaseModel):
@@ -351,6 +419,25 @@ class RobotSummary(BaseModel):
     default: bool = Field(description="the robot the deprecated single-robot paths answer for")
     alarms: AlarmSummary | None = Field(
         default=None, description="its alarms at a glance (GET /api/v1/alarms?robot= for them)"
+    )
+    frame_age_s: float | None = Field(
+        default=None, description="how old the newest frame is, s (null: no frame yet)"
+    )
+    stale: bool = Field(
+        default=True,
+        description="not connected, or no frame for longer than stale_after_ms",
+    )
+    gaps: int | None = Field(
+        default=None,
+        ge=0,
+        description="T→O packets lost on the way on the current connection, at the last 0.5 s "
+        "alarm tick (null: not connected)",
+    )
+    gaps_per_min: float | None = Field(
+        default=None, description="T→O sequence gaps in the last minute (null: not connected)"
+    )
+    packet_loss_high: bool = Field(
+        default=False, description="the packet loss alarm is active (gaps_per_min too high)"
     )
 
 
@@ -402,6 +489,11 @@ class Ready(BaseModel):
 
 class _EventBase(BaseModel):
     time: float = Field(description="s since the epoch")
+    text: str = Field(
+        description="the event in words, as the service says it everywhere (the event log, "
+        'its CSV, exports): "Servo on flag cleared", "Emergency stop activated: robot state '
+        'Emergency stop, Emergency stopped flag set"'
+    )
     robot: str | None = Field(default=None, description="the robot's name")
     id: int | None = Field(default=None, description="row id in the event log (log pages only)")
 
@@ -464,10 +556,6 @@ class ControlEvent(_EventBase):
     reason: str | None = None
 
 
-AlarmPriority = Literal["critical", "high", "medium", "low"]
-AlarmStateName = Literal[
-    "normal", "active_unacknowledged", "active_acknowledged", "returned_unacknowledged"
-]
 AlarmTransition = Literal[
     "activated", "cleared", "acknowledged", "shelved", "unshelved", "shelve_expired"
 ]
@@ -498,9 +586,15 @@ class Alarm(BaseModel):
     unit: str
     high: float | None
     low: float | None
-    state: AlarmStateName
-    active: bool = Field(description="the condition is there (state active_*)")
-    acknowledged: bool = Field(description="state normal or active_acknowledged")
+    state: AlarmStateName = Field(
+        description="ISA-18.2: normal, active_unacknowledged, active_acknowledged, "
+        "returned_unacknowledged, or suppressed (by design: the condition is there as the "
+        "consequence of the alarm suppressed_by names; not annunciated, nothing to acknowledge)"
+    )
+    active: bool = Field(description="the condition is there (state active_* or suppressed)")
+    acknowledged: bool = Field(
+        description="nothing to acknowledge: state normal, active_acknowledged or suppressed"
+    )
     shelved: bool
     changed_at: float | None = Field(description="last change of this record, s since the epoch")
     activated_at: float | None
@@ -513,6 +607,12 @@ class Alarm(BaseModel):
     shelve_reason: str | None
     value: bool | float | None = Field(description="the watched value at the last change")
     message: str | None = Field(description="the condition in words at the last change")
+    suppressed_by: str | None = Field(
+        default=None,
+        description="the id of the alarm whose consequence this one's current (or last) "
+        "activation is (state suppressed while it holds): group it under that alarm",
+    )
+    suppressed_by_name: str | None = Field(default=None, description="that alarm's name in words")
 
 
 class AlarmList(BaseModel):
@@ -551,6 +651,9 @@ class AlarmHistoryRow(BaseModel):
     tag: str | None
     user: str | None
     comment: str | None
+    suppressed_by: str | None = Field(
+        default=None, description="state suppressed: the id of the alarm it is a consequence of"
+    )
 
 
 class AlarmHistoryPage(BaseModel):
@@ -584,6 +687,49 @@ class AlarmAnswer(BaseModel):
 
     alarm: Alarm
     changed: bool
+
+
+ALARM_ACK_MAX: Final = 200
+"""Most alarms one ``POST /api/v1/alarms/ack`` names (every robot's alarms fit many times)."""
+
+
+class AlarmAckMany(BaseModel):
+    """``POST /api/v1/alarms/ack``: acknowledge the alarms named (``ids``), or every
+    unacknowledged, annunciated alarm of one robot (``robot``); exactly one of the two."""
+
+    model_config = _STRICT
+
+    ids: list[str] | None = Field(
+        default=None,
+        min_length=1,
+        max_length=ALARM_ACK_MAX,
+        description="alarm ids (``robot:key``), e.g. the ones a list shows",
+    )
+    robot: RobotName | None = Field(
+        default=None,
+        description="every alarm of this robot that is unacknowledged and annunciated (not "
+        "shelved, not suppressed), as of the request",
+    )
+    comment: str | None = Field(default=None, max_length=500, description="for every one")
+
+
+class AlarmAckResult(BaseModel):
+    """What became of one alarm of an ``AlarmAckMany`` (each its own audit row)."""
+
+    id: str
+    outcome: Literal["acknowledged", "unchanged", "refused"] = Field(
+        description="acknowledged; unchanged (nothing left to acknowledge: acknowledged "
+        "already, or suppressed); refused (normal: nothing to acknowledge, the reason says)"
+    )
+    reason: str | None = None
+    alarm: Alarm = Field(description="the alarm after it")
+
+
+class AlarmAckManyAnswer(BaseModel):
+    """``POST /api/v1/alarms/ack``: one result per alarm, in the order asked."""
+
+    items: list[AlarmAckResult]
+    acknowledged: int = Field(ge=0, description="how many changed")
 
 
 class SessionEvent(_EventBase):
@@ -773,6 +919,11 @@ class HelloMessage(BaseModel):
         description="the robot's alarms that are active or unacknowledged when the stream "
         "opens, most urgent first; changes follow as `alarm` events",
     )
+    cell_alarms: CellAlarmSummary | None = Field(
+        default=None,
+        description="every robot's alarms at a glance when the stream opens; each `status` "
+        "message brings them again",
+    )
 
 
 class FramesMessage(BaseModel):
@@ -789,6 +940,11 @@ class StatusMessage(BaseModel):
     type: Literal["status"]
     robot: str | None = None
     connection: ConnectionStatus
+    cell_alarms: CellAlarmSummary | None = Field(
+        default=None,
+        description="every robot's alarms at a glance (as GET /api/v1/alarms/summary): a "
+        "panel or kiosk of one robot shows the others' from it",
+    )
 
 
 class EventMessage(BaseModel):

@@ -137,6 +137,7 @@ class RobotRuntime:
             gap_rate_per_min=service_settings.alarm_gap_rate_per_min,
             connection_delay_s=service_settings.alarm_connection_delay_s,
             shelve_max_s=service_settings.alarm_shelve_max_s,
+            consequence_window_s=service_settings.alarm_consequence_window_s,
             user_alarms=tuple(
                 UserAlarm(**alarm.model_dump(exclude={"robot"}))
                 for alarm in service_settings.alarms

@@ -1,6 +1,7 @@
-"""Layer: service. Alarms: the current ones of every robot (or one, ``?robot=``), one alarm, its
-acknowledgement and shelving (operator role, audited as writes are), and the history (JSON or
-CSV with ISO 8601 times).
+"""Layer: service. Alarms: the current ones of every robot (or one, ``?robot=``), the cell's at a
+glance (``/alarms/summary``), one alarm, its acknowledgement (one, or many in one request: one
+audited action each) and shelving (operator role, audited as writes are), and the history (JSON
+or CSV with ISO 8601 times).
 
 An alarm's id is ``robot:key`` (``left:emergency_stop``, ``left:motor_temperature.2`` is J 3's):
 the robot part picks the robot's engine (``RobotRuntime.alarms``). Every change is also an
@@ -20,6 +21,7 @@ from cobot_hmi.codec import dumps
 from cobot_hmi.service import models
 from cobot_hmi.service.alarms.engine import AlarmEngine, AlarmRefusedError, UnknownAlarmError
 from cobot_hmi.service.alarms.persistence import HISTORY_COLUMNS, AlarmStore
+from cobot_hmi.service.alarms.summary import annunciated
 from cobot_hmi.service.api_docs import CSV_RESPONSE, errors
 from cobot_hmi.service.deps import RobotFilterDep, ServiceDep, ViewerDep, WriterDep
 from cobot_hmi.service.errors import ApiError, conflict, not_found
@@ -85,6 +87,16 @@ async def list_alarms(
         items.extend(one.alarms.current() if which == "current" else one.alarms.all())
     items.sort(key=_urgency)
     return OrjsonResponse({"items": items, "total": len(items)})
+
+
+@router.get(
+    "/alarms/summary",
+    summary="Every robot's alarms at a glance: counts by priority and the most urgent one",
+    response_model=models.CellAlarmSummary,
+    responses=errors(401),
+)
+async def alarm_summary(service: ServiceDep, _: ViewerDep) -> OrjsonResponse:
+    return OrjsonResponse(service.cell_alarms())
 
 
 def _urgency(alarm: dict[str, object]) -> tuple[int, float]:
@@ -288,6 +300,44 @@ def _shelve_refused(reason: str) -> ApiError:
     return ApiError(422, reason, field="duration_s")
 
 
+async def _authorize_ack(
+    service: Service, writer: Writer, request: Request, alarm_id: str, comment: str | None
+) -> _Change:
+    return await _authorize(
+        service,
+        writer,
+        request,
+        alarm_id,
+        action="alarm.ack",
+        what="acknowledging alarms",
+        requested={"comment": comment},
+    )
+
+
+async def _acknowledge(change: _Change, alarm_id: str, comment: str | None) -> dict[str, Any]:
+    """Acknowledge one authorized alarm and audit the outcome; 409 ``ApiError`` (audited as
+    refused) for a normal alarm. ``{alarm, changed, reason}`` (``reason``: why unchanged)."""
+    alarm, changed = await change.act(
+        lambda: change.engine.acknowledge(alarm_id, change.user, comment), conflict
+    )
+    unchanged = (
+        f"suppressed by design (a consequence of {alarm['suppressed_by_name']}): nothing to "
+        "acknowledge"
+        if alarm["state"] == "suppressed"
+        else "already acknowledged"
+    )
+    await change.audit(
+        "acknowledged" if changed else "unchanged",
+        None if changed else unchanged,
+        _summary(alarm, "acknowledged" + (f" — {comment}" if comment else "")),
+    )
+    return {"alarm": alarm, "changed": changed, "reason": None if changed else unchanged}
+
+
+def _comment(text: str | None) -> str | None:
+    return text.strip() or None if text else None
+
+
 @router.post(
     "/alarms/{alarm_id}/ack",
     summary="Acknowledge an alarm (operator): active → active-acknowledged, returned → normal",
@@ -301,25 +351,88 @@ async def acknowledge(
     alarm_id: AlarmId,
     body: Annotated[models.AlarmAck | None, Body()] = None,
 ) -> OrjsonResponse:
-    comment = body.comment.strip() or None if body is not None and body.comment else None
-    change = await _authorize(
-        service,
-        writer,
-        request,
-        alarm_id,
-        action="alarm.ack",
-        what="acknowledging alarms",
-        requested={"comment": comment},
-    )
-    alarm, changed = await change.act(
-        lambda: change.engine.acknowledge(alarm_id, change.user, comment), conflict
-    )
-    await change.audit(
-        "acknowledged" if changed else "unchanged",
-        None if changed else "already acknowledged",
-        _summary(alarm, "acknowledged" + (f" — {comment}" if comment else "")),
-    )
-    return OrjsonResponse({"alarm": alarm, "changed": changed})
+    comment = _comment(body.comment if body is not None else None)
+    change = await _authorize_ack(service, writer, request, alarm_id, comment)
+    answer = await _acknowledge(change, alarm_id, comment)
+    return OrjsonResponse({"alarm": answer["alarm"], "changed": answer["changed"]})
+
+
+def _alarms_asked(service: Service, body: models.AlarmAckMany) -> list[str]:
+    """The ids ``body`` asks for, each known (404 otherwise), or every alarm of its robot that
+    is unacknowledged and annunciated."""
+    if (body.ids is None) == (body.robot is None):
+        raise ApiError(
+            422, "give either ids (the alarms) or robot (all of its alarms)", field="ids"
+        )
+    if body.ids is not None:
+        alarm_ids = list(dict.fromkeys(body.ids))
+        for alarm_id in alarm_ids:
+            _find(_engine(service, alarm_id)[1], alarm_id)
+        return alarm_ids
+    engine = service.robot(body.robot or "").alarms
+    return [
+        engine.alarm_id(key)
+        for key, alarm in engine.alarms.items()
+        if annunciated(alarm.status) and not alarm.status.state.acknowledged
+    ]
+
+
+async def _ack_result(change: _Change, alarm_id: str, comment: str | None) -> dict[str, object]:
+    """One ``AlarmAckResult``: acknowledged, unchanged, or refused (a normal alarm)."""
+    try:
+        answer = await _acknowledge(change, alarm_id, comment)
+    except ApiError as error:  # nothing to acknowledge: audited as refused
+        alarm = change.engine.snapshot(change.engine.find(alarm_id))
+        return {"id": alarm_id, "outcome": "refused", "reason": error.reason, "alarm": alarm}
+    return {
+        "id": alarm_id,
+        "outcome": "acknowledged" if answer["changed"] else "unchanged",
+        "reason": answer["reason"],
+        "alarm": answer["alarm"],
+    }
+
+
+@router.post(
+    "/alarms/ack",
+    summary="Acknowledge several alarms (operator): the ids given, or every unacknowledged, "
+    "annunciated alarm of one robot; one audited action per alarm",
+    response_model=models.AlarmAckManyAnswer,
+    responses=errors(401, 403, 404, 413, 415, 422, 429),
+)
+async def acknowledge_many(
+    service: ServiceDep, writer: WriterDep, request: Request, body: models.AlarmAckMany
+) -> OrjsonResponse:
+    """Every alarm named must exist (else 404, nothing acknowledged, nothing audited); a
+    writer below the operator role is refused with one audit row per alarm (401/403); then
+    each alarm is acknowledged and audited in turn, as ``POST /alarms/{id}/ack`` does it."""
+    alarm_ids = _alarms_asked(service, body)
+    comment = _comment(body.comment)
+    changes: list[_Change] = []
+    refusal: ApiError | None = None
+    for alarm_id in alarm_ids:  # a refusal of the role is audited for every alarm asked
+        try:
+            changes.append(await _authorize_ack(service, writer, request, alarm_id, comment))
+        except ApiError as error:
+            refusal = error
+    if not alarm_ids:  # nothing to acknowledge, but only an operator is told so
+        robot = service.robot(body.robot) if body.robot else service.default_robot
+        await authorize_audited(
+            robot.store,
+            writer,
+            action="alarm.ack",
+            what="acknowledging alarms",
+            robot=robot.name,
+            origin=f"{request.method} {request.url.path}",
+            requested={"comment": comment},
+        )
+    if refusal is not None:
+        raise refusal
+    items = [
+        await _ack_result(change, alarm_id, comment)
+        for alarm_id, change in zip(alarm_ids, changes, strict=True)
+    ]
+    acknowledged = sum(item["outcome"] == "acknowledged" for item in items)
+    return OrjsonResponse({"items": items, "acknowledged": acknowledged})
 
 
 @router.post(

@@ -24,6 +24,7 @@ from cobot_hmi.service import models
 from cobot_hmi.service.api_docs import READ, errors
 from cobot_hmi.service.deps import RobotDep, ServiceDep, ViewerDep
 from cobot_hmi.service.errors import ApiError
+from cobot_hmi.service.events import with_text
 from cobot_hmi.service.history_events import events_between, iter_events
 from cobot_hmi.service.recorder import Recorder
 from cobot_hmi.service.runtime import Service
@@ -197,7 +198,8 @@ async def get_history_events(
             limit=limit + 1,
             kinds=kinds,
         )
-        return orjson.dumps({"items": events[:limit], "truncated": len(events) > limit})
+        items = [with_text(event) for event in events[:limit]]
+        return orjson.dumps({"items": items, "truncated": len(events) > limit})
 
     return Response(await asyncio.to_thread(work), media_type="application/json")
 
@@ -258,7 +260,11 @@ def export_chunks(
     fmt: str,
 ) -> Iterator[bytes]:
     """The export's bytes (also ``cobot-hmi export``): frames and, for MCAP, the events."""
-    events = iter_events(database, robot, from_s, to_s) if fmt == "mcap" else iter(())
+    events = (
+        (with_text(event) for event in iter_events(database, robot, from_s, to_s))
+        if fmt == "mcap"
+        else iter(())
+    )
     tables = history_export.tables(root, robot, elements, from_s=from_s, to_s=to_s, fmt=fmt)
     for chunk in history_export.export(tables, robot, elements, fmt, events):
         if chunk:

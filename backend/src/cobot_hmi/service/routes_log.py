@@ -11,6 +11,7 @@ from cobot_hmi.codec import dumps
 from cobot_hmi.service import models
 from cobot_hmi.service.api_docs import CSV_RESPONSE, LOG, errors
 from cobot_hmi.service.deps import OperatorDep, RobotFilterDep, ServiceDep
+from cobot_hmi.service.events import with_text
 from cobot_hmi.service.labels import labels_of
 from cobot_hmi.service.store import (
     AUDIT_COLUMNS,
@@ -88,4 +89,6 @@ async def get_events(
     format: Format = "json",
 ) -> Response:
     page = await service.store.events_page(kind, limit, offset, robot=robot)
+    for item in page.items:  # in words (a row logged before events had its text gets it)
+        with_text(item)
     return _answer(page, EVENT_COLUMNS, format, "events")

@@ -69,6 +69,7 @@ def robot_summary(
     latest = robot.hub.latest
     state = latest[2].robot_state if latest is not None else None
     frame = frame_to_json(latest[2]) if latest is not None else None
+    age_s, stale = _frame_age(service, robot)
     return {
         "name": robot.name,
         "host": robot.settings.host,
@@ -83,6 +84,11 @@ def robot_summary(
         "robot_state_name": frame["robot_state_name"] if frame is not None else None,
         "default": robot is service.default_robot,
         "alarms": robot.alarms.summary(),
+        "frame_age_s": age_s,
+        "stale": stale,
+        "gaps": robot.alarms.gaps_total,
+        "gaps_per_min": robot.alarms.gaps_per_min,
+        "packet_loss_high": robot.alarms.packet_loss_high,
     }
 
 
@@ -113,6 +119,20 @@ async def get_robot(service: ServiceDep, robot: RobotDep, session: ViewerDep) ->
 # --------------------------------------------------------------------------- one robot
 
 
+def _frame_age(service: Service, robot: RobotRuntime) -> tuple[float | None, bool]:
+    """How old the robot's newest frame is (s, ``None``: none yet) and whether it is stale
+    (not connected, or older than ``stale_after_ms``)."""
+    latest = robot.hub.latest
+    if latest is None:
+        return None, True
+    age_s = max(0.0, time.time() - latest[1])
+    stale = (
+        age_s * 1000 > service.settings.stale_after_ms
+        or robot.link.state is not ConnectionState.CONNECTED
+    )
+    return age_s, stale
+
+
 def _frame(service: Service, robot: RobotRuntime) -> dict[str, object]:
     latest = robot.hub.latest
     if latest is None:
@@ -124,11 +144,7 @@ def _frame(service: Service, robot: RobotRuntime) -> dict[str, object]:
             "stale": True,
         }
     received_at, frame = latest[1], latest[2]
-    age_s = max(0.0, time.time() - received_at)
-    stale = (
-        age_s * 1000 > service.settings.stale_after_ms
-        or robot.link.state is not ConnectionState.CONNECTED
-    )
+    age_s, stale = _frame_age(service, robot)
     return {
         "robot": robot.name,
         "frame": frame_to_json(frame),

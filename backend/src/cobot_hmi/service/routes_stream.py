@@ -138,6 +138,7 @@ async def _stream(websocket: WebSocket, name: str | None) -> None:
     hello["control"] = robot.control.status_for(session)
     hello["session"] = session.id if session is not None else None
     hello["alarms"] = robot.alarms.current()  # the banner from the first message on
+    hello["cell_alarms"] = service.cell_alarms()  # the other robots' too (then each status)
     client = robot.hub.add_client(
         websocket.send_text,
         abort,

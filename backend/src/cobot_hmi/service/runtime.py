@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Final
 # OPC UA (issue 22): wired here until the composition root (issue 21) builds the consumers.
 from cobot_hmi.opcua.feed import ServiceFeed
 from cobot_hmi.opcua.server import OpcUaServer
+from cobot_hmi.service.alarms.summary import cell_summary
 from cobot_hmi.service.auth import LoginThrottle, Session, Sessions
 from cobot_hmi.service.commander import Commander
 from cobot_hmi.service.control import Control
@@ -202,15 +203,27 @@ class Service:
                 )
         return problems
 
+    def cell_alarms(self) -> dict[str, object]:
+        """``models.CellAlarmSummary``: every robot's alarms at a glance."""
+        return cell_summary([robot.alarms.summary() for robot in self.robots.values()])
+
     async def _status_loop(self) -> None:
         while True:
             await asyncio.sleep(self.settings.status_interval_s)
+            if not any(robot.hub.clients for robot in self.robots.values()):
+                continue
+            # Once per period for every stream: a panel of one robot sees the others' alarms.
+            cell_alarms = self.cell_alarms()
             for robot in self.robots.values():
                 if not robot.hub.clients:
                     continue
                 try:
                     robot.hub.broadcast_status(
-                        {"robot": robot.name, "connection": await robot.connection_status()}
+                        {
+                            "robot": robot.name,
+                            "connection": await robot.connection_status(),
+                            "cell_alarms": cell_alarms,
+                        }
                     )
                 except Exception:
                     log.exception("status broadcast of %s failed", robot.name)

@@ -531,6 +531,14 @@ class ServiceSettings(OpcUaSettings, BaseSettings):  # OPC UA (issue 22)
         2.0, "connection lost or stale this long raises its alarm, s", ge=0, le=3600
     )
     alarm_shelve_max_s: Seconds = setting(8 * 3600.0, "longest an alarm may be shelved, s")
+    alarm_consequence_window_s: float = setting(
+        5.0,
+        "an alarm coming this long after its cause cleared (or while the cause is active) is its "
+        "consequence, suppressed by design (SAFE_OFF after an e-stop's reset), s",
+        ge=0,
+        le=600,
+        allow_inf_nan=False,
+    )
     # --- history: every frame recorded (cobot_hmi.history; docs/operations.md "History")
     history: bool = setting(True, "record every frame of every robot (--no-history: off)")
     history_dir: ExpandedPath | None = setting(

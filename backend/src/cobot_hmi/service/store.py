@@ -52,8 +52,9 @@ AUDIT_COLUMNS: Final = (
     "tags",
 )
 _AUDIT_JSON: Final = frozenset({"fields", "before", "requested", "tags"})
-EVENT_COLUMNS: Final = ("id", "time", "robot", "kind", "data")
-"""The CSV columns of the event log (``data``: the kind's own fields as JSON text)."""
+EVENT_COLUMNS: Final = ("id", "time", "robot", "kind", "text", "data")
+"""The CSV columns of the event log (``text``: the event in words; ``data``: the kind's own
+fields as JSON text)."""
 _EVENT_KEYS: Final = frozenset({"id", "time", "robot", "kind"})
 MAX_PAGE: Final = 100_000
 """Largest ``limit`` of one page (a CSV export takes everything in one)."""
@@ -341,7 +342,8 @@ def event_csv_rows(items: Sequence[dict[str, object]]) -> list[dict[str, object]
     return [
         {
             **{k: item.get(k) for k in _EVENT_KEYS},
-            "data": {k: v for k, v in item.items() if k not in _EVENT_KEYS},
+            "text": item.get("text"),
+            "data": {k: v for k, v in item.items() if k not in _EVENT_KEYS and k != "text"},
         }
         for item in items
     ]
@@ -349,8 +351,9 @@ def event_csv_rows(items: Sequence[dict[str, object]]) -> list[dict[str, object]
 
 def iso8601(time_s: float) -> str:
     """Seconds since the epoch as ISO 8601 in the service's local time with its UTC offset
-    (``2026-11-24T07:05:12.345678+01:00``): what a spreadsheet and a person both read."""
-    return datetime.fromtimestamp(time_s).astimezone().isoformat()
+    (``2026-11-24T07:05:12.345678+01:00``, 24 h, always six decimals: every row the same
+    width): what a spreadsheet and a person both read."""
+    return datetime.fromtimestamp(time_s).astimezone().isoformat(timespec="microseconds")
 
 
 def to_csv(

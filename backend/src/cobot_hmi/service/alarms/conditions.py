@@ -20,7 +20,7 @@ from collections.abc import Mapping
 from typing import Final
 
 from cobot_hmi.codec import Frame
-from cobot_hmi.service.labels import named, value_words
+from cobot_hmi.service.labels import flag_words, named, robot_state_words, value_words
 
 UNCHANGED: Final = 0
 CAME: Final = 1
@@ -98,11 +98,14 @@ class StateCondition(Condition):
         return self._settle(raw, time_s)
 
     def describe(self, frame: Frame, tags: Mapping[str, str]) -> tuple[float | bool | None, str]:
-        words = f"robot state {frame.robot_state}"
-        if frame.robot_state == self.state:
-            words = f"robot state {self.state_name}"
+        """The state in words, whether the alarm came ("robot state Emergency stop, Emergency
+        stopped flag set") or went ("robot state now Safe off (servo off)"): never a number."""
+        state = robot_state_words(frame.robot_state)
+        if not self.active:
+            return frame.robot_state, f"robot state now {state}"
+        words = f"robot state {state}"
         if self.flag is not None and getattr(frame, self.flag):
-            words += f", {self.flag} set"
+            words += f", {flag_words(self.flag, True)}"
         return frame.robot_state, words
 
 

@@ -9,6 +9,10 @@ nothing (``conditions``); only a change builds an event and queues its row
 
 The connection's alarms (lost or stale, Forward Open refused) and the packet loss rate are
 evaluated by ``tick`` (``TICK_S``) and on each connection state change; shelving expiries too.
+
+An alarm that comes as the consequence of another (``consequences``: SAFE_OFF after an
+emergency stop's reset, a refused reconnection after the connection was lost) is suppressed by
+design: recorded and announced, not annunciated, nothing to acknowledge.
 """
 
 from __future__ import annotations
@@ -32,9 +36,16 @@ from cobot_hmi.service.alarms.conditions import (
     LimitCondition,
     StateCondition,
 )
-from cobot_hmi.service.alarms.definitions import AlarmDefinition, Priority
+from cobot_hmi.service.alarms.consequences import cause_of
+from cobot_hmi.service.alarms.definitions import AlarmDefinition
 from cobot_hmi.service.alarms.persistence import AlarmChange
-from cobot_hmi.service.alarms.state import AlarmStatus, NothingToAcknowledgeError, Transition
+from cobot_hmi.service.alarms.state import (
+    AlarmState,
+    AlarmStatus,
+    NothingToAcknowledgeError,
+    Transition,
+)
+from cobot_hmi.service.alarms.summary import priority_counts, robot_summary
 
 log = logging.getLogger(__name__)
 
@@ -101,6 +112,7 @@ class AlarmEngine:
         gap_rate_per_min: float,
         connection_delay_s: float,
         shelve_max_s: float,
+        consequence_window_s: float = 5.0,
         user_alarms: tuple[UserAlarm, ...] = (),
         publish: Callable[[Event], None] | None = None,
         persist: Callable[[AlarmChange], None] | None = None,
@@ -111,6 +123,8 @@ class AlarmEngine:
         self.gap_rate_per_min = gap_rate_per_min
         self.connection_delay_s = connection_delay_s
         self.shelve_max_s = shelve_max_s
+        self.consequence_window_s = consequence_window_s
+        """An alarm coming this long after its cause cleared is still its consequence, s."""
         self.publish = publish
         self.persist = persist
         self._tags = tags
@@ -190,6 +204,13 @@ class AlarmEngine:
         self.gaps_per_min: float | None = None
         """T→O sequence gaps in the last minute (``None`` until a minute's samples exist
         or while not connected)."""
+
+    @property
+    def gaps_total(self) -> int | None:
+        """T→O sequence gaps of the current connection at the last tick (``None``: not
+        connected)."""
+        samples = self._gap_samples
+        return samples[-1][1] if samples else None
 
     # ------------------------------------------------------------ identity
 
@@ -386,6 +407,7 @@ class AlarmEngine:
         definition, status = alarm.definition, alarm.status
         element = definition.element
         tag = self._tag_names().get(element) if element is not None else None
+        cause = self.alarms.get(status.suppressed_by) if status.suppressed_by else None
         return {
             "id": self.alarm_id(definition.key),
             "robot": self.robot,
@@ -406,7 +428,12 @@ class AlarmEngine:
             "acknowledged": status.state.acknowledged,
             "shelved": status.shelved,
             **status.to_json(),
+            "suppressed_by": None if cause is None else self.alarm_id(cause.definition.key),
+            "suppressed_by_name": None if cause is None else cause.definition.name,
         }
+
+    def snapshot_of(self, key: str) -> Event:
+        return self.snapshot(self.alarms[key])
 
     def current(self) -> list[Event]:
         """Alarms that are not normal (active, or unacknowledged), most urgent first."""
@@ -418,43 +445,14 @@ class AlarmEngine:
         return [self.snapshot(a) for a in self.alarms.values()]
 
     def summary(self) -> dict[str, object]:
-        """``models.AlarmSummary``: how many alarms are active, unacknowledged, shelved, and the
-        most urgent priority among those not normal and not shelved (the banner's colour)."""
-        active = unacknowledged = shelved = 0
-        highest: Priority | None = None
-        for alarm in self.alarms.values():
-            status = alarm.status
-            state = status.state
-            active += state.active
-            unacknowledged += not state.acknowledged
-            shelved += status.shelved
-            if state.value != "normal" and not status.shelved:
-                level = alarm.definition.priority
-                if highest is None or level.rank < highest.rank:
-                    highest = level
-        return {
-            "active": active,
-            "unacknowledged": unacknowledged,
-            "shelved": shelved,
-            "highest_priority": None if highest is None else highest.value,
-        }
+        """``models.AlarmSummary`` of this robot (``summary.robot_summary``)."""
+        entries = [(a.definition, a.status) for a in self.alarms.values()]
+        return robot_summary(self.robot, entries, self.snapshot_of)
 
     def counts(self) -> dict[tuple[str, str], int]:
-        """``(priority, "active" | "unacknowledged" | "shelved")`` → alarms (``/metrics``)."""
-        out: dict[tuple[str, str], int] = {}
-        for priority in Priority:
-            for what in ("active", "unacknowledged", "shelved"):
-                out[(priority.value, what)] = 0
-        for alarm in self.alarms.values():
-            level = alarm.definition.priority.value
-            state = alarm.status.state
-            if state.active:
-                out[(level, "active")] += 1
-            if not state.acknowledged:
-                out[(level, "unacknowledged")] += 1
-            if alarm.status.shelved:
-                out[(level, "shelved")] += 1
-        return out
+        """``(priority, "active" | "unacknowledged" | "shelved" | "suppressed")`` → alarms
+        (``/metrics``)."""
+        return priority_counts((a.definition, a.status) for a in self.alarms.values())
 
     # ------------------------------------------------------------ inside
 
@@ -469,7 +467,11 @@ class AlarmEngine:
         value: float | bool | None,
         message: str,
     ) -> Event | None:
-        transition = alarm.status.process(active, time_s)
+        cause = None
+        if active and not alarm.status.state.active:
+            statuses = {key: other.status for key, other in self.alarms.items()}
+            cause = cause_of(alarm.definition.key, statuses, time_s, self.consequence_window_s)
+        transition = alarm.status.process(active, time_s, suppressed_by=cause)
         alarm.status.value = value
         alarm.status.message = message
         if transition is None:
@@ -507,6 +509,12 @@ class AlarmEngine:
                     user=user,
                     comment=comment,
                     record=status.to_json(),
+                    suppressed_by=(
+                        snapshot["suppressed_by"]
+                        if status.state is AlarmState.SUPPRESSED
+                        and isinstance(snapshot["suppressed_by"], str)
+                        else None
+                    ),
                 )
             )
         return {

@@ -45,6 +45,7 @@ HISTORY_COLUMNS: Final = (
     "tag",
     "user",
     "comment",
+    "suppressed_by",
 )
 
 
@@ -68,6 +69,9 @@ class AlarmChange:
     user: str | None
     comment: str | None
     record: dict[str, object]
+    """The alarm's whole record after the change (``state.AlarmStatus.to_json``)."""
+    suppressed_by: str | None = None
+    """The cause's alarm id when the alarm is suppressed by design (state ``suppressed``)."""
     """The alarm's whole record after the change (``state.AlarmStatus.to_json``)."""
 
 
@@ -250,8 +254,8 @@ def _history_item(row: tuple[object, ...]) -> dict[str, object]:
 def _write_sync(db: sqlite3.Connection, changes: list[AlarmChange]) -> None:
     db.executemany(
         "INSERT INTO alarm_history (time, robot, alarm_id, key, name, priority, transition,"
-        " state, shelved, message, value, label, tag, user, comment)"
-        " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+        " state, shelved, message, value, label, tag, user, comment, suppressed_by)"
+        " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
         [
             (
                 c.time,
@@ -269,6 +273,7 @@ def _write_sync(db: sqlite3.Connection, changes: list[AlarmChange]) -> None:
                 c.tag,
                 c.user,
                 c.comment,
+                c.suppressed_by,
             )
             for c in changes
         ],

@@ -6,10 +6,17 @@ States (the standard's letters):
 - A ``normal``: not active, acknowledged;
 - B ``active_unacknowledged``: the condition came; the operator has not acknowledged it;
 - C ``active_acknowledged``: acknowledged, the condition is still there;
-- D ``returned_unacknowledged``: the condition went before anyone acknowledged it.
+- D ``returned_unacknowledged``: the condition went before anyone acknowledged it;
+- G ``suppressed``: the standard's "suppressed by design" (designed suppression): the
+  condition came as the consequence of another alarm (its cause, ``suppressed_by``; the rules
+  are ``consequences``), so it is recorded but not annunciated and needs no acknowledgement.
 
 Transitions: A→B the condition comes; B→C acknowledge; B→D the condition goes; C→A the condition
-goes; D→A acknowledge; D→B it comes again. Acknowledging in A or C changes nothing.
+goes; D→A acknowledge; D→B it comes again. Acknowledging in A, C or G changes nothing. A→G the
+condition comes while its cause holds (the engine decides, ``process(..., suppressed_by=)``);
+G→A the condition goes. Suppression is decided when the condition comes and lasts while it
+holds: it never withdraws an alarm already annunciated, and a returned, unacknowledged alarm that
+comes again (D→B) still needs its acknowledgement.
 
 Shelving (§11.4.3: an operator's temporary suppression, with a reason and an expiry) is kept
 beside the state: a shelved alarm still follows its condition (so unshelving shows the truth)
@@ -28,6 +35,7 @@ class AlarmState(StrEnum):
     ACTIVE_UNACKNOWLEDGED = "active_unacknowledged"
     ACTIVE_ACKNOWLEDGED = "active_acknowledged"
     RETURNED_UNACKNOWLEDGED = "returned_unacknowledged"
+    SUPPRESSED = "suppressed"
 
     @property
     def active(self) -> bool:
@@ -38,17 +46,22 @@ class AlarmState(StrEnum):
         return self in _ACKNOWLEDGED
 
 
-_ACTIVE: Final = frozenset({AlarmState.ACTIVE_UNACKNOWLEDGED, AlarmState.ACTIVE_ACKNOWLEDGED})
-_ACKNOWLEDGED: Final = frozenset({AlarmState.NORMAL, AlarmState.ACTIVE_ACKNOWLEDGED})
+_ACTIVE: Final = frozenset(
+    {AlarmState.ACTIVE_UNACKNOWLEDGED, AlarmState.ACTIVE_ACKNOWLEDGED, AlarmState.SUPPRESSED}
+)
+_ACKNOWLEDGED: Final = frozenset(
+    {AlarmState.NORMAL, AlarmState.ACTIVE_ACKNOWLEDGED, AlarmState.SUPPRESSED}
+)
+"""Nothing to acknowledge: a suppressed alarm never needs it."""
 
 
 class Transition(StrEnum):
     """Why an alarm's record changed (an ``alarm`` event's ``transition``)."""
 
     ACTIVATED = "activated"
-    """The condition came (A→B, D→B)."""
+    """The condition came (A→B, D→B; A→G suppressed by design)."""
     CLEARED = "cleared"
-    """The condition went (B→D, C→A)."""
+    """The condition went (B→D, C→A, G→A)."""
     ACKNOWLEDGED = "acknowledged"
     """The operator acknowledged (B→C, D→A)."""
     SHELVED = "shelved"
@@ -62,6 +75,7 @@ PROCESS: Final[dict[tuple[AlarmState, bool], AlarmState]] = {
     (AlarmState.ACTIVE_UNACKNOWLEDGED, False): AlarmState.RETURNED_UNACKNOWLEDGED,
     (AlarmState.ACTIVE_ACKNOWLEDGED, False): AlarmState.NORMAL,
     (AlarmState.RETURNED_UNACKNOWLEDGED, True): AlarmState.ACTIVE_UNACKNOWLEDGED,
+    (AlarmState.SUPPRESSED, False): AlarmState.NORMAL,
 }
 ACKNOWLEDGE: Final[dict[AlarmState, AlarmState]] = {
     AlarmState.ACTIVE_UNACKNOWLEDGED: AlarmState.ACTIVE_ACKNOWLEDGED,
@@ -92,22 +106,32 @@ class AlarmStatus:
     """The watched value when the condition last came or went."""
     message: str | None = None
     """The condition in words at its last change ("J 3 motor temperature 81.2 °C")."""
+    suppressed_by: str | None = None
+    """The key of the alarm whose consequence this one's last activation was (state G while
+    it holds); kept after it clears, as the acknowledgement is, until the next activation."""
 
     @property
     def shelved(self) -> bool:
         return self.shelved_until is not None
 
-    def process(self, active: bool, time_s: float) -> Transition | None:
-        """The condition is ``active`` (or not) now; ACTIVATED, CLEARED or ``None``."""
+    def process(
+        self, active: bool, time_s: float, *, suppressed_by: str | None = None
+    ) -> Transition | None:
+        """The condition is ``active`` (or not) now; ACTIVATED, CLEARED or ``None``.
+        ``suppressed_by``: the key of the cause when the condition comes as its consequence
+        (from normal only: A→G instead of A→B)."""
         new = PROCESS.get((self.state, active))
         if new is None:
             return None
+        if active and suppressed_by is not None and self.state is AlarmState.NORMAL:
+            new = AlarmState.SUPPRESSED
         self.state = new
         self.changed_at = time_s
         if active:
             self.activated_at = time_s
             self.cleared_at = None
             self.acknowledged_at = self.acknowledged_by = self.ack_comment = None
+            self.suppressed_by = suppressed_by if new is AlarmState.SUPPRESSED else None
             return Transition.ACTIVATED
         self.cleared_at = time_s
         return Transition.CLEARED
@@ -164,6 +188,7 @@ class AlarmStatus:
             "shelve_reason": self.shelve_reason,
             "value": self.value,
             "message": self.message,
+            "suppressed_by": self.suppressed_by,
         }
 
     @classmethod
@@ -185,7 +210,14 @@ class AlarmStatus:
             value = data.get(name)
             if isinstance(value, int | float) and not isinstance(value, bool):
                 setattr(status, name, float(value))
-        for name in ("acknowledged_by", "ack_comment", "shelved_by", "shelve_reason", "message"):
+        for name in (
+            "acknowledged_by",
+            "ack_comment",
+            "shelved_by",
+            "shelve_reason",
+            "message",
+            "suppressed_by",
+        ):
             value = data.get(name)
             if isinstance(value, str):
                 setattr(status, name, value)
