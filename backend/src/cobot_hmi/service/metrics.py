@@ -270,7 +270,7 @@ def _control_families(robots: _Robots) -> Iterator[Metric]:
     )
     alarms = _gauge(
         "alarms",
-        "alarms by priority and what they are: active, unacknowledged, shelved",
+        "alarms by priority and what they are: active, unacknowledged, shelved, suppressed",
         ["robot", "priority", "state"],
     )
     for name, robot, _ in robots:
