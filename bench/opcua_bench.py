@@ -46,6 +46,7 @@ from sparkplug_bench import HISTOGRAM, _ready, _scrape, percentile
 from cobot_hmi.service.users import Role, UsersFile
 
 SAMPLING_MS = 100.0
+BROWSE_BATCH = 100
 
 
 @dataclass
@@ -69,15 +70,16 @@ class Received:
 
 
 async def _variables(client: Client, names: list[str]) -> list[Any]:
-    """Every variable below each robot's object (its Robotics parts and its layout), browsed a
-    level at a time (one Browse request per level)."""
+    """Every variable below each robot's object (its Robotics parts and its layout), browsed
+    ``BROWSE_BATCH`` nodes per request."""
     found: list[Any] = []
     namespaces = await client.get_namespace_array()
     level = [ua.NodeId(name, namespaces.index(f"urn:cobot-hmi:robot:{name}")) for name in names]
     seen = set(level)
     while level:
+        batch, level = level[:BROWSE_BATCH], level[BROWSE_BATCH:]
         parameters = ua.BrowseParameters()
-        for node_id in level:
+        for node_id in batch:
             description = ua.BrowseDescription()
             description.NodeId = node_id
             description.BrowseDirection = ua.BrowseDirection.Forward
@@ -87,7 +89,6 @@ async def _variables(client: Client, names: list[str]) -> list[Any]:
             description.ResultMask = ua.BrowseResultMask.All
             parameters.NodesToBrowse.append(description)
         results = await client.uaclient.browse(parameters)
-        level = []
         for result in results:
             for reference in result.References:
                 node_id = reference.NodeId
@@ -121,7 +122,7 @@ class Subscriber:
         self._run(self._start())
 
     async def _start(self) -> None:
-        client = Client(self._endpoint, timeout=60)
+        client = Client(self._endpoint, timeout=120)
         await client.connect()
         self._client = client
         nodes = await _variables(client, self._names)
