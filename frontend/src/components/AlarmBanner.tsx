@@ -6,7 +6,7 @@
  */
 import type { ReactNode } from "react";
 import { alarmPaint, alarmStateWords, alarmTitle, bannerView, countWords, isUnacknowledged, type Alarm } from "../lib/alarms";
-import { formatClock } from "../lib/health";
+import { formatMoment } from "../lib/dates";
 import "../styles/alarms.css";
 
 interface Props {
@@ -49,12 +49,15 @@ export function AlarmBanner({ alarms, size, listHref, children }: Props) {
           </span>
         )}{" "}
         {alarmStateWords(top)}
-        {top.activated_at !== null ? ` since ${formatClock(top.activated_at * 1000)}` : ""}
+        {top.activated_at !== null ? ` since ${formatMoment(top.activated_at * 1000, Date.now())}` : ""}
       </span>
       {top.message !== null && top.message !== "" && <span className="alarm-banner__message">{top.message}</span>}
-      <span className="alarm-banner__count" data-testid="alarm-banner-count" title={count}>
-        {listHref !== undefined ? <a href={listHref}>{others > 0 ? `+${others} more · ${count}` : count}</a> : others > 0 ? `+${others} more · ${count}` : count}
-      </span>
+      {/* The kiosk's room is dear: a lone alarm's count repeats what its state words say. */}
+      {(size === "panel" || others > 0) && (
+        <span className="alarm-banner__count" data-testid="alarm-banner-count" title={count}>
+          {listHref !== undefined ? <a href={listHref}>{others > 0 ? `+${others} more · ${count}` : count}</a> : others > 0 ? `+${others} more · ${count}` : count}
+        </span>
+      )}
       {children}
     </div>
   );

@@ -1,6 +1,6 @@
 /** Who holds control of the outputs (read-only view). */
 import type { Ownership } from "../lib/controlSession";
-import { formatClock } from "../lib/health";
+import { formatMoment } from "../lib/dates";
 import type { ControlStatus } from "../lib/protocol";
 
 /**
@@ -29,7 +29,7 @@ export function ControlHolder({ control, ownership }: { readonly control: Contro
               — held by you in another window
             </span>
           )}{" "}
-          since {formatClock(holder.since * 1000)}
+          since {formatMoment(holder.since * 1000, Date.now())}
         </span>
       )}
     </div>

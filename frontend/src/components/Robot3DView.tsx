@@ -1,8 +1,9 @@
 /**
  * The robot in 3D, drawn from its joint angles with its model's kinematics and following the
- * frames live, with the flange's path over the last seconds. three.js is loaded with this view
- * (its own chunk, lib/robotScene3d.ts); samples go from the ring to the scene in an animation-
- * frame loop of its own, never through React state. On the panel the view turns by dragging,
+ * frames live, with the flange's path over the last seconds. three.js is loaded when the view
+ * first comes near the screen (its own chunk, lib/robotScene3d.ts: a panel opened at its top
+ * never fetches it until a person scrolls down to the view); samples go from the ring to the
+ * scene in an animation-frame loop of its own, never through React state. On the panel the view turns by dragging,
  * by the arrow keys while it has the focus, or by its buttons (touch screens too); it zooms with
  * the wheel, + and −, or its buttons; "Reset view" (or 0) returns to the home view
  * (lib/orbitCamera.ts: the steps and limits). The kiosk shows it without controls.
@@ -27,7 +28,8 @@ interface Props {
   readonly theme: "light" | "dark";
   /** Rotate, zoom and a reset button (the panel); false on the kiosk. */
   readonly interactive?: boolean;
-  readonly height_px?: number;
+  /** The drawing's height; "fill": the height of the box the view is put in (the kiosk's area). */
+  readonly height_px?: number | "fill";
 }
 
 /** The view's buttons: what each does, its symbol and its name for a screen reader. */
@@ -43,6 +45,30 @@ const CAMERA_BUTTONS: readonly { action: CameraAction; symbol: string; label: st
 /** How often at most the joint angles and the path are written to the page's attributes. */
 const READOUT_INTERVAL_MS = 100;
 
+/** three.js is fetched when the view is this near the screen (a scroll's worth ahead). */
+const LOAD_AHEAD_MARGIN = "300px 0px";
+
+/**
+ * Whether `el` has come near the screen (once true, it stays true). Without IntersectionObserver
+ * (an old browser) at once.
+ */
+function useNearScreen(el: { readonly current: Element | null }): boolean {
+  const [near, setNear] = useState(() => typeof IntersectionObserver === "undefined");
+  useEffect(() => {
+    const target = el.current;
+    if (near || target === null) return;
+    const observer = new IntersectionObserver(
+      (entries) => {
+        if (entries.some((entry) => entry.isIntersecting)) setNear(true);
+      },
+      { rootMargin: LOAD_AHEAD_MARGIN },
+    );
+    observer.observe(target);
+    return () => observer.disconnect();
+  }, [el, near]);
+  return near;
+}
+
 /** How far an arm reaches about (m): the sum of its joint offsets. */
 function reachOf(chain: ArmChain): number {
   return chain.arm.joints.reduce((sum, j) => sum + Math.hypot(...j.originXyz_m), 0);
@@ -56,10 +82,11 @@ export function Robot3DView({ model, theme, interactive = true, height_px = 420 
   const [problem, setProblem] = useState<string | null>(null);
   const hintId = useId();
   const arm = armNameOf(model);
+  const near = useNearScreen(wrapper);
 
   useEffect(() => {
     const el = holder.current;
-    if (el === null) return;
+    if (el === null || !near) return;
     let cancelled = false;
     let stop = () => undefined as void;
     import("../lib/robotScene3d")
@@ -171,7 +198,7 @@ export function Robot3DView({ model, theme, interactive = true, height_px = 420 
       cancelled = true;
       stop();
     };
-  }, [live, arm.name, theme, interactive]);
+  }, [live, arm.name, theme, interactive, near]);
 
   const onKeyDown = (event: KeyboardEvent<HTMLDivElement>) => {
     const action = actionOfKey(event.key, { ctrl: event.ctrlKey, alt: event.altKey, meta: event.metaKey });
@@ -180,9 +207,11 @@ export function Robot3DView({ model, theme, interactive = true, height_px = 420 
     act.current(action);
   };
   const canvasLabel = `${arm.name} in 3D`;
+  const fill = height_px === "fill";
+  const canvasStyle = fill ? undefined : { height: `${height_px}px` };
 
   return (
-    <figure className={`robot3d robot3d--${theme}`} data-testid="robot-3d" data-arm={arm.name} data-renders="0" ref={wrapper}>
+    <figure className={`robot3d robot3d--${theme}${fill ? " robot3d--fill" : ""}`} data-testid="robot-3d" data-arm={arm.name} data-renders="0" ref={wrapper}>
       <figcaption className="robot3d__header">
         <span className="robot3d__title">
           {arm.name}
@@ -224,7 +253,7 @@ export function Robot3DView({ model, theme, interactive = true, height_px = 420 
         <div
           className="robot3d__canvas"
           ref={holder}
-          style={{ height: `${height_px}px` }}
+          style={canvasStyle}
           tabIndex={0}
           role="application"
           aria-label={`${canvasLabel}: arrow keys turn the view, + and − zoom, 0 resets`}
@@ -233,7 +262,7 @@ export function Robot3DView({ model, theme, interactive = true, height_px = 420 
           onKeyDown={onKeyDown}
         />
       ) : (
-        <div className="robot3d__canvas" ref={holder} style={{ height: `${height_px}px` }} role="img" aria-label={canvasLabel} data-testid="robot-3d-canvas" />
+        <div className="robot3d__canvas" ref={holder} style={canvasStyle} role="img" aria-label={canvasLabel} data-testid="robot-3d-canvas" />
       )}
     </figure>
   );

@@ -1,5 +1,5 @@
 /** "Stale since …": stale data is never shown as live. */
-import { formatClock } from "../lib/health";
+import { formatMoment } from "../lib/dates";
 import type { LiveSnapshot } from "../lib/liveData";
 
 export function StaleBanner({ live }: { readonly live: LiveSnapshot }) {
@@ -9,7 +9,7 @@ export function StaleBanner({ live }: { readonly live: LiveSnapshot }) {
   return (
     <div className={`stale-banner stale-banner--${live.health}`} data-testid="stale-banner" role="alert">
       {what}
-      {since !== null ? ` — stale since ${formatClock(since)}` : ""}
+      {since !== null ? ` — stale since ${formatMoment(since, Date.now())}` : ""}
       {live.frame !== null ? "; the values shown are the last ones received." : "; no data received yet."}
     </div>
   );

@@ -6,13 +6,17 @@
  * no REST module and no login (a test walks its imports); it reads the WebSocket only. Light or
  * dark as the system says (or `theme=light|dark` in its URL), readable from three metres, cursor hidden, reconnects by itself, bounded memory, and shifts a
  * few pixels now and then against burn-in without ever hiding the state or an emergency stop.
+ *
+ * Everything it shows fits its screen without scrolling, whatever the screen: sizes are
+ * multiples of the scale `--u` (lib/kioskLayout.ts: design pixels of a 1920 × 1080 screen), the
+ * header, the banners and the lamps take the room their text needs, and the body (tiles, plots,
+ * the 3D view) is laid out in what they leave (useKioskLayout.ts).
  */
-import { useEffect, useMemo, useState } from "react";
+import { useEffect, useMemo, useRef, useState, type CSSProperties } from "react";
 import { AlarmBanner } from "../components/AlarmBanner";
 import { ConnectionHealth } from "../components/ConnectionHealth";
 import { ControlHolder } from "../components/ControlHolder";
 import { FlagBadges } from "../components/FlagBadges";
-import { LampRow } from "../components/IoView";
 import { LivePlotView } from "../components/LivePlotView";
 import { RuntimeContext, useLive } from "../components/runtimeContext";
 import { StaleBanner } from "../components/StaleBanner";
@@ -21,13 +25,16 @@ import { StateBadge } from "../components/StateBadge";
 import { TagNamesContext } from "../components/tagNames";
 import { useTheme } from "../components/theme";
 import { burnInOffset, BURN_IN_PERIOD_MS } from "../lib/burnIn";
-import { tilesFromSearch } from "../lib/kioskTiles";
+import { timeZoneLabel } from "../lib/dates";
+import { tileShape, tilesFromSearch } from "../lib/kioskTiles";
 import { JOINT_PLOTS, TCP_PLOTS, type PlotSpec } from "../lib/plots";
 import { robotFromSearch } from "../lib/route";
 import { createLiveRuntime } from "../lib/runtime";
 import { fetchTagNames } from "../lib/tagNames";
 import type { TagNames } from "../lib/tags";
+import { KioskLamps } from "./KioskLamps";
 import { KioskClock, KioskStateWords, KioskTiles } from "./KioskTiles";
+import { usePlotHeight, useKioskLayout } from "./useKioskLayout";
 import { useRobotModel } from "./useRobotModel";
 import "../styles/kiosk.css";
 
@@ -79,6 +86,17 @@ function kioskOptions(search: string) {
   };
 }
 
+/** One live plot in a slot of the body: its plotting area as high as the slot leaves it. */
+function KioskPlot({ spec, theme, slotHeight_px, u }: { spec: PlotSpec; theme: "light" | "dark"; slotHeight_px: number; u: number }) {
+  const slot = useRef<HTMLDivElement | null>(null);
+  const height_px = usePlotHeight(slot, slotHeight_px, u);
+  return (
+    <div className="kiosk__plot" ref={slot}>
+      <LivePlotView spec={spec} theme={theme} readOnly height_px={height_px} />
+    </div>
+  );
+}
+
 function Kiosk() {
   const [options] = useState(() => kioskOptions(window.location.search));
   const live = useLive();
@@ -90,60 +108,94 @@ function Kiosk() {
   const frame = live.frame;
   const estop = frame?.emergency_stopped === true;
   const theme = useTheme();
+  const content = useMemo(
+    () => ({
+      tiles: options.tiles.fields.map(tileShape),
+      unknownLine: options.tiles.unknown.length > 0,
+      robot3d: options.robot3d,
+      plots: KIOSK_PLOTS.length,
+    }),
+    [options],
+  );
+  const body = useRef<HTMLDivElement | null>(null);
+  const layout = useKioskLayout(
+    body,
+    content,
+    // What changes the room the header and banners leave: a relayout from the full scale.
+    [estop, stale, live.alarms.length > 0, live.robot, live.control.holder?.user ?? null].join("|"),
+  );
+  const style = {
+    gridTemplateColumns: layout.body?.columns,
+    gridTemplateRows: layout.body?.rows,
+    gridTemplateAreas: layout.body?.areas,
+  } as CSSProperties;
   return (
     <TagNamesContext.Provider value={tags}>
-      <div className="kiosk" data-testid="kiosk" data-stale={stale ? "true" : "false"}>
+      <div
+        className={`kiosk kiosk--${layout.landscape ? "landscape" : "portrait"}`}
+        data-testid="kiosk"
+        data-stale={stale ? "true" : "false"}
+        data-scale={layout.u.toFixed(3)}
+        data-fits={layout.body?.fits === false ? "false" : "true"}
+        style={{ "--u": layout.u } as CSSProperties}
+      >
         <div
           className="kiosk__shift"
           data-testid="kiosk-shift"
           style={{ transform: `translate(${offset.dx_px}px, ${offset.dy_px}px)` }}
         >
           <header className="kiosk__header">
-            <div className="kiosk__topline">
-              {live.robot !== null && (
-                <div className="kiosk__robot" data-testid="kiosk-robot">
-                  {live.robot}
+            <div className="kiosk__top">
+              <div className="kiosk__ident">
+                {live.robot !== null && (
+                  <div className="kiosk__robot" data-testid="kiosk-robot">
+                    {live.robot}
+                  </div>
+                )}
+                <div className="kiosk__time">
+                  <KioskClock />
+                  <span className="kiosk__zone" data-testid="kiosk-zone">
+                    {timeZoneLabel(Date.now())}
+                  </span>
+                </div>
+              </div>
+              <StateBadge value={frame?.robot_state} stale={stale} size="kiosk" />
+              {estop && (
+                <div className="kiosk__estop" data-testid="kiosk-estop" role="alert">
+                  EMERGENCY STOP
                 </div>
               )}
-              <KioskClock />
             </div>
-            <StateBadge value={frame?.robot_state} stale={stale} size="kiosk" />
-            <KioskStateWords value={frame?.robot_state} />
-            {estop && (
-              <div className="kiosk__estop" data-testid="kiosk-estop" role="alert">
-                EMERGENCY STOP
-              </div>
-            )}
-            <FlagBadges frame={frame} stale={stale} />
-            <div className="kiosk__status">
-              <ConnectionHealth live={live} compact />
+            <div className="kiosk__facts">
+              <FlagBadges frame={frame} stale={stale} />
               <ControlHolder control={live.control} />
+              <KioskStateWords value={frame?.robot_state} />
+              <ConnectionHealth live={live} compact />
             </div>
           </header>
           {/* Above everything but the state; read-only: the stream's alarms, no acknowledge here. */}
-          <div className="kiosk__alarms">
-            <AlarmBanner alarms={live.alarms} size="kiosk" />
-          </div>
+          <AlarmBanner alarms={live.alarms} size="kiosk" />
           <StaleBanner live={live} />
-          <KioskTiles fields={options.tiles.fields} unknown={options.tiles.unknown} frame={frame} />
-          {options.robot3d && (
-            <div className="kiosk__robot3d">
-              <Robot3DView model={options.arm ?? model} theme={theme} interactive={false} height_px={360} />
+          <div className={`kiosk__body${stale ? " is-stale" : ""}`} ref={body} style={style}>
+            {(options.tiles.fields.length > 0 || options.tiles.unknown.length > 0) && (
+              <div className="kiosk__tiles-area">
+                <KioskTiles fields={options.tiles.fields} unknown={options.tiles.unknown} frame={frame} grid={layout.body?.tileGrid ?? null} />
+              </div>
+            )}
+            <div className={`kiosk__plots${layout.body?.plotsAcross === true ? " kiosk__plots--across" : ""}`}>
+              {/* Drawn once the body's room is known (a plot is built for its height). */}
+              {layout.body !== null &&
+                KIOSK_PLOTS.map((spec) => (
+                  <KioskPlot key={spec.id} spec={spec} theme={theme} slotHeight_px={layout.body?.plot.height_px ?? 0} u={layout.u} />
+                ))}
             </div>
-          )}
-          <main className={`kiosk__main${stale ? " is-stale" : ""}`}>
-            <div className="kiosk__plots">
-              {KIOSK_PLOTS.map((spec) => (
-                <LivePlotView key={spec.id} spec={spec} theme={theme} readOnly height_px={260} />
-              ))}
-            </div>
-            <div className="kiosk__io">
-              <LampRow field="controlbox_di" testPrefix="di" frame={frame} />
-              <LampRow field="controlbox_do" testPrefix="do" frame={frame} />
-              <LampRow field="tool_di" testPrefix="tool-di" frame={frame} />
-              <LampRow field="tool_do" testPrefix="tool-do" frame={frame} />
-            </div>
-          </main>
+            {options.robot3d && (
+              <div className="kiosk__robot3d">
+                <Robot3DView model={options.arm ?? model} theme={theme} interactive={false} height_px="fill" />
+              </div>
+            )}
+          </div>
+          <KioskLamps frame={frame} />
         </div>
       </div>
     </TagNamesContext.Provider>

@@ -1,22 +1,26 @@
 /**
  * The kiosk's large numeric tiles (chosen in the URL, lib/kioskTiles.ts), its clock and the
- * state in plain words. Read-only: numbers and words, nothing to press.
+ * state in plain words. Read-only: numbers and words, nothing to press. The tiles' arrangement
+ * and text sizes come from lib/kioskLayout.ts's `tileGrid` for the room the kiosk gives them.
  */
-import { memo, useEffect, useState } from "react";
+import { memo, useEffect, useState, type CSSProperties } from "react";
 import type { FieldInfo, Frame } from "../generated/layout";
+import { formatClock } from "../lib/dates";
+import type { TileGrid } from "../lib/kioskLayout";
 import { kebab } from "../lib/layoutInfo";
 import { stateWords, tileCells } from "../lib/kioskTiles";
 import "../styles/kioskTiles.css";
 
-export const KioskTile = memo(function KioskTile({ field, frame }: { field: FieldInfo; frame: Frame | null }) {
+export const KioskTile = memo(function KioskTile({ field, frame, cellColumns }: { field: FieldInfo; frame: Frame | null; cellColumns: number }) {
   const cells = tileCells(field, frame);
+  const style = { "--cell-columns": Math.max(1, Math.min(cellColumns, cells.length)) } as CSSProperties;
   return (
     <section className="tile" data-testid={`tile-${kebab(field.name)}`} aria-label={field.description}>
       <h2 className="tile__title">
         {field.description}
         {field.unit !== "" && <span className="tile__unit"> [{field.unit}]</span>}
       </h2>
-      <dl className={`tile__cells tile__cells--${Math.min(cells.length, 6)}`}>
+      <dl className="tile__cells" style={style}>
         {cells.map((cell, i) => (
           <div key={cell.label} className="tile__cell">
             <dt>{cell.label}</dt>
@@ -28,11 +32,34 @@ export const KioskTile = memo(function KioskTile({ field, frame }: { field: Fiel
   );
 });
 
-export function KioskTiles({ fields, unknown, frame }: { fields: readonly FieldInfo[]; unknown: readonly string[]; frame: Frame | null }) {
+interface TilesProps {
+  readonly fields: readonly FieldInfo[];
+  readonly unknown: readonly string[];
+  readonly frame: Frame | null;
+  /** Arrangement and sizes (null until the kiosk has measured its room). */
+  readonly grid: TileGrid | null;
+}
+
+export function KioskTiles({ fields, unknown, frame, grid }: TilesProps) {
+  const style = (
+    grid === null
+      ? {}
+      : {
+          "--tile-columns": grid.columns,
+          "--tile-value": `${grid.value_px}px`,
+          "--tile-label": `${grid.label_px}px`,
+          "--tile-title": `${grid.title_px}px`,
+        }
+  ) as CSSProperties;
   return (
-    <div className="kiosk__tiles" data-testid="kiosk-tiles">
+    <div
+      className={`kiosk__tiles${grid?.stacked === true ? " kiosk__tiles--stacked" : ""}`}
+      data-testid="kiosk-tiles"
+      data-value-px={grid?.value_px ?? ""}
+      style={style}
+    >
       {fields.map((field) => (
-        <KioskTile key={field.name} field={field} frame={frame} />
+        <KioskTile key={field.name} field={field} frame={frame} cellColumns={grid?.cellColumns ?? 3} />
       ))}
       {unknown.length > 0 && (
         <p className="tile__unknown" data-testid="tile-unknown">
@@ -53,16 +80,16 @@ export function KioskStateWords({ value }: { value: number | null | undefined })
   );
 }
 
-/** Local time, to the second. */
+/** The site's time of day, to the second (24 h, as every time on the pages). */
 export function KioskClock() {
-  const [now, setNow] = useState(() => new Date());
+  const [now, setNow] = useState(() => Date.now());
   useEffect(() => {
-    const timer = setInterval(() => setNow(new Date()), 1000);
+    const timer = setInterval(() => setNow(Date.now()), 1000);
     return () => clearInterval(timer);
   }, []);
   return (
-    <time className="kiosk__clock" data-testid="kiosk-clock" dateTime={now.toISOString()}>
-      {now.toLocaleTimeString([], { hour: "2-digit", minute: "2-digit", second: "2-digit" })}
+    <time className="kiosk__clock" data-testid="kiosk-clock" dateTime={new Date(now).toISOString()}>
+      {formatClock(now)}
     </time>
   );
 }

@@ -56,20 +56,3 @@ export function formatDuration_ms(ms: number | null | undefined): string {
   if (ms < 3_600_000) return `${Math.floor(ms / 60_000)} min`;
   return `${(ms / 3_600_000).toFixed(1)} h`;
 }
-
-/** Wall-clock time of day for banners and tables: "14:03:07". */
-export function formatClock(epoch_ms: number): string {
-  const d = new Date(epoch_ms);
-  const pad = (n: number) => String(n).padStart(2, "0");
-  return `${pad(d.getHours())}:${pad(d.getMinutes())}:${pad(d.getSeconds())}`;
-}
-
-/** Date and time for tables: "2025-11-21 14:03:07.123". */
-export function formatTimestamp(epoch_s: number): string {
-  const d = new Date(epoch_s * 1000);
-  const pad = (n: number, w = 2) => String(n).padStart(w, "0");
-  return (
-    `${d.getFullYear()}-${pad(d.getMonth() + 1)}-${pad(d.getDate())} ` +
-    `${pad(d.getHours())}:${pad(d.getMinutes())}:${pad(d.getSeconds())}.${pad(d.getMilliseconds(), 3)}`
-  );
-}

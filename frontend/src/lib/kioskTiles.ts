@@ -8,6 +8,7 @@
  * reads in plain words.
  */
 import { LAYOUT, type FieldInfo, type Frame, type FrameFieldName } from "../generated/layout";
+import type { TileShape } from "./kioskLayout";
 import { stateBadge } from "./stateBadge";
 
 /** Tiles shown when the URL chooses none. */
@@ -60,6 +61,29 @@ export function formatTileValue(value: unknown, field: FieldInfo): string {
   const text = value.toFixed(tileDecimals(field));
   if (/^-0(\.0+)?$/.test(text)) return text.slice(1);
   return text.startsWith("-") ? `\u2212${text.slice(1)}` : text;
+}
+
+/** Whole-number digits a field's values are given room for (by unit; a minus sign apart). */
+function integerDigits(field: FieldInfo): number {
+  if (field.value_kind === "int") return 5;
+  if (field.unit === "degree" || field.unit === "°C" || field.unit.startsWith("deg")) return 3;
+  if (field.unit === "A" || field.unit.startsWith("mA")) return 2;
+  return 4;
+}
+
+/**
+ * What a tile of `field` needs room for (lib/kioskLayout.ts sizes the grid from it): its cells,
+ * its longest value ("−1234.5"), label and title with the unit.
+ */
+export function tileShape(field: FieldInfo): TileShape {
+  const decimals = tileDecimals(field);
+  const labels = field.channels.length > 0 ? field.channels : [field.description];
+  return {
+    cells: labels.length,
+    valueChars: 1 + integerDigits(field) + (decimals > 0 ? 1 + decimals : 0),
+    labelChars: Math.max(...labels.map((l) => l.length)),
+    titleChars: field.description.length + (field.unit !== "" ? field.unit.length + 3 : 0),
+  };
 }
 
 export interface TileCell {

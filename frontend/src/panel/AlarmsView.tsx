@@ -16,7 +16,7 @@ import {
   type Alarm,
   type AlarmPriority,
 } from "../lib/alarms";
-import { formatClock, formatTimestamp } from "../lib/health";
+import { formatMoment, formatTimestamp } from "../lib/dates";
 import { roleAtLeast, type User } from "../lib/protocol";
 
 /** Shelving durations offered (the service caps them at its alarm_shelve_max_s). */
@@ -137,7 +137,7 @@ function AlarmRow({ alarm, canAct }: { alarm: Alarm; canAct: boolean }) {
         {alarmStateWords(alarm)}
         {alarm.shelved && alarm.shelved_until !== null && (
           <div className="hint">
-            until {formatClock(alarm.shelved_until * 1000)} by {alarm.shelved_by ?? "?"}: {alarm.shelve_reason ?? ""}
+            until {formatMoment(alarm.shelved_until * 1000, Date.now())} by {alarm.shelved_by ?? "?"}: {alarm.shelve_reason ?? ""}
           </div>
         )}
         {alarm.acknowledged_by !== null && !unacknowledged && (

@@ -7,7 +7,7 @@ import { memo, useCallback, useMemo, useState } from "react";
 import { FilterSelect, PagedTable, usePage } from "../components/PagedTable";
 import { alarmTitle } from "../lib/alarms";
 import { api, auditCsvUrl, eventsCsvUrl } from "../lib/api";
-import { formatTimestamp } from "../lib/health";
+import { formatTimestamp } from "../lib/dates";
 import { keyLabel } from "../lib/layoutInfo";
 import { EVENT_KINDS, roleAtLeast, type EventKind, type StreamEvent, type User } from "../lib/protocol";
 import { pointsWords } from "../lib/tags";
