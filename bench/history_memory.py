@@ -3,9 +3,9 @@
 Records simulated time as fast as it goes through the recorder's own path (hub items → record
 batches of a second → the journal; every 10 minutes the journal handed to the closer's thread,
 ``history.closer``, which turns it into Parquet and cells), after the closer loaded the Parquet
-writer as the recorder's start has it. Prints the process's RSS (anonymous + file-backed, as ``ps`` and the
-soak read it) before each close, its peak while the closer works (sampled every 2 ms) and
-after, and the drift from simulated minute 5 to the end against the soak's target (±5 %).
+writer as the recorder's start has it. Prints the process's RSS (anonymous + file-backed, as
+``ps`` and the soak read it) before each close, its peak while the closer works (sampled every
+2 ms) and after, and the drift from simulated minute 5 to the end against the soak's target (±5 %).
 Baseline, the same run: one of those ten-minute journals converted the way it was before
 (read whole into memory, then written) in a fresh process, its peak and what stayed.
 """
