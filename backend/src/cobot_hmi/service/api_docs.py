@@ -29,7 +29,10 @@ _WHY: Final = {
     415: "a body that is not application/json",
     422: "invalid request: the answer names the field; nothing was applied",
     429: "too many attempts: wait as Retry-After says",
-    503: "not ready / not healthy",
+    503: (
+        "unavailable: not ready or not healthy, the users file unreadable, or (a write, a "
+        "control change) the audit trail cannot be written (a full disk): nothing was done"
+    ),
     504: "the robot did not confirm in time; the answer has what it reports",
 }
 
@@ -50,9 +53,9 @@ def errors(*statuses: int) -> dict[int | str, dict[str, Any]]:
 
 READ: Final = (401, 404)
 """A read of one robot: login when viewing needs it, an unknown robot."""
-WRITE: Final = (401, 403, 404, 409, 413, 415, 422, 429, 504)
+WRITE: Final = (401, 403, 404, 409, 413, 415, 422, 429, 503, 504)
 """A write through the pipeline: every refusal it and the hardening in front of it give."""
-CONTROL: Final = (401, 403, 404, 409, 413, 415, 429)
+CONTROL: Final = (401, 403, 404, 409, 413, 415, 429, 503)
 LOG: Final = (401, 403, 404, 422)
 
 CSV_RESPONSE: Final[dict[str, Any]] = {

@@ -5,6 +5,12 @@ own actual outputs (its last frame), so the takeover changes nothing on the robo
 someone writes (bumpless). Releasing goes back to idle. Control ends with the holder's logout,
 session expiry, last WebSocket, or the connection's loss (a reconnected originator starts idle,
 so keeping a holder would claim a run that is not happening).
+
+Taking and releasing control on request are audited as a write is: a ``pending`` row before
+anything changes (an ``AuditUnavailableError``, 503, when the audit trail cannot be written:
+nothing changes), its outcome after. Control that ends without a request (logout, expiry,
+connection loss) and refusals are audited after the fact; on a full disk their rows wait in
+memory until there is room (``store.keep_audit``).
 """
 
 from __future__ import annotations
@@ -16,7 +22,7 @@ from dataclasses import dataclass
 
 from cobot_hmi.scanner.originator import ConnectionState, NotConnectedError, ReadOnlyError
 from cobot_hmi.service.auth import Session
-from cobot_hmi.service.errors import conflict
+from cobot_hmi.service.errors import AuditUnavailableError, conflict
 from cobot_hmi.service.hub import Hub
 from cobot_hmi.service.link import RobotLink
 from cobot_hmi.service.store import AuditEntry, Store
@@ -80,20 +86,24 @@ class Control:
         return None
 
     async def take(self, session: Session, client: str | None) -> dict[str, object]:
+        user = session.user.name
         async with self.lock:
             holder = self.holder
             if holder is not None and holder.session_id != session.id:
-                await self._audit(session.user.name, client, "control.take", "refused", "held")
+                await self._audit(user, client, "control.take", "refused", "held")
                 raise conflict(f"control is held by {holder.describe_for(session)}")
             refusal = self.refusal_to_write()
-            if refusal is None and holder is None:
-                refusal = await self._go_run()
             if refusal is not None:
-                await self._audit(session.user.name, client, "control.take", "refused", refusal)
+                await self._audit(user, client, "control.take", "refused", refusal)
                 raise conflict(refusal)
             if holder is None:
-                self.holder = Holder(session.id, session.user.name, time.time(), client)
-                await self._audit(session.user.name, client, "control.take", "granted", None)
+                row_id = await self._pending(user, client, "control.take", "control was not taken")
+                refusal = await self._go_run()
+                if refusal is not None:
+                    await self._store.finish_audit(row_id, "refused", refusal)
+                    raise conflict(refusal)
+                self.holder = Holder(session.id, user, time.time(), client)
+                await self._store.finish_audit(row_id, "granted", None)
                 self._announce("taken")
             return self.status()
 
@@ -126,7 +136,11 @@ class Control:
                     "holding it (or an admin) may release it"
                 )
             reason = "released" if holder.session_id == session.id else "released by an admin"
-            await self._end(session.user.name, client, reason)
+            user = session.user.name
+            row_id = await self._pending(
+                user, client, "control.release", "control was not released"
+            )
+            await self._end(user, client, reason, row_id=row_id)
             return self.status()
 
     async def drop(self, reason: str, *, session_id: str | None = None) -> None:
@@ -140,12 +154,19 @@ class Control:
                 return
             await self._end(holder.user, holder.client, reason)
 
-    async def _end(self, user: str, client: str | None, reason: str) -> None:
+    async def _end(
+        self, user: str, client: str | None, reason: str, *, row_id: int | None = None
+    ) -> None:
+        """Idle, no holder, audited (the ``pending`` row ``row_id`` of a request's, or a row
+        of its own), announced."""
         # Idle first, then let go: nobody may see "no one holds control" while O→T still runs.
         with contextlib.suppress(NotConnectedError, ReadOnlyError):
             await self._link.set_run(False)  # without a connection nothing runs anyway
         self.holder = None
-        await self._audit(user, client, "control.release", "released", reason)
+        if row_id is None:
+            await self._audit(user, client, "control.release", "released", reason, happened=True)
+        else:
+            await self._store.finish_audit(row_id, "released", reason)
         self._announce(reason)
 
     def _announce(self, reason: str) -> None:
@@ -153,19 +174,45 @@ class Control:
             {"kind": "control", "time": time.time(), **self.status(), "reason": reason}
         )
 
-    async def _audit(
+    def _entry(
         self, user: str, client: str | None, action: str, outcome: str, reason: str | None
-    ) -> None:
-        await self._store.add_audit(
-            AuditEntry(
-                user=user,
-                client=client,
-                action=action,
-                fields=[],
-                before=None,
-                requested=None,
-                outcome=outcome,
-                reason=reason,
-                robot=self._link.name,
-            )
+    ) -> AuditEntry:
+        return AuditEntry(
+            user=user,
+            client=client,
+            action=action,
+            fields=[],
+            before=None,
+            requested=None,
+            outcome=outcome,
+            reason=reason,
+            robot=self._link.name,
         )
+
+    async def _audit(
+        self,
+        user: str,
+        client: str | None,
+        action: str,
+        outcome: str,
+        reason: str | None,
+        *,
+        happened: bool = False,
+    ) -> None:
+        """A row after the fact (kept in memory while the disk is full)."""
+        await self._store.keep_audit(
+            self._entry(user, client, action, outcome, reason), happened=happened
+        )
+
+    async def _pending(self, user: str, client: str | None, action: str, not_done: str) -> int:
+        """The ``pending`` row of a request, before anything changes; a 503 refusal
+        (``AuditUnavailableError``) saying ``not_done`` when it cannot be written (its own row
+        kept until there is room)."""
+        try:
+            return await self._store.add_audit(
+                self._entry(user, client, action, "pending", None), fsync=False
+            )
+        except AuditUnavailableError as error:
+            refusal = error.refusing(not_done)
+            await self._audit(user, client, action, "refused", refusal.reason)
+            raise refusal from None

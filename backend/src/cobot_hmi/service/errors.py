@@ -19,6 +19,18 @@ class ApiError(Exception):
         self.headers: dict[str, str] = {}
 
 
+class AuditUnavailableError(ApiError):
+    """The audit trail cannot be written (a full disk, a failed one): 503 with the reason.
+    Whatever had to be audited before it acts was not done (``service.store``)."""
+
+    def __init__(self, reason: str) -> None:
+        super().__init__(503, reason)
+
+    def refusing(self, consequence: str) -> AuditUnavailableError:
+        """The same refusal saying what was not done (``…: disk full; nothing was applied``)."""
+        return AuditUnavailableError(f"{self.reason}; {consequence}")
+
+
 def unauthorized(reason: str = "login required") -> ApiError:
     error = ApiError(401, reason)
     error.headers["WWW-Authenticate"] = "Bearer"

@@ -130,6 +130,17 @@ class ServiceCollector(Collector):
             "events that could not be stored",
             value=service.store.event_write_errors,
         )
+        backlog = service.store.audit_backlog
+        yield GaugeMetricFamily(
+            PREFIX + "audit_backlog",
+            "audit rows and outcomes waiting in memory for room on the disk",
+            value=len(backlog),
+        )
+        yield CounterMetricFamily(
+            PREFIX + "audit_rows_lost_total",
+            "refusals' audit rows dropped while the disk was full and the backlog at its limit",
+            value=backlog.lost,
+        )
         edge_node = service.edge_node
         if edge_node is not None:  # the Sparkplug B edge node's own counters (cobot_hmi.sparkplug)
             yield from map(family_of, edge_node.metric_families())

@@ -469,6 +469,12 @@ class WriteConfirmed(BaseModel):
     outcome: Literal["confirmed"]
     image: CommandImage
     latency_ms: float
+    audit_pending: bool = Field(
+        False,
+        description="true: the audit trail could not be written (a full disk); this write's "
+        "audit row waits in the service's memory and is written as soon as there is room",
+    )
+    warning: str | None = Field(None, description="with audit_pending: that, in words")
 
 
 class Health(BaseModel):

@@ -10,7 +10,14 @@ WAL is one sequential file), which keeps one disk flush instead of two on every 
 Events (robot state, flags, connection) arrive in bursts from the broadcast loop; they are
 queued and written a batch per transaction, without fsync of their own. The tables (these two,
 the alarms' and the tag names') are created and upgraded by ``migrations`` when the store opens;
-imports nothing else of the project.
+imports nothing else of the project but ``errors`` and ``audit_backlog``.
+
+A full disk (or any failed write): ``add_audit`` raises ``AuditUnavailableError`` (503), so a
+caller that must audit before it acts does not act. What already happened (a write's outcome
+after the robot confirmed it, a control change, a refusal) is kept in memory and written as
+soon as the disk has room (``audit_backlog``: before the next audit write, and every
+``AUDIT_RETRY_S``); ``finish_audit`` and ``keep_audit`` say whether it is in yet. A ``pending``
+row a crash left (the outcome never written) is marked ``interrupted`` when the store opens.
 """
 
 from __future__ import annotations
@@ -18,6 +25,8 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import csv
+import dataclasses
+import functools
 import io
 import os
 import sqlite3
@@ -32,6 +41,8 @@ from typing import Any, Final, TypeVar
 import orjson
 
 from cobot_hmi.service import migrations
+from cobot_hmi.service.audit_backlog import AuditBacklog, Deferred
+from cobot_hmi.service.errors import AuditUnavailableError
 
 _T = TypeVar("_T")
 
@@ -58,6 +69,17 @@ fields as JSON text)."""
 _EVENT_KEYS: Final = frozenset({"id", "time", "robot", "kind"})
 MAX_PAGE: Final = 100_000
 """Largest ``limit`` of one page (a CSV export takes everything in one)."""
+AUDIT_RETRY_S: Final = 1.0
+"""How often audit rows waiting for room (a full disk) are tried again."""
+AUDIT_BACKLOG_MAX: Final = 10_000
+"""Refusals' rows kept while the audit trail cannot be written (what happened is kept
+whatever this says: ``audit_backlog``)."""
+INTERRUPTED: Final = "interrupted"
+"""The outcome a ``pending`` row gets when the store opens: the service stopped before it."""
+INTERRUPTED_REASON: Final = (
+    "the service stopped before the outcome was written (a crash, or a full disk at its stop: "
+    "see its log); whether the robot applied it is not known"
+)
 
 
 @dataclass(frozen=True, slots=True)
@@ -102,6 +124,11 @@ class Store:
         self._writer: asyncio.Task[None] | None = None
         self.events_written = 0
         self.event_write_errors = 0
+        self.audit_backlog = AuditBacklog(AUDIT_BACKLOG_MAX)
+        """Audit rows and outcomes waiting for room (used on the worker thread only)."""
+        self._backlog_waiting = asyncio.Event()
+        self._retrier: asyncio.Task[None] | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
 
     async def open(self) -> None:
         """Open (or create) the database and bring its schema to this code's version
@@ -115,6 +142,8 @@ class Store:
             self._executor = None
             raise
         self._writer = asyncio.create_task(self._write_events(), name="store-events")
+        self._loop = asyncio.get_running_loop()
+        self._retrier = asyncio.create_task(self._retry_backlog(), name="store-audit-backlog")
 
     def _open_sync(self) -> None:
         # The audit trail names users and client addresses: readable by the service's own user
@@ -135,12 +164,24 @@ class Store:
             connection.execute("PRAGMA journal_mode=WAL")
             connection.execute("PRAGMA synchronous=FULL")
             migrations.migrate(connection, self.path)
+            with connection:  # the outcome of an attempt a crash interrupted
+                connection.execute(
+                    "UPDATE audit SET outcome = ?, reason = ? WHERE outcome = 'pending'",
+                    (INTERRUPTED, INTERRUPTED_REASON),
+                )
         except BaseException:
             connection.close()
             raise
         self._connection = connection
 
     async def close(self) -> None:
+        if self._retrier is not None:
+            self._retrier.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._retrier
+            self._retrier = None
+            if not await self._run(self._flush_backlog_sync):
+                await self._run(self.audit_backlog.give_up)
         if self._writer is not None:
             self._events.put_nowait((0.0, "", None, {}))  # sentinel: flush and stop
             await self._writer
@@ -180,44 +221,74 @@ class Store:
     # ----------------------------------------------------------------- audit
 
     async def add_audit(self, entry: AuditEntry, *, fsync: bool = True) -> int:
-        """Insert and commit one audit row (fsync'd unless told otherwise); its id."""
+        """Insert and commit one audit row (fsync'd unless told otherwise); its id.
+        ``AuditUnavailableError`` when it cannot be written (nothing kept: the caller must not
+        act on it)."""
         return await self._run(self._add_audit_sync, entry, fsync)
 
     def _add_audit_sync(self, entry: AuditEntry, fsync: bool) -> int:
-        with self._synchronous("FULL" if fsync else "NORMAL") as db:
-            cursor = db.execute(
-                "INSERT INTO audit (time, robot, user, client, origin, action, fields, before,"
-                " requested, outcome, reason, summary, tags)"
-                " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                (
-                    entry.time or time.time(),
-                    entry.robot,
-                    entry.user,
-                    entry.client,
-                    entry.origin,
-                    entry.action,
-                    orjson.dumps(list(entry.fields)).decode(),
-                    orjson.dumps(entry.before).decode(),
-                    orjson.dumps(entry.requested).decode(),
-                    entry.outcome,
-                    entry.reason,
-                    entry.summary,
-                    None if entry.tags is None else orjson.dumps(dict(entry.tags)).decode(),
-                ),
-            )
-            row_id = cursor.lastrowid
-        assert row_id is not None
+        try:
+            with self._synchronous("FULL" if fsync else "NORMAL") as db:
+                self.audit_backlog.write(db)  # what waits goes first, in the same commit
+                row_id = _insert_audit(db, entry)
+        except sqlite3.Error as error:
+            raise AuditUnavailableError(audit_failure(error)) from None
+        self.audit_backlog.done()
         return row_id
 
-    async def finish_audit(self, row_id: int, outcome: str, reason: str | None) -> None:
-        """Set the outcome of a row written as ``pending``; committed durably."""
-        await self._run(self._finish_audit_sync, row_id, outcome, reason)
+    async def keep_audit(self, entry: AuditEntry, *, happened: bool = False) -> bool:
+        """Insert a row about something already decided (a refusal, a control change),
+        committed durably; ``False``: the disk has no room now and the row waits in memory
+        (``audit_backlog``; a refusal only while there is room, what ``happened`` always)."""
+        timed = dataclasses.replace(entry, time=entry.time or time.time())
+        what = (
+            f"{timed.action} by {timed.user or 'nobody'} ({timed.robot or '-'}, "
+            f"{timed.origin or '-'}): {timed.outcome}, {timed.reason or ''} "
+            f"{orjson.dumps(timed.requested, default=repr).decode()}"
+        )
+        insert = functools.partial(_insert_audit, entry=timed)
+        return await self._run(self._write_or_keep, Deferred(insert, what, happened))
 
-    def _finish_audit_sync(self, row_id: int, outcome: str, reason: str | None) -> None:
-        with self._synchronous("FULL") as db:
-            db.execute(
-                "UPDATE audit SET outcome = ?, reason = ? WHERE id = ?", (outcome, reason, row_id)
-            )
+    async def finish_audit(self, row_id: int, outcome: str, reason: str | None) -> bool:
+        """Set the outcome of a row written as ``pending``, committed durably; ``False``: the
+        disk has no room now and the outcome waits in memory until it has (``audit_backlog``)."""
+        update = functools.partial(_finish_audit, row_id=row_id, outcome=outcome, reason=reason)
+        what = f"audit row {row_id}: outcome {outcome} ({reason or ''})"
+        return await self._run(self._write_or_keep, Deferred(update, what, happened=True))
+
+    def _write_or_keep(self, deferred: Deferred) -> bool:
+        try:
+            with self._synchronous("FULL") as db:
+                self.audit_backlog.write(db)
+                deferred.write(db)
+        except sqlite3.Error as error:
+            self.audit_backlog.keep(deferred, _cause(error))
+            if self._loop is not None:
+                self._loop.call_soon_threadsafe(self._backlog_waiting.set)
+            return False
+        self.audit_backlog.done()
+        return True
+
+    def _flush_backlog_sync(self) -> bool:
+        """Write what waits; whether nothing waits now."""
+        if not self.audit_backlog.items:
+            return True
+        try:
+            with self._synchronous("FULL") as db:
+                self.audit_backlog.write(db)
+        except sqlite3.Error:
+            return False
+        self.audit_backlog.done()
+        return True
+
+    async def _retry_backlog(self) -> None:
+        while True:
+            await self._backlog_waiting.wait()
+            await asyncio.sleep(AUDIT_RETRY_S)
+            if await self._run(self._flush_backlog_sync):
+                self._backlog_waiting.clear()
+                if self.audit_backlog.items:  # kept meanwhile, after the flush
+                    self._backlog_waiting.set()
 
     async def audit_page(self, limit: int, offset: int, *, robot: str | None = None) -> Page:
         """Audit rows, newest first, optionally of one robot."""
@@ -327,6 +398,48 @@ class Store:
                 }
             )
         return Page(items, int(total))
+
+
+def _insert_audit(db: sqlite3.Connection, entry: AuditEntry) -> int:
+    cursor = db.execute(
+        "INSERT INTO audit (time, robot, user, client, origin, action, fields, before,"
+        " requested, outcome, reason, summary, tags)"
+        " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+        (
+            entry.time or time.time(),
+            entry.robot,
+            entry.user,
+            entry.client,
+            entry.origin,
+            entry.action,
+            orjson.dumps(list(entry.fields)).decode(),
+            orjson.dumps(entry.before).decode(),
+            orjson.dumps(entry.requested).decode(),
+            entry.outcome,
+            entry.reason,
+            entry.summary,
+            None if entry.tags is None else orjson.dumps(dict(entry.tags)).decode(),
+        ),
+    )
+    row_id = cursor.lastrowid
+    assert row_id is not None
+    return row_id
+
+
+def _finish_audit(db: sqlite3.Connection, row_id: int, outcome: str, reason: str | None) -> None:
+    db.execute("UPDATE audit SET outcome = ?, reason = ? WHERE id = ?", (outcome, reason, row_id))
+
+
+def _cause(error: sqlite3.Error) -> str:
+    """Why SQLite could not write, in words (``disk full (database or disk is full)``)."""
+    if getattr(error, "sqlite_errorcode", None) == sqlite3.SQLITE_FULL:
+        return f"disk full ({error})"
+    return str(error) or type(error).__name__
+
+
+def audit_failure(error: sqlite3.Error) -> str:
+    """The refusal's reason when the audit trail cannot be written."""
+    return f"the audit trail cannot be written: {_cause(error)}"
 
 
 def _where(**equal: str | None) -> tuple[str, tuple[str, ...]]:

@@ -15,9 +15,13 @@ robot and runs the same steps for every door (HTTP today; MQTT or a script later
 7. answer: the row's outcome committed, a ``write`` event, the ``WriteOutcome``.
 
 Every refusal is audited with its outcome (``unauthorized``, ``forbidden``, ``invalid``,
-``refused``, ``timeout``) and counted; a crash at any point leaves the attempt on disk. Taking
-and releasing control go through the same authorization and audit (``take_control``,
-``release_control``). Imports the service's parts, never a route.
+``refused``, ``timeout``) and counted; a crash at any point leaves the attempt on disk (a
+``pending`` row is marked ``interrupted`` at the next start). A full disk: a write whose
+``pending`` row cannot be written is refused, 503 "the audit trail cannot be written: disk
+full …", before anything is applied; an outcome that cannot be written after the robot acted
+waits in memory and is written when there is room (``store``, ``audit_backlog``), the answer
+saying so (``audit_pending``). Taking and releasing control go through the same authorization
+and audit (``take_control``, ``release_control``). Imports the service's parts, never a route.
 """
 
 from __future__ import annotations
@@ -34,7 +38,7 @@ import orjson
 from cobot_hmi.codec import CommandImage, Frame, command_to_json
 from cobot_hmi.scanner.originator import NotConnectedError, ReadOnlyError
 from cobot_hmi.service.auth import Session
-from cobot_hmi.service.errors import ApiError
+from cobot_hmi.service.errors import ApiError, AuditUnavailableError
 from cobot_hmi.service.labels import labels_of, write_summary
 from cobot_hmi.service.store import AuditEntry, Store
 from cobot_hmi.service.users import Role
@@ -51,6 +55,10 @@ MAX_BODY_BYTES: Final = 64 * 1024
 """A whole O→T image as index maps is ~3 KiB; anything much larger is not a write."""
 
 _STATUS_OUTCOME: Final = {401: "unauthorized", 403: "forbidden", 422: "invalid"}
+AUDIT_PENDING_WARNING: Final = (
+    "the audit trail cannot be written now (disk full): this write's audit row waits in memory "
+    "and is written as soon as there is room"
+)
 
 
 # --------------------------------------------------------------------------- what it needs
@@ -177,6 +185,9 @@ class WriteOutcome:
     latency_ms: float | None = None
     robot_reports: dict[str, object] | None = None
     """What the robot shows of the written elements (timeout only)."""
+    audit_pending: bool = False
+    """The outcome could not be written to the audit trail yet (a full disk): it waits in
+    memory (``store.audit_backlog``) and is written when there is room."""
 
     @property
     def ok(self) -> bool:
@@ -184,7 +195,14 @@ class WriteOutcome:
 
     def answer(self) -> dict[str, object]:
         """The 200 body (``models.WriteConfirmed``)."""
-        return {"outcome": self.outcome, "image": self.image, "latency_ms": self.latency_ms}
+        body: dict[str, object] = {
+            "outcome": self.outcome,
+            "image": self.image,
+            "latency_ms": self.latency_ms,
+        }
+        if self.audit_pending:
+            body |= {"audit_pending": True, "warning": AUDIT_PENDING_WARNING}
+        return body
 
     def error(self) -> ApiError:
         """The refusal as the HTTP API answers it."""
@@ -267,8 +285,9 @@ async def submit_write(
     except _RefusedError as refusal:
         outcome = _STATUS_OUTCOME.get(refusal.status, "refused")
         robot.commander.outcomes[outcome] += 1
-        words = _refused_words(robot, parsed) if refusal.status == 409 else None
-        await robot.store.add_audit(
+        words = _refused_words(robot, parsed) if refusal.status in (409, 503) else None
+        # Nothing was applied: the row is kept in memory if the disk is full (audit_backlog).
+        await robot.store.keep_audit(
             AuditEntry(
                 writer.user,
                 writer.client,
@@ -335,7 +354,8 @@ async def _write_locked(
         raise _RefusedError(409, refusal)
     words = _Words.of(robot, plan)
 
-    row_id = await store.add_audit(
+    row_id = await _pending_row(
+        store,
         AuditEntry(
             writer.user,
             writer.client,
@@ -350,13 +370,13 @@ async def _write_locked(
             summary=words.summary,
             tags=words.tags or None,
         ),
-        fsync=False,  # the outcome's fsync below covers it (see ``store``)
+        "the write was not applied",
     )
     after_seq = hub.seq
     try:
         packets_out = await link.set_command(plan.image)
     except (NotConnectedError, ReadOnlyError) as error:
-        await _finish(
+        audited = await _finish(
             robot,
             row_id,
             writer=writer,
@@ -364,7 +384,7 @@ async def _write_locked(
             outcome="refused",
             reason=str(error),
         )
-        return WriteOutcome(409, "refused", str(error))
+        return WriteOutcome(409, "refused", str(error), audit_pending=not audited)
 
     timeout_s = robot.commander.timeout_s
     deadline = started + timeout_s
@@ -389,15 +409,32 @@ async def _write_locked(
                 "the O→T packet with the bit input registers did not go out within "
                 f"{timeout_s * 1000:.0f} ms"
             )
-        await _finish(robot, row_id, writer=writer, words=words, outcome="timeout", reason=reason)
-        return WriteOutcome(504, "timeout", reason, robot_reports=reports)
-    await _finish(robot, row_id, writer=writer, words=words, outcome="confirmed", reason=None)
+        audited = await _finish(
+            robot, row_id, writer=writer, words=words, outcome="timeout", reason=reason
+        )
+        return WriteOutcome(
+            504, "timeout", reason, robot_reports=reports, audit_pending=not audited
+        )
+    audited = await _finish(
+        robot, row_id, writer=writer, words=words, outcome="confirmed", reason=None
+    )
     return WriteOutcome(
         200,
         "confirmed",
         image=command_to_json(plan.image),
         latency_ms=round(latency_ms, 3),
+        audit_pending=not audited,
     )
+
+
+async def _pending_row(store: Store, entry: AuditEntry, not_done: str) -> int:
+    """Step 4: the ``pending`` row, committed before anything is applied (without its own
+    fsync: the outcome's covers it, ``store``); ``_RefusedError`` 503 when the audit trail
+    cannot be written (``not_done`` says what was therefore not done)."""
+    try:
+        return await store.add_audit(entry, fsync=False)
+    except AuditUnavailableError as error:
+        raise _RefusedError(503, error.refusing(not_done).reason) from None
 
 
 @dataclass(frozen=True, slots=True)
@@ -429,9 +466,11 @@ async def _finish(
     words: _Words,
     outcome: str,
     reason: str | None,
-) -> None:
+) -> bool:
+    """The outcome counted, committed (``False``: it waits in memory for room on the disk)
+    and announced."""
     robot.commander.outcomes[outcome] += 1
-    await robot.store.finish_audit(row_id, outcome, reason)
+    audited = await robot.store.finish_audit(row_id, outcome, reason)
     robot.hub.publish_event(
         {
             "kind": "write",
@@ -447,6 +486,7 @@ async def _finish(
             "summary": words.summary,
         }
     )
+    return audited
 
 
 # --------------------------------------------------------------------------- other actions
@@ -471,7 +511,7 @@ async def authorize_audited(
         authorize(writer, what, role)
     except _RefusedError as refusal:
         outcome = _STATUS_OUTCOME.get(refusal.status, "refused")
-        await store.add_audit(
+        await store.keep_audit(
             AuditEntry(
                 writer.user,
                 writer.client,
@@ -524,7 +564,7 @@ async def _control_session(robot: WriteTarget, writer: Writer, action: str, orig
             raise _RefusedError(409, "control belongs to a login session; this writer has none")
     except _RefusedError as refusal:
         outcome = _STATUS_OUTCOME.get(refusal.status, "refused")
-        await robot.store.add_audit(
+        await robot.store.keep_audit(
             AuditEntry(
                 writer.user,
                 writer.client,

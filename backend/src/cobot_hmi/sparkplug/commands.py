@@ -6,7 +6,10 @@ through the service's one write pipeline (``service.write_pipeline.submit_write`
 whole, refused unless the MQTT writer holds control, audited with the writer's MQTT identity,
 confirmed by the robot's own frame. ``Control/Take`` and ``Control/Release`` (true) take and
 release control through the same pipeline. With MQTT writes off every DCMD is refused (and
-audited). The outcome goes back as the device's ``Write/Outcome`` and ``Write/Reason``.
+audited). The outcome goes back as the device's ``Write/Outcome`` and ``Write/Reason``: a
+refusal's reason (the audit trail that cannot be written on a full disk included: ``refused``,
+nothing applied), and for a write confirmed while its audit row waits for room on the disk,
+that warning.
 
 Imports the write pipeline, the store and ``catalogue``/``payload``; never a route.
 """
@@ -20,6 +23,7 @@ from typing import Final
 from cobot_hmi.service.errors import ApiError
 from cobot_hmi.service.store import AuditEntry
 from cobot_hmi.service.write_pipeline import (
+    AUDIT_PENDING_WARNING,
     Writer,
     WriteTarget,
     release_control,
@@ -100,7 +104,7 @@ async def execute(
     if not writes_enabled or command.problems:
         reason = WRITES_OFF if not writes_enabled else "; ".join(command.problems)
         outcome = "refused" if not writes_enabled else "invalid"
-        await robot.store.add_audit(
+        await robot.store.keep_audit(
             AuditEntry(
                 writer.user,
                 writer.client,
@@ -125,7 +129,8 @@ async def execute(
             return CommandOutcome("refused", error.reason)
     if command.body:
         written = await submit_write(robot, writer, command.body, origin=origin)
-        result = CommandOutcome(written.outcome, written.reason or "")
+        warning = AUDIT_PENDING_WARNING if written.audit_pending else ""
+        result = CommandOutcome(written.outcome, written.reason or warning)
         if not written.ok:
             return result
     if command.release:
