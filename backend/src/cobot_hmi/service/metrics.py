@@ -272,7 +272,7 @@ def _control_families(robots: _Robots) -> Iterator[Metric]:
     )
     for name, robot, _ in robots:
         for outcome in _WRITE_OUTCOMES:
-            writes.add_metric([name, outcome], robot.commander.outcomes[outcome])
+            writes.add_metric([name, outcome], robot.writes.outcomes[outcome])
     yield writes
     yield _per_robot(
         _gauge("control_held", "1 while someone holds control", ["robot"]),

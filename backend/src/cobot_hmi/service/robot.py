@@ -1,7 +1,7 @@
 """Layer: service. One robot of the cell, everything the service keeps for it.
 
 A ``RobotRuntime`` holds one robot's connection handle (``link``: its originator on the shared
-cyclic thread), its broadcast hub, its control holder, its commander (write confirmation and
+cyclic thread), its broadcast hub, its control holder, its write counters (write confirmation and
 outcome counters), its connection counters and its identity once read. Robots share only the
 store, the sessions and the cyclic thread; a robot lost or refused changes nothing of another.
 
@@ -29,13 +29,13 @@ from cobot_hmi.scanner.t2o_pace import SlowTarget
 from cobot_hmi.service import models
 from cobot_hmi.service.alarms.engine import TICK_S, AlarmEngine, UserAlarm
 from cobot_hmi.service.alarms.persistence import AlarmStore
-from cobot_hmi.service.commander import Commander
 from cobot_hmi.service.control import Control
 from cobot_hmi.service.hub import Hub
 from cobot_hmi.service.link import CyclicLoop, RobotLink
 from cobot_hmi.service.settings import RobotSettings, ServiceSettings
 from cobot_hmi.service.store import Store
 from cobot_hmi.service.tags import TagBook
+from cobot_hmi.service.write_pipeline import WriteCounters
 
 log = logging.getLogger(__name__)
 
@@ -89,7 +89,7 @@ async def read_identity(
 
 
 class RobotRuntime:
-    """One robot: connection handle, hub, control, commander, counters, identity."""
+    """One robot: connection handle, hub, control, write counters, identity."""
 
     def __init__(
         self,
@@ -119,13 +119,7 @@ class RobotRuntime:
             on_slow_target=self._on_slow_target,
         )
         self.control = Control(self.link, store, self.hub, input_only=settings.input_only)
-        self.commander = Commander(
-            self.link,
-            store,
-            self.hub,
-            self.control,
-            timeout_s=service_settings.write_timeout_ms / 1000,
-        )
+        self.writes = WriteCounters(timeout_s=service_settings.write_timeout_ms / 1000)
         self.identity: RobotIdentity | None = None
         self.tags = TagBook(self.name)
         """The robot's tag names (``service.tags``), loaded by ``open_state``."""

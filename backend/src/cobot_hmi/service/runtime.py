@@ -1,7 +1,7 @@
 """Layer: service. The running service: the parts and their lifecycle, in one object.
 
 ``Service`` owns the robots (``service.robot.RobotRuntime``: per robot its connection handle,
-hub, control, commander and counters), the one cyclic thread that holds every robot's class 1
+hub, control, write counters and connection counters), the one cyclic thread that holds every robot's class 1
 connection (``service.link.CyclicLoop``), the SQLite store, the users file, the sessions and
 the login throttle. The FastAPI app (``service.app``) is a thin layer of routes over it.
 
@@ -24,7 +24,6 @@ from cobot_hmi.opcua.feed import ServiceFeed
 from cobot_hmi.opcua.server import OpcUaServer
 from cobot_hmi.service.alarms.summary import cell_summary
 from cobot_hmi.service.auth import LoginThrottle, Session, Sessions
-from cobot_hmi.service.commander import Commander
 from cobot_hmi.service.control import Control
 from cobot_hmi.service.errors import UnknownRobotError
 from cobot_hmi.service.hub import Hub
@@ -112,10 +111,6 @@ class Service:
     @property
     def control(self) -> Control:
         return self.default_robot.control
-
-    @property
-    def commander(self) -> Commander:
-        return self.default_robot.commander
 
     async def connection_status(self) -> dict[str, object]:
         return await self.default_robot.connection_status()

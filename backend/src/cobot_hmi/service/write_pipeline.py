@@ -30,7 +30,7 @@ import asyncio
 import time
 from collections import Counter
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Final, Protocol
 
 import orjson
@@ -112,12 +112,13 @@ class _Control(Protocol):
     async def release(self, session: Session, client: str | None) -> dict[str, object]: ...
 
 
-class _Commander(Protocol):
-    @property
-    def outcomes(self) -> Counter[str]: ...
+@dataclass
+class WriteCounters:
+    """A robot's writes: how long a write waits for the robot's confirmation, and how many
+    ended in each outcome (``confirmed``, ``refused``, ``timeout``, …) for /metrics."""
 
-    @property
-    def timeout_s(self) -> float: ...
+    timeout_s: float
+    outcomes: Counter[str] = field(default_factory=Counter)
 
 
 class _Tags(Protocol):
@@ -141,7 +142,7 @@ class WriteTarget(Protocol):
     def control(self) -> _Control: ...
 
     @property
-    def commander(self) -> _Commander: ...
+    def writes(self) -> WriteCounters: ...
 
     @property
     def store(self) -> Store: ...
@@ -284,7 +285,7 @@ async def submit_write(
             return await _write_locked(robot, writer, parsed, origin, started)
     except _RefusedError as refusal:
         outcome = _STATUS_OUTCOME.get(refusal.status, "refused")
-        robot.commander.outcomes[outcome] += 1
+        robot.writes.outcomes[outcome] += 1
         words = _refused_words(robot, parsed) if refusal.status in (409, 503) else None
         # Nothing was applied: the row is kept in memory if the disk is full (audit_backlog).
         await robot.store.keep_audit(
@@ -386,7 +387,7 @@ async def _write_locked(
         )
         return WriteOutcome(409, "refused", str(error), audit_pending=not audited)
 
-    timeout_s = robot.commander.timeout_s
+    timeout_s = robot.writes.timeout_s
     deadline = started + timeout_s
     confirmed = True
     if plan.by_frame:
@@ -469,7 +470,7 @@ async def _finish(
 ) -> bool:
     """The outcome counted, committed (``False``: it waits in memory for room on the disk)
     and announced."""
-    robot.commander.outcomes[outcome] += 1
+    robot.writes.outcomes[outcome] += 1
     audited = await robot.store.finish_audit(row_id, outcome, reason)
     robot.hub.publish_event(
         {

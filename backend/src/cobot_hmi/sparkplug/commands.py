@@ -118,7 +118,7 @@ async def execute(
                 origin=origin,
             )
         )
-        robot.commander.outcomes[outcome] += 1
+        robot.writes.outcomes[outcome] += 1
         return CommandOutcome(outcome, reason)
     result = CommandOutcome("confirmed", "")
     if command.take:
