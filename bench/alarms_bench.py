@@ -20,7 +20,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "backend" / "tests"
 
 from cobot_hmi.codec import decode_frame
 from cobot_hmi.service.alarms.engine import AlarmEngine, UserAlarm
-from cobot_hmi.service.events import FrameWatcher
+from cobot_hmi.service.events.text import FrameWatcher
 from golden_vectors import t2o_vectors
 
 ROUNDS = 5

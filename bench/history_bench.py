@@ -48,7 +48,7 @@ from cobot_hmi.history import segments
 from cobot_hmi.history.cells import forget_cells
 from cobot_hmi.history.query import query, read_raw
 from cobot_hmi.history.schema import items_to_batch, select_elements, time_seconds
-from cobot_hmi.service.routes_history import answer_json
+from cobot_hmi.service.api.routes.history import answer_json
 
 RATE_HZ = 100
 POOL_S = 600

@@ -43,7 +43,7 @@ from service_bench_support import (
 )
 from sparkplug_bench import HISTOGRAM, _ready, _scrape, percentile
 
-from cobot_hmi.service.users import Role, UsersFile
+from cobot_hmi.service.access.users import Role, UsersFile
 
 SAMPLING_MS = 100.0
 BROWSE_BATCH = 100

@@ -24,7 +24,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
-from cobot_hmi.service.users import Role, UsersFile
+from cobot_hmi.service.access.users import Role, UsersFile
 
 BENCH_USER = ("bench", "bench-password")
 

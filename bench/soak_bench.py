@@ -54,7 +54,7 @@ from soak_summary import (
     print_writes,
 )
 
-from cobot_hmi.service.recorder import RETRY_S
+from cobot_hmi.service.recording.recorder import RETRY_S
 
 MONITOR_RATE_HZ = 100
 WARM_UP_MAX_S = 30.0

@@ -30,7 +30,7 @@ from service_bench_support import (
     stop_process,
 )
 
-from cobot_hmi.service.users import Role, UsersFile
+from cobot_hmi.service.access.users import Role, UsersFile
 
 DEMO_ROBOTS = (("m1013", "M1013", 1), ("m0609", "M0609", 2))
 """Name, model and seed of the demo's robots (``cli/service_verbs.py`` ``DEMO_ROBOTS``)."""

@@ -22,7 +22,7 @@ from service_bench_support import metrics, value_of
 from soak_cell import READY_POLL_S, Cell
 from soak_clients import BirthProbe, StreamClient, Writer
 
-from cobot_hmi.service.recorder import RETRY_S
+from cobot_hmi.service.recording.recorder import RETRY_S
 from cobot_hmi.sparkplug.mqtt_client import RECONNECT_MAX_S, RECONNECT_MIN_S
 
 RECOVERY_S = 2.0

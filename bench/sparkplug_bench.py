@@ -47,7 +47,7 @@ from service_bench_support import (
     stop_process,
 )
 
-from cobot_hmi.service.users import Role, UsersFile
+from cobot_hmi.service.access.users import Role, UsersFile
 from cobot_hmi.sparkplug.payload import parse_payload
 
 HISTOGRAM = "cobot_hmi_frame_receive_interval_seconds"

@@ -28,11 +28,11 @@ from cobot_hmi.emulator.process_image import IdleBehaviour, ProcessImage
 from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
-from cobot_hmi.service.app import create_app
+from cobot_hmi.service.access.users import Role, UsersFile
+from cobot_hmi.service.api.app import create_app
+from cobot_hmi.service.api.server import uvicorn_config
 from cobot_hmi.service.runtime import Service
-from cobot_hmi.service.server import uvicorn_config
 from cobot_hmi.service.settings import ServiceSettings
-from cobot_hmi.service.users import Role, UsersFile
 from conftest import free_tcp_port
 from waiting import eventually, eventually_async
 

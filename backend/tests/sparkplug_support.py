@@ -17,7 +17,7 @@ from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
 from cobot_hmi.layout import O2T_FIELDS, T2O_FIELDS, Field
-from cobot_hmi.service.hub import FrameSubscription
+from cobot_hmi.service.robots.hub import FrameSubscription
 from conftest import _next_host, free_tcp_port
 from mosquitto_support import Broker, Message, Subscriber, mosquitto
 from service_support import Running, cell_settings, running_service

@@ -14,7 +14,7 @@ from cobot_hmi.codec import Frame, zero_frame
 from cobot_hmi.layout import ROBOT_STATES, flag_fields
 from cobot_hmi.service.alarms.engine import AlarmEngine
 from cobot_hmi.service.alarms.state import AlarmState
-from cobot_hmi.service.events import FrameWatcher, event_text, with_text
+from cobot_hmi.service.events.text import FrameWatcher, event_text, with_text
 
 RUNNING = 14
 ESTOP, SAFE_OFF, INTERRUPTED, STANDBY = 0, 2, 3, 13

@@ -31,8 +31,8 @@ import pytest
 import pytest_asyncio
 from websockets.asyncio.client import connect
 
-from cobot_hmi.service import models
-from cobot_hmi.service.models import STREAM_MESSAGE
+from cobot_hmi.service.api import models
+from cobot_hmi.service.api.models import STREAM_MESSAGE
 from conftest import _next_host as next_host
 from emulator_harness import Emulator, running_emulator
 from service_support import (

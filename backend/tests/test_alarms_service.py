@@ -21,7 +21,7 @@ import pytest
 from websockets.asyncio.client import connect
 
 from cobot_hmi.service.alarms.persistence import HISTORY_COLUMNS
-from cobot_hmi.service.models import EVENT, STREAM_MESSAGE, AlarmHistoryPage, AlarmList
+from cobot_hmi.service.api.models import EVENT, STREAM_MESSAGE, AlarmHistoryPage, AlarmList
 from cobot_hmi.service.settings import ServiceSettings
 from conftest import free_tcp_port
 from emulator_harness import Emulator, running_emulator

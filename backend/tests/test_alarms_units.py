@@ -35,8 +35,8 @@ from cobot_hmi.service.alarms.state import (
 )
 from cobot_hmi.service.labels import element_label, labels_of, write_summary
 from cobot_hmi.service.settings import ServiceSettings, SettingsError, load_settings
-from cobot_hmi.service.store import iso8601
-from cobot_hmi.service.tags import POINTS_BY_KEY, TagError, check_tags, from_csv, to_csv
+from cobot_hmi.service.storage.store import iso8601
+from cobot_hmi.service.storage.tags import POINTS_BY_KEY, TagError, check_tags, from_csv, to_csv
 
 A, B, C, D = (
     AlarmState.NORMAL,

@@ -27,11 +27,11 @@ import pytest
 from cobot_hmi.codec import CommandImage
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
-from cobot_hmi.service.auth import Session
+from cobot_hmi.service.access.auth import Session
+from cobot_hmi.service.access.users import Role, User
 from cobot_hmi.service.errors import AuditUnavailableError
-from cobot_hmi.service.store import INTERRUPTED, AuditEntry, Store
-from cobot_hmi.service.users import Role, User
-from cobot_hmi.service.write_pipeline import Writer
+from cobot_hmi.service.storage.store import INTERRUPTED, AuditEntry, Store
+from cobot_hmi.service.writes.pipeline import Writer
 from cobot_hmi.sparkplug.commands import DeviceCommand, execute
 from service_support import OPERATOR, Running, emulator, eventually, running_service
 from service_support import service_settings as base_settings

@@ -25,7 +25,7 @@ from websockets.typing import Origin
 
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
-from cobot_hmi.service.users import Role, UsersFile
+from cobot_hmi.service.access.users import Role, UsersFile
 from service_support import (
     DEADLINE_S,
     OPERATOR,

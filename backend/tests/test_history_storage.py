@@ -875,8 +875,8 @@ def test_history_storage_imports_only_the_layout_and_the_codec() -> None:
 async def test_export_events_are_read_a_batch_at_a_time(tmp_path: Path) -> None:
     """The MCAP export's events from the real event log, a few at a time (times shared by
     several events, other robots' and outside the range left out): the same as one read."""
-    from cobot_hmi.service.history_events import events_between, iter_events
-    from cobot_hmi.service.store import Store
+    from cobot_hmi.service.storage.history_events import events_between, iter_events
+    from cobot_hmi.service.storage.store import Store
 
     database = tmp_path / "hmi.db"
     store = Store(database)

@@ -18,7 +18,7 @@ from prometheus_client.core import Metric
 from prometheus_client.parser import text_string_to_metric_families
 from prometheus_client.registry import Collector, CollectorRegistry
 
-from cobot_hmi.service.metrics import family_of
+from cobot_hmi.service.api.metrics import family_of
 from legacy.make_legacy import histogram_bounds, metrics_shape
 from mosquitto_support import needs_mosquitto
 from sparkplug_support import cell

@@ -1,4 +1,5 @@
-"""The database's schema migrations (``service/migrations.py``) on databases the older code wrote.
+"""The database's schema migrations (``service/storage/migrations.py``) on databases the older
+code wrote.
 
 The fixtures in ``legacy/`` are databases as the code of 58f13a2 (the last commit without schema
 versions: every table, rows of a real session), 5606929 and 3dfff02 (older shapes, before the
@@ -15,12 +16,12 @@ from pathlib import Path
 import pytest
 
 from cobot_hmi.emulator.target import Target
-from cobot_hmi.service import migrations
 from cobot_hmi.service.alarms.persistence import AlarmChange, AlarmStore
-from cobot_hmi.service.migrations import SCHEMA_VERSION, Migration, SchemaTooNewError
 from cobot_hmi.service.runtime import Service
-from cobot_hmi.service.store import AuditEntry, Store
-from cobot_hmi.service.tags import TagBook
+from cobot_hmi.service.storage import migrations
+from cobot_hmi.service.storage.migrations import SCHEMA_VERSION, Migration, SchemaTooNewError
+from cobot_hmi.service.storage.store import AuditEntry, Store
+from cobot_hmi.service.storage.tags import TagBook
 from service_support import ADMIN, OPERATOR, running_service, service_settings
 
 pytestmark = pytest.mark.timeout(120)

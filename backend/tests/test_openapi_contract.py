@@ -17,7 +17,7 @@ from cobot_hmi.cli import main as cli_main
 from cobot_hmi.cli.openapi_verb import DEFAULT_OUTPUT, openapi_document, render
 from cobot_hmi.codec import command_to_json, dumps, frame_to_json, zero_command, zero_frame
 from cobot_hmi.layout import O2T_ASSEMBLY, T2O_ASSEMBLY
-from cobot_hmi.service import models
+from cobot_hmi.service.api import models
 
 _TYPED = ("type", "$ref", "anyOf", "oneOf", "allOf", "const", "enum")
 
@@ -84,9 +84,10 @@ def _statuses(method: str, path: str) -> set[int]:
 
 def test_every_route_lists_its_statuses_with_the_error_schema() -> None:
     # 400: a foreign Host header (allowed hosts), on every route.
-    write = {200, 400, 401, 403, 404, 409, 413, 415, 422, 429, 504}
+    # 503: the audit trail cannot be written (a full disk), nothing applied.
+    write = {200, 400, 401, 403, 404, 409, 413, 415, 422, 429, 503, 504}
     assert _statuses("PATCH", "/api/v1/robots/{name}/command") == write
-    assert _statuses("POST", "/api/v1/robots/{name}/control/take") >= {401, 403, 404, 409, 429}
+    assert _statuses("POST", "/api/v1/robots/{name}/control/take") >= {401, 403, 404, 409, 429, 503}
     assert _statuses("GET", "/api/v1/robots/{name}/frame") == {200, 400, 401, 404}
     assert _statuses("GET", "/api/v1/audit") == {200, 400, 401, 403, 404, 422}
     assert _statuses("GET", "/healthz") == {200, 400, 503}

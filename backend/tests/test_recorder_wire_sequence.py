@@ -22,7 +22,7 @@ from cobot_hmi.emulator.target import Target
 from cobot_hmi.enip import io
 from cobot_hmi.layout import ROBOT_STATES
 from cobot_hmi.scanner.originator import Originator, OriginatorSettings
-from cobot_hmi.service.hub import Hub
+from cobot_hmi.service.robots.hub import Hub
 from waiting import eventually
 
 pytestmark = pytest.mark.timeout(120)

@@ -15,7 +15,7 @@ import orjson
 import pytest
 from websockets.asyncio.client import connect
 
-from cobot_hmi.service.users import Role, UsersFile
+from cobot_hmi.service.access.users import Role, UsersFile
 from conftest import free_tcp_port
 from process_support import PROCESS_DEADLINE_S, cli_process, read_until, wait_ready
 from service_support import (

@@ -25,8 +25,8 @@ from websockets.exceptions import ConnectionClosed
 
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
-from cobot_hmi.service import models
-from cobot_hmi.service.write_pipeline import Writer, submit_write, take_control
+from cobot_hmi.service.api import models
+from cobot_hmi.service.writes.pipeline import Writer, submit_write, take_control
 from conftest import _next_host as next_host
 from service_support import (
     OPERATOR,

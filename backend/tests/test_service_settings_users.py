@@ -16,21 +16,21 @@ from pathlib import Path
 
 import pytest
 
-from cobot_hmi.service.auth import LoginThrottle, Session, Sessions
-from cobot_hmi.service.settings import (
-    ServiceSettings,
-    SettingsError,
-    add_arguments,
-    load_settings,
-    settings_from_args,
-)
-from cobot_hmi.service.users import (
+from cobot_hmi.service.access.auth import LoginThrottle, Session, Sessions
+from cobot_hmi.service.access.users import (
     Role,
     User,
     UsersError,
     UsersFile,
     hash_password,
     verify_password,
+)
+from cobot_hmi.service.settings import (
+    ServiceSettings,
+    SettingsError,
+    add_arguments,
+    load_settings,
+    settings_from_args,
 )
 
 

@@ -1,7 +1,7 @@
 """``WS /api/v1/stream`` against the emulator over real sockets: hello, batched frames, rates
 (server-side decimation), status and events, a slow and a stalled client next to a fast one,
 and control released when its holder's stream closes. Every message any test receives is
-validated against the contract's model (``service.models.StreamMessage``)."""
+validated against the contract's model (``service.api.models.StreamMessage``)."""
 
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ from websockets.exceptions import ConnectionClosed
 
 from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot
 from cobot_hmi.emulator.target import Target
-from cobot_hmi.service.models import STREAM_MESSAGE
+from cobot_hmi.service.api.models import STREAM_MESSAGE
 from conftest import _next_host as next_host
 from service_support import (
     OPERATOR,

@@ -15,9 +15,9 @@ import orjson
 import pytest
 
 from cobot_hmi.codec import command_to_json, zero_command, zero_frame
-from cobot_hmi.service.events import FrameWatcher
-from cobot_hmi.service.hub import Hub, Kind, StreamClient
-from cobot_hmi.service.store import (
+from cobot_hmi.service.events.text import FrameWatcher
+from cobot_hmi.service.robots.hub import Hub, Kind, StreamClient
+from cobot_hmi.service.storage.store import (
     AUDIT_COLUMNS,
     EVENT_COLUMNS,
     AuditEntry,
@@ -25,7 +25,7 @@ from cobot_hmi.service.store import (
     event_csv_rows,
     to_csv,
 )
-from cobot_hmi.service.writes import (
+from cobot_hmi.service.writes.validation import (
     FRAME_ECHOED,
     WriteValidationError,
     frame_shows,
@@ -365,7 +365,7 @@ async def test_store_migrates_a_database_without_robot_columns(tmp_path: Path) -
 async def test_each_frame_is_serialized_once_whatever_the_clients(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    import cobot_hmi.service.hub as hub_module
+    import cobot_hmi.service.robots.hub as hub_module
     from cobot_hmi.codec import frame_to_json as real
 
     calls = 0

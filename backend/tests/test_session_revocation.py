@@ -15,10 +15,10 @@ from typing import Any
 
 import pytest
 
-from cobot_hmi.service.auth import Session, Sessions
-from cobot_hmi.service.models import EVENT
-from cobot_hmi.service.routes_stream import CLOSE_SESSION_ENDED, close_reason
-from cobot_hmi.service.users import Role, User, UsersFile
+from cobot_hmi.service.access.auth import Session, Sessions
+from cobot_hmi.service.access.users import Role, User, UsersFile
+from cobot_hmi.service.api.models import EVENT
+from cobot_hmi.service.api.routes.stream import CLOSE_SESSION_ENDED, close_reason
 from service_support import (
     ADMIN,
     OPERATOR,

@@ -25,7 +25,7 @@ from cobot_hmi.emulator.faults import TargetFaults
 from cobot_hmi.emulator.target import Target
 from cobot_hmi.scanner.originator import ConnectionState, Originator, OriginatorSettings
 from cobot_hmi.scanner.t2o_pace import WINDOW_S, PaceWatch, SlowTarget
-from cobot_hmi.service import models
+from cobot_hmi.service.api import models
 from emulator_harness import running_emulator
 from service_support import VIEWER, emulator, running_service, service_settings
 from service_support import eventually as _eventually

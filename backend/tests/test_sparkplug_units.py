@@ -289,7 +289,7 @@ def test_moved() -> None:
 
 
 def test_a_hub_subscription_is_bounded_and_counts_its_drops() -> None:
-    from cobot_hmi.service.hub import Hub
+    from cobot_hmi.service.robots.hub import Hub
 
     hub = Hub(batch_s=0.05, queue_frames=10, stall_timeout_s=5.0, robot="r")
     subscription = hub.subscribe("test", 3)

@@ -16,7 +16,7 @@ import brotli
 import httpx
 import pytest
 
-from cobot_hmi.service.static_files import accepted_encodings, choose_encoding
+from cobot_hmi.service.api.static_files import accepted_encodings, choose_encoding
 from conftest import free_tcp_port
 from service_support import running_service, service_settings
 

@@ -20,7 +20,7 @@ import pytest
 from websockets.asyncio.client import connect
 
 from cobot_hmi.emulator.target import Target
-from cobot_hmi.service.models import AuditPage, EventPage, RobotStatus, TagList
+from cobot_hmi.service.api.models import AuditPage, EventPage, RobotStatus, TagList
 from conftest import free_tcp_port
 from service_support import (
     ADMIN,

@@ -320,7 +320,7 @@ _STORE_SCRIPT = textwrap.dedent(
     """
     import asyncio, sys
     from pathlib import Path
-    from cobot_hmi.service.store import AuditEntry, Store
+    from cobot_hmi.service.storage.store import AuditEntry, Store
 
     with_robot = sys.argv[2] == "robot"
 

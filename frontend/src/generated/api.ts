@@ -2514,6 +2514,12 @@ export interface components {
          * @description ``PATCH …/command``: applied, and the robot showed it.
          */
         WriteConfirmed: {
+            /**
+             * Audit Pending
+             * @description true: the audit trail could not be written (a full disk); this write's audit row waits in the service's memory and is written as soon as there is room
+             * @default false
+             */
+            audit_pending?: boolean;
             image: components["schemas"]["CommandImage"];
             /** Latency Ms */
             latency_ms: number;
@@ -2522,6 +2528,11 @@ export interface components {
              * @constant
              */
             outcome: "confirmed";
+            /**
+             * Warning
+             * @description with audit_pending: that, in words
+             */
+            warning?: string | null;
         };
         /** WriteEvent */
         WriteEvent: {
@@ -3385,7 +3396,7 @@ export interface operations {
                     "application/json": components["schemas"]["ApiErrorResponse"];
                 };
             };
-            /** @description not ready / not healthy */
+            /** @description unavailable: not ready or not healthy, the users file unreadable, or (a write, a control change) the audit trail cannot be written (a full disk): nothing was done */
             503: {
                 headers: {
                     [name: string]: unknown;
@@ -3623,6 +3634,15 @@ export interface operations {
                     "application/json": components["schemas"]["ApiErrorResponse"];
                 };
             };
+            /** @description unavailable: not ready or not healthy, the users file unreadable, or (a write, a control change) the audit trail cannot be written (a full disk): nothing was done */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
             /** @description the robot did not confirm in time; the answer has what it reports */
             504: {
                 headers: {
@@ -3715,6 +3735,15 @@ export interface operations {
                     "application/json": components["schemas"]["ApiErrorResponse"];
                 };
             };
+            /** @description unavailable: not ready or not healthy, the users file unreadable, or (a write, a control change) the audit trail cannot be written (a full disk): nothing was done */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
         };
     };
     take_default_api_v1_control_take_post: {
@@ -3791,6 +3820,15 @@ export interface operations {
             };
             /** @description too many attempts: wait as Retry-After says */
             429: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description unavailable: not ready or not healthy, the users file unreadable, or (a write, a control change) the audit trail cannot be written (a full disk): nothing was done */
+            503: {
                 headers: {
                     [name: string]: unknown;
                 };
@@ -4214,6 +4252,15 @@ export interface operations {
                     "application/json": components["schemas"]["ApiErrorResponse"];
                 };
             };
+            /** @description unavailable: not ready or not healthy, the users file unreadable, or (a write, a control change) the audit trail cannot be written (a full disk): nothing was done */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
             /** @description the robot did not confirm in time; the answer has what it reports */
             504: {
                 headers: {
@@ -4318,6 +4365,15 @@ export interface operations {
                     "application/json": components["schemas"]["ApiErrorResponse"];
                 };
             };
+            /** @description unavailable: not ready or not healthy, the users file unreadable, or (a write, a control change) the audit trail cannot be written (a full disk): nothing was done */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
         };
     };
     take_api_v1_robots__name__control_take_post: {
@@ -4406,6 +4462,15 @@ export interface operations {
             };
             /** @description too many attempts: wait as Retry-After says */
             429: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description unavailable: not ready or not healthy, the users file unreadable, or (a write, a control change) the audit trail cannot be written (a full disk): nothing was done */
+            503: {
                 headers: {
                     [name: string]: unknown;
                 };

@@ -52,7 +52,7 @@ def _export(args: argparse.Namespace) -> int:
     from cobot_hmi.history.schema import UnknownFieldError, select_elements
     from cobot_hmi.history.segments import list_robots
     from cobot_hmi.history.times import TimeFormatError, parse_time
-    from cobot_hmi.service.routes_history import export_chunks
+    from cobot_hmi.service.api.routes.history import export_chunks
     from cobot_hmi.service.settings import SettingsError, settings_from_args
 
     try:

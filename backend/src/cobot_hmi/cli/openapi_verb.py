@@ -42,7 +42,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
 def openapi_document() -> dict[str, Any]:
     """The document as the running service would serve it at ``/openapi.json``."""
-    from cobot_hmi.service.app import create_app
+    from cobot_hmi.service.api.app import create_app
     from cobot_hmi.service.runtime import Service
     from cobot_hmi.service.settings import ServiceSettings
 

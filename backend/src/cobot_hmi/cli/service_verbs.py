@@ -172,7 +172,7 @@ def _fail(reason: str) -> int:
 
 
 def _serve(args: argparse.Namespace) -> int:
-    from cobot_hmi.service.server import prepare_process, serve
+    from cobot_hmi.service.api.server import prepare_process, serve
     from cobot_hmi.service.settings import SettingsError, settings_from_args
 
     try:
@@ -187,8 +187,8 @@ def _serve(args: argparse.Namespace) -> int:
 
 
 def _users_add(args: argparse.Namespace) -> int:
+    from cobot_hmi.service.access.users import Role, UsersError, UsersFile
     from cobot_hmi.service.settings import SettingsError, settings_from_args
-    from cobot_hmi.service.users import Role, UsersError, UsersFile
 
     try:
         settings = settings_from_args(args)
@@ -207,8 +207,8 @@ def _users_add(args: argparse.Namespace) -> int:
 
 
 def _users_list(args: argparse.Namespace) -> int:
+    from cobot_hmi.service.access.users import UsersError, UsersFile
     from cobot_hmi.service.settings import SettingsError, settings_from_args
-    from cobot_hmi.service.users import UsersError, UsersFile
 
     try:
         settings = settings_from_args(args)
@@ -230,8 +230,8 @@ def _users_list(args: argparse.Namespace) -> int:
 
 
 def _users_token(args: argparse.Namespace) -> int:
+    from cobot_hmi.service.access.users import Role, UsersError, UsersFile
     from cobot_hmi.service.settings import SettingsError, settings_from_args
-    from cobot_hmi.service.users import Role, UsersError, UsersFile
 
     try:
         settings = settings_from_args(args)
@@ -251,8 +251,8 @@ def _users_token(args: argparse.Namespace) -> int:
 
 
 def _users_revoke(args: argparse.Namespace) -> int:
+    from cobot_hmi.service.access.users import UsersError, UsersFile
     from cobot_hmi.service.settings import SettingsError, settings_from_args
-    from cobot_hmi.service.users import UsersError, UsersFile
 
     try:
         settings = settings_from_args(args)
@@ -486,8 +486,8 @@ def _run_demo(
     robots: list[tuple[str, str, str, int]],
     stack: contextlib.ExitStack,
 ) -> int:
-    from cobot_hmi.service.server import prepare_process, serve
-    from cobot_hmi.service.users import Role, UsersError, UsersFile, generate_password
+    from cobot_hmi.service.access.users import Role, UsersError, UsersFile, generate_password
+    from cobot_hmi.service.api.server import prepare_process, serve
 
     # Every address first: nothing starts, and no password is shown, while one is taken.
     http_socket = stack.enter_context(_bind_http(args.host, args.port))

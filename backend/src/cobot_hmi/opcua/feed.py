@@ -9,9 +9,9 @@ Everything the server takes from the service, and every request it makes of it, 
   image, the control holder and the identity, read as they are (attribute reads; the web loop
   and the cyclic thread never wait for this thread).
 - **Users**: ``authenticate`` checks a user name and password against the service's users file
-  (scrypt, on the server's thread), behind a login throttle of its own (``service.auth``'s
+  (scrypt, on the server's thread), behind a login throttle of its own (``service.access.auth``'s
   two budgets: per client address and per user name); a refusal during a wait is immediate.
-- **Writes and control**: through the one write pipeline (``service.write_pipeline``), run on
+- **Writes and control**: through the one write pipeline (``service.writes.pipeline``), run on
   the service's web loop (``_on_service``); the server's coroutine awaits the outcome.
 """
 
@@ -26,11 +26,11 @@ from typing import TYPE_CHECKING, Any, Final, TypeVar
 
 from cobot_hmi.opcua.values import Identity, Sample
 from cobot_hmi.scanner.originator import ConnectionState
-from cobot_hmi.service.auth import LoginThrottle, Session
+from cobot_hmi.service.access.auth import LoginThrottle, Session
+from cobot_hmi.service.access.users import User, UsersFile
 from cobot_hmi.service.errors import ApiError
-from cobot_hmi.service.hub import FrameSubscription
-from cobot_hmi.service.users import User, UsersFile
-from cobot_hmi.service.write_pipeline import (
+from cobot_hmi.service.robots.hub import FrameSubscription
+from cobot_hmi.service.writes.pipeline import (
     WriteOutcome,
     Writer,
     release_control,
@@ -39,7 +39,7 @@ from cobot_hmi.service.write_pipeline import (
 )
 
 if TYPE_CHECKING:
-    from cobot_hmi.service.robot import RobotRuntime
+    from cobot_hmi.service.robots.robot import RobotRuntime
     from cobot_hmi.service.settings import ServiceSettings
 
 SUBSCRIPTION_NAME: Final = "opcua"

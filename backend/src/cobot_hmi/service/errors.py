@@ -2,7 +2,7 @@
 
 ``detail`` is always an object with ``reason`` and ``field`` (``None`` unless one part of the
 request is at fault), plus ``robot_reports`` for 504 and ``known`` for an unknown robot
-(``service.models.ApiErrorBody``). Imports nothing of the project.
+(``service.api.models.ApiErrorBody``). Imports nothing of the project.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ class ApiError(Exception):
 
 class AuditUnavailableError(ApiError):
     """The audit trail cannot be written (a full disk, a failed one): 503 with the reason.
-    Whatever had to be audited before it acts was not done (``service.store``)."""
+    Whatever had to be audited before it acts was not done (``service.storage.store``)."""
 
     def __init__(self, reason: str) -> None:
         super().__init__(503, reason)

@@ -1,9 +1,10 @@
 """Layer: service. The running service: the parts and their lifecycle, in one object.
 
-``Service`` owns the robots (``service.robot.RobotRuntime``: per robot its connection handle,
-hub, control, write counters and connection counters), the one cyclic thread that holds every robot's class 1
-connection (``service.link.CyclicLoop``), the SQLite store, the users file, the sessions and
-the login throttle. The FastAPI app (``service.app``) is a thin layer of routes over it.
+``Service`` owns the robots (``service.robots.robot.RobotRuntime``: per robot its connection
+handle, hub, control, write counters and connection counters), the one cyclic thread that holds
+every robot's class 1 connection (``service.robots.link.CyclicLoop``), the SQLite store, the
+users file, the sessions and the login throttle. The FastAPI app (``service.api.app``) is a
+thin layer of routes over it.
 
 Robots are independent: one lost, refused or restarted changes nothing of another; they share
 the store, the sessions and the cyclic thread (whose death is reported and repaired, see
@@ -22,17 +23,17 @@ from typing import TYPE_CHECKING, Final
 # OPC UA (issue 22): wired here until the composition root (issue 21) builds the consumers.
 from cobot_hmi.opcua.feed import ServiceFeed
 from cobot_hmi.opcua.server import OpcUaServer
+from cobot_hmi.service.access.auth import LoginThrottle, Session, Sessions
+from cobot_hmi.service.access.users import UsersFile
 from cobot_hmi.service.alarms.summary import cell_summary
-from cobot_hmi.service.auth import LoginThrottle, Session, Sessions
-from cobot_hmi.service.control import Control
 from cobot_hmi.service.errors import UnknownRobotError
-from cobot_hmi.service.hub import Hub
-from cobot_hmi.service.link import CyclicLoop, RobotLink
-from cobot_hmi.service.recorder import Recorder
-from cobot_hmi.service.robot import RobotRuntime
+from cobot_hmi.service.recording.recorder import Recorder
+from cobot_hmi.service.robots.control import Control
+from cobot_hmi.service.robots.hub import Hub
+from cobot_hmi.service.robots.link import CyclicLoop, RobotLink
+from cobot_hmi.service.robots.robot import RobotRuntime
 from cobot_hmi.service.settings import ServiceSettings
-from cobot_hmi.service.store import Store
-from cobot_hmi.service.users import UsersFile
+from cobot_hmi.service.storage.store import Store
 
 if TYPE_CHECKING:
     from cobot_hmi.sparkplug.edge_node import EdgeNode
@@ -87,7 +88,8 @@ class Service:
         self.recorder: Recorder | None = (
             Recorder(settings, self.robots) if settings.history else None
         )
-        """Every frame of every robot into its recording (``service.recorder``), unless off."""
+        """Every frame of every robot into its recording (``service.recording.recorder``),
+        unless off."""
         self.opcua: OpcUaServer | None = None  # OPC UA (issue 22)
         """The OPC UA server (``cobot_hmi.opcua``), when ``opcua_url`` is set."""
 

@@ -435,7 +435,7 @@ class ServiceSettings(OpcUaSettings, BaseSettings):  # OPC UA (issue 22)
         5.0, "a client whose send is stuck this long is dropped, s"
     )
     status_interval_s: Seconds = setting(1.0, "period of WebSocket status messages, s")
-    # --- security (service/security.py, service/http_limits.py; docs/operations.md "Security")
+    # --- security (service/api/security.py and http_limits.py; docs/operations.md "Security")
     max_body_bytes: int = setting(64 * 1024, "largest request body, bytes (413 above)", ge=1024)
     allowed_hosts: CommaList = setting(
         [],

@@ -2,7 +2,7 @@
 
 A DCMD names metrics (by name or alias) of one robot: ``command/<field>/<channel>`` elements
 become one write body (``{field: {index: value}}``, as ``PATCH …/command`` takes it) that goes
-through the service's one write pipeline (``service.write_pipeline.submit_write``): validated
+through the service's one write pipeline (``service.writes.pipeline.submit_write``): validated
 whole, refused unless the MQTT writer holds control, audited with the writer's MQTT identity,
 confirmed by the robot's own frame. ``Control/Take`` and ``Control/Release`` (true) take and
 release control through the same pipeline. With MQTT writes off every DCMD is refused (and
@@ -21,8 +21,8 @@ from dataclasses import dataclass, field
 from typing import Final
 
 from cobot_hmi.service.errors import ApiError
-from cobot_hmi.service.store import AuditEntry
-from cobot_hmi.service.write_pipeline import (
+from cobot_hmi.service.storage.store import AuditEntry
+from cobot_hmi.service.writes.pipeline import (
     AUDIT_PENDING_WARNING,
     Writer,
     WriteTarget,

@@ -32,9 +32,9 @@ import orjson
 
 from cobot_hmi.codec import CommandImage, Frame
 from cobot_hmi.layout import LAYOUT_VERSION, O2T_FIELDS
-from cobot_hmi.service.auth import Session
-from cobot_hmi.service.users import Role, User
-from cobot_hmi.service.write_pipeline import Writer
+from cobot_hmi.service.access.auth import Session
+from cobot_hmi.service.access.users import Role, User
+from cobot_hmi.service.writes.pipeline import Writer
 from cobot_hmi.sparkplug.buffer import DiskBuffer
 from cobot_hmi.sparkplug.catalogue import (
     ALIAS_STRIDE,
@@ -76,8 +76,8 @@ from cobot_hmi.sparkplug.topics import MessageType, Topics
 if TYPE_CHECKING:
     import paho.mqtt.client as mqtt
 
-    from cobot_hmi.service.metrics import MetricFamily
-    from cobot_hmi.service.robot import RobotRuntime
+    from cobot_hmi.service.api.metrics import MetricFamily
+    from cobot_hmi.service.robots.robot import RobotRuntime
     from cobot_hmi.service.settings import ServiceSettings
 
 log = logging.getLogger(__name__)

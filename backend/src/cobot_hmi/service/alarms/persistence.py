@@ -2,8 +2,8 @@
 keeps the active and unacknowledged ones, their acknowledgements and shelving) and the history
 of every transition.
 
-Two tables beside the audit and the events (``service.store``; created by
-``service.migrations``), written through the store's one worker thread (``Store.call``). A
+Two tables beside the audit and the events (``service.storage.store``; created by
+``service.storage.migrations``), written through the store's one worker thread (``Store.call``). A
 transition is queued where it happens (the frame path never waits on the disk) and written in
 order by one writer task, a batch per transaction; an operator's acknowledgement or shelving
 waits for its batch (``flush``) before the answer, committed with fsync.
@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Final
 import orjson
 
 if TYPE_CHECKING:
-    from cobot_hmi.service.store import Page, Store
+    from cobot_hmi.service.storage.store import Page, Store
 
 log = logging.getLogger(__name__)
 
@@ -152,7 +152,7 @@ class AlarmStore:
         until: float | None = None,
     ) -> Page:
         """Transitions, newest first, optionally of one robot, one priority, a time range."""
-        from cobot_hmi.service.store import Page
+        from cobot_hmi.service.storage.store import Page
 
         where, params = _history_filter(robot, priority, since, until)
 

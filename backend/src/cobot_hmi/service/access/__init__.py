@@ -1,0 +1,1 @@
+"""Layer: service. Who may do what: users, sessions, API tokens, the login throttle."""

@@ -1,0 +1,88 @@
+"""Layer: service. Login, logout and who-am-I."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+
+from fastapi import APIRouter, Request, Response
+from pydantic import BaseModel, Field
+
+from cobot_hmi.service.access.auth import SESSION_COOKIE
+from cobot_hmi.service.access.users import User, UsersError
+from cobot_hmi.service.api.deps import ServiceDep, SessionDep, client_address
+from cobot_hmi.service.api.models import LoginAnswer, Me
+from cobot_hmi.service.api.models import User as UserModel
+from cobot_hmi.service.api.openapi_extras import errors
+from cobot_hmi.service.errors import ApiError, unauthorized
+
+router = APIRouter(prefix="/api/v1/auth", tags=["auth"])
+
+
+class Credentials(BaseModel):
+    username: str = Field(min_length=1, max_length=64)
+    password: str = Field(min_length=1, max_length=1024)
+
+
+def _user_model(user: User) -> UserModel:
+    return UserModel.model_validate({"name": user.name, "role": user.role.label})
+
+
+@router.post(
+    "/login",
+    summary="Log in: a session cookie and a bearer token",
+    responses=errors(401, 413, 415, 422, 429, 503),
+)
+async def login(
+    credentials: Credentials, request: Request, response: Response, service: ServiceDep
+) -> LoginAnswer:
+    # The client address is the connection's peer (or, only from a configured trusted proxy,
+    # its X-Forwarded-For: uvicorn's proxy headers, service/api/server.py).
+    user_name, client = credentials.username, client_address(request)
+    wait_s = service.throttle.retry_after_s(user_name, client)
+    if wait_s > 0:
+        service.logins["throttled"] += 1
+        seconds = math.ceil(wait_s)
+        error = ApiError(429, f"too many failed logins: try again in {seconds} s")
+        error.headers["Retry-After"] = str(seconds)
+        raise error
+    try:
+        # scrypt takes tens of milliseconds and releases the GIL: keep it off the event loop.
+        user = await asyncio.to_thread(
+            service.users.authenticate, credentials.username, credentials.password
+        )
+    except UsersError as error:
+        raise ApiError(503, str(error)) from None
+    if user is None:
+        service.throttle.failed(user_name, client)
+        service.logins["failed"] += 1
+        raise unauthorized("wrong user name or password")
+    service.throttle.succeeded(user_name, client)
+    service.logins["ok"] += 1
+    session = service.sessions.create(user)
+    response.set_cookie(
+        SESSION_COOKIE,
+        session.token,
+        httponly=True,
+        samesite="strict",
+        secure=service.settings.cookie_secure,
+        path="/",
+    )
+    return LoginAnswer(user=_user_model(user), token=session.token)
+
+
+@router.post(
+    "/logout",
+    summary="End the session (and release control if it holds it)",
+    responses=errors(403, 415),
+)
+async def logout(response: Response, service: ServiceDep, session: SessionDep) -> Me:
+    if session is not None:
+        service.sessions.end(session, "logged out")
+    response.delete_cookie(SESSION_COOKIE, path="/")
+    return Me(user=None)
+
+
+@router.get("/me", summary="The logged-in user, or null")
+async def me(session: SessionDep) -> Me:
+    return Me(user=None if session is None else _user_model(session.user))

@@ -1,0 +1,312 @@
+"""Layer: service. A robot's recorded history: decimated ranges for plots and exports
+(``docs/api.md``, History). The work (reading segments, decimating, encoding an export) runs on
+worker threads, never on the event loop; an export streams chunk by chunk.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Annotated, Any, Final
+
+import orjson
+from fastapi import APIRouter, Query, Response
+from fastapi.responses import StreamingResponse
+
+from cobot_hmi.history import export as history_export
+from cobot_hmi.history import segments
+from cobot_hmi.history.query import MAX_POINTS, QueryError, QueryResult, check_range, query
+from cobot_hmi.history.schema import Element, UnknownFieldError, select_elements
+from cobot_hmi.history.times import TimeFormatError, parse_time
+from cobot_hmi.service.api import models
+from cobot_hmi.service.api.deps import RobotDep, ServiceDep, ViewerDep
+from cobot_hmi.service.api.openapi_extras import READ, errors
+from cobot_hmi.service.errors import ApiError
+from cobot_hmi.service.events.text import with_text
+from cobot_hmi.service.recording.recorder import Recorder
+from cobot_hmi.service.runtime import Service
+from cobot_hmi.service.settings import ServiceSettings
+from cobot_hmi.service.storage.history_events import events_between, iter_events
+
+router = APIRouter(prefix="/api/v1/robots/{name}", tags=["history"])
+
+_TIME_HELP: Final = (
+    "ISO 8601 (2026-11-24T06:00:00Z; without an offset: UTC) or seconds since the epoch"
+)
+From = Annotated[str, Query(alias="from", description="start of the range: " + _TIME_HELP)]
+To = Annotated[str, Query(description="end of the range (excluded): " + _TIME_HELP)]
+Fields = Annotated[
+    str | None,
+    Query(
+        description="comma-separated field names (joint_position) or elements "
+        "(joint_position.2); default: every field"
+    ),
+]
+Points = Annotated[int, Query(ge=1, le=MAX_POINTS, description="buckets, at most 5000")]
+Format = Annotated[models.ExportFormat, Query(description="csv, parquet or mcap")]
+
+_EXPORT: Final[dict[str, Any]] = {
+    "content": {
+        media: {"schema": {"type": "string", "format": "binary", "description": what}}
+        for media, what in (
+            ("text/csv", "one column per element, units in the header, ISO 8601 times"),
+            ("application/vnd.apache.parquet", "the recording's columns (docs/api.md)"),
+            (
+                "application/octet-stream",
+                "MCAP: /ROBOT/frames and /ROBOT/events, JSON + JSON Schema",
+            ),
+        )
+    }
+}
+
+
+def _times(from_text: str, to_text: str, points: int) -> tuple[float, float]:
+    try:
+        from_s = parse_time(from_text)
+    except TimeFormatError as error:
+        raise ApiError(422, str(error), field="from") from None
+    try:
+        to_s = parse_time(to_text)
+    except TimeFormatError as error:
+        raise ApiError(422, str(error), field="to") from None
+    try:
+        check_range(from_s, to_s, points)
+    except QueryError as error:
+        raise ApiError(422, str(error), field=error.field) from None
+    return from_s, to_s
+
+
+def _elements(fields: str | None) -> list[Element]:
+    try:
+        return select_elements(fields.split(",") if fields else None)
+    except UnknownFieldError as error:
+        raise ApiError(422, str(error), field="fields") from None
+
+
+def answer_json(result: QueryResult, paused_reason: str | None, recording: bool) -> bytes:
+    """The ``HistoryAnswer`` of a query result (numpy arrays written as they are)."""
+    series = []
+    for s in result.series:
+        e = s.element
+        item: dict[str, object] = {
+            "element": e.name,
+            "field": e.field.name,
+            "label": e.label,
+            "unit": e.unit,
+        }
+        if s.values is not None:
+            item["values"] = s.values
+        item.update(s.stats)
+        series.append(item)
+    body: dict[str, object] = {
+        "robot": result.robot,
+        "from": result.from_s,
+        "to": result.to_s,
+        "points": result.points,
+        "mode": result.mode,
+        "bucket_s": result.bucket_s,
+        "frames": result.frames,
+        "t": result.t,
+        "seq": result.seq,
+        "t2o_sequence": result.t2o_sequence,
+        "count": result.count,
+        "t_first": result.t_first,
+        "t_last": result.t_last,
+        "series": series,
+        "recording": recording and paused_reason is None,
+        "recording_paused_reason": paused_reason,
+    }
+    return orjson.dumps(body, option=orjson.OPT_SERIALIZE_NUMPY)
+
+
+def _recording(service: Service) -> tuple[bool, str | None]:
+    recorder = service.recorder
+    if recorder is None:
+        return False, None
+    return True, recorder.paused_reason
+
+
+@router.get(
+    "/history",
+    summary="A range of the robot's recorded frames, decimated for a plot (min/max/first/last "
+    "per bucket, or the raw frames)",
+    response_model=models.HistoryAnswer,
+    responses=errors(*READ, 422),
+)
+async def get_history(
+    service: ServiceDep,
+    robot: RobotDep,
+    _: ViewerDep,
+    *,
+    from_: From,
+    to: To,
+    fields: Fields = None,
+    points: Points = 1000,
+) -> Response:
+    from_s, to_s = _times(from_, to, points)
+    elements = _elements(fields)
+    recording, paused_reason = _recording(service)
+
+    def work() -> bytes:
+        result = query(
+            service.settings.history_path,
+            robot.name,
+            elements,
+            from_s=from_s,
+            to_s=to_s,
+            points=points,
+        )
+        return answer_json(result, paused_reason, recording)
+
+    return Response(await asyncio.to_thread(work), media_type="application/json")
+
+
+EventLimit = Annotated[int, Query(ge=1, le=10_000, description="at most this many events")]
+EventKind = Annotated[
+    list[models.EventKind] | None, Query(description="only events of these kinds (repeatable)")
+]
+
+
+@router.get(
+    "/history/events",
+    summary="The robot's events of a range (markers for history plots), oldest first",
+    response_model=models.HistoryEvents,
+    responses=errors(*READ, 422),
+)
+async def get_history_events(
+    service: ServiceDep,
+    robot: RobotDep,
+    _: ViewerDep,
+    *,
+    from_: From,
+    to: To,
+    kind: EventKind = None,
+    limit: EventLimit = 1000,
+) -> Response:
+    from_s, to_s = _times(from_, to, 1)
+    await service.store.flush_events()  # the events queued so far are in the answer
+    kinds: set[str] | None = {str(k) for k in kind} if kind else None
+
+    def work() -> bytes:
+        events = events_between(
+            service.settings.database_path,
+            robot.name,
+            from_s,
+            to_s,
+            limit=limit + 1,
+            kinds=kinds,
+        )
+        items = [with_text(event) for event in events[:limit]]
+        return orjson.dumps({"items": items, "truncated": len(events) > limit})
+
+    return Response(await asyncio.to_thread(work), media_type="application/json")
+
+
+def history_status(
+    root: Path, robot: str, recorder: Recorder | None, settings: ServiceSettings
+) -> dict[str, object]:
+    """What is recorded of ``robot`` (``HistoryStatus``)."""
+    closed = segments.list_segments(root, robot)
+    journals = segments.list_journals(root, robot)
+    starts = [s.start_us for s in closed] + [start for start, _ in journals]
+    size = sum(s.size_bytes() for s in closed)
+    for _, path in journals:
+        with contextlib.suppress(OSError):
+            size += path.stat().st_size
+    track = recorder.tracks.get(robot) if recorder is not None else None
+    last = track.last_time_s if track is not None else None
+    if last is None and closed:
+        last = closed[-1].end_us / 1e6
+    return {
+        "robot": robot,
+        "recording": recorder is not None and recorder.paused_reason is None,
+        "recording_paused_reason": recorder.paused_reason if recorder is not None else None,
+        "first": min(starts) / 1e6 if starts else None,
+        "last": last,
+        "segments": len(closed),
+        "bytes": size,
+        "retention_days": settings.history_retention_days,
+        "retention_bytes": settings.history_retention_bytes,
+    }
+
+
+@router.get(
+    "/history/status",
+    summary="What is recorded of the robot: the range kept, its size, recording or paused",
+    response_model=models.HistoryStatus,
+    responses=errors(*READ),
+)
+async def get_history_status(service: ServiceDep, robot: RobotDep, _: ViewerDep) -> Response:
+    status = await asyncio.to_thread(
+        history_status,
+        service.settings.history_path,
+        robot.name,
+        service.recorder,
+        service.settings,
+    )
+    return Response(orjson.dumps(status), media_type="application/json")
+
+
+def export_chunks(
+    root: Path,
+    database: Path,
+    robot: str,
+    elements: list[Element],
+    *,
+    from_s: float,
+    to_s: float,
+    fmt: str,
+) -> Iterator[bytes]:
+    """The export's bytes (also ``cobot-hmi export``): frames and, for MCAP, the events."""
+    events = (
+        (with_text(event) for event in iter_events(database, robot, from_s, to_s))
+        if fmt == "mcap"
+        else iter(())
+    )
+    tables = history_export.tables(root, robot, elements, from_s=from_s, to_s=to_s, fmt=fmt)
+    for chunk in history_export.export(tables, robot, elements, fmt, events):
+        if chunk:
+            yield chunk
+
+
+@router.get(
+    "/export",
+    summary="A range of the robot's recorded frames as a file: CSV, Parquet or MCAP (streamed)",
+    responses={
+        200: {
+            "description": "the file, named after the robot and the range",
+            **_EXPORT,
+        },
+        **errors(*READ, 422),
+    },
+    response_class=Response,
+)
+async def get_export(
+    service: ServiceDep,
+    robot: RobotDep,
+    _: ViewerDep,
+    *,
+    from_: From,
+    to: To,
+    format: Format,
+    fields: Fields = None,
+) -> StreamingResponse:
+    from_s, to_s = _times(from_, to, 1)
+    elements = _elements(fields)
+    filename = history_export.export_filename(robot.name, from_s, to_s, format)
+    chunks = export_chunks(
+        service.settings.history_path,
+        service.settings.database_path,
+        robot.name,
+        elements,
+        from_s=from_s,
+        to_s=to_s,
+        fmt=format,
+    )
+    return StreamingResponse(
+        chunks,
+        media_type=history_export.MEDIA_TYPES[format],
+        headers={"Content-Disposition": f'attachment; filename="{filename}"'},
+    )

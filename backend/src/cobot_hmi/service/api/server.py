@@ -1,0 +1,70 @@
+"""Layer: service. Running the app on uvicorn, as ``cobot-hmi serve`` and ``demo`` do.
+
+uvicorn handles SIGINT/SIGTERM: it stops accepting, closes the WebSockets, runs the app's
+lifespan shutdown (which releases control and sends the Forward Close), then re-raises the
+signal, which the CLI turns into its exit status.
+"""
+
+from __future__ import annotations
+
+import socket
+import sys
+from typing import Any, Final
+
+import uvicorn
+
+from cobot_hmi.eventloop import freeze_startup_heap
+from cobot_hmi.service.api import http_limits
+from cobot_hmi.service.api.app import create_app
+from cobot_hmi.service.runtime import Service
+from cobot_hmi.service.settings import ServiceSettings
+
+SWITCH_INTERVAL_S: Final = 0.0005
+"""The GIL hand-over deadline. CPython's default, 5 ms, would let a busy web thread hold off
+the cyclic connection's thread for half an RPI; 0.5 ms bounds that delay (see ``link``)."""
+
+
+def uvicorn_config(app: Any, settings: ServiceSettings, **overrides: Any) -> uvicorn.Config:
+    connection_counters = http_limits.ConnectionCounters()
+    state = getattr(app, "state", None)
+    if state is not None:  # for /metrics
+        state.connection_counters = connection_counters
+    options: dict[str, Any] = {
+        "host": settings.host,
+        "port": settings.port,
+        "lifespan": "on",
+        # Compression would be paid per client per message: it defeats serializing once.
+        "ws_per_message_deflate": False,
+        "timeout_graceful_shutdown": 3,
+        "access_log": False,
+        "log_level": "info",
+        # Bounds (service/api/http_limits.py, docs/operations.md "Security"). X-Forwarded-For and
+        # -Proto only from the configured proxies: uvicorn's default trusts 127.0.0.1, which
+        # let any local client forge its address.
+        "proxy_headers": bool(settings.trusted_proxies),
+        "forwarded_allow_ips": list(settings.trusted_proxies),
+        "http": http_limits.bounded_h11_protocol(
+            max_connections=http_limits.connection_cap(settings.http_max_connections),
+            idle_timeout_s=settings.http_idle_timeout_s,
+            counters=connection_counters,
+        ),
+        "backlog": settings.http_backlog,
+        "timeout_keep_alive": settings.http_keep_alive_s,
+        "h11_max_incomplete_event_size": settings.http_max_header_bytes,
+        "ws_max_size": settings.max_body_bytes,
+    }
+    options.update(overrides)
+    return uvicorn.Config(app, **options)
+
+
+def prepare_process() -> None:
+    """Process-wide settings for a service process (not for a library import)."""
+    sys.setswitchinterval(SWITCH_INTERVAL_S)
+
+
+async def serve(settings: ServiceSettings, *, sockets: list[socket.socket] | None = None) -> None:
+    """Run the service until a signal stops it; on ``sockets`` (already bound, as the demo
+    binds its HTTP address before it prints a password) instead of binding ``host:port``."""
+    service = Service(settings)
+    app = create_app(service, on_started=freeze_startup_heap)
+    await uvicorn.Server(uvicorn_config(app, settings)).serve(sockets=sockets)

@@ -1,0 +1,1 @@
+"""Layer: service. Events: the one event bus, events seen in frames, events in words."""

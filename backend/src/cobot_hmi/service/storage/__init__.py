@@ -1,0 +1,1 @@
+"""Layer: service. The service's database: its schema and migrations, audit, events, tag names."""

@@ -1,0 +1,497 @@
+"""Layer: service. The audit trail and the event log, in SQLite (WAL), durable across a crash.
+
+One connection, used only from one worker thread, so the event loop never waits on the disk.
+Every commit reaches the operating system before the call returns, so it survives ``kill -9``
+of the service. Commits that precede an answer (an audit row's outcome, a refusal, a control
+change) are also fsync'd (``synchronous=FULL``): they survive power loss too. A write's
+``pending`` row, committed just before the robot is commanded, is written without its own
+fsync (``synchronous=NORMAL``); the outcome's fsync a few milliseconds later covers it too (the
+WAL is one sequential file), which keeps one disk flush instead of two on every write's path.
+Events (robot state, flags, connection) arrive in bursts from the broadcast loop; they are
+queued and written a batch per transaction, without fsync of their own. The tables (these two,
+the alarms' and the tag names') are created and upgraded by ``migrations`` when the store opens;
+imports nothing else of the project but ``errors`` and ``audit_backlog``.
+
+A full disk (or any failed write): ``add_audit`` raises ``AuditUnavailableError`` (503), so a
+caller that must audit before it acts does not act. What already happened (a write's outcome
+after the robot confirmed it, a control change, a refusal) is kept in memory and written as
+soon as the disk has room (``audit_backlog``: before the next audit write, and every
+``AUDIT_RETRY_S``); ``finish_audit`` and ``keep_audit`` say whether it is in yet. A ``pending``
+row a crash left (the outcome never written) is marked ``interrupted`` when the store opens.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import csv
+import dataclasses
+import functools
+import io
+import os
+import sqlite3
+import time
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from datetime import datetime
+from pathlib import Path
+from typing import Any, Final, TypeVar
+
+import orjson
+
+from cobot_hmi.service.errors import AuditUnavailableError
+from cobot_hmi.service.storage import migrations
+from cobot_hmi.service.storage.audit_backlog import AuditBacklog, Deferred
+
+_T = TypeVar("_T")
+
+AUDIT_COLUMNS: Final = (
+    "id",
+    "time",
+    "robot",
+    "user",
+    "client",
+    "origin",
+    "action",
+    "fields",
+    "before",
+    "requested",
+    "outcome",
+    "reason",
+    "summary",
+    "tags",
+)
+_AUDIT_JSON: Final = frozenset({"fields", "before", "requested", "tags"})
+EVENT_COLUMNS: Final = ("id", "time", "robot", "kind", "text", "data")
+"""The CSV columns of the event log (``text``: the event in words; ``data``: the kind's own
+fields as JSON text)."""
+_EVENT_KEYS: Final = frozenset({"id", "time", "robot", "kind"})
+MAX_PAGE: Final = 100_000
+"""Largest ``limit`` of one page (a CSV export takes everything in one)."""
+AUDIT_RETRY_S: Final = 1.0
+"""How often audit rows waiting for room (a full disk) are tried again."""
+AUDIT_BACKLOG_MAX: Final = 10_000
+"""Refusals' rows kept while the audit trail cannot be written (what happened is kept
+whatever this says: ``audit_backlog``)."""
+INTERRUPTED: Final = "interrupted"
+"""The outcome a ``pending`` row gets when the store opens: the service stopped before it."""
+INTERRUPTED_REASON: Final = (
+    "the service stopped before the outcome was written (a crash, or a full disk at its stop: "
+    "see its log); whether the robot applied it is not known"
+)
+
+
+@dataclass(frozen=True, slots=True)
+class AuditEntry:
+    """One write attempt or control change, as it is stored."""
+
+    user: str | None
+    client: str | None
+    action: str
+    fields: Sequence[str]
+    before: object
+    requested: object
+    outcome: str
+    reason: str | None
+    time: float = 0.0
+    robot: str | None = None
+    """The robot's name (``None``: not about one robot)."""
+    origin: str | None = None
+    """Which door the request came through (``PATCH /api/v1/robots/{name}/command``, MQTT…)."""
+    summary: str | None = None
+    """What was asked, in words with the spec's labels ("AO 1 type = voltage, AO 1 = 5 V")."""
+    tags: Mapping[str, str] | None = None
+    """Tag names of the touched points at the time (``{"controlbox_do.2": "gripper close"}``)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Page:
+    items: list[dict[str, object]]
+    total: int
+
+
+class Store:
+    """The database at ``path``. ``open`` before use, ``close`` at the end."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self._executor: ThreadPoolExecutor | None = None
+        self._connection: sqlite3.Connection | None = None
+        self._events: asyncio.Queue[tuple[float, str, str | None, dict[str, object]]] = (
+            asyncio.Queue()
+        )
+        self._writer: asyncio.Task[None] | None = None
+        self.events_written = 0
+        self.event_write_errors = 0
+        self.audit_backlog = AuditBacklog(AUDIT_BACKLOG_MAX)
+        """Audit rows and outcomes waiting for room (used on the worker thread only)."""
+        self._backlog_waiting = asyncio.Event()
+        self._retrier: asyncio.Task[None] | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+
+    async def open(self) -> None:
+        """Open (or create) the database and bring its schema to this code's version
+        (``migrations``); ``SchemaTooNewError`` for a database of a newer cobot-hmi."""
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="store")
+        try:
+            await self._run(self._open_sync)
+        except BaseException:
+            self._executor.shutdown(wait=True)
+            self._executor = None
+            raise
+        self._writer = asyncio.create_task(self._write_events(), name="store-events")
+        self._loop = asyncio.get_running_loop()
+        self._retrier = asyncio.create_task(self._retry_backlog(), name="store-audit-backlog")
+
+    def _open_sync(self) -> None:
+        # The audit trail names users and client addresses: readable by the service's own user
+        # only. Created (or narrowed) to 0600 before SQLite opens it; SQLite gives the -wal and
+        # -shm files the database file's mode.
+        fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o600)
+        try:
+            os.fchmod(fd, 0o600)
+        finally:
+            os.close(fd)
+        for suffix in ("-wal", "-shm"):
+            with contextlib.suppress(FileNotFoundError):
+                os.chmod(f"{self.path}{suffix}", 0o600)
+        connection = sqlite3.connect(self.path, check_same_thread=False)
+        try:
+            # A newer cobot-hmi's database is refused before anything is written to it.
+            migrations.check_version(connection, self.path)
+            connection.execute("PRAGMA journal_mode=WAL")
+            connection.execute("PRAGMA synchronous=FULL")
+            migrations.migrate(connection, self.path)
+            with connection:  # the outcome of an attempt a crash interrupted
+                connection.execute(
+                    "UPDATE audit SET outcome = ?, reason = ? WHERE outcome = 'pending'",
+                    (INTERRUPTED, INTERRUPTED_REASON),
+                )
+        except BaseException:
+            connection.close()
+            raise
+        self._connection = connection
+
+    async def close(self) -> None:
+        if self._retrier is not None:
+            self._retrier.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._retrier
+            self._retrier = None
+            if not await self._run(self._flush_backlog_sync):
+                await self._run(self.audit_backlog.give_up)
+        if self._writer is not None:
+            self._events.put_nowait((0.0, "", None, {}))  # sentinel: flush and stop
+            await self._writer
+            self._writer = None
+        if self._executor is not None:
+            if self._connection is not None:
+                await self._run(self._connection.close)
+                self._connection = None
+            self._executor.shutdown(wait=True)
+            self._executor = None
+
+    async def _run(self, function: Callable[..., _T], *args: Any) -> _T:
+        assert self._executor is not None, "Store.open() first"
+        return await asyncio.get_running_loop().run_in_executor(self._executor, function, *args)
+
+    def _db(self) -> sqlite3.Connection:
+        assert self._connection is not None
+        return self._connection
+
+    @contextlib.contextmanager
+    def _synchronous(self, level: str) -> Iterator[sqlite3.Connection]:
+        """A transaction committed with ``PRAGMA synchronous=<level>`` (FULL: fsync'd)."""
+        db = self._db()
+        db.execute(f"PRAGMA synchronous={level}")
+        with db:
+            yield db
+
+    async def call(self, function: Callable[[sqlite3.Connection], _T], *, fsync: bool = True) -> _T:
+        """Run ``function(connection)`` in one transaction on the store's worker thread (the
+        tables of other modules: alarms, tag names), committed durably unless ``fsync=False``."""
+        return await self._run(self._call_sync, function, fsync)
+
+    def _call_sync(self, function: Callable[[sqlite3.Connection], _T], fsync: bool) -> _T:
+        with self._synchronous("FULL" if fsync else "NORMAL") as db:
+            return function(db)
+
+    # ----------------------------------------------------------------- audit
+
+    async def add_audit(self, entry: AuditEntry, *, fsync: bool = True) -> int:
+        """Insert and commit one audit row (fsync'd unless told otherwise); its id.
+        ``AuditUnavailableError`` when it cannot be written (nothing kept: the caller must not
+        act on it)."""
+        return await self._run(self._add_audit_sync, entry, fsync)
+
+    def _add_audit_sync(self, entry: AuditEntry, fsync: bool) -> int:
+        try:
+            with self._synchronous("FULL" if fsync else "NORMAL") as db:
+                self.audit_backlog.write(db)  # what waits goes first, in the same commit
+                row_id = _insert_audit(db, entry)
+        except sqlite3.Error as error:
+            raise AuditUnavailableError(audit_failure(error)) from None
+        self.audit_backlog.done()
+        return row_id
+
+    async def keep_audit(self, entry: AuditEntry, *, happened: bool = False) -> bool:
+        """Insert a row about something already decided (a refusal, a control change),
+        committed durably; ``False``: the disk has no room now and the row waits in memory
+        (``audit_backlog``; a refusal only while there is room, what ``happened`` always)."""
+        timed = dataclasses.replace(entry, time=entry.time or time.time())
+        what = (
+            f"{timed.action} by {timed.user or 'nobody'} ({timed.robot or '-'}, "
+            f"{timed.origin or '-'}): {timed.outcome}, {timed.reason or ''} "
+            f"{orjson.dumps(timed.requested, default=repr).decode()}"
+        )
+        insert = functools.partial(_insert_audit, entry=timed)
+        return await self._run(self._write_or_keep, Deferred(insert, what, happened))
+
+    async def finish_audit(self, row_id: int, outcome: str, reason: str | None) -> bool:
+        """Set the outcome of a row written as ``pending``, committed durably; ``False``: the
+        disk has no room now and the outcome waits in memory until it has (``audit_backlog``)."""
+        update = functools.partial(_finish_audit, row_id=row_id, outcome=outcome, reason=reason)
+        what = f"audit row {row_id}: outcome {outcome} ({reason or ''})"
+        return await self._run(self._write_or_keep, Deferred(update, what, happened=True))
+
+    def _write_or_keep(self, deferred: Deferred) -> bool:
+        try:
+            with self._synchronous("FULL") as db:
+                self.audit_backlog.write(db)
+                deferred.write(db)
+        except sqlite3.Error as error:
+            self.audit_backlog.keep(deferred, _cause(error))
+            if self._loop is not None:
+                self._loop.call_soon_threadsafe(self._backlog_waiting.set)
+            return False
+        self.audit_backlog.done()
+        return True
+
+    def _flush_backlog_sync(self) -> bool:
+        """Write what waits; whether nothing waits now."""
+        if not self.audit_backlog.items:
+            return True
+        try:
+            with self._synchronous("FULL") as db:
+                self.audit_backlog.write(db)
+        except sqlite3.Error:
+            return False
+        self.audit_backlog.done()
+        return True
+
+    async def _retry_backlog(self) -> None:
+        while True:
+            await self._backlog_waiting.wait()
+            await asyncio.sleep(AUDIT_RETRY_S)
+            if await self._run(self._flush_backlog_sync):
+                self._backlog_waiting.clear()
+                if self.audit_backlog.items:  # kept meanwhile, after the flush
+                    self._backlog_waiting.set()
+
+    async def audit_page(self, limit: int, offset: int, *, robot: str | None = None) -> Page:
+        """Audit rows, newest first, optionally of one robot."""
+        return await self._run(self._audit_page_sync, limit, offset, robot)
+
+    def _audit_page_sync(self, limit: int, offset: int, robot: str | None) -> Page:
+        db = self._db()
+        where, params = _where(robot=robot)
+        total = db.execute(f"SELECT count(*) FROM audit {where}", params).fetchone()[0]
+        rows = db.execute(
+            f"SELECT {', '.join(AUDIT_COLUMNS)} FROM audit {where} ORDER BY id DESC"
+            " LIMIT ? OFFSET ?",
+            (*params, limit, offset),
+        ).fetchall()
+        items = []
+        for row in rows:
+            item = dict(zip(AUDIT_COLUMNS, row, strict=True))
+            for name in _AUDIT_JSON:
+                text = item[name]
+                item[name] = orjson.loads(text) if isinstance(text, str) else None
+            items.append(item)
+        return Page(items, int(total))
+
+    # ----------------------------------------------------------------- events
+
+    def submit_event(
+        self, time_s: float, kind: str, data: dict[str, object], robot: str | None = None
+    ) -> None:
+        """Queue an event for the log; never blocks, written within one batch."""
+        self._events.put_nowait((time_s, kind, robot, data))
+
+    def log_event(self, event: Mapping[str, object]) -> None:
+        """Queue an event as the stream carries it (``kind``, ``time``, ``robot`` and the kind's
+        own fields, ``docs/api.md``)."""
+        time_s = event.get("time")
+        robot = event.get("robot")
+        self.submit_event(
+            float(time_s) if isinstance(time_s, int | float) else time.time(),
+            str(event.get("kind", "")) or "unknown",
+            {k: v for k, v in event.items() if k not in _EVENT_KEYS},
+            robot if isinstance(robot, str) else None,
+        )
+
+    async def _write_events(self) -> None:
+        stopping = False
+        while not stopping:
+            batch = [await self._events.get()]
+            while not self._events.empty():
+                batch.append(self._events.get_nowait())
+            rows = []
+            for t, kind, robot, data in batch:
+                if not kind:
+                    stopping = True
+                    continue
+                rows.append((t, robot, kind, orjson.dumps(data).decode()))
+            if rows:
+                try:
+                    await self._run(self._add_events_sync, rows)
+                    self.events_written += len(rows)
+                except sqlite3.Error:
+                    # A full disk must not stop the service; the count shows in /metrics.
+                    self.event_write_errors += len(rows)
+
+    def _add_events_sync(self, rows: list[tuple[float, str | None, str, str]]) -> None:
+        with self._synchronous("NORMAL") as db:
+            db.executemany("INSERT INTO events (time, robot, kind, data) VALUES (?, ?, ?, ?)", rows)
+
+    async def flush_events(self) -> None:
+        """Wait until every event submitted so far is committed (tests, shutdown)."""
+        for _ in range(1000):
+            if self._events.empty():
+                # One more round trip through the worker: the batch in flight is done after it.
+                await self._run(lambda: None)
+                if self._events.empty():
+                    return
+            await asyncio.sleep(0.005)
+
+    async def events_page(
+        self, kind: str | None, limit: int, offset: int, *, robot: str | None = None
+    ) -> Page:
+        """Events, newest first, optionally of one kind and one robot. Each item is the event as
+        the stream carries it plus its ``id`` (``event_csv_rows`` gathers the kind's fields)."""
+        return await self._run(self._events_page_sync, kind, limit, offset, robot)
+
+    def _events_page_sync(
+        self, kind: str | None, limit: int, offset: int, robot: str | None
+    ) -> Page:
+        db = self._db()
+        where, params = _where(kind=kind, robot=robot)
+        total = db.execute(f"SELECT count(*) FROM events {where}", params).fetchone()[0]
+        rows = db.execute(
+            f"SELECT id, time, robot, kind, data FROM events {where} ORDER BY id DESC"
+            " LIMIT ? OFFSET ?",
+            (*params, limit, offset),
+        ).fetchall()
+        items = []
+        for row_id, time_s, robot_name, kind_name, data in rows:
+            fields = orjson.loads(data)
+            own = fields if isinstance(fields, dict) else {"data": fields}
+            items.append(
+                {
+                    **{k: v for k, v in own.items() if k not in _EVENT_KEYS},
+                    "id": row_id,
+                    "time": time_s,
+                    "robot": robot_name,
+                    "kind": kind_name,
+                }
+            )
+        return Page(items, int(total))
+
+
+def _insert_audit(db: sqlite3.Connection, entry: AuditEntry) -> int:
+    cursor = db.execute(
+        "INSERT INTO audit (time, robot, user, client, origin, action, fields, before,"
+        " requested, outcome, reason, summary, tags)"
+        " VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+        (
+            entry.time or time.time(),
+            entry.robot,
+            entry.user,
+            entry.client,
+            entry.origin,
+            entry.action,
+            orjson.dumps(list(entry.fields)).decode(),
+            orjson.dumps(entry.before).decode(),
+            orjson.dumps(entry.requested).decode(),
+            entry.outcome,
+            entry.reason,
+            entry.summary,
+            None if entry.tags is None else orjson.dumps(dict(entry.tags)).decode(),
+        ),
+    )
+    row_id = cursor.lastrowid
+    assert row_id is not None
+    return row_id
+
+
+def _finish_audit(db: sqlite3.Connection, row_id: int, outcome: str, reason: str | None) -> None:
+    db.execute("UPDATE audit SET outcome = ?, reason = ? WHERE id = ?", (outcome, reason, row_id))
+
+
+def _cause(error: sqlite3.Error) -> str:
+    """Why SQLite could not write, in words (``disk full (database or disk is full)``)."""
+    if getattr(error, "sqlite_errorcode", None) == sqlite3.SQLITE_FULL:
+        return f"disk full ({error})"
+    return str(error) or type(error).__name__
+
+
+def audit_failure(error: sqlite3.Error) -> str:
+    """The refusal's reason when the audit trail cannot be written."""
+    return f"the audit trail cannot be written: {_cause(error)}"
+
+
+def _where(**equal: str | None) -> tuple[str, tuple[str, ...]]:
+    """``WHERE a = ? AND …`` for the given columns whose value is not ``None``."""
+    pairs = [(column, value) for column, value in equal.items() if value is not None]
+    if not pairs:
+        return "", ()
+    return "WHERE " + " AND ".join(f"{c} = ?" for c, _ in pairs), tuple(v for _, v in pairs)
+
+
+def event_csv_rows(items: Sequence[dict[str, object]]) -> list[dict[str, object]]:
+    """Events page items as CSV rows: the kind's own fields gathered in ``data``."""
+    return [
+        {
+            **{k: item.get(k) for k in _EVENT_KEYS},
+            "text": item.get("text"),
+            "data": {k: v for k, v in item.items() if k not in _EVENT_KEYS and k != "text"},
+        }
+        for item in items
+    ]
+
+
+def iso8601(time_s: float) -> str:
+    """Seconds since the epoch as ISO 8601 in the service's local time with its UTC offset
+    (``2026-11-24T07:05:12.345678+01:00``, 24 h, always six decimals: every row the same
+    width): what a spreadsheet and a person both read."""
+    return datetime.fromtimestamp(time_s).astimezone().isoformat(timespec="microseconds")
+
+
+def to_csv(
+    items: Sequence[dict[str, object]],
+    columns: Sequence[str],
+    *,
+    time_columns: Sequence[str] = ("time",),
+    header: bool = True,
+) -> str:
+    """A page as CSV with a header row (unless not ``header``: a streamed export's later
+    parts); nested values as JSON text; ``time_columns`` (seconds since the epoch) as ISO 8601
+    with offset."""
+    out = io.StringIO()
+    writer = csv.writer(out)
+    if header:
+        writer.writerow(columns)
+    for item in items:
+        row = []
+        for name in columns:
+            value = item.get(name)
+            if name in time_columns and isinstance(value, int | float):
+                row.append(iso8601(value))
+            elif isinstance(value, dict | list):
+                row.append(orjson.dumps(value).decode())
+            else:
+                row.append("" if value is None else str(value))
+        writer.writerow(row)
+    return out.getvalue()
