@@ -133,6 +133,37 @@ MIGRATIONS: Final = (
         "alarm history: the cause of an alarm suppressed by design",
         ("ALTER TABLE alarm_history ADD COLUMN suppressed_by TEXT",),
     ),
+    Migration(
+        5,
+        "I/O checkouts (loop checks) with their points; output presets",
+        (
+            """CREATE TABLE checkouts (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    robot TEXT NOT NULL,
+    started_at REAL NOT NULL,
+    started_by TEXT NOT NULL,
+    closed_at REAL,
+    closed_by TEXT,
+    identity TEXT
+)""",
+            "CREATE INDEX checkouts_robot ON checkouts (robot, id)",
+            """CREATE TABLE checkout_points (
+    checkout_id INTEGER NOT NULL REFERENCES checkouts (id),
+    key TEXT NOT NULL,
+    result TEXT NOT NULL,
+    data TEXT NOT NULL,
+    PRIMARY KEY (checkout_id, key)
+)""",
+            """CREATE TABLE presets (
+    robot TEXT NOT NULL,
+    name TEXT NOT NULL,
+    items TEXT NOT NULL,
+    created_at REAL NOT NULL,
+    created_by TEXT NOT NULL,
+    PRIMARY KEY (robot, name)
+)""",
+        ),
+    ),
 )
 SCHEMA_VERSION: Final = MIGRATIONS[-1].version
 """The version this code writes and reads."""
