@@ -164,6 +164,20 @@ MIGRATIONS: Final = (
 )""",
         ),
     ),
+    Migration(
+        6,
+        "cycle times: every measured cycle of every robot (start, end, duration)",
+        (
+            """CREATE TABLE cycles (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    robot TEXT NOT NULL,
+    start REAL NOT NULL,
+    end REAL NOT NULL,
+    duration_s REAL NOT NULL
+)""",
+            "CREATE INDEX cycles_robot_start ON cycles (robot, start)",
+        ),
+    ),
 )
 SCHEMA_VERSION: Final = MIGRATIONS[-1].version
 """The version this code writes and reads."""
