@@ -12,9 +12,11 @@ STAMP := $(VENV)/.installed-stamp
 .PHONY: test demo lint typecheck pytest codegen venv clean system-deps frontend-test frontend-build peers e2e native-tsan node
 
 # Debian packages the tests use: tshark reads our captures, chromium runs the browser tests,
-# mosquitto is the MQTT broker of the Sparkplug tests (in /usr/sbin, often not on a user's PATH).
+# mosquitto is the MQTT broker of the Sparkplug tests (in /usr/sbin, often not on a user's PATH),
+# slapd (OpenLDAP) and ldap-utils the directory of the directory-login tests.
 # Installed only when missing (needs root, as on a fresh CI machine).
-SYSTEM_COMMANDS := tshark:tshark chromium:chromium mosquitto:mosquitto
+SYSTEM_COMMANDS := tshark:tshark chromium:chromium mosquitto:mosquitto slapd:slapd \
+  ldapadd:ldap-utils
 system-deps:
 	@missing=""; for pair in $(SYSTEM_COMMANDS); do \
 	  command -v "$${pair%%:*}" >/dev/null || test -x "/usr/sbin/$${pair%%:*}" \
