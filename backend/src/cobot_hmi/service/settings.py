@@ -55,6 +55,7 @@ from pydantic_settings.sources.utils import parse_env_vars
 
 from cobot_hmi import connection_params as cp
 from cobot_hmi.opcua.settings import OpcUaSettings  # OPC UA (issue 22): its opcua_* fields
+from cobot_hmi.service.access.directory_settings import DirectorySettings  # issue 25: ldap_*
 
 if TYPE_CHECKING:
     from cobot_hmi.scanner.originator import OriginatorSettings
@@ -359,7 +360,7 @@ _INHERITED: Final = {
 # --------------------------------------------------------------------------- the service
 
 
-class ServiceSettings(OpcUaSettings, BaseSettings):  # OPC UA (issue 22)
+class ServiceSettings(DirectorySettings, OpcUaSettings, BaseSettings):  # issues 25, 22
     """Everything ``cobot-hmi serve`` can be told. Field names are the TOML keys."""
 
     model_config = SettingsConfigDict(
@@ -872,7 +873,16 @@ def add_arguments(parser: argparse.ArgumentParser, *, only: tuple[str, ...] | No
         kind = _flag_type(name)
         default = info.get_default(call_default_factory=True)
         help_text = f"{info.description} (env {env_name(name)}; default {default})"
-        if kind is bool:
+        if extra.get("repeatable"):  # --ldap-group-role A=x --ldap-group-role B=y
+            parser.add_argument(
+                flag,
+                dest=name,
+                action="append",
+                default=argparse.SUPPRESS,
+                metavar=name.upper(),
+                help=help_text + "; repeatable",
+            )
+        elif kind is bool:
             parser.add_argument(
                 flag,
                 dest=name,
