@@ -178,6 +178,26 @@ MIGRATIONS: Final = (
             "CREATE INDEX cycles_robot_start ON cycles (robot, start)",
         ),
     ),
+    Migration(
+        7,
+        "the audit trail's hash chain (storage/audit_chain.py): each final row's seal, the "
+        "chain's head, and the last row written before it (sealed when the store opens)",
+        (
+            "ALTER TABLE audit ADD COLUMN seal_seq INTEGER",
+            "ALTER TABLE audit ADD COLUMN seal_hash TEXT",
+            "CREATE UNIQUE INDEX audit_seal ON audit (seal_seq)",
+            """CREATE TABLE audit_chain (
+    id INTEGER PRIMARY KEY CHECK (id = 1),
+    seal_seq INTEGER NOT NULL,
+    seal_hash TEXT NOT NULL,
+    row_id INTEGER,
+    legacy_last_id INTEGER NOT NULL,
+    legacy_sealed_at REAL
+)""",
+            "INSERT INTO audit_chain (id, seal_seq, seal_hash, legacy_last_id)"
+            " SELECT 1, 0, '" + "0" * 64 + "', coalesce(max(id), 0) FROM audit",
+        ),
+    ),
 )
 SCHEMA_VERSION: Final = MIGRATIONS[-1].version
 """The version this code writes and reads."""
