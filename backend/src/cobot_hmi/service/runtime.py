@@ -24,7 +24,8 @@ from typing import TYPE_CHECKING, Final
 from cobot_hmi.opcua.feed import ServiceFeed
 from cobot_hmi.opcua.server import OpcUaServer
 from cobot_hmi.service.access.auth import LoginThrottle, Session, Sessions
-from cobot_hmi.service.access.users import UsersFile
+from cobot_hmi.service.access.directory import Directory
+from cobot_hmi.service.access.users import User, UsersFile
 from cobot_hmi.service.alarms.summary import cell_summary
 from cobot_hmi.service.errors import UnknownRobotError
 from cobot_hmi.service.recording.recorder import Recorder
@@ -64,11 +65,15 @@ class Service:
         """Every robot, in the settings' order."""
         self.default_robot: RobotRuntime = next(iter(self.robots.values()))
         """The first robot: the one the deprecated single-robot paths answer for."""
+        self.directory: Directory | None = (
+            Directory(settings) if settings.directory_enabled else None
+        )
+        """Directory login (LDAP / Active Directory), when ``ldap_url`` is set."""
         self.sessions = Sessions(
             settings.session_ttl_s,
             self._on_session_end,
             self.users.user_for_token,
-            self.users.user,
+            self._user_now,
         )
         self.throttle = LoginThrottle(
             settings.login_free_attempts,
@@ -139,6 +144,9 @@ class Service:
             await self.opcua.start()
         self._tasks.append(asyncio.create_task(self._status_loop(), name="status"))
         self._tasks.append(asyncio.create_task(self._sweep_loop(), name="sessions"))
+        if self.directory is not None:  # directory users' roles read again while logged in
+            refresh = self.directory.refresh_loop(self.sessions.user_names)
+            self._tasks.append(asyncio.create_task(refresh, name="directory"))
 
     async def stop(self) -> None:
         """Release control, close the connections (Forward Close), stop everything else."""
@@ -226,6 +234,14 @@ class Service:
                     log.exception("status broadcast of %s failed", robot.name)
 
     # ------------------------------------------------------------ sessions
+
+    def _user_now(self, name: str) -> User | None:
+        """A login's user as the users file has it now, else as the directory last read
+        them (a local name is never a directory user's: routes/auth.py)."""
+        user = self.users.user(name)
+        if user is None and self.directory is not None:
+            user = self.directory.user(name)
+        return user
 
     def _on_session_end(self, session: Session, reason: str) -> None:
         """Control the session held is released; its WebSockets are closed by their own

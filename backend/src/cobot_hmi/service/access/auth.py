@@ -69,6 +69,10 @@ class Sessions:
     def __len__(self) -> int:
         return len(self._by_token)
 
+    def user_names(self) -> set[str]:
+        """The users with a live login session (whose directory roles are read again)."""
+        return {session.user.name for session in self._by_token.values()}
+
     def live(self, session: Session) -> bool:
         """Whether ``session`` has not ended (without renewing its idle deadline)."""
         return (

@@ -46,7 +46,8 @@ recorder and the Sparkplug edge node report theirs. A counter's name ends in ``_
 samples of one family may carry different labels (the edge node's node and device messages)."""
 
 _WRITE_OUTCOMES: Final = ("confirmed", "timeout", "invalid", "refused", "unauthorized", "forbidden")
-_LOGIN_OUTCOMES: Final = ("ok", "failed", "throttled")
+_LOGIN_OUTCOMES: Final = ("ok", "failed", "throttled", "forbidden", "unreachable")
+"""forbidden: a directory user in no mapped group; unreachable: the directory did not answer."""
 _CONNECTION_CLOSINGS: Final = ("idle_closed", "evicted", "refused")
 
 _RobotValue = Callable[["RobotRuntime", ConnectionStats], float | None]

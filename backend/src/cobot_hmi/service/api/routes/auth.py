@@ -1,22 +1,40 @@
-"""Layer: service. Login, logout and who-am-I."""
+"""Layer: service. Login, logout and who-am-I.
+
+A login is checked against the users file first; a name the file does not have is asked of the
+directory when one is configured (``access.directory``: a local name is never a directory
+user's, so the file's break-glass admin logs in whatever the directory says or whether it
+answers). Every attempt the throttle lets through is audited (action ``login``; ``requested``
+says which of the two answered), and the throttle counts wrong passwords of both.
+"""
 
 from __future__ import annotations
 
 import asyncio
+import logging
 import math
+from typing import Final
 
 from fastapi import APIRouter, Request, Response
 from pydantic import BaseModel, Field
 
 from cobot_hmi.service.access.auth import SESSION_COOKIE
+from cobot_hmi.service.access.directory import (
+    UNREACHABLE,
+    DirectoryUnreachableError,
+    NoRoleError,
+)
 from cobot_hmi.service.access.users import User, UsersError
 from cobot_hmi.service.api.deps import ServiceDep, SessionDep, client_address
 from cobot_hmi.service.api.models import LoginAnswer, Me
 from cobot_hmi.service.api.models import User as UserModel
 from cobot_hmi.service.api.openapi_extras import errors
 from cobot_hmi.service.errors import ApiError, unauthorized
+from cobot_hmi.service.storage.store import AuditEntry
 
 router = APIRouter(prefix="/api/v1/auth", tags=["auth"])
+log = logging.getLogger(__name__)
+_LOGIN_ORIGIN: Final = "POST /api/v1/auth/login"
+_WRONG: Final = "wrong user name or password"
 
 
 class Credentials(BaseModel):
@@ -31,7 +49,7 @@ def _user_model(user: User) -> UserModel:
 @router.post(
     "/login",
     summary="Log in: a session cookie and a bearer token",
-    responses=errors(401, 413, 415, 422, 429, 503),
+    responses=errors(401, 403, 413, 415, 422, 429, 503),
 )
 async def login(
     credentials: Credentials, request: Request, response: Response, service: ServiceDep
@@ -53,12 +71,37 @@ async def login(
         )
     except UsersError as error:
         raise ApiError(503, str(error)) from None
+    source = "local"
+    directory = service.directory
+    if user is None and directory is not None and service.users.user(user_name) is None:
+        source = "directory"
+        try:
+            user = await directory.login(user_name, credentials.password)
+        except DirectoryUnreachableError as error:
+            log.warning("login of %r: %s", user_name, error)
+            service.logins["unreachable"] += 1
+            await _audit_login(
+                service, user_name, client, source=source, outcome="unreachable", reason=str(error)
+            )
+            raise ApiError(503, UNREACHABLE) from None
+        except NoRoleError as error:
+            service.logins["forbidden"] += 1
+            await _audit_login(
+                service, user_name, client, source=source, outcome="forbidden", reason=str(error)
+            )
+            raise ApiError(403, str(error)) from None
     if user is None:
         service.throttle.failed(user_name, client)
         service.logins["failed"] += 1
-        raise unauthorized("wrong user name or password")
+        await _audit_login(
+            service, user_name, client, source=source, outcome="refused", reason=_WRONG
+        )
+        raise unauthorized(_WRONG)
     service.throttle.succeeded(user_name, client)
     service.logins["ok"] += 1
+    await _audit_login(
+        service, user_name, client, source=source, outcome="ok", reason=f"role {user.role.label}"
+    )
     session = service.sessions.create(user)
     response.set_cookie(
         SESSION_COOKIE,
@@ -69,6 +112,16 @@ async def login(
         path="/",
     )
     return LoginAnswer(user=_user_model(user), token=session.token)
+
+
+async def _audit_login(
+    service: ServiceDep, user: str, client: str | None, *, source: str, outcome: str, reason: str
+) -> None:
+    """One audit row per login attempt (kept in memory while the disk is full)."""
+    entry = AuditEntry(
+        user, client, "login", [], None, {"source": source}, outcome, reason, origin=_LOGIN_ORIGIN
+    )
+    await service.store.keep_audit(entry, happened=outcome == "ok")
 
 
 @router.post(
