@@ -269,6 +269,8 @@ class Directory:
         finally:
             with contextlib.suppress(LDAPException):  # already gone: nothing to close
                 connection.unbind()
+            if connection.socket is not None:  # a failed open or TLS leaves ldap3's socket open
+                connection.socket.close()
 
 
 def _entries(connection: Connection) -> list[dict[str, object]]:
