@@ -63,6 +63,17 @@ USERS: Final = {
 }
 GROUP_ROLES: Final = [f"{OPERATORS}=operator", f"{VIEWERS}=viewer", f"{ADMINS}=admin"]
 """``ldap_group_role`` as the repeated flag gives it."""
+INJECTIONS: Final = (
+    "*",
+    "*)(uid=*",
+    "olga)(|(uid=*",
+    "olga,ou=people",
+    f"olga,{PEOPLE}",
+    "olga)(objectClass=*",
+    "olga\\",
+)
+"""Names that a hand-made filter or DN would widen to olga (or everyone); each must be a name
+nobody has, so olga's password opens nothing."""
 HOST: Final = "127.0.0.1"
 READY_DEADLINE_S: Final = 60.0
 """How long slapd may take to answer (a functional deadline: a healthy start takes well

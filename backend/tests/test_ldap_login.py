@@ -21,8 +21,8 @@ from cobot_hmi.emulator.target import Target
 from ldap_support import (
     BASE_DN,
     GROUP_ROLES,
+    INJECTIONS,
     OPERATORS,
-    PEOPLE,
     SERVICE_DN,
     SERVICE_PASSWORD,
     USER_DN_TEMPLATE,
@@ -42,18 +42,6 @@ from service_support import (
 )
 
 pytestmark = [needs_slapd, pytest.mark.timeout(180)]
-
-INJECTIONS = (
-    "*",
-    "*)(uid=*",
-    "olga)(|(uid=*",
-    "olga,ou=people",
-    f"olga,{PEOPLE}",
-    "olga)(objectClass=*",
-    "olga\\",
-)
-"""Names that a hand-made filter or DN would widen to olga (or everyone); each must be a name
-nobody has, so olga's password opens nothing."""
 
 
 @pytest.fixture(scope="session")

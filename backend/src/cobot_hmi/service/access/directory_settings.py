@@ -70,7 +70,9 @@ def _split_group_roles(value: object) -> object:
             dn, sep, role = entry.strip().rpartition("=")
             if not sep or not dn:
                 raise ValueError(f"expected GROUP_DN=ROLE, got {entry.strip()!r}")
-            pairs[dn.strip()] = role.strip()
+            dn, role = dn.strip(), role.strip()
+            if pairs.setdefault(dn, role) != role:
+                raise ValueError(f"the group {dn!r} is given twice, as {pairs[dn]} and {role}")
         return pairs
     return value
 
