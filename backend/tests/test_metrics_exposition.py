@@ -44,6 +44,14 @@ ADDED_SINCE_58F13A2: dict[str, Any] = {
         "type": "counter",
         "samples": {"cobot_hmi_audit_rows_lost_total": [""]},
     },
+    "cobot_hmi_audit_chain_head_row": {
+        "type": "gauge",
+        "samples": {"cobot_hmi_audit_chain_head_row": [""]},
+    },
+    "cobot_hmi_audit_chain_head_info": {
+        "type": "gauge",
+        "samples": {"cobot_hmi_audit_chain_head_info": ["row,seal,sha256"]},
+    },
 }
 
 

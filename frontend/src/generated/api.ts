@@ -1213,6 +1213,16 @@ export interface components {
              */
             robot: string | null;
             /**
+             * Seal Hash
+             * @description SHA-256 (hex) over the row and the previous seal: ``cobot-hmi audit verify`` (docs/operations.md, Audit verify)
+             */
+            seal_hash?: string | null;
+            /**
+             * Seal Seq
+             * @description the row's place in the audit trail's hash chain, sealed when it became final (null: pending, sealed with its outcome)
+             */
+            seal_seq?: number | null;
+            /**
              * Summary
              * @description what was asked in words with the spec's labels: "DO 3 (gripper close) = on", "AO 1 type = voltage, AO 1 = 5 V"
              */

@@ -15,6 +15,7 @@ from typing import Protocol, cast
 from cobot_hmi import __version__
 
 VERB_MODULES = (
+    "cobot_hmi.cli.audit_verbs",
     "cobot_hmi.cli.codec_verbs",
     "cobot_hmi.cli.discovery_verbs",
     "cobot_hmi.cli.emulator_verb",

@@ -25,6 +25,7 @@ from prometheus_client.core import (
     CounterMetricFamily,
     GaugeMetricFamily,
     HistogramMetricFamily,
+    InfoMetricFamily,
     Metric,
 )
 from prometheus_client.exposition import generate_latest
@@ -33,6 +34,7 @@ from prometheus_client.registry import Collector, CollectorRegistry
 from cobot_hmi.scanner.originator import ConnectionState, ConnectionStats
 from cobot_hmi.service.api.http_limits import ConnectionCounters
 from cobot_hmi.service.api.security import REFUSAL_REASONS, SecurityCounters
+from cobot_hmi.service.storage.audit_chain import ChainHead
 
 if TYPE_CHECKING:
     from cobot_hmi.service.robots.robot import RobotRuntime
@@ -142,12 +144,30 @@ class ServiceCollector(Collector):
             "refusals' audit rows dropped while the disk was full and the backlog at its limit",
             value=backlog.lost,
         )
+        yield from _audit_chain_families(service.store.chain_head)
         edge_node = service.edge_node
         if edge_node is not None:  # the Sparkplug B edge node's own counters (cobot_hmi.sparkplug)
             yield from map(family_of, edge_node.metric_families())
         recorder = service.recorder
         if recorder is not None:  # the history recorder's counters (service/recording/recorder.py)
             yield from map(family_of, recorder.metric_families())
+
+
+def _audit_chain_families(head: ChainHead | None) -> Iterator[Metric]:
+    """The audit chain's head as the store last read it (``storage/audit_chain.py``): a copy
+    outside the database, so a rewritten chain shows against what Prometheus kept."""
+    if head is None:  # the store is not open
+        return
+    yield GaugeMetricFamily(
+        PREFIX + "audit_chain_head_row",
+        "row id of the audit chain's newest seal (0: none yet)",
+        value=head.row_id or 0,
+    )
+    yield InfoMetricFamily(
+        PREFIX + "audit_chain_head",
+        "the audit chain's newest seal: its number, row and first 16 hex digits of its SHA-256",
+        value={"seal": str(head.seq), "row": str(head.row_id or 0), "sha256": head.hash[:16]},
+    )
 
 
 def _per_robot(

@@ -841,6 +841,16 @@ class AuditRow(BaseModel):
     tags: dict[str, str] | None = Field(
         default=None, description="tag names of the touched points when the row was written"
     )
+    seal_seq: int | None = Field(
+        default=None,
+        description="the row's place in the audit trail's hash chain, sealed when it became "
+        "final (null: pending, sealed with its outcome)",
+    )
+    seal_hash: str | None = Field(
+        default=None,
+        description="SHA-256 (hex) over the row and the previous seal: ``cobot-hmi audit "
+        "verify`` (docs/operations.md, Audit verify)",
+    )
 
 
 class AuditPage(BaseModel):

@@ -18,6 +18,10 @@ after the robot confirmed it, a control change, a refusal) is kept in memory and
 soon as the disk has room (``audit_backlog``: before the next audit write, and every
 ``AUDIT_RETRY_S``); ``finish_audit`` and ``keep_audit`` say whether it is in yet. A ``pending``
 row a crash left (the outcome never written) is marked ``interrupted`` when the store opens.
+
+Every audit row is sealed into a hash chain in the transaction that makes it final
+(``audit_chain``: an insert with its outcome, a pending row's outcome, ``interrupted``); the
+chain's head is read every ``CHAIN_HEAD_INTERVAL_S`` for ``/metrics`` and logged when it moved.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ import csv
 import dataclasses
 import functools
 import io
+import logging
 import os
 import sqlite3
 import time
@@ -41,10 +46,11 @@ from typing import Any, Final, TypeVar
 import orjson
 
 from cobot_hmi.service.errors import AuditUnavailableError
-from cobot_hmi.service.storage import migrations
+from cobot_hmi.service.storage import audit_chain, migrations
 from cobot_hmi.service.storage.audit_backlog import AuditBacklog, Deferred
 
 _T = TypeVar("_T")
+log = logging.getLogger(__name__)
 
 AUDIT_COLUMNS: Final = (
     "id",
@@ -61,6 +67,8 @@ AUDIT_COLUMNS: Final = (
     "reason",
     "summary",
     "tags",
+    "seal_seq",
+    "seal_hash",
 )
 _AUDIT_JSON: Final = frozenset({"fields", "before", "requested", "tags"})
 EVENT_COLUMNS: Final = ("id", "time", "robot", "kind", "text", "data")
@@ -69,6 +77,8 @@ fields as JSON text)."""
 _EVENT_KEYS: Final = frozenset({"id", "time", "robot", "kind"})
 MAX_PAGE: Final = 100_000
 """Largest ``limit`` of one page (a CSV export takes everything in one)."""
+CHAIN_HEAD_INTERVAL_S: Final = 60.0
+"""How often the audit chain's head is read for ``/metrics`` and logged (when it moved)."""
 AUDIT_RETRY_S: Final = 1.0
 """How often audit rows waiting for room (a full disk) are tried again."""
 AUDIT_BACKLOG_MAX: Final = 10_000
@@ -114,8 +124,12 @@ class Page:
 class Store:
     """The database at ``path``. ``open`` before use, ``close`` at the end."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, *, chain_head_interval_s: float = CHAIN_HEAD_INTERVAL_S) -> None:
         self.path = path
+        self.chain_head_interval_s = chain_head_interval_s
+        self.chain_head: audit_chain.ChainHead | None = None
+        """The audit chain's head as last read (``chain_head_interval_s``)."""
+        self._chain_task: asyncio.Task[None] | None = None
         self._executor: ThreadPoolExecutor | None = None
         self._connection: sqlite3.Connection | None = None
         self._events: asyncio.Queue[tuple[float, str, str | None, dict[str, object]]] = (
@@ -141,9 +155,11 @@ class Store:
             self._executor.shutdown(wait=True)
             self._executor = None
             raise
+        self.chain_head = await self._run(lambda: audit_chain.head(self._db()))
         self._writer = asyncio.create_task(self._write_events(), name="store-events")
         self._loop = asyncio.get_running_loop()
         self._retrier = asyncio.create_task(self._retry_backlog(), name="store-audit-backlog")
+        self._chain_task = asyncio.create_task(self._watch_chain_head(), name="store-chain-head")
 
     def _open_sync(self) -> None:
         # The audit trail names users and client addresses: readable by the service's own user
@@ -164,10 +180,25 @@ class Store:
             connection.execute("PRAGMA journal_mode=WAL")
             connection.execute("PRAGMA synchronous=FULL")
             migrations.migrate(connection, self.path)
-            with connection:  # the outcome of an attempt a crash interrupted
+            with connection:  # the outcome of an attempt a crash interrupted, sealed
+                interrupted = [
+                    row_id
+                    for (row_id,) in connection.execute(
+                        "SELECT id FROM audit WHERE outcome = 'pending' AND seal_seq IS NULL"
+                    )
+                ]
                 connection.execute(
-                    "UPDATE audit SET outcome = ?, reason = ? WHERE outcome = 'pending'",
+                    "UPDATE audit SET outcome = ?, reason = ? WHERE outcome = 'pending'"
+                    " AND seal_seq IS NULL",
                     (INTERRUPTED, INTERRUPTED_REASON),
+                )
+                legacy = audit_chain.seal_at_open(connection, interrupted, time.time())
+            if legacy:
+                log.warning(
+                    "%s: %d audit rows from before the hash chain sealed now (their content "
+                    "before this moment is not proven)",
+                    self.path,
+                    legacy,
                 )
         except BaseException:
             connection.close()
@@ -175,6 +206,11 @@ class Store:
         self._connection = connection
 
     async def close(self) -> None:
+        if self._chain_task is not None:
+            self._chain_task.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await self._chain_task
+            self._chain_task = None
         if self._retrier is not None:
             self._retrier.cancel()
             with contextlib.suppress(asyncio.CancelledError):
@@ -289,6 +325,24 @@ class Store:
                 self._backlog_waiting.clear()
                 if self.audit_backlog.items:  # kept meanwhile, after the flush
                     self._backlog_waiting.set()
+
+    async def read_chain_head(self) -> audit_chain.ChainHead:
+        """The audit chain's head now (also kept in ``chain_head``)."""
+        self.chain_head = await self._run(lambda: audit_chain.head(self._db()))
+        return self.chain_head
+
+    async def _watch_chain_head(self) -> None:
+        logged: audit_chain.ChainHead | None = None
+        while True:
+            try:
+                current = await self.read_chain_head()
+            except sqlite3.Error as error:
+                log.error("the audit chain's head cannot be read: %s", error)
+            else:
+                if current != logged:
+                    log.info("audit chain head: %s", current.describe())
+                    logged = current
+            await asyncio.sleep(self.chain_head_interval_s)
 
     async def audit_page(self, limit: int, offset: int, *, robot: str | None = None) -> Page:
         """Audit rows, newest first, optionally of one robot."""
@@ -423,11 +477,14 @@ def _insert_audit(db: sqlite3.Connection, entry: AuditEntry) -> int:
     )
     row_id = cursor.lastrowid
     assert row_id is not None
+    if entry.outcome != audit_chain.PENDING:  # final: sealed now (a pending row with its outcome)
+        audit_chain.seal(db, row_id)
     return row_id
 
 
 def _finish_audit(db: sqlite3.Connection, row_id: int, outcome: str, reason: str | None) -> None:
-    db.execute("UPDATE audit SET outcome = ?, reason = ? WHERE id = ?", (outcome, reason, row_id))
+    if not audit_chain.finish(db, row_id, outcome, reason):
+        log.error("audit row %d is sealed already: outcome %s not written", row_id, outcome)
 
 
 def _cause(error: sqlite3.Error) -> str:
