@@ -21,11 +21,28 @@ from typing import TYPE_CHECKING, Final
 
 import orjson
 
+from cobot_hmi.service.storage.search import Search
+
 if TYPE_CHECKING:
     from cobot_hmi.service.storage.store import Page, Store
 
 log = logging.getLogger(__name__)
 
+HISTORY_TEXT_COLUMNS: Final = (
+    "robot",
+    "alarm_id",
+    "key",
+    "name",
+    "transition",
+    "state",
+    "message",
+    "label",
+    "tag",
+    "user",
+    "comment",
+    "suppressed_by",
+)
+"""What a text search of the alarm history looks in."""
 HISTORY_BATCH_ROWS: Final = 1000
 """Rows a streamed CSV of the alarm history reads at a time."""
 HISTORY_COLUMNS: Final = (
@@ -150,11 +167,12 @@ class AlarmStore:
         priority: str | None = None,
         since: float | None = None,
         until: float | None = None,
+        q: str | None = None,
     ) -> Page:
         """Transitions, newest first, optionally of one robot, one priority, a time range."""
         from cobot_hmi.service.storage.store import Page
 
-        where, params = _history_filter(robot, priority, since, until)
+        where, params = _history_filter(robot, priority, since, until, q)
 
         def read(db: sqlite3.Connection) -> tuple[int, list[tuple[object, ...]]]:
             total = db.execute(f"SELECT count(*) FROM alarm_history {where}", params).fetchone()
@@ -175,10 +193,11 @@ class AlarmStore:
         priority: str | None = None,
         since: float | None = None,
         until: float | None = None,
+        q: str | None = None,
     ) -> tuple[int, int]:
         """``(total, newest id)`` of the transitions a filter selects (``history_all`` reads
         up to that id: one snapshot, whatever comes meanwhile)."""
-        where, params = _history_filter(robot, priority, since, until)
+        where, params = _history_filter(robot, priority, since, until, q)
 
         def read(db: sqlite3.Connection) -> tuple[int, int]:
             total, newest = db.execute(
@@ -197,12 +216,13 @@ class AlarmStore:
         priority: str | None = None,
         since: float | None = None,
         until: float | None = None,
+        q: str | None = None,
         batch_rows: int = HISTORY_BATCH_ROWS,
     ) -> AsyncIterator[list[dict[str, object]]]:
         """Every transition a filter selects with an id up to ``newest_id``, newest first, in
         batches of ``batch_rows`` (each a keyset query: ``id < last``, so memory holds one
         batch and the database is not held between batches)."""
-        where, params = _history_filter(robot, priority, since, until)
+        where, params = _history_filter(robot, priority, since, until, q)
         joiner = " AND " if where else "WHERE "
         below = newest_id + 1
         while True:
@@ -227,20 +247,14 @@ class AlarmStore:
 
 
 def _history_filter(
-    robot: str | None, priority: str | None, since: float | None, until: float | None
+    robot: str | None,
+    priority: str | None,
+    since: float | None,
+    until: float | None,
+    q: str | None = None,
 ) -> tuple[str, list[object]]:
-    clauses: list[str] = []
-    params: list[object] = []
-    for column, op, value in (
-        ("robot", "=", robot),
-        ("priority", "=", priority),
-        ("time", ">=", since),
-        ("time", "<", until),
-    ):
-        if value is not None:
-            clauses.append(f"{column} {op} ?")
-            params.append(value)
-    return ("WHERE " + " AND ".join(clauses)) if clauses else "", params
+    search = Search(since, until, q)
+    return search.where({"robot": robot, "priority": priority}, HISTORY_TEXT_COLUMNS)
 
 
 def _history_item(row: tuple[object, ...]) -> dict[str, object]:

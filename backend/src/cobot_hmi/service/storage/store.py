@@ -48,6 +48,7 @@ import orjson
 from cobot_hmi.service.errors import AuditUnavailableError
 from cobot_hmi.service.storage import audit_chain, migrations
 from cobot_hmi.service.storage.audit_backlog import AuditBacklog, Deferred
+from cobot_hmi.service.storage.search import NO_SEARCH, Search
 
 _T = TypeVar("_T")
 log = logging.getLogger(__name__)
@@ -75,6 +76,21 @@ EVENT_COLUMNS: Final = ("id", "time", "robot", "kind", "text", "data")
 """The CSV columns of the event log (``text``: the event in words; ``data``: the kind's own
 fields as JSON text)."""
 _EVENT_KEYS: Final = frozenset({"id", "time", "robot", "kind"})
+AUDIT_TEXT_COLUMNS: Final = (
+    "robot",
+    "user",
+    "client",
+    "origin",
+    "action",
+    "fields",
+    "outcome",
+    "reason",
+    "summary",
+    "tags",
+)
+"""What a text search of the audit trail looks in."""
+EVENT_TEXT_COLUMNS: Final = ("robot", "kind", "data")
+"""What a text search of the event log looks in (``data`` holds the event's text in words)."""
 MAX_PAGE: Final = 100_000
 """Largest ``limit`` of one page (a CSV export takes everything in one)."""
 CHAIN_HEAD_INTERVAL_S: Final = 60.0
@@ -344,13 +360,15 @@ class Store:
                     logged = current
             await asyncio.sleep(self.chain_head_interval_s)
 
-    async def audit_page(self, limit: int, offset: int, *, robot: str | None = None) -> Page:
-        """Audit rows, newest first, optionally of one robot."""
-        return await self._run(self._audit_page_sync, limit, offset, robot)
+    async def audit_page(
+        self, limit: int, offset: int, *, robot: str | None = None, search: Search = NO_SEARCH
+    ) -> Page:
+        """Audit rows, newest first, optionally of one robot, a time range, a text."""
+        return await self._run(self._audit_page_sync, limit, offset, robot, search)
 
-    def _audit_page_sync(self, limit: int, offset: int, robot: str | None) -> Page:
+    def _audit_page_sync(self, limit: int, offset: int, robot: str | None, search: Search) -> Page:
         db = self._db()
-        where, params = _where(robot=robot)
+        where, params = search.where({"robot": robot}, AUDIT_TEXT_COLUMNS)
         total = db.execute(f"SELECT count(*) FROM audit {where}", params).fetchone()[0]
         rows = db.execute(
             f"SELECT {', '.join(AUDIT_COLUMNS)} FROM audit {where} ORDER BY id DESC"
@@ -421,17 +439,24 @@ class Store:
             await asyncio.sleep(0.005)
 
     async def events_page(
-        self, kind: str | None, limit: int, offset: int, *, robot: str | None = None
+        self,
+        kind: str | None,
+        limit: int,
+        offset: int,
+        *,
+        robot: str | None = None,
+        search: Search = NO_SEARCH,
     ) -> Page:
-        """Events, newest first, optionally of one kind and one robot. Each item is the event as
-        the stream carries it plus its ``id`` (``event_csv_rows`` gathers the kind's fields)."""
-        return await self._run(self._events_page_sync, kind, limit, offset, robot)
+        """Events, newest first, optionally of one kind, one robot, a time range, a text. Each
+        item is the event as the stream carries it plus its ``id`` (``event_csv_rows`` gathers
+        the kind's fields)."""
+        return await self._run(self._events_page_sync, kind, limit, offset, robot, search)
 
     def _events_page_sync(
-        self, kind: str | None, limit: int, offset: int, robot: str | None
+        self, kind: str | None, limit: int, offset: int, robot: str | None, search: Search
     ) -> Page:
         db = self._db()
-        where, params = _where(kind=kind, robot=robot)
+        where, params = search.where({"kind": kind, "robot": robot}, EVENT_TEXT_COLUMNS)
         total = db.execute(f"SELECT count(*) FROM events {where}", params).fetchone()[0]
         rows = db.execute(
             f"SELECT id, time, robot, kind, data FROM events {where} ORDER BY id DESC"
@@ -497,14 +522,6 @@ def _cause(error: sqlite3.Error) -> str:
 def audit_failure(error: sqlite3.Error) -> str:
     """The refusal's reason when the audit trail cannot be written."""
     return f"the audit trail cannot be written: {_cause(error)}"
-
-
-def _where(**equal: str | None) -> tuple[str, tuple[str, ...]]:
-    """``WHERE a = ? AND …`` for the given columns whose value is not ``None``."""
-    pairs = [(column, value) for column, value in equal.items() if value is not None]
-    if not pairs:
-        return "", ()
-    return "WHERE " + " AND ".join(f"{c} = ?" for c, _ in pairs), tuple(v for _, v in pairs)
 
 
 def event_csv_rows(items: Sequence[dict[str, object]]) -> list[dict[str, object]]:

@@ -25,6 +25,7 @@ from cobot_hmi.service.api import models
 from cobot_hmi.service.api.deps import RobotFilterDep, ServiceDep, ViewerDep, WriterDep
 from cobot_hmi.service.api.openapi_extras import CSV_RESPONSE, errors
 from cobot_hmi.service.api.routes.read import OrjsonResponse
+from cobot_hmi.service.api.search import From, Text, To, epoch_s
 from cobot_hmi.service.errors import ApiError, conflict, not_found
 from cobot_hmi.service.robots.robot import RobotRuntime
 from cobot_hmi.service.runtime import Service
@@ -136,6 +137,9 @@ async def alarm_history(
         float | None, Query(description="from this time on, s since the epoch")
     ] = None,
     until: Annotated[float | None, Query(description="before this time, s since the epoch")] = None,
+    from_: From = None,
+    to: To = None,
+    q: Text = None,
     limit: Annotated[
         int | None, Query(ge=1, le=MAX_PAGE, description="page size (JSON: 100 unless given)")
     ] = None,
@@ -146,8 +150,12 @@ async def alarm_history(
     ] = "json",
 ) -> Response:
     store = service.default_robot.alarm_store
+    since = since if since is not None else epoch_s(from_)  # from/to: the words of every search
+    until = until if until is not None else epoch_s(to)
     if format == "csv" and limit is None and offset is None:
-        return await _history_csv(store, robot=robot, priority=priority, since=since, until=until)
+        return await _history_csv(
+            store, robot=robot, priority=priority, since=since, until=until, q=q
+        )
     page = await store.history_page(
         limit or DEFAULT_PAGE,
         offset or 0,
@@ -155,6 +163,7 @@ async def alarm_history(
         priority=priority,
         since=since,
         until=until,
+        q=q,
     )
     if format == "csv":
         return Response(
@@ -177,18 +186,19 @@ async def _history_csv(
     priority: str | None,
     since: float | None,
     until: float | None,
+    q: str | None,
 ) -> StreamingResponse:
     """The whole filtered history as CSV, newest first, streamed a batch of rows at a time
     (memory does not grow with the history), as of the request: later transitions are not in
     it, so the rows match X-Total-Count."""
     total, newest_id = await store.history_count(
-        robot=robot, priority=priority, since=since, until=until
+        robot=robot, priority=priority, since=since, until=until, q=q
     )
 
     async def body() -> AsyncIterator[str]:
         yield to_csv([], HISTORY_COLUMNS)
         async for items in store.history_all(
-            newest_id, robot=robot, priority=priority, since=since, until=until
+            newest_id, robot=robot, priority=priority, since=since, until=until, q=q
         ):
             yield to_csv(items, HISTORY_COLUMNS, header=False)
 

@@ -1,5 +1,6 @@
-"""Layer: service. The audit trail and the event log (operator and above), JSON or CSV, all robots
-or one (``?robot=NAME``)."""
+"""Layer: service. The event log (read by anyone who may view: ``view_requires_login``) and the
+audit trail (operator and above: it names users and client addresses), JSON or CSV, all robots or
+one (``?robot=NAME``), searched by time range and text (``?from=&to=&q=``, ``api.search``)."""
 
 from __future__ import annotations
 
@@ -9,10 +10,12 @@ from fastapi import APIRouter, Query, Response
 
 from cobot_hmi.codec import dumps
 from cobot_hmi.service.api import models
-from cobot_hmi.service.api.deps import OperatorDep, RobotFilterDep, ServiceDep
+from cobot_hmi.service.api.deps import OperatorDep, RobotFilterDep, ServiceDep, ViewerDep
 from cobot_hmi.service.api.openapi_extras import CSV_RESPONSE, LOG, errors
+from cobot_hmi.service.api.search import From, Text, To, epoch_s
 from cobot_hmi.service.events.text import with_text
 from cobot_hmi.service.labels import labels_of
+from cobot_hmi.service.storage.search import Search
 from cobot_hmi.service.storage.store import (
     AUDIT_COLUMNS,
     EVENT_COLUMNS,
@@ -66,12 +69,16 @@ async def get_audit(
     service: ServiceDep,
     _: OperatorDep,
     robot: RobotFilterDep,
+    since: From = None,
+    until: To = None,
     *,
+    q: Text = None,
     limit: Limit = 100,
     offset: Offset = 0,
     format: Format = "json",
 ) -> Response:
-    page = await service.store.audit_page(limit, offset, robot=robot)
+    search = Search(epoch_s(since), epoch_s(until), q)
+    page = await service.store.audit_page(limit, offset, robot=robot, search=search)
     for item in page.items:  # the spec's label of each key: controlbox_do.2 is DO 3
         item["labels"] = labels_of(item.get("fields"))
     return _answer(page, (*AUDIT_COLUMNS, "labels"), format, "audit")
@@ -80,15 +87,19 @@ async def get_audit(
 @router.get("/events", summary=_EVENTS, responses=_responses(models.EventPage))
 async def get_events(
     service: ServiceDep,
-    _: OperatorDep,
+    _: ViewerDep,
     robot: RobotFilterDep,
+    since: From = None,
+    until: To = None,
     *,
+    q: Text = None,
     kind: Kind = None,
     limit: Limit = 100,
     offset: Offset = 0,
     format: Format = "json",
 ) -> Response:
-    page = await service.store.events_page(kind, limit, offset, robot=robot)
+    search = Search(epoch_s(since), epoch_s(until), q)
+    page = await service.store.events_page(kind, limit, offset, robot=robot, search=search)
     for item in page.items:  # in words (a row logged before events had its text gets it)
         with_text(item)
     return _answer(page, EVENT_COLUMNS, format, "events")
