@@ -23,6 +23,7 @@ from cobot_hmi.service.api.routes import alarms as routes_alarms
 from cobot_hmi.service.api.routes import auth as routes_auth
 from cobot_hmi.service.api.routes import history as routes_history
 from cobot_hmi.service.api.routes import log as routes_log
+from cobot_hmi.service.api.routes import presets as routes_presets
 from cobot_hmi.service.api.routes import read as routes_read
 from cobot_hmi.service.api.routes import stream as routes_stream
 from cobot_hmi.service.api.routes import tags as routes_tags
@@ -111,6 +112,7 @@ def create_app(
         routes_alarms,
         routes_tags,
         routes_stream,
+        routes_presets,
     ):
         app.include_router(module.router)
     static_files.serve_frontend(app, service.settings.frontend_path, _API_PREFIXES)

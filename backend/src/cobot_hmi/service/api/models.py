@@ -793,6 +793,12 @@ AuditAction = Literal[
     "alarm.shelve",
     "alarm.unshelve",
     "tags.update",
+    "checkout.start",
+    "checkout.result",
+    "checkout.capture",
+    "checkout.close",
+    "preset.save",
+    "preset.delete",
 ]
 AuditOutcome = Literal[
     "confirmed",
@@ -809,6 +815,12 @@ AuditOutcome = Literal[
     "unshelved",
     "updated",
     "unchanged",
+    "started",
+    "recorded",
+    "captured",
+    "closed",
+    "saved",
+    "deleted",
 ]
 
 

@@ -1,0 +1,249 @@
+"""Layer: service. Output presets per robot (``service.commissioning.presets``): list, save (by
+hand or from the command image being sent), delete, export and import (CSV or JSON), what one
+would change, and apply: ONE write of all its values through the write pipeline (control
+needed, all or nothing, confirmed by the robot, audited as any write with this route as its
+origin). Reading is open to whoever may view; saving needs an operator (``preset.*`` audit
+rows)."""
+
+from __future__ import annotations
+
+from typing import Annotated, Final
+
+from fastapi import APIRouter, Path, Request, Response
+
+from cobot_hmi.service.api.deps import RobotDep, ViewerDep, WriterDep
+from cobot_hmi.service.api.openapi_extras import WRITE, errors
+from cobot_hmi.service.api.routes.read import OrjsonResponse
+from cobot_hmi.service.commissioning import models
+from cobot_hmi.service.commissioning.audit import audit_action
+from cobot_hmi.service.commissioning.presets import (
+    ALL_OUTPUTS_OFF,
+    Preset,
+    PresetBook,
+    PresetError,
+    changes,
+    checked,
+    from_csv,
+    from_image,
+    to_csv,
+)
+from cobot_hmi.service.errors import ApiError
+from cobot_hmi.service.robots.robot import RobotRuntime
+from cobot_hmi.service.writes.pipeline import Writer, authorize_audited, submit_write
+
+router = APIRouter(prefix="/api/v1", tags=["presets"])
+
+_READ: Final = errors(401, 404)
+_CHANGE: Final = errors(401, 403, 404, 409, 413, 415, 422, 429, 503)
+PresetName = Annotated[str, Path(description="the preset's name", max_length=64)]
+
+
+def _book(robot: RobotRuntime) -> PresetBook:
+    return PresetBook(robot.name, robot.store)
+
+
+def _origin(request: Request) -> str:
+    return f"{request.method} {request.url.path}"
+
+
+def _api_error(error: PresetError) -> ApiError:
+    return ApiError(error.status, error.reason, field=error.field)
+
+
+async def _list(robot: RobotRuntime) -> dict[str, object]:
+    return {"robot": robot.name, "items": [p.answer() for p in await _book(robot).all()]}
+
+
+@router.get(
+    "/robots/{name}/presets",
+    summary='The robot\'s output presets ("All outputs off" first): the JSON export',
+    response_model=models.PresetList,
+    responses=_READ,
+)
+async def list_presets(robot: RobotDep, _: ViewerDep) -> OrjsonResponse:
+    return OrjsonResponse(await _list(robot))
+
+
+@router.get(
+    "/robots/{name}/presets.csv",
+    summary="The robot's presets as CSV: preset,key,label,value (bits 0/1)",
+    response_class=Response,
+    responses={
+        200: {
+            "description": "CSV with a header row",
+            "content": {"text/csv": {"schema": {"type": "string"}}},
+        },
+        **_READ,
+    },
+)
+async def presets_csv(robot: RobotDep, _: ViewerDep) -> Response:
+    return Response(
+        to_csv(await _book(robot).all()),
+        media_type="text/csv; charset=utf-8",
+        headers={"Content-Disposition": f'attachment; filename="{robot.name}-presets.csv"'},
+    )
+
+
+async def _save(
+    robot: RobotRuntime, writer: Writer, request: Request, presets: list[Preset], how: str
+) -> None:
+    user = writer.user
+    assert user is not None
+    book = _book(robot)
+    for preset in presets:
+        await book.save(preset, user)
+    await audit_action(
+        robot.store,
+        writer,
+        robot=robot.name,
+        action="preset.save",
+        origin=_origin(request),
+        outcome="saved",
+        fields=sorted({k for p in presets for k in p.items}),
+        requested={"how": how, "presets": {p.name: p.items for p in presets}},
+        summary=f"presets saved ({how}): " + ", ".join(repr(p.name) for p in presets),
+    )
+
+
+async def _authorize(robot: RobotRuntime, writer: Writer, request: Request, what: str) -> None:
+    await authorize_audited(
+        robot.store,
+        writer,
+        action="preset.save",
+        what=what,
+        robot=robot.name,
+        origin=_origin(request),
+    )
+
+
+def _preset(body: models.PresetCreate, robot: RobotRuntime) -> Preset:
+    image = robot.link.command
+    if body.from_image:
+        return from_image(body.name, image, body.fields)
+    if body.items is None:
+        raise PresetError(422, "give items, or from_image: true", "items")
+    return checked(body.name, body.items, image)
+
+
+@router.post(
+    "/robots/{name}/presets",
+    summary="Save a preset (by hand, or from the command image being sent); replaces one of "
+    "the same name",
+    response_model=models.Preset,
+    responses=_CHANGE,
+)
+async def save_preset(
+    robot: RobotDep, body: models.PresetCreate, writer: WriterDep, request: Request
+) -> OrjsonResponse:
+    await _authorize(robot, writer, request, "saving a preset")
+    try:
+        preset = _preset(body, robot)
+    except PresetError as error:
+        raise _api_error(error) from None
+    await _save(robot, writer, request, [preset], "from the image" if body.from_image else "items")
+    return OrjsonResponse((await _book(robot).get(preset.name)).answer())
+
+
+@router.post(
+    "/robots/{name}/presets/import",
+    summary="Import presets (the CSV or the JSON export): all checked first, then each "
+    "replaces one of its name",
+    response_model=models.PresetList,
+    responses=_CHANGE,
+)
+async def import_presets(
+    robot: RobotDep, body: models.PresetImport, writer: WriterDep, request: Request
+) -> OrjsonResponse:
+    await _authorize(robot, writer, request, "importing presets")
+    try:
+        if body.csv is not None:
+            found = from_csv(body.csv)
+            presets = [
+                checked(n, items, robot.link.command)
+                for n, items in found.items()
+                if n != ALL_OUTPUTS_OFF  # the export lists it; it is built in everywhere
+            ]
+        elif body.items is not None:
+            presets = [_preset(item, robot) for item in body.items if not _builtin(item)]
+        else:
+            raise PresetError(422, "give csv or items", "csv")
+    except PresetError as error:
+        raise _api_error(error) from None
+    await _save(robot, writer, request, presets, "import")
+    return OrjsonResponse(await _list(robot))
+
+
+def _builtin(item: models.PresetCreate) -> bool:
+    """The JSON export lists the built-in preset too: an import skips it."""
+    return item.name == ALL_OUTPUTS_OFF
+
+
+@router.delete(
+    "/robots/{name}/presets/{preset}",
+    summary="Delete a preset (not the built-in one)",
+    response_model=models.PresetList,
+    responses=_CHANGE,
+)
+async def delete_preset(
+    robot: RobotDep, preset: PresetName, writer: WriterDep, request: Request
+) -> OrjsonResponse:
+    await authorize_audited(
+        robot.store,
+        writer,
+        action="preset.delete",
+        what="deleting a preset",
+        robot=robot.name,
+        origin=_origin(request),
+    )
+    try:
+        await _book(robot).delete(preset)
+    except PresetError as error:
+        raise _api_error(error) from None
+    await audit_action(
+        robot.store,
+        writer,
+        robot=robot.name,
+        action="preset.delete",
+        origin=_origin(request),
+        outcome="deleted",
+        requested={"preset": preset},
+        summary=f"preset {preset!r} deleted",
+    )
+    return OrjsonResponse(await _list(robot))
+
+
+async def _get(robot: RobotRuntime, name: str) -> Preset:
+    try:
+        return await _book(robot).get(name)
+    except PresetError as error:
+        raise _api_error(error) from None
+
+
+@router.get(
+    "/robots/{name}/presets/{preset}/changes",
+    summary="What applying the preset would change in the command image being sent now (the "
+    "confirmation's list)",
+    response_model=models.PresetChanges,
+    responses=_READ,
+)
+async def preset_changes(robot: RobotDep, preset: PresetName, _: ViewerDep) -> OrjsonResponse:
+    found = await _get(robot, preset)
+    return OrjsonResponse({"preset": found.name, "changes": changes(found, robot.link.command)})
+
+
+@router.post(
+    "/robots/{name}/presets/{preset}/apply",
+    summary="Apply a preset: ONE write of all its values through the write pipeline (all or "
+    "nothing), answered once the robot confirmed it",
+    response_model=models.PresetChanges,
+    responses=errors(*WRITE),
+)
+async def apply_preset(
+    robot: RobotDep, preset: PresetName, writer: WriterDep, request: Request
+) -> OrjsonResponse:
+    found = await _get(robot, preset)
+    before = changes(found, robot.link.command)
+    outcome = await submit_write(robot, writer, found.body(), origin=_origin(request))
+    if not outcome.ok:
+        raise outcome.error()
+    return OrjsonResponse({"preset": found.name, "changes": before})
