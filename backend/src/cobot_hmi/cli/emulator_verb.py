@@ -29,6 +29,15 @@ def _register_map(text: str) -> tuple[int | None, ...]:
         raise argparse.ArgumentTypeError(str(error)) from None
 
 
+def _output_register(text: str) -> int:
+    from cobot_hmi.emulator.robot.robot_io import output_register
+
+    try:
+        return output_register(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     parser = subparsers.add_parser(
         "emulator",
@@ -149,6 +158,14 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "OUT=- keeps OUT off)",
     )
     robot.add_argument(
+        "--cycle-marker-register",
+        type=_output_register,
+        default=None,
+        metavar="N",
+        help="the demo program sets bit output register N for its first 0.2 s of each cycle "
+        "(the cycle-start marker; cobot-hmi demo uses 63); default: no marker",
+    )
+    robot.add_argument(
         "--control-port",
         type=int,
         default=8081,
@@ -252,6 +269,7 @@ def _run(args: argparse.Namespace) -> int:
                 idle_behaviour=idle,
                 kinematic_refresh_ms=args.kinematic_refresh_ms,
                 register_map=args.register_map,
+                cycle_marker_register=args.cycle_marker_register,
             )
         )
         robot = simulated

@@ -335,6 +335,11 @@ def _die_with_parent(parent_pid: int) -> None:
         os._exit(1)
 
 
+DEMO_CYCLE_MARKER_REGISTER: Final = 63
+"""The bit output register the demo's emulators mark each cycle start on, and the service's
+cycle trigger (docs/emulator.md "The demo program's cycle marker")."""
+
+
 def _start_emulator(
     args: argparse.Namespace, host: str, model: str, seed: int
 ) -> subprocess.Popen[bytes]:
@@ -356,6 +361,8 @@ def _start_emulator(
         "--seed",
         str(seed),
         "--verbose",  # its connection log shows the Forward Close on Ctrl-C
+        "--cycle-marker-register",  # the demo program marks each cycle's start
+        str(DEMO_CYCLE_MARKER_REGISTER),
     ]
     parent_pid = os.getpid()
     # Its own session: the terminal's Ctrl-C reaches only us, so the service can still send
@@ -461,6 +468,7 @@ def _demo(args: argparse.Namespace) -> int:
             "port": args.port,
             "rpi_ms": args.rpi_ms,
             "state_dir": state_dir,
+            "cycle_trigger": f"bit_output_registers.{DEMO_CYCLE_MARKER_REGISTER}:rising",
         }
         if args.frontend_dir is not None:
             flags["frontend_dir"] = args.frontend_dir

@@ -56,6 +56,7 @@ from pydantic_settings.sources.utils import parse_env_vars
 from cobot_hmi import connection_params as cp
 from cobot_hmi.opcua.settings import OpcUaSettings  # OPC UA (issue 22): its opcua_* fields
 from cobot_hmi.service.access.directory_settings import DirectorySettings  # issue 25: ldap_*
+from cobot_hmi.service.cycles.settings import CycleSettings  # cycle timing (issue 23)
 
 if TYPE_CHECKING:
     from cobot_hmi.scanner.originator import OriginatorSettings
@@ -222,7 +223,7 @@ def _default_state_dir() -> Path:
 # --------------------------------------------------------------------------- one robot
 
 
-class RobotSettings(BaseModel):
+class RobotSettings(CycleSettings, BaseModel):  # cycle timing (issue 23)
     """One robot of the cell and its class 1 connection (a ``[[robots]]`` table)."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
@@ -354,13 +355,16 @@ _INHERITED: Final = {
     "o2t_size": "o2t_size",
     "t2o_size": "t2o_size",
     "large_forward_open": "large_forward_open",
+    "cycle_trigger": "cycle_trigger",  # cycle timing (issue 23)
 }
 
 
 # --------------------------------------------------------------------------- the service
 
 
-class ServiceSettings(DirectorySettings, OpcUaSettings, BaseSettings):  # issues 25, 22
+class ServiceSettings(  # OPC UA (22), cycles (23), directory login (25)
+    DirectorySettings, OpcUaSettings, CycleSettings, BaseSettings
+):
     """Everything ``cobot-hmi serve`` can be told. Field names are the TOML keys."""
 
     model_config = SettingsConfigDict(

@@ -7,7 +7,8 @@ The robot's I/O as the controller sees it:
   in run owns them; when the owner goes idle, times out or closes, the idle behaviour applies
   (``hold`` the last values, or ``clear`` them to the all-zero image).
 - Bit output registers: the robot program copies bit input register ``register_map[n]`` to bit
-  output register ``n`` (identity by default; ``None`` leaves the output off).
+  output register ``n`` (identity by default; ``None`` leaves the output off); the demo program's
+  cycle-start marker, when set, takes its register instead.
 - Inputs: DI 1 is the program's "part present" sensor; the other ControlBox DI, the tool DI, the
   analog inputs (a little noise added on every frame) and their types are set from outside.
 
@@ -49,6 +50,14 @@ def validate_register_map(register_map: Sequence[int | None]) -> tuple[int | Non
         if source is not None and not 0 <= source < _BIT_INPUT_REGISTERS.count:
             raise ValueError(f"register map [{n}]: no bit input register {source}")
     return tuple(register_map)
+
+
+def output_register(text: str) -> int:
+    """A bit output register's number from text; ``ValueError`` naming the range otherwise."""
+    count = _BIT_OUTPUT_REGISTERS.count
+    if not text.strip().isdigit() or int(text) >= count:
+        raise ValueError(f"no bit output register {text!r}: they are 0–{count - 1}")
+    return int(text)
 
 
 def parse_register_map(text: str) -> tuple[int | None, ...]:
@@ -110,7 +119,14 @@ class RobotIO:
         idle_behaviour: IdleBehaviour = IdleBehaviour.HOLD,
         register_map: Sequence[int | None] | None = None,
         analog_noise: float = 0.005,
+        cycle_marker_register: int | None = None,
     ) -> None:
+        if cycle_marker_register is not None and not (
+            0 <= cycle_marker_register < _BIT_OUTPUT_REGISTERS.count
+        ):
+            raise ValueError(f"cycle marker: no bit output register {cycle_marker_register}")
+        self.cycle_marker_register = cycle_marker_register
+        """The program's cycle-start marker, in place of the copied input register."""
         self.idle_behaviour = idle_behaviour
         self.register_map = validate_register_map(register_map or identity_register_map())
         self.analog_noise = analog_noise
@@ -129,6 +145,7 @@ class RobotIO:
         self._analog_input: tuple[float, ...] | None = None
         self._registers_of: CommandImage | None = None
         self._registers: tuple[bool, ...] = ()
+        self._marked: dict[bool, tuple[bool, ...]] = {}
 
     def consume_command(self, image: CommandImage) -> None:
         """A connection owner in run (or an explicit write) commands the outputs."""
@@ -205,10 +222,21 @@ class RobotIO:
     def analog_input_count(self) -> int:
         return len(self.inputs["analog_input"])
 
-    def bit_output_registers(self) -> tuple[bool, ...]:
+    def bit_output_registers(self, cycle_marker: bool = False) -> tuple[bool, ...]:
+        """The registers the program writes: copies of the input registers, and the cycle
+        marker in its register when there is one (each variant built once per command)."""
         applied = self.applied
         if applied is not self._registers_of:
             registers = applied.bit_input_registers
             self._registers = tuple(False if m is None else registers[m] for m in self.register_map)
             self._registers_of = applied
-        return self._registers
+            self._marked.clear()
+        marker = self.cycle_marker_register
+        if marker is None:
+            return self._registers
+        marked = self._marked.get(cycle_marker)
+        if marked is None:
+            values = list(self._registers)
+            values[marker] = cycle_marker
+            marked = self._marked[cycle_marker] = tuple(values)
+        return marked

@@ -44,6 +44,8 @@ from cobot_hmi.emulator.robot.states import (
 from cobot_hmi.emulator.robot.trajectory import DEMO_STEPS, JointSample, ProgramRunner, at_rest
 from cobot_hmi.generated.frames import ControllerVersion, Frame, RobotState
 
+CYCLE_MARKER_S: Final = 0.2
+"""How long the cycle-start marker register stays on (many frames at any RPI up to 100 ms)."""
 KINEMATIC_REFRESH_MS_REAL: Final = 100.0
 """Doosan: monitoring values refresh about every 100 ms whatever the RPI (spec, reference facts)."""
 
@@ -63,6 +65,9 @@ class RobotSettings:
     idle_behaviour: IdleBehaviour = IdleBehaviour.HOLD
     register_map: tuple[int | None, ...] | None = None
     """Bit output register n ← bit input register ``register_map[n]``; None = identity."""
+    cycle_marker_register: int | None = None
+    """The demo program sets this bit output register for the first ``CYCLE_MARKER_S`` of each
+    cycle (its start: the service's cycle trigger); None = no marker (docs/emulator.md)."""
     kinematic_refresh_ms: float = 0.0
     """0: monitoring values are fresh in every frame; 100: as often as the real controller
     ("monitoring values refresh about every 100 ms, whatever the RPI": docs/emulator.md; the
@@ -111,7 +116,9 @@ class SimulatedRobot:
             collaborative=s.collaborative,
         )
         self._runner = ProgramRunner(self.model, DEMO_STEPS, s.speed_fraction, s.accel_fraction)
-        self._io = RobotIO(s.idle_behaviour, s.register_map, s.analog_input_noise)
+        self._io = RobotIO(
+            s.idle_behaviour, s.register_map, s.analog_input_noise, s.cycle_marker_register
+        )
         self._thermal = MotorThermal(
             self.model,
             s.room_temperature_c,
@@ -292,7 +299,7 @@ class SimulatedRobot:
             s.tool_offset_orientation_deg,  # tool_offset_orientation
             external_force,  # external_force
             external_moment,  # external_moment
-            io.bit_output_registers(),  # bit_output_registers
+            io.bit_output_registers(self._cycle_marker()),  # bit_output_registers
         )
         previous = self._frame_sent
         if previous is not None and frame == previous:
@@ -300,6 +307,10 @@ class SimulatedRobot:
         self._frame = self._frame_sent = frame
         self._frame_at_s = self._now_s
         return frame
+
+    def _cycle_marker(self) -> bool:
+        """The cycle-start marker: on for the first ``CYCLE_MARKER_S`` of each program cycle."""
+        return self._states.program_running and self._runner.cycle_elapsed_s < CYCLE_MARKER_S
 
     def _analog_input_now(self) -> tuple[float, ...]:
         """The analog inputs with their noise: drawn each frame when monitoring values are, and
