@@ -510,6 +510,109 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/v1/robots/{name}/presets": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /** The robot's output presets ("All outputs off" first): the JSON export */
+        get: operations["list_presets_api_v1_robots__name__presets_get"];
+        put?: never;
+        /** Save a preset (by hand, or from the command image being sent); replaces one of the same name */
+        post: operations["save_preset_api_v1_robots__name__presets_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/robots/{name}/presets.csv": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /** The robot's presets as CSV: preset,key,label,value (bits 0/1) */
+        get: operations["presets_csv_api_v1_robots__name__presets_csv_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/robots/{name}/presets/import": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /** Import presets (the CSV or the JSON export): all checked first, then each replaces one of its name */
+        post: operations["import_presets_api_v1_robots__name__presets_import_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/robots/{name}/presets/{preset}": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        post?: never;
+        /** Delete a preset (not the built-in one) */
+        delete: operations["delete_preset_api_v1_robots__name__presets__preset__delete"];
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/robots/{name}/presets/{preset}/apply": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /** Apply a preset: ONE write of all its values through the write pipeline (all or nothing), answered once the robot confirmed it */
+        post: operations["apply_preset_api_v1_robots__name__presets__preset__apply_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/robots/{name}/presets/{preset}/changes": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /** What applying the preset would change in the command image being sent now (the confirmation's list) */
+        get: operations["preset_changes_api_v1_robots__name__presets__preset__changes_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/robots/{name}/readyz": {
         parameters: {
             query?: never;
@@ -1169,7 +1272,7 @@ export interface components {
              * Action
              * @enum {string}
              */
-            action: "write" | "control.take" | "control.release" | "alarm.ack" | "alarm.shelve" | "alarm.unshelve" | "tags.update";
+            action: "write" | "control.take" | "control.release" | "alarm.ack" | "alarm.shelve" | "alarm.unshelve" | "tags.update" | "checkout.start" | "checkout.result" | "checkout.capture" | "checkout.close" | "preset.save" | "preset.delete";
             /** Before */
             before: {
                 [key: string]: boolean | number | null;
@@ -1202,7 +1305,7 @@ export interface components {
              * Outcome
              * @enum {string}
              */
-            outcome: "confirmed" | "timeout" | "invalid" | "refused" | "unauthorized" | "forbidden" | "granted" | "released" | "pending" | "acknowledged" | "shelved" | "unshelved" | "updated" | "unchanged";
+            outcome: "confirmed" | "timeout" | "invalid" | "refused" | "unauthorized" | "forbidden" | "granted" | "released" | "pending" | "acknowledged" | "shelved" | "unshelved" | "updated" | "unchanged" | "started" | "recorded" | "captured" | "closed" | "saved" | "deleted";
             /** Reason */
             reason: string | null;
             /** @description the requested values (a malformed body: what came) */
@@ -2138,6 +2241,96 @@ export interface components {
         Me: {
             user: components["schemas"]["User"] | null;
         };
+        /** Preset */
+        Preset: {
+            /**
+             * Builtin
+             * @description "All outputs off": every robot has it, unchangeable
+             */
+            builtin: boolean;
+            /** Created At */
+            created_at: number | null;
+            /** Created By */
+            created_by: string | null;
+            /**
+             * Items
+             * @description ``{"field.index": value}`` over the O→T image: {"bit_input_registers.0": true}
+             */
+            items: {
+                [key: string]: boolean | number;
+            };
+            /**
+             * Labels
+             * @description the label of each item's key
+             */
+            labels: {
+                [key: string]: string;
+            };
+            /** Name */
+            name: string;
+        };
+        /** PresetChange */
+        PresetChange: {
+            /** From */
+            from: boolean | number;
+            /** Key */
+            key: string;
+            /** Label */
+            label: string;
+            /** To */
+            to: boolean | number;
+        };
+        /**
+         * PresetChanges
+         * @description What applying a preset changes in the command image being sent now.
+         */
+        PresetChanges: {
+            /** Changes */
+            changes: components["schemas"]["PresetChange"][];
+            /** Preset */
+            preset: string;
+        };
+        /**
+         * PresetCreate
+         * @description A preset made by hand (``items``) or from the command image being sent (``from_image``,
+         *     all of it or the ``fields`` named); a preset of the same name is replaced.
+         */
+        PresetCreate: {
+            /**
+             * Fields
+             * @description with from_image: only these O→T fields (bit_input_registers)
+             */
+            fields?: string[] | null;
+            /**
+             * From Image
+             * @default false
+             */
+            from_image?: boolean;
+            /** Items */
+            items?: {
+                [key: string]: boolean | number;
+            } | null;
+            /** Name */
+            name: string;
+        };
+        /**
+         * PresetImport
+         * @description Presets imported (each replaces one of its name): the CSV export's text, or the JSON
+         *     export's ``items``.
+         */
+        PresetImport: {
+            /** Csv */
+            csv?: string | null;
+            /** Items */
+            items?: components["schemas"]["PresetCreate"][] | null;
+        };
+        /** PresetList */
+        PresetList: {
+            /** Items */
+            items: components["schemas"]["Preset"][];
+            /** Robot */
+            robot: string;
+        };
         /**
          * PriorityCounts
          * @description Annunciated alarms of one priority (not normal, not shelved, not suppressed).
@@ -2787,6 +2980,12 @@ export interface operations {
                 since?: number | null;
                 /** @description before this time, s since the epoch */
                 until?: number | null;
+                /** @description from this time on (inclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the service's local time) */
+                from?: string | null;
+                /** @description before this time (exclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the service's local time) */
+                to?: string | null;
+                /** @description only rows whose words contain this text (case-insensitive) */
+                q?: string | null;
                 /** @description page size (JSON: 100 unless given) */
                 limit?: number | null;
                 offset?: number | null;
@@ -3260,6 +3459,12 @@ export interface operations {
     get_audit_api_v1_audit_get: {
         parameters: {
             query?: {
+                /** @description from this time on (inclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the service's local time) */
+                from?: string | null;
+                /** @description before this time (exclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the service's local time) */
+                to?: string | null;
+                /** @description only rows whose words contain this text (case-insensitive) */
+                q?: string | null;
                 limit?: number;
                 offset?: number;
                 /** @description csv: the whole page as CSV */
@@ -3860,6 +4065,12 @@ export interface operations {
     get_events_api_v1_events_get: {
         parameters: {
             query?: {
+                /** @description from this time on (inclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the service's local time) */
+                from?: string | null;
+                /** @description before this time (exclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the service's local time) */
+                to?: string | null;
+                /** @description only rows whose words contain this text (case-insensitive) */
+                q?: string | null;
                 /** @description only events of this kind */
                 kind?: ("connection" | "robot_state" | "flag" | "write" | "control" | "recording" | "alarm" | "session") | null;
                 limit?: number;
@@ -4774,6 +4985,631 @@ export interface operations {
                 };
                 content: {
                     "application/json": components["schemas"]["HistoryStatus"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    list_presets_api_v1_robots__name__presets_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["PresetList"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    save_preset_api_v1_robots__name__presets_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["PresetCreate"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["Preset"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the role is too low, or the request is not same-origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description not now: not connected, input-only mode, or control is someone else's */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the body is larger than the service accepts */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description a body that is not application/json */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description invalid request: the answer names the field; nothing was applied */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description too many attempts: wait as Retry-After says */
+            429: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description unavailable: not ready or not healthy, the users file unreadable, or (a write, a control change) the audit trail cannot be written (a full disk): nothing was done */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    presets_csv_api_v1_robots__name__presets_csv_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description CSV with a header row */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "text/csv": string;
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    import_presets_api_v1_robots__name__presets_import_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["PresetImport"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["PresetList"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the role is too low, or the request is not same-origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description not now: not connected, input-only mode, or control is someone else's */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the body is larger than the service accepts */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description a body that is not application/json */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description invalid request: the answer names the field; nothing was applied */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description too many attempts: wait as Retry-After says */
+            429: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description unavailable: not ready or not healthy, the users file unreadable, or (a write, a control change) the audit trail cannot be written (a full disk): nothing was done */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    delete_preset_api_v1_robots__name__presets__preset__delete: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the preset's name */
+                preset: string;
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["PresetList"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the role is too low, or the request is not same-origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description not now: not connected, input-only mode, or control is someone else's */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the body is larger than the service accepts */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description a body that is not application/json */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description invalid request: the answer names the field; nothing was applied */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description too many attempts: wait as Retry-After says */
+            429: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description unavailable: not ready or not healthy, the users file unreadable, or (a write, a control change) the audit trail cannot be written (a full disk): nothing was done */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    apply_preset_api_v1_robots__name__presets__preset__apply_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the preset's name */
+                preset: string;
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["PresetChanges"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the role is too low, or the request is not same-origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description not now: not connected, input-only mode, or control is someone else's */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the body is larger than the service accepts */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description a body that is not application/json */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description invalid request: the answer names the field; nothing was applied */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description too many attempts: wait as Retry-After says */
+            429: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description unavailable: not ready or not healthy, the users file unreadable, or (a write, a control change) the audit trail cannot be written (a full disk): nothing was done */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the robot did not confirm in time; the answer has what it reports */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    preset_changes_api_v1_robots__name__presets__preset__changes_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the preset's name */
+                preset: string;
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["PresetChanges"];
                 };
             };
             /** @description the request cannot be read */
