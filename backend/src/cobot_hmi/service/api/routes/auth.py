@@ -3,8 +3,9 @@
 A login is checked against the users file first; a name the file does not have is asked of the
 directory when one is configured (``access.directory``: a local name is never a directory
 user's, so the file's break-glass admin logs in whatever the directory says or whether it
-answers). Every attempt the throttle lets through is audited (action ``login``; ``requested``
-says which of the two answered), and the throttle counts wrong passwords of both.
+answers). With a directory, every attempt the throttle lets through is audited (action
+``login``; ``requested`` says which of the two answered: who the directory let in, or not, and
+the local logins beside them); the throttle counts wrong passwords of both.
 """
 
 from __future__ import annotations
@@ -117,7 +118,10 @@ async def login(
 async def _audit_login(
     service: ServiceDep, user: str, client: str | None, *, source: str, outcome: str, reason: str
 ) -> None:
-    """One audit row per login attempt (kept in memory while the disk is full)."""
+    """One audit row per login attempt when a directory is configured (kept in memory while
+    the disk is full). Without one the audit trail stays what it was: writes and control."""
+    if service.directory is None:
+        return
     entry = AuditEntry(
         user, client, "login", [], None, {"source": source}, outcome, reason, origin=_LOGIN_ORIGIN
     )
