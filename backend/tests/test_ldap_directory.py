@@ -120,6 +120,33 @@ def test_nothing_listening_is_unreachable(slapd: Slapd) -> None:
         ask.authenticate("olga", USERS["olga"][0])
 
 
+@needs_slapd
+async def test_a_refresh_reads_roles_again_and_keeps_them_while_the_directory_is_away(
+    slapd: Slapd,
+) -> None:
+    ask = directory(slapd, "search")
+    user = await ask.login("gina", USERS["gina"][0])
+    assert user is not None and user.role.label == "viewer"
+    slapd.move("gina", leave=VIEWERS, join=OPERATORS)
+    try:
+        await ask.refresh({"gina"})
+        refreshed = ask.user("gina")
+        assert refreshed is not None and refreshed.role.label == "operator"
+        slapd.stop()
+        try:
+            await ask.refresh({"gina"})  # unreachable: the role last read stands
+        finally:
+            slapd.start()
+        assert ask.user("gina") == refreshed
+        await ask.refresh(set())  # no session, but just logged in: kept a while
+        assert ask.user("gina") == refreshed
+    finally:
+        slapd.move("gina", leave=OPERATORS, join=VIEWERS)
+    await ask.refresh({"gina"})
+    again = ask.user("gina")
+    assert again is not None and again.role.label == "viewer"
+
+
 # --------------------------------------------------------------------------- settings
 
 TEMPLATE = "uid={user},ou=people,dc=example,dc=org"

@@ -35,6 +35,7 @@ import contextlib
 import logging
 import math
 import ssl
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -55,6 +56,9 @@ from cobot_hmi.service.access.users import Role, User
 log = logging.getLogger(__name__)
 
 UNREACHABLE: Final = "directory unreachable"
+_SESSION_GRACE_S: Final = 60.0
+"""A login's account is kept this long before a refresh may drop it for having no session
+(the route creates the session just after the login, and may wait on the audit meanwhile)."""
 _INVALID_CREDENTIALS: Final = 49
 """LDAP resultCode invalidCredentials (RFC 4511 §4.1.9)."""
 
@@ -99,6 +103,8 @@ class Directory:
         self._accounts: dict[str, DirectoryAccount] = {}
         """By user name: directory users with (possibly) a live session; touched only on the
         event loop's thread."""
+        self._logged_in_at: dict[str, float] = {}
+        """By user name: ``time.monotonic()`` of their last login."""
 
     # ----------------------------------------------------------------- on the event loop
 
@@ -114,14 +120,17 @@ class Directory:
         if account is None:
             return None
         self._accounts[name] = account
+        self._logged_in_at[name] = time.monotonic()
         return account.user
 
     async def refresh(self, live_names: set[str]) -> None:
         """Read again the role of each directory user in ``live_names`` (users with a live
         session); forget the others."""
+        now = time.monotonic()
         for name in list(self._accounts):
-            if name not in live_names:
+            if name not in live_names and now - self._logged_in_at[name] > _SESSION_GRACE_S:
                 del self._accounts[name]
+                del self._logged_in_at[name]
         for name, account in list(self._accounts.items()):
             try:
                 again = await asyncio.to_thread(self.account, name, account.dn)
@@ -131,6 +140,7 @@ class Directory:
             if again is None:
                 log.info("directory: %s is in no mapped group any more", name)
                 self._accounts.pop(name, None)
+                self._logged_in_at.pop(name, None)
             else:
                 if again.user.role != account.user.role:
                     log.info("directory: %s's role is now %s", name, again.user.role.label)
