@@ -96,9 +96,9 @@ def test_group_dns_match_whatever_their_case_and_spacing(slapd: Slapd) -> None:
 
 @needs_slapd
 def test_tls_needs_the_ca_that_signed_the_directorys_certificate(slapd: Slapd) -> None:
-    ldaps = {"ldap_url": slapd.ldaps_url}
-    start_tls = {"ldap_start_tls": True}
-    ca = {"ldap_ca_file": slapd.ca_file}
+    ldaps: dict[str, Any] = {"ldap_url": slapd.ldaps_url}
+    start_tls: dict[str, Any] = {"ldap_start_tls": True}
+    ca: dict[str, Any] = {"ldap_ca_file": slapd.ca_file}
     assert role(directory(slapd, **ldaps, **ca), "olga") == "operator"
     assert role(directory(slapd, "search", **start_tls, **ca), "vera") == "viewer"
     for untrusted in (ldaps, start_tls):  # the system's CAs never signed the test's CA
