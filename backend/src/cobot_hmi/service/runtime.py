@@ -27,6 +27,7 @@ from cobot_hmi.service.access.auth import LoginThrottle, Session, Sessions
 from cobot_hmi.service.access.directory import Directory
 from cobot_hmi.service.access.users import User, UsersFile
 from cobot_hmi.service.alarms.summary import cell_summary
+from cobot_hmi.service.cycles.service import Cycles
 from cobot_hmi.service.errors import UnknownRobotError
 from cobot_hmi.service.recording.recorder import Recorder
 from cobot_hmi.service.robots.control import Control
@@ -63,6 +64,8 @@ class Service:
             for robot in robot_settings
         }
         """Every robot, in the settings' order."""
+        self.cycles = Cycles(self.robots, self.store)
+        """Each robot's cycle timing (``service.cycles``), where it has a trigger."""
         self.default_robot: RobotRuntime = next(iter(self.robots.values()))
         """The first robot: the one the deprecated single-robot paths answer for."""
         self.directory: Directory | None = (
@@ -135,6 +138,7 @@ class Service:
             robot.start()
         if self.recorder is not None:  # subscribed before the first frame can come
             await self.recorder.start()
+        self.cycles.start()  # subscribed before the first frame can come
         await self.cyclic.start()
         if self.edge_node is not None:
             await self.edge_node.start()
@@ -160,6 +164,7 @@ class Service:
         await self.cyclic.stop()
         if self.recorder is not None:  # the last frames written, the open segments closed
             await self.recorder.stop()
+        await self.cycles.stop()  # the last frames measured, every cycle written
         for task in self._tasks:
             task.cancel()
         for task in self._tasks:

@@ -1,0 +1,175 @@
+"""Cycle timing against the real emulator and service (issue 23): the emulator's demo program
+marks each cycle start on bit output register 63, the service's cycle trigger is that
+register's rising edge, and the cycles the API answers are the ones computed from the
+recorder's own Parquet of the same range (every frame, its receive time to the microsecond).
+The API's statistics, its CSV, its time range and its answer for a robot without a trigger."""
+
+from __future__ import annotations
+
+import csv
+import io
+import itertools
+from datetime import datetime
+from pathlib import Path
+from typing import Any
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+from cobot_hmi.emulator.robot import RobotSettings as SimulationSettings
+from cobot_hmi.emulator.robot import SimulatedRobot
+from cobot_hmi.history.schema import ELEMENT_BY_EXPORT_NAME, time_seconds
+from emulator_harness import FAST_TIMINGS
+from service_support import (
+    DEADLINE_S,
+    Running,
+    emulator,
+    eventually_async,
+    running_service,
+    service_settings,
+)
+
+pytestmark = pytest.mark.timeout(240)
+
+ROBOT = "robot"
+MARKER = 63
+TRIGGER = f"bit_output_registers.{MARKER}:rising"
+CYCLES = 3
+"""Cycles measured before comparing (~8 s each)."""
+TIME_TOLERANCE_S = 2e-6
+"""The recording keeps receive times in whole microseconds."""
+
+
+def marked_robot() -> SimulatedRobot:
+    return SimulatedRobot(SimulationSettings(timings=FAST_TIMINGS, cycle_marker_register=MARKER))
+
+
+async def cycles(hmi: Running, **params: Any) -> dict[str, Any]:
+    async with hmi.client() as client:
+        answer = await client.get(f"/api/v1/robots/{ROBOT}/cycles", params=params)
+    assert answer.status_code == 200, answer.text
+    body: dict[str, Any] = answer.json()
+    return body
+
+
+async def export(hmi: Running, from_s: float, to_s: float) -> pa.Table:
+    async with hmi.client() as client:
+        answer = await client.get(
+            f"/api/v1/robots/{ROBOT}/export",
+            params={"from": from_s, "to": to_s, "format": "parquet"},
+        )
+    assert answer.status_code == 200, answer.text
+    return pq.read_table(pa.BufferReader(answer.content))
+
+
+def starts_in(table: pa.Table) -> list[float]:
+    """The receive times of the frames where the marker rose (the first frame only says where
+    the level is)."""
+    times = time_seconds(table)
+    (name,) = (
+        n for n, e in ELEMENT_BY_EXPORT_NAME.items() if e.name == f"bit_output_registers.{MARKER}"
+    )
+    marker = table.column(name).to_pylist()
+    return [float(times[i]) for i in range(1, len(marker)) if marker[i] and not marker[i - 1]]
+
+
+async def test_cycles_equal_those_computed_from_the_recorded_frames(
+    robot_host: str, plc_host: str, tmp_path: Path
+) -> None:
+    async with emulator(robot_host, marked_robot()) as target:
+        settings = service_settings(
+            robot_host,
+            target.tcp_port,
+            plc_host,
+            tmp_path,
+            cycle_trigger=TRIGGER,
+            history_segment_s=2.0,
+            history_flush_s=0.2,
+        )
+        async with running_service(settings) as hmi:
+
+            async def measured() -> bool:
+                return len((await cycles(hmi))["cycles"]) >= CYCLES
+
+            await eventually_async(measured, timeout_s=120)
+            body = await cycles(hmi, last=2)
+            measured_cycles = body["cycles"]
+            first, last = measured_cycles[0], measured_cycles[-1]
+
+            # The recorder flushes every 0.2 s: wait until the last cycle's end is in it.
+            async def recorded() -> bool:
+                table = await export(hmi, last["end"] - 1.0, last["end"] + 1.0)
+                return any(abs(t - last["end"]) < TIME_TOLERANCE_S for t in starts_in(table))
+
+            await eventually_async(recorded, timeout_s=DEADLINE_S)
+            table = await export(hmi, first["start"] - 1.0, last["end"] + 0.001)
+            ranged = await cycles(hmi, **{"from": first["start"] + 0.001})
+            iso = datetime.fromtimestamp(first["start"] + 0.001).astimezone().isoformat()
+            ranged_iso = await cycles(hmi, **{"from": iso})
+            async with hmi.client() as client:
+                csv_answer = await client.get(
+                    f"/api/v1/robots/{ROBOT}/cycles", params={"format": "csv"}
+                )
+    starts = starts_in(table)
+    expected = list(itertools.pairwise(starts))
+    assert len(expected) == len(measured_cycles)
+    for (start, end), cycle in zip(expected, measured_cycles, strict=True):
+        assert cycle["start"] == pytest.approx(start, abs=TIME_TOLERANCE_S)
+        assert cycle["end"] == pytest.approx(end, abs=TIME_TOLERANCE_S)
+        assert cycle["duration_s"] == pytest.approx(end - start, abs=2 * TIME_TOLERANCE_S)
+    # The demo program's cycle (~8 s), the same each time within a few frames.
+    durations = [c["duration_s"] for c in measured_cycles]
+    assert min(durations) > 1.0 and max(durations) - min(durations) < 0.1
+    assert body["trigger"] == {
+        "text": TRIGGER,
+        "label": f"rising edge of bit_output_registers.{MARKER}",
+    }
+    stats = body["statistics"]
+    assert stats["count"] == len(measured_cycles)
+    assert stats["last_s"] == pytest.approx(durations[-1])
+    assert stats["window"] == 2
+    assert stats["mean_s"] == pytest.approx(sum(durations[-2:]) / 2)
+    assert stats["min_s"] == pytest.approx(min(durations[-2:]))
+    assert stats["max_s"] == pytest.approx(max(durations[-2:]))
+    assert body["in_progress_since"] == pytest.approx(last["end"])
+    # A range: cycles that started in it.
+    assert ranged["cycles"][0]["id"] == measured_cycles[1]["id"]
+    assert ranged_iso["cycles"] == ranged["cycles"]
+    # CSV: a header and one row per cycle, ISO 8601 times.
+    assert csv_answer.status_code == 200
+    assert csv_answer.headers["content-type"].startswith("text/csv")
+    rows = list(csv.DictReader(io.StringIO(csv_answer.text)))
+    assert int(csv_answer.headers["x-total-count"]) == len(rows) >= CYCLES
+    assert [float(r["duration_s"]) for r in rows[: len(durations)]] == pytest.approx(durations)
+    assert datetime.fromisoformat(rows[0]["start"]).timestamp() == pytest.approx(
+        measured_cycles[0]["start"], abs=1e-5
+    )
+
+
+async def test_a_robot_without_a_trigger_answers_no_cycles_and_bad_input_is_refused(
+    robot_host: str, plc_host: str, tmp_path: Path
+) -> None:
+    async with emulator(robot_host, marked_robot()) as target:
+        settings = service_settings(robot_host, target.tcp_port, plc_host, tmp_path)
+        async with running_service(settings) as hmi:
+            body = await cycles(hmi)
+            async with hmi.client() as client:
+                bad_time = await client.get(
+                    f"/api/v1/robots/{ROBOT}/cycles", params={"from": "yesterday"}
+                )
+                bad_last = await client.get(f"/api/v1/robots/{ROBOT}/cycles", params={"last": 0})
+                unknown = await client.get("/api/v1/robots/nobody/cycles")
+    assert body["trigger"] is None and body["cycles"] == []
+    assert body["statistics"] == {
+        "count": 0,
+        "last_s": None,
+        "window": 0,
+        "mean_s": None,
+        "min_s": None,
+        "max_s": None,
+    }
+    assert bad_time.status_code == 422 and bad_time.json()["detail"]["field"] == "from"
+    assert "ISO 8601" in bad_time.json()["detail"]["reason"]
+    assert bad_last.status_code == 422
+    assert unknown.status_code == 404
