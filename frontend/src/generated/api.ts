@@ -425,6 +425,23 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/v1/robots/{name}/cycles": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /** The robot's cycles in a range and their statistics (last, mean/min/max of the last N, count) */
+        get: operations["get_cycles_api_v1_robots__name__cycles_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/robots/{name}/export": {
         parameters: {
             query?: never;
@@ -1622,6 +1639,84 @@ export interface components {
             password: string;
             /** Username */
             username: string;
+        };
+        /**
+         * CyclePage
+         * @description A robot's cycles in a range (oldest first) and their statistics.
+         */
+        CyclePage: {
+            /**
+             * Cycles
+             * @description the newest `limit` of the range, oldest first
+             */
+            cycles: components["schemas"]["CycleRow"][];
+            /**
+             * In Progress Since
+             * @description when the cycle in progress started (s since the epoch); null: none
+             */
+            in_progress_since: number | null;
+            /** Robot */
+            robot: string;
+            statistics: components["schemas"]["CycleStatistics"];
+            /** @description null: the robot has no cycle trigger */
+            trigger: components["schemas"]["CycleTriggerInfo"] | null;
+        };
+        /**
+         * CycleRow
+         * @description One measured cycle: from one trigger edge to the next (receive times of the frames).
+         */
+        CycleRow: {
+            /** Duration S */
+            duration_s: number;
+            /**
+             * End
+             * @description s since the epoch: the next cycle's start
+             */
+            end: number;
+            /** Id */
+            id: number;
+            /**
+             * Start
+             * @description s since the epoch
+             */
+            start: number;
+        };
+        /** CycleStatistics */
+        CycleStatistics: {
+            /**
+             * Count
+             * @description cycles that started in the range
+             */
+            count: number;
+            /**
+             * Last S
+             * @description the newest cycle's duration, s
+             */
+            last_s: number | null;
+            /** Max S */
+            max_s: number | null;
+            /** Mean S */
+            mean_s: number | null;
+            /** Min S */
+            min_s: number | null;
+            /**
+             * Window
+             * @description how many of the newest cycles mean/min/max are of
+             */
+            window: number;
+        };
+        /** CycleTriggerInfo */
+        CycleTriggerInfo: {
+            /**
+             * Label
+             * @description in words: 'rising edge of bit_output_registers.63'
+             */
+            label: string;
+            /**
+             * Text
+             * @description as the settings give it (cycle_trigger)
+             */
+            text: string;
         };
         /** DroppedMessage */
         DroppedMessage: {
@@ -4701,6 +4796,77 @@ export interface operations {
             };
             /** @description unavailable: not ready or not healthy, the users file unreadable, or (a write, a control change) the audit trail cannot be written (a full disk): nothing was done */
             503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    get_cycles_api_v1_robots__name__cycles_get: {
+        parameters: {
+            query?: {
+                /** @description from this time on (inclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the service's local time) */
+                from?: string | null;
+                /** @description before this time (exclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the service's local time) */
+                to?: string | null;
+                /** @description at most this many (the newest) cycles */
+                limit?: number;
+                /** @description N: mean, min and max are of the newest N */
+                last?: number;
+                /** @description csv: the cycles as CSV */
+                format?: "json" | "csv";
+            };
+            header?: never;
+            path: {
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description the cycles, oldest first (format=csv: one row per cycle, ISO 8601 times, the count in the range in X-Total-Count) */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["CyclePage"];
+                    "text/csv": string;
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description invalid request: the answer names the field; nothing was applied */
+            422: {
                 headers: {
                     [name: string]: unknown;
                 };
