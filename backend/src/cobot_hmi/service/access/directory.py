@@ -257,6 +257,9 @@ class Directory:
             receive_timeout=math.ceil(settings.ldap_timeout_s),  # ldap3 packs it as whole s
             raise_exceptions=False,
             read_only=True,
+            # Active Directory answers a search from a domain's root with referrals to its other
+            # partitions (DomainDnsZones …): never chased, only entries are read.
+            auto_referrals=False,
         )
         try:
             try:
