@@ -42,7 +42,7 @@ export function isAnnunciated(alarm: Alarm): boolean {
   return alarm.state !== "normal" && alarm.state !== "suppressed" && !alarm.shelved;
 }
 
-export function isUnacknowledged(alarm: Alarm): boolean {
+export function isUnacknowledged(alarm: Pick<Alarm, "state">): boolean {
   return alarm.state === "active_unacknowledged" || alarm.state === "returned_unacknowledged";
 }
 

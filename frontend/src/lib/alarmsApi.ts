@@ -13,6 +13,7 @@ type Schemas = components["schemas"];
 export type AlarmHistoryPage = Schemas["AlarmHistoryPage"];
 export type TagList = Schemas["TagList"];
 export type TagPoint = Schemas["TagPoint"];
+export type AlarmAckManyAnswer = Schemas["AlarmAckManyAnswer"];
 
 const JSON_CONTENT = { "Content-Type": "application/json" } as const;
 
@@ -67,6 +68,12 @@ export class AlarmsApi {
         headers: JSON_CONTENT,
       }),
     );
+  }
+
+  /** Acknowledge the alarms named, in one request (the service audits each one). */
+  async ackMany(ids: readonly string[], comment: string | null): Promise<PageAnswer<AlarmAckManyAnswer>> {
+    const body = { ids: [...ids], ...(comment !== null && comment !== "" ? { comment } : {}) };
+    return pageOf(await this.client.POST("/api/v1/alarms/ack", { body, headers: JSON_CONTENT }));
   }
 
   async shelve(alarmId: string, reason: string, duration_s: number): Promise<AlarmActionAnswer> {

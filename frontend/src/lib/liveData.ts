@@ -12,7 +12,7 @@ import { alarmsFromHello, applyAlarm, type Alarm } from "./alarms";
 import { connectionHealth, type Health, type SocketState } from "./health";
 import { FLAG_FIELDS, isFlagField } from "./layoutInfo";
 import { ChannelMap, type PlotSpec } from "./plots";
-import type { ConnectionStatus, ControlStatus, ServerMessage, StreamEvent } from "./protocol";
+import type { CellAlarmSummary, ConnectionStatus, ControlStatus, ServerMessage, StreamEvent } from "./protocol";
 import { SampleRing } from "./ringBuffer";
 
 /** 32768 samples: over 5 minutes at RPI 10 ms, so a 2-minute window is always full. */
@@ -49,6 +49,8 @@ export interface LiveSnapshot {
   readonly alarms: readonly Alarm[];
   /** This stream's login session as the hello named it (null: none), to tell whose control it is. */
   readonly session: string | null;
+  /** Every robot's alarms at a glance (hello, then each status; null: the service does not say). */
+  readonly cellAlarms: CellAlarmSummary | null;
 }
 
 export interface LiveDataOptions {
@@ -91,6 +93,7 @@ export class LiveData {
   private robot: string | null = null;
   private alarms: readonly Alarm[] = [];
   private session: string | null = null;
+  private cellAlarms: CellAlarmSummary | null = null;
   private current: LiveSnapshot;
   private timer: ReturnType<typeof setInterval> | null = null;
   framesReceived = 0;
@@ -157,6 +160,7 @@ export class LiveData {
         this.robot = message.robot ?? null;
         this.alarms = alarmsFromHello(message.alarms);
         this.session = message.session ?? null;
+        this.cellAlarms = message.cell_alarms ?? null;
         this.layoutMismatch = message.layout_version === LAYOUT_VERSION ? null : message.layout_version;
         this.lastSeq = null;
         this.publish();
@@ -173,6 +177,7 @@ export class LiveData {
         return;
       case "status":
         this.connection = message.connection;
+        if (message.cell_alarms !== undefined && message.cell_alarms !== null) this.cellAlarms = message.cell_alarms;
         this.publish();
         return;
       case "event":
@@ -259,6 +264,7 @@ export class LiveData {
       robot: this.robot,
       alarms: this.alarms,
       session: this.session,
+      cellAlarms: this.cellAlarms,
     };
   }
 }

@@ -18,6 +18,7 @@ export type ControlHolder = Schemas["Holder"];
 export type ControlStatus = Schemas["ControlStatus"];
 export type RobotSummary = Schemas["RobotSummary"];
 export type AlarmSummary = Schemas["AlarmSummary"];
+export type CellAlarmSummary = Schemas["CellAlarmSummary"];
 export type RobotStatus = Schemas["RobotStatus"];
 export type CommandState = Schemas["CommandState"];
 export type ApiErrorBody = Schemas["ApiErrorBody"];

@@ -1,7 +1,10 @@
 /**
  * The panel's alarms: the robot's current alarms (from the stream: no polling) with Acknowledge
- * and Shelve (a reason and a duration) for operators, and the history of every transition with
- * filters (priority, period) and a CSV export, from `GET /api/v1/alarms/history`.
+ * and Shelve (a reason and a duration) for operators, "Acknowledge all shown" (one request,
+ * `POST /api/v1/alarms/ack`, which the service audits alarm by alarm), alarms suppressed by
+ * design shown as such (a consequence of their cause, nothing to acknowledge), and the history
+ * of every transition with filters (priority, period) and a CSV export, from
+ * `GET /api/v1/alarms/history`.
  */
 import { memo, useCallback, useState, type FormEvent } from "react";
 import { FilterSelect, PagedTable, usePage } from "../components/PagedTable";
@@ -16,6 +19,7 @@ import {
   type Alarm,
   type AlarmPriority,
 } from "../lib/alarms";
+import { acknowledgeable, suppressionWords } from "../lib/alarmsCell";
 import { formatMoment, formatTimestamp } from "../lib/dates";
 import { roleAtLeast, type User } from "../lib/protocol";
 
@@ -102,6 +106,7 @@ function AlarmRow({ alarm, canAct }: { alarm: Alarm; canAct: boolean }) {
   const [error, setError] = useState<string | null>(null);
   const paint = alarmPaint(alarm.colour);
   const unacknowledged = isUnacknowledged(alarm);
+  const suppression = suppressionWords(alarm);
   const act = async (action: () => Promise<{ ok: boolean; reason?: string }>) => {
     setBusy(true);
     setError(null);
@@ -117,10 +122,12 @@ function AlarmRow({ alarm, canAct }: { alarm: Alarm; canAct: boolean }) {
       data-state={alarm.state}
       data-unacknowledged={unacknowledged ? "true" : "false"}
       data-shelved={alarm.shelved ? "true" : "false"}
-      className={`alarm-row${unacknowledged ? " is-unacknowledged" : ""}${alarm.shelved ? " is-shelved" : ""}`}
+      data-suppressed-by={alarm.suppressed_by ?? undefined}
+      className={`alarm-row${unacknowledged ? " is-unacknowledged" : ""}${alarm.shelved ? " is-shelved" : ""}${suppression !== null ? " is-suppressed" : ""}`}
     >
       <td>
-        <span className="alarm-priority" style={{ background: paint.background, color: paint.text }}>
+        {/* A suppressed alarm is not annunciated: no pendant colour. */}
+        <span className="alarm-priority" style={suppression === null ? { background: paint.background, color: paint.text } : undefined}>
           {alarm.priority}
         </span>
       </td>
@@ -134,7 +141,7 @@ function AlarmRow({ alarm, canAct }: { alarm: Alarm; canAct: boolean }) {
             ●{" "}
           </span>
         )}
-        {alarmStateWords(alarm)}
+        {suppression ?? alarmStateWords(alarm)}
         {alarm.shelved && alarm.shelved_until !== null && (
           <div className="hint">
             until {formatMoment(alarm.shelved_until * 1000, Date.now())} by {alarm.shelved_by ?? "?"}: {alarm.shelve_reason ?? ""}
@@ -244,6 +251,46 @@ function AlarmHistory({ robot, newest }: { robot: string; newest: number | null 
   );
 }
 
+/** "Acknowledge all shown": the list's unacknowledged, annunciated alarms in one request. */
+function AcknowledgeAll({ alarms, canAct }: { readonly alarms: readonly Alarm[]; readonly canAct: boolean }) {
+  const [busy, setBusy] = useState(false);
+  const [outcome, setOutcome] = useState<{ readonly ok: boolean; readonly words: string } | null>(null);
+  const ids = acknowledgeable(alarms);
+  const run = async () => {
+    setBusy(true);
+    setOutcome(null);
+    const answer = await alarmsApi.ackMany(ids, null).catch((x: unknown) => ({ ok: false as const, status: 0, reason: String(x) }));
+    setBusy(false);
+    if (!answer.ok) {
+      setOutcome({ ok: false, words: answer.reason });
+      return;
+    }
+    const refused = answer.page.items.filter((item) => item.outcome === "refused");
+    const words = `${answer.page.acknowledged} acknowledged${refused.length > 0 ? `, ${refused.length} refused: ${refused.map((r) => r.reason ?? r.id).join("; ")}` : ""}`;
+    setOutcome({ ok: refused.length === 0, words });
+  };
+  return (
+    <div className="alarm-table-actions">
+      <button
+        type="button"
+        className="primary"
+        data-testid="alarm-ack-all"
+        data-count={ids.length}
+        disabled={!canAct || busy || ids.length === 0}
+        title={canAct ? undefined : "Log in as an operator to acknowledge"}
+        onClick={() => void run()}
+      >
+        Acknowledge all shown ({ids.length})
+      </button>
+      {outcome !== null && (
+        <span className={outcome.ok ? "hint" : "reason"} role={outcome.ok ? "status" : "alert"} data-testid="alarm-ack-all-outcome">
+          {outcome.words}
+        </span>
+      )}
+    </div>
+  );
+}
+
 // Memoized: the panel re-renders with every live snapshot; this only when the alarms change.
 export const AlarmsView = memo(function AlarmsView({
   robot,
@@ -261,6 +308,7 @@ export const AlarmsView = memo(function AlarmsView({
   return (
     <div className="alarms-view">
       {!canAct && <p className="hint">Log in as an operator to acknowledge or shelve alarms.</p>}
+      <AcknowledgeAll alarms={alarms} canAct={canAct} />
       <div className="table-scroll" tabIndex={0} role="region" aria-label="Alarms">
         <table data-testid="alarm-table" className="alarm-table">
           <thead>

@@ -21,6 +21,7 @@ import { TcpReadout } from "../components/TcpReadout";
 import { TagNamesContext } from "../components/tagNames";
 import { ThemeSwitch, useTheme } from "../components/theme";
 import { api } from "../lib/api";
+import { alarmsByRobot, otherRobotAlarms } from "../lib/alarmsCell";
 import { FleetPoller, knownRobots, type FleetTile } from "../lib/fleet";
 import { historyFetcher } from "../lib/historyApi";
 import { ALL_PLOTS, JOINT_PLOTS, TCP_PLOTS } from "../lib/plots";
@@ -118,7 +119,7 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
               if (e.key === "Escape" && menuOpen) setMenuOpen(false);
             }}
           >
-            <RobotSwitcher robot={robot} robots={robots} onSelect={onSelect} />
+            <RobotSwitcher robot={robot} robots={robots} onSelect={onSelect} alarms={alarmsByRobot(live.cellAlarms)} />
             <StateBadge value={live.frame?.robot_state} stale={stale} size="panel" />
             <FlagBadges frame={live.frame} stale={stale} />
             <ConnectionHealth live={live} />
@@ -150,7 +151,7 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
               <span aria-hidden="true">{menuOpen ? "✕" : "☰"}</span> {menuOpen ? "Less" : "More"}
             </button>
             {/* In the sticky header: an alarm stays in view wherever the page is scrolled. */}
-            <AlarmBanner alarms={live.alarms} size="panel" listHref="#alarms">
+            <AlarmBanner alarms={live.alarms} size="panel" listHref="#alarms" others={otherRobotAlarms(live.cellAlarms, robot)}>
               <AlarmCue alarms={live.alarms} />
             </AlarmBanner>
           </header>
