@@ -1,11 +1,14 @@
 /**
- * The fleet overview (`/fleet`): one tile per robot of the service with its state, its link,
- * who holds its control, its alarms, and links to its panel and its kiosk. Read only: it polls
- * `GET /api/v1/robots` once a second (lib/fleet.ts) and writes nothing.
+ * The fleet overview (`/fleet`): one tile per robot of the service with its state, its link
+ * (its newest frame's age, stale or not, the frames lost), who holds its control, its alarms
+ * (the most urgent in words, the counts), and links to its panel and its kiosk. The tiles share
+ * the screen's width (styles/fleet.css). Read only: it polls `GET /api/v1/robots` once a second
+ * (lib/fleet.ts) and writes nothing.
  */
 import { useEffect, useMemo, useSyncExternalStore } from "react";
 import { StateBadge } from "../components/StateBadge";
 import { api } from "../lib/api";
+import { alarmPaint } from "../lib/alarms";
 import { FleetPoller, type FleetTile } from "../lib/fleet";
 import "../styles/fleet.css";
 
@@ -38,16 +41,43 @@ function Tile({ tile, stale }: { tile: FleetTile; stale: boolean }) {
             {tile.holder ?? "nobody"}
           </dd>
         </div>
+        <div>
+          <dt>newest frame</dt>
+          <dd data-testid="fleet-frame-age" data-stale={tile.stale ? "true" : "false"}>
+            {tile.frameAgeWords}
+            {tile.stale && (
+              <span className="fleet-tile__stale" data-testid="fleet-stale">
+                stale
+              </span>
+            )}
+          </dd>
+        </div>
+        <div>
+          <dt>frames lost (gaps)</dt>
+          <dd data-testid="fleet-gaps" data-gaps-per-min={tile.gapsPerMin ?? ""} data-gaps={tile.gaps ?? ""}>
+            {tile.gapsWords}
+          </dd>
+        </div>
         {tile.alarms !== null && (
           <div className="fleet-tile__alarms">
             <dt>alarms</dt>
             <dd
               data-testid="fleet-alarms"
               data-active={tile.alarms.active}
+              data-annunciated={tile.alarms.annunciated ?? 0}
               data-unacknowledged={tile.alarms.unacknowledged}
               data-priority={tile.alarms.highest_priority ?? ""}
             >
-              {tile.alarmWords}
+              {tile.topAlarmWords !== null && tile.alarms.top != null && (
+                <span
+                  className="fleet-tile__top-alarm"
+                  data-testid="fleet-top-alarm"
+                  style={{ background: alarmPaint(tile.alarms.top.colour).background, color: alarmPaint(tile.alarms.top.colour).text }}
+                >
+                  {tile.topAlarmWords}
+                </span>
+              )}
+              <span data-testid="fleet-alarm-counts">{tile.alarmWords}</span>
             </dd>
           </div>
         )}

@@ -43,14 +43,41 @@ describe("fleetTile", () => {
     expect(tile.holder).toBeNull();
   });
 
-  it("sums up the robot's alarms", () => {
+  it("sums up the robot's alarms: the most urgent in words, the counts", () => {
     expect(fleetTile(summary("a")).alarmWords).toBe("—");
-    const alarms = { active: 2, unacknowledged: 1, shelved: 0, highest_priority: "high" as const };
+    expect(fleetTile(summary("a")).topAlarmWords).toBeNull();
+    const top = {
+      id: "a:emergency_stop",
+      key: "emergency_stop",
+      robot: "a",
+      name: "Emergency stop",
+      label: null,
+      tag: null,
+      message: null,
+      priority: "critical" as const,
+      priority_rank: 0,
+      colour: "red",
+      state: "active_unacknowledged" as const,
+      active: true,
+      activated_at: 1,
+      changed_at: 1,
+    };
+    const alarms = { robot: "a", active: 3, annunciated: 2, unacknowledged: 1, shelved: 1, suppressed: 1, highest_priority: "critical" as const, top };
     const tile = fleetTile(summary("a", { alarms }));
     expect(tile.alarms).toEqual(alarms);
-    expect(tile.alarmWords).toBe("2 active, 1 unacknowledged (highest: high)");
+    expect(tile.topAlarmWords).toBe("Emergency stop — critical, active, unacknowledged");
+    expect(tile.alarmWords).toBe("2 alarms (1 unacknowledged), 1 shelved, 1 suppressed by design");
     expect(alarmWords({ active: 0, unacknowledged: 0, shelved: 0, highest_priority: null })).toBe("none");
-    expect(alarmWords({ active: 0, unacknowledged: 1, shelved: 1, highest_priority: "low" })).toBe("1 unacknowledged, 1 shelved (highest: low)");
+  });
+
+  it("says how old the newest frame is, whether it is stale and how many frames went missing", () => {
+    const live = fleetTile(summary("a", { frame_age_s: 0.012, stale: false, gaps: 12, gaps_per_min: 3 }));
+    expect(live).toMatchObject({ frameAgeWords: "12 ms", stale: false, gapsPerMin: 3, gaps: 12 });
+    expect(live.gapsWords).toBe("3 in the last minute (12 on this connection)");
+    const quiet = fleetTile(summary("a", { frame_age_s: 2.5, stale: true, gaps: 0, gaps_per_min: 0 }));
+    expect(quiet).toMatchObject({ frameAgeWords: "2.5 s", stale: true, gapsWords: "none in the last minute (0 on this connection)" });
+    const down = fleetTile(summary("a", { connection: "lost", frame_age_s: null, gaps: null, gaps_per_min: null }));
+    expect(down).toMatchObject({ frameAgeWords: "no frame yet", stale: true, gapsWords: "not connected" });
   });
 
   it("marks an input-only robot read-only and an unknown model as unknown", () => {

@@ -4,6 +4,8 @@
  * service stops answering. Names of robot states come from the generated layout (the tile's
  * state badge); this module only decides what each tile says.
  */
+import { briefWords, summaryCountWords } from "./alarmsCell";
+import { formatDuration_ms } from "./health";
 import type { AlarmSummary, LinkState, RobotSummary } from "./protocol";
 import { kioskHref, panelHref } from "./route";
 
@@ -22,7 +24,17 @@ export interface FleetTile {
   readonly holder: string | null;
   /** Its alarms at a glance (null: the service does not report alarms). */
   readonly alarms: AlarmSummary | null;
+  /** Its alarms' counts in words ("2 alarms (1 unacknowledged)", "none"). */
   readonly alarmWords: string;
+  /** Its most urgent annunciated alarm in words, null: none. */
+  readonly topAlarmWords: string | null;
+  /** How old its newest frame is ("12 ms", "no frame yet") and whether that is too old. */
+  readonly frameAgeWords: string;
+  readonly stale: boolean;
+  /** T→O sequence gaps: in the last minute and on the current connection (null: not connected). */
+  readonly gapsPerMin: number | null;
+  readonly gaps: number | null;
+  readonly gapsWords: string;
   readonly panelHref: string;
   readonly kioskHref: string;
 }
@@ -42,20 +54,27 @@ export function fleetTile(robot: RobotSummary): FleetTile {
     holder: robot.holder?.user ?? null,
     alarms: robot.alarms ?? null,
     alarmWords: alarmWords(robot.alarms ?? null),
+    topAlarmWords: robot.alarms?.top != null ? briefWords(robot.alarms.top) : null,
+    frameAgeWords: robot.frame_age_s === null || robot.frame_age_s === undefined ? "no frame yet" : formatDuration_ms(robot.frame_age_s * 1000),
+    stale: robot.stale ?? link !== "connected",
+    gapsPerMin: robot.gaps_per_min ?? null,
+    gaps: robot.gaps ?? null,
+    gapsWords: gapsWords(robot.gaps_per_min ?? null, robot.gaps ?? null),
     panelHref: panelHref(robot.name),
     kioskHref: kioskHref(robot.name),
   };
 }
 
-/** "none", "2 active, 1 unacknowledged (highest: high)", "1 shelved" … */
+/** "none", "2 alarms (1 unacknowledged), 1 shelved", "—" when the service does not say. */
 export function alarmWords(alarms: AlarmSummary | null): string {
-  if (alarms === null) return "—";
-  const parts: string[] = [];
-  if (alarms.active > 0) parts.push(`${alarms.active} active`);
-  if (alarms.unacknowledged > 0) parts.push(`${alarms.unacknowledged} unacknowledged`);
-  if (alarms.shelved > 0) parts.push(`${alarms.shelved} shelved`);
-  if (parts.length === 0) return "none";
-  return parts.join(", ") + (alarms.highest_priority !== null ? ` (highest: ${alarms.highest_priority})` : "");
+  return alarms === null ? "—" : summaryCountWords(alarms);
+}
+
+/** "3 in the last minute (12 on this connection)", "none in the last minute", "not connected". */
+export function gapsWords(perMin: number | null, total: number | null): string {
+  if (perMin === null && total === null) return "not connected";
+  const minute = perMin === null ? "? in the last minute" : perMin === 0 ? "none in the last minute" : `${perMin} in the last minute`;
+  return total !== null ? `${minute} (${total} on this connection)` : minute;
 }
 
 /** What fetching the list gave: the robots, or why there are none. */
