@@ -71,8 +71,14 @@ export function useKioskLayout(body: RefObject<HTMLElement | null>, content: Bod
   const layout = useMemo(() => (box === null ? null : bodyLayout(box, content, { u, landscape: scale.landscape })), [box, content, u, scale.landscape]);
   const fits = layout?.fits ?? true;
   useEffect(() => {
-    if (!fits && fit > MIN_FIT) setFit((f) => Math.max(MIN_FIT, f * FIT_STEP));
-  }, [fits, fit]);
+    if (fits || fit <= MIN_FIT) return;
+    // A smaller scale shrinks the header and gives the body more room, which the observer
+    // reports a moment later: judged on the room measured before, every step would look too
+    // small and the scale would fall to its least. Only the room as it is now may step down.
+    const el = body.current;
+    if (el !== null && box !== null && (el.clientWidth !== box.width_px || el.clientHeight !== box.height_px)) return;
+    setFit((f) => Math.max(MIN_FIT, f * FIT_STEP));
+  }, [fits, fit, body, box]);
   return { u, landscape: scale.landscape, body: layout };
 }
 

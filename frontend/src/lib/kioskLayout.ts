@@ -61,7 +61,8 @@ export const TILE_BOX = {
   labelGap: 10,
   titleGap: 4,
 } as const;
-const VALUE_LINE = 1.1;
+/** 1.2: the fonts' ascent and descent (DejaVu Sans: 1.164 em) fit inside a line; at 1.1 they spilled out of a cell. */
+const VALUE_LINE = 1.2;
 const LABEL_LINE = 1.2;
 const TITLE_LINE = 1.2;
 
