@@ -106,6 +106,12 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     demo.add_argument("--frontend-dir", type=Path, default=None, help="built frontend")
     demo.add_argument(
+        "--tls",
+        action="store_true",
+        help="serve HTTPS and WSS with a self-signed certificate made in the state directory "
+        "(its SHA-256 fingerprint printed; docs/operations.md, 'Certificates')",
+    )
+    demo.add_argument(
         "--mqtt-url",
         default=None,
         metavar="URL",
@@ -173,6 +179,7 @@ def _fail(reason: str) -> int:
 
 def _serve(args: argparse.Namespace) -> int:
     from cobot_hmi.service.api.server import prepare_process, serve
+    from cobot_hmi.service.api.tls import TlsError
     from cobot_hmi.service.settings import SettingsError, settings_from_args
 
     try:
@@ -181,8 +188,11 @@ def _serve(args: argparse.Namespace) -> int:
     except SettingsError as error:
         return _fail(str(error))
     prepare_process()
-    with contextlib.suppress(KeyboardInterrupt):  # uvicorn re-raises the signal it handled
-        asyncio.run(serve(settings))
+    try:
+        with contextlib.suppress(KeyboardInterrupt):  # uvicorn re-raises the signal it handled
+            asyncio.run(serve(settings))
+    except TlsError as error:
+        return _fail(f"TLS: {error}")
     return 0
 
 
@@ -472,6 +482,10 @@ def _demo(args: argparse.Namespace) -> int:
         }
         if args.frontend_dir is not None:
             flags["frontend_dir"] = args.frontend_dir
+        if args.tls:
+            from cobot_hmi.service.api.tls_selfsigned import self_signed_pair
+
+            flags["tls_cert"], flags["tls_key"], _ = self_signed_pair(state_dir, [args.host])
         if args.mqtt_url is not None:
             flags["mqtt_url"] = args.mqtt_url
             flags["mqtt_writes"] = args.mqtt_writes
@@ -496,6 +510,7 @@ def _run_demo(
 ) -> int:
     from cobot_hmi.service.access.users import Role, UsersError, UsersFile, generate_password
     from cobot_hmi.service.api.server import prepare_process, serve
+    from cobot_hmi.service.api.tls import fingerprint_of
 
     # Every address first: nothing starts, and no password is shown, while one is taken.
     http_socket = stack.enter_context(_bind_http(args.host, args.port))
@@ -517,7 +532,8 @@ def _run_demo(
         UsersFile(settings.users_path).add(DEMO_USER, Role.OPERATOR, password)
     except UsersError as error:
         raise _DemoError(str(error)) from None
-    url = f"http://{args.host}:{http_socket.getsockname()[1]}/"
+    scheme = "https" if settings.tls_cert is not None else "http"
+    url = f"{scheme}://{args.host}:{http_socket.getsockname()[1]}/"
     cell = ", ".join(f"{name} ({model}) at {host}" for name, host, model, _ in robots)
     # From the printout on, Ctrl-C stops the demo cleanly (exit 0), also when it comes before
     # the server has taken SIGINT over (uvicorn's handler, asyncio.run's before it): a user
@@ -528,6 +544,12 @@ def _run_demo(
             f"  log in as {DEMO_USER!r} with password {password!r} (shown only now)\n"
             f"  state in {settings.state_dir}"
             + (" (removed at the end)" if args.state_dir is None else "")
+            + (
+                f"\n  TLS certificate {settings.tls_cert} (self-signed), SHA-256 fingerprint\n"
+                f"    {fingerprint_of(settings.tls_cert)}"
+                if settings.tls_cert is not None
+                else ""
+            )
             + (
                 f"\n  Sparkplug B to {settings.mqtt_url}: spBv1.0/{settings.sparkplug_group}/+/"
                 f"{settings.sparkplug_node_id}/# (writes {'on' if settings.mqtt_writes else 'off'})"

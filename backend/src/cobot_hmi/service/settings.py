@@ -56,6 +56,7 @@ from pydantic_settings.sources.utils import parse_env_vars
 from cobot_hmi import connection_params as cp
 from cobot_hmi.opcua.settings import OpcUaSettings  # OPC UA (issue 22): its opcua_* fields
 from cobot_hmi.service.access.directory_settings import DirectorySettings  # issue 25: ldap_*
+from cobot_hmi.service.api.tls_settings import TlsSettings  # issue 25: tls_*, HTTPS
 from cobot_hmi.service.cycles.settings import CycleSettings  # cycle timing (issue 23)
 
 if TYPE_CHECKING:
@@ -363,7 +364,7 @@ _INHERITED: Final = {
 
 
 class ServiceSettings(  # OPC UA (22), cycles (23), directory login (25)
-    DirectorySettings, OpcUaSettings, CycleSettings, BaseSettings
+    TlsSettings, DirectorySettings, OpcUaSettings, CycleSettings, BaseSettings
 ):
     """Everything ``cobot-hmi serve`` can be told. Field names are the TOML keys."""
 

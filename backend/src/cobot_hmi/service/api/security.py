@@ -51,6 +51,7 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from cobot_hmi.service.access.auth import SESSION_COOKIE
 from cobot_hmi.service.api.deps import session_token
+from cobot_hmi.service.api.tls import HSTS_HEADER
 
 if TYPE_CHECKING:
     from fastapi import FastAPI
@@ -181,12 +182,14 @@ class SecurityHeaders:
             csp = DOCS_CSP.encode()
         else:
             csp = _csp_for(_header(scope, b"host"))
-        extra = (
+        extra: tuple[tuple[bytes, bytes], ...] = (
             (b"content-security-policy", csp),
             (b"x-frame-options", b"DENY"),
             (b"x-content-type-options", b"nosniff"),
             (b"referrer-policy", b"no-referrer"),
         )
+        if scope.get("scheme") == "https":  # HSTS only over HTTPS (RFC 6797 §7.2; tls.py)
+            extra = (*extra, (b"strict-transport-security", HSTS_HEADER))
 
         async def send_with_headers(message: Message) -> None:
             if message["type"] == "http.response.start":

@@ -7,6 +7,7 @@ signal, which the CLI turns into its exit status.
 
 from __future__ import annotations
 
+import contextlib
 import socket
 import sys
 from typing import Any, Final
@@ -16,6 +17,9 @@ import uvicorn
 from cobot_hmi.eventloop import freeze_startup_heap
 from cobot_hmi.service.api import http_limits
 from cobot_hmi.service.api.app import create_app
+from cobot_hmi.service.api.security import policy_from_settings
+from cobot_hmi.service.api.tls import ReloadingContext
+from cobot_hmi.service.api.tls_redirect import redirect_listener
 from cobot_hmi.service.runtime import Service
 from cobot_hmi.service.settings import ServiceSettings
 
@@ -53,6 +57,13 @@ def uvicorn_config(app: Any, settings: ServiceSettings, **overrides: Any) -> uvi
         "h11_max_incomplete_event_size": settings.http_max_header_bytes,
         "ws_max_size": settings.max_body_bytes,
     }
+    if settings.tls_cert is not None and settings.tls_key is not None:
+        # HTTPS and WSS (service/api/tls.py): TLS 1.2 at least, the certificate re-read when
+        # its files change; TlsError here when they cannot be used.
+        tls = ReloadingContext(settings.tls_cert, settings.tls_key)
+        options["ssl_context_factory"] = lambda _config, _default: tls.listener
+        if state is not None:
+            state.tls = tls
     options.update(overrides)
     return uvicorn.Config(app, **options)
 
@@ -67,4 +78,12 @@ async def serve(settings: ServiceSettings, *, sockets: list[socket.socket] | Non
     binds its HTTP address before it prints a password) instead of binding ``host:port``."""
     service = Service(settings)
     app = create_app(service, on_started=freeze_startup_heap)
-    await uvicorn.Server(uvicorn_config(app, settings)).serve(sockets=sockets)
+    server = uvicorn.Server(uvicorn_config(app, settings))
+    async with contextlib.AsyncExitStack() as stack:
+        if settings.http_redirect_port is not None:  # plain HTTP that only redirects to HTTPS
+            https_port = sockets[0].getsockname()[1] if sockets else settings.port
+            allowed = policy_from_settings(settings).allowed_hosts
+            await stack.enter_async_context(
+                redirect_listener(settings.host, settings.http_redirect_port, https_port, allowed)
+            )
+        await server.serve(sockets=sockets)
