@@ -1,7 +1,8 @@
 import { describe, expect, it } from "vitest";
 import type { Alarm } from "./alarms";
 import { acknowledgeable, alarmsByRobot, hasAnnunciated, otherRobotAlarms, otherRobotLine, summaryCountWords, suppressionWords, topUnacknowledged } from "./alarmsCell";
-import type { AlarmSummary, CellAlarmSummary } from "./protocol";
+import { LiveData } from "./liveData";
+import type { AlarmSummary, CellAlarmSummary, ConnectionStatus, ServerMessage } from "./protocol";
 
 type Brief = NonNullable<AlarmSummary["top"]>;
 
@@ -85,5 +86,19 @@ describe("acknowledging what the list shows", () => {
     );
     expect(suppressionWords(alarm("safe_off", "suppressed", { suppressed_by: "a:emergency_stop" }))).toBe("suppressed by design: a consequence of a:emergency_stop");
     expect(suppressionWords(alarm("safe_off", "active_unacknowledged"))).toBeNull();
+  });
+});
+
+describe("the live store", () => {
+  it("keeps the cell's alarms from the hello and each status, and keeps the last when a status has none", () => {
+    const live = new LiveData([], { now: () => 0 });
+    const connection = { state: "connected", reason: null, stale: false, rpi_ms: 10 } as unknown as ConnectionStatus;
+    expect(live.getSnapshot().cellAlarms).toBeNull();
+    live.handle({ type: "hello", robot: "a", layout_version: 1, connection, control: { holder: null }, rate_hz: null, alarms: [], cell_alarms: cell(summary("a"), summary("b")) } as ServerMessage);
+    expect(otherRobotAlarms(live.getSnapshot().cellAlarms, "a")).toEqual([]);
+    live.handle({ type: "status", connection, cell_alarms: cell(summary("a"), stopped("b")) } as ServerMessage);
+    expect(otherRobotAlarms(live.getSnapshot().cellAlarms, "a").map((s) => s.robot)).toEqual(["b"]);
+    live.handle({ type: "status", connection } as ServerMessage);
+    expect(otherRobotAlarms(live.getSnapshot().cellAlarms, "a").map((s) => s.robot)).toEqual(["b"]);
   });
 });
