@@ -153,7 +153,7 @@ async def run_class1(  # noqa: PLR0917
     arrivals: list[float] = []
     losses: list[str] = []
 
-    def on_frame(frame: Frame, received_at: float, seq: int) -> None:
+    def on_frame(frame: Frame, payload: bytes, received_at: float, seq: int) -> None:
         arrivals.append(received_at)  # the kernel's receive time (frames are read in batches)
 
     def on_state(state: ConnectionState, reason: str | None) -> None:

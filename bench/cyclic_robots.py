@@ -77,10 +77,10 @@ def fetch_status(host: str, port: int) -> dict[str, Any]:
 # --------------------------------------------------------------------------- originator process
 
 
-def recorder(times: list[float]) -> Callable[[Any, float, int], None]:
+def recorder(times: list[float]) -> Callable[[Any, bytes, float, int], None]:
     """An ``on_frame`` keeping each frame's kernel receive time."""
 
-    def on_frame(frame: Any, received_at: float, seq: int) -> None:
+    def on_frame(frame: Any, payload: bytes, received_at: float, seq: int) -> None:
         times.append(received_at)
 
     return on_frame

@@ -56,7 +56,7 @@ class Emulator:
     """Every change of (state, flags) the scanner received, in order."""
     connection_states: list[tuple[ConnectionState, str | None]] = field(default_factory=list)
 
-    def _on_frame(self, frame: Frame, _at: float, _n: int) -> None:
+    def _on_frame(self, frame: Frame, _payload: bytes, _at: float, _n: int) -> None:
         observation = observe(frame)
         if not self.observed or self.observed[-1] != observation:
             self.observed.append(observation)

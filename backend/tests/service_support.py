@@ -171,7 +171,7 @@ class Running:
 
 
 def _has_frame(robot: Any) -> bool:
-    return robot.hub.latest is not None
+    return robot.frames.latest is not None
 
 
 def hmi_fixture(**overrides: Any) -> Any:

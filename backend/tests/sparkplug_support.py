@@ -17,8 +17,9 @@ from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
 from cobot_hmi.layout import O2T_FIELDS, T2O_FIELDS, Field
-from cobot_hmi.service.robots.hub import FrameSubscription
+from cobot_hmi.service.robots.frames import FrameRecord
 from conftest import _next_host, free_tcp_port
+from frame_support import CollectedFrames
 from mosquitto_support import Broker, Message, Subscriber, mosquitto
 from service_support import Running, cell_settings, running_service
 
@@ -73,7 +74,7 @@ class Cell:
     running: Running
     subscriber: Subscriber
     panels: dict[str, Panel]
-    frames: dict[str, FrameSubscription]
+    frames: dict[str, CollectedFrames]
     """Every frame each robot's hub received since the start (the ground truth)."""
     addresses: dict[str, tuple[str, int]] = field(default_factory=dict)
     targets: dict[str, Target] = field(default_factory=dict)
@@ -98,8 +99,8 @@ class Cell:
     def aliases(self, device: str) -> dict[str, int]:
         return {m.name: m.alias for m in self.birth(device).metrics if m.name and m.alias}
 
-    def frames_seen(self, device: str) -> list[tuple[int, float, Frame, int]]:
-        return list(self.frames[device].queue)
+    def frames_seen(self, device: str) -> list[FrameRecord]:
+        return self.frames[device].seen()
 
 
 @asynccontextmanager
@@ -140,7 +141,7 @@ async def cell(
         )
         c.running = await stack.enter_async_context(running_service(settings))
         c.frames = {
-            name: robot.hub.subscribe("test", 1_000_000)
+            name: CollectedFrames(robot.frames, 1_000_000)
             for name, robot in c.running.service.robots.items()
         }
         if wait_births:

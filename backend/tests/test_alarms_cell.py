@@ -79,7 +79,7 @@ async def cell(tmp_path_factory: pytest.TempPathFactory) -> AsyncIterator[Cell]:
 
 
 def state_is(hmi: Running, value: int) -> bool:
-    latest = hmi.service.robots[LEFT].hub.latest
+    latest = hmi.service.robots[LEFT].frames.latest
     return latest is not None and latest[2].robot_state == value
 
 

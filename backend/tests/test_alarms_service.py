@@ -25,6 +25,7 @@ from cobot_hmi.service.api.models import EVENT, STREAM_MESSAGE, AlarmHistoryPage
 from cobot_hmi.service.settings import ServiceSettings
 from conftest import free_tcp_port
 from emulator_harness import Emulator, running_emulator
+from frame_support import CollectedFrames
 from service_support import (
     ADMIN,
     OPERATOR,
@@ -93,7 +94,7 @@ async def alarms(hmi: Running, query: str = "") -> dict[str, dict[str, Any]]:
 
 
 def state_is(hmi: Running, value: int) -> bool:
-    latest = hmi.service.default_robot.hub.latest
+    latest = hmi.service.default_robot.frames.latest
     return latest is not None and latest[2].robot_state == value
 
 
@@ -123,14 +124,14 @@ async def test_estop_alarm_ack_restart_reset(emu: Emulator, plc_host: str, tmp_p
         await eventually(lambda: state_is(hmi, 14))  # STANDALONE_RUNNING
         assert ESTOP not in await alarms(hmi)
         robot = hmi.service.default_robot
-        frames = robot.hub.subscribe("test", 100_000)
+        frames = CollectedFrames(robot.frames, 100_000)
         async with stream(hmi.robot_ws_url("robot")) as watching:
             await emu.post("/estop")
             await eventually(lambda: bool(watching.alarm_events(ESTOP)))
-        robot.hub.unsubscribe(frames)
+        frames.close()
         first_estop_t = next(
             item[1]
-            for item in frames.drain()
+            for item in frames.take()
             if item[2].robot_state == 0 or item[2].emergency_stopped
         )
         [event] = watching.alarm_events(ESTOP)
@@ -351,7 +352,8 @@ async def test_alarms_per_robot(robot_host: str, plc_host: str, tmp_path: Path) 
             left_robot = hmi.service.robots["left"]
             await eventually(
                 lambda: (
-                    left_robot.hub.latest is not None and left_robot.hub.latest[2].robot_state == 14
+                    left_robot.frames.latest is not None
+                    and left_robot.frames.latest[2].robot_state == 14
                 )
             )
             await left.post("/estop")

@@ -53,7 +53,7 @@ async def scanner(target: Target, robot_host: str) -> AsyncIterator[Factory]:
     started: list[Originator] = []
 
     async def start(
-        on_frame: Callable[[Frame, float, int], None] | None = None,
+        on_frame: Callable[[Frame, bytes, float, int], None] | None = None,
         on_state: Callable[[ConnectionState, str | None], None] | None = None,
         **overrides: object,
     ) -> Originator:
@@ -107,7 +107,7 @@ async def test_data_both_ways_idle_then_run(
     scanner: Factory, robot: StaticRobot, target: Target
 ) -> None:
     frames: list[int] = []
-    originator = await scanner(on_frame=lambda frame, at, seq: frames.append(seq))
+    originator = await scanner(on_frame=lambda frame, payload, at, seq: frames.append(seq))
     assert await originator.wait_connected(DEADLINE_S)
     assert originator.latest is not None
     assert (
@@ -329,7 +329,7 @@ async def test_a_silence_that_comes_on_between_wake_ups_holds_back_a_change(
     wake-up, and a write a test expected to time out was confirmed."""
     shown: list[bool] = []
     originator = await scanner(
-        on_frame=lambda frame, _at, _seq: shown.append(frame.tool_do[0]),
+        on_frame=lambda frame, _payload, _at, _seq: shown.append(frame.tool_do[0]),
         rpi_us=2_000,
         timeout_multiplier=7,
     )

@@ -63,7 +63,7 @@ async def test_recording_resumes_at_once_while_the_paused_journal_waits(
                 recorded = pq.read_table(segment.path, columns=["seq"]).column("seq").to_pylist()
                 recorded += segments.read_journal(new_journal, ["seq"]).column("seq").to_pylist()
                 not_recorded = track.frames_not_recorded
-                dropped = track.subscription.dropped if track.subscription else 0
+                dropped = track.registration.dropped if track.registration else 0
     # Every frame between the first and the last recorded one is recorded, or was counted as
     # not recorded while paused (the batch the full disk refused among them).
     assert recorded == sorted(recorded) and not_recorded > 0

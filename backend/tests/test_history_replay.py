@@ -86,7 +86,7 @@ async def record_incident(directory: Path) -> Source:
             robot_host, target.tcp_port, plc_host, state_dir, history_flush_s=0.2
         )
         async with running_service(settings) as hmi:
-            hub = hmi.service.default_robot.hub
+            hub = hmi.service.default_robot.frames
             end = time.monotonic() + DEADLINE_S * 3
             while (latest := hub.latest) is None or latest[2].robot_state != STATE[
                 "STANDALONE_RUNNING"
@@ -205,7 +205,7 @@ async def replay(
     tcp_port = free_tcp_port(robot_host)
     packets: list[tuple[bytes, int]] = []
 
-    def on_frame(frame: Frame, _received_at: float, wire: int) -> None:
+    def on_frame(frame: Frame, payload: bytes, _received_at: float, wire: int) -> None:
         packets.append((encode_frame(frame), wire))
 
     async with replay_process(

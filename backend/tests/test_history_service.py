@@ -240,7 +240,7 @@ async def test_history_answer_equals_brute_force_over_the_recorded_rows(
             # The coarsest answer's buckets are whole seconds up to the grid's end, past to_s:
             # recorded to there before asking (else the export, read later, holds more).
             end_cell = bucket_grid(from_s, to_s, (to_s - from_s) / 2).end_cell
-            hub = hmi.service.robot(ROBOT).hub
+            hub = hmi.service.robot(ROBOT).frames
             await eventually(lambda: hub.latest is not None and hub.latest[1] >= end_cell)
             assert hub.latest is not None
             async with hmi.client() as client:

@@ -233,7 +233,9 @@ async def test_forged_t2o_from_another_address_is_foreign(
     settings = OriginatorSettings(
         robot_host=robot_host, tcp_port=target.tcp_port, local_host=plc_host, rpi_us=10_000
     )
-    originator = Originator(settings, on_frame=lambda frame, at, seq: frames.append(frame))
+    originator = Originator(
+        settings, on_frame=lambda frame, _payload, at, seq: frames.append(frame)
+    )
     await originator.start()
     try:
         assert await originator.wait_connected(DEADLINE_S)

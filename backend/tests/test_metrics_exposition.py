@@ -26,7 +26,8 @@ from sparkplug_support import cell
 LEGACY = Path(__file__).parent / "legacy"
 
 # Families added after 58f13a2: the history closer's (a journal becoming its segment on a thread
-# of its own) and the audit's on a full disk (outcomes kept in memory until the disk takes them).
+# of its own), every frame consumer's drops (robots.frames) and the audit's on a full disk
+# (outcomes kept in memory until the disk takes them).
 ADDED_SINCE_58F13A2: dict[str, Any] = {
     "cobot_hmi_history_journals_closing": {
         "type": "gauge",
@@ -35,6 +36,10 @@ ADDED_SINCE_58F13A2: dict[str, Any] = {
     "cobot_hmi_history_journal_close_errors": {
         "type": "counter",
         "samples": {"cobot_hmi_history_journal_close_errors_total": [""]},
+    },
+    "cobot_hmi_consumer_dropped_frames": {
+        "type": "counter",
+        "samples": {"cobot_hmi_consumer_dropped_frames_total": ["consumer,robot"]},
     },
     "cobot_hmi_audit_backlog": {
         "type": "gauge",

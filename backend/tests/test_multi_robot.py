@@ -68,7 +68,7 @@ def _robot(name: str, host: str, tcp_port: int, **changes: object) -> RobotSetti
 async def _wait_all_connected(service: Service) -> None:
     for runtime in service.robots.values():
         assert await runtime.link.wait_connected(DEADLINE_S), runtime.name
-    await eventually(lambda: all(r.hub.latest is not None for r in service.robots.values()))
+    await eventually(lambda: all(r.frames.latest is not None for r in service.robots.values()))
 
 
 class StreamReader:

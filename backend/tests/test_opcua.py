@@ -258,7 +258,7 @@ async def _stopped(cell: Cell) -> None:
     async with httpx.AsyncClient(base_url=cell.control_url) as api:
         answer = await api.post("/program", json={"running": False})
         assert answer.status_code == 200, answer.text
-    hub = cell.running.service.robots["still"].hub
+    hub = cell.running.service.robots["still"].frames
     seen: list[tuple[float, ...]] = []
 
     def at_rest() -> bool:
@@ -298,7 +298,7 @@ async def test_values_are_the_frame(cell: Cell) -> None:
         return answer
 
     values = await read()
-    latest = robot.hub.latest
+    latest = robot.frames.latest
     assert latest is not None
     frame = latest[2]
     assert all(v["status"] == "Good" for v in values), values

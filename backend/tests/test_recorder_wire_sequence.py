@@ -22,7 +22,8 @@ from cobot_hmi.emulator.target import Target
 from cobot_hmi.enip import io
 from cobot_hmi.layout import ROBOT_STATES
 from cobot_hmi.scanner.originator import Originator, OriginatorSettings
-from cobot_hmi.service.robots.hub import Hub
+from cobot_hmi.service.robots.frames import FrameNotifier
+from frame_support import CollectedFrames
 from waiting import eventually
 
 pytestmark = pytest.mark.timeout(120)
@@ -45,7 +46,9 @@ async def test_on_frame_carries_each_packets_wire_sequence_number(
         rpi_us=10_000,
         timeout_multiplier=7,  # RPI × 512: the connection outlives the silence below
     )
-    originator = Originator(settings, on_frame=lambda frame, _at, wire: seen.append((frame, wire)))
+    originator = Originator(
+        settings, on_frame=lambda frame, _payload, _at, wire: seen.append((frame, wire))
+    )
     await originator.start()
     try:
         assert await originator.wait_connected(DEADLINE_S)
@@ -104,15 +107,17 @@ async def test_on_frame_carries_each_packets_wire_sequence_number(
     assert [frame.joint_position[0] for frame, _ in delivered] == [0.0, 1.0, 2.0, 3.0]
 
 
-def test_the_hub_keeps_the_wire_number_beside_its_own_counter() -> None:
-    """Every consumer of a hub (the recorder's subscription, the stream's inbox, ``latest``)
-    gets ``(seq, received_at, frame, t2o_sequence)``; ``seq`` counts the frames the hub took
-    whatever the wire numbers do (a step there is a frame lost after the scanner)."""
-    hub = Hub(batch_s=0.05, queue_frames=100, stall_timeout_s=5.0)
-    subscription = hub.subscribe("history", 10)
+def test_every_consumer_gets_the_wire_number_beside_the_notifier_s_counter() -> None:
+    """Every consumer of a robot's frames (the recorder, the stream, ``latest``) gets
+    ``FrameRecord(seq, received_at_s, frame, t2o_sequence, raw)``; ``seq`` counts the frames
+    published whatever the wire numbers do (a step there is a frame lost after the scanner)."""
+    notifier = FrameNotifier("r")
+    history = CollectedFrames(notifier, 10, name="history")
     wires = [0xFFFF_FFFE, 0xFFFF_FFFF, 0, 5]
+    raw = encode_frame(zero_frame())
     for i, wire in enumerate(wires):
-        hub.on_frame(zero_frame(), 1000.0 + i * 0.01, wire)
-    items = subscription.drain()
-    assert [(seq, wire) for seq, _, _, wire in items] == list(zip([1, 2, 3, 4], wires, strict=True))
-    assert hub.latest is not None and hub.latest[3] == 5
+        notifier.publish(zero_frame(), raw, 1000.0 + i * 0.01, wire)
+    records = history.take()
+    assert [(r.seq, r.t2o_sequence) for r in records] == list(zip([1, 2, 3, 4], wires, strict=True))
+    assert all(r.raw is raw for r in records)
+    assert notifier.latest is not None and notifier.latest.t2o_sequence == 5

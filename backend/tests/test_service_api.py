@@ -179,7 +179,12 @@ async def test_control_take_is_bumpless_and_exclusive(
     hmi: Running, target: Target, robot: StaticRobot
 ) -> None:
     robot.consume_command(robot.command_image()._replace(tool_do=(True,) * 6), 0.0)
-    await eventually(lambda: hmi.service.hub.latest and hmi.service.hub.latest[2].tool_do[0])
+    await eventually(
+        lambda: (
+            hmi.service.default_robot.frames.latest
+            and hmi.service.default_robot.frames.latest[2].tool_do[0]
+        )
+    )
     olivia, oscar = await hmi.login(OPERATOR), await hmi.login(OPERATOR_2)
     async with hmi.client(olivia) as first, hmi.client(oscar) as second:
         taken = await first.post("/api/v1/control/take")

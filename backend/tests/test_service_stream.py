@@ -318,7 +318,7 @@ async def test_slow_and_stalled_clients_do_not_hurt_a_fast_one(hmi: Running) -> 
         slow_socket.close()
     # Nothing of this reached the cyclic connection or the broadcast loop.
     assert service.link.state.value == "connected"
-    assert service.hub.frames_lost_in_hub == 0
+    assert service.default_robot.intervals.frames_lost == 0
     metrics = await hmi.metrics()
     assert 'cobot_hmi_ws_stalled_disconnects_total{robot="robot"} 1.0' in metrics
     assert 'cobot_hmi_ws_dropped_frames_total{robot="robot"} 0.0' not in metrics
@@ -366,8 +366,8 @@ async def test_robot_state_and_flag_events_from_the_simulated_robot(
         async with running_service(settings) as hmi, recorder(hmi.ws_url) as stream:
             await eventually(
                 lambda: (
-                    hmi.service.hub.latest is not None
-                    and hmi.service.hub.latest[2].robot_state == 13
+                    hmi.service.default_robot.frames.latest is not None
+                    and hmi.service.default_robot.frames.latest[2].robot_state == 13
                 )  # STANDALONE_STANDBY
             )
             robot.estop(time.time())

@@ -14,9 +14,13 @@ from typing import Any
 import orjson
 import pytest
 
-from cobot_hmi.codec import command_to_json, zero_command, zero_frame
+from cobot_hmi.codec import Frame, command_to_json, zero_command, zero_frame
+from cobot_hmi.service.events.bus import EventBus
 from cobot_hmi.service.events.text import FrameWatcher
+from cobot_hmi.service.robots.confirmation import FrameWaiters
+from cobot_hmi.service.robots.frames import FrameNotifier
 from cobot_hmi.service.robots.hub import Hub, Kind, StreamClient
+from cobot_hmi.service.robots.watch import FrameEventWatch
 from cobot_hmi.service.storage.store import (
     AUDIT_COLUMNS,
     EVENT_COLUMNS,
@@ -180,16 +184,34 @@ def test_stream_client_drops_oldest_frames_never_events() -> None:
     assert [t for k, t, _ in client.queue if k is Kind.STATUS] == ["s2"]
 
 
+class _NoAlarms:
+    def observe(self, frame: Frame, time_s: float) -> list[dict[str, object]] | None:
+        return None
+
+
+def _fan_out(client_queue_frames: int) -> tuple[FrameNotifier, Hub]:
+    """A robot's frames to its WebSocket fan-out, and its state events through an event bus,
+    registered as the robot registers them; the test dispatches (``dispatch_now``) as the
+    notifier would every five frames."""
+    notifier = FrameNotifier("r", frames_per_wake=5)
+    hub = Hub(robot="r", batch_s=0.05, client_queue_frames=client_queue_frames, stall_timeout_s=5)
+    bus = EventBus()
+    bus.add(hub)
+    notifier.add(hub)
+    notifier.add(FrameEventWatch(_NoAlarms(), lambda events: bus.publish("r", *events)))
+    return notifier, hub
+
+
 async def test_hub_batches_decimates_and_tells_about_drops() -> None:
-    hub = Hub(batch_s=0.05, queue_frames=1000, stall_timeout_s=5.0)
+    notifier, hub = _fan_out(1000)
     full, slow = _Sink(), _Sink()
     a = hub.add_client(full.send, _noop_abort, None, {"type": "hello"})
     b = hub.add_client(slow.send, _noop_abort, 20.0, {"type": "hello"})
     frame = zero_frame()
     for i in range(100):  # one second of frames at 10 ms
-        hub.on_frame(frame._replace(robot_state=i % 3), 1000.0 + i * 0.01, i)
+        notifier.publish(frame._replace(robot_state=i % 3), b"", 1000.0 + i * 0.01, i)
         if i % 5 == 4:
-            hub.tick()
+            notifier.dispatch_now()
     for _ in range(20):
         await asyncio.sleep(0)
     full_frames = [f for m in full.messages if m["type"] == "frames" for f in m["frames"]]
@@ -204,14 +226,14 @@ async def test_hub_batches_decimates_and_tells_about_drops() -> None:
     assert a.frames_sent == 100
     await hub.remove_client(b)
     # A client that cannot keep up: its queue overflows and it is told how much it lost.
-    small = Hub(batch_s=0.05, queue_frames=10, stall_timeout_s=5.0)
+    small_frames, small = _fan_out(10)
     blocked = _Sink()
     blocked.gate.clear()
     small.add_client(blocked.send, _noop_abort, None, {"type": "hello"})
     for i in range(40):
-        small.on_frame(frame, 1000.0 + i * 0.01, i)
+        small_frames.publish(frame, b"", 1000.0 + i * 0.01, i)
         if i % 5 == 4:
-            small.tick()
+            small_frames.dispatch_now()
     blocked.gate.set()
     for _ in range(20):
         await asyncio.sleep(0)
@@ -224,19 +246,22 @@ async def test_hub_batches_decimates_and_tells_about_drops() -> None:
     await small.close()
 
 
-async def test_hub_wait_for_frame() -> None:
-    hub = Hub(batch_s=0.05, queue_frames=100, stall_timeout_s=5.0)
-    after = hub.seq
+async def test_a_write_waits_for_the_first_frame_that_shows_it() -> None:
     loop = asyncio.get_running_loop()
-    waiting = asyncio.create_task(hub.wait_for_frame(lambda f: f.robot_state == 5, after, 2.0))
-    await asyncio.sleep(0.01)
-    loop.call_soon(hub.on_frame, zero_frame(), 1.0, 1)
-    loop.call_soon(hub.on_frame, zero_frame()._replace(robot_state=5), 1.01, 2)
-    item = await waiting
-    assert item is not None
-    assert item[0] == 2
-    assert await hub.wait_for_frame(lambda f: f.robot_state == 7, hub.seq, 0.05) is None
-    await hub.close()
+    notifier = FrameNotifier("r", frames_per_wake=50)  # a broadcast period of 50 frames
+    notifier.bind_loop(loop)
+    waiters = FrameWaiters(notifier)
+    after = notifier.seq
+    waiting = asyncio.create_task(waiters.wait_for_frame(lambda f: f.robot_state == 5, after, 30.0))
+    await asyncio.sleep(0)
+    # Urgent while it waits: the second frame confirms it, not the 50th.
+    loop.call_soon(notifier.publish, zero_frame(), b"", 1.0, 1)
+    loop.call_soon(notifier.publish, zero_frame()._replace(robot_state=5), b"", 1.01, 2)
+    record = await waiting
+    assert record is not None
+    assert record.seq == 2 and record.frame.robot_state == 5
+    assert await waiters.wait_for_frame(lambda f: f.robot_state == 7, notifier.seq, 0.05) is None
+    waiters.close()
 
 
 # --------------------------------------------------------------------------- store
@@ -376,14 +401,14 @@ async def test_each_frame_is_serialized_once_whatever_the_clients(
         return real(frame)
 
     monkeypatch.setattr(hub_module, "frame_to_json", counting)
-    hub = Hub(batch_s=0.05, queue_frames=1000, stall_timeout_s=5.0)
+    notifier, hub = _fan_out(1000)
     sinks = [_Sink() for _ in range(6)]
     for i, sink in enumerate(sinks):  # three rate groups: every frame, 50 Hz, 20 Hz
         hub.add_client(sink.send, _noop_abort, (None, 50.0, 20.0)[i % 3], {"type": "hello"})
     for i in range(50):
-        hub.on_frame(zero_frame(), 1000.0 + i * 0.01, i)
+        notifier.publish(zero_frame(), b"", 1000.0 + i * 0.01, i)
         if i % 5 == 4:
-            hub.tick()
+            notifier.dispatch_now()
     for _ in range(20):
         await asyncio.sleep(0)
     assert calls == 50  # once per frame, not once per client or per group

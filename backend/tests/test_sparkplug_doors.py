@@ -265,9 +265,11 @@ async def test_a_stalled_broker_stalls_nothing(tmp_path: Path, plc_host: str) ->
         robots = c.running.service.robots
         process.send_signal(signal.SIGSTOP)
         try:
-            before = {name: robot.hub.seq for name, robot in robots.items()}
+            before = {name: robot.frames.seq for name, robot in robots.items()}
             await eventually(
-                lambda: all(robot.hub.seq > before[name] + 100 for name, robot in robots.items()),
+                lambda: all(
+                    robot.frames.seq > before[name] + 100 for name, robot in robots.items()
+                ),
                 SLOW_S,
             )
             async with c.running.client() as client:

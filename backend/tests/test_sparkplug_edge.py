@@ -75,7 +75,7 @@ async def test_births_seq_and_data_equal_to_frames(tmp_path: Path, plc_host: str
             lambda ms: sum(1 for m in ms if m.kind == "DDATA" and m.device == "m1013") >= 5
         )
         by_time: dict[int, set[float]] = {}  # frames received in the same ms (after a stall)
-        for _, t, frame, _ in c.frames_seen("m1013"):
+        for _, t, frame, _, _ in c.frames_seen("m1013"):
             by_time.setdefault(int(t * 1000), set()).add(f32(frame.joint_position[0]))
         checked = 0
         for message in c.subscriber.of("DDATA", "m1013"):
@@ -119,7 +119,7 @@ async def test_bits_are_never_lost_and_state_names_follow(tmp_path: Path, plc_ho
         def transitions(index: int | None) -> list[tuple[Any, int]]:
             out: list[tuple[Any, int]] = []
             previous = None
-            for _, t, frame, _ in c.frames_seen("m0609"):
+            for _, t, frame, _, _ in c.frames_seen("m0609"):
                 value = frame.robot_state if index is None else frame.controlbox_di[index]
                 if previous is not None and value != previous:
                     out.append((value, int(t * 1000)))
@@ -234,7 +234,7 @@ async def test_dcmd_write_through_the_pipeline(tmp_path: Path, plc_host: str) ->
         assert (outcome, reason) == ("confirmed", "")
         assert c.panels["m1013"].command_image().controlbox_do[3]
         robot = c.running.service.robots["m1013"]
-        latest = robot.hub.latest
+        latest = robot.frames.latest
         assert latest is not None and latest[2].controlbox_do[3]
         # The O→T image and the holder were reported back too.
         aliases = c.aliases("m1013")

@@ -20,6 +20,7 @@ import pytest
 
 from cobot_hmi.service.settings import ServiceSettings
 from conftest import _next_host, free_tcp_port
+from frame_support import CollectedFrames
 from mosquitto_support import Message, Subscriber, encode_command, mosquitto, needs_mosquitto
 from process_support import DEVNULL, cli_process
 from service_support import cell_settings, emulator, eventually, running_service
@@ -35,7 +36,7 @@ def transitions(c: Cell, device: str, di_index: int) -> list[tuple[bool, int]]:
     """``(value, ms)`` of each change of one digital input in the frames the service received."""
     out = []
     previous = None
-    for _, t, frame, _ in c.frames_seen(device):
+    for _, t, frame, _, _ in c.frames_seen(device):
         value = frame.controlbox_di[di_index]
         if previous is not None and value != previous:
             out.append((value, int(t * 1000)))
@@ -263,16 +264,16 @@ async def test_a_buffer_left_by_a_run_goes_out_with_the_next(tmp_path: Path, plc
         async with running_service(settings(["m1013", "m0609"])) as first:
             edge = first.service.edge_node
             assert edge is not None
-            frames = first.service.robots["m1013"].hub.subscribe("test", 100_000)
+            frames = CollectedFrames(first.service.robots["m1013"].frames, 100_000)
             await asyncio.sleep(0.3)  # past the (unsent) birth: the toggles are reports
             di = list(panels["m1013"].produce_frame(0).controlbox_di)
             for k in range(4):
                 di[4] = k % 2 == 0
                 panels["m1013"].set(controlbox_di=tuple(di))
                 await asyncio.sleep(0.15)
-            seen = list(frames.queue)
+            seen = frames.seen()
             expected = []
-            for (_, _, a, _), (_, t, b, _) in itertools.pairwise(seen):
+            for (_, _, a, _, _), (_, t, b, _, _) in itertools.pairwise(seen):
                 if a.controlbox_di[4] != b.controlbox_di[4]:
                     expected.append((b.controlbox_di[4], int(t * 1000)))
             assert len(expected) >= 2

@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 
 from cobot_hmi.codec import zero_frame
 from cobot_hmi.layout import T2O_FIELDS
+from cobot_hmi.service.robots.frames import FrameNotifier, FrameRecord
 from cobot_hmi.service.settings import DEFAULT_DEADBANDS, SettingsError, load_settings
 from cobot_hmi.sparkplug.buffer import DiskBuffer
 from cobot_hmi.sparkplug.catalogue import ALIAS_STRIDE, Catalogue
@@ -28,6 +29,7 @@ from cobot_hmi.sparkplug.payload import (
 from cobot_hmi.sparkplug.rbe import Reporter, moved
 from cobot_hmi.sparkplug.session import NodeSession
 from cobot_hmi.sparkplug.topics import MessageType, Topics
+from frame_support import CollectedFrames
 from mosquitto_support import decode_payload, encode_command
 
 # --------------------------------------------------------------------------- the buffer
@@ -251,7 +253,7 @@ def test_every_transition_between_two_reports() -> None:
     for i in range(6):
         di[2] = i % 2 == 0
         frame = base._replace(controlbox_di=tuple(di), robot_state=i)
-        items.append((i, 1000.0 + i / 100, frame, i))
+        items.append(FrameRecord(i, 1000.0 + i / 100, frame, i, b""))
     changes = reporter.discrete_changes(items)
     offset = catalogue.by_name["controlbox_di/DI 3"].offset
     state = catalogue.by_name["robot_state"].offset
@@ -259,7 +261,7 @@ def test_every_transition_between_two_reports() -> None:
         (i % 2 == 0, 1000000 + i * 10) for i in range(6)
     ]
     assert [v for o, v, _ in changes if o == state] == [1, 2, 3, 4, 5]
-    assert reporter.discrete_changes([(7, 1001.0, items[-1][2], 7)]) == []
+    assert reporter.discrete_changes([FrameRecord(7, 1001.0, items[-1][2], 7, b"")]) == []
 
 
 def test_analog_deadband_is_against_the_last_reported_value() -> None:
@@ -285,22 +287,20 @@ def test_moved() -> None:
     assert not moved(math.nan, math.nan, 0.0)
 
 
-# --------------------------------------------------------------------------- hub subscriptions
+# --------------------------------------------------------------------------- frame consumers
 
 
-def test_a_hub_subscription_is_bounded_and_counts_its_drops() -> None:
-    from cobot_hmi.service.robots.hub import Hub
-
-    hub = Hub(batch_s=0.05, queue_frames=10, stall_timeout_s=5.0, robot="r")
-    subscription = hub.subscribe("test", 3)
+def test_a_consumer_s_queue_is_bounded_and_counts_its_drops() -> None:
+    notifier = FrameNotifier("r")
+    consumer = CollectedFrames(notifier, 3)
     frames = [zero_frame()._replace(robot_state=i) for i in range(5)]
     for i, frame in enumerate(frames):
-        hub.on_frame(frame, 1000.0 + i, i)
-    assert subscription.dropped == 2
-    drained = subscription.drain()
-    assert [item[2].robot_state for item in drained] == [2, 3, 4]
-    assert [item[0] for item in drained] == [3, 4, 5]  # the hub's own sequence
-    assert subscription.drain() == []
-    hub.unsubscribe(subscription)
-    hub.on_frame(frames[0], 2000.0, 6)
-    assert subscription.drain() == []
+        notifier.publish(frame, b"", 1000.0 + i, i)
+    assert consumer.dropped == 2
+    taken = consumer.take()
+    assert [record.frame.robot_state for record in taken] == [2, 3, 4]
+    assert [record.seq for record in taken] == [3, 4, 5]  # the notifier's own sequence
+    assert consumer.take() == []
+    consumer.close()
+    notifier.publish(frames[0], b"", 2000.0, 6)
+    assert consumer.take() == []

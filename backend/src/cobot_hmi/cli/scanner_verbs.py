@@ -226,7 +226,7 @@ def _scan(args: argparse.Namespace) -> int:
     # callbacks' own third argument is the packet's wire sequence number.
     delivered = itertools.count(1)
 
-    def on_frame(frame: Frame, received_at: float, _t2o_sequence: int) -> None:
+    def on_frame(frame: Frame, _payload: bytes, received_at: float, _t2o_sequence: int) -> None:
         seq = next(delivered)
         if not args.stats:
             line = {"seq": seq, "received_at": received_at, "frame": frame_to_json(frame)}

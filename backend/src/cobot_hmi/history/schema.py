@@ -238,6 +238,19 @@ def items_to_batch(items: Sequence[tuple[int, float, Frame, int]]) -> pa.RecordB
     )
 
 
+def records_to_batch(records: Sequence[tuple[int, float, object, int, bytes]]) -> pa.RecordBatch:
+    """Frame records ``(seq, received_at, frame, t2o_sequence, payload)`` as one record batch:
+    the columns sliced from the T→O payloads the frames were decoded from (the recorder's
+    path: nothing is encoded again)."""
+    raw = np.frombuffer(b"".join(record[4] for record in records), dtype=np.uint8)
+    return raw_to_batch(
+        [record[0] for record in records],
+        [record[1] for record in records],
+        raw.reshape(len(records), T2O_SIZE),
+        [record[3] for record in records],
+    )
+
+
 def conform(table: pa.Table, columns: Sequence[str]) -> pa.Table:
     """``columns`` of ``table``, in that order. A column the table lacks (a segment or journal
     written before the column existed: ``t2o_sequence``) comes back as nulls of its type, so

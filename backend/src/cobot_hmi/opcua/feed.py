@@ -21,7 +21,7 @@ import asyncio
 import math
 import secrets
 import time
-from collections.abc import Coroutine, Mapping
+from collections.abc import Coroutine, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, Final, TypeVar
 
 from cobot_hmi.opcua.values import Identity, Sample
@@ -29,7 +29,7 @@ from cobot_hmi.scanner.originator import ConnectionState
 from cobot_hmi.service.access.auth import LoginThrottle, Session
 from cobot_hmi.service.access.users import User, UsersFile
 from cobot_hmi.service.errors import ApiError
-from cobot_hmi.service.robots.hub import FrameSubscription
+from cobot_hmi.service.robots.frames import FrameRecord, Registration, Runs
 from cobot_hmi.service.writes.pipeline import (
     WriteOutcome,
     Writer,
@@ -42,9 +42,8 @@ if TYPE_CHECKING:
     from cobot_hmi.service.robots.robot import RobotRuntime
     from cobot_hmi.service.settings import ServiceSettings
 
-SUBSCRIPTION_NAME: Final = "opcua"
-QUEUE_S: Final = 1.0
-"""Frames a robot's queue holds: this long at its RPI (a tick drains it every 100 ms)."""
+QUEUE_FRAMES: Final = 256
+"""Frames a robot's queue holds between two turns of the web loop (one turn takes them all)."""
 
 T = TypeVar("T")
 
@@ -53,7 +52,15 @@ __all__ = ["ApiError", "ServiceFeed", "Session", "User", "WriteOutcome", "Writer
 
 
 class ServiceFeed:
-    """See the module docstring. Built on the web loop; used from the server's thread."""
+    """See the module docstring. Built on the web loop; used from the server's thread.
+
+    A consumer of every robot's frames (``robots.frames``) on the web loop that keeps only
+    each robot's newest frame (one reference, swapped whole): the server's thread takes it at
+    its own rate (``sample``), so the server never holds frames it would not publish."""
+
+    name: Final = "opcua"
+    runs: Final = Runs.LOOP
+    queue_frames: Final = QUEUE_FRAMES
 
     def __init__(
         self,
@@ -72,7 +79,8 @@ class ServiceFeed:
             settings.login_delay_max_s,
             settings.login_user_delay_max_s,
         )
-        self._subscriptions: dict[str, FrameSubscription] = {}
+        self._registrations: dict[str, Registration] = {}
+        self._newest: dict[str, FrameRecord | None] = {}
         self.logins_refused = 0
 
     @property
@@ -82,27 +90,29 @@ class ServiceFeed:
     # ------------------------------------------------------------ frames
 
     def open(self) -> None:
-        """Subscribe to every robot's frames (before the first tick)."""
+        """Register with every robot's frames (on the web loop, before the first tick)."""
         for name, robot in self._robots.items():
-            frames = max(8, math.ceil(QUEUE_S * 1000 / robot.settings.rpi_ms))
-            self._subscriptions[name] = robot.hub.subscribe(SUBSCRIPTION_NAME, frames)
+            self._registrations[name] = robot.frames.add(self)
 
     def close(self) -> None:
-        for name, subscription in self._subscriptions.items():
-            self._robots[name].hub.unsubscribe(subscription)
-        self._subscriptions.clear()
+        for name, registration in self._registrations.items():
+            self._robots[name].frames.remove(registration)
+        self._registrations.clear()
+
+    def on_frames(self, robot: str, records: Sequence[FrameRecord]) -> None:
+        """On the web loop: the newest frame replaces the one the server has not taken."""
+        self._newest[robot] = records[-1]
 
     def dropped(self, name: str) -> int:
-        """Frames the robot's queue lost while this thread was late (``FrameSubscription``)."""
-        subscription = self._subscriptions.get(name)
-        return 0 if subscription is None else subscription.dropped
+        """Frames the robot's queue lost while the web loop was late (``robots.frames``)."""
+        registration = self._registrations.get(name)
+        return 0 if registration is None else registration.dropped
 
     def sample(self, name: str) -> Sample:
         """The robot as it is now, with the newest frame since the last sample (if any)."""
         robot = self._robots[name]
-        subscription = self._subscriptions.get(name)
-        items = subscription.drain() if subscription is not None else []
-        frame, received_at = (items[-1][2], items[-1][1]) if items else (None, 0.0)
+        newest = self._newest.pop(name, None)  # one atomic step: the web loop may set it
+        frame, received_at = (newest.frame, newest.received_at_s) if newest else (None, 0.0)
         state = robot.link.state
         try:
             command = robot.link.command

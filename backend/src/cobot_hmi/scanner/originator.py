@@ -283,14 +283,15 @@ class Originator:
         self,
         settings: OriginatorSettings,
         *,
-        on_frame: Callable[[Frame, float, int], None] | None = None,
+        on_frame: Callable[[Frame, bytes, float, int], None] | None = None,
         on_state: Callable[[ConnectionState, str | None], None] | None = None,
         on_data: Callable[[bytes, float, int], None] | None = None,
         on_slow_target: Callable[[SlowTarget | None], None] | None = None,
         io_port: IoPort | None = None,
     ) -> None:
-        """``on_frame(frame, received_at, t2o_sequence)``: each new T→O frame when T→O is the
-        robot's layout; ``on_data(payload, received_at, t2o_sequence)``: each new T→O packet's
+        """``on_frame(frame, payload, received_at, t2o_sequence)``: each new T→O frame when T→O
+        is the robot's layout, with the payload it was decoded from (consumers that keep bytes
+        slice those instead of encoding the frame again); ``on_data(payload, received_at, t2o_sequence)``: each new T→O packet's
         data otherwise (``settings.decodes_frames``). ``received_at``: epoch seconds the kernel
         received it; ``t2o_sequence``: the encapsulation sequence number its packet carried in
         the Sequenced Address item (CIP Vol 2 §2-6, §3-4.2; UDINT, the target raises it per
@@ -868,7 +869,7 @@ class Originator:
             self._seed(frame)
         if self.on_frame is not None:
             try:
-                self.on_frame(frame, received_at, packet.encap_seq)
+                self.on_frame(frame, payload, received_at, packet.encap_seq)
             except Exception:
                 log.exception("on_frame callback failed")
 

@@ -29,12 +29,14 @@ from cobot_hmi.service.access.users import User, UsersFile
 from cobot_hmi.service.alarms.summary import cell_summary
 from cobot_hmi.service.cycles.service import Cycles
 from cobot_hmi.service.errors import UnknownRobotError
+from cobot_hmi.service.events.bus import EventBus
 from cobot_hmi.service.recording.recorder import Recorder
 from cobot_hmi.service.robots.control import Control
 from cobot_hmi.service.robots.hub import Hub
 from cobot_hmi.service.robots.link import CyclicLoop, RobotLink
 from cobot_hmi.service.robots.robot import RobotRuntime
 from cobot_hmi.service.settings import ServiceSettings
+from cobot_hmi.service.storage.event_log import EventLog
 from cobot_hmi.service.storage.store import Store
 
 if TYPE_CHECKING:
@@ -59,8 +61,11 @@ class Service:
             niceness=settings.cyclic_niceness,
             on_restart=self._on_cyclic_restart,
         )
+        self.events = EventBus()
+        """Every event of every robot, to the log, the streams and every other consumer."""
+        self.events.add(EventLog(self.store))
         self.robots: dict[str, RobotRuntime] = {
-            robot.name: RobotRuntime(robot, settings, self.cyclic, self.store)
+            robot.name: RobotRuntime(robot, settings, self.cyclic, self.store, self.events)
             for robot in robot_settings
         }
         """Every robot, in the settings' order."""
@@ -131,6 +136,7 @@ class Service:
     # ------------------------------------------------------------ lifecycle
 
     async def start(self) -> None:
+        self.events.bind_loop(asyncio.get_running_loop())
         await self.store.open()
         for robot in self.robots.values():
             await robot.open_state()  # tag names, persisted alarms
@@ -180,7 +186,7 @@ class Service:
     def _on_cyclic_restart(self, reason: str) -> None:
         """The cyclic thread died and is being restarted: an event on every robot's stream."""
         for robot in self.robots.values():
-            robot.hub.publish_event(
+            robot.publish_event(
                 {
                     "kind": "connection",
                     "time": time.time(),
@@ -258,7 +264,7 @@ class Service:
                 robot.spawn(robot.control.drop(reason, session_id=session.id), "control-drop")
             streams = self._ws_by_session.get((session.id, robot.name), 0)
             if streams > 0:
-                robot.hub.publish_event(
+                robot.publish_event(
                     {
                         "kind": "session",
                         "time": time.time(),

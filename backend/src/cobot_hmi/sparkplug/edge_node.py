@@ -23,8 +23,8 @@ import logging
 import math
 import secrets
 import time
-from collections import Counter
-from collections.abc import Callable, Mapping
+from collections import Counter, deque
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
@@ -34,6 +34,7 @@ from cobot_hmi.codec import CommandImage, Frame
 from cobot_hmi.layout import LAYOUT_VERSION, O2T_FIELDS
 from cobot_hmi.service.access.auth import Session
 from cobot_hmi.service.access.users import Role, User
+from cobot_hmi.service.robots.frames import FrameRecord, Runs
 from cobot_hmi.service.writes.pipeline import Writer
 from cobot_hmi.sparkplug.buffer import DiskBuffer
 from cobot_hmi.sparkplug.catalogue import (
@@ -89,22 +90,30 @@ REPLAY_BATCH: Final = 50
 LAYOUT_VERSION_METRIC: Final = "Node Info/Layout Version"
 
 
-def _any_frame(_frame: Frame) -> bool:
-    return True
-
-
 def _now_ms() -> int:
     return int(time.time() * 1000)
 
 
 class Device:
-    """One robot as a Sparkplug device: its queue, reporter and what was last reported."""
+    """One robot as a Sparkplug device: its frames, reporter and what was last reported.
+
+    A consumer of the robot's frames (``robots.frames``) on the web loop: ``on_frames`` keeps
+    them (bounded: the oldest dropped and counted) and wakes the device's loop, which reports
+    at most every ``period_s``, right after frames arrived."""
+
+    name: Final = "sparkplug"
+    runs: Final = Runs.LOOP
+    queue_frames: Final = QUEUE_FRAMES
 
     def __init__(self, robot: RobotRuntime, number: int, catalogue: Catalogue) -> None:
         self.robot = robot
-        self.name = robot.name
+        self.device_name = robot.name
         self.alias_base = number * ALIAS_STRIDE
-        self.subscription = robot.hub.subscribe("sparkplug", QUEUE_FRAMES)
+        self.pending: deque[FrameRecord] = deque(maxlen=QUEUE_FRAMES)
+        """Frames since the last report."""
+        self.pending_dropped = 0
+        self.arrived = asyncio.Event()
+        self.registration = robot.frames.add(self)
         self.reporter = Reporter(catalogue)
         self.alive = False
         """Reported since its connection came up (a DBIRTH was made, sent or not)."""
@@ -122,6 +131,25 @@ class Device:
         ``period_s`` after it (the maximum rate)."""
         self.messages: Counter[str] = Counter()
         self.bytes: Counter[str] = Counter()
+
+    def on_frames(self, robot: str, records: Sequence[FrameRecord]) -> None:
+        pending = self.pending
+        overflow = len(pending) + len(records) - QUEUE_FRAMES
+        if overflow > 0:
+            self.pending_dropped += overflow
+        pending.extend(records)
+        self.arrived.set()
+
+    def take(self) -> list[FrameRecord]:
+        """The frames since the last report, oldest first."""
+        items = list(self.pending)
+        self.pending.clear()
+        return items
+
+    @property
+    def dropped(self) -> int:
+        """Frames lost before a report saw them (the notifier's queue and ``pending``)."""
+        return self.registration.dropped + self.pending_dropped
 
 
 class EdgeNode:
@@ -209,7 +237,9 @@ class EdgeNode:
         )
         for device in self.devices.values():
             self._tasks.append(
-                asyncio.create_task(self._device_loop(device), name=f"sparkplug {device.name}")
+                asyncio.create_task(
+                    self._device_loop(device), name=f"sparkplug {device.device_name}"
+                )
             )
 
     async def stop(self) -> None:
@@ -241,7 +271,7 @@ class EdgeNode:
         client.disconnect()
         await asyncio.to_thread(client.loop_stop)
         for device in self.devices.values():
-            device.robot.hub.unsubscribe(device.subscription)
+            device.robot.frames.remove(device.registration)
 
     def _connect(self) -> None:
         """A new client (paho's thread and sockets are its own), connecting in the background."""
@@ -476,7 +506,9 @@ class EdgeNode:
                 value=value,
                 properties=self._birth_properties(metric, value),
             )
-        self._publish(self.topics.device_topic(MessageType.DBIRTH, device.name), payload, device)
+        self._publish(
+            self.topics.device_topic(MessageType.DBIRTH, device.device_name), payload, device
+        )
         device.born = True
         if self.buffer.records_buffered:  # its history, if it has some, after its birth
             self._replay_again = True
@@ -485,7 +517,9 @@ class EdgeNode:
 
     def _publish_device_death(self, device: Device) -> None:
         payload = make_payload(_now_ms(), None)
-        self._publish(self.topics.device_topic(MessageType.DDEATH, device.name), payload, device)
+        self._publish(
+            self.topics.device_topic(MessageType.DDEATH, device.device_name), payload, device
+        )
         device.born = False
 
     @staticmethod
@@ -526,26 +560,28 @@ class EdgeNode:
     async def _device_loop(self, device: Device) -> None:
         """A tick at most every ``period_s``, each right after a frame arrived: the newest frame
         is then at its freshest when reported (one wake-up per tick from the cyclic thread,
-        through ``Hub.wait_for_frame``)."""
+        its ``on_frames``)."""
         loop = asyncio.get_running_loop()
-        hub = device.robot.hub
         last = loop.time()
         while True:
             due = max(last, device.reported_at) + self.period_s
             await asyncio.sleep(max(0.0, due - loop.time()))
             if device.robot.down_since is None:
-                await hub.wait_for_frame(_any_frame, hub.seq, self.period_s)
+                device.arrived.clear()
+                with contextlib.suppress(TimeoutError):
+                    async with asyncio.timeout(self.period_s):
+                        await device.arrived.wait()
             last = loop.time()
             started = time.thread_time()
             try:
                 self._tick(device)
             except Exception:  # a bug here must not end the robot's reports for good
-                log.exception("Sparkplug tick of %s failed", device.name)
+                log.exception("Sparkplug tick of %s failed", device.device_name)
             self.tick_seconds += time.thread_time() - started
 
     def _tick(self, device: Device) -> None:
         robot = device.robot
-        items = device.subscription.drain()
+        items = device.take()
         connected = robot.down_since is None
         if device.alive and (not connected or robot.connects != device.connects_seen):
             device.alive = False
@@ -624,7 +660,7 @@ class EdgeNode:
                 value=value,
                 properties=(Property("name", DataType.STRING, name),) if name else (),
             )
-        topic = self.topics.device_topic(MessageType.DDATA, device.name)
+        topic = self.topics.device_topic(MessageType.DDATA, device.device_name)
         if self.active and device.born:
             self._publish(topic, payload, device)
         elif not self.active and self.buffer.append(topic, payload.SerializeToString()):
@@ -715,7 +751,9 @@ class EdgeNode:
         command = parse_device_command(payload, self.catalogue, device.alias_base)
         if command.empty:
             return
-        self._spawn(self._run_command(device, command, topic), f"sparkplug dcmd {device.name}")
+        self._spawn(
+            self._run_command(device, command, topic), f"sparkplug dcmd {device.device_name}"
+        )
 
     async def _run_command(self, device: Device, command: DeviceCommand, topic: str) -> None:
         try:
@@ -727,7 +765,7 @@ class EdgeNode:
                 writes_enabled=self.writes_enabled,
             )
         except Exception as error:  # the store or the link failed: say so, stay up
-            log.exception("Sparkplug DCMD to %s failed", device.name)
+            log.exception("Sparkplug DCMD to %s failed", device.device_name)
             device.outcome = ("error", f"{type(error).__name__}: {error}")
         else:
             device.outcome = (result.outcome, result.reason)
@@ -741,7 +779,7 @@ class EdgeNode:
 
         def per_device(counter: Callable[[Device], Counter[str]]) -> list[Any]:
             return [
-                ({"robot": d.name, "type": kind}, float(count))
+                ({"robot": d.device_name, "type": kind}, float(count))
                 for d in devices
                 for kind, count in sorted(counter(d).items())
             ]
@@ -821,7 +859,7 @@ class EdgeNode:
                 "sparkplug_frames_dropped_total",
                 "counter",
                 "frames the edge node's queue dropped before it read them",
-                [({"robot": d.name}, float(d.subscription.dropped)) for d in devices],
+                [({"robot": d.device_name}, float(d.dropped)) for d in devices],
             ),
             (
                 "sparkplug_tick_seconds_total",

@@ -19,14 +19,12 @@ from operator import attrgetter
 from typing import Any
 
 from cobot_hmi.codec import Frame
+from cobot_hmi.service.robots.frames import FrameRecord
 from cobot_hmi.sparkplug.catalogue import Catalogue
 from cobot_hmi.sparkplug.payload import MetricValue
 
 Change = tuple[int, MetricValue, int]
 """``(metric offset, value, timestamp ms)``."""
-
-FrameItem = tuple[int, float, Frame, int]
-"""The hub's ``(seq, received_at, frame, t2o_sequence)``."""
 
 
 def _getter(fields: list[str]) -> Any:
@@ -71,11 +69,11 @@ class Reporter:
     def _flat_analog(self, frame: Frame) -> list[float]:
         return [value for values in self._analog(frame) for value in values]
 
-    def discrete_changes(self, items: Iterable[FrameItem]) -> list[Change]:
+    def discrete_changes(self, items: Iterable[FrameRecord]) -> list[Change]:
         """Every discrete transition across ``items`` (oldest first), each at its frame's time."""
         changes: list[Change] = []
         last = self._last_discrete
-        for _, received_at, frame, _ in items:
+        for _, received_at, frame, _, _ in items:
             values = self._discrete(frame)
             if last is None:
                 last = values

@@ -231,15 +231,25 @@ def _timing_families(robots: _Robots) -> Iterator[Metric]:
         labels=["robot"],
     )
     for name, robot, _ in robots:
-        hub = robot.hub
+        intervals = robot.intervals
         # The bounds as this service has always written them (le="0.00100"): a dashboard's
-        # series keep their identity. The count is the +Inf bucket's (the hub counts both).
+        # series keep their identity. The count is the +Inf bucket's.
         buckets = [
             ("+Inf" if bound == float("inf") else f"{bound:.5f}", float(count))
-            for bound, count in hub.interval_histogram()
+            for bound, count in intervals.histogram()
         ]
-        histogram.add_metric([name], buckets, hub.interval_sum_s)
+        histogram.add_metric([name], buckets, intervals.sum_s)
     yield histogram
+    # Every consumer of every robot's frames, by name: what its bounded queue dropped.
+    dropped = _counter(
+        "consumer_dropped_frames_total",
+        "frames a consumer's queue dropped because it fell behind (robots.frames)",
+        ["robot", "consumer"],
+    )
+    for name, robot, _ in robots:
+        for registration in robot.frames.registrations:
+            dropped.add_metric([name, registration.name], registration.dropped)
+    yield dropped
 
 
 def _hub_families(robots: _Robots) -> Iterator[Metric]:
@@ -248,13 +258,13 @@ def _hub_families(robots: _Robots) -> Iterator[Metric]:
             "counter",
             "hub_frames_total",
             "frames handed to the broadcast loop",
-            lambda r, s: r.hub.frames_in,
+            lambda r, s: r.intervals.frames_in,
         ),
         (
             "counter",
             "hub_frames_lost_total",
             "frames lost before broadcasting (the loop fell behind)",
-            lambda r, s: r.hub.frames_lost_in_hub,
+            lambda r, s: r.frames.dropped_by(r.hub.name),
         ),
         ("gauge", "ws_clients", "connected WebSocket clients", lambda r, s: len(r.hub.clients)),
         (

@@ -40,7 +40,7 @@ import os
 import shutil
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Final
 
@@ -48,9 +48,9 @@ import pyarrow as pa
 
 from cobot_hmi.history import retention, segments
 from cobot_hmi.history.closer import JournalCloser
-from cobot_hmi.history.schema import items_to_batch
+from cobot_hmi.history.schema import records_to_batch
 from cobot_hmi.history.segments import Segment, SegmentWriter
-from cobot_hmi.service.robots.hub import FrameSubscription
+from cobot_hmi.service.robots.frames import FrameRecord, Registration, Runs
 
 if TYPE_CHECKING:
     from cobot_hmi.service.api.metrics import MetricFamily
@@ -67,7 +67,6 @@ RESUME_PROBE_BYTES: Final = 1024 * 1024
 """A paused recorder resumes only once this much can be written under the history directory
 (several seconds of frames of a robot at RPI 2 ms): a disk with a few kilobytes free would
 pause it again at the next flush."""
-SUBSCRIPTION_NAME: Final = "history"
 
 
 @dataclass(slots=True)
@@ -76,7 +75,7 @@ class _Track:
 
     robot: RobotRuntime
     writer: SegmentWriter
-    subscription: FrameSubscription | None = None
+    registration: Registration | None = None
     frames_recorded: int = 0
     frames_not_recorded: int = 0
     segments_closed: int = 0
@@ -89,7 +88,14 @@ class _Track:
 class Recorder:
     """Build with the settings and the robots; ``start`` on the web loop before the cyclic
     thread starts (so no frame is missed), ``stop`` after it stopped (the last frames are
-    written and every open segment closed)."""
+    written and every open segment closed).
+
+    A frame consumer (``robots.frames``) of every robot that runs on its own thread: each
+    ``history_flush_s`` the thread takes every robot's queued frames (``on_frames``) and
+    appends them to the robot's journal as one record batch sliced from the T→O payloads."""
+
+    name: Final = "history"
+    runs: Final = Runs.THREAD
 
     def __init__(self, settings: ServiceSettings, robots: Mapping[str, RobotRuntime]) -> None:
         self.root = settings.history_path
@@ -120,9 +126,7 @@ class Recorder:
     async def start(self) -> None:
         self._loop = asyncio.get_running_loop()
         for name, track in self.tracks.items():
-            track.subscription = track.robot.hub.subscribe(
-                SUBSCRIPTION_NAME, self.settings.history_queue_frames
-            )
+            track.registration = track.robot.frames.add(self)
             track.dropped_reported = 0
             for _, path in segments.list_journals(self.root, name):  # left by a crash
                 self.closer.submit(name, path)
@@ -141,9 +145,9 @@ class Recorder:
         self._thread = None
         await asyncio.to_thread(self.closer.stop)  # every closed journal into its segment
         for track in self.tracks.values():
-            if track.subscription is not None:
-                track.robot.hub.unsubscribe(track.subscription)
-                track.subscription = None
+            if track.registration is not None:
+                track.robot.frames.remove(track.registration)
+                track.registration = None
 
     # ------------------------------------------------------------ the thread
 
@@ -183,12 +187,15 @@ class Recorder:
             self._next_retention = now + RETENTION_INTERVAL_S
             self._retention()
 
+    @property
+    def queue_frames(self) -> int:
+        return self.settings.history_queue_frames
+
     def _record(self, track: _Track, now: float) -> None:
-        subscription = track.subscription
-        if subscription is None:
+        registration = track.registration
+        if registration is None:
             return
-        items = subscription.drain()
-        dropped = subscription.dropped
+        dropped = registration.dropped
         if dropped > track.dropped_reported and now - track.overflow_reported_at >= RETRY_S:
             newly = dropped - track.dropped_reported
             track.dropped_reported = dropped
@@ -199,22 +206,42 @@ class Recorder:
                 f"the recorder fell behind: {newly} frames not recorded",
                 dropped=newly,
             )
+        registration.deliver()  # on_frames, on this thread
         if self.paused_reason is not None:
-            track.frames_not_recorded += len(items)
             return
         try:
-            if items:
-                track.writer.append(items_to_batch(items))
-                track.frames_recorded += len(items)
-                track.last_time_s = items[-1][1]
             if track.writer.due():
                 self._hand_over(track)
         except (OSError, pa.ArrowException) as error:
-            track.frames_not_recorded += len(items)
+            self._write_failed(track, error)
+
+    def on_frames(self, robot: str, records: Sequence[FrameRecord]) -> None:
+        """One robot's frames since the last cycle into its journal (the recorder's thread)."""
+        track = self.tracks[robot]
+        if self.paused_reason is not None:
+            track.frames_not_recorded += len(records)
+            return
+        try:
+            track.writer.append(records_to_batch(records))
+        except (OSError, pa.ArrowException) as error:
+            track.frames_not_recorded += len(records)
+            self._write_failed(track, error)
+            return
+        except Exception as error:  # paused and retried, never a silent stop
+            log.exception("history recorder: %s's frames not recorded", robot)
+            track.frames_not_recorded += len(records)
             self.write_errors += 1
             track.writer.abandon()
-            reason = error.strerror if isinstance(error, OSError) else None
-            self._pause(f"cannot write {self.root}: {reason or error}")
+            self._pause(f"the recorder failed: {type(error).__name__}: {error}")
+            return
+        track.frames_recorded += len(records)
+        track.last_time_s = records[-1].received_at_s
+
+    def _write_failed(self, track: _Track, error: OSError | pa.ArrowException) -> None:
+        self.write_errors += 1
+        track.writer.abandon()
+        reason = error.strerror if isinstance(error, OSError) else None
+        self._pause(f"cannot write {self.root}: {reason or error}")
 
     def _hand_over(self, track: _Track) -> None:
         """The open journal to the closer (it becomes a segment there); the next batch starts
@@ -330,7 +357,7 @@ class Recorder:
         if loop is None:
             return
         with contextlib.suppress(RuntimeError):  # the loop closed during shutdown
-            loop.call_soon_threadsafe(track.robot.hub.publish_event, event)
+            loop.call_soon_threadsafe(track.robot.publish_event, event)
 
     def _alarm(self, track: _Track, *, paused: bool, reason: str) -> None:
         """The robot's ``recording_paused`` alarm, on the web loop (from this thread): the
@@ -345,8 +372,9 @@ class Recorder:
 
     @staticmethod
     def _alarm_now(robot: RobotRuntime, *, paused: bool, reason: str) -> None:
-        for event in robot.alarms.recording(paused=paused, reason=reason, now_s=time.time()):
-            robot.hub.publish_event(event)
+        robot.publish_events(
+            robot.alarms.recording(paused=paused, reason=reason, now_s=time.time())
+        )
 
     # ------------------------------------------------------------ /metrics
 
@@ -367,7 +395,7 @@ class Recorder:
             ("history_frames_dropped_total", "counter",
              "frames the recorder's queue dropped before it read them (overflow)",
              [({"robot": t.robot.name},
-               float(t.subscription.dropped if t.subscription else t.dropped_reported))
+               float(t.registration.dropped if t.registration else t.dropped_reported))
               for t in tracks]),
             ("history_segments_closed_total", "counter", "segments closed into Parquet",
              per_robot("segments_closed")),

@@ -18,13 +18,15 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from cobot_hmi.scanner.originator import ConnectionState, NotConnectedError, ReadOnlyError
 from cobot_hmi.service.access.auth import Session
 from cobot_hmi.service.access.users import Role
 from cobot_hmi.service.errors import AuditUnavailableError, conflict
-from cobot_hmi.service.robots.hub import Hub
+from cobot_hmi.service.events.bus import Event
+from cobot_hmi.service.robots.frames import FrameNotifier
 from cobot_hmi.service.robots.link import RobotLink
 from cobot_hmi.service.storage.store import AuditEntry, Store
 from cobot_hmi.service.writes.validation import FRAME_ECHOED
@@ -51,10 +53,19 @@ class Holder:
 class Control:
     """The control token and its changes (audited, announced as ``control`` events)."""
 
-    def __init__(self, link: RobotLink, store: Store, hub: Hub, *, input_only: bool) -> None:
+    def __init__(
+        self,
+        link: RobotLink,
+        store: Store,
+        frames: FrameNotifier,
+        publish_event: Callable[[Event], None],
+        *,
+        input_only: bool,
+    ) -> None:
         self._link = link
         self._store = store
-        self._hub = hub
+        self._frames = frames
+        self._publish_event = publish_event
         self._input_only = input_only
         self.holder: Holder | None = None
         self.lock = asyncio.Lock()
@@ -109,10 +120,10 @@ class Control:
 
     async def _go_run(self) -> str | None:
         """Seed the image from the robot's actual outputs, then run. A refusal, or ``None``."""
-        latest = self._hub.latest
+        latest = self._frames.latest
         image = self._link.command
         if latest is not None:
-            frame = latest[2]
+            frame = latest.frame
             image = image._replace(**{name: getattr(frame, name) for name in FRAME_ECHOED})
         try:
             await self._link.set_command(image)
@@ -170,7 +181,7 @@ class Control:
         self._announce(reason)
 
     def _announce(self, reason: str) -> None:
-        self._hub.publish_event(
+        self._publish_event(
             {"kind": "control", "time": time.time(), **self.status(), "reason": reason}
         )
 

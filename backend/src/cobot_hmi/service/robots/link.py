@@ -12,7 +12,7 @@ watch.
 Each robot has a ``RobotLink``, its handle on its originator: everything the web side asks of
 it goes through ``run_coroutine_threadsafe``; plain attribute reads (``state``, ``run``,
 ``command``) are single loads under the GIL. The frame callback goes straight to
-``Hub.on_frame`` on the cyclic thread (it is O(1) and thread-safe); state changes are handed to
+``FrameNotifier.publish`` (``robots.frames``) on the cyclic thread (it is O(1) and thread-safe); state changes are handed to
 the web loop. One robot lost or refused is one originator's business: the others run on.
 
 Supervision: the cyclic thread ending while the service has not asked it to (an exception out
@@ -61,9 +61,9 @@ while it keeps dying at once (no hot loop), back to this after a run of a minute
 RESTART_DELAY_MAX_S: Final = 10.0
 _STABLE_RUN_S: Final = 60.0
 
-FrameCallback = Callable[[Frame, float, int], None]
-"""``(frame, received_at, t2o_sequence)``: the originator's ``on_frame``, the last argument the
-T→O packet's wire sequence number."""
+FrameCallback = Callable[[Frame, bytes, float, int], None]
+"""``(frame, payload, received_at, t2o_sequence)``: the originator's ``on_frame``: the frame, the
+T→O payload it was decoded from, the kernel's receive time, the packet's wire sequence number."""
 StateCallback = Callable[[ConnectionState, str | None], None]
 SlowTargetCallback = Callable[[SlowTarget | None], None]
 """The originator's ``on_slow_target``, handed to the web loop."""

@@ -29,9 +29,14 @@ from cobot_hmi.scanner.t2o_pace import SlowTarget
 from cobot_hmi.service.alarms.engine import TICK_S, AlarmEngine, UserAlarm
 from cobot_hmi.service.alarms.persistence import AlarmStore
 from cobot_hmi.service.api import models
+from cobot_hmi.service.events.bus import Event, EventBus
+from cobot_hmi.service.robots.confirmation import FrameWaiters
 from cobot_hmi.service.robots.control import Control
+from cobot_hmi.service.robots.frames import FrameNotifier
 from cobot_hmi.service.robots.hub import Hub
+from cobot_hmi.service.robots.intervals import ReceiveIntervals
 from cobot_hmi.service.robots.link import CyclicLoop, RobotLink
+from cobot_hmi.service.robots.watch import FrameEventWatch
 from cobot_hmi.service.settings import RobotSettings, ServiceSettings
 from cobot_hmi.service.storage.store import Store
 from cobot_hmi.service.storage.tags import TagBook
@@ -97,28 +102,41 @@ class RobotRuntime:
         service_settings: ServiceSettings,
         cyclic: CyclicLoop,
         store: Store,
+        events: EventBus,
     ) -> None:
         self.name = settings.name
         self.settings = settings
         self.store = store
         self._stale_after_s = service_settings.stale_after_ms / 1000
-        self.hub = Hub(
-            batch_s=service_settings.ws_batch_ms / 1000,
-            queue_frames=service_settings.ws_queue_frames,
-            stall_timeout_s=service_settings.ws_stall_timeout_s,
-            frames_per_batch=round(service_settings.ws_batch_ms / settings.rpi_ms),
-            on_events=self._log_events,
-            robot=self.name,
+        self._events = events
+        self.frames = FrameNotifier(
+            self.name,
+            frames_per_wake=max(1, round(service_settings.ws_batch_ms / settings.rpi_ms)),
         )
+        """Every frame of the robot, published once, to every consumer (``robots.frames``)."""
+        self.hub = Hub(
+            robot=self.name,
+            batch_s=service_settings.ws_batch_ms / 1000,
+            client_queue_frames=service_settings.ws_queue_frames,
+            stall_timeout_s=service_settings.ws_stall_timeout_s,
+        )
+        """The WebSocket fan-out: the first consumer, so clients get frames before events."""
+        self.frames.add(self.hub)
+        events.add(self.hub)
+        self.intervals = ReceiveIntervals()
+        self.frames.add(self.intervals)
+        self.confirmation = FrameWaiters(self.frames)
         self.link = RobotLink(
             self.name,
             service_settings.originator_settings(settings),
             cyclic,
-            on_frame=self.hub.on_frame,
+            on_frame=self.frames.publish,
             on_state=self._on_state,
             on_slow_target=self._on_slow_target,
         )
-        self.control = Control(self.link, store, self.hub, input_only=settings.input_only)
+        self.control = Control(
+            self.link, store, self.frames, self.publish_event, input_only=settings.input_only
+        )
         self.writes = WriteCounters(timeout_s=service_settings.write_timeout_ms / 1000)
         self.identity: RobotIdentity | None = None
         self.tags = TagBook(self.name)
@@ -137,12 +155,12 @@ class RobotRuntime:
                 for alarm in service_settings.alarms
                 if alarm.robot in (None, self.name)
             ),
-            publish=self.hub.publish_event,
+            publish=self.publish_event,
             persist=self.alarm_store.submit,
             tags=lambda: self.tags.names,
         )
-        """The robot's alarms (``service.alarms``): the hub evaluates them on every frame."""
-        self.hub.alarms = self.alarms
+        """The robot's alarms (``service.alarms``), evaluated on every frame by ``watch``."""
+        self.frames.add(FrameEventWatch(self.alarms, self.publish_events))
         # Counters (``/metrics``).
         self.connects = 0
         """Times the connection came up."""
@@ -166,6 +184,7 @@ class RobotRuntime:
     def start(self) -> None:
         """On the web loop, before the cyclic thread starts: the broadcast loop, the alarms'
         slow tick."""
+        self.frames.bind_loop(asyncio.get_running_loop())
         self._tasks.append(asyncio.create_task(self.hub.run(), name=f"hub {self.name}"))
         self._tasks.append(asyncio.create_task(self._alarm_loop(), name=f"alarms {self.name}"))
 
@@ -184,6 +203,7 @@ class RobotRuntime:
         if self._background:
             await asyncio.gather(*self._background, return_exceptions=True)
         await self.hub.close()
+        self.confirmation.close()
         await self.alarm_store.close()
 
     def spawn(self, coroutine: Coroutine[Any, Any, None], name: str) -> None:
@@ -196,11 +216,11 @@ class RobotRuntime:
 
     def _on_state(self, state: ConnectionState, reason: str | None) -> None:
         """On the web loop: a connection state change of this robot only."""
-        self.hub.publish_event(
+        self.publish_event(
             {"kind": "connection", "time": time.time(), "state": state.value, "reason": reason}
         )
         for event in self._connection_alarms(time.time(), time.monotonic()):
-            self.hub.publish_event(event)
+            self.publish_event(event)
         if state is ConnectionState.CONNECTED:
             self.connects += 1
             self.down_since = None
@@ -210,7 +230,7 @@ class RobotRuntime:
             self.down_since = time.monotonic()
             if state is ConnectionState.LOST:
                 self.losses += 1
-        self.hub.reset_interval_baseline()
+        self.intervals.reset_baseline()
         if self.control.holder is not None:
             self.spawn(self.control.drop(f"connection {state.value}"), "control-drop")
 
@@ -224,7 +244,7 @@ class RobotRuntime:
             reason = self._slow_target.kept_words("robot")
         else:
             return
-        self.hub.publish_event(
+        self.publish_event(
             {"kind": "connection", "time": time.time(), "state": "connected", "reason": reason}
         )
 
@@ -242,12 +262,12 @@ class RobotRuntime:
 
     def _connection_alarms(self, now_s: float, monotonic_s: float) -> list[dict[str, object]]:
         state = self.link.state
-        latest = self.hub.latest
+        latest = self.frames.latest
         return self.alarms.connection(
             connected=state is ConnectionState.CONNECTED,
             refused=state is ConnectionState.REFUSED,
             reason=self.link.reason,
-            frame_age_s=None if latest is None else max(0.0, now_s - latest[1]),
+            frame_age_s=None if latest is None else max(0.0, now_s - latest.received_at_s),
             stale_after_s=self._stale_after_s,
             now_s=now_s,
             monotonic_s=monotonic_s,
@@ -270,12 +290,16 @@ class RobotRuntime:
                 gaps = (await self.link.stats()).gaps
         events += self.alarms.gaps(gaps, now_s=now_s, monotonic_s=monotonic_s)
         events += self.alarms.expire_shelving(now_s)
-        for event in events:
-            self.hub.publish_event(event)
+        self.publish_events(events)
 
-    def _log_events(self, events: list[dict[str, object]]) -> None:
-        for event in events:
-            self.store.log_event(event)
+    # ------------------------------------------------------------ events
+
+    def publish_event(self, event: Event) -> None:
+        """An event of this robot on the event bus (the log, the streams, …): on the web loop."""
+        self._events.publish(self.name, event)
+
+    def publish_events(self, events: list[Event]) -> None:
+        self._events.publish(self.name, *events)
 
     @property
     def mode(self) -> str:

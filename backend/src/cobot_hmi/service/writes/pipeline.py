@@ -41,6 +41,7 @@ from cobot_hmi.service.access.auth import Session
 from cobot_hmi.service.access.users import Role
 from cobot_hmi.service.errors import ApiError, AuditUnavailableError
 from cobot_hmi.service.labels import labels_of, write_summary
+from cobot_hmi.service.robots.frames import FrameRecord
 from cobot_hmi.service.storage.store import AuditEntry, Store
 from cobot_hmi.service.writes.validation import (
     PlannedWrite,
@@ -73,18 +74,22 @@ class _Link(Protocol):
     async def wait_sent(self, packets_out: int, timeout_s: float) -> bool: ...
 
 
-class _Hub(Protocol):
+class _Frames(Protocol):
+    """The robot's frames (``robots.frames.FrameNotifier``)."""
+
     @property
     def seq(self) -> int: ...
 
     @property
-    def latest(self) -> tuple[int, float, Frame, int] | None: ...
+    def latest(self) -> FrameRecord | None: ...
+
+
+class _Confirmation(Protocol):
+    """Writes waiting for a frame (``robots.confirmation.FrameWaiters``)."""
 
     async def wait_for_frame(
         self, predicate: _FramePredicate, after_seq: int, timeout_s: float
     ) -> object | None: ...
-
-    def publish_event(self, event: dict[str, object]) -> None: ...
 
 
 class _FramePredicate(Protocol):
@@ -136,7 +141,12 @@ class WriteTarget(Protocol):
     def link(self) -> _Link: ...
 
     @property
-    def hub(self) -> _Hub: ...
+    def frames(self) -> _Frames: ...
+
+    @property
+    def confirmation(self) -> _Confirmation: ...
+
+    def publish_event(self, event: dict[str, object]) -> None: ...
 
     @property
     def control(self) -> _Control: ...
@@ -347,7 +357,7 @@ def _refusal_to_write(robot: WriteTarget, writer: Writer) -> str | None:
 async def _write_locked(
     robot: WriteTarget, writer: Writer, body: object, origin: str, started: float
 ) -> WriteOutcome:
-    link, hub, store = robot.link, robot.hub, robot.store
+    link, store = robot.link, robot.store
     before_image = link.command
     plan = validate(body, before_image)
     refusal = _refusal_to_write(robot, writer)
@@ -373,7 +383,7 @@ async def _write_locked(
         ),
         "the write was not applied",
     )
-    after_seq = hub.seq
+    after_seq = robot.frames.seq
     try:
         packets_out = await link.set_command(plan.image)
     except (NotConnectedError, ReadOnlyError) as error:
@@ -391,7 +401,7 @@ async def _write_locked(
     deadline = started + timeout_s
     confirmed = True
     if plan.by_frame:
-        item = await hub.wait_for_frame(
+        item = await robot.confirmation.wait_for_frame(
             lambda f: frame_shows(f, plan.image, plan.by_frame),
             after_seq,
             max(0.0, deadline - time.perf_counter()),
@@ -401,8 +411,8 @@ async def _write_locked(
         confirmed = await link.wait_sent(packets_out, max(0.0, deadline - time.perf_counter()))
     latency_ms = (time.perf_counter() - started) * 1000
     if not confirmed:
-        latest = hub.latest
-        reports = robot_reports(latest[2] if latest is not None else None, plan.by_frame)
+        latest = robot.frames.latest
+        reports = robot_reports(latest.frame if latest is not None else None, plan.by_frame)
         if plan.by_frame:
             reason = f"the robot did not show the new outputs within {timeout_s * 1000:.0f} ms"
         else:
@@ -472,7 +482,7 @@ async def _finish(
     and announced."""
     robot.writes.outcomes[outcome] += 1
     audited = await robot.store.finish_audit(row_id, outcome, reason)
-    robot.hub.publish_event(
+    robot.publish_event(
         {
             "kind": "write",
             "time": time.time(),

@@ -66,7 +66,7 @@ def robot_summary(
     """``models.RobotSummary`` of one robot (no await: plain reads of its parts), its holder as
     ``session`` sees it (``holder.session_is_yours``)."""
     identity = robot.identity.to_json() if robot.identity is not None else None
-    latest = robot.hub.latest
+    latest = robot.frames.latest
     state = latest[2].robot_state if latest is not None else None
     frame = frame_to_json(latest[2]) if latest is not None else None
     age_s, stale = _frame_age(service, robot)
@@ -122,7 +122,7 @@ async def get_robot(service: ServiceDep, robot: RobotDep, session: ViewerDep) ->
 def _frame_age(service: Service, robot: RobotRuntime) -> tuple[float | None, bool]:
     """How old the robot's newest frame is (s, ``None``: none yet) and whether it is stale
     (not connected, or older than ``stale_after_ms``)."""
-    latest = robot.hub.latest
+    latest = robot.frames.latest
     if latest is None:
         return None, True
     age_s = max(0.0, time.time() - latest[1])
@@ -134,7 +134,7 @@ def _frame_age(service: Service, robot: RobotRuntime) -> tuple[float | None, boo
 
 
 def _frame(service: Service, robot: RobotRuntime) -> dict[str, object]:
-    latest = robot.hub.latest
+    latest = robot.frames.latest
     if latest is None:
         return {
             "robot": robot.name,

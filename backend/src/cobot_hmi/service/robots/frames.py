@@ -1,0 +1,290 @@
+"""Layer: service. One robot's frames, published once, handed to every consumer the same way.
+
+The shape is python-can's ``Notifier`` and ``Listener``: the originator's callback publishes each
+frame ONCE into the robot's ``FrameNotifier`` as a ``FrameRecord`` (the decoded frame, the raw
+T→O payload it came from, the kernel's receive time and the wire sequence number); every
+consumer (the WebSocket fan-out, the state and alarm events, write confirmation, the recorder,
+the Sparkplug B edge node, the OPC UA server) implements ``FrameConsumer`` and is registered the
+same way, by ``FrameNotifier.add``. A consumer declares where it runs:
+
+- ``Runs.LOOP``: on the web event loop. The notifier wakes the loop once every
+  ``frames_per_wake`` frames (one ``call_soon_threadsafe`` for all its loop consumers), and on
+  every frame while a consumer asks to be ``urgent`` (a write waiting for its confirmation);
+  each consumer gets the frames queued for it since its last turn, in registration order.
+- ``Runs.THREAD``: on a thread of its own (``ConsumerThread``: one thread per consumer, serving
+  that consumer's registrations of every robot), which drains its queues every ``interval_s``.
+
+On the cyclic thread a frame costs one record and one ``deque.append`` per consumer: O(1) per
+consumer, never a wait. Each registration's queue is bounded (``queue_frames``): when a
+consumer falls behind its oldest frames go and are counted (``dropped``, in ``/metrics`` as
+``cobot_hmi_consumer_dropped_frames_total{robot,consumer}``), so no consumer can stall the
+cyclic connection or grow without bound.
+
+Must not import the web layer (FastAPI), the scanner or any consumer.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import enum
+import logging
+import threading
+from collections import deque
+from collections.abc import Callable, Sequence
+from typing import NamedTuple, Protocol
+
+from cobot_hmi.codec import Frame
+
+log = logging.getLogger(__name__)
+
+
+class FrameRecord(NamedTuple):
+    """One T→O frame of one robot, as every consumer receives it (a tuple: cheap to make on
+    the cyclic thread, and its first four fields read as ``seq, received_at_s, frame,
+    t2o_sequence``)."""
+
+    seq: int
+    """The notifier's own counter: rises by one per frame published (a step of more than one
+    in what a consumer saw means its queue dropped frames)."""
+    received_at_s: float
+    """Epoch seconds the kernel received the T→O packet."""
+    frame: Frame
+    """Decoded once, by the originator."""
+    t2o_sequence: int
+    """The encapsulation sequence number the packet carried on the wire (CIP Vol 2 §3-4.1): a
+    step of more than one shows packets the scanner never received."""
+    raw: bytes
+    """The T→O payload the frame was decoded from (the layout's 284 bytes): consumers that
+    store bytes slice these instead of encoding the frame again."""
+
+
+class Runs(enum.Enum):
+    """Where a consumer's ``on_frames`` runs."""
+
+    LOOP = "loop"
+    """On the web event loop, woken every ``frames_per_wake`` frames (or every frame while
+    urgent)."""
+    THREAD = "thread"
+    """On a thread of the consumer's own (``ConsumerThread``)."""
+
+
+class FrameConsumer(Protocol):
+    """What the notifier needs of a consumer (python-can's ``Listener``)."""
+
+    @property
+    def name(self) -> str:
+        """Short and stable: the ``consumer`` label of its metrics ("websocket", "history")."""
+        ...
+
+    @property
+    def runs(self) -> Runs: ...
+
+    @property
+    def queue_frames(self) -> int:
+        """Frames its queue holds before the oldest are dropped."""
+        ...
+
+    def on_frames(self, robot: str, records: Sequence[FrameRecord]) -> None:
+        """``robot``'s frames queued since the last call, oldest first."""
+        ...
+
+
+class Registration:
+    """One consumer on one robot: its bounded queue and its counters."""
+
+    __slots__ = ("consumer", "delivered", "dropped", "queue", "queue_frames", "robot", "urgent")
+
+    def __init__(self, robot: str, consumer: FrameConsumer) -> None:
+        self.robot = robot
+        self.consumer = consumer
+        self.queue_frames = max(1, consumer.queue_frames)
+        self.queue: deque[FrameRecord] = deque(maxlen=self.queue_frames)
+        self.dropped = 0
+        """Frames that fell out of the full queue (a drain racing the append may make this one
+        too high, never too low)."""
+        self.delivered = 0
+        self.urgent = False
+        """Set by a loop consumer that wants every frame at once (a write waiting)."""
+
+    @property
+    def name(self) -> str:
+        return self.consumer.name
+
+    def offer(self, record: FrameRecord) -> None:
+        """On the cyclic thread: append, counting the frame that falls out."""
+        queue = self.queue
+        if len(queue) == self.queue_frames:
+            self.dropped += 1
+        queue.append(record)
+
+    def drain(self) -> list[FrameRecord]:
+        """Every queued frame, oldest first (from any thread but the producer's)."""
+        queue = self.queue
+        records = []
+        while queue:
+            try:
+                records.append(queue.popleft())
+            except IndexError:  # pragma: no cover - emptied between the check and the pop
+                break
+        return records
+
+    def deliver(self) -> None:
+        """Hand the queued frames to the consumer (on the thread or loop it runs on)."""
+        records = self.drain()
+        if not records:
+            return
+        self.delivered += len(records)
+        try:
+            self.consumer.on_frames(self.robot, records)
+        except Exception:  # one consumer's bug must not starve the others
+            log.exception("frame consumer %s failed", self.consumer.name)
+
+
+class FrameNotifier:
+    """One robot's frames to its consumers (see the module docstring)."""
+
+    def __init__(self, robot: str, *, frames_per_wake: int = 1) -> None:
+        self.robot = robot
+        self.frames_per_wake = max(1, frames_per_wake)
+        self._seq = 0
+        self._seq_lock = threading.Lock()
+        self._registering = threading.Lock()
+        self.latest: FrameRecord | None = None
+        """The newest frame (any thread may read it: one reference)."""
+        self.registrations: tuple[Registration, ...] = ()
+        """Every consumer of this robot, in registration order (a new tuple swapped in whole:
+        the cyclic thread iterates whichever it read)."""
+        self._loop_registrations: tuple[Registration, ...] = ()
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._wake_scheduled = False
+        self._urgent_scheduled = False
+
+    # ------------------------------------------------------------ the cyclic thread
+
+    def publish(self, frame: Frame, raw: bytes, received_at_s: float, t2o_sequence: int) -> None:
+        """The originator's callback: one record, one append per consumer, a wake."""
+        with self._seq_lock:  # uncontended; guards against a second producer thread
+            self._seq += 1
+            seq = self._seq
+        record = FrameRecord(seq, received_at_s, frame, t2o_sequence, raw)
+        self.latest = record
+        for registration in self.registrations:
+            registration.offer(record)
+        loop = self._loop
+        if loop is None or not self._loop_registrations:
+            return
+        if seq % self.frames_per_wake == 0:
+            if not self._wake_scheduled:
+                self._wake_scheduled = True
+                with contextlib.suppress(RuntimeError):  # the loop closed during shutdown
+                    loop.call_soon_threadsafe(self._dispatch)
+        elif not self._urgent_scheduled and any(r.urgent for r in self._loop_registrations):
+            self._urgent_scheduled = True
+            with contextlib.suppress(RuntimeError):
+                loop.call_soon_threadsafe(self._dispatch_urgent)
+
+    @property
+    def seq(self) -> int:
+        """The number of the newest frame published (0 before the first)."""
+        return self._seq
+
+    # ------------------------------------------------------------ registering
+
+    def add(self, consumer: FrameConsumer) -> Registration:
+        """Register ``consumer``: from now on it receives every frame of this robot."""
+        registration = Registration(self.robot, consumer)
+        with self._registering:  # from any thread (the OPC UA server registers from its own)
+            self.registrations = (*self.registrations, registration)
+            if consumer.runs is Runs.LOOP:
+                self._loop_registrations = (*self._loop_registrations, registration)
+        return registration
+
+    def remove(self, registration: Registration) -> None:
+        with self._registering:
+            self.registrations = tuple(r for r in self.registrations if r is not registration)
+            self._loop_registrations = tuple(
+                r for r in self._loop_registrations if r is not registration
+            )
+
+    def dropped_by(self, consumer_name: str) -> int:
+        """Frames the queues of the consumers called ``consumer_name`` dropped."""
+        return sum(r.dropped for r in self.registrations if r.name == consumer_name)
+
+    def bind_loop(self, loop: asyncio.AbstractEventLoop) -> None:
+        """The web event loop that runs the loop consumers (before the first frame)."""
+        self._loop = loop
+
+    # ------------------------------------------------------------ the web loop
+
+    def _dispatch(self) -> None:
+        self._wake_scheduled = False
+        for registration in self._loop_registrations:
+            registration.deliver()
+
+    def _dispatch_urgent(self) -> None:
+        self._urgent_scheduled = False
+        for registration in self._loop_registrations:
+            if registration.urgent:
+                registration.deliver()
+
+    def dispatch_now(self) -> None:
+        """On the web loop: every loop consumer's queued frames at once (a consumer that has
+        just become urgent catches up without waiting for the next frame)."""
+        self._dispatch()
+
+
+class ConsumerThread:
+    """A ``Runs.THREAD`` consumer's own thread: it drains the consumer's queue on every robot
+    every ``interval_s`` (and once more when stopped, so nothing queued is left behind), then
+    calls ``after_drain`` (the consumer's own periodic work, on the same thread)."""
+
+    def __init__(
+        self,
+        consumer: FrameConsumer,
+        interval_s: float,
+        after_drain: Callable[[], None] | None = None,
+    ) -> None:
+        if consumer.runs is not Runs.THREAD:
+            raise ValueError(f"{consumer.name} runs on the {consumer.runs.value}, not a thread")
+        self.consumer = consumer
+        self.interval_s = interval_s
+        self.registrations: tuple[Registration, ...] = ()
+        self._after_drain = after_drain
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def attach(self, notifier: FrameNotifier) -> Registration:
+        """Register the consumer with one robot's notifier."""
+        registration = notifier.add(self.consumer)
+        self.registrations = (*self.registrations, registration)
+        return registration
+
+    def start(self) -> None:
+        self._stop.clear()
+        self._thread = threading.Thread(
+            target=self._run, name=f"consumer {self.consumer.name}", daemon=True
+        )
+        self._thread.start()
+
+    def stop(self, timeout_s: float = 10.0) -> None:
+        """Stop the thread after one last drain (call after the frames stopped coming)."""
+        self._stop.set()
+        thread, self._thread = self._thread, None
+        if thread is not None:
+            thread.join(timeout_s)
+
+    def drain_once(self) -> None:
+        """Every registration's queue to the consumer, now (on the calling thread)."""
+        for registration in self.registrations:
+            registration.deliver()
+        if self._after_drain is not None:
+            try:
+                self._after_drain()
+            except Exception:
+                log.exception("frame consumer %s: periodic work failed", self.consumer.name)
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.interval_s):
+            self.drain_once()
+        self.drain_once()

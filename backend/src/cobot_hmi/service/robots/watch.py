@@ -1,0 +1,50 @@
+"""Layer: service. Events seen in one robot's frames: state and flag changes, and its alarms.
+
+A frame consumer (``robots.frames``) on the web loop: every frame in order goes through the
+state and flag watcher (``events.text.FrameWatcher``) and the robot's alarm engine
+(``service.alarms``: nothing allocated unless an alarm changes); the events they find are
+published on the event bus (``events.bus``). Registered after the WebSocket fan-out, so a
+client receives the frames before the events they caused.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Final, Protocol
+
+from cobot_hmi.codec import Frame
+from cobot_hmi.service.events.text import Event, FrameWatcher
+from cobot_hmi.service.robots.frames import FrameRecord, Runs
+
+QUEUE_FRAMES: Final = 4096
+"""Frames the loop may fall behind by before the oldest are lost (~40 s at 10 ms)."""
+
+
+class FrameAlarms(Protocol):
+    """The robot's alarm engine (``service.alarms.engine.AlarmEngine``) as seen from here."""
+
+    def observe(self, frame: Frame, time_s: float) -> list[Event] | None: ...
+
+
+class FrameEventWatch:
+    """State, flag and alarm events of one robot's frames (see the module docstring)."""
+
+    name: Final = "events"
+    runs: Final = Runs.LOOP
+    queue_frames: Final = QUEUE_FRAMES
+
+    def __init__(self, alarms: FrameAlarms, publish: Callable[[list[Event]], None]) -> None:
+        self._watcher = FrameWatcher()
+        self._alarms = alarms
+        self._publish = publish
+
+    def on_frames(self, robot: str, records: Sequence[FrameRecord]) -> None:
+        events: list[Event] = []
+        observe_alarms = self._alarms.observe
+        for record in records:
+            events.extend(self._watcher.observe(record.frame, record.received_at_s))
+            alarm_events = observe_alarms(record.frame, record.received_at_s)
+            if alarm_events:
+                events.extend(alarm_events)
+        if events:
+            self._publish(events)
