@@ -11,8 +11,8 @@ same way, by ``FrameNotifier.add``. A consumer declares where it runs:
   ``frames_per_wake`` frames (one ``call_soon_threadsafe`` for all its loop consumers), and on
   every frame while a consumer asks to be ``urgent`` (a write waiting for its confirmation);
   each consumer gets the frames queued for it since its last turn, in registration order.
-- ``Runs.THREAD``: on a thread of its own (``ConsumerThread``: one thread per consumer, serving
-  that consumer's registrations of every robot), which drains its queues every ``interval_s``.
+- ``Runs.THREAD``: on a thread of the consumer's own (the recorder's), which takes its frames
+  on its own schedule with ``Registration.deliver`` (``on_frames`` then runs on that thread).
 
 On the cyclic thread a frame costs one record and one ``deque.append`` per consumer: O(1) per
 consumer, never a wait. Each registration's queue is bounded (``queue_frames``): when a
@@ -31,7 +31,7 @@ import enum
 import logging
 import threading
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import NamedTuple, Protocol
 
 from cobot_hmi.codec import Frame
@@ -66,7 +66,7 @@ class Runs(enum.Enum):
     """On the web event loop, woken every ``frames_per_wake`` frames (or every frame while
     urgent)."""
     THREAD = "thread"
-    """On a thread of the consumer's own (``ConsumerThread``)."""
+    """On a thread of the consumer's own, which calls ``Registration.deliver``."""
 
 
 class FrameConsumer(Protocol):
@@ -232,59 +232,3 @@ class FrameNotifier:
         """On the web loop: every loop consumer's queued frames at once (a consumer that has
         just become urgent catches up without waiting for the next frame)."""
         self._dispatch()
-
-
-class ConsumerThread:
-    """A ``Runs.THREAD`` consumer's own thread: it drains the consumer's queue on every robot
-    every ``interval_s`` (and once more when stopped, so nothing queued is left behind), then
-    calls ``after_drain`` (the consumer's own periodic work, on the same thread)."""
-
-    def __init__(
-        self,
-        consumer: FrameConsumer,
-        interval_s: float,
-        after_drain: Callable[[], None] | None = None,
-    ) -> None:
-        if consumer.runs is not Runs.THREAD:
-            raise ValueError(f"{consumer.name} runs on the {consumer.runs.value}, not a thread")
-        self.consumer = consumer
-        self.interval_s = interval_s
-        self.registrations: tuple[Registration, ...] = ()
-        self._after_drain = after_drain
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-
-    def attach(self, notifier: FrameNotifier) -> Registration:
-        """Register the consumer with one robot's notifier."""
-        registration = notifier.add(self.consumer)
-        self.registrations = (*self.registrations, registration)
-        return registration
-
-    def start(self) -> None:
-        self._stop.clear()
-        self._thread = threading.Thread(
-            target=self._run, name=f"consumer {self.consumer.name}", daemon=True
-        )
-        self._thread.start()
-
-    def stop(self, timeout_s: float = 10.0) -> None:
-        """Stop the thread after one last drain (call after the frames stopped coming)."""
-        self._stop.set()
-        thread, self._thread = self._thread, None
-        if thread is not None:
-            thread.join(timeout_s)
-
-    def drain_once(self) -> None:
-        """Every registration's queue to the consumer, now (on the calling thread)."""
-        for registration in self.registrations:
-            registration.deliver()
-        if self._after_drain is not None:
-            try:
-                self._after_drain()
-            except Exception:
-                log.exception("frame consumer %s: periodic work failed", self.consumer.name)
-
-    def _run(self) -> None:
-        while not self._stop.wait(self.interval_s):
-            self.drain_once()
-        self.drain_once()
