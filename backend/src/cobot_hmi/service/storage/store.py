@@ -53,24 +53,8 @@ from cobot_hmi.service.storage.search import NO_SEARCH, Search
 _T = TypeVar("_T")
 log = logging.getLogger(__name__)
 
-AUDIT_COLUMNS: Final = (
-    "id",
-    "time",
-    "robot",
-    "user",
-    "client",
-    "origin",
-    "action",
-    "fields",
-    "before",
-    "requested",
-    "outcome",
-    "reason",
-    "summary",
-    "tags",
-    "seal_seq",
-    "seal_hash",
-)
+AUDIT_COLUMNS: Final = (*audit_chain.SEALED, "seal_seq", "seal_hash")
+"""The audit page's and its CSV's columns: the row as sealed, then its seal."""
 _AUDIT_JSON: Final = frozenset({"fields", "before", "requested", "tags"})
 EVENT_COLUMNS: Final = ("id", "time", "robot", "kind", "text", "data")
 """The CSV columns of the event log (``text``: the event in words; ``data``: the kind's own
