@@ -35,12 +35,14 @@ import { AlarmCue } from "./AlarmCue";
 import { AlarmsView } from "./AlarmsView";
 import { AuditView, EventsView } from "./EventsView";
 import { IoSection } from "./IoSection";
+import { PresetsView } from "./PresetsView";
 import { RegistersSection } from "./RegistersSection";
 import { RobotSwitcher } from "./RobotSwitcher";
 import { SessionBar } from "./SessionBar";
 import { TagsView } from "./TagsView";
 import { WriteProvider, useWrites } from "./writeContext";
 import "../styles/panel.css";
+import "../styles/print.css";
 import "../styles/readouts.css";
 
 declare global {
@@ -64,6 +66,7 @@ const SECTIONS = [
   ["events", "Events"],
   ["audit", "Audit"],
   ["tags", "Tag names"],
+  ["presets", "Presets"],
 ] as const;
 
 function WriteBlockedHint() {
@@ -222,6 +225,10 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
             <section id="tags">
               <h2>Tag names</h2>
               <TagsView robot={robot} user={user} onTags={setTags} />
+            </section>
+            <section id="presets">
+              <h2>Output presets</h2>
+              <PresetsView robot={robot} user={user} />
             </section>
           </main>
         </div>

@@ -1,0 +1,107 @@
+/**
+ * Layer: the panel's REST calls for output presets (docs/api.md "Output presets") over the typed
+ * client of `lib/api.ts`, and the pure helpers of its view. No React.
+ */
+import { API, api, errorReason, type JsonClient, type PageAnswer } from "./api";
+import type { components } from "../generated/api";
+import type { HttpAnswer } from "./writes";
+
+type Schemas = components["schemas"];
+export type Preset = Schemas["Preset"];
+export type PresetList = Schemas["PresetList"];
+export type PresetChanges = Schemas["PresetChanges"];
+export type PresetChange = Schemas["PresetChange"];
+
+const JSON_CONTENT = { "Content-Type": "application/json" } as const;
+
+interface Fetched<T> {
+  readonly data?: T;
+  readonly error?: unknown;
+  readonly response: Response;
+}
+
+function pageOf<T>(result: Fetched<T>): PageAnswer<T> {
+  if (result.data !== undefined && result.response.status === 200) return { ok: true, page: result.data };
+  const answer: HttpAnswer = { status: result.response.status, body: result.data ?? result.error ?? null };
+  return { ok: false, status: answer.status, reason: errorReason(answer) };
+}
+
+export class PresetsApi {
+  constructor(readonly client: JsonClient) {}
+
+  async list(robot: string): Promise<PageAnswer<PresetList>> {
+    return pageOf(await this.client.GET("/api/v1/robots/{name}/presets", { params: { path: { name: robot } } }));
+  }
+
+  /** A preset from the command image being sent: all of it, or only the fields named. */
+  async saveFromImage(robot: string, name: string, fields: readonly string[] | null): Promise<PageAnswer<Preset>> {
+    const body = { name, from_image: true, ...(fields !== null ? { fields: [...fields] } : {}) };
+    return pageOf(await this.client.POST("/api/v1/robots/{name}/presets", { params: { path: { name: robot } }, body, headers: JSON_CONTENT }));
+  }
+
+  async remove(robot: string, preset: string): Promise<PageAnswer<PresetList>> {
+    return pageOf(
+      await this.client.DELETE("/api/v1/robots/{name}/presets/{preset}", { params: { path: { name: robot, preset } }, headers: JSON_CONTENT }),
+    );
+  }
+
+  async importText(robot: string, text: string, fileName: string): Promise<PageAnswer<PresetList>> {
+    const body = importBody(text, fileName);
+    if (body === null) return { ok: false, status: 422, reason: `${fileName}: neither the CSV nor the JSON export` };
+    return pageOf(await this.client.POST("/api/v1/robots/{name}/presets/import", { params: { path: { name: robot } }, body, headers: JSON_CONTENT }));
+  }
+
+  async changes(robot: string, preset: string): Promise<PageAnswer<PresetChanges>> {
+    return pageOf(await this.client.GET("/api/v1/robots/{name}/presets/{preset}/changes", { params: { path: { name: robot, preset } } }));
+  }
+
+  async apply(robot: string, preset: string): Promise<PageAnswer<PresetChanges>> {
+    return pageOf(
+      await this.client.POST("/api/v1/robots/{name}/presets/{preset}/apply", { params: { path: { name: robot, preset } }, headers: JSON_CONTENT }),
+    );
+  }
+}
+
+export const presetsApi = new PresetsApi(api.client);
+
+export function presetsCsvUrl(robot: string): string {
+  return `${API}/robots/${encodeURIComponent(robot)}/presets.csv`;
+}
+
+export function presetsJsonUrl(robot: string): string {
+  return `${API}/robots/${encodeURIComponent(robot)}/presets`;
+}
+
+type ImportBody = Schemas["PresetImport"];
+
+/** The import's body from a file: the JSON export (`{"items": [...]}`) or the CSV export. */
+export function importBody(text: string, fileName: string): ImportBody | null {
+  const trimmed = text.trim();
+  if (fileName.toLowerCase().endsWith(".json") || trimmed.startsWith("{")) {
+    try {
+      const parsed = JSON.parse(trimmed) as { items?: unknown };
+      if (!Array.isArray(parsed.items)) return null;
+      const items = (parsed.items as Preset[]).filter((p) => !p.builtin).map((p) => ({ name: p.name, items: p.items }));
+      return { items };
+    } catch {
+      return null;
+    }
+  }
+  return trimmed.startsWith("preset,") ? { csv: text } : null;
+}
+
+function valueWords(value: boolean | number): string {
+  return typeof value === "boolean" ? (value ? "on" : "off") : String(value);
+}
+
+/** The confirmation's list: "Register in 0: off → on". */
+export function changeLines(changes: readonly PresetChange[]): string[] {
+  return changes.map((c) => `${c.label}: ${valueWords(c.from)} → ${valueWords(c.to)}`);
+}
+
+/** "Register in 0–3 = 1100"-like short words of a preset's items: how many, and of what. */
+export function presetWords(preset: Preset): string {
+  const labels = Object.values(preset.labels);
+  const shown = labels.slice(0, 4).join(", ");
+  return labels.length > 4 ? `${shown} … (${labels.length} values)` : shown;
+}
