@@ -21,6 +21,7 @@ from cobot_hmi.service.api.metrics import HttpCollector, ServiceMetrics
 from cobot_hmi.service.api.openapi_extras import openapi_document
 from cobot_hmi.service.api.routes import alarms as routes_alarms
 from cobot_hmi.service.api.routes import auth as routes_auth
+from cobot_hmi.service.api.routes import checkouts as routes_checkouts
 from cobot_hmi.service.api.routes import cycles as routes_cycles
 from cobot_hmi.service.api.routes import history as routes_history
 from cobot_hmi.service.api.routes import log as routes_log
@@ -114,6 +115,7 @@ def create_app(
         routes_tags,
         routes_cycles,
         routes_stream,
+        routes_checkouts,
         routes_presets,
     ):
         app.include_router(module.router)

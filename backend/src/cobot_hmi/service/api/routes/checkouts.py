@@ -1,0 +1,435 @@
+"""Layer: service. I/O checkouts (loop checks) per robot (``service.commissioning``): start one,
+read its points, let the frames mark inputs seen, switch outputs through the write pipeline,
+record pass or fail, close it (read-only after), and its report as CSV. Reading is open to
+whoever may view; every change needs an operator and is audited (``checkout.*`` actions; a
+switched output is the pipeline's own ``write`` row).
+
+The commissioning state starts with the app (this router's lifespan, after the service's):
+the open checkouts are read back and watched again.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from collections.abc import AsyncIterator, Mapping
+from contextlib import asynccontextmanager
+from typing import Annotated, Final
+
+from fastapi import APIRouter, FastAPI, Path, Request, Response
+
+from cobot_hmi.service.api.deps import RobotDep, ViewerDep, WriterDep
+from cobot_hmi.service.api.openapi_extras import WRITE, errors
+from cobot_hmi.service.api.routes.read import OrjsonResponse
+from cobot_hmi.service.commissioning import models
+from cobot_hmi.service.commissioning.audit import audit_action
+from cobot_hmi.service.commissioning.checkout import Checkout, CheckoutBook, CheckoutError
+from cobot_hmi.service.commissioning.service import Commissioning
+from cobot_hmi.service.errors import ApiError
+from cobot_hmi.service.robots.robot import RobotRuntime
+from cobot_hmi.service.storage.store import iso8601
+from cobot_hmi.service.writes.pipeline import Writer, authorize_audited, submit_write
+
+
+@asynccontextmanager
+async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
+    commissioning = Commissioning(app.state.service)
+    await commissioning.start()
+    app.state.commissioning = commissioning
+    try:
+        yield
+    finally:
+        await commissioning.stop()
+
+
+router = APIRouter(prefix="/api/v1", tags=["checkouts"], lifespan=_lifespan)
+
+_READ: Final = errors(401, 404)
+_CHANGE: Final = errors(401, 403, 404, 409, 413, 415, 422, 429, 503)
+CheckoutId = Annotated[int, Path(ge=1, description="the checkout's id (POST …/checkouts)")]
+PointKey = Annotated[
+    str, Path(description="the point's key, field.index: controlbox_di.4 is DI 5", max_length=40)
+]
+CSV_COLUMNS: Final = (
+    "checkout",
+    "robot",
+    "started_at",
+    "closed_at",
+    "key",
+    "label",
+    "tag",
+    "kind",
+    "result",
+    "seen_at",
+    "seen_before",
+    "seen_after",
+    "samples",
+    "switched_at",
+    "switched_value",
+    "switched_by",
+    "recorded_at",
+    "recorded_by",
+    "comment",
+)
+
+
+def _book(request: Request, robot: RobotRuntime) -> CheckoutBook:
+    commissioning: Commissioning = request.app.state.commissioning
+    return commissioning.checkouts[robot.name]
+
+
+def _origin(request: Request) -> str:
+    return f"{request.method} {request.url.path}"
+
+
+async def _checkout(book: CheckoutBook, checkout_id: int) -> Checkout:
+    try:
+        return await book.get(checkout_id)
+    except CheckoutError as error:
+        raise ApiError(error.status, error.reason, field=error.field) from None
+
+
+async def _authorize(
+    robot: RobotRuntime, writer: Writer, request: Request, action: str, what: str, **more: object
+) -> str:
+    return await authorize_audited(
+        robot.store,
+        writer,
+        action=action,
+        what=what,
+        robot=robot.name,
+        origin=_origin(request),
+        requested=more or None,
+    )
+
+
+async def _refused(
+    robot: RobotRuntime,
+    writer: Writer,
+    *,
+    request: Request,
+    action: str,
+    error: CheckoutError,
+    fields: list[str],
+    requested: object,
+) -> ApiError:
+    await audit_action(
+        robot.store,
+        writer,
+        robot=robot.name,
+        action=action,
+        origin=_origin(request),
+        outcome="refused" if error.status == 409 else "invalid",
+        fields=fields,
+        requested=requested,
+        reason=error.reason,
+    )
+    return ApiError(error.status, error.reason, field=error.field)
+
+
+@router.get(
+    "/robots/{name}/checkouts",
+    summary="The robot's checkouts, newest first (without their points)",
+    response_model=models.CheckoutList,
+    responses=_READ,
+)
+async def list_checkouts(robot: RobotDep, _: ViewerDep, request: Request) -> OrjsonResponse:
+    return OrjsonResponse({"items": await _book(request, robot).summaries()})
+
+
+@router.post(
+    "/robots/{name}/checkouts",
+    summary="Start a checkout: every I/O point and bit register of the layout, untested",
+    response_model=models.Checkout,
+    status_code=201,
+    responses=_CHANGE,
+)
+async def start_checkout(robot: RobotDep, writer: WriterDep, request: Request) -> OrjsonResponse:
+    user = await _authorize(robot, writer, request, "checkout.start", "starting a checkout")
+    book = _book(request, robot)
+    identity = robot.identity.to_json() if robot.identity is not None else None
+    checkout = await book.start(user, identity)
+    commissioning: Commissioning = request.app.state.commissioning
+    commissioning.watchers[robot.name].update()
+    await audit_action(
+        robot.store,
+        writer,
+        robot=robot.name,
+        action="checkout.start",
+        origin=_origin(request),
+        outcome="started",
+        requested={"checkout": checkout.id},
+        summary=f"checkout {checkout.id} started",
+    )
+    return OrjsonResponse(checkout.answer(robot.tags.names), status_code=201)
+
+
+@router.get(
+    "/robots/{name}/checkouts/{checkout_id}",
+    summary="A checkout with every point: label, result, times and who",
+    response_model=models.Checkout,
+    responses=_READ,
+)
+async def get_checkout(
+    robot: RobotDep, checkout_id: CheckoutId, _: ViewerDep, request: Request
+) -> OrjsonResponse:
+    checkout = await _checkout(_book(request, robot), checkout_id)
+    return OrjsonResponse(checkout.answer(robot.tags.names))
+
+
+@router.post(
+    "/robots/{name}/checkouts/{checkout_id}/points/{key}/result",
+    summary="Record pass or fail of a point with a comment (pass: seen, or confirmed by the robot)",
+    response_model=models.CheckoutPoint,
+    responses=_CHANGE,
+)
+async def record_result(
+    robot: RobotDep,
+    *,
+    checkout_id: CheckoutId,
+    key: PointKey,
+    verdict: models.CheckoutVerdict,
+    writer: WriterDep,
+    request: Request,
+) -> OrjsonResponse:
+    requested = {"checkout": checkout_id, **verdict.model_dump()}
+    user = await _authorize(robot, writer, request, "checkout.result", "recording a result")
+    book = _book(request, robot)
+    checkout = await _checkout(book, checkout_id)
+    try:
+        state = await book.record(checkout, key, verdict.result, verdict.comment, user)
+    except CheckoutError as error:
+        raise await _refused(
+            robot,
+            writer,
+            request=request,
+            action="checkout.result",
+            error=error,
+            fields=[key],
+            requested=requested,
+        ) from None
+    await audit_action(
+        robot.store,
+        writer,
+        robot=robot.name,
+        action="checkout.result",
+        origin=_origin(request),
+        outcome="recorded",
+        fields=[key],
+        requested=requested,
+        summary=f"checkout {checkout.id}: {state.point.label} {verdict.result}"
+        + (f" ({verdict.comment})" if verdict.comment else ""),
+    )
+    return OrjsonResponse(state.answer(robot.tags.names.get(key)))
+
+
+@router.post(
+    "/robots/{name}/checkouts/{checkout_id}/points/{key}/switch",
+    summary="Switch an output from the checkout: one write through the write pipeline (control "
+    "needed), answered once the robot confirmed it",
+    response_model=models.CheckoutPoint,
+    responses=errors(*WRITE),
+)
+async def switch_output(
+    robot: RobotDep,
+    *,
+    checkout_id: CheckoutId,
+    key: PointKey,
+    switch: models.CheckoutSwitch,
+    writer: WriterDep,
+    request: Request,
+) -> OrjsonResponse:
+    book = _book(request, robot)
+    checkout = await _checkout(book, checkout_id)
+    try:
+        state = checkout.open_point(key)
+        if state.point.kind != "output":
+            raise CheckoutError(409, f"{state.point.label} is an input: the robot reports it")
+    except CheckoutError as error:
+        raise await _refused(
+            robot,
+            writer,
+            request=request,
+            action="write",
+            error=error,
+            fields=[key],
+            requested={"value": switch.value},
+        ) from None
+    point = state.point
+    body = {point.field: {str(point.index): switch.value}}
+    outcome = await submit_write(robot, writer, body, origin=_origin(request))
+    if not outcome.ok:
+        raise outcome.error()
+    assert writer.user is not None  # the pipeline authorized the writer
+    await book.switched(checkout, key, switch.value, outcome.latency_ms, writer.user)
+    return OrjsonResponse(state.answer(robot.tags.names.get(key)))
+
+
+@router.post(
+    "/robots/{name}/checkouts/{checkout_id}/points/{key}/capture",
+    summary="Capture an analog input's value now (two captures at values the checker chooses "
+    "make it seen)",
+    response_model=models.CheckoutPoint,
+    responses=_CHANGE,
+)
+async def capture_input(
+    robot: RobotDep,
+    checkout_id: CheckoutId,
+    key: PointKey,
+    writer: WriterDep,
+    request: Request,
+) -> OrjsonResponse:
+    requested = {"checkout": checkout_id}
+    user = await _authorize(robot, writer, request, "checkout.capture", "capturing a value")
+    book = _book(request, robot)
+    checkout = await _checkout(book, checkout_id)
+    latest = robot.frames.latest
+    try:
+        state = checkout.open_point(key)
+        if latest is None:
+            raise CheckoutError(409, "no frame from the robot yet: nothing to capture")
+        name, index = state.point.field, state.point.index
+        if state.point.signal != "analog" or state.point.kind != "input":
+            raise CheckoutError(409, f"{state.point.label} is not an analog input")
+        value = float(getattr(latest.frame, name)[index])
+        await book.capture(checkout, key, value, latest.received_at_s, user)
+    except CheckoutError as error:
+        raise await _refused(
+            robot,
+            writer,
+            request=request,
+            action="checkout.capture",
+            error=error,
+            fields=[key],
+            requested=requested,
+        ) from None
+    await audit_action(
+        robot.store,
+        writer,
+        robot=robot.name,
+        action="checkout.capture",
+        origin=_origin(request),
+        outcome="captured",
+        fields=[key],
+        requested={**requested, "value": value},
+        summary=f"checkout {checkout.id}: {state.point.label} = {value:g}",
+    )
+    return OrjsonResponse(state.answer(robot.tags.names.get(key)))
+
+
+@router.post(
+    "/robots/{name}/checkouts/{checkout_id}/close",
+    summary="Close a checkout: read-only from now on",
+    response_model=models.Checkout,
+    responses=_CHANGE,
+)
+async def close_checkout(
+    robot: RobotDep,
+    checkout_id: CheckoutId,
+    writer: WriterDep,
+    request: Request,
+) -> OrjsonResponse:
+    requested = {"checkout": checkout_id}
+    user = await _authorize(robot, writer, request, "checkout.close", "closing a checkout")
+    book = _book(request, robot)
+    checkout = await _checkout(book, checkout_id)
+    try:
+        await book.close(checkout, user)
+    except CheckoutError as error:
+        raise await _refused(
+            robot,
+            writer,
+            request=request,
+            action="checkout.close",
+            error=error,
+            fields=[],
+            requested=requested,
+        ) from None
+    commissioning: Commissioning = request.app.state.commissioning
+    commissioning.watchers[robot.name].update()
+    counts = checkout.counts()
+    await audit_action(
+        robot.store,
+        writer,
+        robot=robot.name,
+        action="checkout.close",
+        origin=_origin(request),
+        outcome="closed",
+        requested={**requested, "counts": counts},
+        summary=f"checkout {checkout.id} closed: "
+        + ", ".join(f"{n} {result}" for result, n in counts.items()),
+    )
+    return OrjsonResponse(checkout.answer(robot.tags.names))
+
+
+@router.get(
+    "/robots/{name}/checkouts/{checkout_id}/report.csv",
+    summary="The checkout's report as CSV: every point with its result, who and when",
+    response_class=Response,
+    responses={
+        200: {
+            "description": "CSV with a header row, one row per point, times in ISO 8601",
+            "content": {"text/csv": {"schema": {"type": "string"}}},
+        },
+        **_READ,
+    },
+)
+async def report_csv(
+    robot: RobotDep, checkout_id: CheckoutId, _: ViewerDep, request: Request
+) -> Response:
+    checkout = await _checkout(_book(request, robot), checkout_id)
+    return Response(
+        report(checkout, robot.tags.names),
+        media_type="text/csv; charset=utf-8",
+        headers={
+            "Content-Disposition": (
+                f'attachment; filename="{robot.name}-checkout-{checkout.id}.csv"'
+            )
+        },
+    )
+
+
+def _time(value: object) -> str:
+    return iso8601(value) if isinstance(value, float | int) else ""
+
+
+def _cell(value: object) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "on" if value else "off"
+    return str(value)
+
+
+def report(checkout: Checkout, tags: Mapping[str, str]) -> str:
+    """The CSV report: one row per point, in layout order."""
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(CSV_COLUMNS)
+    for state in checkout.points.values():
+        p = state.answer(tags.get(state.point.key))
+        samples = " ".join(f"{s['value']:g}@{_time(s['time'])}" for s in state.samples)
+        writer.writerow(
+            (
+                checkout.id,
+                checkout.robot,
+                _time(checkout.started_at),
+                _time(checkout.closed_at),
+                p["key"],
+                p["label"],
+                _cell(p["tag"]),
+                p["kind"],
+                p["result"],
+                _time(p["seen_at"]),
+                _cell(p["seen_before"]),
+                _cell(p["seen_after"]),
+                samples,
+                _time(p["switched_at"]),
+                _cell(p["switched_value"]),
+                _cell(p["switched_by"]),
+                _time(p["recorded_at"]),
+                _cell(p["recorded_by"]),
+                _cell(p["comment"]),
+            )
+        )
+    return out.getvalue()
