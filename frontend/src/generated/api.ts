@@ -373,6 +373,126 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/v1/robots/{name}/checkouts": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /** The robot's checkouts, newest first (without their points) */
+        get: operations["list_checkouts_api_v1_robots__name__checkouts_get"];
+        put?: never;
+        /** Start a checkout: every I/O point and bit register of the layout, untested */
+        post: operations["start_checkout_api_v1_robots__name__checkouts_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/robots/{name}/checkouts/{checkout_id}": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /** A checkout with every point: label, result, times and who */
+        get: operations["get_checkout_api_v1_robots__name__checkouts__checkout_id__get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/robots/{name}/checkouts/{checkout_id}/close": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /** Close a checkout: read-only from now on */
+        post: operations["close_checkout_api_v1_robots__name__checkouts__checkout_id__close_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/robots/{name}/checkouts/{checkout_id}/points/{key}/capture": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /** Capture an analog input's value now (two captures at values the checker chooses make it seen) */
+        post: operations["capture_input_api_v1_robots__name__checkouts__checkout_id__points__key__capture_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/robots/{name}/checkouts/{checkout_id}/points/{key}/result": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /** Record pass or fail of a point with a comment (pass: seen, or confirmed by the robot) */
+        post: operations["record_result_api_v1_robots__name__checkouts__checkout_id__points__key__result_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/robots/{name}/checkouts/{checkout_id}/points/{key}/switch": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /** Switch an output from the checkout: one write through the write pipeline (control needed), answered once the robot confirmed it */
+        post: operations["switch_output_api_v1_robots__name__checkouts__checkout_id__points__key__switch_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/robots/{name}/checkouts/{checkout_id}/report.csv": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /** The checkout's report as CSV: every point with its result, who and when */
+        get: operations["report_csv_api_v1_robots__name__checkouts__checkout_id__report_csv_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/robots/{name}/command": {
         parameters: {
             query?: never;
@@ -1379,6 +1499,205 @@ export interface components {
             robots: components["schemas"]["AlarmSummary"][];
             /** @description the cell's most urgent annunciated alarm */
             top: components["schemas"]["AlarmBrief"] | null;
+        };
+        /**
+         * Checkout
+         * @description ``GET /api/v1/robots/{name}/checkouts/{id}``: every point of the layout.
+         */
+        Checkout: {
+            /**
+             * Closed At
+             * @description null: open; closed: read-only
+             */
+            closed_at: number | null;
+            /** Closed By */
+            closed_by: string | null;
+            counts: components["schemas"]["CheckoutCounts"];
+            /** Id */
+            id: number;
+            /**
+             * Identity
+             * @description the robot's CIP identity when the checkout started (null: not read)
+             */
+            identity: {
+                [key: string]: string | number;
+            } | null;
+            /** Points */
+            points: components["schemas"]["CheckoutPoint"][];
+            /** Robot */
+            robot: string;
+            /** Started At */
+            started_at: number;
+            /** Started By */
+            started_by: string;
+        };
+        /** CheckoutCounts */
+        CheckoutCounts: {
+            /** Fail */
+            fail: number;
+            /** Pass */
+            pass: number;
+            /** Seen */
+            seen: number;
+            /** Untested */
+            untested: number;
+        };
+        /** CheckoutList */
+        CheckoutList: {
+            /**
+             * Items
+             * @description newest first
+             */
+            items: components["schemas"]["CheckoutSummary"][];
+        };
+        /**
+         * CheckoutPoint
+         * @description One point of a checkout and what became of it.
+         */
+        CheckoutPoint: {
+            /** Comment */
+            comment: string | null;
+            /**
+             * Key
+             * @description ``field.index``, 0-based: controlbox_di.4 is DI 5
+             */
+            key: string;
+            /**
+             * Kind
+             * @description input: seen in the robot's frames; output: switched from the checkout
+             * @enum {string}
+             */
+            kind: "input" | "output";
+            /**
+             * Label
+             * @description as the robot prints it: "DI 5", "Tool DO 2", "Register in 12"
+             */
+            label: string;
+            /**
+             * Recorded At
+             * @description when the checker recorded pass or fail
+             */
+            recorded_at: number | null;
+            /** Recorded By */
+            recorded_by: string | null;
+            /**
+             * Result
+             * @enum {string}
+             */
+            result: "untested" | "seen" | "pass" | "fail";
+            /**
+             * Samples
+             * @description analog input: the captured values
+             */
+            samples: components["schemas"]["CheckoutSample"][];
+            /**
+             * Seen After
+             * @description the value after it
+             */
+            seen_after: boolean | null;
+            /**
+             * Seen At
+             * @description digital input: the frame showing the first edge
+             */
+            seen_at: number | null;
+            /**
+             * Seen Before
+             * @description the value before that edge
+             */
+            seen_before: boolean | null;
+            /**
+             * Signal
+             * @enum {string}
+             */
+            signal: "digital" | "analog";
+            /**
+             * Switched At
+             * @description output: when the robot confirmed it last
+             */
+            switched_at: number | null;
+            /** Switched By */
+            switched_by: string | null;
+            /** Switched Value */
+            switched_value: boolean | number | null;
+            /**
+             * Tag
+             * @description its tag name (null: none)
+             */
+            tag: string | null;
+        };
+        /** CheckoutSample */
+        CheckoutSample: {
+            /**
+             * By
+             * @description who captured it
+             */
+            by: string;
+            /**
+             * Time
+             * @description the frame's receive time, s since the epoch
+             */
+            time: number;
+            /**
+             * Value
+             * @description the analog input's value then (mA or V per its type)
+             */
+            value: number;
+        };
+        /**
+         * CheckoutSummary
+         * @description A checkout without its points.
+         */
+        CheckoutSummary: {
+            /**
+             * Closed At
+             * @description null: open; closed: read-only
+             */
+            closed_at: number | null;
+            /** Closed By */
+            closed_by: string | null;
+            counts: components["schemas"]["CheckoutCounts"];
+            /** Id */
+            id: number;
+            /**
+             * Identity
+             * @description the robot's CIP identity when the checkout started (null: not read)
+             */
+            identity: {
+                [key: string]: string | number;
+            } | null;
+            /** Robot */
+            robot: string;
+            /** Started At */
+            started_at: number;
+            /** Started By */
+            started_by: string;
+        };
+        /**
+         * CheckoutSwitch
+         * @description An output switched from the checkout (one write through the write pipeline).
+         */
+        CheckoutSwitch: {
+            /**
+             * Value
+             * @description a bit (DO, Tool DO, Register in) or a number (AO)
+             */
+            value: boolean | number;
+        };
+        /**
+         * CheckoutVerdict
+         * @description The checker's result of one point.
+         */
+        CheckoutVerdict: {
+            /**
+             * Comment
+             * @default
+             */
+            comment?: string;
+            /**
+             * Result
+             * @enum {string}
+             */
+            result: "pass" | "fail";
         };
         /**
          * CommandImage
@@ -4371,6 +4690,756 @@ export interface operations {
                 };
                 content: {
                     "application/json": components["schemas"]["RobotSummary"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    list_checkouts_api_v1_robots__name__checkouts_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["CheckoutList"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    start_checkout_api_v1_robots__name__checkouts_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            201: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["Checkout"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the role is too low, or the request is not same-origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description not now: not connected, input-only mode, or control is someone else's */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the body is larger than the service accepts */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description a body that is not application/json */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description invalid request: the answer names the field; nothing was applied */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description too many attempts: wait as Retry-After says */
+            429: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description unavailable: not ready or not healthy, the users file unreadable, or (a write, a control change) the audit trail cannot be written (a full disk): nothing was done */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    get_checkout_api_v1_robots__name__checkouts__checkout_id__get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the checkout's id (POST …/checkouts) */
+                checkout_id: number;
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["Checkout"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    close_checkout_api_v1_robots__name__checkouts__checkout_id__close_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the checkout's id (POST …/checkouts) */
+                checkout_id: number;
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["Checkout"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the role is too low, or the request is not same-origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description not now: not connected, input-only mode, or control is someone else's */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the body is larger than the service accepts */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description a body that is not application/json */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description invalid request: the answer names the field; nothing was applied */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description too many attempts: wait as Retry-After says */
+            429: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description unavailable: not ready or not healthy, the users file unreadable, or (a write, a control change) the audit trail cannot be written (a full disk): nothing was done */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    capture_input_api_v1_robots__name__checkouts__checkout_id__points__key__capture_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the checkout's id (POST …/checkouts) */
+                checkout_id: number;
+                /** @description the point's key, field.index: controlbox_di.4 is DI 5 */
+                key: string;
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["CheckoutPoint"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the role is too low, or the request is not same-origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description not now: not connected, input-only mode, or control is someone else's */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the body is larger than the service accepts */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description a body that is not application/json */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description invalid request: the answer names the field; nothing was applied */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description too many attempts: wait as Retry-After says */
+            429: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description unavailable: not ready or not healthy, the users file unreadable, or (a write, a control change) the audit trail cannot be written (a full disk): nothing was done */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    record_result_api_v1_robots__name__checkouts__checkout_id__points__key__result_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the checkout's id (POST …/checkouts) */
+                checkout_id: number;
+                /** @description the point's key, field.index: controlbox_di.4 is DI 5 */
+                key: string;
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["CheckoutVerdict"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["CheckoutPoint"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the role is too low, or the request is not same-origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description not now: not connected, input-only mode, or control is someone else's */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the body is larger than the service accepts */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description a body that is not application/json */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description invalid request: the answer names the field; nothing was applied */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description too many attempts: wait as Retry-After says */
+            429: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description unavailable: not ready or not healthy, the users file unreadable, or (a write, a control change) the audit trail cannot be written (a full disk): nothing was done */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    switch_output_api_v1_robots__name__checkouts__checkout_id__points__key__switch_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the checkout's id (POST …/checkouts) */
+                checkout_id: number;
+                /** @description the point's key, field.index: controlbox_di.4 is DI 5 */
+                key: string;
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["CheckoutSwitch"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["CheckoutPoint"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the role is too low, or the request is not same-origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description not now: not connected, input-only mode, or control is someone else's */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the body is larger than the service accepts */
+            413: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description a body that is not application/json */
+            415: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description invalid request: the answer names the field; nothing was applied */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description too many attempts: wait as Retry-After says */
+            429: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description unavailable: not ready or not healthy, the users file unreadable, or (a write, a control change) the audit trail cannot be written (a full disk): nothing was done */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the robot did not confirm in time; the answer has what it reports */
+            504: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    report_csv_api_v1_robots__name__checkouts__checkout_id__report_csv_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the checkout's id (POST …/checkouts) */
+                checkout_id: number;
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description CSV with a header row, one row per point, times in ISO 8601 */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "text/csv": string;
                 };
             };
             /** @description the request cannot be read */
