@@ -4,9 +4,11 @@ someone with the file would, then verified by the command as a user runs it."""
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import csv
 import io
+import logging
 import sqlite3
 import subprocess
 import sys
@@ -19,6 +21,7 @@ from cobot_hmi.service.storage import audit_chain
 from cobot_hmi.service.storage.store import AuditEntry, Store
 from service_support import OPERATOR, Running, hmi_fixture
 from test_migrations import legacy_database
+from waiting import eventually
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -76,8 +79,6 @@ async def test_an_intact_trail_verifies_with_its_row_count(
 
 def test_the_command_runs_as_installed(tmp_path: Path) -> None:
     """The real command line, in its own process: exit 1 and the row named."""
-    import asyncio
-
     path = asyncio.run(write_rows(tmp_path))
     tamper(path, "UPDATE audit SET user = 'mallory' WHERE id = 4")
     done = subprocess.run(
@@ -238,8 +239,6 @@ def verify_database(
 
 def test_a_seal_covers_every_column_of_the_audit_table(tmp_path: Path) -> None:
     """A column added to the audit table by a later migration must be sealed too."""
-    import asyncio
-
     path = tmp_path / "hmi.db"
     asyncio.run(_open_close(path))
     with contextlib.closing(sqlite3.connect(path)) as db:
@@ -251,6 +250,22 @@ async def _open_close(path: Path) -> None:
     store = Store(path)
     await store.open()
     await store.close()
+
+
+async def test_the_head_goes_to_the_log_when_it_moved(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    caplog.set_level(logging.WARNING, logger="cobot_hmi.service.storage.store")
+    store = Store(tmp_path / "hmi.db", chain_head_interval_s=0.05)
+    await store.open()
+    try:
+        await store.keep_audit(entry("login", "ok"))
+        await store.keep_audit(entry("logout", "ok"))
+        head = await store.read_chain_head()
+        wanted = f"audit chain head: seal #2, row 2, sha256 {head.hash[:16]}"
+        await eventually(lambda: any(wanted in r.getMessage() for r in caplog.records))
+    finally:
+        await store.close()
 
 
 def test_no_database_is_a_clear_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

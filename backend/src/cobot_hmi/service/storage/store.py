@@ -339,8 +339,8 @@ class Store:
             except sqlite3.Error as error:
                 log.error("the audit chain's head cannot be read: %s", error)
             else:
-                if current != logged:
-                    log.info("audit chain head: %s", current.describe())
+                if current != logged:  # a warning: what the service's stderr carries by default
+                    log.warning("audit chain head: %s", current.describe())
                     logged = current
             await asyncio.sleep(self.chain_head_interval_s)
 
