@@ -33,6 +33,7 @@ import type { TagNames } from "../lib/tags";
 import { PlotTimeRange } from "../lib/timeRange";
 import { AlarmCue } from "./AlarmCue";
 import { AlarmsView } from "./AlarmsView";
+import { CheckoutView } from "./CheckoutView";
 import { AuditView, EventsView } from "./EventsView";
 import { IoSection } from "./IoSection";
 import { PresetsView } from "./PresetsView";
@@ -66,6 +67,7 @@ const SECTIONS = [
   ["events", "Events"],
   ["audit", "Audit"],
   ["tags", "Tag names"],
+  ["checkout", "Checkout"],
   ["presets", "Presets"],
 ] as const;
 
@@ -225,6 +227,10 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
             <section id="tags">
               <h2>Tag names</h2>
               <TagsView robot={robot} user={user} onTags={setTags} />
+            </section>
+            <section id="checkout">
+              <h2>I/O checkout</h2>
+              <CheckoutView robot={robot} user={user} />
             </section>
             <section id="presets">
               <h2>Output presets</h2>
