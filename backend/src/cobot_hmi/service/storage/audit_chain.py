@@ -188,13 +188,22 @@ class Verdict:
 def verify(db: sqlite3.Connection) -> Verdict:
     """Walk the chain from its first seal: the findings in chain order (the first row changed,
     inserted or deleted first), then rows without a seal that are not pending."""
-    stored = head(db)
-    legacy_last_id, legacy_sealed_at = db.execute(
-        "SELECT legacy_last_id, legacy_sealed_at FROM audit_chain WHERE id = 1"
-    ).fetchone()
-    rows = db.execute(
-        f"SELECT seal_seq, seal_hash, {_SELECT} FROM audit ORDER BY seal_seq IS NULL, seal_seq, id"
-    ).fetchall()
+    # One read transaction: the head and the rows of one moment, while the service seals more.
+    own = not db.in_transaction
+    if own:
+        db.execute("BEGIN")
+    try:
+        stored = head(db)
+        legacy_last_id, legacy_sealed_at = db.execute(
+            "SELECT legacy_last_id, legacy_sealed_at FROM audit_chain WHERE id = 1"
+        ).fetchone()
+        rows = db.execute(
+            f"SELECT seal_seq, seal_hash, {_SELECT} FROM audit"
+            " ORDER BY seal_seq IS NULL, seal_seq, id"
+        ).fetchall()
+    finally:
+        if own:
+            db.rollback()
     chain = [row for row in rows if row[0] is not None]
     verdict = Verdict(
         rows=len(rows),
