@@ -1,0 +1,333 @@
+"""Layer: scanner. A class 1 connection's lifecycle: the supervisor (connect, wait for
+the loss, teardown, again after a backoff: longer for a target that refuses), RegisterSession,
+the explicit read of the O→T assembly, Forward Open (its reply checked, the T→O connection ID
+routed on the port, the O→T stream started), the first frame awaited, and Forward Close +
+UnRegisterSession at the teardown.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import socket
+import time
+from typing import Any
+
+from cobot_hmi.codec import CodecError, decode_command
+from cobot_hmi.enip import epath
+from cobot_hmi.enip.connection_manager import (
+    ConnectionType,
+    ForwardCloseRequest,
+    ForwardOpenRequest,
+    NetworkParams,
+    Priority,
+    decode_failure_reply,
+    decode_forward_open_reply,
+)
+from cobot_hmi.enip.cpf import CpfItem, ItemType, Sockaddr, decode_sockaddr, sockaddr_item
+from cobot_hmi.enip.encapsulation import ENIP_UDP_PORT
+from cobot_hmi.enip.errors import EnipError
+from cobot_hmi.scanner.connection.core import Link
+from cobot_hmi.scanner.connection.o2t_send import O2TSender
+from cobot_hmi.scanner.connection.settings import local_address_to
+from cobot_hmi.scanner.connection.state import ConnectionState
+from cobot_hmi.scanner.connection.t2o_receive import T2OReceiver
+from cobot_hmi.scanner.io_port import IoPort
+from cobot_hmi.scanner.o2t_stream import O2TStream
+from cobot_hmi.scanner.session import EnipSession, SessionError
+from cobot_hmi.udp_endpoint import QueueFullError
+
+log = logging.getLogger(__name__)
+
+ORIGINATOR_VENDOR_ID = 0xFFFE
+"""Vendor ID in our Forward Opens (a placeholder; part of the connection triplet only)."""
+
+
+class _RefusedError(Exception):
+    def __init__(self, reason: str, *, opened: bool = False) -> None:
+        super().__init__(reason)
+        self.reason = reason
+        self.opened = opened
+        """The target did open the connection (we refuse its reply): close it."""
+
+
+class ConnectionLifecycle(O2TSender, T2OReceiver):
+    """Connecting, supervising and closing the connection the send and receive paths use."""
+
+    def _set_state(self, state: ConnectionState, reason: str | None) -> None:
+        if state is self.state and reason == self.reason:
+            return
+        self.state = state
+        self.reason = reason
+        if state is ConnectionState.CONNECTED:
+            self._connected_event.set()
+        else:
+            self._connected_event.clear()
+        if reason:
+            log.info("originator %s: %s", state, reason)
+        if self.on_state is not None:
+            try:
+                self.on_state(state, reason)
+            except Exception:
+                log.exception("on_state callback failed")
+
+    async def _supervise(self) -> None:
+        s = self.settings
+        backoff_s = s.backoff_initial_s
+        while not self._stopping:
+            self._set_state(ConnectionState.CONNECTING, self.reason)
+            try:
+                port = await self._open_port()
+                await self._connect_once(port)
+            except _RefusedError as refused:
+                self._set_state(ConnectionState.REFUSED, refused.reason)
+                await self._teardown(forward_close=refused.opened)
+            except (OSError, SessionError, EnipError, TimeoutError, QueueFullError) as error:
+                self._set_state(ConnectionState.LOST, str(error) or type(error).__name__)
+                await self._teardown(forward_close=True)
+            else:
+                backoff_s = s.backoff_initial_s
+                assert self._lost is not None
+                reason = await self._lost
+                self._set_state(ConnectionState.LOST, reason)
+                await self._teardown(forward_close=True)
+            await asyncio.sleep(backoff_s)
+            cap_s = (
+                s.refused_backoff_max_s
+                if self.state is ConnectionState.REFUSED
+                else s.backoff_max_s
+            )
+            backoff_s = min(backoff_s * 2, cap_s)
+
+    async def _open_port(self) -> IoPort:
+        """The shared port (opened on first use), or our own on the local address: the one
+        given, or the one that routes to the target."""
+        port = self._port
+        if port is None:
+            s = self.settings
+            host = s.local_host
+            if host is None:
+                host = local_address_to(await self._target_ip())
+            port = self._port = IoPort(host, s.udp_port)
+        await port.open()
+        return port
+
+    async def _target_ip(self) -> str:
+        host = self.settings.robot_host
+        try:
+            infos = await asyncio.get_running_loop().getaddrinfo(
+                host, None, family=socket.AF_INET, type=socket.SOCK_DGRAM
+            )
+        except socket.gaierror as error:
+            raise OSError(f"cannot resolve {host}: {error}") from None
+        return str(infos[0][4][0])
+
+    async def _connect_once(self, port: IoPort) -> None:
+        s = self.settings
+        loop = asyncio.get_running_loop()
+        session = EnipSession(s.robot_host, s.tcp_port, s.tcp_timeout_s, _source_host(port))
+        self._session = session
+        await session.open()
+        await self._read_o2t_assembly(session)
+
+        o2t_point = s.heartbeat_instance if s.input_only else s.o2t_instance
+        o2t_size = s.heartbeat_o2t_size if s.input_only else s.o2t_size + 6
+        link = Link(
+            t2o_id=port.new_connection_id(),
+            connection_serial=self._rng.getrandbits(16),
+            originator_serial=self._rng.getrandbits(32),
+            path=epath.connection_path(s.config_instance, o2t_point, s.t2o_instance),
+            target_host=session.peer_host or await self._target_ip(),
+            o2t_api_us=s.rpi_us,
+            t2o_api_us=s.rpi_us,
+            last_rx=loop.time(),
+        )
+        request = ForwardOpenRequest(
+            o2t_connection_id=0,
+            t2o_connection_id=link.t2o_id,
+            connection_serial=link.connection_serial,
+            vendor_id=ORIGINATOR_VENDOR_ID,
+            originator_serial=link.originator_serial,
+            timeout_multiplier=s.timeout_multiplier,
+            o2t_rpi_us=s.rpi_us,
+            o2t_params=NetworkParams(o2t_size, ConnectionType.POINT_TO_POINT, Priority.SCHEDULED),
+            t2o_rpi_us=s.rpi_us,
+            t2o_params=NetworkParams(
+                s.t2o_size + 2, ConnectionType.POINT_TO_POINT, Priority.SCHEDULED
+            ),
+            path=link.path,
+            large=s.large_forward_open,
+        )
+        extra: list[CpfItem] = []
+        if s.request_t2o_port is not None:
+            extra.append(sockaddr_item(ItemType.SOCKADDR_T2O, Sockaddr("0.0.0.0", port.udp_port)))
+        self.run = False
+        self._seeded = False
+        self._window.clear()
+        self._pace.restart(s.rpi_us)  # again with the API the reply grants
+        self._lost = loop.create_future()
+        self._first_frame = loop.create_future()
+        self._link = link
+        # A point-to-point T→O connection ID is ours (CIP Vol 1 §3-5.4.1): the target may
+        # produce on it as soon as it has opened the connection, before we read its reply.
+        self._route(port, link, silence_s=0.0)
+        response, items = await session.request(request.request(), extra)
+        if not response.ok:
+            with contextlib.suppress(EnipError):
+                decode_failure_reply(response.data)
+            raise _RefusedError(f"Forward Open refused: {response.describe()}")
+        reply = decode_forward_open_reply(response.data)
+        self._check_api(reply.o2t_api_us or s.rpi_us, reply.t2o_api_us or s.rpi_us)
+        if reply.t2o_connection_id != link.t2o_id:
+            # Not ours after all (a target choosing it): route the one it produces on.
+            port.unroute(link.t2o_id)
+            link.routed = False
+            link.t2o_id = reply.t2o_connection_id
+            try:
+                self._route(port, link, silence_s=0.0)
+            except ValueError:
+                raise _RefusedError(
+                    f"Forward Open reply refused: the target produces on T→O connection ID "
+                    f"0x{link.t2o_id:08X}, which another connection of this port holds",
+                    opened=True,
+                ) from None
+        link.o2t_id = reply.o2t_connection_id
+        link.o2t_api_us = reply.o2t_api_us or s.rpi_us
+        link.t2o_api_us = reply.t2o_api_us or s.rpi_us
+        self._pace.restart(link.t2o_api_us)
+        link.o2t_addr = (link.target_host, ENIP_UDP_PORT)
+        for item in items:
+            if item.type_id == ItemType.SOCKADDR_O2T:
+                announced = decode_sockaddr(item.data)
+                host = announced.host if announced.host != "0.0.0.0" else link.target_host
+                link.o2t_addr = (host, announced.port)
+        # O→T from now on, at the RPI, built ahead into the cyclic pump (o2t_stream).
+        link.o2t = O2TStream(
+            port.udp,
+            port.new_tag(),
+            link.o2t_addr,
+            link.o2t_api_us / 1e6,
+            lambda: self._o2t_packet(link),
+            has_cip_seq=not (s.input_only and s.heartbeat_o2t_size == 0),
+            wake_period_s=self._t2o_batch_s,
+            on_timer=lambda now, lag_s: self._check_t2o_silence(link, now, lag_s),
+        )
+        link.o2t.start()
+        # The pump wakes us once T→O has been silent for the timeout, whatever the batch.
+        self._route(port, link, silence_s=self._timeout_s(link))
+        first_timeout_s = max(s.first_frame_timeout_s, self._timeout_s(link))
+        waits: list[asyncio.Future[Any]] = [self._first_frame, self._lost]
+        done, _ = await asyncio.wait(
+            waits, timeout=first_timeout_s, return_when=asyncio.FIRST_COMPLETED
+        )
+        if self._first_frame not in done:
+            raise TimeoutError(
+                f"no T→O frame within {first_timeout_s:.1f} s of the Forward Open "
+                f"(T→O connection 0x{link.t2o_id:08X} on UDP {port.local_host}:{port.udp_port})"
+            )
+        self._connected_since = time.time()
+        self._set_state(ConnectionState.CONNECTED, None)
+
+    def _route(self, port: IoPort, link: Link, *, silence_s: float) -> None:
+        port.route(
+            link.t2o_id,
+            link.target_host,
+            self,
+            batch_s=self._t2o_batch_s,
+            silence_s=silence_s,
+            packets_per_s=1e6 / link.t2o_api_us,
+        )
+        link.routed = True
+
+    def _check_api(self, o2t_api_us: int, t2o_api_us: int) -> None:
+        """Refuse a reply granting packet intervals outside the bounds (the connection is open
+        on the target's side: the refusal closes it)."""
+        s = self.settings
+        low_us, high_us = s.api_range_us
+        for direction, api_us in (("O→T", o2t_api_us), ("T→O", t2o_api_us)):
+            if not low_us <= api_us <= high_us:
+                raise _RefusedError(
+                    f"Forward Open reply refused: the target grants a {direction} packet "
+                    f"interval of {api_us} µs for an RPI of {s.rpi_us} µs (accepted: "
+                    f"{low_us}–{high_us} µs)",
+                    opened=True,
+                )
+
+    async def _read_o2t_assembly(self, session: EnipSession) -> None:
+        """Read the O→T assembly's data explicitly where the target allows it (most refuse
+        while another connection owns it): the first O→T packet carries it, and the command
+        image's bit input registers keep it (bumpless takeover). Nothing changes when the read
+        fails, or when ``o2t_data`` was given."""
+        s = self.settings
+        self._explicit_bits = None
+        if s.input_only or s.o2t_data is not None:
+            return
+        try:
+            response = await session.get_attribute_single(epath.CLASS_ASSEMBLY, s.o2t_instance, 3)
+        except EnipError:
+            return
+        if not response.ok or len(response.data) != s.o2t_size:
+            return
+        if s.o2t_is_command:
+            try:
+                image = decode_command(response.data)
+            except CodecError:
+                return
+            self.command = image
+            self._explicit_bits = image.bit_input_registers
+        self._o2t_bytes = bytes(response.data)
+
+    async def _teardown(self, *, forward_close: bool) -> None:
+        link, self._link = self._link, None
+        port = self._port
+        if link is not None:
+            if link.o2t is not None:
+                self._packets_out_closed += link.o2t.stop()
+            if link.routed and port is not None:
+                port.unroute(link.t2o_id)
+                link.routed = False
+        for future in (self._lost, self._first_frame):
+            if future is not None and not future.done():
+                future.cancel()
+        session, self._session = self._session, None
+        try:
+            if link is not None and forward_close:
+                with contextlib.suppress(SessionError, EnipError, OSError, TimeoutError):
+                    await asyncio.wait_for(self._forward_close(session, link), 1.0)
+            if session is not None:
+                with contextlib.suppress(OSError, TimeoutError):
+                    await asyncio.wait_for(session.close(), 1.0)
+        finally:
+            # stop() cancels a supervisor that may be in here: the session (already out of
+            # self._session) must not be left open.
+            if session is not None:
+                session.abort()
+        if self.state is ConnectionState.CONNECTED and not self._stopping:
+            self._set_state(ConnectionState.LOST, "connection closed")
+        self.run = False
+        self._connected_since = None
+
+    async def _forward_close(self, session: EnipSession | None, link: Link) -> None:
+        s = self.settings
+        own = session is None or not session.is_open
+        if own:
+            source = _source_host(self._port) if self._port is not None else None
+            session = EnipSession(s.robot_host, s.tcp_port, 1.0, source)
+            await session.open()
+        assert session is not None
+        try:
+            request = ForwardCloseRequest(
+                link.connection_serial, ORIGINATOR_VENDOR_ID, link.originator_serial, link.path
+            )
+            await session.request(request.request())
+        finally:
+            if own:
+                await session.close()
+
+
+def _source_host(port: IoPort) -> str | None:
+    """The TCP session's source address: the target sends T→O to the address our TCP
+    connection comes from (docs/operations.md, ports and addresses): the port's address."""
+    host = port.local_host
+    return None if host in ("0.0.0.0", "") else host
