@@ -67,10 +67,11 @@ $(STAMP): backend/pyproject.toml $(NATIVE_SOURCES) | $(PY)
 # descriptor I/O, so only the pump's locks and atomics order its threads; -fno-builtin: memcpy
 # stays a call TSan checks, not inlined loads it would not see).
 TSAN_HARNESS := $(VENV)/native-tsan/tsan_harness
-$(TSAN_HARNESS): backend/tests/native/tsan_harness.c $(NATIVE_DIR)/cyclic_pump.c $(NATIVE_DIR)/cyclic_pump.h | $(STAMP)
+PUMP_CORE := $(NATIVE_DIR)/cyclic_pump.c $(NATIVE_DIR)/cyclic_pump_periodic.c
+$(TSAN_HARNESS): backend/tests/native/tsan_harness.c $(PUMP_CORE) $(wildcard $(NATIVE_DIR)/cyclic_pump*.h) | $(STAMP)
 	@mkdir -p $(@D)
 	cc -fsanitize=thread -fno-builtin -g -O1 -std=gnu11 -Wall -Wextra -Werror -I$(NATIVE_DIR) \
-	  backend/tests/native/tsan_harness.c $(NATIVE_DIR)/cyclic_pump.c -o $@ -lpthread
+	  backend/tests/native/tsan_harness.c $(PUMP_CORE) -o $@ -lpthread
 
 native-tsan: $(TSAN_HARNESS)
 	TSAN_OPTIONS="halt_on_error=1 exitcode=66 io_sync=0" $(TSAN_HARNESS)

@@ -10,8 +10,12 @@ setup(
     ext_modules=[
         Extension(
             "cobot_hmi.native._cyclic_pump",
-            sources=[f"{NATIVE}/_cyclic_pump_module.c", f"{NATIVE}/cyclic_pump.c"],
-            depends=[f"{NATIVE}/cyclic_pump.h"],
+            sources=[
+                f"{NATIVE}/_cyclic_pump_module.c",
+                f"{NATIVE}/cyclic_pump.c",
+                f"{NATIVE}/cyclic_pump_periodic.c",
+            ],
+            depends=[f"{NATIVE}/cyclic_pump.h", f"{NATIVE}/cyclic_pump_internal.h"],
             include_dirs=[NATIVE],
             extra_compile_args=["-std=gnu11", "-O2", "-Wall", "-Wextra"],
             extra_link_args=["-pthread"],

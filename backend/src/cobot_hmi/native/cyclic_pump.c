@@ -9,10 +9,10 @@
  *   - send queue: datagrams Python built ahead of time, each with the CLOCK_MONOTONIC instant
  *     it is due; the thread sleeps until the earliest one (1 us timer slack) and sends it.
  *     Python can take back what has not left yet (pump_cancel) when the data changes.
- *   - periodic streams: one datagram sent every period from a template whose two counters (a
- *     32-bit and a 16-bit little-endian field at offsets Python gives) rise by one per packet;
- *     Python replaces the template when the data changes (pump_periodic_data), without waking
- *     for each packet.
+ *   - periodic streams (cyclic_pump_periodic.c): one datagram sent every period from a template
+ *     whose two counters (a 32-bit and a 16-bit little-endian field at offsets Python gives) rise
+ *     by one per packet; Python replaces the template when the data changes
+ *     (pump_periodic_data), without waking for each packet.
  *   - receive ring: at every wake-up the thread reads every datagram waiting in the socket,
  *     with the kernel's receive time (SO_TIMESTAMPNS, turned into CLOCK_MONOTONIC), into a ring
  *     Python empties with pump_take. Nothing is lost by reading late: the receive time travels
@@ -23,7 +23,8 @@
  *     has come for `silence` (a watchdog's cue: Python then looks at once, not at its next
  *     batch).
  *
- * It knows nothing of EtherNet/IP, nor of Python: cyclic_pump.h is the whole interface, which
+ * It knows nothing of EtherNet/IP, nor of Python: cyclic_pump.h is the whole interface (the
+ * pump's state, which its two C files share, is in cyclic_pump_internal.h), which
  * _cyclic_pump_module.c wraps as the extension module cobot_hmi.native._cyclic_pump and
  * backend/tests/native/tsan_harness.c drives under ThreadSanitizer.
  *
@@ -49,83 +50,12 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "cyclic_pump.h"
-
-#define NEVER INT64_MAX
-
-typedef struct {
-    int64_t due_ns;
-    int64_t tag;
-    uint32_t ip; /* host order, like every address and port of this interface */
-    uint16_t port;
-    int32_t len; /* -1: free slot */
-} send_slot;
-
-typedef struct {
-    int64_t stamp_ns;
-    uint32_t ip;
-    uint16_t port;
-    int32_t len;
-} ring_meta;
-
-#define PERIODIC_MAX PUMP_PERIODIC_MAX
-
-typedef struct {
-    int active;
-    int64_t tag;
-    int64_t due_ns;
-    int64_t period_ns;
-    uint32_t ip;
-    uint16_t port;
-    int32_t len;
-    int32_t off32; /* -1: no such counter */
-    int32_t off16;
-    uint32_t count32; /* the values of the next packet */
-    uint16_t count16;
-    uint8_t *data;
-} periodic;
-
+#include "cyclic_pump_internal.h"
 
 /* Real-time priority of the thread when the system allows it (as a PLC runtime's I/O task):
  * low among real-time priorities, and the thread sleeps between packets, so it only ever
  * preempts ordinary work for the microseconds a packet takes. */
 #define PUMP_FIFO_PRIORITY 10
-
-struct pump {
-    int fd;
-    int kick_fd;
-    int notify_fd;
-    pthread_mutex_t life; /* pump_start and pump_stop: thread, thread_started */
-    pthread_t thread;
-    int thread_started;
-    pthread_mutex_t lock; /* everything below */
-    atomic_int running;
-
-    int queue_cap;
-    int queue_bytes;
-    send_slot *queue;
-    uint8_t *queue_data;
-    int queued;
-    periodic periodics[PERIODIC_MAX];
-
-    int ring_cap;
-    int ring_bytes;
-    ring_meta *ring;
-    uint8_t *ring_data;
-    int ring_head;
-    int ring_count;
-
-    int read_on_readable;
-    int64_t notify_interval_ns;
-    int64_t silence_ns; /* 0: off */
-    int64_t last_rx_ns; /* receive time of the newest datagram, 0 before the first */
-    int silence_reported;
-    int64_t last_notify_ns;
-    int notified;
-    int64_t sleeping_until;
-
-    int64_t counters[C_COUNT];
-};
 
 static int64_t clock_ns(clockid_t clock) {
     struct timespec t;
@@ -185,7 +115,7 @@ pump *pump_new(int fd, int queue_cap, int queue_bytes, int ring_cap, int ring_by
 
 int pump_notify_fd(pump *p) { return p->notify_fd; }
 
-static void kick(pump *p) {
+void pump_kick(pump *p) {
     uint64_t one = 1;
     ssize_t ignored = write(p->kick_fd, &one, sizeof one);
     (void)ignored;
@@ -253,8 +183,8 @@ static int earliest(pump *p) {
     return best;
 }
 
-static void send_one(pump *p, const uint8_t *data, int32_t len, uint32_t ip, uint16_t port,
-                     int64_t due_ns, int64_t now) {
+void pump_send_one(pump *p, const uint8_t *data, int32_t len, uint32_t ip, uint16_t port,
+                   int64_t due_ns, int64_t now) {
     struct sockaddr_in to = {0};
     to.sin_family = AF_INET;
     to.sin_addr.s_addr = htonl(ip);
@@ -269,43 +199,17 @@ static void send_one(pump *p, const uint8_t *data, int32_t len, uint32_t ip, uin
     }
 }
 
-static void put_le(uint8_t *at, uint32_t value, int bytes) {
-    for (int b = 0; b < bytes; b++) at[b] = (uint8_t)(value >> (8 * b));
-}
-
-static void send_periodic_due(pump *p, int64_t now) {
-    for (int i = 0; i < PERIODIC_MAX; i++) {
-        periodic *s = &p->periodics[i];
-        if (!s->active || s->due_ns > now) continue;
-        if (s->off32 >= 0) put_le(s->data + s->off32, s->count32, 4);
-        if (s->off16 >= 0) put_le(s->data + s->off16, s->count16, 2);
-        send_one(p, s->data, s->len, s->ip, s->port, s->due_ns, now);
-        s->count32++;
-        s->count16++;
-        s->due_ns += s->period_ns;
-        if (s->due_ns < now - s->period_ns) s->due_ns = now; /* stalled: resynchronise, no burst */
-    }
-}
-
-static int64_t periodic_next(pump *p) {
-    int64_t next = NEVER;
-    for (int i = 0; i < PERIODIC_MAX; i++) {
-        if (p->periodics[i].active && p->periodics[i].due_ns < next) next = p->periodics[i].due_ns;
-    }
-    return next;
-}
-
 /* Send what is due; return when the next send is due (NEVER: nothing left). */
 static int64_t send_due(pump *p, int64_t now) {
-    send_periodic_due(p, now);
-    int64_t next = periodic_next(p);
+    pump_send_periodic_due(p, now);
+    int64_t next = pump_periodic_next_due(p);
     for (;;) {
         int i = earliest(p);
         if (i < 0) return next;
         if (p->queue[i].due_ns > now) return p->queue[i].due_ns < next ? p->queue[i].due_ns : next;
         send_slot *s = &p->queue[i];
-        send_one(p, p->queue_data + (size_t)i * (size_t)p->queue_bytes, s->len, s->ip, s->port,
-                 s->due_ns, now);
+        pump_send_one(p, p->queue_data + (size_t)i * (size_t)p->queue_bytes, s->len, s->ip,
+                      s->port, s->due_ns, now);
         s->len = -1;
         p->queued--;
     }
@@ -399,7 +303,7 @@ void pump_stop(pump *p) {
     pthread_mutex_lock(&p->life);
     if (p->thread_started) {
         atomic_store(&p->running, 0);
-        kick(p);
+        pump_kick(p);
         pthread_join(p->thread, NULL);
         p->thread_started = 0;
     }
@@ -427,7 +331,7 @@ void pump_configure(pump *p, int read_on_readable, int64_t notify_interval_ns, i
     p->notify_interval_ns = notify_interval_ns;
     p->silence_ns = silence_ns;
     pthread_mutex_unlock(&p->lock);
-    kick(p);
+    pump_kick(p);
 }
 
 /* Queue `len` bytes for `ip`:`port` at `due_ns`. 0, or -1 when the queue is
@@ -455,7 +359,7 @@ int pump_queue(pump *p, int64_t due_ns, uint32_t ip, uint16_t port, const uint8_
     int wake = due_ns < p->sleeping_until;
     if (wake) p->sleeping_until = due_ns;
     pthread_mutex_unlock(&p->lock);
-    if (wake) kick(p);
+    if (wake) pump_kick(p);
     return 0;
 }
 
@@ -526,85 +430,4 @@ void pump_counters(pump *p, int64_t *out) {
     pthread_mutex_lock(&p->lock);
     memcpy(out, p->counters, sizeof p->counters);
     pthread_mutex_unlock(&p->lock);
-}
-
-/* Start (or restart) the periodic stream `tag`: `data` every `period_ns` from `first_due_ns` to
- * `ip`:`port`, with the 32-bit counter at `off32` and the 16-bit one at `off16` (little-endian,
- * -1: none) starting at `first32` and `first16` and rising by one per packet. 0, -1 when every
- * stream is taken, -2 when the datagram is longer than a slot or a counter lies outside it. */
-int pump_periodic_start(pump *p, int64_t tag, int64_t first_due_ns, int64_t period_ns, uint32_t ip,
-                        uint16_t port, const uint8_t *data, int len, int off32, uint32_t first32,
-                        int off16, uint16_t first16) {
-    if (len < 0 || len > p->queue_bytes || off32 + 4 > len || off16 + 2 > len || period_ns <= 0)
-        return -2;
-    pthread_mutex_lock(&p->lock);
-    int slot = -1;
-    for (int i = 0; i < PERIODIC_MAX; i++) {
-        if (p->periodics[i].active && p->periodics[i].tag == tag) { slot = i; break; }
-        if (!p->periodics[i].active && slot < 0) slot = i;
-    }
-    if (slot < 0) {
-        pthread_mutex_unlock(&p->lock);
-        return -1;
-    }
-    periodic *s = &p->periodics[slot];
-    memcpy(s->data, data, (size_t)len);
-    s->len = len;
-    s->tag = tag;
-    s->due_ns = first_due_ns;
-    s->period_ns = period_ns;
-    s->ip = ip;
-    s->port = port;
-    s->off32 = off32;
-    s->off16 = off16;
-    s->count32 = first32;
-    s->count16 = first16;
-    s->active = 1;
-    int wake = first_due_ns < p->sleeping_until;
-    if (wake) p->sleeping_until = first_due_ns;
-    pthread_mutex_unlock(&p->lock);
-    if (wake) kick(p);
-    return 0;
-}
-
-/* The periodic stream `tag` sends `data` from its next packet on (its counters go on rising).
- * 0, -1 when there is no such stream, -2 when the datagram does not fit. */
-int pump_periodic_data(pump *p, int64_t tag, const uint8_t *data, int len) {
-    pthread_mutex_lock(&p->lock);
-    for (int i = 0; i < PERIODIC_MAX; i++) {
-        periodic *s = &p->periodics[i];
-        if (s->active && s->tag == tag) {
-            if (len < 0 || len > p->queue_bytes || s->off32 + 4 > len || s->off16 + 2 > len) {
-                pthread_mutex_unlock(&p->lock);
-                return -2;
-            }
-            memcpy(s->data, data, (size_t)len);
-            s->len = len;
-            pthread_mutex_unlock(&p->lock);
-            return 0;
-        }
-    }
-    pthread_mutex_unlock(&p->lock);
-    return -1;
-}
-
-/* The periodic stream `tag`'s next packet: its counters and due time into *next32, *next16 and
- * *next_due_ns; with `stop`, the stream ends (that packet is not sent). 0, or -1 when there is
- * no such stream. */
-int pump_periodic_next(pump *p, int64_t tag, int stop, uint32_t *next32, uint16_t *next16,
-                       int64_t *next_due_ns) {
-    pthread_mutex_lock(&p->lock);
-    for (int i = 0; i < PERIODIC_MAX; i++) {
-        periodic *s = &p->periodics[i];
-        if (s->active && s->tag == tag) {
-            if (stop) s->active = 0;
-            *next32 = s->count32;
-            *next16 = s->count16;
-            *next_due_ns = s->due_ns;
-            pthread_mutex_unlock(&p->lock);
-            return 0;
-        }
-    }
-    pthread_mutex_unlock(&p->lock);
-    return -1;
 }
