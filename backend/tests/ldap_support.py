@@ -5,7 +5,7 @@ installs it) with its own configuration, data and certificates in a directory of
 an mdb database for ``dc=example,dc=org`` (its root ``cn=admin``), the memberof overlay (so
 ``memberOf`` is offered for ``groupOfNames``, as Active Directory offers it), plain LDAP (with
 StartTLS) and LDAPS on free ports of 127.0.0.1, a server certificate for 127.0.0.1 signed by a
-CA the fixture makes (``cryptography``). Users and groups are added over LDAP once slapd
+CA the fixture makes (``tls_support.TestCa``). Users and groups are added over LDAP once slapd
 answers (the overlay runs on adds, not on ``slapadd``):
 
 - ``olga`` in ``cn=operators`` (``groupOfNames``, ``member``);
@@ -21,8 +21,6 @@ and ``start`` brings it back on the same ports with the same data.
 from __future__ import annotations
 
 import contextlib
-import datetime
-import ipaddress
 import os
 import shutil
 import signal
@@ -34,13 +32,10 @@ from pathlib import Path
 from typing import Final
 
 import pytest
-from cryptography import x509
-from cryptography.hazmat.primitives import hashes, serialization
-from cryptography.hazmat.primitives.asymmetric import ec
-from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 from ldap3 import MODIFY_ADD, MODIFY_DELETE, Connection, Server
 
 from conftest import free_tcp_port
+from tls_support import TestCa
 
 BASE_DN: Final = "dc=example,dc=org"
 PEOPLE: Final = f"ou=people,{BASE_DN}"
@@ -184,64 +179,9 @@ class Slapd:
 
 
 def _certificates(directory: Path) -> None:
-    """A CA and a server certificate for 127.0.0.1 signed by it, as PEM files."""
-    now = datetime.datetime.now(datetime.UTC)
-    ca_key = ec.generate_private_key(ec.SECP256R1())
-    ca_name = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, "cobot-hmi test LDAP CA")])
-    ca = (
-        x509.CertificateBuilder()
-        .subject_name(ca_name)
-        .issuer_name(ca_name)
-        .public_key(ca_key.public_key())
-        .serial_number(x509.random_serial_number())
-        .not_valid_before(now - datetime.timedelta(hours=1))
-        .not_valid_after(now + datetime.timedelta(days=2))
-        .add_extension(x509.BasicConstraints(ca=True, path_length=0), critical=True)
-        .add_extension(
-            x509.KeyUsage(
-                digital_signature=True,
-                content_commitment=False,
-                key_encipherment=False,
-                data_encipherment=False,
-                key_agreement=False,
-                key_cert_sign=True,
-                crl_sign=True,
-                encipher_only=False,
-                decipher_only=False,
-            ),
-            critical=True,
-        )
-        .add_extension(x509.SubjectKeyIdentifier.from_public_key(ca_key.public_key()), False)
-        .sign(ca_key, hashes.SHA256())
-    )
-    key = ec.generate_private_key(ec.SECP256R1())
-    server = (
-        x509.CertificateBuilder()
-        .subject_name(x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, HOST)]))
-        .issuer_name(ca_name)
-        .public_key(key.public_key())
-        .serial_number(x509.random_serial_number())
-        .not_valid_before(now - datetime.timedelta(hours=1))
-        .not_valid_after(now + datetime.timedelta(days=2))
-        .add_extension(
-            x509.SubjectAlternativeName(
-                [x509.IPAddress(ipaddress.ip_address(HOST)), x509.DNSName("localhost")]
-            ),
-            critical=False,
-        )
-        .add_extension(x509.ExtendedKeyUsage([ExtendedKeyUsageOID.SERVER_AUTH]), False)
-        .add_extension(
-            x509.AuthorityKeyIdentifier.from_issuer_public_key(ca_key.public_key()), False
-        )
-        .sign(ca_key, hashes.SHA256())
-    )
-    pem = serialization.Encoding.PEM
-    (directory / "ca.pem").write_bytes(ca.public_bytes(pem))
-    (directory / "server.pem").write_bytes(server.public_bytes(pem))
-    (directory / "server.key").write_bytes(
-        key.private_bytes(pem, serialization.PrivateFormat.PKCS8, serialization.NoEncryption())
-    )
-    (directory / "server.key").chmod(0o600)
+    """A CA (``ca.pem``) and a server certificate for 127.0.0.1 signed by it."""
+    ca = TestCa.create(directory)
+    ca.issue(directory / "server.pem", directory / "server.key", HOST, name="slapd")
 
 
 def _config(directory: Path) -> str:
