@@ -6,6 +6,6 @@ metrics are the layout's fields (``catalogue``), published by exception (``rbe``
 ``sparkplug_b.proto``), with the node session's bdSeq/seq rules and NDEATH will
 (``session``), a bounded disk buffer while the broker is away (``buffer``), DCMD writes
 through the service's one write pipeline (``commands``), the MQTT connection
-(``mqtt_client``) and the whole composed (``edge_node``). Off unless ``mqtt_url`` is set
-(docs/operations.md, "Sparkplug B").
+(``mqtt_client``) and the whole composed (``edge_node``, its parts in ``node/``). Off unless
+``mqtt_url`` is set (docs/operations.md, "Sparkplug B").
 """

@@ -1,0 +1,135 @@
+"""Layer: service (Sparkplug). Each robot's reports on the web loop: a tick at most every
+``period_s`` right after frames arrived; a DDEATH when its connection went, a DBIRTH when it
+came (back), otherwise a DDATA with what changed (``rbe``), the O→T image, the control holder
+and command outcomes, published when born, buffered on disk while the broker is away.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import time
+
+from cobot_hmi.layout import O2T_FIELDS
+from cobot_hmi.sparkplug.catalogue import state_name
+from cobot_hmi.sparkplug.node.births import Births
+from cobot_hmi.sparkplug.node.device import Device, now_ms
+from cobot_hmi.sparkplug.payload import DataType, Property, add_metric, make_payload
+from cobot_hmi.sparkplug.rbe import Change
+from cobot_hmi.sparkplug.topics import MessageType
+
+log = logging.getLogger(__name__)
+
+
+class DeviceReports(Births):
+    """The robots' ticks."""
+
+    async def _device_loop(self, device: Device) -> None:
+        """A tick at most every ``period_s``, each right after a frame arrived: the newest frame
+        is then at its freshest when reported (one wake-up per tick from the cyclic thread,
+        its ``on_frames``)."""
+        loop = asyncio.get_running_loop()
+        last = loop.time()
+        while True:
+            due = max(last, device.reported_at) + self.period_s
+            await asyncio.sleep(max(0.0, due - loop.time()))
+            if device.robot.down_since is None:
+                device.arrived.clear()
+                with contextlib.suppress(TimeoutError):
+                    async with asyncio.timeout(self.period_s):
+                        await device.arrived.wait()
+            last = loop.time()
+            started = time.thread_time()
+            try:
+                self._tick(device)
+            except Exception:  # a bug here must not end the robot's reports for good
+                log.exception("Sparkplug tick of %s failed", device.device_name)
+            self.tick_seconds += time.thread_time() - started
+
+    def _tick(self, device: Device) -> None:
+        robot = device.robot
+        items = device.take()
+        connected = robot.down_since is None
+        if device.alive and (not connected or robot.connects != device.connects_seen):
+            device.alive = False
+            if device.born and self.active:
+                self._publish_device_death(device)
+            device.born = False
+        if not connected:
+            return
+        if items:
+            device.frame = (items[-1][2], items[-1][1])
+        if not device.alive:
+            if not items:
+                return  # no frame of this connection yet
+            device.connects_seen = robot.connects
+            device.alive = True
+            device.reporter.baseline(items[-1][2])
+            self._read_status(device)
+            if self.active:
+                self._publish_device_birth(device)
+            return
+        changes = device.reporter.discrete_changes(items)
+        if items:
+            newest = items[-1]
+            changes.extend(device.reporter.analog_changes(newest[2], newest[1]))
+        changes.extend(self._status_changes(device))
+        if changes:
+            self._report(device, changes)
+
+    def _read_status(self, device: Device) -> None:
+        with contextlib.suppress(AssertionError):  # no originator yet
+            device.command = device.robot.link.command
+        holder = device.robot.control.holder
+        device.holder = holder.user if holder is not None else ""
+
+    def _status_changes(self, device: Device) -> list[Change]:
+        """The O→T image, the control holder and command outcomes, when they changed."""
+        now = now_ms()
+        changes: list[Change] = []
+        before = device.command
+        holder_before = device.holder
+        self._read_status(device)
+        command = device.command
+        if command is not None and before is not None and command != before:
+            for f in O2T_FIELDS:
+                new, old = getattr(command, f.name), getattr(before, f.name)
+                if new != old:
+                    first = self._command_offsets[f.name]
+                    changes.extend(
+                        (first + i, a, now)
+                        for i, (a, b) in enumerate(zip(new, old, strict=True))
+                        if a != b
+                    )
+        if device.holder != holder_before:
+            changes.append((self.catalogue.control_holder.offset, device.holder, now))
+        if device.outcome_pending:
+            device.outcome_pending = False
+            outcome, reason = device.outcome
+            changes.append((self.catalogue.write_outcome.offset, outcome, now))
+            changes.append((self.catalogue.write_reason.offset, reason, now))
+        return changes
+
+    def _report(self, device: Device, changes: list[Change]) -> None:
+        """A DDATA: published when born, buffered on disk while the broker is away."""
+        # The payload's time and the rate's reference are one instant.
+        device.reported_at = asyncio.get_running_loop().time()
+        payload = make_payload(now_ms(), None)
+        metrics = self.catalogue.metrics
+        for offset, value, stamp in changes:
+            metric = metrics[offset]
+            name = state_name(metric, value)
+            add_metric(
+                payload,
+                alias=device.alias_base + offset,
+                timestamp_ms=stamp,
+                datatype=metric.datatype,
+                value=value,
+                properties=(Property("name", DataType.STRING, name),) if name else (),
+            )
+        topic = self.topics.device_topic(MessageType.DDATA, device.device_name)
+        if self.active and device.born:
+            self._publish(topic, payload, device)
+        elif not self.active and self.buffer.append(topic, payload.SerializeToString()):
+            device.messages["DDATA_buffered"] += 1
