@@ -137,6 +137,12 @@ async def test_presets_save_apply_all_or_nothing_audited_export_import(
             assert any(r["outcome"] == "invalid" for r in applies)
             saves = [r for r in audit if r["action"] == "preset.save" and r["outcome"] == "saved"]
             assert len(saves) == 3
+            assert any(
+                r["action"] == "preset.save"
+                and r["outcome"] == "invalid"
+                and "out of range" in (r["reason"] or "")
+                for r in audit
+            )
 
             # Export as CSV, delete, import back (checked against the image as it is now: the
             # AO preset's 12 would be refused, and with it the whole import).

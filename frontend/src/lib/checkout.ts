@@ -21,7 +21,8 @@ interface Fetched<T> {
   readonly response: Response;
 }
 
-function pageOf<T>(result: Fetched<T>, ok = 200): PageAnswer<T> {
+/** What openapi-fetch gave back as a page answer: the data when the status is `ok`, else the reason (also the presets' calls). */
+export function pageOf<T>(result: Fetched<T>, ok = 200): PageAnswer<T> {
   if (result.data !== undefined && result.response.status === ok) return { ok: true, page: result.data };
   const answer: HttpAnswer = { status: result.response.status, body: result.data ?? result.error ?? null };
   return { ok: false, status: answer.status, reason: errorReason(answer) };

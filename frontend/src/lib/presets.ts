@@ -2,9 +2,9 @@
  * Layer: the panel's REST calls for output presets (docs/api.md "Output presets") over the typed
  * client of `lib/api.ts`, and the pure helpers of its view. No React.
  */
-import { API, api, errorReason, type JsonClient, type PageAnswer } from "./api";
+import { API, api, type JsonClient, type PageAnswer } from "./api";
+import { pageOf } from "./checkout";
 import type { components } from "../generated/api";
-import type { HttpAnswer } from "./writes";
 
 type Schemas = components["schemas"];
 export type Preset = Schemas["Preset"];
@@ -13,18 +13,6 @@ export type PresetChanges = Schemas["PresetChanges"];
 export type PresetChange = Schemas["PresetChange"];
 
 const JSON_CONTENT = { "Content-Type": "application/json" } as const;
-
-interface Fetched<T> {
-  readonly data?: T;
-  readonly error?: unknown;
-  readonly response: Response;
-}
-
-function pageOf<T>(result: Fetched<T>): PageAnswer<T> {
-  if (result.data !== undefined && result.response.status === 200) return { ok: true, page: result.data };
-  const answer: HttpAnswer = { status: result.response.status, body: result.data ?? result.error ?? null };
-  return { ok: false, status: answer.status, reason: errorReason(answer) };
-}
 
 export class PresetsApi {
   constructor(readonly client: JsonClient) {}

@@ -33,20 +33,18 @@ from cobot_hmi.service.commissioning.points import (
     CHECK_POINTS,
     CheckPoint,
 )
+from cobot_hmi.service.errors import ApiError
 from cobot_hmi.service.storage.store import Store
 
 Result = Literal["untested", "seen", "pass", "fail"]
 RESULTS: tuple[Result, ...] = ("untested", "seen", "pass", "fail")
 
 
-class CheckoutError(Exception):
+class CheckoutError(ApiError):
     """A checkout action refused: ``status`` is the HTTP status the API answers."""
 
     def __init__(self, status: int, reason: str, field: str | None = None) -> None:
-        super().__init__(reason)
-        self.status = status
-        self.reason = reason
-        self.field = field
+        super().__init__(status, reason, field=field)
 
 
 @dataclass(slots=True)

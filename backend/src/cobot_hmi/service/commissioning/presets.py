@@ -25,6 +25,7 @@ import orjson
 from cobot_hmi.codec import CommandImage
 from cobot_hmi.layout import O2T_FIELDS
 from cobot_hmi.service.commissioning.points import CHECK_POINTS_BY_KEY
+from cobot_hmi.service.errors import ApiError
 from cobot_hmi.service.labels import element_label
 from cobot_hmi.service.storage.store import Store
 from cobot_hmi.service.writes.validation import WriteValidationError, plan_write
@@ -37,14 +38,11 @@ _OFF_FIELDS: Final = ("controlbox_do", "tool_do")
 PresetValue = bool | int | float
 
 
-class PresetError(ValueError):
+class PresetError(ApiError):
     """A preset that cannot be saved or read; ``field`` names the key or line at fault."""
 
     def __init__(self, status: int, reason: str, field: str | None = None) -> None:
-        super().__init__(reason)
-        self.status = status
-        self.reason = reason
-        self.field = field
+        super().__init__(status, reason, field=field)
 
 
 @dataclass(frozen=True, slots=True)

@@ -22,13 +22,12 @@ from cobot_hmi.service.api.deps import RobotDep, ViewerDep, WriterDep
 from cobot_hmi.service.api.openapi_extras import WRITE, errors
 from cobot_hmi.service.api.routes.read import OrjsonResponse
 from cobot_hmi.service.commissioning import models
-from cobot_hmi.service.commissioning.audit import audit_action
+from cobot_hmi.service.commissioning.audit import AuditedAction
 from cobot_hmi.service.commissioning.checkout import Checkout, CheckoutBook, CheckoutError
 from cobot_hmi.service.commissioning.service import Commissioning
-from cobot_hmi.service.errors import ApiError
 from cobot_hmi.service.robots.robot import RobotRuntime
 from cobot_hmi.service.storage.store import iso8601
-from cobot_hmi.service.writes.pipeline import Writer, authorize_audited, submit_write
+from cobot_hmi.service.writes.pipeline import Writer, submit_write
 
 
 @asynccontextmanager
@@ -78,53 +77,15 @@ def _book(request: Request, robot: RobotRuntime) -> CheckoutBook:
     return commissioning.checkouts[robot.name]
 
 
-def _origin(request: Request) -> str:
-    return f"{request.method} {request.url.path}"
+def _watch(request: Request, robot: RobotRuntime) -> None:
+    """Watch the robot's frames while it has an open checkout (after a start or a close)."""
+    commissioning: Commissioning = request.app.state.commissioning
+    commissioning.watchers[robot.name].update()
 
 
-async def _checkout(book: CheckoutBook, checkout_id: int) -> Checkout:
-    try:
-        return await book.get(checkout_id)
-    except CheckoutError as error:
-        raise ApiError(error.status, error.reason, field=error.field) from None
-
-
-async def _authorize(
-    robot: RobotRuntime, writer: Writer, request: Request, action: str, what: str, **more: object
-) -> str:
-    return await authorize_audited(
-        robot.store,
-        writer,
-        action=action,
-        what=what,
-        robot=robot.name,
-        origin=_origin(request),
-        requested=more or None,
-    )
-
-
-async def _refused(
-    robot: RobotRuntime,
-    writer: Writer,
-    *,
-    request: Request,
-    action: str,
-    error: CheckoutError,
-    fields: list[str],
-    requested: object,
-) -> ApiError:
-    await audit_action(
-        robot.store,
-        writer,
-        robot=robot.name,
-        action=action,
-        origin=_origin(request),
-        outcome="refused" if error.status == 409 else "invalid",
-        fields=fields,
-        requested=requested,
-        reason=error.reason,
-    )
-    return ApiError(error.status, error.reason, field=error.field)
+def _action(robot: RobotRuntime, writer: Writer, request: Request, action: str) -> AuditedAction:
+    origin = f"{request.method} {request.url.path}"
+    return AuditedAction(robot.store, writer, robot.name, action, origin)
 
 
 @router.get(
@@ -145,19 +106,13 @@ async def list_checkouts(robot: RobotDep, _: ViewerDep, request: Request) -> Orj
     responses=_CHANGE,
 )
 async def start_checkout(robot: RobotDep, writer: WriterDep, request: Request) -> OrjsonResponse:
-    user = await _authorize(robot, writer, request, "checkout.start", "starting a checkout")
-    book = _book(request, robot)
+    action = _action(robot, writer, request, "checkout.start")
+    user = await action.authorize("starting a checkout")
     identity = robot.identity.to_json() if robot.identity is not None else None
-    checkout = await book.start(user, identity)
-    commissioning: Commissioning = request.app.state.commissioning
-    commissioning.watchers[robot.name].update()
-    await audit_action(
-        robot.store,
-        writer,
-        robot=robot.name,
-        action="checkout.start",
-        origin=_origin(request),
-        outcome="started",
+    checkout = await _book(request, robot).start(user, identity)
+    _watch(request, robot)
+    await action.audit(
+        "started",
         requested={"checkout": checkout.id},
         summary=f"checkout {checkout.id} started",
     )
@@ -173,7 +128,7 @@ async def start_checkout(robot: RobotDep, writer: WriterDep, request: Request) -
 async def get_checkout(
     robot: RobotDep, checkout_id: CheckoutId, _: ViewerDep, request: Request
 ) -> OrjsonResponse:
-    checkout = await _checkout(_book(request, robot), checkout_id)
+    checkout = await _book(request, robot).get(checkout_id)
     return OrjsonResponse(checkout.answer(robot.tags.names))
 
 
@@ -192,33 +147,21 @@ async def record_result(
     writer: WriterDep,
     request: Request,
 ) -> OrjsonResponse:
+    action = _action(robot, writer, request, "checkout.result")
     requested = {"checkout": checkout_id, **verdict.model_dump()}
-    user = await _authorize(robot, writer, request, "checkout.result", "recording a result")
+    user = await action.authorize("recording a result", requested)
     book = _book(request, robot)
-    checkout = await _checkout(book, checkout_id)
+    checkout = await book.get(checkout_id)
     try:
         state = await book.record(checkout, key, verdict.result, verdict.comment, user)
     except CheckoutError as error:
-        raise await _refused(
-            robot,
-            writer,
-            request=request,
-            action="checkout.result",
-            error=error,
-            fields=[key],
-            requested=requested,
-        ) from None
-    await audit_action(
-        robot.store,
-        writer,
-        robot=robot.name,
-        action="checkout.result",
-        origin=_origin(request),
-        outcome="recorded",
+        raise await action.refused(error, [key], requested) from None
+    comment = f" ({verdict.comment})" if verdict.comment else ""
+    await action.audit(
+        "recorded",
         fields=[key],
         requested=requested,
-        summary=f"checkout {checkout.id}: {state.point.label} {verdict.result}"
-        + (f" ({verdict.comment})" if verdict.comment else ""),
+        summary=f"checkout {checkout.id}: {state.point.label} {verdict.result}{comment}",
     )
     return OrjsonResponse(state.answer(robot.tags.names.get(key)))
 
@@ -239,25 +182,18 @@ async def switch_output(
     writer: WriterDep,
     request: Request,
 ) -> OrjsonResponse:
+    action = _action(robot, writer, request, "write")  # the pipeline's own action
     book = _book(request, robot)
-    checkout = await _checkout(book, checkout_id)
+    checkout = await book.get(checkout_id)
     try:
         state = checkout.open_point(key)
         if state.point.kind != "output":
             raise CheckoutError(409, f"{state.point.label} is an input: the robot reports it")
     except CheckoutError as error:
-        raise await _refused(
-            robot,
-            writer,
-            request=request,
-            action="write",
-            error=error,
-            fields=[key],
-            requested={"value": switch.value},
-        ) from None
+        raise await action.refused(error, [key], {"value": switch.value}) from None
     point = state.point
     body = {point.field: {str(point.index): switch.value}}
-    outcome = await submit_write(robot, writer, body, origin=_origin(request))
+    outcome = await submit_write(robot, writer, body, origin=action.origin)
     if not outcome.ok:
         raise outcome.error()
     assert writer.user is not None  # the pipeline authorized the writer
@@ -279,37 +215,24 @@ async def capture_input(
     writer: WriterDep,
     request: Request,
 ) -> OrjsonResponse:
-    requested = {"checkout": checkout_id}
-    user = await _authorize(robot, writer, request, "checkout.capture", "capturing a value")
+    action = _action(robot, writer, request, "checkout.capture")
+    requested: dict[str, object] = {"checkout": checkout_id}
+    user = await action.authorize("capturing a value", requested)
     book = _book(request, robot)
-    checkout = await _checkout(book, checkout_id)
+    checkout = await book.get(checkout_id)
     latest = robot.frames.latest
     try:
         state = checkout.open_point(key)
         if latest is None:
             raise CheckoutError(409, "no frame from the robot yet: nothing to capture")
-        name, index = state.point.field, state.point.index
         if state.point.signal != "analog" or state.point.kind != "input":
             raise CheckoutError(409, f"{state.point.label} is not an analog input")
-        value = float(getattr(latest.frame, name)[index])
+        value = float(getattr(latest.frame, state.point.field)[state.point.index])
         await book.capture(checkout, key, value, latest.received_at_s, user)
     except CheckoutError as error:
-        raise await _refused(
-            robot,
-            writer,
-            request=request,
-            action="checkout.capture",
-            error=error,
-            fields=[key],
-            requested=requested,
-        ) from None
-    await audit_action(
-        robot.store,
-        writer,
-        robot=robot.name,
-        action="checkout.capture",
-        origin=_origin(request),
-        outcome="captured",
+        raise await action.refused(error, [key], requested) from None
+    await action.audit(
+        "captured",
         fields=[key],
         requested={**requested, "value": value},
         summary=f"checkout {checkout.id}: {state.point.label} = {value:g}",
@@ -324,37 +247,21 @@ async def capture_input(
     responses=_CHANGE,
 )
 async def close_checkout(
-    robot: RobotDep,
-    checkout_id: CheckoutId,
-    writer: WriterDep,
-    request: Request,
+    robot: RobotDep, checkout_id: CheckoutId, writer: WriterDep, request: Request
 ) -> OrjsonResponse:
-    requested = {"checkout": checkout_id}
-    user = await _authorize(robot, writer, request, "checkout.close", "closing a checkout")
+    action = _action(robot, writer, request, "checkout.close")
+    requested: dict[str, object] = {"checkout": checkout_id}
+    user = await action.authorize("closing a checkout", requested)
     book = _book(request, robot)
-    checkout = await _checkout(book, checkout_id)
+    checkout = await book.get(checkout_id)
     try:
         await book.close(checkout, user)
     except CheckoutError as error:
-        raise await _refused(
-            robot,
-            writer,
-            request=request,
-            action="checkout.close",
-            error=error,
-            fields=[],
-            requested=requested,
-        ) from None
-    commissioning: Commissioning = request.app.state.commissioning
-    commissioning.watchers[robot.name].update()
+        raise await action.refused(error, [], requested) from None
+    _watch(request, robot)
     counts = checkout.counts()
-    await audit_action(
-        robot.store,
-        writer,
-        robot=robot.name,
-        action="checkout.close",
-        origin=_origin(request),
-        outcome="closed",
+    await action.audit(
+        "closed",
         requested={**requested, "counts": counts},
         summary=f"checkout {checkout.id} closed: "
         + ", ".join(f"{n} {result}" for result, n in counts.items()),
@@ -377,7 +284,7 @@ async def close_checkout(
 async def report_csv(
     robot: RobotDep, checkout_id: CheckoutId, _: ViewerDep, request: Request
 ) -> Response:
-    checkout = await _checkout(_book(request, robot), checkout_id)
+    checkout = await _book(request, robot).get(checkout_id)
     return Response(
         report(checkout, robot.tags.names),
         media_type="text/csv; charset=utf-8",

@@ -15,7 +15,7 @@ from cobot_hmi.service.api.deps import RobotDep, ViewerDep, WriterDep
 from cobot_hmi.service.api.openapi_extras import WRITE, errors
 from cobot_hmi.service.api.routes.read import OrjsonResponse
 from cobot_hmi.service.commissioning import models
-from cobot_hmi.service.commissioning.audit import audit_action
+from cobot_hmi.service.commissioning.audit import AuditedAction
 from cobot_hmi.service.commissioning.presets import (
     ALL_OUTPUTS_OFF,
     Preset,
@@ -27,9 +27,8 @@ from cobot_hmi.service.commissioning.presets import (
     from_image,
     to_csv,
 )
-from cobot_hmi.service.errors import ApiError
 from cobot_hmi.service.robots.robot import RobotRuntime
-from cobot_hmi.service.writes.pipeline import Writer, authorize_audited, submit_write
+from cobot_hmi.service.writes.pipeline import Writer, submit_write
 
 router = APIRouter(prefix="/api/v1", tags=["presets"])
 
@@ -40,14 +39,6 @@ PresetName = Annotated[str, Path(description="the preset's name", max_length=64)
 
 def _book(robot: RobotRuntime) -> PresetBook:
     return PresetBook(robot.name, robot.store)
-
-
-def _origin(request: Request) -> str:
-    return f"{request.method} {request.url.path}"
-
-
-def _api_error(error: PresetError) -> ApiError:
-    return ApiError(error.status, error.reason, field=error.field)
 
 
 async def _list(robot: RobotRuntime) -> dict[str, object]:
@@ -84,35 +75,24 @@ async def presets_csv(robot: RobotDep, _: ViewerDep) -> Response:
     )
 
 
+def _action(robot: RobotRuntime, writer: Writer, request: Request, action: str) -> AuditedAction:
+    origin = f"{request.method} {request.url.path}"
+    return AuditedAction(robot.store, writer, robot.name, action, origin)
+
+
 async def _save(
-    robot: RobotRuntime, writer: Writer, request: Request, presets: list[Preset], how: str
+    action: AuditedAction, robot: RobotRuntime, presets: list[Preset], how: str
 ) -> None:
-    user = writer.user
-    assert user is not None
+    user = action.writer.user
+    assert user is not None  # authorized
     book = _book(robot)
     for preset in presets:
         await book.save(preset, user)
-    await audit_action(
-        robot.store,
-        writer,
-        robot=robot.name,
-        action="preset.save",
-        origin=_origin(request),
-        outcome="saved",
+    await action.audit(
+        "saved",
         fields=sorted({k for p in presets for k in p.items}),
         requested={"how": how, "presets": {p.name: p.items for p in presets}},
         summary=f"presets saved ({how}): " + ", ".join(repr(p.name) for p in presets),
-    )
-
-
-async def _authorize(robot: RobotRuntime, writer: Writer, request: Request, what: str) -> None:
-    await authorize_audited(
-        robot.store,
-        writer,
-        action="preset.save",
-        what=what,
-        robot=robot.name,
-        origin=_origin(request),
     )
 
 
@@ -135,13 +115,30 @@ def _preset(body: models.PresetCreate, robot: RobotRuntime) -> Preset:
 async def save_preset(
     robot: RobotDep, body: models.PresetCreate, writer: WriterDep, request: Request
 ) -> OrjsonResponse:
-    await _authorize(robot, writer, request, "saving a preset")
+    action = _action(robot, writer, request, "preset.save")
+    requested = body.model_dump(exclude_none=True)
+    await action.authorize("saving a preset", requested)
     try:
         preset = _preset(body, robot)
     except PresetError as error:
-        raise _api_error(error) from None
-    await _save(robot, writer, request, [preset], "from the image" if body.from_image else "items")
+        raise await action.refused(error, requested=requested) from None
+    await _save(action, robot, [preset], "from the image" if body.from_image else "items")
     return OrjsonResponse((await _book(robot).get(preset.name)).answer())
+
+
+def _imported(body: models.PresetImport, robot: RobotRuntime) -> list[Preset]:
+    """Every preset of the import checked (the built-in one, which the exports list, left
+    out); ``PresetError`` for the first that is wrong."""
+    if body.csv is not None:
+        found = from_csv(body.csv)
+        return [
+            checked(n, items, robot.link.command)
+            for n, items in found.items()
+            if n != ALL_OUTPUTS_OFF
+        ]
+    if body.items is not None:
+        return [_preset(item, robot) for item in body.items if item.name != ALL_OUTPUTS_OFF]
+    raise PresetError(422, "give csv or items", "csv")
 
 
 @router.post(
@@ -154,28 +151,14 @@ async def save_preset(
 async def import_presets(
     robot: RobotDep, body: models.PresetImport, writer: WriterDep, request: Request
 ) -> OrjsonResponse:
-    await _authorize(robot, writer, request, "importing presets")
+    action = _action(robot, writer, request, "preset.save")
+    await action.authorize("importing presets")
     try:
-        if body.csv is not None:
-            found = from_csv(body.csv)
-            presets = [
-                checked(n, items, robot.link.command)
-                for n, items in found.items()
-                if n != ALL_OUTPUTS_OFF  # the export lists it; it is built in everywhere
-            ]
-        elif body.items is not None:
-            presets = [_preset(item, robot) for item in body.items if not _builtin(item)]
-        else:
-            raise PresetError(422, "give csv or items", "csv")
+        presets = _imported(body, robot)
     except PresetError as error:
-        raise _api_error(error) from None
-    await _save(robot, writer, request, presets, "import")
+        raise await action.refused(error, requested={"how": "import"}) from None
+    await _save(action, robot, presets, "import")
     return OrjsonResponse(await _list(robot))
-
-
-def _builtin(item: models.PresetCreate) -> bool:
-    """The JSON export lists the built-in preset too: an import skips it."""
-    return item.name == ALL_OUTPUTS_OFF
 
 
 @router.delete(
@@ -187,36 +170,15 @@ def _builtin(item: models.PresetCreate) -> bool:
 async def delete_preset(
     robot: RobotDep, preset: PresetName, writer: WriterDep, request: Request
 ) -> OrjsonResponse:
-    await authorize_audited(
-        robot.store,
-        writer,
-        action="preset.delete",
-        what="deleting a preset",
-        robot=robot.name,
-        origin=_origin(request),
-    )
+    action = _action(robot, writer, request, "preset.delete")
+    requested = {"preset": preset}
+    await action.authorize("deleting a preset", requested)
     try:
         await _book(robot).delete(preset)
     except PresetError as error:
-        raise _api_error(error) from None
-    await audit_action(
-        robot.store,
-        writer,
-        robot=robot.name,
-        action="preset.delete",
-        origin=_origin(request),
-        outcome="deleted",
-        requested={"preset": preset},
-        summary=f"preset {preset!r} deleted",
-    )
+        raise await action.refused(error, requested=requested) from None
+    await action.audit("deleted", requested=requested, summary=f"preset {preset!r} deleted")
     return OrjsonResponse(await _list(robot))
-
-
-async def _get(robot: RobotRuntime, name: str) -> Preset:
-    try:
-        return await _book(robot).get(name)
-    except PresetError as error:
-        raise _api_error(error) from None
 
 
 @router.get(
@@ -227,7 +189,7 @@ async def _get(robot: RobotRuntime, name: str) -> Preset:
     responses=_READ,
 )
 async def preset_changes(robot: RobotDep, preset: PresetName, _: ViewerDep) -> OrjsonResponse:
-    found = await _get(robot, preset)
+    found = await _book(robot).get(preset)
     return OrjsonResponse({"preset": found.name, "changes": changes(found, robot.link.command)})
 
 
@@ -241,9 +203,10 @@ async def preset_changes(robot: RobotDep, preset: PresetName, _: ViewerDep) -> O
 async def apply_preset(
     robot: RobotDep, preset: PresetName, writer: WriterDep, request: Request
 ) -> OrjsonResponse:
-    found = await _get(robot, preset)
+    found = await _book(robot).get(preset)
     before = changes(found, robot.link.command)
-    outcome = await submit_write(robot, writer, found.body(), origin=_origin(request))
+    origin = f"{request.method} {request.url.path}"
+    outcome = await submit_write(robot, writer, found.body(), origin=origin)
     if not outcome.ok:
         raise outcome.error()
     return OrjsonResponse({"preset": found.name, "changes": before})
