@@ -1,5 +1,5 @@
 import { describe, expect, it } from "vitest";
-import { pointsWords, pointWords, tagChanges } from "./tags";
+import { pointsWords, pointWords, tagChanges, bitWriteQuestion } from "./tags";
 
 describe("tag names beside the spec's labels", () => {
   it("names a 0-based key by its label and its tag", () => {
@@ -25,5 +25,14 @@ describe("tag names beside the spec's labels", () => {
     expect(tagChanges({ a: "x" }, { a: "x" })).toBe(0);
     expect(tagChanges({ a: "x" }, { a: "y", b: "" })).toBe(1);
     expect(tagChanges({ a: "x" }, { a: "", b: "z" })).toBe(2);
+  });
+});
+
+describe("bitWriteQuestion", () => {
+  it("says a register is a register, and names the point's tag", () => {
+    expect(bitWriteQuestion("register", "5", undefined, true)).toBe("Set bit input register 5 ON?");
+    expect(bitWriteQuestion("register", "5", "part present", false)).toBe("Set bit input register 5 (part present) OFF?");
+    expect(bitWriteQuestion("output", "DO 3", "gripper close", true)).toBe("Switch DO 3 (gripper close) ON?");
+    expect(bitWriteQuestion("output", "DO 3", " ", true)).toBe("Switch DO 3 ON?");
   });
 });

@@ -26,3 +26,14 @@ export function tagChanges(before: TagNames, after: TagNames): number {
   for (const key of keys) if ((before[key] ?? "").trim() !== (after[key] ?? "").trim()) changed++;
   return changed;
 }
+
+/**
+ * The question before a bit is written, saying what it is and its tag name: "Set bit input
+ * register 5 (part present) ON?", "Switch DO 3 (gripper close) OFF?". `label` is the point's
+ * label as shown (a register's is its number).
+ */
+export function bitWriteQuestion(kind: "output" | "register", label: string, tag: string | null | undefined, on: boolean): string {
+  const named = tag !== undefined && tag !== null && tag.trim() !== "" ? ` (${tag.trim()})` : "";
+  const state = on ? "ON" : "OFF";
+  return kind === "register" ? `Set bit input register ${label}${named} ${state}?` : `Switch ${label}${named} ${state}?`;
+}

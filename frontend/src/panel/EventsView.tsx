@@ -19,14 +19,21 @@ interface Row {
   readonly event: StreamEvent;
 }
 
+/**
+ * An event in words: the service's own `text` ("Servo on flag cleared", "Robot state Safe off
+ * (was Emergency stop)"), as its log and CSV say it; a write and an alarm in the panel's words,
+ * which add the points' tag names and the alarm's priority. Without a text (an older service):
+ * the panel's words for every kind.
+ */
 function describe(event: StreamEvent): string {
+  if (event.kind !== "write" && event.kind !== "alarm" && typeof event.text === "string" && event.text !== "") return event.text;
   const s = (v: unknown) => (v === null || v === undefined ? "—" : typeof v === "object" ? JSON.stringify(v) : String(v));
   const because = (reason: string | null | undefined) => (reason ? ` (${reason})` : "");
   switch (event.kind) {
     case "robot_state":
       return `${s(event.from_name ?? event.from)} → ${s(event.to_name)}`;
     case "flag":
-      return `${event.label ?? event.flag} ${event.value ? "on" : "off"}`;
+      return `${event.label ?? event.flag} flag ${event.value ? "set" : "cleared"}`;
     case "connection":
       return `${event.state}${event.reason ? `: ${event.reason}` : ""}`;
     case "control":

@@ -7,6 +7,7 @@ import { memo } from "react";
 import type { CommandFieldName } from "../generated/layout";
 import { useTagNames } from "../components/tagNames";
 import { tagLabel } from "../lib/alarms";
+import { bitWriteQuestion } from "../lib/tags";
 import { writeKey } from "../lib/writes";
 import { useWrites, useWriteView } from "./writeContext";
 
@@ -47,7 +48,7 @@ export const OutputToggle = memo(function OutputToggle({
   const onClick = () => {
     const requested = !(actual ?? command ?? false);
     const ask = kind === "output" || writes.confirmRegisters;
-    const message = `Switch ${tag !== undefined ? named : label} ${requested ? "ON" : "OFF"}?`;
+    const message = bitWriteQuestion(kind, label, tag, requested);
     void writes.write([key], [requested], { [field]: { [String(index)]: requested } }, ask ? message : null);
   };
 
@@ -62,7 +63,9 @@ export const OutputToggle = memo(function OutputToggle({
         data-command={command === null ? "" : command ? "on" : "off"}
         data-write="true"
         aria-pressed={state === "pending" ? "mixed" : state === "on"}
-        aria-label={`${label} ${state}`}
+        // The name is the visible text (label, tag, state, command: WCAG 2.5.3); a register's
+        // compact button shows its number alone, so its name says what the number is.
+        aria-label={compact ? `${kind === "register" ? `Bit input register ${tagLabel(label, tag)}` : named} ${state}` : undefined}
         disabled={!writes.canWrite || view.pending}
         title={title}
         onClick={onClick}
