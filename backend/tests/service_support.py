@@ -23,6 +23,7 @@ import httpx
 import pytest
 import uvicorn
 
+from cobot_hmi.composition import build_service
 from cobot_hmi.emulator.faults import TargetFaults
 from cobot_hmi.emulator.process_image import IdleBehaviour, ProcessImage
 from cobot_hmi.emulator.settings import TargetSettings
@@ -189,17 +190,21 @@ def hmi_fixture(**overrides: Any) -> Any:
     return hmi
 
 
+STARTUP_DEADLINE_S = 240.0
+"""Until uvicorn says it started (a functional deadline with room for a loaded machine)."""
+
 @contextlib.asynccontextmanager
 async def running_service(
     settings: ServiceSettings, *, wait_connected: bool = True
 ) -> AsyncIterator[Running]:
     """The service on uvicorn in this event loop (its originator on its own thread)."""
     await asyncio.to_thread(add_users, settings)  # scrypt: keep the emulator's loop free
-    service = Service(settings)
+    service = build_service(settings)
     server = QuietServer(uvicorn_config(create_app(service), settings, log_level="warning"))
     task = asyncio.create_task(server.serve())
     try:
-        await eventually(lambda: server.started or task.done())
+        # Startup may load the OPC UA NodeSets (~10 s quiet, several times that when busy).
+        await eventually(lambda: server.started or task.done(), timeout_s=STARTUP_DEADLINE_S)
         if task.done():
             await task
         running = Running(service, settings)

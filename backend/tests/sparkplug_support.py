@@ -18,6 +18,8 @@ from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
 from cobot_hmi.layout import O2T_FIELDS, T2O_FIELDS, Field
 from cobot_hmi.service.robots.frames import FrameRecord
+from cobot_hmi.service.runtime import Service
+from cobot_hmi.sparkplug.edge_node import EdgeNode
 from conftest import _next_host, free_tcp_port
 from frame_support import CollectedFrames
 from mosquitto_support import Broker, Message, Subscriber, mosquitto
@@ -165,3 +167,8 @@ def reported(messages: list[Message], device: str, alias: int) -> list[tuple[Any
         for metric in m.metrics
         if metric.alias == alias
     ]
+
+
+def edge_node_of(service: Service) -> EdgeNode | None:
+    """The service's Sparkplug B edge node (one of its extensions), if it has one."""
+    return next((e for e in service.extensions if isinstance(e, EdgeNode)), None)

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import pytest
 
+from cobot_hmi.composition import build_service
 from cobot_hmi.emulator.target import Target
 from cobot_hmi.service.alarms.persistence import AlarmChange, AlarmStore
-from cobot_hmi.service.runtime import Service
 from cobot_hmi.service.storage import migrations
 from cobot_hmi.service.storage.migrations import SCHEMA_VERSION, Migration, SchemaTooNewError
 from cobot_hmi.service.storage.store import AuditEntry, Store
@@ -244,7 +244,7 @@ async def test_the_service_refuses_to_start_on_a_newer_database(
     with contextlib.closing(sqlite3.connect(path)) as db:
         db.execute(f"PRAGMA user_version = {SCHEMA_VERSION + 7}")
     settings = service_settings(robot_host, target.tcp_port, plc_host, tmp_path, database=path)
-    service = Service(settings)
+    service = build_service(settings)
     with pytest.raises(SchemaTooNewError, match=f"schema version {SCHEMA_VERSION + 7}"):
         await service.start()
     assert version_of(path) == SCHEMA_VERSION + 7

@@ -27,7 +27,7 @@ from mosquitto_support import (
 )
 from process_support import cli_process, read_until
 from service_support import cell_settings, emulator, eventually, running_service
-from sparkplug_support import BOOLEAN, FLOAT, GROUP, NODE, Panel, cell, reported
+from sparkplug_support import BOOLEAN, FLOAT, GROUP, NODE, Panel, cell, edge_node_of, reported
 
 pytestmark = [needs_mosquitto, pytest.mark.timeout(300)]
 
@@ -42,7 +42,7 @@ async def test_bad_commands_are_answered_and_the_node_stays_up(
     tmp_path: Path, plc_host: str
 ) -> None:
     async with cell(tmp_path, plc_host, mqtt_writes=True) as c:
-        edge = c.running.service.edge_node
+        edge = edge_node_of(c.running.service)
         assert edge is not None
         aliases = c.aliases("m1013")
         dcmd = f"spBv1.0/{GROUP}/DCMD/{NODE}/m1013"
@@ -98,7 +98,7 @@ async def test_a_broker_missing_at_start(tmp_path: Path, plc_host: str) -> None:
             sparkplug_node=NODE,
         )
         async with running_service(settings) as running:
-            edge = running.service.edge_node
+            edge = edge_node_of(running.service)
             assert edge is not None
             async with running.client() as client:  # the HMI serves without its broker
                 assert (await client.get("/readyz")).status_code == 200
@@ -201,7 +201,7 @@ async def test_tls_and_a_password(tmp_path: Path, plc_host: str) -> None:
             sparkplug_node=NODE,
         )
         async with running_service(base.replace(mqtt_password="wrong")) as running:
-            edge = running.service.edge_node
+            edge = edge_node_of(running.service)
             assert edge is not None
             await eventually(lambda: edge.connect_refusals >= 1, SLOW_S)
             assert not subscriber.of("NBIRTH")
@@ -216,7 +216,7 @@ async def test_tls_and_a_password(tmp_path: Path, plc_host: str) -> None:
         births = len(subscriber.of("NBIRTH"))
         async with running_service(mutual) as running:
             await subscriber.wait_for(lambda ms: sum(m.kind == "NBIRTH" for m in ms) > births)
-            node = running.service.edge_node
+            node = edge_node_of(running.service)
             assert node is not None and node.connect_refusals == 0
 
 

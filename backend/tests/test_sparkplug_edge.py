@@ -35,6 +35,7 @@ from sparkplug_support import (
     UINT8,
     Cell,
     cell,
+    edge_node_of,
     f32,
     node_messages,
 )
@@ -291,4 +292,4 @@ async def test_dcmd_refused_when_writes_are_off_and_metrics(tmp_path: Path, plc_
         assert 'cobot_hmi_sparkplug_messages_total{robot="m1013",type="DBIRTH"} 1.0' in text
         assert 'cobot_hmi_sparkplug_frames_dropped_total{robot="m0609"} 0.0' in text
         assert 'cobot_hmi_sparkplug_commands_total{outcome="refused"} 1.0' in text
-        await eventually(lambda: c.running.service.edge_node is not None)
+        await eventually(lambda: edge_node_of(c.running.service) is not None)

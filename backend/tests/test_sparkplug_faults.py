@@ -24,7 +24,17 @@ from frame_support import CollectedFrames
 from mosquitto_support import Message, Subscriber, encode_command, mosquitto, needs_mosquitto
 from process_support import DEVNULL, cli_process
 from service_support import cell_settings, emulator, eventually, running_service
-from sparkplug_support import BOOLEAN, GROUP, NODE, Cell, Panel, cell, node_messages, reported
+from sparkplug_support import (
+    BOOLEAN,
+    GROUP,
+    NODE,
+    Cell,
+    Panel,
+    cell,
+    edge_node_of,
+    node_messages,
+    reported,
+)
 
 pytestmark = [needs_mosquitto, pytest.mark.timeout(300)]
 
@@ -122,7 +132,7 @@ async def test_broker_restart_replays_the_buffer_as_historical(
     tmp_path: Path, plc_host: str
 ) -> None:
     async with cell(tmp_path, plc_host, persistent_broker=True) as c:
-        edge = c.running.service.edge_node
+        edge = edge_node_of(c.running.service)
         assert edge is not None
         first_bd_seq = bd_seq(c.subscriber.of("NBIRTH")[0])
         alias = c.aliases("m1013")["controlbox_di/DI 5"]
@@ -202,7 +212,7 @@ async def test_births_wait_for_the_primary_host(tmp_path: Path, plc_host: str) -
     async with cell(
         tmp_path, plc_host, ramp=3.0, wait_births=False, sparkplug_primary_host="scada"
     ) as c:
-        edge = c.running.service.edge_node
+        edge = edge_node_of(c.running.service)
         assert edge is not None
         state_topic = "spBv1.0/STATE/scada"
         await eventually(lambda: edge.online and edge.buffer.records_buffered >= 3, SLOW_S)
@@ -262,7 +272,7 @@ async def test_a_buffer_left_by_a_run_goes_out_with_the_next(tmp_path: Path, plc
             )
 
         async with running_service(settings(["m1013", "m0609"])) as first:
-            edge = first.service.edge_node
+            edge = edge_node_of(first.service)
             assert edge is not None
             frames = CollectedFrames(first.service.robots["m1013"].frames, 100_000)
             await asyncio.sleep(0.3)  # past the (unsent) birth: the toggles are reports

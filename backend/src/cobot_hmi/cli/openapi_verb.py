@@ -42,14 +42,14 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
 def openapi_document() -> dict[str, Any]:
     """The document as the running service would serve it at ``/openapi.json``."""
+    from cobot_hmi.composition import build_service
     from cobot_hmi.service.api.app import create_app
-    from cobot_hmi.service.runtime import Service
     from cobot_hmi.service.settings import ServiceSettings
 
     # Nothing is opened or started: the service object only gives the routes their types.
     with tempfile.TemporaryDirectory(prefix="cobot-hmi-openapi-") as state:
         settings = ServiceSettings(robot_host="127.0.0.1", state_dir=Path(state))
-        app = create_app(Service(settings), manage_lifecycle=False)
+        app = create_app(build_service(settings), manage_lifecycle=False)
         return app.openapi()
 
 

@@ -178,6 +178,7 @@ def _fail(reason: str) -> int:
 
 
 def _serve(args: argparse.Namespace) -> int:
+    from cobot_hmi.composition import build_service
     from cobot_hmi.service.api.server import prepare_process, serve
     from cobot_hmi.service.api.tls import TlsError
     from cobot_hmi.service.settings import SettingsError, settings_from_args
@@ -190,7 +191,7 @@ def _serve(args: argparse.Namespace) -> int:
     prepare_process()
     try:
         with contextlib.suppress(KeyboardInterrupt):  # uvicorn re-raises the signal it handled
-            asyncio.run(serve(settings))
+            asyncio.run(serve(settings, build_service))
     except TlsError as error:
         return _fail(f"TLS: {error}")
     return 0
@@ -508,6 +509,7 @@ def _run_demo(
     robots: list[tuple[str, str, str, int]],
     stack: contextlib.ExitStack,
 ) -> int:
+    from cobot_hmi.composition import build_service
     from cobot_hmi.service.access.users import Role, UsersError, UsersFile, generate_password
     from cobot_hmi.service.api.server import prepare_process, serve
     from cobot_hmi.service.api.tls import fingerprint_of
@@ -566,7 +568,7 @@ def _run_demo(
             flush=True,
         )
         prepare_process()
-        asyncio.run(serve(settings, sockets=[http_socket]))
+        asyncio.run(serve(settings, build_service, sockets=[http_socket]))
     _stop_all(emulators)
     print("cobot-hmi demo: stopped.", flush=True)
     return 0

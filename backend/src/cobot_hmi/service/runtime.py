@@ -18,11 +18,9 @@ import contextlib
 import logging
 import time
 from collections import Counter
-from typing import TYPE_CHECKING, Final
+from collections.abc import Callable, Iterable
+from typing import Final
 
-# OPC UA (issue 22): wired here until the composition root (issue 21) builds the consumers.
-from cobot_hmi.opcua.feed import ServiceFeed
-from cobot_hmi.opcua.server import OpcUaServer
 from cobot_hmi.service.access.auth import LoginThrottle, Session, Sessions
 from cobot_hmi.service.access.directory import Directory
 from cobot_hmi.service.access.users import User, UsersFile
@@ -30,6 +28,7 @@ from cobot_hmi.service.alarms.summary import cell_summary
 from cobot_hmi.service.cycles.service import Cycles
 from cobot_hmi.service.errors import UnknownRobotError
 from cobot_hmi.service.events.bus import EventBus
+from cobot_hmi.service.extensions import ServiceExtension
 from cobot_hmi.service.recording.recorder import Recorder
 from cobot_hmi.service.robots.control import Control
 from cobot_hmi.service.robots.hub import Hub
@@ -39,18 +38,25 @@ from cobot_hmi.service.settings import ServiceSettings
 from cobot_hmi.service.storage.event_log import EventLog
 from cobot_hmi.service.storage.store import Store
 
-if TYPE_CHECKING:
-    from cobot_hmi.sparkplug.edge_node import EdgeNode
-
 log = logging.getLogger(__name__)
 
 _SWEEP_INTERVAL_S: Final = 1.0
 
 
+ExtensionFactory = Callable[["Service"], Iterable[ServiceExtension]]
+"""What ``cobot_hmi.composition`` hands ``Service``: the extensions for a service being built."""
+
+
+def no_extensions(_service: Service) -> Iterable[ServiceExtension]:
+    return ()
+
+
 class Service:
     """Build with settings; ``start`` inside the event loop that serves HTTP; ``stop`` once."""
 
-    def __init__(self, settings: ServiceSettings) -> None:
+    def __init__(
+        self, settings: ServiceSettings, extensions: ExtensionFactory = no_extensions
+    ) -> None:
         self.settings = settings
         robot_settings = settings.require_robots()
         self.users = UsersFile(settings.users_path)
@@ -92,19 +98,14 @@ class Service:
         self.started_at = time.time()
         self._tasks: list[asyncio.Task[None]] = []
         self._ws_by_session: Counter[tuple[str, str]] = Counter()
-        self.edge_node: EdgeNode | None = None
-        """The Sparkplug B edge node (``cobot_hmi.sparkplug``), when ``mqtt_url`` is set."""
-        if settings.mqtt_url:
-            from cobot_hmi.sparkplug.edge_node import EdgeNode
-
-            self.edge_node = EdgeNode(settings, self.robots)
         self.recorder: Recorder | None = (
             Recorder(settings, self.robots) if settings.history else None
         )
         """Every frame of every robot into its recording (``service.recording.recorder``),
         unless off."""
-        self.opcua: OpcUaServer | None = None  # OPC UA (issue 22)
-        """The OPC UA server (``cobot_hmi.opcua``), when ``opcua_url`` is set."""
+        self.extensions: tuple[ServiceExtension, ...] = tuple(extensions(self))
+        """What the composition root plugged in (``service.extensions``): the Sparkplug B edge
+        node, the OPC UA server, … in the order they start."""
 
     def robot(self, name: str) -> RobotRuntime:
         """The robot called ``name``; ``UnknownRobotError`` naming the known ones."""
@@ -146,12 +147,8 @@ class Service:
             await self.recorder.start()
         self.cycles.start()  # subscribed before the first frame can come
         await self.cyclic.start()
-        if self.edge_node is not None:
-            await self.edge_node.start()
-        if self.settings.opcua_enabled:  # OPC UA (issue 22): its own thread, after the links
-            feed = ServiceFeed(self.robots, self.users, self.settings, asyncio.get_running_loop())
-            self.opcua = OpcUaServer(self.settings, self.settings.state_dir, feed)
-            await self.opcua.start()
+        for extension in self.extensions:  # after the links: they report what the links see
+            await extension.start()
         self._tasks.append(asyncio.create_task(self._status_loop(), name="status"))
         self._tasks.append(asyncio.create_task(self._sweep_loop(), name="sessions"))
         if self.directory is not None:  # directory users' roles read again while logged in
@@ -160,10 +157,8 @@ class Service:
 
     async def stop(self) -> None:
         """Release control, close the connections (Forward Close), stop everything else."""
-        if self.opcua is not None:  # OPC UA (issue 22): no more client requests
-            await self.opcua.stop()
-        if self.edge_node is not None:  # DDEATHs and NDEATH while the robots are still up
-            await self.edge_node.stop()
+        for extension in reversed(self.extensions):  # while the robots are still up (DDEATHs)
+            await extension.stop()
         await asyncio.gather(
             *(robot.release_control("service stopping") for robot in self.robots.values())
         )

@@ -34,6 +34,7 @@ from prometheus_client.registry import Collector, CollectorRegistry
 from cobot_hmi.scanner.originator import ConnectionState, ConnectionStats
 from cobot_hmi.service.api.http_limits import ConnectionCounters
 from cobot_hmi.service.api.security import REFUSAL_REASONS, SecurityCounters
+from cobot_hmi.service.extensions import MetricFamily as MetricFamily
 from cobot_hmi.service.storage.audit_chain import ChainHead
 
 if TYPE_CHECKING:
@@ -42,10 +43,6 @@ if TYPE_CHECKING:
 
 PREFIX: Final = "cobot_hmi_"
 
-MetricFamily = tuple[str, str, str, list[tuple[dict[str, str], float]]]
-"""``(name without PREFIX, "counter" | "gauge", help, [(labels, value)])``: a family as the
-recorder and the Sparkplug edge node report theirs. A counter's name ends in ``_total``; the
-samples of one family may carry different labels (the edge node's node and device messages)."""
 
 _WRITE_OUTCOMES: Final = ("confirmed", "timeout", "invalid", "refused", "unauthorized", "forbidden")
 _LOGIN_OUTCOMES: Final = ("ok", "failed", "throttled", "forbidden", "unreachable")
@@ -145,9 +142,8 @@ class ServiceCollector(Collector):
             value=backlog.lost,
         )
         yield from _audit_chain_families(service.store.chain_head)
-        edge_node = service.edge_node
-        if edge_node is not None:  # the Sparkplug B edge node's own counters (cobot_hmi.sparkplug)
-            yield from map(family_of, edge_node.metric_families())
+        for extension in service.extensions:  # the edge node's, the OPC UA server's, …
+            yield from map(family_of, extension.metric_families())
         recorder = service.recorder
         if recorder is not None:  # the history recorder's counters (service/recording/recorder.py)
             yield from map(family_of, recorder.metric_families())

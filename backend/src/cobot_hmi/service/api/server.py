@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import socket
 import sys
+from collections.abc import Callable
 from typing import Any, Final
 
 import uvicorn
@@ -73,10 +74,16 @@ def prepare_process() -> None:
     sys.setswitchinterval(SWITCH_INTERVAL_S)
 
 
-async def serve(settings: ServiceSettings, *, sockets: list[socket.socket] | None = None) -> None:
-    """Run the service until a signal stops it; on ``sockets`` (already bound, as the demo
-    binds its HTTP address before it prints a password) instead of binding ``host:port``."""
-    service = Service(settings)
+async def serve(
+    settings: ServiceSettings,
+    build: Callable[[ServiceSettings], Service],
+    *,
+    sockets: list[socket.socket] | None = None,
+) -> None:
+    """Run the service ``build`` makes of ``settings`` (``cobot_hmi.composition``) until a
+    signal stops it; on ``sockets`` (already bound, as the demo binds its HTTP address before
+    it prints a password) instead of binding ``host:port``."""
+    service = build(settings)
     app = create_app(service, on_started=freeze_startup_heap)
     server = uvicorn.Server(uvicorn_config(app, settings))
     async with contextlib.AsyncExitStack() as stack:

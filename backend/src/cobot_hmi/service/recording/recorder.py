@@ -50,10 +50,10 @@ from cobot_hmi.history import retention, segments
 from cobot_hmi.history.closer import JournalCloser
 from cobot_hmi.history.schema import records_to_batch
 from cobot_hmi.history.segments import Segment, SegmentWriter
+from cobot_hmi.service.extensions import MetricFamily
 from cobot_hmi.service.robots.frames import FrameRecord, Registration, Runs
 
 if TYPE_CHECKING:
-    from cobot_hmi.service.api.metrics import MetricFamily
     from cobot_hmi.service.robots.robot import RobotRuntime
     from cobot_hmi.service.settings import ServiceSettings
 

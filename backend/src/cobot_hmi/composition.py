@@ -1,0 +1,58 @@
+"""Layer: composition. The one place that builds a running service from its parts.
+
+``service`` knows nothing of the doors above it: the Sparkplug B edge node (``sparkplug``) and
+the OPC UA server (``opcua``) each consume the robots' frames and events through the same
+interfaces as the service's own parts (``service.robots.frames``, ``service.events.bus``), and
+are plugged in here, when their settings turn them on, as ``service.extensions``. Every command
+that runs a service (``serve``, ``demo``, ``openapi``) builds it through ``build_service``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Iterable, Sequence
+
+from cobot_hmi.opcua.feed import ServiceFeed
+from cobot_hmi.opcua.server import OpcUaServer
+from cobot_hmi.service.extensions import MetricFamily, ServiceExtension
+from cobot_hmi.service.runtime import Service
+from cobot_hmi.service.settings import ServiceSettings
+from cobot_hmi.sparkplug.edge_node import EdgeNode
+
+
+class OpcUaExtension:
+    """The OPC UA server on its own thread, fed by its adapter to the service
+    (``opcua.feed``), started once the robots' connections are."""
+
+    def __init__(self, service: Service) -> None:
+        self._service = service
+        self.server: OpcUaServer | None = None
+
+    async def start(self) -> None:
+        service = self._service
+        feed = ServiceFeed(
+            service.robots, service.users, service.settings, asyncio.get_running_loop()
+        )
+        self.server = OpcUaServer(service.settings, service.settings.state_dir, feed)
+        await self.server.start()
+
+    async def stop(self) -> None:
+        if self.server is not None:  # no more client requests
+            await self.server.stop()
+
+    def metric_families(self) -> Sequence[MetricFamily]:
+        return ()
+
+
+def extensions_of(service: Service) -> Iterable[ServiceExtension]:
+    """The doors the settings turn on, in the order they start."""
+    settings = service.settings
+    if settings.mqtt_url:
+        yield EdgeNode(settings, service.robots)
+    if settings.opcua_enabled:
+        yield OpcUaExtension(service)
+
+
+def build_service(settings: ServiceSettings) -> Service:
+    """The service with every part its settings ask for."""
+    return Service(settings, extensions_of)
