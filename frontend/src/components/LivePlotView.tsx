@@ -8,6 +8,9 @@
  * (15 min … 7 days) and a custom range in its window picker, a zoom or pan past the ring
  * fetched from the history API, markers whose click moves every plot of the panel, and the
  * export of the range in view (docs/architecture.md "Plots: from the ring into the recording").
+ * There it is linked to the panel's one time axis and cursor (plots/plotWiring.ts; a "Linked"
+ * box unlinks it), and while nobody points at it a canvas picture draws it rather than Plotly
+ * (plots/canvasPlot.ts; `?plotPicture=off` keeps Plotly, bench/ui's baseline).
  */
 import { memo, useEffect, useRef, useState, type KeyboardEvent, type MouseEvent } from "react";
 import {
@@ -29,6 +32,9 @@ import type { HistoryShown } from "../lib/plotRecordingView";
 import { LivePlot } from "../lib/plotting";
 import { DEFAULT_WINDOW_MS, HISTORY_WINDOWS_MS, WINDOWS_MS, axisTitles, traceColour, tracesOf, type PlotSpec } from "../lib/plots";
 import type { PlotStep } from "../lib/plotSteps";
+import { CanvasPlot } from "../plots/canvasPlot";
+import { STEP_BUTTONS, plotKeyAction } from "../plots/plotKeys";
+import { PlotWiring } from "../plots/plotWiring";
 import { usePlotHistory } from "./plotHistory";
 import { useRuntime } from "./runtimeContext";
 import "../styles/history.css";
@@ -55,33 +61,9 @@ function localText(time_s: number): string {
 const CUSTOM = "custom";
 const RANGE = "range";
 
-/**
- * The time-axis buttons (keyboard and touch: the same steps as a person's zoom and pan with the
- * mouse, lib/plotSteps.ts), each with its key on the focused plotting area.
- */
-const STEP_BUTTONS: readonly { step: PlotStep; text: string; label: string; title: string }[] = [
-  { step: "zoomIn", text: "+", label: "Zoom in", title: "Zoom in: half the time range (key +)" },
-  { step: "zoomOut", text: "−", label: "Zoom out", title: "Zoom out: twice the time range, back into the recording (key −)" },
-  { step: "earlier", text: "◀", label: "Earlier", title: "Earlier: half a range back in time (key ←)" },
-  { step: "later", text: "▶", label: "Later", title: "Later: half a range on; onto now is back to live (key →)" },
-];
-
-/** The step of a key pressed on the focused plotting area, if any. */
-function stepOfKey(key: string): PlotStep | null {
-  switch (key) {
-    case "+":
-    case "=":
-      return "zoomIn";
-    case "-":
-    case "_":
-      return "zoomOut";
-    case "ArrowLeft":
-      return "earlier";
-    case "ArrowRight":
-      return "later";
-    default:
-      return null;
-  }
+/** The panel's plots draw a canvas picture while nobody points at them, unless the page says not. */
+function pictureWanted(): boolean {
+  return typeof window === "undefined" || new URLSearchParams(window.location.search).get("plotPicture") !== "off";
 }
 
 export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly = false, height_px }: Props) {
@@ -93,7 +75,14 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
   const history = !readOnly && access !== null && robot !== null ? { access, robot } : null;
   const fields = fieldsOf(spec);
   const container = useRef<HTMLDivElement | null>(null);
+  const canvasRef = useRef<HTMLCanvasElement | null>(null);
+  const cursorRef = useRef<HTMLParagraphElement | null>(null);
+  const cursorLineRef = useRef<HTMLDivElement | null>(null);
   const plotRef = useRef<LivePlot | null>(null);
+  const wiringRef = useRef<PlotWiring | null>(null);
+  // Linked to the panel's time axis (configuration: kept across a rebuild of the plot).
+  const [linked, setLinked] = useState(true);
+  const linkedRef = useRef(linked);
   const [paused, setPaused] = useState(false);
   const [zoomed, setZoomed] = useState(false);
   const [window_ms, setWindow] = useState(DEFAULT_WINDOW_MS);
@@ -125,6 +114,9 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
   useEffect(() => {
     const el = container.current;
     if (el === null) return;
+    const canvas = canvasRef.current;
+    const look = { theme, readOnly, ...(height_px !== undefined ? { height_px } : {}) };
+    const picture = canvas !== null && !readOnly && pictureWanted() ? new CanvasPlot(canvas, spec, tracesOf(spec), look) : null;
     const plot = new LivePlot(spec, live.ring, live.channels, plotlyBackend, {
       window_ms: windowRef.current,
       theme,
@@ -135,6 +127,7 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
       ...(historyAccess !== null && historyRobot !== null
         ? { history: { fetchRange: historyAccess.fetcher(historyRobot, fields) } }
         : {}),
+      ...(picture !== null ? { staticPicture: picture } : {}),
     });
     // Whether it is zoomed away from the moving window is configuration (the button shown).
     plot.onZoomedChange = setZoomed;
@@ -147,11 +140,14 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
     plot.mount(el);
     plotRef.current = plot;
     coordinator.add(plot);
-    // A marker's jump in any plot of the panel moves this one too, and back to live from it.
-    const stopListening = historyAccess?.timeRange.subscribe((event) => {
-      if (event.kind === "jump") plot.showRange(event.range);
-      else if (plot.isShowing(event.range)) plot.backToLive();
-    });
+    const cursorOut = cursorRef.current;
+    const cursorLine = cursorLineRef.current;
+    // The panel's one time axis and cursor, the wheel's zoom, the picture's size.
+    const wiring =
+      readOnly || cursorOut === null || cursorLine === null
+        ? null
+        : new PlotWiring(plot, { area: el, cursorOut, cursorLine }, historyAccess?.timeRange ?? null, picture, linkedRef.current);
+    wiringRef.current = wiring;
     let observer: IntersectionObserver | null = null;
     if (typeof IntersectionObserver !== "undefined") {
       observer = new IntersectionObserver((entries) => {
@@ -161,7 +157,8 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
     }
     return () => {
       observer?.disconnect();
-      stopListening?.();
+      wiring?.dispose();
+      wiringRef.current = null;
       plot.onZoomedChange = null;
       plot.onHistory = null;
       coordinator.remove(plot);
@@ -181,19 +178,22 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
     refocusPause.current = e !== undefined && document.activeElement === e.currentTarget;
     setPaused(false);
     setCustom(null);
-    const plot = plotRef.current;
-    const shared = historyAccess?.timeRange;
-    // On the panel's shared range (a marker's jump): every plot still on it goes back.
-    if (plot !== null && shared !== undefined && shared.current !== null && plot.isShowing(shared.current)) shared.backToLive();
-    else plot?.backToLive();
+    // Every linked plot of the panel follows (lib/timeRange.ts).
+    plotRef.current?.backToLive();
+  };
+  const link = (on: boolean) => {
+    setLinked(on);
+    linkedRef.current = on;
+    wiringRef.current?.setLinked(on);
   };
   const step = (s: PlotStep) => plotRef.current?.step(s);
   const onAreaKey = (e: KeyboardEvent<HTMLDivElement>) => {
     if (e.altKey || e.ctrlKey || e.metaKey) return;
-    const s = stepOfKey(e.key);
-    if (s === null) return;
+    const action = plotKeyAction(e.key, e.shiftKey);
+    if (action === null) return;
     e.preventDefault();
-    step(s);
+    if ("step" in action) step(action.step);
+    else wiringRef.current?.cursorKey(action.cursor);
   };
   const exportPng = () => {
     const stamp = new Date().toISOString().replace(/[:.]/g, "-");
@@ -251,6 +251,7 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
       className={`plot plot--${theme}`}
       data-testid={`${spec.id}-figure`}
       data-view={shown?.view ?? "ring"}
+      data-linked={readOnly ? undefined : String(linked)}
       onPointerEnter={readOnly ? undefined : () => plotRef.current?.setPointerInside(true)}
       onPointerLeave={
         readOnly
@@ -307,6 +308,15 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
             <button type="button" data-testid={`${spec.id}-png`} onClick={exportPng} title="Save this plot as a PNG image">
               PNG
             </button>
+            {history !== null && (
+              <label
+                className="plot__linked"
+                title="Linked: zoom, pan, window, back to live and the cursor act on every linked plot of the panel together"
+              >
+                <input type="checkbox" data-testid={`${spec.id}-linked`} checked={linked} onChange={(e) => link(e.target.checked)} />
+                Linked
+              </label>
+            )}
             <select
               aria-label={`${spec.title} window`}
               data-testid={`${spec.id}-window`}
@@ -408,7 +418,7 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
             : {
                 tabIndex: 0,
                 role: "group",
-                "aria-label": `${spec.title} plot: ← and → earlier and later, + and − zoom`,
+                "aria-label": `${spec.title} plot: ← and → earlier and later, + and − zoom (or Ctrl + wheel), Shift + ← and → move the cursor`,
                 onKeyDown: onAreaKey,
                 onFocus: () => plotRef.current?.setFocusInside(true),
                 onBlur: () => plotRef.current?.setFocusInside(false),
@@ -419,6 +429,13 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
           data-view="ring"
           style={{ height: `${height}px` }}
         />
+        {!readOnly && (
+          <>
+            {/* The static picture over Plotly's plot while nobody points at it (plots/canvasPlot.ts). */}
+            <canvas className="plot__picture" ref={canvasRef} aria-hidden="true" style={{ height: `${height}px`, visibility: "hidden" }} />
+            <div className="plot__cursor-line" ref={cursorLineRef} aria-hidden="true" hidden />
+          </>
+        )}
         <span className="plot__axis-title plot__axis-title--y" data-testid={`${spec.id}-axis-y`} style={{ top: titleTop }}>
           {titles.y}
         </span>
@@ -428,6 +445,7 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
           </span>
         )}
       </div>
+      {!readOnly && <p className="plot__cursor" ref={cursorRef} data-testid={`${spec.id}-cursor`} hidden />}
       {shown !== null && (
         <div className="history__markers" role="group" aria-label={`${spec.title}: events on the time axis`}>
           {markers.map((m) => (
@@ -442,7 +460,7 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
               data-last={m.last_s}
               title={`${m.label} at ${localText(m.time_s)}: show this moment in every plot`}
               aria-label={`${m.label} at ${localText(m.time_s)}`}
-              onClick={() => history?.access.timeRange.jumpTo(rangeOfMarker(m))}
+              onClick={() => plotRef.current?.showRange(rangeOfMarker(m))}
               style={{
                 // Kept inside the strip at its ends (no overflow of a narrow screen).
                 left: `clamp(22px, calc(${margin.l}px + (100% - ${margin.l + margin.r}px) * ${m.at}), calc(100% - 22px))`,

@@ -2,7 +2,7 @@
  * Layer: React glue for the plots' way into the recording (no REST import here: the kiosk's
  * plots share LivePlotView and must not reach the REST client). The panel provides how a plot
  * fetches a robot's recorded fields (lib/historyApi.ts over the REST client) and the panel's
- * shared time range (lib/timeRange.ts); without a provider (the kiosk) plots show the ring only.
+ * one time axis and cursor (lib/timeRange.ts); without a provider (the kiosk) plots show the ring only.
  */
 import { createContext, useContext } from "react";
 import type { FetchRange } from "../lib/historyView";
@@ -11,7 +11,7 @@ import type { PlotTimeRange } from "../lib/timeRange";
 export interface PlotHistoryAccess {
   /** How a plot of `robot` showing `fields` (the history API's parameter) fetches a range. */
   fetcher(robot: string, fields: string): FetchRange;
-  /** The panel's shared time range: a marker's jump moves every plot. */
+  /** The panel's one time axis and cursor: a move on one linked plot moves every linked plot. */
   readonly timeRange: PlotTimeRange;
 }
 

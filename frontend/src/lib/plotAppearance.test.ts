@@ -116,6 +116,9 @@ describe("the layout and the config", () => {
     const interactive = plotConfig(true) as { staticPlot?: boolean; modeBarButtonsToRemove: string[] };
     expect(interactive.staticPlot).toBeUndefined();
     expect(interactive.modeBarButtonsToRemove).toContain("toImage");
+    // Nothing of the cell goes to Plotly's cloud; no notice over the plot's header.
+    expect(interactive.modeBarButtonsToRemove).toContain("sendChartToCloud");
+    expect((interactive as { showTips?: boolean }).showTips).toBe(false);
   });
 });
 

@@ -9,6 +9,7 @@
  * Must not import lib/plotting.ts, lib/plotRecordingView.ts, Plotly or React.
  */
 import { axisTimeToEpochS, type Marker } from "./historyView";
+import type { PictureDrawing } from "./plotBackend";
 import { traceColour, type PlotSpec, type TraceInfo } from "./plots";
 import { TICK_SPACING_PX, timeTicks, type TimeTicks } from "./timeTicks";
 
@@ -110,6 +111,20 @@ export interface TimeAxis {
   readonly ownTicks: boolean;
 }
 
+/** The colours of a plot in `theme`: paper (and plotting area), text, grid lines. */
+export function plotColours(theme: PlotTheme): { readonly paper: string; readonly text: string; readonly grid: string } {
+  const dark = theme === "dark";
+  return { paper: dark ? "#12161b" : "#ffffff", text: dark ? "#d8dde3" : "#222", grid: gridColour(theme) };
+}
+
+/** The tick labels' size (px) of a plot with `look`. */
+export function fontSize_px(look: PlotLook): number {
+  return look.fontSize_px ?? DEFAULT_FONT_SIZE_PX;
+}
+
+/** Plotly's default font, the tick labels'. */
+export const PLOT_FONT_FAMILY = '"Open Sans", verdana, arial, sans-serif';
+
 function gridColour(theme: PlotTheme): string {
   return theme === "dark" ? "#2f3740" : "#e3e3e3";
 }
@@ -139,6 +154,20 @@ export function timeAxis(
       ? ticksOver(zoomed[0] ?? Number.NaN, zoomed[1] ?? Number.NaN, areaWidth_px, look.fontSize_px)
       : ticksBefore(newestX, window_ms, areaWidth_px, look.fontSize_px);
   return { axis: { ...common, type: "linear", tickmode: "array", ...ticks }, range: zoomed, ownTicks: zoomed === null };
+}
+
+/** A zoom's axis range as numbers (numeric dates for x; Plotly's date text read as UTC), or null. */
+function numericRange(range: readonly unknown[] | undefined): [number, number] | null {
+  if (range === undefined) return null;
+  const [a, b] = range.map((v) => (typeof v === "number" ? v : axisTimeToEpochS(v, 0) * 1000));
+  return a !== undefined && b !== undefined && Number.isFinite(a) && Number.isFinite(b) ? [a, b] : null;
+}
+
+/** What a static picture (lib/plotBackend.ts `StaticPicture`) draws with `zoom` in force. */
+export function pictureDrawing(zoom: AxisRanges, visible: readonly boolean[]): PictureDrawing {
+  const y = numericRange(zoom.yaxis);
+  const y2 = numericRange(zoom.yaxis2);
+  return { visible, x: numericRange(zoom.xaxis), y: { ...(y !== null ? { yaxis: y } : {}), ...(y2 !== null ? { yaxis2: y2 } : {}) } };
 }
 
 /**
@@ -208,7 +237,11 @@ export function plotConfig(interactive: boolean): object {
   return {
     responsive: true,
     displaylogo: false,
-    modeBarButtonsToRemove: ["select2d", "lasso2d", "toImage"],
+    // Plotly's "Double-click to zoom back out" notice would sit over the plot's header (its
+    // buttons): "Back to live" and the mode bar's autoscale say the same.
+    showTips: false,
+    // Not "Share chart…" (it uploads the plot to Plotly's cloud: nothing of a cell leaves it so).
+    modeBarButtonsToRemove: ["select2d", "lasso2d", "toImage", "sendChartToCloud"],
   };
 }
 

@@ -28,3 +28,28 @@ export interface PlotBackend {
   downloadPng?(el: HTMLElement, filename: string): void;
   purge(el: HTMLElement): void;
 }
+
+/** What a static picture of a ring view draws besides its points. */
+export interface PictureDrawing {
+  /** The signal picker's choice per trace. */
+  readonly visible: readonly boolean[];
+  /** The x range (numeric dates, as the points); null: the points' own (Plotly's autorange). */
+  readonly x: readonly [number, number] | null;
+  /** A y axis' range by Plotly's axis name ("yaxis", "yaxis2"); absent: autoranged. */
+  readonly y: Readonly<Partial<Record<"yaxis" | "yaxis2", readonly [number, number]>>>;
+}
+
+/**
+ * A live plot's static picture (plots/canvasPlot.ts): the ring view's points drawn without
+ * Plotly while nobody points at the plot. It holds the points as Plotly's traces would.
+ */
+export interface StaticPicture {
+  /** Replace every trace's points. */
+  reset(xs: readonly number[][], ys: readonly Datum[][]): void;
+  /** Append points, keeping each trace's newest `maxPoints`. */
+  extend(xs: readonly number[][], ys: readonly Datum[][], maxPoints: number): void;
+  /** Draw the points held; the x range drawn (numeric dates), or null when nothing was. */
+  draw(drawing: PictureDrawing): readonly [number, number] | null;
+  /** Shown over Plotly's plot (true), or hidden for it. */
+  show(on: boolean): void;
+}

@@ -1,7 +1,7 @@
 // A live plot's way into the recording (lib/plotting.ts with lib/historyView.ts and
 // lib/timeRange.ts): a live window never fetches; a zoom or pan past the ring fetches its range
 // (debounced, a stale answer dropped) and draws it merged with the ring's newest samples; a long
-// window moves with now, refreshed from the recording; a marker's jump moves every plot; back
+// window moves with now, refreshed from the recording; a marker's jump moves every linked plot; back
 // to live; a range on screen costs nothing per frame.
 import { describe, expect, it } from "vitest";
 import type { HistoryAnswer, HistoryEvent, RangeData, TimeRange } from "./historyView";
@@ -10,7 +10,7 @@ import { MOVING_REFRESH_MIN_MS, type HistoryShown } from "./plotRecordingView";
 import { ChannelMap, JOINT_PLOTS } from "./plots";
 import { SampleRing } from "./ringBuffer";
 import { rangeOfMarker } from "./historyView";
-import { PlotTimeRange, type SharedTimeEvent } from "./timeRange";
+import { PlotTimeRange, linkPlot } from "./timeRange";
 import { fakeBackend, historyAnswerOf as answerOf } from "./plotTestSupport";
 import { fakeTimer } from "./timerTestSupport";
 
@@ -296,7 +296,7 @@ describe("markers and the shared time range", () => {
   const estop = (time_s: number) =>
     ({ kind: "robot_state", time: time_s, id: 7, robot: "left", from: 1, from_name: "STANDALONE_RUNNING", to: 0, to_name: "EMERGENCY_STOP" }) as HistoryEvent;
 
-  it("a jump moves every listening plot to a minute around the moment, at once", async () => {
+  it("a jump moves every linked plot to a minute around the moment, at once", async () => {
     const a = setup();
     const b = setup();
     fill(a.push);
@@ -304,13 +304,9 @@ describe("markers and the shared time range", () => {
     a.plot.update(0);
     b.plot.update(0);
     const shared = new PlotTimeRange();
-    // What each plot's view does with the panel's shared range (components/LivePlotView.tsx).
-    const follow = (plot: LivePlot) => (e: SharedTimeEvent) => {
-      if (e.kind === "jump") plot.showRange(e.range);
-      else if (plot.isShowing(e.range)) plot.backToLive();
-    };
-    const stopA = shared.subscribe(follow(a.plot));
-    shared.subscribe(follow(b.plot));
+    // As each plot's view links it (plots/useLivePlot.ts).
+    const unlinkA = linkPlot(shared, a.plot);
+    linkPlot(shared, b.plot);
     const moment_s = (T0 - 240_000) / 1000;
     shared.jumpTo(rangeOfMarker({ time_s: moment_s, last_s: moment_s }));
     for (const p of [a, b]) {
@@ -327,30 +323,26 @@ describe("markers and the shared time range", () => {
     expect(layout.shapes!.map((s) => s.x0)).toEqual([moment_s * 1000 - a.tz]);
     expect(a.shown.at(-1)!.events).toHaveLength(1);
     expect(a.shown.at(-1)!.range).toEqual({ from_s: moment_s - 30, to_s: moment_s + 30 });
-    // A plot that stopped listening stays where it is.
-    stopA();
+    // An unlinked plot stays where it is.
+    unlinkA();
     shared.jumpTo(rangeOfMarker({ time_s: moment_s + 100, last_s: moment_s + 100 }));
     expect(a.fetches).toHaveLength(1);
     expect(b.fetches).toHaveLength(2);
     expect(shared.listenerCount).toBe(1);
   });
 
-  it("back to live from the shared range brings back every plot still on it, not one moved on", async () => {
+  it("back to live on one linked plot brings back every linked plot; an unlinked one keeps its range", () => {
     const [a, b, c] = [setup(), setup(), setup()];
     const shared = new PlotTimeRange();
-    for (const p of [a, b, c]) {
+    const unlink = [a, b, c].map((p) => {
       fill(p.push);
       p.plot.update(0);
-      shared.subscribe((e) => {
-        if (e.kind === "jump") p.plot.showRange(e.range);
-        else if (p.plot.isShowing(e.range)) p.plot.backToLive();
-      });
-    }
+      return linkPlot(shared, p.plot);
+    });
     shared.jumpTo({ from_s: (T0 - 270_000) / 1000, to_s: (T0 - 210_000) / 1000 });
-    expect(a.plot.isShowing(shared.current!)).toBe(true);
-    c.moveTo(T0 - 500_000, T0 - 400_000); // c panned on: a range of its own
-    expect(c.plot.isShowing(shared.current!)).toBe(false);
-    shared.backToLive();
+    expect([a, b, c].map((p) => p.plot.viewKind)).toEqual(["fixed", "fixed", "fixed"]);
+    unlink[2]!(); // c unlinked: its own range from now on
+    a.plot.backToLive();
     expect([a, b, c].map((p) => p.plot.viewKind)).toEqual(["ring", "ring", "fixed"]);
   });
 
@@ -481,7 +473,9 @@ describe("steps from the plot's buttons and keys (the same decision as a person'
     expect(plot.isZoomed).toBe(true);
     expect(xRange(lastReact().args[2] as Layout)).toEqual([T0 - 2250 - tz, T0 - 750 - tz]);
     fire();
-    expect(fetches).toHaveLength(0);
+    // The one request is the window's start from the recording (lib/plotBackfill.ts), asked at
+    // the first drawing: the 7 s before the ring's oldest frame; the zoom asks nothing.
+    expect(fetches.map((f) => f.range)).toEqual([{ from_s: (T0 - 10_000) / 1000, to_s: (T0 - 3000) / 1000 }]);
     // Before what the ring holds is the recording, as with a full ring.
     plot.step("earlier");
     plot.step("earlier");

@@ -1,7 +1,7 @@
-// The steps of a plot's time axis from its buttons and keys (lib/plotSteps.ts): zoom ×½ / ×2
+// The steps of a plot's time axis from its buttons, keys and the mouse wheel (lib/plotSteps.ts): zoom ×½ / ×2
 // around the centre, pan by half the span, "Later" onto now is live, spans within limits.
 import { describe, expect, it } from "vitest";
-import { MAX_STEP_SPAN_MS, MIN_STEP_SPAN_MS, stepRange } from "./plotSteps";
+import { MAX_STEP_SPAN_MS, MIN_STEP_SPAN_MS, stepRange, zoomAround } from "./plotSteps";
 
 const NOW = 1_795_500_000_000;
 
@@ -54,5 +54,30 @@ describe("stepRange", () => {
     expect(stepRange({ from: NOW, to: NOW }, "zoomOut", NOW)).toBeNull();
     expect(stepRange({ from: NOW, to: NOW - 1 }, "earlier", NOW)).toBeNull();
     expect(stepRange({ from: Number.NaN, to: NOW }, "zoomIn", NOW)).toBeNull();
+  });
+});
+
+describe("zoomAround (the mouse wheel)", () => {
+  const past = { from: NOW - 100_000, to: NOW - 60_000 }; // 40 s, ending 60 s ago
+
+  it("keeps the time under the pointer where it is", () => {
+    // The pointer a quarter in: 10 s after the start; zoomed in to 20 s, it is 5 s after it.
+    expect(zoomAround(past, NOW - 90_000, 0.5, NOW)).toEqual({ from: NOW - 95_000, to: NOW - 75_000 });
+    expect(zoomAround(past, NOW - 90_000, 2, NOW)).toEqual({ from: NOW - 110_000, to: NOW - 30_000 });
+  });
+
+  it("never past now, and within the span's limits", () => {
+    const live = { from: NOW - 10_000, to: NOW };
+    expect(zoomAround(live, NOW - 1000, 4, NOW)).toEqual({ from: NOW - 40_000, to: NOW });
+    expect(zoomAround({ from: NOW - 2000, to: NOW }, NOW - 1000, 0.1, NOW)).toEqual({ from: NOW - 1500, to: NOW - 500 });
+    expect(zoomAround({ from: NOW - MIN_STEP_SPAN_MS, to: NOW }, NOW, 0.5, NOW)).toBeNull();
+    expect(zoomAround({ from: NOW - MAX_STEP_SPAN_MS, to: NOW }, NOW, 2, NOW)).toBeNull();
+  });
+
+  it("a pointer outside the range counts as its nearer end; no range, no factor: nothing", () => {
+    expect(zoomAround(past, NOW, 0.5, NOW)).toEqual({ from: NOW - 80_000, to: NOW - 60_000 });
+    expect(zoomAround({ from: NOW, to: NOW }, NOW, 0.5, NOW)).toBeNull();
+    expect(zoomAround(past, Number.NaN, 0.5, NOW)).toBeNull();
+    expect(zoomAround(past, NOW, 0, NOW)).toBeNull();
   });
 });

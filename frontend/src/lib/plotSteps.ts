@@ -60,3 +60,20 @@ export function stepRange(range: SpanMs, step: PlotStep, now_ms: number): SpanMs
     }
   }
 }
+
+/**
+ * The range a zoom by `factor` around `at_ms` leads to (the mouse wheel's: the time under the
+ * pointer stays where it is; a factor over 1 zooms out), never past now (a zoom out ending later
+ * keeps its span and ends at now), the span within [MIN_STEP_SPAN_MS, MAX_STEP_SPAN_MS]; null
+ * when it changes nothing or `range` is no range.
+ */
+export function zoomAround(range: SpanMs, at_ms: number, factor: number, now_ms: number): SpanMs | null {
+  const span = range.to - range.from;
+  if (!Number.isFinite(span) || !(span > 0) || !(factor > 0) || !Number.isFinite(at_ms) || !Number.isFinite(now_ms)) return null;
+  const next = Math.min(MAX_STEP_SPAN_MS, Math.max(MIN_STEP_SPAN_MS, span * factor));
+  if (Math.abs(next - span) < 1e-9 * span) return null;
+  const at = Math.min(range.to, Math.max(range.from, at_ms));
+  const from = at - ((at - range.from) / span) * next;
+  const to = Math.min(now_ms, from + next);
+  return { from: to - next, to };
+}

@@ -1,47 +1,65 @@
 /**
- * Layer: plain TypeScript (no React, no DOM, no Plotly). The panel's shared time range: a
- * click on an event marker of one plot moves every plot of the panel (the fixed and custom
- * live plots alike) to the same range of the past, so the joints, the TCP and the forces of an
- * incident are seen side by side; "Back to live" on a plot still showing that range brings back
- * every plot still showing it (a plot moved on from it since keeps its own range)
- * (docs/architecture.md "Plots: from the ring into the recording").
+ * Layer: plain TypeScript (no React, no DOM, no Plotly). The panel's one time axis
+ * (docs/architecture.md "Plots: one time axis for the panel").
+ *
+ * Every plot of the panel (the fixed and the custom ones) listens, and each move a person makes
+ * on one plot reaches all the others that are linked: a zoom or pan to a range (each takes the
+ * same decision as its own zoom: a zoom of its ring, or a range of the recording), a window
+ * picked, back to live, a jump to a range of the past (a marker's click or a custom range,
+ * fetched at once). A plot can be unlinked: it then neither tells nor follows. The same axis
+ * carries the panel's cursor: the time the pointer (or the arrow keys) points at on any plot,
+ * at which every plot shows its values.
  */
 import type { TimeRange } from "./historyView";
 
-/** A jump to `range`, or the way back to live from it. */
-export type SharedTimeEvent = { readonly kind: "jump"; readonly range: TimeRange } | { readonly kind: "live"; readonly range: TimeRange };
+/** A move of the time axis a person made on one plot. */
+export type PlotMove =
+  | { readonly kind: "range"; readonly range: TimeRange }
+  | { readonly kind: "window"; readonly window_ms: number }
+  | { readonly kind: "live" }
+  | { readonly kind: "jump"; readonly range: TimeRange };
 
-type Listener = (event: SharedTimeEvent) => void;
+type MoveListener = (move: PlotMove) => void;
+type CursorListener = (time_ms: number | null) => void;
 
 export class PlotTimeRange {
-  private readonly listeners = new Set<Listener>();
+  private readonly listeners = new Map<object, MoveListener>();
+  private readonly cursorListeners = new Set<CursorListener>();
   private shown: TimeRange | null = null;
+  private cursor: number | null = null;
 
   /** The range of the last jump, or null before any and after the way back to live. */
   get current(): TimeRange | null {
     return this.shown;
   }
 
-  /** Every listening plot shows `range` (a fixed range of the past). */
+  /**
+   * Tell every listening plot but `source` (the plot the person moved, which has moved already).
+   * A range or a jump that is no range reaches none.
+   */
+  move(move: PlotMove, source: object | null = null): void {
+    if ((move.kind === "range" || move.kind === "jump") && !(move.range.to_s > move.range.from_s)) return;
+    if (move.kind === "jump") this.shown = move.range;
+    else if (move.kind === "live") this.shown = null;
+    else if (move.kind === "range") this.shown = null;
+    for (const [key, listener] of [...this.listeners]) if (key !== source) listener(move);
+  }
+
+  /** Every listening plot shows `range` (a fixed range of the past), fetched at once. */
   jumpTo(range: TimeRange): void {
-    if (!(range.to_s > range.from_s)) return;
-    this.shown = range;
-    this.tell({ kind: "jump", range });
+    this.move({ kind: "jump", range });
   }
 
-  /** Every listening plot still on the last jump's range goes back to live. */
+  /** Every listening plot goes back to live. */
   backToLive(): void {
-    const range = this.shown;
-    if (range === null) return;
-    this.shown = null;
-    this.tell({ kind: "live", range });
+    this.move({ kind: "live" });
   }
 
-  /** Listen; the function returned stops listening. */
-  subscribe(listener: Listener): () => void {
-    this.listeners.add(listener);
+  /** Listen as `key` (a plot's own moves are not told back to it); the function returned stops. */
+  subscribe(listener: MoveListener, key: object = {}): () => void {
+    this.listeners.set(key, listener);
     return () => {
-      this.listeners.delete(listener);
+      this.listeners.delete(key);
     };
   }
 
@@ -49,7 +67,42 @@ export class PlotTimeRange {
     return this.listeners.size;
   }
 
-  private tell(event: SharedTimeEvent): void {
-    for (const listener of [...this.listeners]) listener(event);
+  /** The cursor's time (ms since the epoch), or null while no plot is pointed at. */
+  get cursorTime(): number | null {
+    return this.cursor;
   }
+
+  /** Put the cursor at `time_ms` (null: take it away); every cursor listener is told. */
+  setCursor(time_ms: number | null): void {
+    const next = time_ms !== null && Number.isFinite(time_ms) ? time_ms : null;
+    if (next === this.cursor) return;
+    this.cursor = next;
+    for (const listener of [...this.cursorListeners]) listener(next);
+  }
+
+  subscribeCursor(listener: CursorListener): () => void {
+    this.cursorListeners.add(listener);
+    return () => {
+      this.cursorListeners.delete(listener);
+    };
+  }
+}
+
+/** A plot as the time axis links it (lib/plotting.ts `LivePlot`). */
+export interface LinkedPlot {
+  onMove: ((move: PlotMove) => void) | null;
+  follow(move: PlotMove): void;
+}
+
+/**
+ * Link `plot` to the panel's time axis: its moves are told to every other linked plot, and it
+ * follows theirs. The function returned unlinks it (a plot's "Linked" setting off).
+ */
+export function linkPlot(axis: PlotTimeRange, plot: LinkedPlot): () => void {
+  plot.onMove = (move) => axis.move(move, plot);
+  const stop = axis.subscribe((move) => plot.follow(move), plot);
+  return () => {
+    stop();
+    plot.onMove = null;
+  };
 }
