@@ -34,7 +34,7 @@ from prometheus_client.registry import Collector, CollectorRegistry
 from cobot_hmi.scanner.originator import ConnectionState, ConnectionStats
 from cobot_hmi.service.api.http_limits import ConnectionCounters
 from cobot_hmi.service.api.security import REFUSAL_REASONS, SecurityCounters
-from cobot_hmi.service.extensions import MetricFamily as MetricFamily
+from cobot_hmi.service.extensions import MetricFamily
 from cobot_hmi.service.storage.audit_chain import ChainHead
 
 if TYPE_CHECKING:

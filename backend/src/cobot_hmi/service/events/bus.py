@@ -23,8 +23,7 @@ import logging
 from collections.abc import Sequence
 from typing import Protocol
 
-from cobot_hmi.service.events.text import Event as Event
-from cobot_hmi.service.events.text import with_text
+from cobot_hmi.service.events.text import Event, with_text
 
 log = logging.getLogger(__name__)
 

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 from typing import Any, Final
 
 from cobot_hmi.codec import dumps, frame_to_json
-from cobot_hmi.service.events.bus import Event
+from cobot_hmi.service.events.text import Event
 from cobot_hmi.service.robots.frames import FrameRecord, Runs
 
 log = logging.getLogger(__name__)

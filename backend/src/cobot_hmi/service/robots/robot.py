@@ -29,7 +29,8 @@ from cobot_hmi.scanner.t2o_pace import SlowTarget
 from cobot_hmi.service.alarms.engine import TICK_S, AlarmEngine, UserAlarm
 from cobot_hmi.service.alarms.persistence import AlarmStore
 from cobot_hmi.service.api import models
-from cobot_hmi.service.events.bus import Event, EventBus
+from cobot_hmi.service.events.bus import EventBus
+from cobot_hmi.service.events.text import Event
 from cobot_hmi.service.robots.confirmation import FrameWaiters
 from cobot_hmi.service.robots.control import Control
 from cobot_hmi.service.robots.frames import FrameNotifier

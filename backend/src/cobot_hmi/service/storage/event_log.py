@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Final
 
-from cobot_hmi.service.events.bus import Event
+from cobot_hmi.service.events.text import Event
 from cobot_hmi.service.storage.store import Store
 
 

@@ -10,7 +10,7 @@ from cobot_hmi.sparkplug.node.core import NodeCore
 from cobot_hmi.sparkplug.node.device import Device
 
 if TYPE_CHECKING:
-    from cobot_hmi.service.api.metrics import MetricFamily
+    from cobot_hmi.service.extensions import MetricFamily
 
 
 class NodeMetrics(NodeCore):
