@@ -193,6 +193,7 @@ def hmi_fixture(**overrides: Any) -> Any:
 STARTUP_DEADLINE_S = 240.0
 """Until uvicorn says it started (a functional deadline with room for a loaded machine)."""
 
+
 @contextlib.asynccontextmanager
 async def running_service(
     settings: ServiceSettings, *, wait_connected: bool = True
