@@ -69,7 +69,9 @@ export class Cell {
     // A fresh directory per worker process: a worker started again after a failure starts clean.
     this.dir = path.join(settings.stateDir, `cell-${cellIndex}-worker-${process.env.TEST_WORKER_INDEX ?? "0"}`);
     mkdirSync(this.dir, { recursive: true });
-    this.robot = new EmulatedRobot(`emulator ${settings.robotName}`, emulatorArgs(settings.robotHost, "M1013"), controlURL);
+    // The first robot's program marks each cycle start on bit output register 63, its cycle trigger.
+    const marker = ["--cycle-marker-register", "63"];
+    this.robot = new EmulatedRobot(`emulator ${settings.robotName}`, [...emulatorArgs(settings.robotHost, "M1013"), ...marker], controlURL);
     this.robot2 = new EmulatedRobot(`emulator ${settings.robot2Name}`, emulatorArgs(settings.robot2Host, "M0609"), control2URL);
   }
 
@@ -127,5 +129,6 @@ function emulatorArgs(host: string, model: string): string[] {
 /** The service's two robots, in the TOML the service reads (the first is its default robot). */
 function serviceToml(): string {
   const robot = (name: string, host: string) => [`[[robots]]`, `name = "${name}"`, `host = "${host}"`, `tcp_port = ${settings.robotTcpPort}`, ""];
-  return [...robot(settings.robotName, settings.robotHost), ...robot(settings.robot2Name, settings.robot2Host)].join("\n");
+  const trigger = [`cycle_trigger = "bit_output_registers.63:rising"`, ""];
+  return [...robot(settings.robotName, settings.robotHost), ...trigger, ...robot(settings.robot2Name, settings.robot2Host)].join("\n");
 }

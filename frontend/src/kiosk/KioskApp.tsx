@@ -33,8 +33,10 @@ import { createLiveRuntime } from "../lib/runtime";
 import { fetchTagNames } from "../lib/tagNames";
 import type { TagNames } from "../lib/tags";
 import { KioskLamps } from "./KioskLamps";
+import { CYCLE_TILE, withCycleTimes } from "../lib/cyclesTile";
 import { KioskClock, KioskStateWords, KioskTiles } from "./KioskTiles";
 import { usePlotHeight, useKioskLayout } from "./useKioskLayout";
+import { useKioskCycleTimes } from "./useKioskCycleTimes";
 import { useRobotModel } from "./useRobotModel";
 import "../styles/kiosk.css";
 
@@ -102,6 +104,7 @@ function Kiosk() {
   const live = useLive();
   const offset = useBurnInOffset();
   const tags = useKioskTagNames(live.robot, options.token);
+  const cycleTimes = useKioskCycleTimes(live.robot, options.token, options.tiles.fields.includes(CYCLE_TILE));
   // The 3D view's arm: `arm=` in the URL, else the model the service reports for the robot.
   const model = useRobotModel(options.robot3d && options.arm === null ? live.robot : null, options.token);
   const stale = live.health !== "connected";
@@ -179,7 +182,7 @@ function Kiosk() {
           <div className={`kiosk__body${stale ? " is-stale" : ""}`} ref={body} style={style}>
             {(options.tiles.fields.length > 0 || options.tiles.unknown.length > 0) && (
               <div className="kiosk__tiles-area">
-                <KioskTiles fields={options.tiles.fields} unknown={options.tiles.unknown} frame={frame} grid={layout.body?.tileGrid ?? null} />
+                <KioskTiles fields={options.tiles.fields} unknown={options.tiles.unknown} frame={withCycleTimes(frame, cycleTimes)} grid={layout.body?.tileGrid ?? null} />
               </div>
             )}
             <div className={`kiosk__plots${layout.body?.plotsAcross === true ? " kiosk__plots--across" : ""}`}>

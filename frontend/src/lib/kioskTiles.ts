@@ -8,6 +8,7 @@
  * reads in plain words.
  */
 import { LAYOUT, type FieldInfo, type Frame, type FrameFieldName } from "../generated/layout";
+import { CYCLE_TILE } from "./cyclesTile";
 import type { TileShape } from "./kioskLayout";
 import { stateBadge } from "./stateBadge";
 
@@ -21,7 +22,8 @@ export const TILE_FIELDS: readonly FieldInfo[] = (T2O?.fields ?? []).filter(
   (f) => f.value_kind !== "bool" && f.enum === undefined && f.element_names === undefined && f.name !== "robot_state",
 );
 
-const BY_NAME = new Map(TILE_FIELDS.map((f) => [f.name, f]));
+// Beside the frame's numbers: the robot's cycle time (`tiles=cycle_time`, lib/cyclesTile.ts).
+const BY_NAME = new Map([...TILE_FIELDS, CYCLE_TILE].map((f) => [f.name, f]));
 
 export interface TileChoice {
   readonly fields: readonly FieldInfo[];

@@ -1,15 +1,18 @@
 /**
- * Events and audit tables of the robot shown. Events: history from the API (operators) or the
- * live stream (anyone), filtered by kind; audit: write attempts and control changes (operators),
- * filtered by action. CSV export goes through the API.
+ * Events and audit tables of the robot shown. Events: the log from the API, searched by text and
+ * time range and paged (anyone where the site lets anyone view, else a login), or the live stream
+ * when the log cannot be read, filtered by kind; audit: write attempts and control changes
+ * (operators), filtered by action. CSV export (of the search) goes through the API.
  */
 import { memo, useCallback, useMemo, useState } from "react";
 import { FilterSelect, PagedTable, usePage } from "../components/PagedTable";
 import { alarmTitle } from "../lib/alarms";
-import { api, auditCsvUrl, eventsCsvUrl } from "../lib/api";
+import { api, auditCsvUrl } from "../lib/api";
 import { formatTimestamp } from "../lib/dates";
 import { keyLabel } from "../lib/layoutInfo";
 import { EVENT_KINDS, roleAtLeast, type EventKind, type StreamEvent, type User } from "../lib/protocol";
+import { NO_SEARCH, isSearching, pageWords, searchEvents, searchEventsCsvUrl, type SearchFields } from "../lib/search";
+import { printSection } from "../lib/searchPrint";
 import { pointsWords } from "../lib/tags";
 
 const PAGE = 100;
@@ -68,7 +71,6 @@ function values(v: unknown): string {
 // Memoized: the panel re-renders with every live snapshot; these only when events or the user change.
 export const EventsView = memo(function EventsView({
   robot,
-  user,
   liveEvents,
 }: {
   readonly robot: string;
@@ -76,27 +78,73 @@ export const EventsView = memo(function EventsView({
   readonly liveEvents: readonly StreamEvent[];
 }) {
   const [kind, setKind] = useState<EventKind | "">("");
-  const canReadHistory = roleAtLeast(user, "operator");
+  const [fields, setFields] = useState<SearchFields>(NO_SEARCH);
+  const [offset, setOffset] = useState(0);
   const newest = liveEvents[0];
-  // Asked again when the filter changes or a new event arrives.
-  const request = useCallback(() => api.events(robot, kind === "" ? null : kind, PAGE, 0), [robot, kind]);
-  const { page: history, error } = usePage(request, {
-    what: "events",
-    enabled: canReadHistory,
-    refresh: newest,
-  });
+  const kindAsked = kind === "" ? null : kind;
+  // The log, searched, a page at a time; asked again when the search changes or an event arrives.
+  // Read without a login where the site lets anyone view (view_requires_login); else live events.
+  const request = useCallback(() => searchEvents(api.client, robot, kindAsked, fields, PAGE, offset), [robot, kindAsked, fields, offset]);
+  const { page: history, error } = usePage(request, { what: "events", refresh: newest });
+  const search = (change: Partial<SearchFields>) => {
+    setFields((f) => ({ ...f, ...change }));
+    setOffset(0);
+  };
 
   const rows: Row[] = useMemo(() => {
     if (history !== null) return history.items.map((event, i) => ({ key: `log-${event.id ?? `${event.time}-${i}`}`, event }));
     return liveEvents.filter((e) => kind === "" || e.kind === kind).map((event, i) => ({ key: `live-${event.time}-${i}`, event }));
   }, [history, liveEvents, kind]);
 
+  const filters = (
+    <>
+      <FilterSelect
+        label="kind"
+        testId="events-kind-filter"
+        value={kind}
+        options={EVENT_KINDS}
+        onChange={(k) => {
+          setKind(k);
+          setOffset(0);
+        }}
+      />
+      <label>
+        text <input type="search" data-testid="events-search" value={fields.text} placeholder="words of the event" onChange={(e) => search({ text: e.target.value })} />
+      </label>
+      <label>
+        from <input type="datetime-local" step={1} data-testid="events-from" value={fields.from} onChange={(e) => search({ from: e.target.value })} />
+      </label>
+      <label>
+        to <input type="datetime-local" step={1} data-testid="events-to" value={fields.to} onChange={(e) => search({ to: e.target.value })} />
+      </label>
+      <span className="print-only">
+        {`Events of ${robot}${fields.text.trim() === "" ? "" : ` matching “${fields.text.trim()}”`}, from ${fields.from || "the first"} to ${fields.to || "now"}`}
+      </span>
+      {history !== null && (
+        <span className="no-print">
+          <button type="button" data-testid="events-newer" disabled={offset === 0} onClick={() => setOffset(Math.max(0, offset - PAGE))}>
+            Newer
+          </button>{" "}
+          <button type="button" data-testid="events-older" disabled={offset + PAGE >= history.total} onClick={() => setOffset(offset + PAGE)}>
+            Older
+          </button>{" "}
+          <button type="button" onClick={() => printSection("events")}>
+            Print
+          </button>
+        </span>
+      )}
+    </>
+  );
   return (
     <PagedTable
-      filters={<FilterSelect label="kind" testId="events-kind-filter" value={kind} options={EVENT_KINDS} onChange={setKind} />}
-      source={history !== null ? `${history.total} in the log` : "live events since this page opened (log in as an operator for the history)"}
-      csv={{ testId: "events-csv", href: eventsCsvUrl(robot, kind === "" ? null : kind) }}
-      error={error}
+      filters={filters}
+      source={
+        history !== null
+          ? `${pageWords(offset, history.items.length, history.total)} ${isSearching(fields) ? "matching" : "in the log"}`
+          : "live events since this page opened (log in to search the log)"
+      }
+      csv={{ testId: "events-csv", href: searchEventsCsvUrl(robot, kindAsked, fields) }}
+      error={history !== null ? error : null}
       label="Events"
       testId="events-table"
       columns={["time", "kind", "what"]}

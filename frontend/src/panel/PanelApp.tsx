@@ -34,6 +34,7 @@ import { PlotTimeRange } from "../lib/timeRange";
 import { AlarmCue } from "./AlarmCue";
 import { AlarmsView } from "./AlarmsView";
 import { CheckoutView } from "./CheckoutView";
+import { CycleView } from "./CycleView";
 import { AuditView, EventsView } from "./EventsView";
 import { IoSection } from "./IoSection";
 import { PresetsView } from "./PresetsView";
@@ -64,6 +65,7 @@ const SECTIONS = [
   ["alarms", "Alarms"],
   ["io", "I/O"],
   ["registers", "Registers"],
+  ["cycles", "Cycles"],
   ["events", "Events"],
   ["audit", "Audit"],
   ["tags", "Tag names"],
@@ -215,6 +217,10 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
             <section id="registers">
               <h2>Bit registers</h2>
               <RegistersSection frame={live.frame} />
+            </section>
+            <section id="cycles">
+              <h2>Cycle timing</h2>
+              <CycleView robot={robot} theme={theme} />
             </section>
             <section id="events">
               <h2>Events</h2>

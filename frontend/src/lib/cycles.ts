@@ -1,0 +1,68 @@
+/**
+ * Layer: cycle timing in the panel (docs/operations.md "Cycle timing"): the robot's measured
+ * cycles and their statistics from `GET /api/v1/robots/{name}/cycles` (the generated types), the
+ * histogram of their durations and the figures in words. No React.
+ */
+import type { components } from "../generated/api";
+import { API, errorReason, type JsonClient, type PageAnswer } from "./api";
+
+export type CyclePage = components["schemas"]["CyclePage"];
+export type CycleRow = components["schemas"]["CycleRow"];
+export type CycleStatistics = components["schemas"]["CycleStatistics"];
+
+/** The panel's N: mean, min and max are of the newest this many cycles. */
+export const CYCLE_WINDOW = 20;
+/** The trend and the histogram show at most this many (the newest) cycles. */
+export const CYCLES_SHOWN = 500;
+
+/** The robot's newest cycles (the service's default range: all) and their statistics. */
+export async function fetchCycles(client: JsonClient, robot: string, last = CYCLE_WINDOW, limit = CYCLES_SHOWN): Promise<PageAnswer<CyclePage>> {
+  const result = await client.GET("/api/v1/robots/{name}/cycles", {
+    params: { path: { name: robot }, query: { last, limit } },
+  });
+  if (result.data !== undefined && result.response.status === 200) return { ok: true, page: result.data };
+  const answer = { status: result.response.status, body: result.error ?? null };
+  return { ok: false, status: answer.status, reason: errorReason(answer) };
+}
+
+/** The CSV export of every cycle of the robot (a download link: the session cookie goes along). */
+export function cyclesCsvUrl(robot: string): string {
+  return `${API}/robots/${encodeURIComponent(robot)}/cycles?${new URLSearchParams({ format: "csv", limit: "100000" }).toString()}`;
+}
+
+/** A duration in seconds as the panel shows it: "8.07 s", "—" when there is none. */
+export function formatCycle_s(seconds: number | null | undefined): string {
+  return seconds === null || seconds === undefined || !Number.isFinite(seconds) ? "—" : `${seconds.toFixed(2)} s`;
+}
+
+export interface Histogram {
+  /** Each bin's centre, s. */
+  readonly centres_s: readonly number[];
+  readonly counts: readonly number[];
+  readonly width_s: number;
+}
+
+/**
+ * The durations in `bins` equal bins from their minimum to their maximum (the maximum in the
+ * last bin); one bin of 0.1 s around the value when every duration is the same; none when empty.
+ */
+export function histogram(durations_s: readonly number[], bins = 20): Histogram {
+  const finite = durations_s.filter((d) => Number.isFinite(d));
+  if (finite.length === 0) return { centres_s: [], counts: [], width_s: 0 };
+  const low = Math.min(...finite);
+  const high = Math.max(...finite);
+  if (high === low) return { centres_s: [low], counts: [finite.length], width_s: 0.1 };
+  const n = Math.max(1, Math.floor(bins));
+  const width = (high - low) / n;
+  const counts = new Array<number>(n).fill(0);
+  for (const d of finite) {
+    const i = Math.min(n - 1, Math.floor((d - low) / width));
+    counts[i] = (counts[i] ?? 0) + 1;
+  }
+  return { centres_s: counts.map((_, i) => low + (i + 0.5) * width), counts, width_s: width };
+}
+
+/** The kiosk's and the panel's two figures: the last cycle and the mean of the newest N. */
+export function cycleFigures(statistics: CycleStatistics): { readonly last: string; readonly mean: string } {
+  return { last: formatCycle_s(statistics.last_s), mean: formatCycle_s(statistics.mean_s) };
+}

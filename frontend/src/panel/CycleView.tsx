@@ -1,0 +1,175 @@
+/**
+ * Cycle timing of the robot shown (docs/operations.md "Cycle timing"): what starts a cycle, the
+ * last one, the mean, minimum and maximum of the newest N, a trend of the durations and their
+ * histogram (Plotly, through lib/plotlyAdapter), the newest cycles as a table, the CSV export and
+ * a printed page of the statistics. Asked again every few seconds: a cycle lasts seconds.
+ */
+import { memo, useEffect, useRef, useState } from "react";
+import { api } from "../lib/api";
+import { CYCLE_WINDOW, cyclesCsvUrl, fetchCycles, formatCycle_s, histogram, type CyclePage } from "../lib/cycles";
+import { formatTimestamp } from "../lib/dates";
+import type { PlotTheme } from "../lib/plotAppearance";
+import { plotlyBackend } from "../lib/plotlyAdapter";
+import { printSection } from "../lib/searchPrint";
+import "../styles/cycles.css";
+
+const POLL_MS = 2000;
+const TABLE_ROWS = 20;
+
+function colours(theme: PlotTheme) {
+  return theme === "dark" ? { text: "#ddd", grid: "#444", trace: "#4fa3ff" } : { text: "#222", grid: "#ddd", trace: "#1f5fbf" };
+}
+
+function layoutOf(theme: PlotTheme, xTitle: string, yTitle: string, xType: "date" | "linear") {
+  const c = colours(theme);
+  return {
+    height: 260,
+    margin: { l: 56, r: 16, t: 12, b: 44 },
+    paper_bgcolor: "rgba(0,0,0,0)",
+    plot_bgcolor: "rgba(0,0,0,0)",
+    font: { color: c.text },
+    xaxis: { title: { text: xTitle }, type: xType, gridcolor: c.grid },
+    yaxis: { title: { text: yTitle }, gridcolor: c.grid, rangemode: "tozero" },
+    showlegend: false,
+  };
+}
+
+const CONFIG = { displaylogo: false, responsive: true };
+
+/** The trend and the histogram, drawn into their own elements (no samples in React state). */
+function CyclePlots({ page, theme }: { readonly page: CyclePage; readonly theme: PlotTheme }) {
+  const trend = useRef<HTMLDivElement>(null);
+  const bars = useRef<HTMLDivElement>(null);
+  useEffect(() => {
+    const durations = page.cycles.map((c) => c.duration_s);
+    const c = colours(theme);
+    if (trend.current !== null) {
+      plotlyBackend.react(
+        trend.current,
+        [{ type: "scatter", mode: "lines+markers", x: page.cycles.map((x) => new Date(x.start * 1000)), y: durations, line: { color: c.trace }, name: "cycle" }],
+        layoutOf(theme, "cycle start", "duration (s)", "date"),
+        CONFIG,
+      );
+    }
+    if (bars.current !== null) {
+      const h = histogram(durations);
+      plotlyBackend.react(
+        bars.current,
+        [{ type: "bar", x: h.centres_s, y: h.counts, width: h.width_s * 0.95, marker: { color: c.trace }, name: "cycles" }],
+        layoutOf(theme, "duration (s)", "cycles", "linear"),
+        CONFIG,
+      );
+    }
+  }, [page, theme]);
+  useEffect(() => {
+    const elements = [trend.current, bars.current];
+    return () => {
+      for (const el of elements) if (el !== null) plotlyBackend.purge(el);
+    };
+  }, []);
+  return (
+    <div className="plot-grid">
+      <div ref={trend} data-testid="cycle-trend" aria-label="cycle durations over time" />
+      <div ref={bars} data-testid="cycle-histogram" aria-label="histogram of cycle durations" />
+    </div>
+  );
+}
+
+function Figure({ label, value, testId }: { readonly label: string; readonly value: string; readonly testId: string }) {
+  return (
+    <div className="cycle-figure">
+      <span className="cycle-figure__label">{label}</span> <strong data-testid={testId}>{value}</strong>
+    </div>
+  );
+}
+
+export const CycleView = memo(function CycleView({ robot, theme }: { readonly robot: string; readonly theme: PlotTheme }) {
+  const [page, setPage] = useState<CyclePage | null>(null);
+  const [error, setError] = useState<string | null>(null);
+  useEffect(() => {
+    let cancelled = false;
+    const load = () => {
+      fetchCycles(api.client, robot)
+        .then((answer) => {
+          if (cancelled) return;
+          if (answer.ok) {
+            setPage(answer.page);
+            setError(null);
+          } else setError(answer.reason);
+        })
+        .catch((e: unknown) => {
+          if (!cancelled) setError(String(e));
+        });
+    };
+    setPage(null);
+    load();
+    const timer = window.setInterval(load, POLL_MS);
+    return () => {
+      cancelled = true;
+      window.clearInterval(timer);
+    };
+  }, [robot]);
+
+  if (page === null) return <p className="hint">{error ?? "loading…"}</p>;
+  if (page.trigger === null) {
+    return (
+      <p className="hint" data-testid="cycle-no-trigger">
+        No cycle trigger is set for this robot (the setting cycle_trigger: docs/operations.md, "Cycle timing").
+      </p>
+    );
+  }
+  const s = page.statistics;
+  const newest = page.cycles.slice(-TABLE_ROWS).reverse();
+  return (
+    <div className="cycle-view" data-testid="cycle-view">
+      <div className="table-view__bar">
+        <span data-testid="cycle-trigger">Cycle starts on the {page.trigger.label}</span>
+        <span className="table-view__source">
+          {s.count} cycles measured{page.in_progress_since !== null ? `; this one since ${formatTimestamp(page.in_progress_since)}` : ""}
+        </span>
+        <a data-testid="cycles-csv" href={cyclesCsvUrl(robot)} download>
+          Export CSV
+        </a>
+        <button type="button" onClick={() => printSection("cycles")}>
+          Print
+        </button>
+        {error !== null && <span className="reason">{error}</span>}
+      </div>
+      <h3 className="print-only">Cycle statistics of {robot}, printed {formatTimestamp(Date.now() / 1000)}</h3>
+      <div className="cycle-figures">
+        <Figure label="last" value={formatCycle_s(s.last_s)} testId="cycle-last" />
+        <Figure label={`mean of last ${s.window || CYCLE_WINDOW}`} value={formatCycle_s(s.mean_s)} testId="cycle-mean" />
+        <Figure label="min" value={formatCycle_s(s.min_s)} testId="cycle-min" />
+        <Figure label="max" value={formatCycle_s(s.max_s)} testId="cycle-max" />
+      </div>
+      <CyclePlots page={page} theme={theme} />
+      <div className="table-scroll" tabIndex={0} role="region" aria-label="newest cycles">
+        <table data-testid="cycle-table">
+          <thead>
+            <tr>
+              <th>start</th>
+              <th>end</th>
+              <th>duration</th>
+            </tr>
+          </thead>
+          <tbody>
+            {newest.map((c) => (
+              <tr key={c.id}>
+                <td className="nowrap">{formatTimestamp(c.start)}</td>
+                <td className="nowrap">{formatTimestamp(c.end)}</td>
+                <td>{formatCycle_s(c.duration_s)}</td>
+              </tr>
+            ))}
+            {newest.length === 0 && (
+              <tr>
+                <td colSpan={3} className="empty">
+                  no cycle measured yet
+                </td>
+              </tr>
+            )}
+          </tbody>
+        </table>
+      </div>
+    </div>
+  );
+});
