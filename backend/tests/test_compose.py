@@ -26,7 +26,9 @@ import pytest
 import yaml
 
 from cobot_hmi.cli import build_parser
-from cobot_hmi.service.settings import CONFIG_ENV, ServiceSettings, env_name, load_settings
+from cobot_hmi.service.config.fields import CONFIG_ENV
+from cobot_hmi.service.config.loading import env_name, load_settings
+from cobot_hmi.service.settings import ServiceSettings
 
 ROOT = Path(__file__).resolve().parents[2]
 COMPOSE_FILE = ROOT / "docker-compose.yml"

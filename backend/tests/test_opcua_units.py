@@ -13,7 +13,8 @@ from cobot_hmi.layout import ANALOG_OUTPUT_RANGES, O2T_FIELDS, T2O_FIELDS
 from cobot_hmi.opcua import companion, robotics
 from cobot_hmi.opcua.settings import DEFAULT_PORT
 from cobot_hmi.opcua.units import PER_TYPE, analog_unit, unit_for
-from cobot_hmi.service.settings import ServiceSettings, SettingsError, load_settings
+from cobot_hmi.service.config.loading import load_settings
+from cobot_hmi.service.settings import ServiceSettings, SettingsError
 
 UA_NS = "{http://opcfoundation.org/UA/2011/03/UANodeSet.xsd}"
 

@@ -25,13 +25,9 @@ from cobot_hmi.service.access.users import (
     hash_password,
     verify_password,
 )
-from cobot_hmi.service.settings import (
-    ServiceSettings,
-    SettingsError,
-    add_arguments,
-    load_settings,
-    settings_from_args,
-)
+from cobot_hmi.service.config.arguments import add_arguments, settings_from_args
+from cobot_hmi.service.config.loading import load_settings
+from cobot_hmi.service.settings import ServiceSettings, SettingsError
 
 
 def _parse(argv: list[str]) -> argparse.Namespace:

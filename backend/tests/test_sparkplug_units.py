@@ -13,8 +13,9 @@ from hypothesis import strategies as st
 
 from cobot_hmi.codec import zero_frame
 from cobot_hmi.layout import T2O_FIELDS
+from cobot_hmi.service.config.loading import load_settings
 from cobot_hmi.service.robots.frames import FrameNotifier, FrameRecord
-from cobot_hmi.service.settings import DEFAULT_DEADBANDS, SettingsError, load_settings
+from cobot_hmi.service.settings import DEFAULT_DEADBANDS, SettingsError
 from cobot_hmi.sparkplug.buffer import DiskBuffer
 from cobot_hmi.sparkplug.catalogue import ALIAS_STRIDE, Catalogue
 from cobot_hmi.sparkplug.mqtt_client import BrokerAddress

@@ -24,7 +24,8 @@ from cobot_hmi.emulator.target import Target
 from cobot_hmi.service.api.tls import TlsError, fingerprint_of, server_context
 from cobot_hmi.service.api.tls_redirect import redirect_listener
 from cobot_hmi.service.api.tls_selfsigned import self_signed_pair
-from cobot_hmi.service.settings import ServiceSettings, SettingsError, load_settings
+from cobot_hmi.service.config.loading import load_settings
+from cobot_hmi.service.settings import ServiceSettings, SettingsError
 from conftest import free_tcp_port
 from service_support import DEADLINE_S, OPERATOR, running_service, service_settings
 from tls_support import TestCa

@@ -15,7 +15,7 @@ MAX_FINDINGS_SHOWN = 20
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    from cobot_hmi.service.settings import add_arguments
+    from cobot_hmi.service.config.arguments import add_arguments
 
     parser = subparsers.add_parser(
         "audit",
@@ -42,7 +42,8 @@ def _fail(message: str) -> int:
 def _verify(args: argparse.Namespace) -> int:
     import contextlib
 
-    from cobot_hmi.service.settings import SettingsError, settings_from_args
+    from cobot_hmi.service.config.arguments import settings_from_args
+    from cobot_hmi.service.settings import SettingsError
 
     try:
         settings = settings_from_args(args)

@@ -11,7 +11,7 @@ import sys
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    from cobot_hmi.service.settings import add_arguments
+    from cobot_hmi.service.config.arguments import add_arguments
 
     parser = subparsers.add_parser(
         "export",
@@ -53,7 +53,8 @@ def _export(args: argparse.Namespace) -> int:
     from cobot_hmi.history.segments import list_robots
     from cobot_hmi.history.times import TimeFormatError, parse_time
     from cobot_hmi.service.api.routes.history import export_chunks
-    from cobot_hmi.service.settings import SettingsError, settings_from_args
+    from cobot_hmi.service.config.arguments import settings_from_args
+    from cobot_hmi.service.settings import SettingsError
 
     try:
         settings = settings_from_args(args)

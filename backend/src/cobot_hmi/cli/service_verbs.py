@@ -40,7 +40,7 @@ DEMO_USER: Final = "operator"
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    from cobot_hmi.service.settings import add_arguments
+    from cobot_hmi.service.config.arguments import add_arguments
 
     serve = subparsers.add_parser(
         "serve",
@@ -181,7 +181,8 @@ def _serve(args: argparse.Namespace) -> int:
     from cobot_hmi.composition import build_service
     from cobot_hmi.service.api.server import prepare_process, serve
     from cobot_hmi.service.api.tls import TlsError
-    from cobot_hmi.service.settings import SettingsError, settings_from_args
+    from cobot_hmi.service.config.arguments import settings_from_args
+    from cobot_hmi.service.settings import SettingsError
 
     try:
         settings = settings_from_args(args)
@@ -199,7 +200,8 @@ def _serve(args: argparse.Namespace) -> int:
 
 def _users_add(args: argparse.Namespace) -> int:
     from cobot_hmi.service.access.users import Role, UsersError, UsersFile
-    from cobot_hmi.service.settings import SettingsError, settings_from_args
+    from cobot_hmi.service.config.arguments import settings_from_args
+    from cobot_hmi.service.settings import SettingsError
 
     try:
         settings = settings_from_args(args)
@@ -219,7 +221,8 @@ def _users_add(args: argparse.Namespace) -> int:
 
 def _users_list(args: argparse.Namespace) -> int:
     from cobot_hmi.service.access.users import UsersError, UsersFile
-    from cobot_hmi.service.settings import SettingsError, settings_from_args
+    from cobot_hmi.service.config.arguments import settings_from_args
+    from cobot_hmi.service.settings import SettingsError
 
     try:
         settings = settings_from_args(args)
@@ -242,7 +245,8 @@ def _users_list(args: argparse.Namespace) -> int:
 
 def _users_token(args: argparse.Namespace) -> int:
     from cobot_hmi.service.access.users import Role, UsersError, UsersFile
-    from cobot_hmi.service.settings import SettingsError, settings_from_args
+    from cobot_hmi.service.config.arguments import settings_from_args
+    from cobot_hmi.service.settings import SettingsError
 
     try:
         settings = settings_from_args(args)
@@ -263,7 +267,8 @@ def _users_token(args: argparse.Namespace) -> int:
 
 def _users_revoke(args: argparse.Namespace) -> int:
     from cobot_hmi.service.access.users import UsersError, UsersFile
-    from cobot_hmi.service.settings import SettingsError, settings_from_args
+    from cobot_hmi.service.config.arguments import settings_from_args
+    from cobot_hmi.service.settings import SettingsError
 
     try:
         settings = settings_from_args(args)
@@ -455,7 +460,8 @@ def _demo_robots(args: argparse.Namespace) -> list[tuple[str, str, str, int]]:
 def _demo(args: argparse.Namespace) -> int:
     import tempfile
 
-    from cobot_hmi.service.settings import SettingsError, load_settings
+    from cobot_hmi.service.config.loading import load_settings
+    from cobot_hmi.service.settings import SettingsError
 
     try:
         robots = _demo_robots(args)

@@ -1,0 +1,1 @@
+"""Layer: service. The settings' vocabulary, their loading from TOML, environment and flags."""

@@ -1,0 +1,111 @@
+"""Layer: service. The command line of the settings: one flag per setting, derived from the
+fields, and the settings from parsed flags."""
+
+from __future__ import annotations
+
+import argparse
+import types
+import typing
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from cobot_hmi import connection_params as cp
+from cobot_hmi.service.config.fields import O2T_SIZE, T2O_SIZE, SettingsError
+from cobot_hmi.service.config.loading import env_name, load_settings
+from cobot_hmi.service.settings import ServiceSettings
+
+# --------------------------------------------------------------------------- command line
+
+
+def _flag_type(name: str) -> type:
+    """The value type of a setting's flag (``Optional`` and ``Annotated`` stripped)."""
+    hint: Any = ServiceSettings.model_fields[name].annotation
+    if isinstance(hint, types.UnionType) or typing.get_origin(hint) is typing.Union:
+        hint = next(a for a in typing.get_args(hint) if a is not type(None))
+    if typing.get_origin(hint) is list:
+        return str  # a comma-separated list, split by the setting's validator
+    return hint if hint in (bool, int, float, Path) else str
+
+
+def add_arguments(parser: argparse.ArgumentParser, *, only: tuple[str, ...] | None = None) -> None:
+    """One flag per setting (``--rpi-ms``), absent from the namespace unless given.
+
+    Also ``--config FILE``, ``--instances CFG,O2T,T2O`` and ``--sizes O2T,T2O`` as on
+    ``cobot-hmi scan``. ``only`` limits the flags to some settings (the ``users`` verb).
+    The robot list (``robots``) is for the TOML file or ``COBOT_HMI_ROBOTS``.
+    """
+    parser.add_argument("--config", type=Path, default=argparse.SUPPRESS, help="TOML file")
+    for name, info in ServiceSettings.model_fields.items():
+        if name in ("robots", "alarms") or (only is not None and name not in only):
+            continue
+        extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
+        flag = str(extra.get("flag") or "--" + name.replace("_", "-"))
+        kind = _flag_type(name)
+        default = info.get_default(call_default_factory=True)
+        help_text = f"{info.description} (env {env_name(name)}; default {default})"
+        if extra.get("repeatable"):  # --ldap-group-role A=x --ldap-group-role B=y
+            parser.add_argument(
+                flag,
+                dest=name,
+                action="append",
+                default=argparse.SUPPRESS,
+                metavar=name.upper(),
+                help=help_text + "; repeatable",
+            )
+        elif kind is bool:
+            parser.add_argument(
+                flag,
+                dest=name,
+                action=argparse.BooleanOptionalAction,
+                default=argparse.SUPPRESS,
+                help=help_text,
+            )
+        else:
+            parser.add_argument(
+                flag,
+                dest=name,
+                type=kind,
+                default=argparse.SUPPRESS,
+                metavar=name.upper(),
+                help=help_text,
+            )
+    if only is None:
+        parser.add_argument(
+            "--instances",
+            default=argparse.SUPPRESS,
+            metavar="CFG,O2T,T2O",
+            help="assembly instances, e.g. "
+            f"{cp.CONFIG_INSTANCE.default},{cp.O2T_INSTANCE.default},{cp.T2O_INSTANCE.default}",
+        )
+        parser.add_argument(
+            "--sizes",
+            default=argparse.SUPPRESS,
+            metavar="O2T,T2O",
+            help=f"e.g. {O2T_SIZE},{T2O_SIZE}",
+        )
+
+
+def _ints(text: str, count: int, what: str) -> list[int]:
+    parts = text.split(",")
+    if len(parts) != count:
+        raise SettingsError(f"{what}: expected {count} comma-separated numbers, got {text!r}")
+    try:
+        return [int(p, 0) for p in parts]
+    except ValueError:
+        raise SettingsError(f"{what}: expected numbers, got {text!r}") from None
+
+
+def settings_from_args(
+    args: argparse.Namespace, environ: Mapping[str, str] | None = None
+) -> ServiceSettings:
+    """``load_settings`` with the flags that ``add_arguments`` parsed into ``args``."""
+    given = vars(args)
+    flags = {name: given[name] for name in ServiceSettings.model_fields if name in given}
+    if "instances" in given:
+        cfg, o2t, t2o = _ints(given["instances"], 3, "--instances")
+        flags |= {"config_instance": cfg, "o2t_instance": o2t, "t2o_instance": t2o}
+    if "sizes" in given:
+        o2t_size, t2o_size = _ints(given["sizes"], 2, "--sizes")
+        flags |= {"o2t_size": o2t_size, "t2o_size": t2o_size}
+    return load_settings(flags, environ, given.get("config"))

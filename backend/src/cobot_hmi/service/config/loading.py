@@ -1,0 +1,160 @@
+"""Layer: service. Loading the settings: defaults < TOML file < environment < flags, one
+checked ``ServiceSettings``; errors name their source."""
+
+from __future__ import annotations
+
+import os
+import tomllib
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, Final
+
+from pydantic import ValidationError
+from pydantic_settings import EnvSettingsSource, TomlConfigSettingsSource
+from pydantic_settings import SettingsError as PydanticSettingsError
+from pydantic_settings.sources.utils import parse_env_vars
+
+from cobot_hmi.service.config.fields import CONFIG_ENV, ENV_PREFIX, SettingsError
+from cobot_hmi.service.settings import ServiceSettings
+
+# --------------------------------------------------------------------------- loading
+
+_ROBOT_GROUP: Final = ("robots", "robot_host")
+"""Settings that together say which robots there are: taken from one source only."""
+
+
+def env_name(name: str) -> str:
+    return ENV_PREFIX + name.upper()
+
+
+class _EnvironSource(EnvSettingsSource):
+    """pydantic-settings' environment source, over a given mapping instead of ``os.environ``."""
+
+    def __init__(self, environ: Mapping[str, str]) -> None:
+        self._environ = environ
+        super().__init__(ServiceSettings)
+
+    def _load_env_vars(self) -> Mapping[str, str | None]:
+        return parse_env_vars(dict(self._environ), self.case_sensitive, self.env_ignore_empty, None)
+
+
+def _toml_layer(path: Path) -> dict[str, Any]:
+    where = f"config file {path}"
+    try:
+        document = tomllib.loads(path.read_text(encoding="utf-8"))
+        data = TomlConfigSettingsSource(ServiceSettings, toml_file=path)()
+    except OSError as error:
+        raise SettingsError(f"{where}: {error.strerror}") from None
+    except tomllib.TOMLDecodeError as error:
+        raise SettingsError(f"{where}: {error}") from None
+    for key in document:
+        if key not in ServiceSettings.model_fields:
+            raise SettingsError(f"{where}: unknown setting {key!r}")
+    robots = document.get("robots")
+    if robots is not None and not (
+        isinstance(robots, list) and all(isinstance(r, dict) for r in robots)
+    ):
+        raise SettingsError(f"{where}: robots must be [[robots]] tables")
+    return dict(data)
+
+
+def _environment_layer(environ: Mapping[str, str]) -> dict[str, Any]:
+    try:
+        return dict(_EnvironSource(environ)())
+    except PydanticSettingsError as error:
+        # A complex value (COBOT_HMI_ROBOTS) that is not JSON.
+        field = str(error).split('"')[1] if '"' in str(error) else "?"
+        cause = error.__cause__ or error
+        raise SettingsError(f"{field} (from {env_name(field)}): not valid JSON: {cause}") from None
+
+
+def load_settings(
+    flags: Mapping[str, object] | None = None,
+    environ: Mapping[str, str] | None = None,
+    config_file: Path | None = None,
+) -> ServiceSettings:
+    """Layer defaults < TOML file < environment < flags into one checked ``ServiceSettings``.
+
+    ``flags`` holds only what was given on the command line. The TOML file is ``config_file``
+    if given, else ``$COBOT_HMI_CONFIG`` if set. The robot list (``[[robots]]``,
+    ``COBOT_HMI_ROBOTS``, or the ``robot_host`` shortcut) comes whole from the highest source
+    that names robots.
+    """
+    environ = os.environ if environ is None else environ
+    path = config_file or (Path(environ[CONFIG_ENV]) if environ.get(CONFIG_ENV) else None)
+    layers: list[tuple[str, dict[str, Any]]] = []  # lowest precedence first
+    if path is not None:
+        layers.append((f"config file {path}", _toml_layer(path)))
+    layers.append(("environment", _environment_layer(environ)))
+    flag_values = dict(flags or {})
+    for name in flag_values:
+        if name not in ServiceSettings.model_fields:
+            raise SettingsError(f"unknown setting {name!r}")
+    layers.append(("flags", flag_values))
+
+    robot_layer = None
+    for index, (source, values) in enumerate(layers):
+        given = [key for key in _ROBOT_GROUP if values.get(key)]
+        if len(given) > 1:
+            raise SettingsError(
+                f"{_source_of(source, 'robots')}: give either robot_host or [[robots]], not both"
+            )
+        if given:
+            robot_layer = index
+    merged: dict[str, Any] = {}
+    sources: dict[str, str] = {}
+    for index, (source, values) in enumerate(layers):
+        for key, value in values.items():
+            if key in _ROBOT_GROUP and index != robot_layer:
+                continue
+            merged[key] = value
+            sources[key] = source
+    try:
+        return ServiceSettings.model_validate(merged)
+    except ValidationError as error:
+        raise SettingsError(_describe(error, sources, merged)) from None
+
+
+def _source_of(source: str, name: str) -> str:
+    if source == "environment":
+        return env_name(name)
+    if source == "flags":
+        info = ServiceSettings.model_fields.get(name)
+        extra = info.json_schema_extra if info is not None else None
+        flag = extra.get("flag") if isinstance(extra, dict) else None
+        return str(flag or "--" + name.replace("_", "-"))
+    return source
+
+
+def _describe(error: ValidationError, sources: Mapping[str, str], given: Mapping[str, Any]) -> str:
+    """Each problem as ``field (from SOURCE): what, got VALUE``; robots by index and name."""
+    lines = []
+    for problem in error.errors(include_url=False):
+        location = problem["loc"]
+        message = str(problem["msg"]).removeprefix("Value error, ")
+        if not location:
+            if message.startswith("robots:"):
+                source = _source_of(sources.get("robots", sources.get("robot_host", "")), "robots")
+                message = f"robots (from {source}):" + message.removeprefix("robots:")
+            lines.append(message)
+            continue
+        top = str(location[0])
+        where = top
+        rest = list(location[1:])
+        first = rest[0] if rest else None
+        if top == "robots" and isinstance(first, int):
+            index = first
+            rest.pop(0)
+            where = f"robots[{index}]"
+            robots = given.get("robots")
+            if isinstance(robots, list) and index < len(robots) and isinstance(robots[index], dict):
+                name = robots[index].get("name")
+                if name is not None:
+                    where += f" ({name})"
+        if rest:
+            where += "." + ".".join(str(part) for part in rest)
+        source = _source_of(sources.get(top, "defaults"), top)
+        if problem["type"] == "extra_forbidden":
+            message = "unknown setting"
+        lines.append(f"{where} (from {source}): {message}, got {problem['input']!r}")
+    return "; ".join(lines)
