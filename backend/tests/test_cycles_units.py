@@ -7,13 +7,13 @@ from __future__ import annotations
 import argparse
 import itertools
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from cobot_hmi.codec import Frame
 from cobot_hmi.emulator.robot import RobotSettings as SimulationSettings
 from cobot_hmi.emulator.robot import SimulatedRobot
-from cobot_hmi.emulator.robot.simulated import CYCLE_MARKER_S
 from cobot_hmi.generated.frames import RobotState
 from cobot_hmi.service.cycles.meter import CycleMeter
 from cobot_hmi.service.cycles.trigger import TriggerError, parse_trigger
@@ -28,7 +28,7 @@ from emulator_harness import FAST_TIMINGS
 RPI_S = 0.01
 
 
-def frame_with(robot: SimulatedRobot, **changes: object) -> Frame:
+def frame_with(robot: SimulatedRobot, **changes: Any) -> Frame:
     return robot.produce_frame(0.0)._replace(**changes)
 
 
@@ -162,6 +162,7 @@ def test_the_emulator_marks_each_cycle_start_on_its_register() -> None:
     cycles = marked.status()["program_cycles_completed"]
     assert isinstance(cycles, int) and cycles >= 3
     assert len(rises) == cycles + 1  # the first cycle's start, then each next one's
-    periods = [b - a for a, b in itertools.pairwise(rises)]
+    periods = [b - a for a, b in itertools.pairwise(rises[1:])]  # (the first: power-on)
     assert max(periods) - min(periods) <= 2 * RPI_S + 1e-9
-    assert high_s == pytest.approx(len(rises) * CYCLE_MARKER_S, abs=len(rises) * 2 * RPI_S)
+    # On through a good part of each cycle (its first steps): a late frame never hides an edge.
+    assert 0.2 < high_s / (4000 * RPI_S) < 0.8

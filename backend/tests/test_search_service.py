@@ -118,12 +118,14 @@ def texts(page: dict[str, Any]) -> list[str]:
 
 
 async def test_events_by_text_range_and_page_without_login(hmi: Running) -> None:
-    window = {"from": T0 - 1, "to": T0 + 3600}
+    window: dict[str, Any] = {"from": T0 - 1, "to": T0 + 3600}
     running = await get(hmi, "/api/v1/events", q="standalone RUNNING", **window)
     assert texts(running) == ["Robot state now Standalone running"] * 2
     assert running["total"] == 2
     # A range: from inclusive, to exclusive; ISO 8601 as well as epoch seconds.
-    ranged = await get(hmi, "/api/v1/events", q="robot state", **{"from": T0 + 60, "to": T0 + 180})
+    ranged = await get(
+        hmi, "/api/v1/events", q="robot state", **{"from": str(T0 + 60), "to": str(T0 + 180)}
+    )
     assert texts(ranged) == [
         "Robot state now Protective stop",
         "Robot state now Standalone running",
@@ -154,20 +156,22 @@ async def test_audit_needs_an_operator_and_is_searched(hmi: Running) -> None:
     async with hmi.client() as client:
         assert (await client.get("/api/v1/audit")).status_code == 401
     token = await hmi.login(OPERATOR)
-    window = {"from": T0 - 1, "to": T0 + 3600}
+    window: dict[str, Any] = {"from": T0 - 1, "to": T0 + 3600}
     writes = await get(hmi, "/api/v1/audit", token, q="DO ", **window)
     assert [i["summary"] for i in writes["items"]] == ["DO 4 = off", "DO 3 = on"]
-    ranged = await get(hmi, "/api/v1/audit", token, q="olivia", **{"from": T0 + 30, "to": T0 + 90})
+    ranged = await get(
+        hmi, "/api/v1/audit", token, q="olivia", **{"from": str(T0 + 30), "to": str(T0 + 90)}
+    )
     assert [i["summary"] for i in ranged["items"]] == ["took control"]
 
 
 async def test_alarm_history_by_text_and_range(hmi: Running) -> None:
-    window = {"from": T0 - 1, "to": T0 + 3600}
+    window: dict[str, Any] = {"from": T0 - 1, "to": T0 + 3600}
     e_stops = await get(hmi, "/api/v1/alarms/history", q="E_STOP", **window)
     assert [i["time"] for i in e_stops["items"]] == pytest.approx([T0 + 300, T0])
     commented = await get(hmi, "/api/v1/alarms/history", q="fan", **window)
     assert [i["key"] for i in commented["items"]] == ["motor_temperature"]
-    ranged = await get(hmi, "/api/v1/alarms/history", **{"from": T0 + 1, "to": T0 + 299})
+    ranged = await get(hmi, "/api/v1/alarms/history", **{"from": str(T0 + 1), "to": str(T0 + 299)})
     assert [i["key"] for i in ranged["items"]] == ["motor_temperature"]
     answer = await get(hmi, "/api/v1/alarms/history", q="e_stop", format="csv", **window)
     rows = list(csv.DictReader(io.StringIO(answer.text)))

@@ -162,8 +162,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         type=_output_register,
         default=None,
         metavar="N",
-        help="the demo program sets bit output register N for its first 0.2 s of each cycle "
-        "(the cycle-start marker; cobot-hmi demo uses 63); default: no marker",
+        help="the demo program sets bit output register N from the start of each cycle through "
+        "its first steps (the cycle-start marker; cobot-hmi demo uses 63); default: no marker",
     )
     robot.add_argument(
         "--control-port",

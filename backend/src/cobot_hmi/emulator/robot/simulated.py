@@ -44,8 +44,10 @@ from cobot_hmi.emulator.robot.states import (
 from cobot_hmi.emulator.robot.trajectory import DEMO_STEPS, JointSample, ProgramRunner, at_rest
 from cobot_hmi.generated.frames import ControllerVersion, Frame, RobotState
 
-CYCLE_MARKER_S: Final = 0.2
-"""How long the cycle-start marker register stays on (many frames at any RPI up to 100 ms)."""
+CYCLE_MARKER_STEPS: Final = len(DEMO_STEPS) // 2
+"""The cycle-start marker register is on while the program is in its first this many steps
+(to the pick and back up: about a third of the cycle), so a late or lost frame never hides an
+edge."""
 KINEMATIC_REFRESH_MS_REAL: Final = 100.0
 """Doosan: monitoring values refresh about every 100 ms whatever the RPI (spec, reference facts)."""
 
@@ -66,8 +68,9 @@ class RobotSettings:
     register_map: tuple[int | None, ...] | None = None
     """Bit output register n ← bit input register ``register_map[n]``; None = identity."""
     cycle_marker_register: int | None = None
-    """The demo program sets this bit output register for the first ``CYCLE_MARKER_S`` of each
-    cycle (its start: the service's cycle trigger); None = no marker (docs/emulator.md)."""
+    """The demo program sets this bit output register from the start of each cycle (the service's
+    cycle trigger) through its first ``CYCLE_MARKER_STEPS`` steps; None = no marker
+    (docs/emulator.md)."""
     kinematic_refresh_ms: float = 0.0
     """0: monitoring values are fresh in every frame; 100: as often as the real controller
     ("monitoring values refresh about every 100 ms, whatever the RPI": docs/emulator.md; the
@@ -309,8 +312,9 @@ class SimulatedRobot:
         return frame
 
     def _cycle_marker(self) -> bool:
-        """The cycle-start marker: on for the first ``CYCLE_MARKER_S`` of each program cycle."""
-        return self._states.program_running and self._runner.cycle_elapsed_s < CYCLE_MARKER_S
+        """The cycle-start marker: on through the first steps of each program cycle, rising as
+        the cycle starts (it holds while the program pauses: no edge but a cycle's start)."""
+        return self._runner.step_index < CYCLE_MARKER_STEPS
 
     def _analog_input_now(self) -> tuple[float, ...]:
         """The analog inputs with their noise: drawn each frame when monitoring values are, and

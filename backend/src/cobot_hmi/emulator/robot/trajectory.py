@@ -170,8 +170,6 @@ class ProgramRunner:
         self.move: JointMove | None = None
         self.part_present = False
         self.cycles_completed = 0
-        self.cycle_elapsed_s = 0.0
-        """Program time since the current cycle started (its first step began)."""
 
     def interrupt(self) -> None:
         """Motion stopped mid-step: plan the current move again when the program resumes."""
@@ -191,7 +189,6 @@ class ProgramRunner:
     def advance(self, position: Sequence[float], dt_s: float) -> JointSample:
         """Run the program for ``dt_s`` seconds from ``position`` (where the robot is now)."""
         remaining = max(0.0, dt_s)
-        self.cycle_elapsed_s += remaining
         move = self.move
         if move is not None and self.step_elapsed_s + remaining < move.duration_s:
             # Still inside the planned move (most calls): the loop's first pass, without its
@@ -217,5 +214,4 @@ class ProgramRunner:
             self.step_index = (self.step_index + 1) % len(self.steps)
             if self.step_index == 0:
                 self.cycles_completed += 1
-                self.cycle_elapsed_s = remaining  # the new cycle began that long ago
         return at_rest(current)
