@@ -4,7 +4,7 @@
 // passes it with a comment; the printed page (print media) shows the report without a single
 // button, with the signature lines. Then output presets: "All outputs off", which every robot
 // has, and a preset saved from the registers being sent, each applied after a confirmation that
-// lists what changes.
+// lists what changes, and one typed by hand.
 import { expect, operatorWithControl, test } from "../support/fixtures";
 
 const DI5 = "controlbox_di.4";
@@ -89,5 +89,15 @@ test("output presets: All outputs off and a saved one, each applied after its co
   await expect(presets.getByTestId("preset-note")).toContainText("2 value(s) changed");
   const sent = (await robot.status()).plc_command.bit_input_registers;
   expect(sent.slice(0, 4)).toEqual([true, true, false, false]);
+
+  // A preset typed by hand.
+  await presets.getByTestId("preset-name").fill("Job 5");
+  await presets.getByTestId("preset-values").fill("Register in 4 = on, Register in 5 = on");
+  await presets.getByTestId("preset-save-values").click();
+  await expect(presets.getByTestId("preset-note")).toContainText("saved");
+  await presets.locator("[data-testid=preset-row][data-name='Job 5']").getByTestId("preset-apply").click();
+  await page.getByTestId("confirm-yes").click();
+  await expect(presets.getByTestId("preset-note")).toContainText("applied");
+  expect((await robot.status()).plc_command.bit_input_registers.slice(4, 6)).toEqual([true, true]);
   await page.getByTestId("release-control").click();
 });

@@ -1,5 +1,5 @@
 import { describe, expect, it } from "vitest";
-import { changeLines, importBody, presetWords, type Preset } from "./presets";
+import { changeLines, importBody, parsePresetItems, presetWords, type Preset } from "./presets";
 
 const JOB: Preset = {
   name: "Job 3",
@@ -33,5 +33,20 @@ describe("presets", () => {
     expect(presetWords(JOB)).toBe("Register in 0, Register in 1");
     const many = Object.fromEntries(Array.from({ length: 6 }, (_, i) => [`controlbox_do.${i}`, `DO ${i + 1}`]));
     expect(presetWords({ ...JOB, labels: many })).toBe("DO 1, DO 2, DO 3, DO 4 … (6 values)");
+  });
+
+  it("reads values typed by hand by label or key", () => {
+    expect(parsePresetItems("DO 3 = on, register in 12=0\nAO 0 = 12.5; tool_do.1 = true")).toEqual({
+      ok: true,
+      items: { "controlbox_do.2": true, "bit_input_registers.12": false, "analog_output.0": 12.5, "tool_do.1": true },
+    });
+    const wrong = (text: string) => {
+      const parsed = parsePresetItems(text);
+      return parsed.ok ? null : parsed.reason;
+    };
+    expect(wrong("DI 5 = on")).toContain("not an output");
+    expect(wrong("DO 3 = maybe")).toContain("a bit is on or off");
+    expect(wrong("AO 1 = high")).toContain("takes a number");
+    expect(wrong(" , ")).toContain("no values");
   });
 });

@@ -4,6 +4,7 @@
  */
 import { API, api, type JsonClient, type PageAnswer } from "./api";
 import { pageOf } from "./checkout";
+import { commandField } from "./layoutInfo";
 import type { components } from "../generated/api";
 
 type Schemas = components["schemas"];
@@ -24,6 +25,12 @@ export class PresetsApi {
   /** A preset from the command image being sent: all of it, or only the fields named. */
   async saveFromImage(robot: string, name: string, fields: readonly string[] | null): Promise<PageAnswer<Preset>> {
     const body = { name, from_image: true, ...(fields !== null ? { fields: [...fields] } : {}) };
+    return pageOf(await this.client.POST("/api/v1/robots/{name}/presets", { params: { path: { name: robot } }, body, headers: JSON_CONTENT }));
+  }
+
+  /** A preset made by hand: `{"field.index": value}` (the service checks it whole). */
+  async saveItems(robot: string, name: string, items: Readonly<Record<string, boolean | number>>): Promise<PageAnswer<Preset>> {
+    const body = { name, items: { ...items } };
     return pageOf(await this.client.POST("/api/v1/robots/{name}/presets", { params: { path: { name: robot } }, body, headers: JSON_CONTENT }));
   }
 
@@ -92,4 +99,46 @@ export function presetWords(preset: Preset): string {
   const labels = Object.values(preset.labels);
   const shown = labels.slice(0, 4).join(", ");
   return labels.length > 4 ? `${shown} … (${labels.length} values)` : shown;
+}
+
+const BIT_WORDS: Readonly<Record<string, boolean>> = { on: true, off: false, "1": true, "0": false, true: true, false: false };
+
+/** Every output's label (as the checkout and the presets name them) to its key, lower case. */
+function outputKeys(): Map<string, { key: string; analog: boolean }> {
+  const keys = new Map<string, { key: string; analog: boolean }>();
+  for (const name of ["controlbox_do", "tool_do", "analog_output", "bit_input_registers"] as const) {
+    commandField(name).channels.forEach((label, i) => {
+      const entry = { key: `${name}.${i}`, analog: name === "analog_output" };
+      keys.set(entry.key, entry);
+      keys.set((name === "bit_input_registers" ? label.replace("Register", "Register in") : label).toLowerCase(), entry);
+    });
+  }
+  return keys;
+}
+
+export type ParsedItems = { readonly ok: true; readonly items: Record<string, boolean | number> } | { readonly ok: false; readonly reason: string };
+
+/**
+ * A preset typed by hand: `DO 3 = on, Register in 12 = off, AO 0 = 12.5` (a comma or a new
+ * line between entries; a label or a key; on/off, 1/0 or true/false for bits, a number for AO).
+ */
+export function parsePresetItems(text: string): ParsedItems {
+  const keys = outputKeys();
+  const items: Record<string, boolean | number> = {};
+  for (const entry of text.split(/[,\n;]/).map((e) => e.trim()).filter((e) => e !== "")) {
+    const [name = "", raw = "", ...rest] = entry.split("=").map((part) => part.trim());
+    const point = keys.get(name.toLowerCase());
+    if (point === undefined || rest.length > 0) return { ok: false, reason: `“${entry}”: not an output = value (DO 3 = on, Register in 12 = off, AO 0 = 12.5)` };
+    if (point.analog) {
+      const value = Number(raw);
+      if (raw === "" || !Number.isFinite(value)) return { ok: false, reason: `“${entry}”: an analog output takes a number` };
+      items[point.key] = value;
+    } else {
+      const bit = BIT_WORDS[raw.toLowerCase()];
+      if (bit === undefined) return { ok: false, reason: `“${entry}”: a bit is on or off` };
+      items[point.key] = bit;
+    }
+  }
+  if (Object.keys(items).length === 0) return { ok: false, reason: "no values: DO 3 = on, Register in 12 = off…" };
+  return { ok: true, items };
 }

@@ -3,12 +3,13 @@
  * and registers ("Job 3", "All outputs off", which every robot has). Applying one is ONE write
  * through the write pipeline (control needed; all values or none), after a confirmation that
  * lists what changes. An operator saves the command image being sent as a preset (all of it,
- * or the registers only), deletes one, imports the CSV or JSON export.
+ * or the registers only) or values typed by hand ("Register in 0 = on, DO 3 = off"), deletes
+ * one, imports the CSV or JSON export.
  */
 import { memo, useCallback, useEffect, useState, type ChangeEvent } from "react";
 import { ConfirmDialog } from "../components/ConfirmDialog";
 import { roleAtLeast, type User } from "../lib/protocol";
-import { changeLines, presetWords, presetsApi, presetsCsvUrl, presetsJsonUrl, type Preset } from "../lib/presets";
+import { changeLines, parsePresetItems, presetWords, presetsApi, presetsCsvUrl, presetsJsonUrl, type Preset } from "../lib/presets";
 
 interface Pending {
   readonly preset: string;
@@ -24,6 +25,7 @@ export const PresetsView = memo(function PresetsView({ robot, user }: { readonly
   const [presets, setPresets] = useState<readonly Preset[]>([]);
   const [name, setName] = useState("");
   const [registersOnly, setRegistersOnly] = useState(true);
+  const [values, setValues] = useState("");
   const [pending, setPending] = useState<Pending | null>(null);
   const [note, setNote] = useState<string | null>(null);
   const [error, setError] = useState<string | null>(null);
@@ -89,6 +91,19 @@ export const PresetsView = memo(function PresetsView({ robot, user }: { readonly
       return null;
     });
 
+  const saveTyped = () =>
+    void run(async () => {
+      const parsed = parsePresetItems(values);
+      if (!parsed.ok) return parsed.reason;
+      const saved = await presetsApi.saveItems(robot, name.trim(), parsed.items);
+      if (!saved.ok) return saved.reason;
+      setNote(`“${saved.page.name}” saved`);
+      setName("");
+      setValues("");
+      setReload((n) => n + 1);
+      return null;
+    });
+
   const remove = (preset: string) =>
     void run(async () => {
       const answer = await presetsApi.remove(robot, preset);
@@ -123,6 +138,13 @@ export const PresetsView = memo(function PresetsView({ robot, user }: { readonly
             </label>
             <button type="button" data-testid="preset-save" disabled={busy || name.trim() === ""} onClick={save}>
               Save the outputs being sent
+            </button>
+            <label>
+              or values{" "}
+              <input data-testid="preset-values" value={values} size={32} placeholder="Register in 0 = on, DO 3 = off, AO 0 = 12" onChange={(e) => setValues(e.target.value)} />
+            </label>
+            <button type="button" data-testid="preset-save-values" disabled={busy || name.trim() === "" || values.trim() === ""} onClick={saveTyped}>
+              Save these values
             </button>
             <label className="tags-view__import">
               Import CSV/JSON <input type="file" accept=".csv,.json,text/csv,application/json" data-testid="preset-import" disabled={busy} onChange={importFile} />
