@@ -6,6 +6,7 @@
 // the focused plotting area takes arrow keys and + / −.
 import type { Page, Request } from "@playwright/test";
 import { expect, framesFlow, test } from "../support/fixtures";
+import { shownRange } from "../support/plotRange";
 import { settings } from "../support/settings";
 
 const PLOT = "plot-joint-position";
@@ -44,18 +45,9 @@ async function tabTo(page: Page, id: string): Promise<void> {
   throw new Error(`${id} never had the focus in 300 presses of Tab`);
 }
 
-/**
- * The x range the plot shows now (ms since the epoch): Plotly's while it is interactive, the
- * canvas picture's (its data attributes) while nobody points at it.
- */
+/** The x range the plot shows now (ms since the epoch). */
 async function xRange(page: Page): Promise<[number, number]> {
-  return page.getByTestId(PLOT).evaluate((el) => {
-    const e = el as HTMLElement & { _fullLayout?: { xaxis?: { range?: unknown[] } } };
-    if (e.dataset.renderer === "canvas") return [Number(e.dataset.xFrom), Number(e.dataset.xTo)] as [number, number];
-    const tz = new Date().getTimezoneOffset() * 60_000;
-    const range = e._fullLayout?.xaxis?.range ?? [];
-    return range.map((v) => (typeof v === "number" ? v : new Date(String(v).replace(" ", "T") + "Z").getTime()) + tz) as [number, number];
-  });
+  return shownRange(page.getByTestId(PLOT));
 }
 
 /** The newest time the plot has drawn (its first trace's last x). */

@@ -7,24 +7,11 @@
 // it from the recording at once, not as the ring fills.
 import type { Locator, Page } from "@playwright/test";
 import { expect, framesFlow, recorded, test } from "../support/fixtures";
+import { shownRange } from "../support/plotRange";
 import { settings } from "../support/settings";
 
 const POSITION = "plot-joint-position";
 const VELOCITY = "plot-joint-velocity";
-
-/**
- * The x range a plot shows (ms since the epoch, as its data attributes or Plotly's layout say):
- * the canvas picture's while nobody points at it, Plotly's when it is interactive.
- */
-async function shownRange(plot: Locator): Promise<[number, number]> {
-  return plot.evaluate((el) => {
-    const e = el as HTMLElement & { _fullLayout?: { xaxis?: { range?: unknown[] } } };
-    if (e.dataset.renderer === "canvas") return [Number(e.dataset.xFrom), Number(e.dataset.xTo)] as [number, number];
-    const tz = new Date().getTimezoneOffset() * 60_000;
-    const range = e._fullLayout?.xaxis?.range ?? [];
-    return range.map((v) => (typeof v === "number" ? v : new Date(String(v).replace(" ", "T") + "Z").getTime()) + tz) as [number, number];
-  });
-}
 
 async function openPanel(page: Page) {
   await page.goto(`/?robot=${settings.robotName}`);
