@@ -4,7 +4,8 @@
  * histogram of their durations and the figures in words. No React.
  */
 import type { components } from "../generated/api";
-import { API, errorReason, type JsonClient, type PageAnswer } from "./api";
+import { API, type JsonClient, type PageAnswer } from "./api";
+import { pageAnswer } from "./search";
 
 export type CyclePage = components["schemas"]["CyclePage"];
 export type CycleRow = components["schemas"]["CycleRow"];
@@ -17,12 +18,7 @@ export const CYCLES_SHOWN = 500;
 
 /** The robot's newest cycles (the service's default range: all) and their statistics. */
 export async function fetchCycles(client: JsonClient, robot: string, last = CYCLE_WINDOW, limit = CYCLES_SHOWN): Promise<PageAnswer<CyclePage>> {
-  const result = await client.GET("/api/v1/robots/{name}/cycles", {
-    params: { path: { name: robot }, query: { last, limit } },
-  });
-  if (result.data !== undefined && result.response.status === 200) return { ok: true, page: result.data };
-  const answer = { status: result.response.status, body: result.error ?? null };
-  return { ok: false, status: answer.status, reason: errorReason(answer) };
+  return pageAnswer(await client.GET("/api/v1/robots/{name}/cycles", { params: { path: { name: robot }, query: { last, limit } } }));
 }
 
 /** The CSV export of every cycle of the robot (a download link: the session cookie goes along). */

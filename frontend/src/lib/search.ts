@@ -48,7 +48,11 @@ export async function searchEvents(
   offset: number,
 ): Promise<PageAnswer<EventPage>> {
   const query = { robot, limit, offset, ...searchQuery(fields), ...(kind === null ? {} : { kind }) };
-  const result = await client.GET("/api/v1/events", { params: { query } });
+  return pageAnswer(await client.GET("/api/v1/events", { params: { query } }));
+}
+
+/** An openapi-fetch answer as a page, or the status and the service's reason. */
+export function pageAnswer<T>(result: { readonly data?: T; readonly error?: unknown; readonly response: Response }): PageAnswer<T> {
   if (result.data !== undefined && result.response.status === 200) return { ok: true, page: result.data };
   const status = result.response.status;
   return { ok: false, status, reason: errorReason({ status, body: result.error ?? null }) };
