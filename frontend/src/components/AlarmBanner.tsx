@@ -41,6 +41,7 @@ function OtherRobotLines({ others }: { readonly others: readonly AlarmSummary[] 
               data-robot={robot}
               data-priority={summary.highest_priority ?? ""}
               href={panelHref(robot)}
+              title={otherRobotLine(summary)}
               style={{ background: paint.background, color: paint.text }}
             >
               {otherRobotLine(summary)}
