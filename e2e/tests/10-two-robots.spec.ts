@@ -29,8 +29,11 @@ function watchSockets(page: Page): string[] {
 
 const tile = (page: Page, name: string) => page.locator(`[data-testid="fleet-tile"][data-robot="${name}"]`);
 
-test.afterEach(async ({ robot2 }) => {
+test.afterEach(async ({ robot2, operatorApi }) => {
   await robot2.normalize();
+  // The second robot's e-stop acknowledged: another robot's alarm shows in every panel (issue 24).
+  const ack = await operatorApi.api.post("/api/v1/alarms/ack", { data: { robot: SECOND, comment: "e2e 10: quiet" } });
+  expect(ack.status(), await ack.text()).toBe(200);
 });
 
 test("the fleet overview shows each robot with its own state, link and control", async ({ page, robot2, operatorApi }, testInfo) => {
