@@ -31,6 +31,7 @@ import socket
 import statistics
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import orjson
 from proc_stats import own_cpu_s, process_cpu_s
@@ -328,13 +329,24 @@ def main() -> int:
     parser.add_argument(
         "--cyclic-niceness", type=int, default=0, help="the service's cyclic_niceness setting"
     )
+    parser.add_argument(
+        "--service-source",
+        type=Path,
+        default=None,
+        help="run the service of another commit: its backend/src, extension built in place "
+        "(bench/fanout_sweep makes one)",
+    )
     args = parser.parse_args()
     if not 1 <= args.robots <= 100 or args.clients < args.robots:
         parser.error("--robots: 1 to 100, and at least one client per robot")
 
     service_args = ["--cyclic-niceness", str(args.cyclic_niceness)]
     with stack(
-        args.rpi_ms, *service_args, robot_niceness=args.robot_niceness, robots=args.robots
+        args.rpi_ms,
+        *service_args,
+        robot_niceness=args.robot_niceness,
+        robots=args.robots,
+        service_source=args.service_source,
     ) as running:
         results = asyncio.run(run(args, running))
         names = list(running.robot_names)

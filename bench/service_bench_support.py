@@ -84,15 +84,21 @@ class Stack:
             return data
 
 
-def _cli(*args: str, log: Path, niceness: int = 0) -> subprocess.Popen[bytes]:
+def _cli(
+    *args: str, log: Path, niceness: int = 0, source: Path | None = None
+) -> subprocess.Popen[bytes]:
+    """``cobot-hmi ARGS`` as a child; ``source``: run the package found there (another
+    commit's ``backend/src``, its extension built in place) instead of this one."""
     # ``nice`` before exec: every thread of the process inherits it (GNU nice still runs the
     # command, with a warning in the log, where raising the priority is not permitted).
     prefix = ["nice", "-n", str(niceness)] if niceness else []
+    env = None if source is None else {**os.environ, "PYTHONPATH": str(source)}
     with log.open("wb") as out:
         return subprocess.Popen(
             [*prefix, sys.executable, "-m", "cobot_hmi.cli", *args],
             stdout=out,
             stderr=subprocess.STDOUT,
+            env=env,
         )
 
 
@@ -145,13 +151,18 @@ def _ready(running: Stack) -> bool:
 
 @contextmanager
 def stack(
-    rpi_ms: float, *service_args: str, robot_niceness: int = 0, robots: int = 1
+    rpi_ms: float,
+    *service_args: str,
+    robot_niceness: int = 0,
+    robots: int = 1,
+    service_source: Path | None = None,
 ) -> Iterator[Stack]:
     """``robots`` emulators and the service holding a connection to each, every one its own
     process; stopped (SIGINT) at the end. The robots are ``[[robots]]`` of a TOML file.
 
     ``robot_niceness`` below 0 runs the emulators at a higher priority: a real robot is its own
     machine, whose frame timing does not suffer from this host's other processes.
+    ``service_source``: the service of another commit (``_cli``); the emulators stay this one.
     """
     robot_hosts, service_host = loopback_cell(robots)
     names = [f"r{i + 1}" for i in range(robots)]
@@ -188,7 +199,7 @@ def stack(
                     )
                 )
             for host, port, emulator in zip(robot_hosts, tcp_ports, emulators, strict=True):
-                _wait(functools.partial(_accepts, host, port), "emulator", emulator, 15)
+                _wait(functools.partial(_accepts, host, port), "emulator", emulator, 120)
             service = _cli(
                 "serve",
                 "--config",
@@ -205,9 +216,10 @@ def stack(
                 str(state),
                 *service_args,
                 log=state / "service.log",
+                source=service_source,
             )
             running = Stack(robot_hosts, names, service_host, http_port, emulators, service, state)
-            _wait(lambda: _ready(running), "service", service, 30)
+            _wait(lambda: _ready(running), "service", service, 240)
             yield running
         finally:
             for process in (service, *emulators):

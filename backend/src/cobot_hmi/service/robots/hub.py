@@ -29,7 +29,7 @@ from collections.abc import Awaitable, Callable, Coroutine, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Final
 
-from cobot_hmi.codec import dumps, frame_to_json
+from cobot_hmi.codec import Frame, dumps, frame_to_json
 from cobot_hmi.service.events.text import Event
 from cobot_hmi.service.robots.frames import FrameRecord, Runs
 
@@ -192,6 +192,8 @@ class Hub:
         self.frames_sent_closed_clients = 0
         self.tick_seconds = 0.0
         self._background: set[asyncio.Task[None]] = set()
+        self._last_frame: Frame | None = None
+        self._last_frame_json = b""
 
     # ------------------------------------------------------------ clients
 
@@ -287,13 +289,18 @@ class Hub:
                 for i in chosen:
                     if pieces[i] is None:
                         seq, t, frame, wire, _ = records[i]
-                        pieces[i] = dumps(
-                            {
-                                "seq": seq,
-                                "t": t,
-                                "t2o_sequence": wire,
-                                "frame": frame_to_json(frame),
-                            }
+                        pieces[i] = b"".join(
+                            (
+                                b'{"seq":',
+                                str(seq).encode(),
+                                b',"t":',
+                                dumps(t),
+                                b',"t2o_sequence":',
+                                str(wire).encode(),
+                                b',"frame":',
+                                self._frame_json(frame),
+                                b"}",
+                            )
                         )
                 body = b",".join(pieces[i] or b"" for i in chosen)
                 text = (b'{"type":"frames","frames":[' + body + b"]}").decode()
@@ -301,6 +308,15 @@ class Hub:
                     stream_client.offer(Kind.FRAMES, text, len(chosen))
         self._check_stalls()
         self.tick_seconds += time.perf_counter() - started
+
+    def _frame_json(self, frame: Frame) -> bytes:
+        """The frame's JSON, once per frame object: the originator hands on the same immutable
+        ``Frame`` while the robot's bytes do not change (a robot refreshes its monitoring values
+        about every 100 ms, whatever the RPI), so most frames at short RPIs cost no encoding."""
+        if frame is not self._last_frame:
+            self._last_frame = frame
+            self._last_frame_json = dumps(frame_to_json(frame))
+        return self._last_frame_json
 
     def _check_stalls(self) -> None:
         now = time.monotonic()
