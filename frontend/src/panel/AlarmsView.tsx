@@ -22,6 +22,7 @@ import {
 import { acknowledgeable, suppressionWords } from "../lib/alarmsCell";
 import { formatMoment, formatTimestamp } from "../lib/dates";
 import { roleAtLeast, type User } from "../lib/protocol";
+import { printSection } from "../lib/searchPrint";
 
 /** Shelving durations offered (the service caps them at its alarm_shelve_max_s). */
 const SHELVE_CHOICES_S = [
@@ -221,6 +222,9 @@ function AlarmHistory({ robot, newest }: { robot: string; newest: number | null 
             all={null}
             onChange={(p) => setPeriod(p === "" ? "day" : p)}
           />
+          <button type="button" data-testid="alarm-history-print" onClick={() => printSection("alarms")}>
+            Print
+          </button>
         </>
       }
       source={page !== null ? `${page.total} transitions, newest ${HISTORY_PAGE} shown` : "loading…"}
