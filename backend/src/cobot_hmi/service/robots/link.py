@@ -404,6 +404,12 @@ class RobotLink:
         return self._originator
 
     @property
+    def gaps(self) -> int:
+        """T→O packets missed so far: one counter read (a single load under the GIL), where
+        ``stats`` computes every figure on the cyclic thread; the alarms' tick reads this."""
+        return self._originator.gaps if self._originator is not None else 0
+
+    @property
     def state(self) -> ConnectionState:
         if self._dead is not None:
             return ConnectionState.LOST

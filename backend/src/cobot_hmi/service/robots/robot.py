@@ -285,10 +285,7 @@ class RobotRuntime:
     async def _alarm_tick(self) -> None:
         now_s, monotonic_s = time.time(), time.monotonic()
         events = self._connection_alarms(now_s, monotonic_s)
-        gaps = None
-        if self.link.state is ConnectionState.CONNECTED:
-            with contextlib.suppress(Exception):  # the cyclic thread restarting: next tick
-                gaps = (await self.link.stats()).gaps
+        gaps = self.link.gaps if self.link.state is ConnectionState.CONNECTED else None
         events += self.alarms.gaps(gaps, now_s=now_s, monotonic_s=monotonic_s)
         events += self.alarms.expire_shelving(now_s)
         self.publish_events(events)
