@@ -185,26 +185,34 @@ def time_us(time_s: npt.ArrayLike) -> npt.NDArray[np.int64]:
     return np.rint(np.asarray(time_s, dtype=np.float64) * 1e6).astype(np.int64)
 
 
+FRAME_DTYPE: Final = np.dtype(
+    {
+        "names": [f.name for f in T2O_ASSEMBLY.fields if f.cip_type is not CipType.BOOL],
+        "formats": [
+            ("<f4" if f.cip_type is CipType.REAL else "u1", (f.count,))
+            for f in T2O_ASSEMBLY.fields
+            if f.cip_type is not CipType.BOOL
+        ],
+        "offsets": [f.offset for f in T2O_ASSEMBLY.fields if f.cip_type is not CipType.BOOL],
+        "itemsize": T2O_SIZE,
+    }
+)
+"""A T→O frame's numeric fields as a numpy structured dtype, generated from the layout: a byte
+matrix viewed through it gives every REAL and USINT field as an ``(n, count)`` array without a
+copy (the packed BOOL bits are shifted out of their bytes)."""
+
+
 def columns_from_raw(raw: U8) -> dict[str, np.ndarray]:
-    """Every element's column, sliced out of an ``(n, 284)`` byte matrix."""
-    n = raw.shape[0]
+    """Every element's column, sliced out of an ``(n, 284)`` byte matrix (``FRAME_DTYPE``)."""
+    frames = np.ascontiguousarray(raw).view(FRAME_DTYPE).reshape(raw.shape[0])
     out: dict[str, np.ndarray] = {}
-    done: set[str] = set()
     for e in ELEMENTS:
         f = e.field
-        if f.cip_type is CipType.REAL:
-            if f.name not in done:
-                block = np.ascontiguousarray(raw[:, f.offset : f.offset + 4 * f.count])
-                values = block.view("<f4").reshape(n, f.count)
-                for i in range(f.count):
-                    name = f.name if f.scalar else f"{f.name}.{i}"
-                    out[name] = np.ascontiguousarray(values[:, i]).astype(np.float32)
-                done.add(f.name)
-        elif f.cip_type is CipType.USINT:
-            out[e.name] = np.ascontiguousarray(raw[:, e.byte_offset])
-        else:
+        if f.cip_type is CipType.BOOL:
             bits = (raw[:, e.bit >> 3] >> (e.bit & 7)) & 1
             out[e.name] = bits.astype(np.uint8) if e.kind == "int" else bits.astype(np.bool_)
+        else:
+            out[e.name] = np.ascontiguousarray(frames[f.name][:, e.index])
     return out
 
 
