@@ -1,4 +1,4 @@
-// Issue 23: cycle timing and the searchable event log. The first robot's emulated program marks
+// Issue 23: cycle timing, its kiosk tile and the searchable event log. The first robot's emulated program marks
 // each cycle start on bit output register 63, the service's cycle trigger for it: the panel's
 // cycle view shows the emulator's cycles (the last, the mean, min and max, the trend and the
 // histogram, the newest cycles), the second robot says it has no trigger; the events of the log
@@ -30,6 +30,16 @@ test("the cycle panel shows the emulator's cycles", async ({ page, request }) =>
   await expect(page.getByTestId("cycle-histogram").locator(".main-svg").first()).toBeVisible();
   const csv = await request.get(`/api/v1/robots/${settings.robotName}/cycles`, { params: { format: "csv" } });
   expect((await csv.text()).split(/\r?\n/)[0]).toBe("id,start,end,duration_s");
+  // Printed: the cycle statistics alone, without a control.
+  await page.evaluate(() => {
+    document.body.dataset.printSection = "cycles";
+  });
+  await page.emulateMedia({ media: "print" });
+  await expect(page.getByTestId("cycle-last")).toBeVisible();
+  await expect(view.getByRole("button", { name: "Print" })).toBeHidden();
+  await expect(view.locator("button:visible")).toHaveCount(0);
+  await expect(page.locator("#events")).toBeHidden();
+  await page.emulateMedia({ media: "screen" });
 
   await page.goto(`/?robot=${settings.robot2Name}`);
   await page.getByTestId("cycle-no-trigger").scrollIntoViewIfNeeded();
@@ -55,4 +65,10 @@ test("the event log is searched by text and time range without a login", async (
   await page.getByTestId("events-to").fill("2001-01-01T00:00:00");
   await expect(table.locator("td.empty")).toHaveText("no events");
   await expect(page.locator("#events .table-view__source")).toContainText("0 of 0 matching");
+});
+
+test("the kiosk shows the last and the mean cycle time as a tile", async ({ page }) => {
+  await page.goto(`/kiosk?robot=${settings.robotName}&tiles=cycle_time`);
+  await expect(page.getByTestId("tile-cycle-time-0")).toHaveText(/^\d+\.\d$/, { timeout: CYCLES_TIMEOUT_MS });
+  await expect(page.getByTestId("tile-cycle-time-1")).toHaveText(/^\d+\.\d$/);
 });
