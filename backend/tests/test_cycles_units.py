@@ -15,14 +15,11 @@ from cobot_hmi.codec import Frame
 from cobot_hmi.emulator.robot import RobotSettings as SimulationSettings
 from cobot_hmi.emulator.robot import SimulatedRobot
 from cobot_hmi.generated.frames import RobotState
+from cobot_hmi.service.config.arguments import add_arguments, settings_from_args
+from cobot_hmi.service.config.loading import load_settings
 from cobot_hmi.service.cycles.meter import CycleMeter
 from cobot_hmi.service.cycles.trigger import TriggerError, parse_trigger
-from cobot_hmi.service.settings import (
-    SettingsError,
-    add_arguments,
-    load_settings,
-    settings_from_args,
-)
+from cobot_hmi.service.settings import SettingsError
 from emulator_harness import FAST_TIMINGS
 
 RPI_S = 0.01
