@@ -133,8 +133,8 @@ def main() -> int:
                 )
     print(
         f"  target at 16 robots: ≤ {TARGET_US:g} µs per robot-frame with clients, every ratio "
-        f"≤ 1.2, 0 gaps: {'not measured' if verdict is None else verdict}   (load average {os.getloadavg()[0]:.2f}, "
-        f"{os.cpu_count()} CPUs)"
+        f"≤ 1.2, 0 gaps: {'not measured' if verdict is None else verdict}   "
+        f"(load average {os.getloadavg()[0]:.2f}, {os.cpu_count()} CPUs)"
     )
     return 0 if verdict is not False else 1
 
