@@ -111,6 +111,17 @@ async def test_cycles_equal_those_computed_from_the_recorded_frames(
                 csv_answer = await client.get(
                     f"/api/v1/robots/{ROBOT}/cycles", params={"format": "csv"}
                 )
+                # Each cycle is an event too, at its start: the plots' markers.
+                marked = await client.get(
+                    f"/api/v1/robots/{ROBOT}/history/events",
+                    params={"from": first["start"] - 0.5, "to": last["end"]},
+                )
+    cycle_events = [e for e in marked.json()["items"] if e["kind"] == "cycle"]
+    assert [(e["time"], e["end"]) for e in cycle_events] == [
+        (pytest.approx(c["start"], abs=1e-5), pytest.approx(c["end"], abs=1e-5))
+        for c in measured_cycles
+    ]
+    assert cycle_events[-1]["text"] == f"Cycle of {measured_cycles[-1]['duration_s']:.2f} s"
     starts = starts_in(table)
     expected = list(itertools.pairwise(starts))
     assert len(expected) == len(measured_cycles)

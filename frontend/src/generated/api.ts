@@ -1960,6 +1960,48 @@ export interface components {
             username: string;
         };
         /**
+         * CycleEvent
+         * @description A cycle of the robot measured by its trigger (``cycle_trigger``): ``time`` is its start,
+         *     announced once the next start ended it (``GET /api/v1/robots/{name}/cycles``).
+         */
+        CycleEvent: {
+            /**
+             * Duration S
+             * @description s
+             */
+            duration_s: number;
+            /**
+             * End
+             * @description s since the epoch: the next cycle's start
+             */
+            end: number;
+            /**
+             * Id
+             * @description row id in the event log (log pages only)
+             */
+            id?: number | null;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            kind: "cycle";
+            /**
+             * Robot
+             * @description the robot's name
+             */
+            robot?: string | null;
+            /**
+             * Text
+             * @description the event in words, as the service says it everywhere (the event log, its CSV, exports): "Servo on flag cleared", "Emergency stop activated: robot state Emergency stop, Emergency stopped flag set"
+             */
+            text: string;
+            /**
+             * Time
+             * @description s since the epoch
+             */
+            time: number;
+        };
+        /**
          * CyclePage
          * @description A robot's cycles in a range (oldest first) and their statistics.
          */
@@ -2050,7 +2092,7 @@ export interface components {
         /** EventMessage */
         EventMessage: {
             /** Event */
-            event: components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"] | components["schemas"]["AlarmEvent"] | components["schemas"]["SessionEvent"];
+            event: components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"] | components["schemas"]["AlarmEvent"] | components["schemas"]["SessionEvent"] | components["schemas"]["CycleEvent"];
             /**
              * @description discriminator enum property added by openapi-typescript
              * @enum {string}
@@ -2063,7 +2105,7 @@ export interface components {
          */
         EventPage: {
             /** Items */
-            items: (components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"] | components["schemas"]["AlarmEvent"] | components["schemas"]["SessionEvent"])[];
+            items: (components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"] | components["schemas"]["AlarmEvent"] | components["schemas"]["SessionEvent"] | components["schemas"]["CycleEvent"])[];
             /** Total */
             total: number;
         };
@@ -2453,7 +2495,7 @@ export interface components {
          */
         HistoryEvents: {
             /** Items */
-            items: (components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"] | components["schemas"]["AlarmEvent"] | components["schemas"]["SessionEvent"])[];
+            items: (components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"] | components["schemas"]["AlarmEvent"] | components["schemas"]["SessionEvent"] | components["schemas"]["CycleEvent"])[];
             /**
              * Truncated
              * @description the range holds more than `limit` events: these are its oldest `limit`
@@ -4486,7 +4528,7 @@ export interface operations {
                 /** @description only rows whose words contain this text (case-insensitive) */
                 q?: string | null;
                 /** @description only events of this kind */
-                kind?: ("connection" | "robot_state" | "flag" | "write" | "control" | "recording" | "alarm" | "session") | null;
+                kind?: ("connection" | "robot_state" | "flag" | "write" | "control" | "recording" | "alarm" | "session" | "cycle") | null;
                 limit?: number;
                 offset?: number;
                 /** @description csv: the whole page as CSV */
@@ -6141,7 +6183,7 @@ export interface operations {
                 /** @description end of the range (excluded): ISO 8601 (2026-11-24T06:00:00Z; without an offset: UTC) or seconds since the epoch */
                 to: string;
                 /** @description only events of these kinds (repeatable) */
-                kind?: ("connection" | "robot_state" | "flag" | "write" | "control" | "recording" | "alarm" | "session")[] | null;
+                kind?: ("connection" | "robot_state" | "flag" | "write" | "control" | "recording" | "alarm" | "session" | "cycle")[] | null;
                 /** @description at most this many events */
                 limit?: number;
             };

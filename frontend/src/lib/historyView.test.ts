@@ -170,6 +170,23 @@ describe("markers", () => {
     expect(markersOf([estop, soon], range, markerSpacing(600))).toHaveLength(1); // 18 px apart
   });
 
+  it("marks each cycle's start with its duration (the robot's cycle trigger)", () => {
+    const cycle = {
+      kind: "cycle",
+      time: NOW + 50,
+      end: NOW + 58.1,
+      duration_s: 8.1,
+      text: "Cycle of 8.10 s",
+      robot: "left",
+      id: 11,
+    } as HistoryEvent;
+    const markers = markersOf([cycle], range);
+    expect(markers).toHaveLength(1);
+    expect(markers[0]!.at).toBeCloseTo(0.5);
+    expect(markers[0]!.label).toBe("Cycle 8.10 s");
+    expect(markers[0]!.kind).toBe("cycle");
+  });
+
   it("leaves out events outside the range and kinds that are no markers", () => {
     const before = { ...estop, time: NOW - 1 } as HistoryEvent;
     const atEnd = { ...estop, time: NOW + 100 } as HistoryEvent; // `to` is excluded

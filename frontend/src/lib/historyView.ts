@@ -177,13 +177,16 @@ export function eventLabel(event: HistoryEvent): string {
       return `State ${event.to_name}`;
     case "alarm":
       return `${event.alarm.name} ${event.transition}`;
+    case "cycle":
+      return `Cycle ${event.duration_s.toFixed(2)} s`;
     default:
       return event.kind.replace("_", " ");
   }
 }
 
-/** Kinds shown as markers: what explains a curve (not every write or control hand-over). */
-export const MARKER_KINDS: readonly HistoryEvent["kind"][] = ["robot_state", "alarm", "connection", "recording"];
+/** Kinds shown as markers: what explains a curve (not every write or control hand-over), and
+ * each cycle's start (the robot's cycle trigger). */
+export const MARKER_KINDS: readonly HistoryEvent["kind"][] = ["robot_state", "alarm", "connection", "recording", "cycle"];
 
 function urgent(e: MarkerEvent): boolean {
   return e.kind === "alarm" || e.label.includes("EMERGENCY_STOP");

@@ -49,6 +49,7 @@ const EVENT_KIND_SET = {
   alarm: true,
   recording: true,
   session: true,
+  cycle: true,
 } as const satisfies Record<EventKind, true>;
 
 export const EVENT_KINDS = Object.keys(EVENT_KIND_SET) as (keyof typeof EVENT_KIND_SET)[];

@@ -8,11 +8,12 @@ changes when a cycle is written, never what it measures.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Final
 
 from cobot_hmi.service.cycles.meter import Cycle, CycleMeter
 from cobot_hmi.service.cycles.store import CycleStore
+from cobot_hmi.service.events.text import Event
 from cobot_hmi.service.robots.frames import FrameRecord, Runs
 from cobot_hmi.service.robots.robot import RobotRuntime
 from cobot_hmi.service.storage.store import Store
@@ -22,16 +23,24 @@ QUEUE_FRAMES: Final = 8192
 
 
 class CycleConsumer:
-    """One robot's meter as a frame consumer (``robots.frames.FrameConsumer``)."""
+    """One robot's meter as a frame consumer (``robots.frames.FrameConsumer``); each measured
+    cycle is stored and announced on the event bus (a ``cycle`` event: the plots' markers)."""
 
     name = "cycles"
     runs = Runs.LOOP
     queue_frames = QUEUE_FRAMES
 
-    def __init__(self, meter: CycleMeter, store: CycleStore, last: dict[str, Cycle]) -> None:
+    def __init__(
+        self,
+        meter: CycleMeter,
+        store: CycleStore,
+        last: dict[str, Cycle],
+        publish: Callable[[Event], None],
+    ) -> None:
         self.meter = meter
         self._store = store
         self._last = last
+        self._publish = publish
 
     def on_frames(self, robot: str, records: Sequence[FrameRecord]) -> None:
         observe = self.meter.observe
@@ -40,6 +49,14 @@ class CycleConsumer:
             if cycle is not None:
                 self._last[cycle.robot] = cycle
                 self._store.submit(cycle)
+                self._publish(
+                    {
+                        "kind": "cycle",
+                        "time": cycle.start,
+                        "end": cycle.end,
+                        "duration_s": round(cycle.duration_s, 6),
+                    }
+                )
 
 
 class Cycles:
@@ -54,7 +71,7 @@ class Cycles:
             trigger = robot.settings.cycle_trigger_parsed
             if trigger is not None:
                 meter = self.meters[name] = CycleMeter(name, trigger)
-                robot.frames.add(CycleConsumer(meter, self.store, self.last))
+                robot.frames.add(CycleConsumer(meter, self.store, self.last, robot.publish_event))
 
     def start(self) -> None:
         """On the web loop, before the first frame can come."""

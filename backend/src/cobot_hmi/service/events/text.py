@@ -177,6 +177,11 @@ def event_text(event: Mapping[str, object]) -> str:
         return _session_text(event)
     if kind == "recording":
         return _recording_text(event)
+    if kind == "cycle":
+        duration_s = event.get("duration_s")
+        if isinstance(duration_s, int | float):
+            return f"Cycle of {duration_s:.2f} s"
+        return "Cycle"
     return f"{kind} event"
 
 

@@ -291,6 +291,15 @@ class RecordingEvent(_EventBase):
     dropped: int | None = Field(default=None, description="overflow: frames not recorded")
 
 
+class CycleEvent(_EventBase):
+    """A cycle of the robot measured by its trigger (``cycle_trigger``): ``time`` is its start,
+    announced once the next start ended it (``GET /api/v1/robots/{name}/cycles``)."""
+
+    kind: Literal["cycle"]
+    end: float = Field(description="s since the epoch: the next cycle's start")
+    duration_s: float = Field(ge=0, description="s")
+
+
 Event = Annotated[
     ConnectionEvent
     | RobotStateEvent
@@ -299,11 +308,20 @@ Event = Annotated[
     | ControlEvent
     | RecordingEvent
     | AlarmEvent
-    | SessionEvent,
+    | SessionEvent
+    | CycleEvent,
     Field(discriminator="kind"),
 ]
 EventKind = Literal[
-    "connection", "robot_state", "flag", "write", "control", "recording", "alarm", "session"
+    "connection",
+    "robot_state",
+    "flag",
+    "write",
+    "control",
+    "recording",
+    "alarm",
+    "session",
+    "cycle",
 ]
 
 
