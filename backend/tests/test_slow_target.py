@@ -37,8 +37,9 @@ async def eventually(check: Callable[[], object]) -> None:
     await _eventually(check, DEADLINE_S)
 
 
-DEADLINE_S = 30.0
-"""A generous functional deadline, never a timing figure."""
+DEADLINE_S = 120.0
+"""A generous functional deadline, never a timing figure (the slow target's verdicts come
+from windows of frames, which a loaded machine delivers late)."""
 FACTOR = 5.0
 RPI_US = 10_000
 SLOW_FRAMES = round(4 * WINDOW_S * 1e6 / (RPI_US * FACTOR))
@@ -222,7 +223,7 @@ async def test_scan_reports_a_slow_target_once_and_keeps_o2t_hex(
         await eventually(lambda: scan.said(slow_words))
         await eventually(lambda: any('"slow_target":"the target grants' in s for s in scan.out))
         seen = target.connections()[0].packets_in
-        await eventually(lambda: target.connections()[0].packets_in >= seen + 200)
+        await eventually(lambda: any(c.packets_in >= seen + 200 for c in target.connections()))
         assert len(scan.said(slow_words)) == 1, scan.err
         target.faults.reset()
         await eventually(lambda: scan.said("the target keeps its 10 ms grant again"))
