@@ -87,8 +87,20 @@ test("zoom one plot, the others follow; back to live on any brings all back; an 
 test("one cursor: pointing at one plot shows every plot's values at that time, with units", async ({ page }) => {
   const { position } = await openPanel(page);
   const box = (await position.boundingBox())!;
-  await page.mouse.move(box.x + box.width * 0.6, box.y + box.height / 2);
-  await page.mouse.move(box.x + box.width * 0.62, box.y + box.height / 2 + 4);
+  // Point at a moment the plot holds (just after opening, on a busy machine, part of the
+  // window may still be empty: a value there reads "—"); each try moves the pointer a little.
+  let tries = 0;
+  await expect
+    .poll(
+      async () => {
+        tries += 1;
+        const x = box.x + box.width * (0.85 - 0.05 * (tries % 4));
+        await page.mouse.move(x, box.y + box.height / 2 + (tries % 2) * 4);
+        return (await page.getByTestId(`${POSITION}-cursor-0`).textContent()) ?? "";
+      },
+      { timeout: 60_000, message: "a value under the pointer" },
+    )
+    .toMatch(/^J ?1 −?\d[\d.]* degree$/);
   const readout = (id: string) => page.getByTestId(`${id}-cursor`);
   await expect(readout(POSITION)).toBeVisible();
   await expect(readout(VELOCITY)).toBeVisible();

@@ -31,6 +31,9 @@ async function servedFingerprint(host: string, port: number): Promise<string> {
 }
 
 test("the panel over HTTPS and WSS with the demo's self-signed certificate", async ({ page }) => {
+  // A demo of its own starts (its emulator, the service) before anything: its waits alone may
+  // take the suite's 120 s on a busy machine.
+  test.setTimeout(300_000);
   const robotHost = ofCell(env("E2E_HTTPS_ROBOT_HOST", "127.0.0.9"));
   const localHost = ofCell(env("E2E_HTTPS_LOCAL_HOST", "127.0.0.10"));
   const httpHost = settings.httpHost;
