@@ -20,13 +20,28 @@ import httpx
 
 from service_support import DEADLINE_S, eventually, eventually_async
 
-PROCESS_DEADLINE_S = DEADLINE_S * 18
+PROCESS_DEADLINE_S = DEADLINE_S * 9
 """A process of its own imports the whole service before it says anything: on a busy machine
 that alone takes seconds, so its deadlines are wider than those of the in-process tests."""
 
 PIPE = asyncio.subprocess.PIPE
 STDOUT = asyncio.subprocess.STDOUT
 DEVNULL = asyncio.subprocess.DEVNULL
+
+
+def _preexec(files_limit: int | None, sigint_ignored: bool) -> Callable[[], None] | None:
+    """What the child does before it runs the command (``None``: nothing)."""
+    if files_limit is None and not sigint_ignored:
+        return None
+    limit = _limit_files(files_limit) if files_limit is not None else None
+
+    def before_exec() -> None:
+        if limit is not None:
+            limit()
+        if sigint_ignored:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)  # kept across exec
+
+    return before_exec
 
 
 def _limit_files(limit: int) -> Callable[[], None]:
@@ -43,11 +58,13 @@ async def cli_process(
     stderr: int | IO[Any] = STDOUT,
     interrupt_first: bool = False,
     files_limit: int | None = None,
+    sigint_ignored: bool = False,
 ) -> AsyncIterator[asyncio.subprocess.Process]:
     """``cobot-hmi ARGS`` as a child process (with ``files_limit`` open files, soft and hard,
     if given). At the end, if it still runs: SIGINT and up to ``PROCESS_DEADLINE_S`` for a
     clean stop when ``interrupt_first`` (a demo stops its emulators itself then), else SIGKILL;
-    reaped (its pipes read to their end) in any case."""
+    reaped (its pipes read to their end) in any case. ``sigint_ignored``: started with SIGINT
+    ignored, as a script's background job or a test runner's worker passes it on."""
     process = await asyncio.create_subprocess_exec(
         sys.executable,
         "-m",
@@ -56,7 +73,7 @@ async def cli_process(
         stdout=stdout,
         stderr=stderr,
         env={**os.environ, "PYTHONUNBUFFERED": "1"},
-        preexec_fn=None if files_limit is None else _limit_files(files_limit),
+        preexec_fn=_preexec(files_limit, sigint_ignored),
     )
     try:
         yield process

@@ -124,6 +124,18 @@ async def test_one_robot_and_the_state_dir_goes_at_the_end() -> None:
     assert not await asyncio.to_thread(state_dir.exists)
 
 
+async def test_an_interrupt_before_the_service_runs_stops_a_demo_begun_with_it_ignored() -> None:
+    """A demo started with SIGINT ignored (a script's background job; a test runner's worker
+    passes that on) still stops on ``kill -INT``, even one sent right after the password,
+    before its service has installed its own handler: the signal is never lost."""
+    _, flags = _addresses(1)
+    async with cli_process("demo", "--robots", "1", *flags, sigint_ignored=True) as demo:
+        await read_until(demo, "with password")
+        demo.send_signal(signal.SIGINT)
+        await asyncio.wait_for(demo.wait(), PROCESS_DEADLINE_S)
+    assert demo.returncode in (0, 130)
+
+
 @pytest.mark.parametrize("taken", ["emulator", "http"])
 async def test_a_taken_address_ends_the_demo_before_any_password(taken: str) -> None:
     hosts, flags = _addresses(2)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
 from collections.abc import Callable, Sequence
 from typing import Protocol, cast
@@ -49,6 +50,11 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     handler = cast(Handler, args.handler)
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        # Started with SIGINT ignored (a background job of a script, a test runner's worker):
+        # Ctrl-C and ``kill -INT`` still stop the command, even before the service's own
+        # handler is installed, instead of being lost and leaving it running.
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         return handler(args)
     except KeyboardInterrupt:
