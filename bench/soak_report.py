@@ -28,6 +28,8 @@ import pyarrow.parquet as pq
 from soak_clients import OUTPUTS, WIRE_RESTART_STEP, StreamClient, WriteRecord
 from soak_faults import DISK, KILL, LOSS, LOSS_SETTLE_S, RECOVERY_S, STALL, FaultRecord
 
+from cobot_hmi.history.schema import ELEMENTS
+
 EXPECTED, OTHER, OUTSIDE = "the fault's own", "in another fault's window", "outside faults"
 STARTUP = "while starting"
 HEAPS = (EXPECTED, OTHER, OUTSIDE, STARTUP)
@@ -65,8 +67,11 @@ async def fetch_recording(
     seq = table.column("seq").to_numpy().astype(np.int64)
     wire = table.column("t2o_sequence").cast(pa.int64()).fill_null(-1).to_numpy()
     outputs = np.zeros(len(t), dtype=np.int64)
+    # An export names each element as the screen labels it (controlbox_do.DO1, history.schema).
+    names = {e.name: e.export_name for e in ELEMENTS if e.field.name == "controlbox_do"}
     for i in range(OUTPUTS):
-        bits = table.column(f"controlbox_do.{i}").fill_null(False).to_numpy(zero_copy_only=False)
+        column = table.column(names[f"controlbox_do.{i}"])
+        bits = column.fill_null(False).to_numpy(zero_copy_only=False)
         outputs |= bits.astype(np.int64) << i
     return Recording(t, seq, wire.astype(np.int64), outputs)
 
