@@ -429,10 +429,15 @@ async def test_confirmed_write_changes_the_robots_output(cell: Cell) -> None:
             status = (await api.get("/status")).json()
         assert status["plc_command"]["controlbox_do"][2] is True
         assert status["frame"]["controlbox_do"][2] is True
-        values = await cell.peer.request(
-            "read", name="anonymous", nodes=[cell.node("still", "Frame.controlbox_do.2")]
-        )
-        assert values[0]["value"] is True
+
+        # The server publishes the newest frame at its next monitoring tick (10 Hz).
+        async def shown() -> bool:
+            values = await cell.peer.request(
+                "read", name="anonymous", nodes=[cell.node("still", "Frame.controlbox_do.2")]
+            )
+            return values[0]["value"] is True
+
+        await _eventually_async(shown)
         row = (await _audit(cell))[0]
         assert (row["user"], row["outcome"], row["action"]) == (OPERATOR[0], "confirmed", "write")
         assert row["fields"] == ["controlbox_do.2"]

@@ -193,6 +193,7 @@ def test_websocket_messages_and_events_are_components() -> None:
         "recording",
         "alarm",
         "session",
+        "cycle",
     }
 
 
