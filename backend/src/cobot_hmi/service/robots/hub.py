@@ -186,7 +186,6 @@ class Hub:
         self._groups: dict[float | None, _RateGroup] = {}
         self.clients: set[StreamClient] = set()
         # Counters for /metrics.
-        self.frames_broadcast = 0
         self.stalled_disconnects = 0
         self.dropped_frames_closed_clients = 0
         self.frames_sent_closed_clients = 0
@@ -279,7 +278,6 @@ class Hub:
     def on_frames(self, robot: str, records: Sequence[FrameRecord]) -> None:
         """One broadcast: serialize each frame once, one message per rate group, stalls."""
         started = time.perf_counter()
-        self.frames_broadcast += len(records)
         if self._groups:
             pieces: list[bytes | None] = [None] * len(records)
             for group in self._groups.values():
