@@ -37,6 +37,19 @@ EVENTS = [
     state_event(2, "Robot state now Protective stop"),
     state_event(3, "Robot state now Standalone running"),
     state_event(4, "Gripper 100%_done"),  # % and _ are taken literally
+    # Found by its words, never by a field the words leave out (the alarm's message at the ack).
+    (
+        T0 + 60 * 5,
+        "alarm",
+        {
+            "transition": "acknowledged",
+            "alarm": {"name": "Emergency stop", "message": "robot state now Standalone running"},
+            "text": "Emergency stop acknowledged by olivia",
+        },
+        ROBOT,
+    ),
+    # Logged before events had a text: found by its fields.
+    (T0 + 60 * 6, "flag", {"flag": "legacy_flag", "value": True}, ROBOT),
 ]
 
 
@@ -142,6 +155,13 @@ async def test_events_by_text_range_and_page_without_login(hmi: Running) -> None
     assert first["total"] == second["total"] == 4
     assert len(first["items"]) == 3 and len(second["items"]) == 1
     assert texts(second) == ["Robot state now Manual standby"]
+    # The words of the row, not its fields' keys and values; an older row without words: its fields.
+    assert texts(await get(hmi, "/api/v1/events", q="acknowledged by", **window)) == [
+        "Emergency stop acknowledged by olivia"
+    ]
+    assert (await get(hmi, "/api/v1/events", q="transition", **window))["total"] == 0
+    legacy = await get(hmi, "/api/v1/events", q="legacy_FLAG", **window)
+    assert [item["flag"] for item in legacy["items"]] == ["legacy_flag"]
     # LIKE's wildcards are the text's own characters.
     assert texts(await get(hmi, "/api/v1/events", q="100%_", **window)) == ["Gripper 100%_done"]
     assert (await get(hmi, "/api/v1/events", q="1_0", **window))["total"] == 0

@@ -24,12 +24,12 @@ interface Row {
 
 /**
  * An event in words: the service's own `text` ("Servo on flag cleared", "Robot state Safe off
- * (was Emergency stop)"), as its log and CSV say it; a write and an alarm in the panel's words,
- * which add the points' tag names and the alarm's priority. Without a text (an older service):
- * the panel's words for every kind.
+ * (was Emergency stop)"), as its log, its CSV and a search of it say it (a search looks in these
+ * words, so every row it returns shows what was searched); an alarm's priority before them.
+ * Without a text (an older service): the panel's words for every kind.
  */
 function describe(event: StreamEvent): string {
-  if (event.kind !== "write" && event.kind !== "alarm" && typeof event.text === "string" && event.text !== "") return event.text;
+  if (typeof event.text === "string" && event.text !== "") return event.kind === "alarm" ? `${event.alarm.priority}: ${event.text}` : event.text;
   const s = (v: unknown) => (v === null || v === undefined ? "—" : typeof v === "object" ? JSON.stringify(v) : String(v));
   const because = (reason: string | null | undefined) => (reason ? ` (${reason})` : "");
   switch (event.kind) {
@@ -45,7 +45,7 @@ function describe(event: StreamEvent): string {
       // The service's words name the spec's labels, tags and units ("AO 1 type = voltage, AO 1 = 5 V").
       return `${s(event.user)}: ${event.summary ?? pointsWords(event.fields, event.tags, event.labels)} → ${event.outcome}${because(event.reason)}`;
     case "alarm": {
-      const message = event.transition === "activated" && event.alarm.message ? `: ${event.alarm.message}` : "";
+      const message = (event.transition === "activated" || event.transition === "cleared") && event.alarm.message ? `: ${event.alarm.message}` : "";
       return `${event.alarm.priority} alarm ${alarmTitle(event.alarm)} ${event.transition.replaceAll("_", " ")}${message}${event.user ? ` by ${event.user}` : ""}${because(event.comment)}`;
     }
     case "recording":

@@ -73,8 +73,14 @@ AUDIT_TEXT_COLUMNS: Final = (
     "tags",
 )
 """What a text search of the audit trail looks in."""
-EVENT_TEXT_COLUMNS: Final = ("robot", "kind", "data")
-"""What a text search of the event log looks in (``data`` holds the event's text in words)."""
+EVENT_TEXT_COLUMNS: Final = (
+    "robot",
+    "kind",
+    "COALESCE(CASE WHEN json_valid(data) THEN json_extract(data, '$.text') END, data)",
+)
+"""What a text search of the event log looks in: the event's words (its ``text``, which the
+stream, the CSV and the panel show), not its fields' keys and values, so that every row a search
+returns says what was searched; an event logged before events had a text: its fields."""
 MAX_PAGE: Final = 100_000
 """Largest ``limit`` of one page (a CSV export takes everything in one)."""
 CHAIN_HEAD_INTERVAL_S: Final = 60.0
