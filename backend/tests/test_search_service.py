@@ -31,7 +31,7 @@ def state_event(minute: int, text: str) -> tuple[float, str, dict[str, object], 
     return T0 + 60 * minute, "robot_state", {"state": 1, "text": text}, ROBOT
 
 
-EVENTS = [
+EVENTS: list[tuple[float, str, dict[str, object], str]] = [
     state_event(0, "Robot state now Manual standby"),
     state_event(1, "Robot state now Standalone running"),
     state_event(2, "Robot state now Protective stop"),
