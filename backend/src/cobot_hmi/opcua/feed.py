@@ -3,9 +3,11 @@
 Everything the server takes from the service, and every request it makes of it, goes through
 ``ServiceFeed``; no other module of ``cobot_hmi.opcua`` imports ``cobot_hmi.service``.
 
-- **Frames**: a ``Hub.subscribe`` queue per robot (the cyclic thread's O(1) append, the oldest
-  dropped and counted when full), drained on the server's own thread at each monitoring tick
-  (``sample``): only the period's newest frame is used. With it the link state, the command
+- **Frames**: a consumer of every robot's frames (``robots.frames``) that runs on the server's
+  own thread: the cyclic thread's O(1) append into a bounded queue per robot (the oldest dropped
+  and counted when full), drained at each monitoring tick (``sample``): only the period's newest
+  frame is used, at most one RPI old (a consumer on the web loop would see it only at the
+  loop's next wake, up to a WebSocket batch later). With it the link state, the command
   image, the control holder and the identity, read as they are (attribute reads; the web loop
   and the cyclic thread never wait for this thread).
 - **Users**: ``authenticate`` checks a user name and password against the service's users file
@@ -43,7 +45,8 @@ if TYPE_CHECKING:
     from cobot_hmi.service.settings import ServiceSettings
 
 QUEUE_FRAMES: Final = 256
-"""Frames a robot's queue holds between two turns of the web loop (one turn takes them all)."""
+"""Frames a robot's queue holds between two ticks (2.56 s at RPI 10 ms: a tick takes them all,
+so only a server thread starved that long drops any)."""
 
 T = TypeVar("T")
 
@@ -54,12 +57,11 @@ __all__ = ["ApiError", "ServiceFeed", "Session", "User", "WriteOutcome", "Writer
 class ServiceFeed:
     """See the module docstring. Built on the web loop; used from the server's thread.
 
-    A consumer of every robot's frames (``robots.frames``) on the web loop that keeps only
-    each robot's newest frame (one reference, swapped whole): the server's thread takes it at
-    its own rate (``sample``), so the server never holds frames it would not publish."""
+    A consumer of every robot's frames (``robots.frames``) on the server's thread: each tick
+    (``sample``) takes the frames queued since the last one and keeps only the newest."""
 
     name: Final = "opcua"
-    runs: Final = Runs.LOOP
+    runs: Final = Runs.THREAD
     queue_frames: Final = QUEUE_FRAMES
 
     def __init__(
@@ -90,7 +92,7 @@ class ServiceFeed:
     # ------------------------------------------------------------ frames
 
     def open(self) -> None:
-        """Register with every robot's frames (on the web loop, before the first tick)."""
+        """Register with every robot's frames (on the server's thread, before the first tick)."""
         for name, robot in self._robots.items():
             self._registrations[name] = robot.frames.add(self)
 
@@ -100,7 +102,7 @@ class ServiceFeed:
         self._registrations.clear()
 
     def on_frames(self, robot: str, records: Sequence[FrameRecord]) -> None:
-        """On the web loop: the newest frame replaces the one the server has not taken."""
+        """On the server's thread (``sample``): the newest of the frames queued since."""
         self._newest[robot] = records[-1]
 
     def dropped(self, name: str) -> int:
@@ -111,7 +113,10 @@ class ServiceFeed:
     def sample(self, name: str) -> Sample:
         """The robot as it is now, with the newest frame since the last sample (if any)."""
         robot = self._robots[name]
-        newest = self._newest.pop(name, None)  # one atomic step: the web loop may set it
+        registration = self._registrations.get(name)
+        if registration is not None:
+            registration.deliver()  # on_frames: the newest queued frame, if any came
+        newest = self._newest.pop(name, None)
         frame, received_at = (newest.frame, newest.received_at_s) if newest else (None, 0.0)
         state = robot.link.state
         try:

@@ -65,6 +65,24 @@ class Sample:
     identity: Identity | None
 
 
+class SharedDataValue(ua.DataValue):
+    """A DataValue that asyncua's monitored items may share instead of copying.
+
+    asyncua deep-copies the value at every data change for every monitored item watching it
+    (``MonitoredItemValues.set_current_datavalue``: "to prevent referencing the inner value",
+    a guard against a writer that changes a stored value in place), which was over half of the
+    server thread's time with one client on every variable. ``RobotValues`` makes a new
+    DataValue for every change and never changes one it has stored, nor its Variant, nor the
+    value inside (numbers, strings and tuples, or asyncua's structures made for the write), so
+    a copy would always equal the original: sharing it is exact. It encodes as a DataValue
+    (asyncua encodes a field by its declared type)."""
+
+    __slots__ = ()
+
+    def __deepcopy__(self, memo: dict[int, object]) -> SharedDataValue:
+        return self
+
+
 def _utc(epoch_s: float) -> datetime:
     return datetime.fromtimestamp(epoch_s, UTC)
 
@@ -99,7 +117,7 @@ class RobotValues:
         attribute = self._attributes.get(node)
         if attribute is None:
             attribute = self._attributes[node] = self._aspace[node].attributes[_VALUE]
-        value = ua.DataValue(
+        value = SharedDataValue(
             variant, StatusCode=status, SourceTimestamp=source, ServerTimestamp=self._now
         )
         self.writes += 1
