@@ -36,7 +36,7 @@ from cobot_hmi.enip.connection_manager import (
 from cobot_hmi.enip.cpf import CpfItem, ItemType
 from cobot_hmi.enip.encapsulation import Command
 from cobot_hmi.layout import ROBOT_STATES
-from cobot_hmi.scanner.io_port import IoPort
+from cobot_hmi.scanner.io_port import BUSY_BATCH_S, IoPort
 from cobot_hmi.scanner.originator import ConnectionState, Originator, OriginatorSettings
 from cobot_hmi.udp_endpoint import UdpEndpoint
 from conftest import _next_host as next_host
@@ -121,7 +121,8 @@ async def test_port_dispatches_by_connection_id_and_source(plc_host: str) -> Non
 async def test_port_batch_shortens_as_connections_add_up(plc_host: str) -> None:
     """Eight connections at RPI 2 ms bring 4000 packets a second: a 40 ms batch would fill 160
     of the pump ring's 256 slots, so the port wakes sooner (a quarter of the ring per batch,
-    16 ms), and per datagram as soon as one connection asks for it (an RPI of 10 ms or more)."""
+    16 ms); one connection asking for its T→O at once (an RPI of 10 ms or more) makes it wake
+    per datagram while the port brings few packets, every ``BUSY_BATCH_S`` on a busy port."""
     port = IoPort(plc_host, 0)
     await port.open()
     try:
@@ -144,10 +145,14 @@ async def test_port_batch_shortens_as_connections_add_up(plc_host: str) -> None:
         port.route(
             ids[8], "127.0.0.1", consumers[8], batch_s=0.0, silence_s=0.16, packets_per_s=100
         )
-        assert port.batch_s == 0.0
-        port.unroute(ids[8])
-        for connection_id in ids[1:8]:
+        assert port.batch_s == pytest.approx(BUSY_BATCH_S), "4100 packets/s: a busy port"
+        for connection_id in ids[:8]:
             port.unroute(connection_id)
+        assert port.batch_s == 0.0, "100 packets/s, one connection at once: per datagram"
+        port.unroute(ids[8])
+        port.route(
+            ids[0], "127.0.0.1", consumers[0], batch_s=0.04, silence_s=0.0, packets_per_s=500
+        )
         assert port.batch_s == pytest.approx(0.04)
     finally:
         port.close()

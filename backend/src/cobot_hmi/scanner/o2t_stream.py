@@ -9,7 +9,10 @@ changes (a write, run/idle), :meth:`rebuild` hands the pump the new packet: the 
 wire carries it, with the next sequence numbers.
 
 A fallback timer, pushed back every time T→O wakes us (``t2o_read``), fires only when T→O stops:
-that is when the watchdog looks (``on_timer``).
+that is when the watchdog looks (``on_timer``). It is pushed back lazily: ``t2o_read`` only
+notes the time, and the timer, when it comes, moves itself on to the fallback's due time from
+that last read. A busy port wakes hundreds of times a second for its connections; cancelling and
+making a loop timer per connection per wake-up cost more than the packets' decoding.
 """
 
 from __future__ import annotations
@@ -58,6 +61,9 @@ class O2TStream:
         self._loop = asyncio.get_running_loop()
         self._timer: asyncio.TimerHandle | None = None
         self._timer_due = 0.0
+        self._last_read = 0.0
+        """Loop time T→O was last read (the fallback is due ``_fallback_s`` after it)."""
+        self._fallback_s = 1.5 * self.wake_period_s + rpi_s
         self._active = False
         self._sent_at_stop = 0
         self.timer_wakeups = 0
@@ -101,10 +107,13 @@ class O2TStream:
             self._timer = None
         return self._sent_at_stop
 
-    def t2o_read(self) -> None:
-        """T→O data was just read: push the fallback timer back."""
+    def t2o_read(self, now: float | None = None) -> None:
+        """T→O data was just read (at loop time ``now``, default the loop's clock): push the
+        fallback timer back (lazily, see the module docstring)."""
         if self._active:
-            self._arm(self._loop.time())
+            self._last_read = self._loop.time() if now is None else now
+            if self._timer is None:
+                self._arm(self._last_read)
 
     def rebuild(self) -> None:
         """The data changed: the next packet carries the new data."""
@@ -112,7 +121,10 @@ class O2TStream:
             self._udp.replace_periodic(self._tag, self._build())
 
     def _arm(self, now: float) -> None:
-        due = now + 1.5 * self.wake_period_s + self.rpi_s
+        self._last_read = now
+        self._schedule(now + self._fallback_s)
+
+    def _schedule(self, due: float) -> None:
         if self._timer is not None:
             self._timer.cancel()
         self._timer_due = due
@@ -120,8 +132,12 @@ class O2TStream:
 
     def _fire(self) -> None:
         self._timer = None
-        self.timer_wakeups += 1
         now = self._loop.time()
+        due = self._last_read + self._fallback_s
+        if due > now:  # T→O was read after the timer was set: the fallback moves on
+            self._schedule(due)
+            return
+        self.timer_wakeups += 1
         if self._on_timer is not None:
             self._on_timer(now, now - self._timer_due)
             if not self._active:
