@@ -338,6 +338,29 @@ def test_engine_hot_path_allocates_nothing_when_nothing_changes() -> None:
     baseline = _peak_bytes(_nothing, frame)  # the measurement's own allocation
     assert _peak_bytes(_one_list, frame) > baseline, "the measure sees one small list"
     assert _peak_bytes(engine.observe, frame) <= baseline
+    # Equal frames that are new objects (evaluated each time, not skipped as the same one).
+    equal = itertools.cycle((frame._replace(), frame._replace()))
+    assert _peak_bytes(lambda _, time_s: engine.observe(next(equal), time_s), frame) <= baseline
+
+
+def test_engine_evaluates_the_same_frame_again_only_while_a_delay_runs() -> None:
+    """The originator hands on the same ``Frame`` while the robot's bytes do not change: that
+    frame again changes nothing unless a condition's delay runs (then time alone can)."""
+    user = UserAlarm(
+        name="door-open", field="controlbox_di", index=2, active_when=True, on_delay_s=0.5
+    )
+    engine, _ = _engine(user_alarms=(user,))
+    calm = zero_frame()._replace(robot_state=14)
+    assert engine.observe(calm, 1.0) is None
+    assert engine.observe(calm, 5.0) is None
+    door = zero_frame()._replace(robot_state=14, controlbox_di=(False, False, True, *(False,) * 13))
+    assert engine.observe(door, 2.0) is None, "the on-delay runs"
+    assert engine.observe(door, 2.2) is None
+    events = engine.observe(door, 2.5)  # the same object, later: the delay ran out
+    assert events is not None
+    assert events[0]["alarm"]["key"] == "user.door-open"  # type: ignore[index]
+    assert engine.observe(door, 9.0) is None
+    assert engine.observe(calm, 9.5) is not None, "a new frame is evaluated: the door closed"
 
 
 def _link(

@@ -40,6 +40,11 @@ class Condition:
         self._since: float | None = None
         """Frame time since when the raw condition differs from ``active`` (a delay runs)."""
 
+    @property
+    def delaying(self) -> bool:
+        """An on- or off-delay runs: the same frame later may change the condition."""
+        return self._since is not None
+
     def holds(self, frame: Frame) -> bool:  # pragma: no cover - abstract
         raise NotImplementedError
 

@@ -5,7 +5,9 @@ on a slow tick; acknowledged and shelved by operators; announced as ``alarm`` ev
 loop, never on the cyclic thread), in order, before the frames are sent to clients: an alarm
 comes with the first frame that shows its condition. A frame that changes nothing allocates
 nothing (``conditions``); only a change builds an event and queues its row
-(``persistence.AlarmStore.submit``, no wait).
+(``persistence.AlarmStore.submit``, no wait). The same ``Frame`` object again (the originator
+hands it on while the robot's bytes do not change) is not evaluated again unless a condition's
+delay runs.
 
 The connection's alarms (lost or stale, Forward Open refused) and the packet loss rate are
 evaluated by ``tick`` (``TICK_S``) and on each connection state change; shelving expiries too.
@@ -198,6 +200,10 @@ class AlarmEngine:
         self._frame_checks: tuple[tuple[_Alarm, Condition], ...] = tuple(frame_checks)
         self._frame_conditions: tuple[Condition, ...] = tuple(c for _, c in frame_checks)
         self._failed = False
+        self._settled_on: Frame | None = None
+        """The frame last evaluated, when no condition's delay ran after it: the originator
+        hands on the same ``Frame`` while the robot's bytes do not change (its monitoring
+        values refresh every 100 ms), and that frame again cannot change any condition."""
         # Connection health.
         self._bad_since: float | None = None
         self._gap_samples: collections.deque[tuple[float, int]] = collections.deque()
@@ -240,12 +246,13 @@ class AlarmEngine:
             alarm.status = AlarmStatus.from_json(record)
             if alarm.condition is not None:
                 alarm.condition.restore(alarm.status.state.active)
+        self._settled_on = None
 
     # ------------------------------------------------------------ frames (hot path)
 
     def observe(self, frame: Frame, time_s: float) -> list[Event] | None:
         """Every frame, in order: the events of the alarms it changes, or ``None``."""
-        if self._failed:
+        if self._failed or frame is self._settled_on:
             return None
         events: list[Event] | None = None
         conditions = self._frame_conditions
@@ -265,6 +272,10 @@ class AlarmEngine:
                     if events is None:
                         events = []
                     events.append(event)
+            index = 0  # any delay running? (a loop again: a generator would allocate)
+            while index < count and not conditions[index].delaying:
+                index += 1
+            self._settled_on = frame if index == count else None
         except Exception:  # a bug here must not stop the frames: this robot's alarms stop
             self._failed = True
             log.exception("%s: alarm evaluation failed; frame alarms are off", self.robot)

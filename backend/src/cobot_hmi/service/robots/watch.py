@@ -2,7 +2,9 @@
 
 A frame consumer (``robots.frames``) on the web loop: every frame in order goes through the
 state and flag watcher (``events.text.FrameWatcher``) and the robot's alarm engine
-(``service.alarms``: nothing allocated unless an alarm changes); the events they find are
+(``service.alarms``: nothing allocated unless an alarm changes; the same ``Frame`` object
+again, which the originator hands on while the robot's bytes do not change, is looked at by
+the alarms only while a delay runs); the events they find are
 published on the event bus (``events.bus``). Registered after the WebSocket fan-out, so a
 client receives the frames before the events they caused.
 """
@@ -37,13 +39,18 @@ class FrameEventWatch:
         self._watcher = FrameWatcher()
         self._alarms = alarms
         self._publish = publish
+        self._last_frame: Frame | None = None
 
     def on_frames(self, robot: str, records: Sequence[FrameRecord]) -> None:
         events: list[Event] = []
         observe_alarms = self._alarms.observe
         for record in records:
-            events.extend(self._watcher.observe(record.frame, record.received_at_s))
-            alarm_events = observe_alarms(record.frame, record.received_at_s)
+            frame = record.frame
+            if frame is not self._last_frame:
+                # The same Frame again (unchanged bytes) changes no state or flag.
+                self._last_frame = frame
+                events.extend(self._watcher.observe(frame, record.received_at_s))
+            alarm_events = observe_alarms(frame, record.received_at_s)
             if alarm_events:
                 events.extend(alarm_events)
         if events:
