@@ -8,6 +8,7 @@ import csv
 import io
 import json
 import sqlite3
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +19,7 @@ from cobot_hmi.codec import Frame, command_to_json, zero_command, zero_frame
 from cobot_hmi.service.events.bus import EventBus
 from cobot_hmi.service.events.text import FrameWatcher
 from cobot_hmi.service.robots.confirmation import FrameWaiters
-from cobot_hmi.service.robots.frames import FrameNotifier
+from cobot_hmi.service.robots.frames import FrameNotifier, FrameRecord, Runs
 from cobot_hmi.service.robots.hub import Hub, Kind, StreamClient
 from cobot_hmi.service.robots.watch import FrameEventWatch
 from cobot_hmi.service.storage.store import (
@@ -36,6 +37,7 @@ from cobot_hmi.service.writes.validation import (
     plan_write,
     robot_reports,
 )
+from waiting import eventually
 
 # --------------------------------------------------------------------------- writes
 
@@ -262,6 +264,49 @@ async def test_a_write_waits_for_the_first_frame_that_shows_it() -> None:
     assert record.seq == 2 and record.frame.robot_state == 5
     assert await waiters.wait_for_frame(lambda f: f.robot_state == 7, notifier.seq, 0.05) is None
     waiters.close()
+
+
+class _LoopConsumer:
+    """A loop consumer that keeps the sequence numbers of every batch it is handed."""
+
+    name = "test"
+    runs = Runs.LOOP
+    queue_frames = 100
+
+    def __init__(self) -> None:
+        self.batches: list[list[int]] = []
+
+    def on_frames(self, robot: str, records: Sequence[FrameRecord]) -> None:
+        self.batches.append([record.seq for record in records])
+
+
+async def test_the_robots_of_one_loop_share_one_wake() -> None:
+    """The first robot to have a broadcast period of frames wakes the loop once, and every
+    robot's consumers take their frames then: one turn of the loop for the cell."""
+    loop = asyncio.get_running_loop()
+    left = FrameNotifier("left", frames_per_wake=5)
+    right = FrameNotifier("right", frames_per_wake=5)
+    left_seen, right_seen = _LoopConsumer(), _LoopConsumer()
+    left.add(left_seen)
+    right.add(right_seen)
+    left.bind_loop(loop)
+    right.bind_loop(loop)
+    for i in range(3):
+        right.publish(zero_frame(), b"", 1000.0 + i * 0.01, i)
+    for i in range(5):
+        left.publish(zero_frame(), b"", 1000.0 + i * 0.01, i)
+    await eventually(lambda: bool(left_seen.batches))
+    assert left_seen.batches == [[1, 2, 3, 4, 5]]
+    assert right_seen.batches == [[1, 2, 3]], "served in the same turn, before its own 5"
+    for i in range(4):  # both start counting again after the turn
+        right.publish(zero_frame(), b"", 1000.1 + i * 0.01, i)
+    for _ in range(20):
+        await asyncio.sleep(0)
+    assert right_seen.batches == [[1, 2, 3]]
+    right.publish(zero_frame(), b"", 1000.2, 9)
+    await eventually(lambda: len(right_seen.batches) == 2)
+    assert right_seen.batches[1] == [4, 5, 6, 7, 8]
+    assert left_seen.batches == [[1, 2, 3, 4, 5]], "nothing new: no empty batch"
 
 
 # --------------------------------------------------------------------------- store

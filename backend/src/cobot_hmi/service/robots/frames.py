@@ -7,10 +7,14 @@ consumer (the WebSocket fan-out, the state and alarm events, write confirmation,
 the Sparkplug B edge node, the OPC UA server) implements ``FrameConsumer`` and is registered the
 same way, by ``FrameNotifier.add``. A consumer declares where it runs:
 
-- ``Runs.LOOP``: on the web event loop. The notifier wakes the loop once every
-  ``frames_per_wake`` frames (one ``call_soon_threadsafe`` for all its loop consumers), and on
-  every frame while a consumer asks to be ``urgent`` (a write waiting for its confirmation);
-  each consumer gets the frames queued for it since its last turn, in registration order.
+- ``Runs.LOOP``: on the web event loop. The notifier asks for a wake of the loop once it has
+  ``frames_per_wake`` frames since its consumers' last turn, and on every frame while a
+  consumer asks to be ``urgent`` (a write waiting for its confirmation); each consumer gets
+  the frames queued for it since its last turn, in registration order. Every notifier bound
+  to one loop (the cell's robots) shares one ``LoopWake``: the first robot to ask wakes the
+  loop once (one ``call_soon_threadsafe``) and the loop serves every robot's consumers then,
+  so the robots' frames reach the loop together, about once per broadcast period for the
+  whole cell rather than once per period per robot.
 - ``Runs.THREAD``: on a thread of the consumer's own (the recorder's), which takes its frames
   on its own schedule with ``Registration.deliver`` (``on_frames`` then runs on that thread).
 
@@ -30,6 +34,7 @@ import contextlib
 import enum
 import logging
 import threading
+import weakref
 from collections import deque
 from collections.abc import Sequence
 from typing import NamedTuple, Protocol
@@ -141,6 +146,45 @@ class Registration:
             log.exception("frame consumer %s failed", self.consumer.name)
 
 
+class LoopWake:
+    """One wake of a loop for every notifier bound to it (see the module docstring)."""
+
+    def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
+        self._loop = weakref.ref(loop)  # the loop's own entry in ``_WAKES`` must not hold it
+        self._notifiers: weakref.WeakSet[FrameNotifier] = weakref.WeakSet()
+        self._scheduled = False
+
+    @classmethod
+    def of(cls, loop: asyncio.AbstractEventLoop) -> LoopWake:
+        """The one wake of ``loop`` (made by its first notifier)."""
+        wake = _WAKES.get(loop)
+        if wake is None:
+            wake = _WAKES[loop] = cls(loop)
+        return wake
+
+    def attach(self, notifier: FrameNotifier) -> None:
+        self._notifiers.add(notifier)
+
+    def request(self) -> None:
+        """From the cyclic thread: wake the loop unless a wake is on its way."""
+        if self._scheduled:
+            return
+        loop = self._loop()
+        if loop is None:
+            return
+        self._scheduled = True
+        with contextlib.suppress(RuntimeError):  # the loop closed during shutdown
+            loop.call_soon_threadsafe(self._run)
+
+    def _run(self) -> None:
+        self._scheduled = False  # before the turns: a frame published meanwhile asks again
+        for notifier in list(self._notifiers):
+            notifier.dispatch_now()
+
+
+_WAKES: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, LoopWake] = weakref.WeakKeyDictionary()
+
+
 class FrameNotifier:
     """One robot's frames to its consumers (see the module docstring)."""
 
@@ -157,7 +201,10 @@ class FrameNotifier:
         the cyclic thread iterates whichever it read)."""
         self._loop_registrations: tuple[Registration, ...] = ()
         self._loop: asyncio.AbstractEventLoop | None = None
-        self._wake_scheduled = False
+        self._wake: LoopWake | None = None
+        self._since_turn = 0
+        """Frames published since the loop consumers' last turn (a race with the loop's reset
+        can only make one wake early)."""
         self._urgent_scheduled = False
 
     # ------------------------------------------------------------ the cyclic thread
@@ -171,14 +218,12 @@ class FrameNotifier:
         self.latest = record
         for registration in self.registrations:
             registration.offer(record)
-        loop = self._loop
-        if loop is None or not self._loop_registrations:
+        loop, wake = self._loop, self._wake
+        if loop is None or wake is None or not self._loop_registrations:
             return
-        if seq % self.frames_per_wake == 0:
-            if not self._wake_scheduled:
-                self._wake_scheduled = True
-                with contextlib.suppress(RuntimeError):  # the loop closed during shutdown
-                    loop.call_soon_threadsafe(self._dispatch)
+        self._since_turn += 1
+        if self._since_turn >= self.frames_per_wake:
+            wake.request()
         elif not self._urgent_scheduled and any(r.urgent for r in self._loop_registrations):
             self._urgent_scheduled = True
             with contextlib.suppress(RuntimeError):
@@ -214,11 +259,13 @@ class FrameNotifier:
     def bind_loop(self, loop: asyncio.AbstractEventLoop) -> None:
         """The web event loop that runs the loop consumers (before the first frame)."""
         self._loop = loop
+        self._wake = LoopWake.of(loop)
+        self._wake.attach(self)
 
     # ------------------------------------------------------------ the web loop
 
     def _dispatch(self) -> None:
-        self._wake_scheduled = False
+        self._since_turn = 0
         for registration in self._loop_registrations:
             registration.deliver()
 
