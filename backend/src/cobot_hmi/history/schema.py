@@ -23,10 +23,11 @@ channel's label without its spaces, ``joint_position.J1`` for ``joint_position.0
 (``robot_state``). The recording's own segments keep the 0-based names (the API's element keys);
 a file read back (``raw_from_columns``) may use either.
 
-Frames are converted whole batches at a time: the recorder re-encodes each decoded frame to its
-284 wire bytes (one precompiled ``struct`` pack) and this module slices the columns out of the
-``(n, 284)`` byte matrix with numpy, by the layout's offsets and bit positions; the reverse
-(columns → bytes, for replay) is the same table read the other way.
+Frames are converted whole batches at a time: the recorder joins the T→O payloads the frames
+were decoded from (nothing is encoded again) and this module slices the columns out of the
+``(n, 284)`` byte matrix with numpy, by the layout's offsets and bit positions, one gather per
+kind of column (``column_arrays``); the reverse (columns → bytes, for replay) is the same table
+read the other way.
 """
 
 from __future__ import annotations
@@ -216,6 +217,66 @@ def columns_from_raw(raw: U8) -> dict[str, np.ndarray]:
     return out
 
 
+def _gather_plan() -> tuple[
+    npt.NDArray[np.intp], npt.NDArray[np.intp], tuple[int, ...], tuple[tuple[int, int], ...]
+]:
+    """Where each element's column comes from in one gather per kind (see ``column_arrays``):
+    the REALs' byte indexes (4 a column), the bool columns' wire bits, the uint8 columns'
+    sources (a byte, or a coded BOOL's bit: -1 - bit), and per element its (kind, row)."""
+    real_bytes: list[int] = []
+    bool_bits: list[int] = []
+    uint8_sources: list[int] = []
+    order: list[tuple[int, int]] = []
+    for e in ELEMENTS:
+        cip_type = e.field.cip_type
+        if cip_type is CipType.REAL:
+            order.append((0, len(real_bytes) // 4))
+            real_bytes.extend(range(e.byte_offset, e.byte_offset + 4))
+        elif cip_type is CipType.USINT or e.kind == "int":
+            order.append((2, len(uint8_sources)))
+            uint8_sources.append(e.byte_offset if cip_type is CipType.USINT else -1 - e.bit)
+        else:
+            order.append((1, len(bool_bits)))
+            bool_bits.append(e.bit)
+    return (
+        np.asarray(real_bytes, dtype=np.intp),
+        np.asarray(bool_bits, dtype=np.intp),
+        tuple(uint8_sources),
+        tuple(order),
+    )
+
+
+_REAL_BYTES, _BOOL_BITS, _UINT8_SOURCES, _ELEMENT_ROWS = _gather_plan()
+
+
+def column_arrays(raw: U8) -> list[pa.Array]:
+    """Every element's Arrow column (the layout's order) from an ``(n, 284)`` byte matrix, in
+    one numpy gather per kind (the REALs, the bools packed to Arrow's bits, the uint8s) into a
+    row per column, each column a zero-copy slice of its kind's buffer: a second of 100 frames
+    costs a third of slicing the columns one by one (``columns_from_raw``, the same values)."""
+    n = raw.shape[0]
+    bits = np.unpackbits(raw, axis=1, bitorder="little")  # wire bit b of a frame: bits[:, b]
+    reals = np.ascontiguousarray(raw[:, _REAL_BYTES]).view("<f4").T.copy()
+    packed = np.packbits(bits[:, _BOOL_BITS].T, axis=1, bitorder="little")
+    bool_row_bytes = packed.shape[1]
+    uint8s = np.empty((len(_UINT8_SOURCES), n), dtype=np.uint8)
+    for row, source in enumerate(_UINT8_SOURCES):
+        uint8s[row] = raw[:, source] if source >= 0 else bits[:, -1 - source]
+    buffers = (
+        pa.py_buffer(reals),
+        pa.py_buffer(np.ascontiguousarray(packed)),
+        pa.py_buffer(uint8s),
+    )
+    types = (pa.float32(), pa.bool_(), pa.uint8())
+    row_bytes = (4 * n, bool_row_bytes, n)
+    return [
+        pa.Array.from_buffers(
+            types[kind], n, [None, buffers[kind].slice(row * row_bytes[kind], row_bytes[kind])]
+        )
+        for kind, row in _ELEMENT_ROWS
+    ]
+
+
 def raw_to_batch(
     seq: npt.ArrayLike,
     time_s: npt.ArrayLike,
@@ -225,12 +286,11 @@ def raw_to_batch(
 ) -> pa.RecordBatch:
     """A record batch of the recording's schema from counters, times, the packets' wire
     sequence numbers and the frames' wire bytes."""
-    columns = columns_from_raw(raw)
     arrays = [
         pa.array(time_us(time_s), type=pa.int64()).cast(TIME_TYPE),
         pa.array(np.asarray(seq, dtype=np.int64)),
         pa.array(np.asarray(t2o_sequence, dtype=np.uint32)),
-        *(pa.array(columns[e.name], type=e.arrow_type) for e in ELEMENTS),
+        *column_arrays(np.ascontiguousarray(raw, dtype=np.uint8)),
     ]
     return pa.RecordBatch.from_arrays(arrays, schema=schema)
 
