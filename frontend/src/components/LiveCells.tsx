@@ -1,9 +1,11 @@
 /**
- * Layer: React glue for numeric readouts that follow the stream at its own rate.
+ * Layer: React glue for numeric readouts that follow the stream.
  *
- * React renders a readout's table once; a requestAnimationFrame loop then writes the newest
- * frame's numbers straight into the cells whose text changed (architecture rule: samples never
- * pass through React state, so a 100 Hz stream costs no React render). Read-only.
+ * React renders a readout's table once; on every beat of the page's plot coordinator (10 times a
+ * second, the monitoring values' rate, in the animation frame the plots are drawn in) the newest
+ * frame's numbers are written straight into the cells whose text changed (architecture rule:
+ * samples never pass through React state, so a 100 Hz stream costs no React render; and the
+ * page's picture changes ten times a second, not in every frame). Read-only.
  */
 import { useEffect, useRef, type RefObject } from "react";
 import { updateTexts, type ReadoutCell } from "../lib/readouts";
@@ -17,7 +19,7 @@ export const CELL_ATTRIBUTE = "data-cell";
  * newest frame. Each element also carries the raw value in `data-value` (tests, copy and paste).
  */
 export function useLiveCells<E extends HTMLElement>(cells: readonly ReadoutCell[]): RefObject<E | null> {
-  const { live } = useRuntime();
+  const { live, coordinator } = useRuntime();
   const root = useRef<E | null>(null);
   useEffect(() => {
     const container = root.current;
@@ -29,9 +31,7 @@ export function useLiveCells<E extends HTMLElement>(cells: readonly ReadoutCell[
     const texts: string[] = cells.map(() => "");
     const changed: number[] = cells.map(() => 0);
     let seen = -1;
-    let handle = 0;
-    const tick = () => {
-      handle = requestAnimationFrame(tick);
+    const write = () => {
       const received = live.framesReceived;
       if (received === seen) return;
       seen = received;
@@ -48,8 +48,8 @@ export function useLiveCells<E extends HTMLElement>(cells: readonly ReadoutCell[
       }
       container.dataset.frames = String(received);
     };
-    tick();
-    return () => cancelAnimationFrame(handle);
-  }, [live, cells]);
+    write();
+    return coordinator.onBeat(write);
+  }, [live, coordinator, cells]);
   return root;
 }

@@ -2,15 +2,19 @@
  * Layer: the plots' animation-frame scheduler, independent of React (plain TypeScript).
  *
  * One `requestAnimationFrame` loop asks each live plot (lib/plotting.ts) to append what arrived
- * since its last update. Each plot in view is due every `interval_ms` (10 times a second, the
- * monitoring values' own rate), on a schedule of its own: a late redraw makes the next one come
- * sooner, so late frames do not lower a plot's rate, and the plots keep their phases spread over
- * the interval (one or two per animation frame, not all six in one). A frame takes a second
- * redraw only when it fits the frame's budget. A plot out of view is redrawn only every few
- * seconds (so it is never far behind, and what reads its data attributes sees it move), and at
- * once when it comes into view; a history view draws an answer when it comes. On a slow or busy
- * machine the frame rate comes first: the share of the main thread the plots may take adapts
- * to the frame rate the page reaches, and all plots slow down alike.
+ * since its last update, on one beat for the page: every `interval_ms` (10 times a second, the
+ * monitoring values' own rate, on a grid of the page's clock) the plots in view are drawn in the
+ * same animation frame, and the readouts that follow the stream (`onBeat`) are written in it too.
+ * Each picture the page changes costs a commit to the compositor (its layers updated, every
+ * canvas handed over, paint), whatever it changed: one frame changed ten times a second costs a
+ * sixth of six frames changed one after another. A frame takes further redraws only while they
+ * fit the frame's budget (an expensive Plotly redraw waits for the next frame, and draws on the
+ * next beat again). A late redraw keeps the plot's rate: its next turn is the next beat. A plot out
+ * of view is redrawn only every few seconds (so it is never far behind, and what reads its data
+ * attributes sees it move), and at once when it comes into view; a history view draws an answer
+ * when it comes. On a slow or busy machine the frame rate comes first: the share of the main
+ * thread the plots may take adapts to the frame rate the page reaches, and all plots slow down
+ * alike.
  */
 import type { LivePlot } from "./plotting";
 
@@ -37,6 +41,10 @@ export class PlotCoordinator {
   private readonly tried = new Set<LivePlot>();
   private readonly scheduler: FrameScheduler;
   private handle: number | null = null;
+  /** Told on every beat, in the frame the plots are drawn in (the numeric readouts). */
+  private readonly beatListeners = new Set<() => void>();
+  /** When the next beat is due (browser time, ms; on the grid of `interval_ms`). */
+  private beatAt_ms = -Infinity;
   /**
    * Plot work the duty allows now (ms): earned at `maxDuty` ms per ms of time, at most one
    * frame's budget, spent by each update; no update while it is not positive.
@@ -44,21 +52,23 @@ export class PlotCoordinator {
   private credit_ms = 0;
   private creditSince_ms: number | null = null;
   /**
-   * Each plot in view is redrawn this often: the monitoring values refresh every 100 ms, and a
-   * little more often than that keeps a plot at 10 redraws/s or more when a frame now and then
-   * comes too late for anything (each redraw still brings new samples: they come every 10 ms).
+   * The beat: each plot in view is redrawn this often: the monitoring values refresh every
+   * 100 ms, and a little more often than that keeps a plot at 10 redraws/s or more when a frame
+   * now and then comes too late for anything (each redraw still brings new samples: they come
+   * every 10 ms).
    */
   interval_ms = 95;
   /** A plot out of view is redrawn this often (it catches up at once when it comes into view). */
   offscreenInterval_ms = 5000;
   /**
-   * Plot work per animation frame: a second redraw in the same frame only when the first and
-   * the expected cost of another fit in it. A frame at 60 frames/s is 16.7 ms and the page has
-   * a little work of its own in it (the stream, the readouts, style, layout and paint); one
-   * redraw a frame is at most 60 a second, six plots need 63 (bench/ui: 9.8 redraws/s each with
-   * 11 ms here, 10.5 with 15 ms, both at 59 frames/s, a redraw taking 7 ms).
+   * Plot work per animation frame: a further redraw in the same frame only when what was spent
+   * and the expected cost of another fit in it. A frame at 60 frames/s is 16.7 ms and the page
+   * has work of its own in it, more in a beat's frame (the stream, the readouts, a React render,
+   * style, layout, paint and the commit). The canvas picture draws a plot in about a
+   * millisecond: all six of the panel's in one frame; Plotly's redraw (7 ms or more) one a
+   * frame, over the frames after the beat.
    */
-  budget_ms = 15;
+  budget_ms = 10;
   /** Smoothed cost of one redraw (ms), to judge whether another fits in the frame. */
   updateCost_ms = 0;
   /**
@@ -102,6 +112,17 @@ export class PlotCoordinator {
     this.drawnAt.delete(plot);
   }
 
+  /**
+   * Call `listener` on every beat, in the animation frame the plots are drawn in, so that what
+   * it changes on the page is committed with them; returns its removal.
+   */
+  onBeat(listener: () => void): () => void {
+    this.beatListeners.add(listener);
+    return () => {
+      this.beatListeners.delete(listener);
+    };
+  }
+
   /** Per-plot figures, for the UI benchmark and the console. */
   stats(): { id: string; updates: number; points: number; onScreen: boolean; paused: boolean }[] {
     return this.plots.map((p) => ({
@@ -141,24 +162,24 @@ export class PlotCoordinator {
 
   /**
    * When the plot's turn comes: its own schedule in view (or for a history view's answer); out
-   * of view, a while after its last drawing.
+   * of view, the first beat a while after its last drawing.
    */
   private turnOf(plot: LivePlot): number {
     if (plot.onScreen || plot.viewKind !== "ring") return this.dueAt.get(plot) ?? -Infinity;
-    return (this.drawnAt.get(plot) ?? -Infinity) + this.offscreenInterval_ms;
+    const drawn = this.drawnAt.get(plot) ?? -Infinity;
+    return Number.isFinite(drawn) ? this.nextBeat(drawn + this.offscreenInterval_ms) : -Infinity;
   }
 
   /**
-   * The due plot whose turn came first (not yet tried in this frame), or null; with `late_ms`,
-   * only one whose turn came at least that long ago.
+   * The due plot whose turn came first (not yet tried in this frame), or null.
    */
-  private due(now: number, tried: ReadonlySet<LivePlot>, late_ms = 0): LivePlot | null {
+  private due(now: number, tried: ReadonlySet<LivePlot>): LivePlot | null {
     let best: LivePlot | null = null;
     let bestDue = Infinity;
     for (const plot of this.plots) {
       if (tried.has(plot) || !plot.hasWork()) continue;
       const due = this.turnOf(plot);
-      if (due > now - late_ms) continue;
+      if (due > now) continue;
       if (best === null || due < bestDue) {
         best = plot;
         bestDue = due;
@@ -167,22 +188,40 @@ export class PlotCoordinator {
     return best;
   }
 
-  /** The plot's next turn: one interval after this one, or now when it is further behind. */
-  private schedule(plot: LivePlot, now: number): void {
-    const due = this.dueAt.get(plot) ?? now;
-    // A first drawing has no phase yet: its turn was now.
-    const previous = Number.isFinite(due) ? due : now;
-    // Late by less than an interval: keep the phase (the next turn comes sooner, the rate
-    // stays); later than that (a pause, a slow stretch, out of view): one more turn at once at
-    // most, no burst to make up for all that was missed.
-    this.dueAt.set(plot, Math.max(previous + this.interval_ms, now));
+  /** The first beat after `now` (browser time, ms): the grid of `interval_ms` every plot shares. */
+  private nextBeat(now: number): number {
+    return (Math.floor(now / this.interval_ms) + 1) * this.interval_ms;
   }
 
-  /** One animation frame: the due plots, earliest turn first, within the frame's budget and the duty. */
+  /**
+   * The plot's next turn: the beat after the one it was drawn for, with every other plot in view.
+   * A redraw that came late (its frame came late, or the budget put it off a frame or more)
+   * keeps the rate: the next turn is still the beat after its own, at once when that beat has
+   * come meanwhile; one turn at once at most (after a pause, a slow stretch, out of view), no
+   * burst to make up for all that was missed. A first drawing's turn is the next beat.
+   */
+  private schedule(plot: LivePlot, now: number): void {
+    const due = this.dueAt.get(plot) ?? -Infinity;
+    const lastBeat = Math.floor(now / this.interval_ms) * this.interval_ms;
+    this.dueAt.set(plot, Number.isFinite(due) ? Math.max(this.nextBeat(due), lastBeat) : this.nextBeat(now));
+  }
+
+  /** The beat's listeners, once per beat, in the frame the beat's plots are drawn in. */
+  private beat(now: number): void {
+    if (now < this.beatAt_ms) return;
+    this.beatAt_ms = this.nextBeat(now);
+    for (const listener of this.beatListeners) listener();
+  }
+
+  /**
+   * One animation frame: the beat's listeners when a beat came, and the due plots, earliest turn
+   * first, within the frame's budget and the duty.
+   */
   tick(): void {
     this.ticks++;
     const start = this.scheduler.now();
     this.adaptDuty(start);
+    this.beat(start);
     // Plot work earns credit at the duty's rate; an update spends what it cost.
     this.credit_ms =
       this.creditSince_ms === null
@@ -194,11 +233,10 @@ export class PlotCoordinator {
     let updated = 0;
     while (this.credit_ms > 0) {
       const now = this.scheduler.now();
-      // A second redraw in this frame only when it fits, and only for a plot behind by two
-      // frames: one merely due waits a frame, so the plots spread over the interval (one redraw
-      // a frame) rather than pair up in some frames and leave others empty.
+      // A further redraw in this frame only when it fits: the beat's plots share a frame (and
+      // one commit of the page's picture) as far as the budget allows.
       if (updated > 0 && now - start + this.updateCost_ms > this.budget_ms) return;
-      const plot = this.due(now, tried, updated > 0 ? 2 * this.frameInterval_ms : 0);
+      const plot = this.due(now, tried);
       if (plot === null) return;
       tried.add(plot);
       if (!plot.update(now)) {
