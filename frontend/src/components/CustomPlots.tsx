@@ -4,7 +4,7 @@
  * to live, channels, PNG). Each custom plot has its own stream of its robot at a reduced rate
  * and shares the page's plot coordinator. Nothing here writes.
  */
-import { useEffect, useMemo, useState } from "react";
+import { memo, useEffect, useMemo, useState } from "react";
 import { CUSTOM_PLOT_RATE_HZ, customPlot, PICKABLE_FIELDS, refuseNewPlot, type CustomPlot } from "../lib/customPlots";
 import type { PlotCoordinator } from "../lib/plotCoordinator";
 import { createLiveRuntime } from "../lib/runtime";
@@ -43,7 +43,8 @@ interface Props {
   readonly coordinator: PlotCoordinator;
 }
 
-export function CustomPlots({ robot, robots, coordinator }: Props) {
+/** Memoised: the panel re-renders on each snapshot; the custom plots when their props change. */
+export const CustomPlots = memo(function CustomPlots({ robot, robots, coordinator }: Props) {
   const [plots, setPlots] = useState<readonly CustomPlot[]>([]);
   const [pickedRobot, setPickedRobot] = useState(robot);
   const [pickedField, setPickedField] = useState<string>("");
@@ -103,4 +104,4 @@ export function CustomPlots({ robot, robots, coordinator }: Props) {
       </div>
     </div>
   );
-}
+});

@@ -3,6 +3,7 @@
  * torque of the six joints, units in the header, following the stream at its own rate (the
  * cells are written by `useLiveCells`, not by React renders).
  */
+import { memo } from "react";
 import { JOINT_COLUMNS, NO_VALUE, headerWithUnit, type ReadoutCell } from "../lib/readouts";
 import { CELL_ATTRIBUTE, useLiveCells } from "./LiveCells";
 
@@ -15,7 +16,8 @@ const CELLS: readonly ReadoutCell[] = Array.from({ length: JOINT_COUNT }, (_, jo
   JOINT_COLUMNS.map((c) => ({ field: c.field, index: joint, decimals: c.decimals })),
 ).flat();
 
-export function JointTable({ stale }: { readonly stale: boolean }) {
+/** Memoised: the panel re-renders on each snapshot; the table only when it turns stale or live. */
+export const JointTable = memo(function JointTable({ stale }: { readonly stale: boolean }) {
   const root = useLiveCells<HTMLTableElement>(CELLS);
   return (
     <div className="readout-scroll" role="region" aria-label={CAPTION} tabIndex={0}>
@@ -52,4 +54,4 @@ export function JointTable({ stale }: { readonly stale: boolean }) {
       </table>
     </div>
   );
-}
+});

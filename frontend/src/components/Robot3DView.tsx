@@ -14,7 +14,7 @@
  * second the joint angles drawn (`data-joints-deg`, one decimal) and the flange's path
  * (`data-tcp-path-points`, `data-tcp-path-mm` its length).
  */
-import { useEffect, useId, useRef, useState, type KeyboardEvent } from "react";
+import { memo, useEffect, useId, useRef, useState, type KeyboardEvent } from "react";
 import { ARMS } from "../generated/arms";
 import { ArmChain, armNameOf } from "../lib/armKinematics";
 import { actionOfKey, cameraReadout, type CameraAction } from "../lib/orbitCamera";
@@ -74,7 +74,8 @@ function reachOf(chain: ArmChain): number {
   return chain.arm.joints.reduce((sum, j) => sum + Math.hypot(...j.originXyz_m), 0);
 }
 
-export function Robot3DView({ model, theme, interactive = true, height_px = 420 }: Props) {
+/** Memoised: the panel re-renders on each snapshot; the view draws from the ring on its own. */
+export const Robot3DView = memo(function Robot3DView({ model, theme, interactive = true, height_px = 420 }: Props) {
   const { live } = useRuntime();
   const holder = useRef<HTMLDivElement | null>(null);
   const wrapper = useRef<HTMLDivElement | null>(null);
@@ -266,4 +267,4 @@ export function Robot3DView({ model, theme, interactive = true, height_px = 420 
       )}
     </figure>
   );
-}
+});

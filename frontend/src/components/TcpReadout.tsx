@@ -3,6 +3,7 @@
  * and moment, three elements each, units beside each quantity; cells written by `useLiveCells`
  * at the stream's own rate.
  */
+import { memo } from "react";
 import { NO_VALUE, TCP_ROWS, type ReadoutCell } from "../lib/readouts";
 import { CELL_ATTRIBUTE, useLiveCells } from "./LiveCells";
 
@@ -13,7 +14,8 @@ const CELLS: readonly ReadoutCell[] = TCP_ROWS.flatMap((row) =>
   Array.from({ length: ELEMENTS }, (_, index) => ({ field: row.field, index, decimals: row.decimals })),
 );
 
-export function TcpReadout({ stale }: { readonly stale: boolean }) {
+/** Memoised: the panel re-renders on each snapshot; the readout only when it turns stale or live. */
+export const TcpReadout = memo(function TcpReadout({ stale }: { readonly stale: boolean }) {
   const root = useLiveCells<HTMLTableElement>(CELLS);
   return (
     <div className="readout-scroll" role="region" aria-label={CAPTION} tabIndex={0}>
@@ -40,4 +42,4 @@ export function TcpReadout({ stale }: { readonly stale: boolean }) {
       </table>
     </div>
   );
-}
+});

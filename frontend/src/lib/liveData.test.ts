@@ -1,4 +1,4 @@
-import { describe, expect, it } from "vitest";
+import { describe, expect, it, vi } from "vitest";
 import type { Frame } from "../generated/layout";
 import { frameField } from "./layoutInfo";
 import { EVENT_LIMIT, LiveData } from "./liveData";
@@ -68,6 +68,32 @@ describe("LiveData", () => {
     expect(live.getSnapshot().frame?.emergency_stopped).toBe(true);
     live.handle({ type: "frames", frames: [{ seq: 4, t: 1.03, frame: { ...f1, emergency_stopped: true, robot_state: 0 } as Frame }] });
     expect(published).toBe(3);
+  });
+
+  it("republishes on the page's beat once an interval has passed, and on its timer only when no beat comes", () => {
+    vi.useFakeTimers({ now: 0 });
+    try {
+      const live = new LiveData(JOINT_PLOTS, { capacity: 16, now: Date.now, publishInterval_ms: 250 });
+      const publishedAt: number[] = [];
+      live.subscribe(() => publishedAt.push(Date.now()));
+      live.start();
+      live.publish();
+      // Beats every 95 ms: a publish on the first beat 250 ms or more after the last; the timer
+      // (every 250 ms) finds a publish younger than two intervals each time.
+      for (let beat = 1; beat <= 6; beat++) {
+        vi.advanceTimersByTime(95);
+        live.beat();
+      }
+      expect(publishedAt).toEqual([0, 285, 570]);
+      // No beats (a hidden page): the timer publishes once the last is two intervals old.
+      vi.advanceTimersByTime(1000 - 570);
+      expect(publishedAt).toEqual([0, 285, 570]); // the timer at 750 and 1000 ms: younger than 500 ms
+      vi.advanceTimersByTime(1000);
+      expect(publishedAt).toEqual([0, 285, 570, 1250, 1750]);
+      live.stop();
+    } finally {
+      vi.useRealTimers();
+    }
   });
 
   it("turns stale after a second without frames, and remembers since when", () => {

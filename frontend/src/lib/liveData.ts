@@ -2,9 +2,12 @@
  * Layer: the live-data store between the WebSocket and the views (plain TypeScript, no React).
  *
  * Frames go into a fixed-size sample ring (for the plots) and a "latest frame" slot; React reads
- * an immutable snapshot that is republished at most every `publishInterval_ms` (and at once on
- * status, control, event and socket changes), so a 100 Hz stream never means 100 React renders
- * a second. Everything held is bounded (ring, event list), so memory stays flat over days.
+ * an immutable snapshot that is republished every `publishInterval_ms` or so (and at once on
+ * status, control, event, state, flag and socket changes), so a 100 Hz stream never means 100
+ * React renders a second. The page's beat republishes it (`beat()`, from the plot coordinator:
+ * React's render then lands in the animation frame the plots are drawn in, one change of the
+ * page's picture instead of two); a timer does when no beat comes (a hidden page, no
+ * coordinator). Everything held is bounded (ring, event list), so memory stays flat over days.
  * Must not import React or any component.
  */
 import { LAYOUT_VERSION, type Frame } from "../generated/layout";
@@ -53,6 +56,13 @@ export interface LiveSnapshot {
   readonly cellAlarms: CellAlarmSummary | null;
 }
 
+/**
+ * How often the snapshot is republished without a change that shows at once: the numbers React
+ * renders (the frame age, I/O values, the header's figures) a few times a second; the readouts
+ * beside the plots follow the stream on their own (components/LiveCells.tsx).
+ */
+export const PUBLISH_INTERVAL_MS = 250;
+
 export interface LiveDataOptions {
   readonly capacity?: number;
   readonly publishInterval_ms?: number;
@@ -95,6 +105,8 @@ export class LiveData {
   private session: string | null = null;
   private cellAlarms: CellAlarmSummary | null = null;
   private current: LiveSnapshot;
+  /** When the snapshot was last published (the `now` clock, ms). */
+  private publishedAt_ms = -Infinity;
   private timer: ReturnType<typeof setInterval> | null = null;
   framesReceived = 0;
   clientGaps = 0;
@@ -105,15 +117,25 @@ export class LiveData {
     this.ring = new SampleRing(options.capacity ?? RING_CAPACITY, this.channels.channelCount);
     this.row = new Float64Array(this.channels.channelCount);
     this.now = options.now ?? Date.now;
-    this.publishInterval_ms = options.publishInterval_ms ?? 100;
+    this.publishInterval_ms = options.publishInterval_ms ?? PUBLISH_INTERVAL_MS;
     this.startedAt_ms = this.now();
     this.current = this.build();
   }
 
-  /** Republish on a timer (frame age and health move with time even without messages). */
+  /**
+   * Republish on a timer too (frame age and health move with time even without messages): when
+   * no beat has republished for two intervals (a hidden page's animation frames stop).
+   */
   start(): void {
     if (this.timer !== null) return;
-    this.timer = setInterval(() => this.publish(), this.publishInterval_ms);
+    this.timer = setInterval(() => {
+      if (this.now() - this.publishedAt_ms >= 2 * this.publishInterval_ms) this.publish();
+    }, this.publishInterval_ms);
+  }
+
+  /** The page's beat (lib/plotCoordinator.ts `onBeat`): republish when the last is an interval old. */
+  beat(): void {
+    if (this.now() - this.publishedAt_ms >= this.publishInterval_ms) this.publish();
   }
 
   stop(): void {
@@ -228,6 +250,7 @@ export class LiveData {
 
   /** Rebuild the snapshot and tell React. */
   publish(): void {
+    this.publishedAt_ms = this.now();
     this.current = this.build();
     for (const listener of this.listeners) listener();
   }

@@ -1,6 +1,7 @@
 /**
  * Layer: wiring of the live pipeline for one page (plain TypeScript, no React):
- * WebSocket (StreamClient) → LiveData (ring buffer + snapshot) → PlotCoordinator (rAF tick).
+ * WebSocket (StreamClient) → LiveData (ring buffer + snapshot) → PlotCoordinator (rAF tick),
+ * whose beat republishes the snapshot.
  */
 import { LiveData } from "./liveData";
 import { PlotCoordinator } from "./plotCoordinator";
@@ -40,12 +41,14 @@ export function createLiveRuntime(plots: readonly PlotSpec[], options: RuntimeOp
   });
   const shared = options.coordinator !== undefined;
   const coordinator = options.coordinator ?? new PlotCoordinator();
+  let offBeat: (() => void) | null = null;
   return {
     robot: options.robot ?? null,
     live,
     stream,
     coordinator,
     start() {
+      offBeat ??= coordinator.onBeat(() => live.beat());
       live.start();
       stream.start();
       if (!shared) coordinator.start();
@@ -54,6 +57,8 @@ export function createLiveRuntime(plots: readonly PlotSpec[], options: RuntimeOp
       if (!shared) coordinator.stop();
       stream.stop();
       live.stop();
+      offBeat?.();
+      offBeat = null;
     },
   };
 }

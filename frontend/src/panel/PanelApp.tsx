@@ -113,6 +113,10 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
   // A phone's header shows only the essentials; the rest opens below them (styles/responsive.css).
   const [menuOpen, setMenuOpen] = useState(false);
   const openMenu = useCallback(() => setMenuOpen(true), []);
+  // Kept while the list is the same: the custom plots are not rendered again with every snapshot.
+  const robotNamesKey = robots.map((r) => r.name).join("\n");
+  const robotNames = useMemo(() => (robotNamesKey === "" ? [] : robotNamesKey.split("\n")), [robotNamesKey]);
+  const model = robots.find((r) => r.name === robot)?.model ?? null;
 
   return (
     <TagNamesContext.Provider value={tags}>
@@ -199,11 +203,11 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
             </section>
             <section id="custom">
               <h2>Custom plots</h2>
-              <CustomPlots robot={robot} robots={robots.map((r) => r.name)} coordinator={runtime.coordinator} />
+              <CustomPlots robot={robot} robots={robotNames} coordinator={runtime.coordinator} />
             </section>
             <section id="robot3d">
               <h2>3D</h2>
-              <Robot3DView model={robots.find((r) => r.name === robot)?.model ?? null} theme={theme} />
+              <Robot3DView model={model} theme={theme} />
             </section>
             <section id="alarms">
               <h2>Alarms</h2>
