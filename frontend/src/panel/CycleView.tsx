@@ -40,7 +40,13 @@ const CONFIG = { displaylogo: false, responsive: true };
 function CyclePlots({ page, theme }: { readonly page: CyclePage; readonly theme: PlotTheme }) {
   const trend = useRef<HTMLDivElement>(null);
   const bars = useRef<HTMLDivElement>(null);
+  // What was drawn: the page is asked again every 2 s and mostly brings the same cycles, and
+  // Plotly redraws (and measures) both plots whole, in view or not.
+  const drawn = useRef("");
   useEffect(() => {
+    const key = `${theme} ${page.cycles.map((c) => c.id).join(",")}`;
+    if (key === drawn.current) return;
+    drawn.current = key;
     const durations = page.cycles.map((c) => c.duration_s);
     const c = colours(theme);
     if (trend.current !== null) {
