@@ -4,16 +4,20 @@ Four emulated robots (``--robots``) at RPI 10 ms, each its own process, and the 
 a class 1 connection to each. Two conditions in the same run, alternating ``--cycles`` times
 (the machine's other load drifts; both must see it): the service started without
 ``--opcua-url`` (off) and with it (on), ``--seconds`` of each in all, the service restarted for
-each phase and measured after ``--settle-seconds``. In the "on" phases one client (asyncua, on
-a thread of this process) is subscribed to every variable of every robot (the whole DeviceSet
-below the robots' objects) at 100 ms sampling and publishing.
+each phase and measured after ``--settle-seconds``. With ``--baseline COMMIT`` a third
+condition alternates with them: that commit's service with its OPC UA server on (checked out in
+a git worktree, ``--baseline-worktree``), so a change to the server is measured against its
+predecessor at the same load. In the "on" phases one client (asyncua, on a thread of this
+process) is subscribed to every variable of every robot (the whole DeviceSet below the robots'
+objects) at 100 ms sampling and publishing.
 
 Printed: notifications/s received; latency frame → client, p50/p99 (each notification's
 SourceTimestamp, the frame's kernel receive time in the service, to its arrival here: both
 clocks are this machine's); the service's CPU % of a core on and off and their difference per
-robot (the server's cost), the server thread's own; per robot the cyclic receive interval p99
-(the ``frame_receive_interval_seconds`` histogram between two scrapes) on and off, and their
-ratio. Targets: p99 ≤ 150 ms, ≤ 5 % of a core per robot, ratio ≤ 1.1.
+robot (the server's cost); per robot the cyclic receive interval p99 (the
+``frame_receive_interval_seconds`` histogram between two scrapes) on and off, and their ratio;
+each for the baseline too when there is one. Targets: p99 ≤ 150 ms, ≤ 5 % of a core per robot,
+ratio ≤ 1.1.
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from asyncua import Client, ua
+from fanout_sweep import ROOT, baseline_source
 from proc_stats import own_cpu_s, process_cpu_s
 from service_bench_support import (
     _accepts,
@@ -143,9 +148,20 @@ class Subscriber:
         self._thread.join(10)
 
 
+@dataclass(frozen=True)
+class Condition:
+    """What one phase runs: the service with or without OPC UA, this checkout's or another's."""
+
+    label: str
+    on: bool
+    source: Path | None = None
+    """Another commit's ``backend/src`` (the baseline); ``None``: this checkout's."""
+    received: Received = field(default_factory=Received)
+
+
 @dataclass
 class Phase:
-    on: bool
+    condition: Condition
     seconds: float
     service_cpu_s: float
     bench_cpu_s: float
@@ -156,14 +172,14 @@ class Phase:
 
 def run_phase(
     args: argparse.Namespace,
-    on: bool,
+    condition: Condition,
     *,
     state: Path,
     config: Path,
     service_host: str,
     names: list[str],
-    received: Received,
 ) -> Phase:
+    on, received = condition.on, condition.received
     http_port = free_port(service_host)
     base_url = f"http://{service_host}:{http_port}"
     endpoint = f"opc.tcp://{service_host}:{free_port(service_host)}"
@@ -184,7 +200,8 @@ def run_phase(
         str(state),
         "--no-history",
         *extra,
-        log=state / f"service-{'on' if on else 'off'}.log",
+        log=state / f"service-{condition.label}.log",
+        source=condition.source,
     )
     subscriber = Subscriber(endpoint, names, received) if on else None
     try:
@@ -212,7 +229,7 @@ def run_phase(
     for name in names:
         p99[name], counts[name] = histogram_quantile(before, after, HISTOGRAM, 0.99, robot=name)
     return Phase(
-        on,
+        condition,
         elapsed,
         cpu1[0] - cpu0[0],
         cpu1[1] - cpu0[1],
@@ -235,10 +252,25 @@ def main() -> int:
         default=-10,
         help="nice value of the emulators (a real robot is its own machine; 0: same as the rest)",
     )
+    parser.add_argument(
+        "--baseline",
+        default="",
+        help="also run this commit's service with OPC UA on, alternating with the others",
+    )
+    parser.add_argument(
+        "--baseline-worktree",
+        type=Path,
+        default=None,
+        help="where the baseline is checked out (default: beside the repository; made if missing)",
+    )
     args = parser.parse_args()
     robot_hosts, service_host = loopback_cell(args.robots)
     names = [f"r{i + 1}" for i in range(args.robots)]
-    received = Received()
+    conditions = [Condition("off", False), Condition("on", True)]
+    if args.baseline:
+        worktree = args.baseline_worktree or ROOT.parent / f"cobot-hmi-bench-{args.baseline}"
+        source = baseline_source(args.baseline, worktree)
+        conditions.insert(1, Condition(f"baseline {args.baseline}", True, source))
     phases: list[Phase] = []
     with tempfile.TemporaryDirectory(prefix="cobot-bench-opcua-") as directory:
         state = Path(directory)
@@ -272,64 +304,77 @@ def main() -> int:
             for host, port, emulator in zip(robot_hosts, ports, emulators, strict=True):
                 _wait(functools.partial(_accepts, host, port), "emulator", emulator, 15)
             for _ in range(args.cycles):
-                for on in (False, True):
+                for condition in conditions:
                     phases.append(
                         run_phase(
                             args,
-                            on,
+                            condition,
                             state=state,
                             config=config,
                             service_host=service_host,
                             names=names,
-                            received=received,
                         )
                     )
         finally:
             for process in emulators:
                 stop_process(process)
-    report(args, names, phases, received)
+    report(args, names, conditions, phases)
     return 0
 
 
 def report(
-    args: argparse.Namespace, names: list[str], phases: list[Phase], received: Received
+    args: argparse.Namespace,
+    names: list[str],
+    conditions: list[Condition],
+    phases: list[Phase],
 ) -> None:
-    on = [p for p in phases if p.on]
-    off = [p for p in phases if not p.on]
-    on_s = sum(p.seconds for p in on)
-    off_s = sum(p.seconds for p in off)
-    service_on = sum(p.service_cpu_s for p in on) / on_s * 100
-    service_off = sum(p.service_cpu_s for p in off) / off_s * 100
-    server = service_on - service_off
-    bench = sum(p.bench_cpu_s for p in on) / on_s * 100
+    def of(condition: Condition) -> list[Phase]:
+        return [p for p in phases if p.condition is condition]
+
+    def cpu_percent(condition: Condition) -> float:
+        chosen = of(condition)
+        return sum(p.service_cpu_s for p in chosen) / sum(p.seconds for p in chosen) * 100
+
+    off = conditions[0]
+    service_off = cpu_percent(off)
     print(
         f"bench/opcua: {args.robots} robots at RPI {args.rpi_ms:g} ms; {args.cycles} "
-        f"alternations of {args.seconds / args.cycles:g} s without and with the OPC UA server "
-        f"(monitoring 10 Hz), one client subscribed to every variable "
-        f"({max(p.variables for p in on)}) "
+        f"alternations of {args.seconds / args.cycles:g} s of each condition "
+        f"({', '.join(c.label for c in conditions)}; OPC UA monitoring 10 Hz), one client "
+        f"subscribed to every variable "
+        f"({max(p.variables for p in phases)}) "
         f"at {SAMPLING_MS:g} ms; emulators at nice {args.robot_niceness}; {os.cpu_count()} CPUs, "
         "load average " + ", ".join(f"{x:.2f}" for x in os.getloadavg())
     )
-    print(f"  notifications received: {received.notifications / on_s:.0f}/s")
-    print(
-        f"  latency frame → client ({len(received.latencies_s)} notifications): p50 "
-        f"{percentile(received.latencies_s, 0.5) * 1e3:.1f} ms, p99 "
-        f"{percentile(received.latencies_s, 0.99) * 1e3:.1f} ms (target ≤ 150 ms)"
-    )
-    print(
-        f"  service CPU: {service_on:.1f} % of a core with OPC UA, {service_off:.1f} % without; "
-        f"the server: {server:.1f} % ({server / args.robots:.1f} % per robot, target ≤ 5 %); "
-        f"the client (this process): {bench:.1f} %"
-    )
-    for name in names:
-        p99_on = max(p.p99_s[name] for p in on)
-        p99_off = max(p.p99_s[name] for p in off)
-        ratio = p99_on / p99_off if p99_off else float("nan")
-        frames = sum(p.intervals[name] for p in on)
+    print(f"  service CPU without OPC UA: {service_off:.1f} % of a core")
+    for condition in conditions[1:]:
+        on = of(condition)
+        on_s = sum(p.seconds for p in on)
+        received = condition.received
+        server = cpu_percent(condition) - service_off
+        bench = sum(p.bench_cpu_s for p in on) / on_s * 100
+        print(f"  {condition.label}:")
+        print(f"    notifications received: {received.notifications / on_s:.0f}/s")
         print(
-            f"  {name}: cyclic receive interval p99 {p99_on * 1e3:.2f} ms on, "
-            f"{p99_off * 1e3:.2f} ms off: ratio {ratio:.3f} (target ≤ 1.1; {frames} intervals on)"
+            f"    latency frame → client ({len(received.latencies_s)} notifications): p50 "
+            f"{percentile(received.latencies_s, 0.5) * 1e3:.1f} ms, p99 "
+            f"{percentile(received.latencies_s, 0.99) * 1e3:.1f} ms (target ≤ 150 ms)"
         )
+        print(
+            f"    service CPU {cpu_percent(condition):.1f} % of a core: the server "
+            f"{server:.1f} % ({server / args.robots:.1f} % per robot, target ≤ 5 %); "
+            f"the client (this process): {bench:.1f} %"
+        )
+        for name in names:
+            p99_on = max(p.p99_s[name] for p in on)
+            p99_off = max(p.p99_s[name] for p in of(off))
+            ratio = p99_on / p99_off if p99_off else float("nan")
+            frames = sum(p.intervals[name] for p in on)
+            print(
+                f"    {name}: cyclic receive interval p99 {p99_on * 1e3:.2f} ms on, "
+                f"{p99_off * 1e3:.2f} ms off: ratio {ratio:.3f} (target ≤ 1.1; "
+                f"{frames} intervals on)"
+            )
 
 
 if __name__ == "__main__":
