@@ -87,7 +87,30 @@ pytest: $(STAMP) system-deps peers
 	cd backend && status=0 && { ../$(BIN)/pytest $(PYTEST_ARGS) || status=$$?; } && \
 	  if [ $$status -eq 5 ]; then echo "pytest collected no tests: failing"; fi && exit $$status
 
-test: lint typecheck native-tsan pytest frontend-test e2e
+# Every check. What the stages share is installed first, in one make (a venv, npm packages, the
+# built frontend, the TSan harness); then the stages run side by side (TEST_JOBS at once; each
+# stage's output comes whole when it ends) and keep going when one fails; a line per stage says
+# how it ended and how long it took. Most of the suite's time is waiting (on robots, browsers,
+# processes starting), not computing: side by side, the two long stages (pytest, the browser
+# tests) share the machine's cores instead of taking turns.
+TEST_STAGES := pytest e2e typecheck frontend-test lint native-tsan
+TEST_JOBS ?= 3
+TEST_RESULTS := $(VENV)/test-results
+test: system-deps
+	@rm -rf $(TEST_RESULTS) && mkdir -p $(TEST_RESULTS) && date +%s > $(TEST_RESULTS)/.start
+	@# (pip twice into one venv at once would race: the venv's Node.js, if one is needed, first)
+	@$(MAKE) --no-print-directory node $(STAMP)
+	@$(MAKE) --no-print-directory -j2 peers $(FRONTEND_STAMP) $(FRONTEND_DIST) $(E2E_STAMP) $(TSAN_HARNESS)
+	@status=0; $(MAKE) --no-print-directory -k -j$(TEST_JOBS) --output-sync=target \
+	  $(addprefix test-stage-,$(TEST_STAGES)) || status=$$?; \
+	  echo "make test: $$(( $$(date +%s) - $$(cat $(TEST_RESULTS)/.start) )) s in all, each stage:"; \
+	  cat $(addprefix $(TEST_RESULTS)/,$(TEST_STAGES)) 2>/dev/null; exit $$status
+
+# One stage of `make test`, timed; its line in TEST_RESULTS says passed or FAILED.
+test-stage-%:
+	@start=$$(date +%s); status=0; $(MAKE) --no-print-directory $* || status=$$?; \
+	  words=passed; [ $$status -eq 0 ] || words="FAILED (exit $$status)"; \
+	  echo "  $*: $$words in $$(( $$(date +%s) - start )) s" > $(TEST_RESULTS)/$*; exit $$status
 
 # Node.js for frontend/, e2e/ and the npm peers of backend/tests: the system's `node` and `npm`
 # when its Node.js is one the frontend's tools accept (Vite 7 and ESLint 10: at least the
