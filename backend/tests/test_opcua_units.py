@@ -1,18 +1,25 @@
 """The OPC UA server's pure parts: its settings, the layout's units as UN/CEFACT codes, the
-safety state's reading of the frame, and the bundled NodeSets' provenance."""
+safety state's reading of the frame, the bundled NodeSets' provenance, the values shared with
+asyncua's monitored items, and the ticks' grid that subscriptions start in phase with."""
 
 from __future__ import annotations
 
+import copy
 import xml.etree.ElementTree as ET
+from datetime import UTC, datetime
 
 import pytest
+from asyncua import ua
+from asyncua.ua.ua_binary import struct_to_binary
 
 from cobot_hmi.codec import zero_frame
 from cobot_hmi.generated.frames import RobotState
 from cobot_hmi.layout import ANALOG_OUTPUT_RANGES, O2T_FIELDS, T2O_FIELDS
 from cobot_hmi.opcua import companion, robotics
+from cobot_hmi.opcua.server import PUBLISH_AFTER_TICK, subscription_delay_s, tick_deadline
 from cobot_hmi.opcua.settings import DEFAULT_PORT
 from cobot_hmi.opcua.units import PER_TYPE, analog_unit, unit_for
+from cobot_hmi.opcua.values import GOOD, SharedDataValue
 from cobot_hmi.service.config.loading import load_settings
 from cobot_hmi.service.settings import ServiceSettings, SettingsError
 
@@ -85,3 +92,30 @@ def test_the_bundled_nodesets_are_the_models_named() -> None:
         for ref in companion.ALL_REFS:
             if ref.uri == uri:
                 assert names[f"ns={index};i={ref.identifier}"] == f"{index}:{ref.name}", ref
+
+
+def test_a_shared_data_value_is_its_own_copy_and_encodes_as_a_data_value() -> None:
+    when = datetime(2026, 11, 27, 15, 0, tzinfo=UTC)
+    fields = {"SourceTimestamp": when, "ServerTimestamp": when}
+    variant = ua.Variant(1.5, ua.VariantType.Float)
+    shared = SharedDataValue(variant, StatusCode=GOOD, **fields)
+    assert copy.deepcopy(shared) is shared  # asyncua's monitored items copy every change
+    plain = ua.DataValue(ua.Variant(1.5, ua.VariantType.Float), StatusCode=GOOD, **fields)
+    notification = ua.MonitoredItemNotification(ClientHandle=7, Value=shared)
+    expected = ua.MonitoredItemNotification(ClientHandle=7, Value=plain)
+    assert struct_to_binary(notification) == struct_to_binary(expected)
+
+
+def test_a_late_tick_keeps_the_grid() -> None:
+    assert tick_deadline(10.0, 10.05, 0.1) == 10.0  # late by less than a period: runs as is
+    assert tick_deadline(10.0, 10.35, 0.1) == pytest.approx(10.3)  # three missed, skipped
+    # the ticks after it stay on 10.0 + k · 0.1, where the subscriptions' cycles started
+
+
+@pytest.mark.parametrize("now", [9.9, 9.95, 10.0, 10.019, 10.07, 12.345])
+def test_a_subscription_starts_just_after_a_tick(now: float) -> None:
+    period_s, next_tick = 0.1, 10.1  # ticks at 10.0, 10.1, …
+    delay = subscription_delay_s(now, next_tick, period_s)
+    assert 0 <= delay < period_s
+    phase = (now + delay - next_tick) % period_s  # where in the period the cycle starts
+    assert phase == pytest.approx(PUBLISH_AFTER_TICK * period_s, abs=1e-9)

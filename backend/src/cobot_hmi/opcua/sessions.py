@@ -8,12 +8,19 @@ on unchanged; it also sets the peer for the login throttle while a session is ac
 (``auth.PEER``), whether its channel is signed while it is created (``security.SECURE_CHANNEL``:
 a client certificate over SecurityPolicy None is ignored, Part 4 §5.6.2), and tells
 ``CommandWrites`` when it closes.
+
+A new subscription is created in phase with the server's monitoring ticks: asyncua starts a
+subscription's publishing cycle when it creates it (then every publishing interval on that
+grid), so ``CreateSubscription`` is answered at the moment the server's ``subscription_phase``
+names (just after a tick has written its values): each cycle then sends the values of the tick
+before it at once, instead of up to a whole publishing interval later at a random phase.
 """
 
 from __future__ import annotations
 
 import asyncio
 import logging
+from collections.abc import Callable
 from typing import Any
 
 from asyncua import ua
@@ -40,6 +47,8 @@ class RobotInternalServer(InternalServer):
         """Set once the robots' nodes exist (before the server listens)."""
         self.binary_server: Any = None
         """asyncua's ``BinaryServer`` (its open connections), set once the server listens."""
+        self.subscription_phase: Callable[[], float] | None = None
+        """Seconds until a new subscription's publishing cycle should start (``server``)."""
         self._closing: set[asyncio.Task[None]] = set()
 
     def create_session(
@@ -98,6 +107,17 @@ class RobotSession(InternalSession):
             return super().activate_session(params, peer_certificate)
         finally:
             PEER.reset(token)
+
+    async def create_subscription(
+        self,
+        params: ua.CreateSubscriptionParameters,
+        callback: Callable[..., Any],
+        request_callback: Callable[..., Any] | None = None,
+    ) -> ua.CreateSubscriptionResult:
+        phase = self._server.subscription_phase
+        if phase is not None:
+            await asyncio.sleep(phase())
+        return await super().create_subscription(params, callback, request_callback)
 
     async def write(self, params: ua.WriteParameters) -> list[ua.StatusCode]:
         routes = self._server.routes
