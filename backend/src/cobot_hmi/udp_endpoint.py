@@ -62,8 +62,9 @@ as many (``PUMP_PERIODIC_MAX``, native/cyclic_pump.h)."""
 BATCH_PERIOD_S: Final = 0.010
 """Below this RPI an owner wakes once per batch rather than once per packet (its own batch
 period: ``TargetSettings.batch_period_s``, ``OriginatorSettings.t2o_batch_s``); at it and above,
-once per packet, so the service's default RPI (10 ms) keeps a command one packet away. Also
-the O→T stream's default wake period."""
+once per packet, so the service's default RPI (10 ms) keeps a command one packet away (an
+originator's port shared by many connections wakes every ``io_port.BUSY_BATCH_S`` instead).
+Also the O→T stream's default wake period."""
 
 PacketHandler = Callable[[bytes, tuple[str, int], float], None]
 """``(data, source address, loop time the kernel received it)``."""

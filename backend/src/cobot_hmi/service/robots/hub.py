@@ -4,7 +4,8 @@ The hub is one of the robot's frame consumers (``robots.frames``), on the web lo
 the event bus's consumers (``events.bus``). Nothing a client does can reach the cyclic
 connection:
 
-- The notifier hands the hub the frames of the last ``frames_per_wake`` (``batch_s`` of them);
+- The notifier hands the hub the frames since its last turn (about ``batch_s`` of them: the
+  cell's robots share one wake of the loop, ``frames.LoopWake``);
   ``on_frames`` serializes each frame ONCE, then builds one message per rate group (clients
   asking the same ``?rate=``) from those pieces and hands the same text to each client of the
   group. A client's ``offer`` is a deque append: O(1) per client per tick.
