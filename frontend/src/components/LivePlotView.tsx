@@ -61,6 +61,9 @@ function localText(time_s: number): string {
 const CUSTOM = "custom";
 const RANGE = "range";
 
+/** How far off the screen a plot's picture canvas is still shown (an IntersectionObserver's margin). */
+const PICTURE_MARGIN = "200px 0px";
+
 /** The panel's plots draw a canvas picture while nobody points at them, unless the page says not. */
 function pictureWanted(): boolean {
   return typeof window === "undefined" || new URLSearchParams(window.location.search).get("plotPicture") !== "off";
@@ -149,14 +152,27 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
         : new PlotWiring(plot, { area: el, cursorOut, cursorLine }, historyAccess?.timeRange ?? null, picture, linkedRef.current);
     wiringRef.current = wiring;
     let observer: IntersectionObserver | null = null;
+    let nearObserver: IntersectionObserver | null = null;
     if (typeof IntersectionObserver !== "undefined") {
       observer = new IntersectionObserver((entries) => {
         for (const entry of entries) plot.onScreen = entry.isIntersecting;
       });
       observer.observe(el);
+      // The picture's canvas is hidden well off the screen (plots/canvasPlot.ts `setInView`),
+      // and shown a little before it scrolls in, so that it is there when it comes.
+      if (picture !== null) {
+        nearObserver = new IntersectionObserver(
+          (entries) => {
+            for (const entry of entries) picture.setInView(entry.isIntersecting);
+          },
+          { rootMargin: PICTURE_MARGIN },
+        );
+        nearObserver.observe(el);
+      }
     }
     return () => {
       observer?.disconnect();
+      nearObserver?.disconnect();
       wiring?.dispose();
       wiringRef.current = null;
       plot.onZoomedChange = null;

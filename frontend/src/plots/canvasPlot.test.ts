@@ -60,4 +60,17 @@ describe("CanvasPlot", () => {
     picture.show(false);
     expect(canvas.style.visibility).toBe("hidden");
   });
+
+  it("hides the canvas off the screen, and shows it again in view while it is the picture", () => {
+    const { canvas } = fakeCanvas();
+    const picture = new CanvasPlot(canvas, spec, traces, { theme: "light", readOnly: false });
+    picture.show(true);
+    picture.setInView(false);
+    expect(canvas.style.visibility).toBe("hidden");
+    picture.setInView(true);
+    expect(canvas.style.visibility).toBe("visible");
+    picture.show(false); // Plotly draws (the pointer is on the plot): hidden in view too
+    picture.setInView(true);
+    expect(canvas.style.visibility).toBe("hidden");
+  });
 });

@@ -92,6 +92,12 @@ export class CanvasPlot implements StaticPicture {
   private height_px = 0;
   private pixelRatio = 1;
 
+  /** Shown over Plotly's plot (the plot is a static picture now). */
+  private shown = false;
+
+  /** On the page's screen or near it (components/LivePlotView.tsx watches). */
+  private inView = true;
+
   constructor(canvas: PictureCanvas, spec: PlotSpec, traces: readonly TraceInfo[], look: PlotLook) {
     this.canvas = canvas;
     this.traces = traces;
@@ -128,7 +134,23 @@ export class CanvasPlot implements StaticPicture {
   }
 
   show(on: boolean): void {
-    this.canvas.style.visibility = on ? "visible" : "hidden";
+    this.shown = on;
+    this.applyVisibility();
+  }
+
+  /**
+   * Off the screen the canvas is hidden too: the compositor takes every visible canvas' picture
+   * again with each commit of the page, changed or not (about 0.1 ms and a copy of its pixels
+   * each in this software-rendered Chromium, ten plots at every commit); a hidden one it skips.
+   */
+  setInView(inView: boolean): void {
+    this.inView = inView;
+    this.applyVisibility();
+  }
+
+  private applyVisibility(): void {
+    const visibility = this.shown && this.inView ? "visible" : "hidden";
+    if (this.canvas.style.visibility !== visibility) this.canvas.style.visibility = visibility;
   }
 
   /** The x range of the visible traces' points (numeric dates), or null when they hold none. */
