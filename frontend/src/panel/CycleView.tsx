@@ -36,16 +36,35 @@ function layoutOf(theme: PlotTheme, xTitle: string, yTitle: string, xType: "date
 
 const CONFIG = { displaylogo: false, responsive: true };
 
+/** The plots are drawn again when this near the screen (an IntersectionObserver's margin). */
+const NEAR_MARGIN = "300px 0px";
+
 /** The trend and the histogram, drawn into their own elements (no samples in React state). */
 function CyclePlots({ page, theme }: { readonly page: CyclePage; readonly theme: PlotTheme }) {
   const trend = useRef<HTMLDivElement>(null);
   const bars = useRef<HTMLDivElement>(null);
+  const grid = useRef<HTMLDivElement>(null);
   // What was drawn: the page is asked again every 2 s and mostly brings the same cycles, and
-  // Plotly redraws (and measures) both plots whole, in view or not.
+  // Plotly redraws (and measures) both plots whole, about 100 ms of the main thread here.
   const drawn = useRef("");
+  // Below the fold the plots are drawn once, and again only when they come near the screen
+  // (or the page is printed) with cycles they have not drawn.
+  const [near, setNear] = useState(() => typeof IntersectionObserver === "undefined");
+  useEffect(() => {
+    const target = grid.current;
+    if (target === null || typeof IntersectionObserver === "undefined") return;
+    const observer = new IntersectionObserver((entries) => setNear(entries.some((e) => e.isIntersecting)), { rootMargin: NEAR_MARGIN });
+    observer.observe(target);
+    const beforePrint = () => setNear(true);
+    window.addEventListener("beforeprint", beforePrint);
+    return () => {
+      observer.disconnect();
+      window.removeEventListener("beforeprint", beforePrint);
+    };
+  }, []);
   useEffect(() => {
     const key = `${theme} ${page.cycles.map((c) => c.id).join(",")}`;
-    if (key === drawn.current) return;
+    if (key === drawn.current || (!near && drawn.current !== "")) return;
     drawn.current = key;
     const durations = page.cycles.map((c) => c.duration_s);
     const c = colours(theme);
@@ -66,7 +85,7 @@ function CyclePlots({ page, theme }: { readonly page: CyclePage; readonly theme:
         CONFIG,
       );
     }
-  }, [page, theme]);
+  }, [page, theme, near]);
   useEffect(() => {
     const elements = [trend.current, bars.current];
     return () => {
@@ -74,7 +93,7 @@ function CyclePlots({ page, theme }: { readonly page: CyclePage; readonly theme:
     };
   }, []);
   return (
-    <div className="plot-grid">
+    <div className="plot-grid" ref={grid}>
       <div ref={trend} data-testid="cycle-trend" aria-label="cycle durations over time" />
       <div ref={bars} data-testid="cycle-histogram" aria-label="histogram of cycle durations" />
     </div>
