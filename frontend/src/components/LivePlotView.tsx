@@ -61,8 +61,11 @@ function localText(time_s: number): string {
 const CUSTOM = "custom";
 const RANGE = "range";
 
-/** How far off the screen a plot's picture canvas is still shown (an IntersectionObserver's margin). */
-const PICTURE_MARGIN = "200px 0px";
+/**
+ * How far off the screen a plot's picture canvas is still shown (an IntersectionObserver's
+ * margin): a scroll's step or two, not the next row of plots (each shown canvas costs every commit).
+ */
+const PICTURE_MARGIN = "40px 0px";
 
 /** The panel's plots draw a canvas picture while nobody points at them, unless the page says not. */
 function pictureWanted(): boolean {
@@ -158,8 +161,8 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
         for (const entry of entries) plot.onScreen = entry.isIntersecting;
       });
       observer.observe(el);
-      // The picture's canvas is hidden well off the screen (plots/canvasPlot.ts `setInView`),
-      // and shown a little before it scrolls in, so that it is there when it comes.
+      // The picture's canvas is hidden off the screen (plots/canvasPlot.ts `setInView`), and
+      // shown a little before it scrolls in, so that it is there when it comes.
       if (picture !== null) {
         nearObserver = new IntersectionObserver(
           (entries) => {
