@@ -286,7 +286,10 @@ async def test_t2o_runs_on_unbroken_between_the_pumps_stream_and_packet_by_packe
     wake-ups; a per-packet fault (here a delay) switches to packets built one by one, clearing
     it switches back. Across both switches the sequence numbers run on: no gap, no repeat, no
     packet out of order, and the connection's count matches what arrived."""
-    originator = await scanner(rpi_us=2_000)
+    # A timeout of RPI 2 ms × 512 (1 s): a busy machine stalling either side for tens of ms
+    # must not time the connection out (a new connection would leave `conn` closed, never to
+    # stream again: a fresh clone's run at load 25 did).
+    originator = await scanner(rpi_us=2_000, timeout_multiplier=7)
     assert await originator.wait_connected(DEADLINE_S)
     (conn,) = target._by_o2t.values()
     await eventually(lambda: conn.t2o_streaming)
