@@ -311,7 +311,7 @@ def main() -> int:
                     )
                 )
             for host, port, emulator in zip(robot_hosts, ports, emulators, strict=True):
-                _wait(functools.partial(_accepts, host, port), "emulator", emulator, 15)
+                _wait(functools.partial(_accepts, host, port), "emulator", emulator, 120)
             for _ in range(args.cycles):
                 for condition in conditions:
                     phases.append(
