@@ -39,6 +39,19 @@ function run(coordinator: PlotCoordinator, plots: Plot[], clock: { now: number }
   return frames / seconds;
 }
 
+/** From now on, the redraws of each frame the coordinator ticks, in order. */
+function redrawsPerFrame(coordinator: PlotCoordinator): number[] {
+  const perFrame: number[] = [];
+  let before = coordinator.plotUpdates;
+  const original = coordinator.tick.bind(coordinator);
+  coordinator.tick = () => {
+    original();
+    perFrame.push(coordinator.plotUpdates - before);
+    before = coordinator.plotUpdates;
+  };
+  return perFrame;
+}
+
 describe("PlotCoordinator", () => {
   it("redraws six plots of 9 ms each 10 times a second at over 50 frames/s on a 60 Hz display", () => {
     const clock = { now: 1000 };
@@ -108,15 +121,8 @@ describe("PlotCoordinator", () => {
     let beats = 0;
     coordinator.onBeat(() => beats++);
     run(coordinator, plots, clock, 2);
-    const perFrame: number[] = [];
-    let before = coordinator.plotUpdates;
+    const perFrame = redrawsPerFrame(coordinator);
     const beatsBefore = beats;
-    const original = coordinator.tick.bind(coordinator);
-    coordinator.tick = () => {
-      original();
-      perFrame.push(coordinator.plotUpdates - before);
-      before = coordinator.plotUpdates;
-    };
     const fps = run(coordinator, plots, clock, 5);
     const framesDrawing = perFrame.filter((n) => n > 0);
     const beatCount = beats - beatsBefore;
@@ -136,14 +142,7 @@ describe("PlotCoordinator", () => {
       costly(p, clock, 7); // Plotly's redraw: two would not fit in the budget
     }
     run(coordinator, plots, clock, 2);
-    const perFrame: number[] = [];
-    let before = coordinator.plotUpdates;
-    const original = coordinator.tick.bind(coordinator);
-    coordinator.tick = () => {
-      original();
-      perFrame.push(coordinator.plotUpdates - before);
-      before = coordinator.plotUpdates;
-    };
+    const perFrame = redrawsPerFrame(coordinator);
     const counts = plots.map((p) => p.plot.updates);
     const fps = run(coordinator, plots, clock, 5);
     expect(Math.max(...perFrame)).toBe(1);
