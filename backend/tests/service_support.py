@@ -33,7 +33,7 @@ from cobot_hmi.service.access.users import Role, UsersFile
 from cobot_hmi.service.api.app import create_app
 from cobot_hmi.service.api.server import uvicorn_config
 from cobot_hmi.service.runtime import Service
-from cobot_hmi.service.settings import ServiceSettings
+from cobot_hmi.settings import HmiSettings
 from conftest import free_tcp_port
 from waiting import eventually, eventually_async
 
@@ -76,8 +76,8 @@ async def emulator(
 
 def service_settings(
     robot_host: str, robot_tcp_port: int, plc_host: str, state_dir: Path, **overrides: Any
-) -> ServiceSettings:
-    settings = ServiceSettings(
+) -> HmiSettings:
+    settings = HmiSettings(
         robot_host=robot_host,
         robot_tcp_port=robot_tcp_port,
         local_host=plc_host,
@@ -96,7 +96,7 @@ def service_settings(
 
 def cell_settings(
     robots: list[tuple[str, str, int]], plc_host: str, state_dir: Path, **overrides: Any
-) -> ServiceSettings:
+) -> HmiSettings:
     """Settings for several robots: ``(name, host, tcp_port)`` each, first = the default."""
     _, first_host, first_port = robots[0]
     return service_settings(first_host, first_port, plc_host, state_dir).replace(
@@ -123,7 +123,7 @@ def _test_users() -> dict[str, Any]:
         return entries
 
 
-def add_users(settings: ServiceSettings) -> None:
+def add_users(settings: HmiSettings) -> None:
     """The four test users in ``settings``' users file (beside any it holds), written as
     ``UsersFile`` writes it: whole, private, then renamed into place."""
     path = settings.users_path
@@ -140,7 +140,7 @@ def add_users(settings: ServiceSettings) -> None:
 @dataclass
 class Running:
     service: Service
-    settings: ServiceSettings
+    settings: HmiSettings
 
     @property
     def base_url(self) -> str:
@@ -196,7 +196,7 @@ STARTUP_DEADLINE_S = 240.0
 
 @contextlib.asynccontextmanager
 async def running_service(
-    settings: ServiceSettings, *, wait_connected: bool = True
+    settings: HmiSettings, *, wait_connected: bool = True
 ) -> AsyncIterator[Running]:
     """The service on uvicorn in this event loop (its originator on its own thread)."""
     await asyncio.to_thread(add_users, settings)  # scrypt: keep the emulator's loop free

@@ -22,7 +22,7 @@ from websockets.asyncio.client import connect
 
 from cobot_hmi.service.alarms.persistence import HISTORY_COLUMNS
 from cobot_hmi.service.api.models import EVENT, STREAM_MESSAGE, AlarmHistoryPage, AlarmList
-from cobot_hmi.service.settings import ServiceSettings
+from cobot_hmi.settings import HmiSettings
 from conftest import free_tcp_port
 from emulator_harness import Emulator, running_emulator
 from frame_support import CollectedFrames
@@ -106,7 +106,7 @@ async def emu(robot_host: str, plc_host: str) -> AsyncIterator[Emulator]:
 
 def emulated_settings(
     emu: Emulator, plc_host: str, tmp_path: Path, **overrides: Any
-) -> ServiceSettings:
+) -> HmiSettings:
     """The service's settings for ``emu``'s robot. A connection slow to come up on a busy
     machine must not add an alarm of its own here (unless ``overrides`` say otherwise)."""
     return service_settings(

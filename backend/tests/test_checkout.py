@@ -20,7 +20,7 @@ import pytest
 from cobot_hmi.service.commissioning.models import Checkout
 from cobot_hmi.service.commissioning.points import CHECK_POINTS
 from cobot_hmi.service.robots.frames import FrameRecord, Runs
-from cobot_hmi.service.settings import ServiceSettings
+from cobot_hmi.settings import HmiSettings
 from emulator_harness import Emulator, running_emulator
 from service_support import (
     OPERATOR,
@@ -43,7 +43,7 @@ async def emu(robot_host: str, plc_host: str) -> AsyncIterator[Emulator]:
         yield emulator_
 
 
-def settings_for(emu: Emulator, plc_host: str, tmp_path: Path) -> ServiceSettings:
+def settings_for(emu: Emulator, plc_host: str, tmp_path: Path) -> HmiSettings:
     return service_settings(
         emu.target.settings.host,
         emu.target.tcp_port,

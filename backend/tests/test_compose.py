@@ -28,7 +28,7 @@ import yaml
 from cobot_hmi.cli import build_parser
 from cobot_hmi.service.config.fields import CONFIG_ENV
 from cobot_hmi.service.config.loading import env_name, load_settings
-from cobot_hmi.service.settings import ServiceSettings
+from cobot_hmi.settings import HmiSettings
 
 ROOT = Path(__file__).resolve().parents[2]
 COMPOSE_FILE = ROOT / "docker-compose.yml"
@@ -234,7 +234,7 @@ def test_healthchecks(config: dict[str, Any]) -> None:
 
 
 def test_settings_are_real_service_settings(config: dict[str, Any]) -> None:
-    known = {env_name(name) for name in ServiceSettings.model_fields} | {CONFIG_ENV}
+    known = {env_name(name) for name in HmiSettings.model_fields} | {CONFIG_ENV}
     environment = _environment(config["services"]["backend"])
     settings = {key for key in environment if key.startswith("COBOT_HMI_")}
     assert settings, "the backend is configured through COBOT_HMI_* variables"

@@ -37,7 +37,7 @@ from cobot_hmi.history.schema import (
     raw_from_columns,
     time_seconds,
 )
-from cobot_hmi.service.settings import ServiceSettings
+from cobot_hmi.settings import HmiSettings
 from conftest import _next_host
 from service_support import (
     DEADLINE_S,
@@ -110,7 +110,7 @@ def element_value(frame: Mapping[str, Any], element: Element) -> object:
 
 def history_settings(
     target_port: int, robot_host: str, plc_host: str, tmp_path: Path, **extra: Any
-) -> ServiceSettings:
+) -> HmiSettings:
     """Segments of 2 s and flushes every 0.2 s (unless ``extra`` says otherwise)."""
     return service_settings(
         robot_host,

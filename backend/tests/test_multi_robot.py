@@ -25,7 +25,8 @@ from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.scanner.originator import ConnectionState
 from cobot_hmi.service.errors import UnknownRobotError
 from cobot_hmi.service.runtime import Service
-from cobot_hmi.service.settings import RobotSettings, ServiceSettings
+from cobot_hmi.service.settings import RobotSettings
+from cobot_hmi.settings import HmiSettings
 from conftest import _next_host, free_tcp_port
 from service_support import (
     DEADLINE_S,
@@ -43,8 +44,8 @@ _SLACK_MULTIPLIER = 5
 
 def _settings(
     plc_host: str, state_dir: Path, robots: list[RobotSettings], **overrides: object
-) -> ServiceSettings:
-    return ServiceSettings.model_validate(
+) -> HmiSettings:
+    return HmiSettings.model_validate(
         {
             "robots": robots,
             "local_host": plc_host,

@@ -462,7 +462,7 @@ async def test_none_refused_on_a_non_loopback_bind(cell: Cell, tmp_path: Path) -
     view_requires_login no anonymous session is accepted."""
     service = cell.running.service
     port = free_tcp_port("0.0.0.0")
-    settings = service.settings.replace(
+    settings = cell.running.settings.replace(
         opcua_url=f"opc.tcp://0.0.0.0:{port}", view_requires_login=True
     )
     state_dir = tmp_path / "state"

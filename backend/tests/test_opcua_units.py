@@ -21,7 +21,8 @@ from cobot_hmi.opcua.settings import DEFAULT_PORT
 from cobot_hmi.opcua.units import PER_TYPE, analog_unit, unit_for
 from cobot_hmi.opcua.values import GOOD, SharedDataValue
 from cobot_hmi.service.config.loading import load_settings
-from cobot_hmi.service.settings import ServiceSettings, SettingsError
+from cobot_hmi.service.settings import SettingsError
+from cobot_hmi.settings import HmiSettings
 
 UA_NS = "{http://opcfoundation.org/UA/2011/03/UANodeSet.xsd}"
 
@@ -37,18 +38,20 @@ UA_NS = "{http://opcfoundation.org/UA/2011/03/UANodeSet.xsd}"
     ],
 )
 def test_the_url_names_the_bind(url: str, bind: tuple[str, int], loopback: bool) -> None:
-    settings = ServiceSettings(robot_host="127.0.0.2", opcua_url=url)
+    settings = HmiSettings(robot_host="127.0.0.2", opcua_url=url)
     assert settings.opcua_enabled
     assert settings.opcua_bind == bind
     assert settings.opcua_loopback is loopback
 
 
 def test_off_by_default_and_a_bad_url_is_refused_naming_it() -> None:
-    settings = ServiceSettings(robot_host="127.0.0.2")
+    settings = HmiSettings(robot_host="127.0.0.2")
     assert not settings.opcua_enabled and not settings.opcua_writes
     assert settings.opcua_monitoring_hz == 10.0
     with pytest.raises(SettingsError, match="opcua_url"):
-        load_settings({"robot_host": "127.0.0.2", "opcua_url": "http://example.org"})
+        load_settings(
+            {"robot_host": "127.0.0.2", "opcua_url": "http://example.org"}, None, None, HmiSettings
+        )
 
 
 def test_every_unit_of_the_layout_has_a_unece_code() -> None:

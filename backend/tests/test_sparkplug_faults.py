@@ -18,7 +18,7 @@ from typing import Any
 import orjson
 import pytest
 
-from cobot_hmi.service.settings import ServiceSettings
+from cobot_hmi.settings import HmiSettings
 from conftest import _next_host, free_tcp_port
 from frame_support import CollectedFrames
 from mosquitto_support import Message, Subscriber, encode_command, mosquitto, needs_mosquitto
@@ -261,7 +261,7 @@ async def test_a_buffer_left_by_a_run_goes_out_with_the_next(tmp_path: Path, plc
             target = await stack.enter_async_context(emulator(hosts[name], panel))
             ports[name] = target.tcp_port
 
-        def settings(order: list[str]) -> ServiceSettings:
+        def settings(order: list[str]) -> HmiSettings:
             return cell_settings(
                 [(name, hosts[name], ports[name]) for name in order],
                 plc_host,

@@ -16,6 +16,7 @@ from cobot_hmi.layout import T2O_FIELDS
 from cobot_hmi.service.config.loading import load_settings
 from cobot_hmi.service.robots.frames import FrameNotifier, FrameRecord
 from cobot_hmi.service.settings import DEFAULT_DEADBANDS, SettingsError
+from cobot_hmi.settings import HmiSettings
 from cobot_hmi.sparkplug.buffer import DiskBuffer
 from cobot_hmi.sparkplug.catalogue import ALIAS_STRIDE, Catalogue
 from cobot_hmi.sparkplug.mqtt_client import BrokerAddress
@@ -87,7 +88,9 @@ def test_buffer_off_drops_and_counts(tmp_path: Path) -> None:
 
 
 def test_deadbands_from_a_flag_and_the_defaults() -> None:
-    settings = load_settings({"sparkplug_deadbands": "degree=0.5, joint_torque=2"})
+    settings = load_settings(
+        {"sparkplug_deadbands": "degree=0.5, joint_torque=2"}, None, None, HmiSettings
+    )
     assert settings.sparkplug_deadbands["degree"] == 0.5
     assert settings.sparkplug_deadbands["joint_torque"] == 2.0
     assert settings.sparkplug_deadbands["mm"] == DEFAULT_DEADBANDS["mm"]
@@ -112,13 +115,13 @@ def test_deadbands_from_a_flag_and_the_defaults() -> None:
 )
 def test_bad_sparkplug_settings_are_named(flags: dict[str, object], named: str) -> None:
     with pytest.raises(SettingsError, match=named):
-        load_settings(flags)
+        load_settings(flags, None, None, HmiSettings)
 
 
 def test_deadbands_from_a_toml_table(tmp_path: Path) -> None:
     config = tmp_path / "cell.toml"
     config.write_text('[sparkplug_deadbands]\n"N·m" = 0.2\njoint_position = 0.05\n')
-    settings = load_settings({}, {}, config)
+    settings = load_settings({}, {}, config, HmiSettings)
     assert settings.sparkplug_deadbands["N·m"] == 0.2
     assert settings.sparkplug_deadbands["joint_position"] == 0.05
 

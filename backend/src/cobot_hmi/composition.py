@@ -16,7 +16,7 @@ from cobot_hmi.opcua.feed import ServiceFeed
 from cobot_hmi.opcua.server import OpcUaServer
 from cobot_hmi.service.extensions import MetricFamily, ServiceExtension
 from cobot_hmi.service.runtime import Service
-from cobot_hmi.service.settings import ServiceSettings
+from cobot_hmi.settings import HmiSettings
 from cobot_hmi.sparkplug.edge_node import EdgeNode
 
 
@@ -24,16 +24,15 @@ class OpcUaExtension:
     """The OPC UA server on its own thread, fed by its adapter to the service
     (``opcua.feed``), started once the robots' connections are."""
 
-    def __init__(self, service: Service) -> None:
+    def __init__(self, service: Service, settings: HmiSettings) -> None:
         self._service = service
+        self._settings = settings
         self.server: OpcUaServer | None = None
 
     async def start(self) -> None:
-        service = self._service
-        feed = ServiceFeed(
-            service.robots, service.users, service.settings, asyncio.get_running_loop()
-        )
-        self.server = OpcUaServer(service.settings, service.settings.state_dir, feed)
+        service, settings = self._service, self._settings
+        feed = ServiceFeed(service.robots, service.users, settings, asyncio.get_running_loop())
+        self.server = OpcUaServer(settings, settings.state_dir, feed)
         await self.server.start()
 
     async def stop(self) -> None:
@@ -44,15 +43,14 @@ class OpcUaExtension:
         return ()
 
 
-def extensions_of(service: Service) -> Iterable[ServiceExtension]:
+def extensions_of(service: Service, settings: HmiSettings) -> Iterable[ServiceExtension]:
     """The doors the settings turn on, in the order they start."""
-    settings = service.settings
     if settings.mqtt_url:
-        yield EdgeNode(settings, service.robots)
+        yield EdgeNode(settings, settings.state_dir, service.robots)
     if settings.opcua_enabled:
-        yield OpcUaExtension(service)
+        yield OpcUaExtension(service, settings)
 
 
-def build_service(settings: ServiceSettings) -> Service:
+def build_service(settings: HmiSettings) -> Service:
     """The service with every part its settings ask for."""
-    return Service(settings, extensions_of)
+    return Service(settings, lambda service: extensions_of(service, settings))

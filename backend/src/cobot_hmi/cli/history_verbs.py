@@ -12,6 +12,7 @@ import sys
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     from cobot_hmi.service.config.arguments import add_arguments
+    from cobot_hmi.settings import HmiSettings
 
     parser = subparsers.add_parser(
         "export",
@@ -35,7 +36,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         metavar="FILE",
         help="where to write ('-': standard output; default: ROBOT_FROM_TO.FORMAT here)",
     )
-    add_arguments(parser, only=("state_dir", "history_dir", "database"))
+    add_arguments(parser, only=("state_dir", "history_dir", "database"), settings_class=HmiSettings)
     parser.set_defaults(handler=_export)
 
 
@@ -55,9 +56,10 @@ def _export(args: argparse.Namespace) -> int:
     from cobot_hmi.service.api.routes.history import export_chunks
     from cobot_hmi.service.config.arguments import settings_from_args
     from cobot_hmi.service.settings import SettingsError
+    from cobot_hmi.settings import HmiSettings
 
     try:
-        settings = settings_from_args(args)
+        settings = settings_from_args(args, None, HmiSettings)
     except SettingsError as error:
         return _fail(str(error))
     root = settings.history_path

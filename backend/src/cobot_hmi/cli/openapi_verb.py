@@ -44,11 +44,11 @@ def openapi_document() -> dict[str, Any]:
     """The document as the running service would serve it at ``/openapi.json``."""
     from cobot_hmi.composition import build_service
     from cobot_hmi.service.api.app import create_app
-    from cobot_hmi.service.settings import ServiceSettings
+    from cobot_hmi.settings import HmiSettings
 
     # Nothing is opened or started: the service object only gives the routes their types.
     with tempfile.TemporaryDirectory(prefix="cobot-hmi-openapi-") as state:
-        settings = ServiceSettings(robot_host="127.0.0.1", state_dir=Path(state))
+        settings = HmiSettings(robot_host="127.0.0.1", state_dir=Path(state))
         app = create_app(build_service(settings), manage_lifecycle=False)
         return app.openapi()
 

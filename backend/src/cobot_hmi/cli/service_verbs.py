@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import IO, TYPE_CHECKING, Final
 
 if TYPE_CHECKING:
-    from cobot_hmi.service.settings import ServiceSettings
+    from cobot_hmi.settings import HmiSettings
 
 DEMO_ROBOTS: Final = (
     # name, address, model, seed of its noise: two arms, two programs (each model's own).
@@ -41,6 +41,7 @@ DEMO_USER: Final = "operator"
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     from cobot_hmi.service.config.arguments import add_arguments
+    from cobot_hmi.settings import HmiSettings
 
     serve = subparsers.add_parser(
         "serve",
@@ -53,7 +54,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
             "robot's defaults."
         ),
     )
-    add_arguments(serve)
+    add_arguments(serve, settings_class=HmiSettings)
     serve.set_defaults(handler=_serve)
 
     demo = subparsers.add_parser(
@@ -147,10 +148,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     add.add_argument("name")
     add.add_argument("--role", default="operator", help="viewer, operator or admin")
     add.add_argument("--password-stdin", action="store_true", help="read the password from stdin")
-    add_arguments(add, only=("state_dir", "users_file"))
+    add_arguments(add, only=("state_dir", "users_file"), settings_class=HmiSettings)
     add.set_defaults(handler=_users_add)
     listing = users_verbs.add_parser("list", help="list users and roles")
-    add_arguments(listing, only=("state_dir", "users_file"))
+    add_arguments(listing, only=("state_dir", "users_file"), settings_class=HmiSettings)
     listing.set_defaults(handler=_users_list)
     token = users_verbs.add_parser(
         "token",
@@ -164,11 +165,11 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     token.add_argument(
         "--expires-days", type=float, default=None, help="lifetime in days (default: until revoked)"
     )
-    add_arguments(token, only=("state_dir", "users_file"))
+    add_arguments(token, only=("state_dir", "users_file"), settings_class=HmiSettings)
     token.set_defaults(handler=_users_token)
     revoke = users_verbs.add_parser("revoke", help="revoke the API token NAME")
     revoke.add_argument("name")
-    add_arguments(revoke, only=("state_dir", "users_file"))
+    add_arguments(revoke, only=("state_dir", "users_file"), settings_class=HmiSettings)
     revoke.set_defaults(handler=_users_revoke)
 
 
@@ -183,9 +184,10 @@ def _serve(args: argparse.Namespace) -> int:
     from cobot_hmi.service.api.tls import TlsError
     from cobot_hmi.service.config.arguments import settings_from_args
     from cobot_hmi.service.settings import SettingsError
+    from cobot_hmi.settings import HmiSettings
 
     try:
-        settings = settings_from_args(args)
+        settings = settings_from_args(args, None, HmiSettings)
         settings.require_robots()
     except SettingsError as error:
         return _fail(str(error))
@@ -202,9 +204,10 @@ def _users_add(args: argparse.Namespace) -> int:
     from cobot_hmi.service.access.users import Role, UsersError, UsersFile
     from cobot_hmi.service.config.arguments import settings_from_args
     from cobot_hmi.service.settings import SettingsError
+    from cobot_hmi.settings import HmiSettings
 
     try:
-        settings = settings_from_args(args)
+        settings = settings_from_args(args, None, HmiSettings)
         role = Role.parse(args.role)
         if args.password_stdin:
             password = sys.stdin.readline().rstrip("\r\n")
@@ -223,9 +226,10 @@ def _users_list(args: argparse.Namespace) -> int:
     from cobot_hmi.service.access.users import UsersError, UsersFile
     from cobot_hmi.service.config.arguments import settings_from_args
     from cobot_hmi.service.settings import SettingsError
+    from cobot_hmi.settings import HmiSettings
 
     try:
-        settings = settings_from_args(args)
+        settings = settings_from_args(args, None, HmiSettings)
         users_file = UsersFile(settings.users_path)
         users = users_file.users()
         tokens = users_file.tokens()
@@ -247,9 +251,10 @@ def _users_token(args: argparse.Namespace) -> int:
     from cobot_hmi.service.access.users import Role, UsersError, UsersFile
     from cobot_hmi.service.config.arguments import settings_from_args
     from cobot_hmi.service.settings import SettingsError
+    from cobot_hmi.settings import HmiSettings
 
     try:
-        settings = settings_from_args(args)
+        settings = settings_from_args(args, None, HmiSettings)
         role = Role.parse(args.role)
         days = args.expires_days
         if days is not None and not (math.isfinite(days) and days > 0):
@@ -269,9 +274,10 @@ def _users_revoke(args: argparse.Namespace) -> int:
     from cobot_hmi.service.access.users import UsersError, UsersFile
     from cobot_hmi.service.config.arguments import settings_from_args
     from cobot_hmi.service.settings import SettingsError
+    from cobot_hmi.settings import HmiSettings
 
     try:
-        settings = settings_from_args(args)
+        settings = settings_from_args(args, None, HmiSettings)
         UsersFile(settings.users_path).revoke_token(args.name)
     except (SettingsError, UsersError) as error:
         return _fail(str(error))
@@ -462,6 +468,7 @@ def _demo(args: argparse.Namespace) -> int:
 
     from cobot_hmi.service.config.loading import load_settings
     from cobot_hmi.service.settings import SettingsError
+    from cobot_hmi.settings import HmiSettings
 
     try:
         robots = _demo_robots(args)
@@ -500,7 +507,7 @@ def _demo(args: argparse.Namespace) -> int:
             flags["opcua_url"] = args.opcua_url
             flags["opcua_writes"] = args.opcua_writes
         try:
-            settings = load_settings(flags)
+            settings = load_settings(flags, None, None, HmiSettings)
         except SettingsError as error:
             return _fail(str(error))
         try:
@@ -511,7 +518,7 @@ def _demo(args: argparse.Namespace) -> int:
 
 def _run_demo(
     args: argparse.Namespace,
-    settings: ServiceSettings,
+    settings: HmiSettings,
     robots: list[tuple[str, str, str, int]],
     stack: contextlib.ExitStack,
 ) -> int:

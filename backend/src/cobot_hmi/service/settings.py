@@ -4,8 +4,9 @@
 concern, each in its own room: the robots' connections (here and ``robots.settings``), the web
 service and its limits (``api.settings``, ``api.tls_settings``), directory login
 (``access.directory_settings``), alarms (``alarms.settings``), history
-(``recording.settings``), cycle timing (``cycles.settings``), the Sparkplug B edge node
-(``sparkplug.settings``) and the OPC UA server (``opcua.settings``). Keys stay flat: a field's
+(``recording.settings``) and cycle timing (``cycles.settings``). The doors above the service
+(the Sparkplug B edge node, the OPC UA server) add theirs in ``cobot_hmi.settings.HmiSettings``,
+the settings of ``cobot-hmi serve``: the service imports neither. Keys stay flat: a field's
 name is its TOML key, ``COBOT_HMI_<NAME>`` its environment variable and ``--name`` its flag
 (``config.fields`` declares them; ``config.loading`` layers defaults < TOML < environment <
 flags; ``config.arguments`` derives the command line). Constructing ``ServiceSettings(...)``
@@ -22,13 +23,12 @@ top-level connection settings (``rpi_ms``, ``timeout_multiplier``, instances, si
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Final
+from typing import TYPE_CHECKING, Final, Self
 
 from pydantic import Field, model_validator
 from pydantic_settings import BaseSettings, PydanticBaseSettingsSource, SettingsConfigDict
 
 from cobot_hmi import connection_params as cp
-from cobot_hmi.opcua.settings import OpcUaSettings
 from cobot_hmi.service.access.directory_settings import DirectorySettings
 from cobot_hmi.service.alarms.settings import AlarmLimitSettings, AlarmSettings
 from cobot_hmi.service.api.settings import WebSettings
@@ -48,7 +48,6 @@ from cobot_hmi.service.config.fields import (
 from cobot_hmi.service.cycles.settings import CycleSettings
 from cobot_hmi.service.recording.settings import HistorySettings
 from cobot_hmi.service.robots.settings import RobotSettings
-from cobot_hmi.sparkplug.settings import SparkplugSettings
 
 if TYPE_CHECKING:
     from cobot_hmi.scanner.originator import OriginatorSettings
@@ -83,8 +82,6 @@ _INHERITED: Final = {
 
 
 class ServiceSettings(  # each concern's fields; flags and TOML keys list the last base's first
-    OpcUaSettings,
-    SparkplugSettings,
     CycleSettings,
     HistorySettings,
     AlarmLimitSettings,
@@ -93,7 +90,8 @@ class ServiceSettings(  # each concern's fields; flags and TOML keys list the la
     WebSettings,
     BaseSettings,
 ):
-    """Everything ``cobot-hmi serve`` can be told. Field names are the TOML keys."""
+    """Everything the service itself can be told (``cobot_hmi.settings.HmiSettings`` adds the
+    doors above it: Sparkplug B and OPC UA). Field names are the TOML keys."""
 
     model_config = SettingsConfigDict(
         env_prefix=ENV_PREFIX, extra="forbid", frozen=True, case_sensitive=False
@@ -244,16 +242,6 @@ class ServiceSettings(  # each concern's fields; flags and TOML keys list the la
         return round(self.rpi_ms * 1000)
 
     @property
-    def sparkplug_node_id(self) -> str:
-        """The edge node id: the setting, else the host name (``+ # /`` made ``_``)."""
-        if self.sparkplug_node:
-            return self.sparkplug_node
-        import socket
-
-        name = socket.gethostname() or "cobot-hmi"
-        return name.replace("+", "_").replace("#", "_").replace("/", "_")
-
-    @property
     def t2o_udp_port(self) -> int:
         """The local UDP port every robot's T→O comes to."""
         return self.request_t2o_port if self.request_t2o_port is not None else self.local_udp_port
@@ -265,7 +253,7 @@ class ServiceSettings(  # each concern's fields; flags and TOML keys list the la
             self.local_host, self.local_udp_port, request_t2o_port=self.request_t2o_port
         )
 
-    def replace(self, **changes: object) -> ServiceSettings:
+    def replace(self, **changes: object) -> Self:
         """A copy with ``changes``, checked again (robots re-inherit the new defaults)."""
         given: dict[str, object] = {name: getattr(self, name) for name in self.model_fields_set}
         if changes.get("robots"):

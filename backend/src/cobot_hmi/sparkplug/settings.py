@@ -4,6 +4,8 @@ deadbands, rate, buffer; docs/operations.md "Sparkplug"): its flat ``mqtt_*`` an
 
 from __future__ import annotations
 
+import socket
+
 from pydantic import BaseModel
 
 from cobot_hmi.service.config.fields import (
@@ -57,3 +59,11 @@ class SparkplugSettings(BaseModel):
     sparkplug_buffer_bytes: int = setting(
         64 * 1024 * 1024, "data kept on disk while the broker is away, bytes (0: none)", ge=0
     )
+
+    @property
+    def sparkplug_node_id(self) -> str:
+        """The edge node id: the setting, else the host name (``+ # /`` made ``_``)."""
+        if self.sparkplug_node:
+            return self.sparkplug_node
+        name = socket.gethostname() or "cobot-hmi"
+        return name.replace("+", "_").replace("#", "_").replace("/", "_")

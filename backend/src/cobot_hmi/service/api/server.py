@@ -11,7 +11,7 @@ import contextlib
 import socket
 import sys
 from collections.abc import Callable
-from typing import Any, Final
+from typing import Any, Final, TypeVar
 
 import uvicorn
 
@@ -74,9 +74,13 @@ def prepare_process() -> None:
     sys.setswitchinterval(SWITCH_INTERVAL_S)
 
 
+SettingsT = TypeVar("SettingsT", bound=ServiceSettings)
+"""The settings the service is built of: its own, or a class composed above it with more."""
+
+
 async def serve(
-    settings: ServiceSettings,
-    build: Callable[[ServiceSettings], Service],
+    settings: SettingsT,
+    build: Callable[[SettingsT], Service],
     *,
     sockets: list[socket.socket] | None = None,
 ) -> None:

@@ -1,5 +1,6 @@
 """Layer: service. Loading the settings: defaults < TOML file < environment < flags, one
-checked ``ServiceSettings``; errors name their source."""
+checked settings object (``ServiceSettings`` or a class composed above the service with more
+fields, ``cobot_hmi.settings.HmiSettings``: ``settings_class``); errors name their source."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import os
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Final
+from typing import Any, Final, TypeVar, overload
 
 from pydantic import ValidationError
 from pydantic_settings import EnvSettingsSource, TomlConfigSettingsSource
@@ -18,6 +19,8 @@ from cobot_hmi.service.config.fields import CONFIG_ENV, ENV_PREFIX, SettingsErro
 from cobot_hmi.service.settings import ServiceSettings
 
 # --------------------------------------------------------------------------- loading
+
+SettingsT = TypeVar("SettingsT", bound=ServiceSettings)
 
 _ROBOT_GROUP: Final = ("robots", "robot_host")
 """Settings that together say which robots there are: taken from one source only."""
@@ -30,25 +33,25 @@ def env_name(name: str) -> str:
 class _EnvironSource(EnvSettingsSource):
     """pydantic-settings' environment source, over a given mapping instead of ``os.environ``."""
 
-    def __init__(self, environ: Mapping[str, str]) -> None:
+    def __init__(self, environ: Mapping[str, str], settings_class: type[ServiceSettings]) -> None:
         self._environ = environ
-        super().__init__(ServiceSettings)
+        super().__init__(settings_class)
 
     def _load_env_vars(self) -> Mapping[str, str | None]:
         return parse_env_vars(dict(self._environ), self.case_sensitive, self.env_ignore_empty, None)
 
 
-def _toml_layer(path: Path) -> dict[str, Any]:
+def _toml_layer(path: Path, settings_class: type[ServiceSettings]) -> dict[str, Any]:
     where = f"config file {path}"
     try:
         document = tomllib.loads(path.read_text(encoding="utf-8"))
-        data = TomlConfigSettingsSource(ServiceSettings, toml_file=path)()
+        data = TomlConfigSettingsSource(settings_class, toml_file=path)()
     except OSError as error:
         raise SettingsError(f"{where}: {error.strerror}") from None
     except tomllib.TOMLDecodeError as error:
         raise SettingsError(f"{where}: {error}") from None
     for key in document:
-        if key not in ServiceSettings.model_fields:
+        if key not in settings_class.model_fields:
             raise SettingsError(f"{where}: unknown setting {key!r}")
     robots = document.get("robots")
     if robots is not None and not (
@@ -58,9 +61,11 @@ def _toml_layer(path: Path) -> dict[str, Any]:
     return dict(data)
 
 
-def _environment_layer(environ: Mapping[str, str]) -> dict[str, Any]:
+def _environment_layer(
+    environ: Mapping[str, str], settings_class: type[ServiceSettings]
+) -> dict[str, Any]:
     try:
-        return dict(_EnvironSource(environ)())
+        return dict(_EnvironSource(environ, settings_class)())
     except PydanticSettingsError as error:
         # A complex value (COBOT_HMI_ROBOTS) that is not JSON.
         field = str(error).split('"')[1] if '"' in str(error) else "?"
@@ -68,12 +73,30 @@ def _environment_layer(environ: Mapping[str, str]) -> dict[str, Any]:
         raise SettingsError(f"{field} (from {env_name(field)}): not valid JSON: {cause}") from None
 
 
+@overload
 def load_settings(
     flags: Mapping[str, object] | None = None,
     environ: Mapping[str, str] | None = None,
     config_file: Path | None = None,
+) -> ServiceSettings: ...
+
+
+@overload
+def load_settings(
+    flags: Mapping[str, object] | None,
+    environ: Mapping[str, str] | None,
+    config_file: Path | None,
+    settings_class: type[SettingsT],
+) -> SettingsT: ...
+
+
+def load_settings(
+    flags: Mapping[str, object] | None = None,
+    environ: Mapping[str, str] | None = None,
+    config_file: Path | None = None,
+    settings_class: type[ServiceSettings] = ServiceSettings,
 ) -> ServiceSettings:
-    """Layer defaults < TOML file < environment < flags into one checked ``ServiceSettings``.
+    """Layer defaults < TOML file < environment < flags into one checked ``settings_class``.
 
     ``flags`` holds only what was given on the command line. The TOML file is ``config_file``
     if given, else ``$COBOT_HMI_CONFIG`` if set. The robot list (``[[robots]]``,
@@ -84,11 +107,11 @@ def load_settings(
     path = config_file or (Path(environ[CONFIG_ENV]) if environ.get(CONFIG_ENV) else None)
     layers: list[tuple[str, dict[str, Any]]] = []  # lowest precedence first
     if path is not None:
-        layers.append((f"config file {path}", _toml_layer(path)))
-    layers.append(("environment", _environment_layer(environ)))
+        layers.append((f"config file {path}", _toml_layer(path, settings_class)))
+    layers.append(("environment", _environment_layer(environ, settings_class)))
     flag_values = dict(flags or {})
     for name in flag_values:
-        if name not in ServiceSettings.model_fields:
+        if name not in settings_class.model_fields:
             raise SettingsError(f"unknown setting {name!r}")
     layers.append(("flags", flag_values))
 
@@ -96,9 +119,8 @@ def load_settings(
     for index, (source, values) in enumerate(layers):
         given = [key for key in _ROBOT_GROUP if values.get(key)]
         if len(given) > 1:
-            raise SettingsError(
-                f"{_source_of(source, 'robots')}: give either robot_host or [[robots]], not both"
-            )
+            where = _source_of(source, "robots", settings_class)
+            raise SettingsError(f"{where}: give either robot_host or [[robots]], not both")
         if given:
             robot_layer = index
     merged: dict[str, Any] = {}
@@ -110,23 +132,28 @@ def load_settings(
             merged[key] = value
             sources[key] = source
     try:
-        return ServiceSettings.model_validate(merged)
+        return settings_class.model_validate(merged)
     except ValidationError as error:
-        raise SettingsError(_describe(error, sources, merged)) from None
+        raise SettingsError(_describe(error, sources, merged, settings_class)) from None
 
 
-def _source_of(source: str, name: str) -> str:
+def _source_of(source: str, name: str, settings_class: type[ServiceSettings]) -> str:
     if source == "environment":
         return env_name(name)
     if source == "flags":
-        info = ServiceSettings.model_fields.get(name)
+        info = settings_class.model_fields.get(name)
         extra = info.json_schema_extra if info is not None else None
         flag = extra.get("flag") if isinstance(extra, dict) else None
         return str(flag or "--" + name.replace("_", "-"))
     return source
 
 
-def _describe(error: ValidationError, sources: Mapping[str, str], given: Mapping[str, Any]) -> str:
+def _describe(
+    error: ValidationError,
+    sources: Mapping[str, str],
+    given: Mapping[str, Any],
+    settings_class: type[ServiceSettings],
+) -> str:
     """Each problem as ``field (from SOURCE): what, got VALUE``; robots by index and name."""
     lines = []
     for problem in error.errors(include_url=False):
@@ -134,7 +161,9 @@ def _describe(error: ValidationError, sources: Mapping[str, str], given: Mapping
         message = str(problem["msg"]).removeprefix("Value error, ")
         if not location:
             if message.startswith("robots:"):
-                source = _source_of(sources.get("robots", sources.get("robot_host", "")), "robots")
+                source = _source_of(
+                    sources.get("robots", sources.get("robot_host", "")), "robots", settings_class
+                )
                 message = f"robots (from {source}):" + message.removeprefix("robots:")
             lines.append(message)
             continue
@@ -153,7 +182,7 @@ def _describe(error: ValidationError, sources: Mapping[str, str], given: Mapping
                     where += f" ({name})"
         if rest:
             where += "." + ".".join(str(part) for part in rest)
-        source = _source_of(sources.get(top, "defaults"), top)
+        source = _source_of(sources.get(top, "defaults"), top, settings_class)
         if problem["type"] == "extra_forbidden":
             message = "unknown setting"
         lines.append(f"{where} (from {source}): {message}, got {problem['input']!r}")

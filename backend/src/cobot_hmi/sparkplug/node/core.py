@@ -11,6 +11,7 @@ import secrets
 import time
 from collections import Counter
 from collections.abc import Mapping
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from cobot_hmi.layout import LAYOUT_VERSION, O2T_FIELDS
@@ -29,14 +30,19 @@ if TYPE_CHECKING:
     import paho.mqtt.client as mqtt
 
     from cobot_hmi.service.robots.robot import RobotRuntime
-    from cobot_hmi.service.settings import ServiceSettings
+    from cobot_hmi.sparkplug.settings import SparkplugSettings
 
 
 class NodeCore:
     """What the edge node holds: settings, devices, session, buffer, counters; numbering and
-    publishing. Build with the service's settings and robots."""
+    publishing. Build with its settings, the service's state directory and robots."""
 
-    def __init__(self, settings: ServiceSettings, robots: Mapping[str, RobotRuntime]) -> None:
+    def __init__(
+        self,
+        settings: SparkplugSettings,
+        state_dir: Path,
+        robots: Mapping[str, RobotRuntime],
+    ) -> None:
         self.address = BrokerAddress.parse(settings.mqtt_url)
         self.topics = Topics(settings.sparkplug_group, settings.sparkplug_node_id)
         self.catalogue = Catalogue(settings.sparkplug_deadbands)
@@ -46,7 +52,7 @@ class NodeCore:
             name: Device(robot, number, self.catalogue)
             for number, (name, robot) in enumerate(robots.items(), start=1)
         }
-        state = settings.state_dir / "sparkplug"
+        state = state_dir / "sparkplug"
         self.session = NodeSession(state / "bdseq")
         # Per layout version: a buffered metric is its robot's catalogue offset (in the alias),
         # which another layout numbers otherwise.
