@@ -52,6 +52,10 @@ async def test_audit_survives_kill_9(robot_host: str, plc_host: str, tmp_path: P
             str(tmp_path),
             "--timeout-multiplier",
             "5",
+            # A write confirmed by the robot's frame: a loaded machine takes longer than the
+            # default second (a run at load 20 refused it), and this test is about the audit.
+            "--write-timeout-ms",
+            "20000",
         ) as service,
     ):
         await wait_ready(base_url, service)
@@ -59,12 +63,13 @@ async def test_audit_survives_kill_9(robot_host: str, plc_host: str, tmp_path: P
             login = await client.post(
                 "/api/v1/auth/login", json={"username": OPERATOR[0], "password": OPERATOR[1]}
             )
-            assert login.status_code == 200
+            assert login.status_code == 200, login.text
             # As a script: the bearer token (the cookie alone is for the browser's own pages).
             client.headers["authorization"] = f"Bearer {login.json()['token']}"
-            assert (await client.post("/api/v1/control/take")).status_code == 200
+            take = await client.post("/api/v1/control/take")
+            assert take.status_code == 200, take.text
             write = await client.patch("/api/v1/command", json={"controlbox_do": {"7": True}})
-            assert write.status_code == 200
+            assert write.status_code == 200, write.text
             service.send_signal(signal.SIGKILL)  # right after the answer: no clean shutdown
         await service.wait()
         assert service.returncode == -signal.SIGKILL

@@ -11,7 +11,9 @@ import { EVENT_KINDS, type EventKind } from "./protocol";
 
 type Schemas = components["schemas"];
 
-describe("src/generated/api.ts", () => {
+// Each generation runs openapi-typescript over the whole document: about a second alone, over
+// 5 s (Vitest's default) on a loaded machine.
+describe("src/generated/api.ts", { timeout: 60_000 }, () => {
   const documentText = readFileSync(OPENAPI_PATH, "utf8");
 
   it("is what docs/openapi.json generates (else run `make codegen`)", async () => {
