@@ -257,6 +257,8 @@ async def test_writes_are_confirmed_by_the_robot(hmi: Running, robot: StaticRobo
         assert result["outcome"] == "confirmed"
         assert result["image"]["controlbox_do"][3] is True
         assert result["latency_ms"] > 0
+        # It names that frame as the stream numbers frames: shown by now, at or after it.
+        assert 0 < result["seq"] <= hmi.service.default_robot.frames.seq
         # Confirmed means the robot's own frame already shows it.
         frame = (await client.get("/api/v1/frame")).json()["frame"]
         assert frame["controlbox_do"][3] is True
@@ -272,6 +274,7 @@ async def test_writes_are_confirmed_by_the_robot(hmi: Running, robot: StaticRobo
         )
         assert registers.status_code == 200
         assert registers.json()["image"]["bit_input_registers"][40] is True
+        assert registers.json()["seq"] is None  # no frame confirms a register: its packet does
         await eventually(lambda: robot.command_image().bit_input_registers[63])
         # Full arrays work as well as index maps.
         full = await client.patch("/api/v1/command", json={"tool_do": [False] * 6})

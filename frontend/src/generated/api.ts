@@ -3188,6 +3188,11 @@ export interface components {
              */
             outcome: "confirmed";
             /**
+             * Seq
+             * @description the sequence number of the robot's frame that showed the write, as the stream numbers its frames (`seq`): a display holds the value written until it shows that frame or a newer one; null when no frame confirms it (bit input registers: the O→T packet that carried them)
+             */
+            seq?: number | null;
+            /**
              * Warning
              * @description with audit_pending: that, in words
              */

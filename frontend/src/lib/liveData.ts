@@ -25,6 +25,8 @@ export const EVENT_LIMIT = 200;
 
 export interface LiveSnapshot {
   readonly frame: Frame | null;
+  /** the stream's number (`seq`) of the newest frame: a write's confirmation names its frame so */
+  readonly frameSeq: number | null;
   /** backend receive time of the newest frame (s since the epoch) */
   readonly frameTime_s: number | null;
   /** ms since the browser received the newest frame */
@@ -89,6 +91,7 @@ export class LiveData {
   private readonly listeners = new Set<Listener>();
   private readonly startedAt_ms: number;
   private frame: Frame | null = null;
+  private frameSeq: number | null = null;
   private frameTime_s: number | null = null;
   private frameArrival_ms: number | null = null;
   private lastSeq: number | null = null;
@@ -223,6 +226,7 @@ export class LiveData {
     if (this.lastSeq === null || seq > this.lastSeq) this.lastSeq = seq;
     this.framesReceived++;
     this.frame = frame;
+    this.frameSeq = seq;
     this.frameTime_s = t_s;
     this.frameArrival_ms = this.now();
     const row = this.row;
@@ -270,6 +274,7 @@ export class LiveData {
     }
     return {
       frame: this.frame,
+      frameSeq: this.frameSeq,
       frameTime_s: this.frameTime_s,
       frameAge_ms,
       socket: this.socket,

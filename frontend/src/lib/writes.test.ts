@@ -8,10 +8,12 @@ function clock(start = 1000) {
 
 describe("classifyWriteResponse", () => {
   it("maps the contract's statuses", () => {
-    expect(classifyWriteResponse(200, { outcome: "confirmed", latency_ms: 12.5 })).toEqual({
+    expect(classifyWriteResponse(200, { outcome: "confirmed", latency_ms: 12.5, seq: 812 })).toEqual({
       kind: "confirmed",
       latency_ms: 12.5,
+      seq: 812,
     });
+    expect(classifyWriteResponse(200, { outcome: "confirmed", latency_ms: 3, seq: null })).toMatchObject({ seq: null });
     expect(classifyWriteResponse(504, { detail: { reason: "no echo", robot_reports: {} } })).toEqual({
       kind: "timeout",
       reason: "no echo",
@@ -53,7 +55,7 @@ describe("WriteTracker", () => {
     const token = t.begin([key], [true]);
     expect(t.view(key, false)).toMatchObject({ shown: "pending", pending: true });
     c.t += 30;
-    t.settle([key], token, { kind: "confirmed", latency_ms: 30 });
+    t.settle([key], token, { kind: "confirmed", latency_ms: 30, seq: null });
     // The PATCH answer beat the WebSocket frame: still show what the robot confirmed.
     expect(t.view(key, false)).toMatchObject({ shown: true, pending: false, phase: "confirmed" });
     // The frame arrives: actual = requested.
@@ -61,6 +63,35 @@ describe("WriteTracker", () => {
     // Later the robot changes it by itself: the display follows the robot, not the request.
     c.t += 2000;
     expect(t.view(key, false).shown).toBe(false);
+  });
+
+  it("a write confirmed by frame N shows as written until the display shows frame N or newer, however late", () => {
+    const c = clock();
+    const t = new WriteTracker(c.now, 1000);
+    t.showing(490);
+    const token = t.begin([key], [true]);
+    t.settle([key], token, { kind: "confirmed", latency_ms: 30, seq: 500 });
+    // A busy machine: the stream lags the answer by seconds; its older frames still say off.
+    c.t += 3000;
+    t.showing(495);
+    expect(t.view(key, false).shown).toBe(true);
+    // Frame 500 reached the display: the robot's actual value from now on (subscribers told).
+    let calls = 0;
+    t.subscribe(() => calls++);
+    t.showing(500);
+    expect(calls).toBe(1);
+    expect(t.view(key, true).shown).toBe(true);
+    expect(t.view(key, false).shown).toBe(false); // turned off again by someone else since
+    // Already there when the answer came: nothing held.
+    const again = t.begin([key], [false]);
+    t.settle([key], again, { kind: "confirmed", latency_ms: 10, seq: 499 });
+    expect(t.view(key, true).shown).toBe(true);
+    // A stream that stopped does not hold a value for ever.
+    const third = t.begin([key], [false]);
+    t.settle([key], third, { kind: "confirmed", latency_ms: 10, seq: 900 });
+    expect(t.view(key, true).shown).toBe(false);
+    c.t += 10_001;
+    expect(t.view(key, true).shown).toBe(true);
   });
 
   it("a refusal keeps the actual value and shows the reason until the next write", () => {
@@ -83,7 +114,7 @@ describe("WriteTracker", () => {
     const second = t.begin([key], [false]);
     t.settle([key], first, { kind: "refused", reason: "stale answer" });
     expect(t.view(key, true).pending).toBe(true);
-    t.settle([key], second, { kind: "confirmed", latency_ms: null });
+    t.settle([key], second, { kind: "confirmed", latency_ms: null, seq: null });
     expect(t.view(key, false).shown).toBe(false);
   });
 
@@ -101,7 +132,7 @@ describe("WriteTracker", () => {
     let calls = 0;
     const unsubscribe = t.subscribe(() => calls++);
     const token = t.begin([key], [true]);
-    t.settle([key], token, { kind: "confirmed", latency_ms: 1 });
+    t.settle([key], token, { kind: "confirmed", latency_ms: 1, seq: null });
     unsubscribe();
     t.begin([key], [false]);
     expect(calls).toBe(2);
@@ -118,7 +149,7 @@ describe("performWrite", () => {
     const done = performWrite(t, [key], [true], () => new Promise((resolve) => (answer = resolve)));
     expect(t.view(key, false).shown).toBe("pending");
     answer({ status: 200, body: { outcome: "confirmed", latency_ms: 11 } });
-    await expect(done).resolves.toEqual({ kind: "confirmed", latency_ms: 11 });
+    await expect(done).resolves.toEqual({ kind: "confirmed", latency_ms: 11, seq: null });
     expect(t.view(key, false).shown).toBe(true);
   });
 

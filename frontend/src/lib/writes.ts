@@ -3,8 +3,10 @@
  *
  * A control is keyed by "<command field>.<index>" (e.g. "controlbox_do.2"). Its display follows
  * one rule: while a PATCH is outstanding it shows *pending*; once the backend confirms, the
- * confirmed value until the robot's own frame shows it (at most `confirmHold_ms`, since the
- * PATCH answer and the WebSocket frame race), then always the robot's actual value. A refusal or
+ * confirmed value until the display shows the robot's frame that confirmed it or a newer one
+ * (the answer names it: `seq`; the PATCH answer and the WebSocket frame race, and on a busy
+ * machine the stream can lag the answer by more than a second), then always the robot's actual
+ * value. A confirmation without a frame (bit input registers) holds for `confirmHold_ms`. A refusal or
  * timeout leaves the display on the actual value and keeps the reason next to the control until
  * the next write of that control.
  */
@@ -13,7 +15,16 @@ export type WriteValue = boolean | number;
 export type WritePhase =
   | { readonly kind: "idle" }
   | { readonly kind: "pending"; readonly token: number; readonly requested: WriteValue; readonly since_ms: number }
-  | { readonly kind: "confirmed"; readonly requested: WriteValue; readonly at_ms: number; readonly latency_ms: number | null }
+  | {
+      readonly kind: "confirmed";
+      readonly requested: WriteValue;
+      readonly at_ms: number;
+      readonly latency_ms: number | null;
+      /** The stream's number of the frame that showed it (null: no frame confirms it). */
+      readonly seq: number | null;
+      /** Still shown as written: the display has not reached its frame yet. */
+      readonly held: boolean;
+    }
   | { readonly kind: "refused"; readonly requested: WriteValue; readonly reason: string; readonly at_ms: number }
   | { readonly kind: "timeout"; readonly requested: WriteValue; readonly reason: string; readonly at_ms: number };
 
@@ -28,11 +39,13 @@ export interface WriteView {
 
 /** The answer of one PATCH, classified. */
 export type WriteOutcome =
-  | { readonly kind: "confirmed"; readonly latency_ms: number | null }
+  | { readonly kind: "confirmed"; readonly latency_ms: number | null; readonly seq: number | null }
   | { readonly kind: "refused"; readonly reason: string }
   | { readonly kind: "timeout"; readonly reason: string };
 
 export const CONFIRM_HOLD_MS = 1000;
+/** Longest a confirmed value waits for its frame (a stream that stopped: the display says stale). */
+export const FRAME_HOLD_MAX_MS = 10_000;
 
 export function writeKey(field: string, index: number): string {
   return `${field}.${index}`;
@@ -71,7 +84,8 @@ export function classifyWriteResponse(status: number, body: unknown): WriteOutco
       typeof body === "object" && body !== null && typeof (body as { latency_ms?: unknown }).latency_ms === "number"
         ? (body as { latency_ms: number }).latency_ms
         : null;
-    return { kind: "confirmed", latency_ms: latency };
+    const seq = typeof body === "object" && body !== null && typeof (body as { seq?: unknown }).seq === "number" ? (body as { seq: number }).seq : null;
+    return { kind: "confirmed", latency_ms: latency, seq };
   }
   if (status === 504) return { kind: "timeout", reason: reasonOf(body, "no confirmation from the robot in time") };
   const fallback: Readonly<Record<number, string>> = {
@@ -95,6 +109,7 @@ export class WriteTracker {
   private readonly now: () => number;
   private readonly confirmHold_ms: number;
   private version = 0;
+  private shownSeq: number | null = null;
 
   constructor(now: () => number = Date.now, confirmHold_ms = CONFIRM_HOLD_MS) {
     this.now = now;
@@ -140,12 +155,28 @@ export class WriteTracker {
       if (phase === undefined || phase.kind !== "pending" || phase.token !== token) continue;
       const requested = phase.requested;
       if (outcome.kind === "confirmed") {
-        this.phases.set(key, { kind: "confirmed", requested, at_ms, latency_ms: outcome.latency_ms });
+        const held = outcome.seq === null || this.shownSeq === null || this.shownSeq < outcome.seq;
+        this.phases.set(key, { kind: "confirmed", requested, at_ms, latency_ms: outcome.latency_ms, seq: outcome.seq, held });
       } else {
         this.phases.set(key, { kind: outcome.kind, requested, reason: outcome.reason, at_ms });
       }
     }
     this.changed();
+  }
+
+  /** The stream's number of the newest frame the display shows: confirmations it reached show the
+   * robot's actual value from now on. */
+  showing(seq: number | null): void {
+    this.shownSeq = seq;
+    if (seq === null) return;
+    let released = false;
+    for (const [key, phase] of this.phases) {
+      if (phase.kind === "confirmed" && phase.held && phase.seq !== null && seq >= phase.seq) {
+        this.phases.set(key, { ...phase, held: false });
+        released = true;
+      }
+    }
+    if (released) this.changed();
   }
 
   /** Forget a shown reason (the person dismissed it). */
@@ -163,8 +194,8 @@ export class WriteTracker {
       case "pending":
         return { shown: "pending", pending: true, reason: null, phase: "pending" };
       case "confirmed": {
-        const holding =
-          !sameValue(known, phase.requested) && this.now() - phase.at_ms < this.confirmHold_ms;
+        const hold_ms = phase.seq === null ? this.confirmHold_ms : FRAME_HOLD_MAX_MS;
+        const holding = phase.held && !sameValue(known, phase.requested) && this.now() - phase.at_ms < hold_ms;
         return { shown: holding ? phase.requested : known, pending: false, reason: null, phase: "confirmed" };
       }
       case "refused":

@@ -109,6 +109,11 @@ export function WriteProvider({
     };
   }, [refreshCommand]);
 
+  // The frame the display shows: a confirmed write is shown as written until it gets there.
+  useEffect(() => {
+    tracker.showing(live.frameSeq);
+  }, [tracker, live.frameSeq]);
+
   // Someone's write (ours or another operator's) changes the image: fetch it at once.
   const newestEvent = live.events[0];
   useEffect(() => {

@@ -89,7 +89,7 @@ class _Confirmation(Protocol):
 
     async def wait_for_frame(
         self, predicate: _FramePredicate, after_seq: int, timeout_s: float
-    ) -> object | None: ...
+    ) -> FrameRecord | None: ...
 
 
 class _FramePredicate(Protocol):
@@ -194,6 +194,8 @@ class WriteOutcome:
     image: dict[str, object] | None = None
     """The whole O→T image after the write (confirmed only)."""
     latency_ms: float | None = None
+    seq: int | None = None
+    """The stream's number of the robot's frame that showed it (confirmed by a frame only)."""
     robot_reports: dict[str, object] | None = None
     """What the robot shows of the written elements (timeout only)."""
     audit_pending: bool = False
@@ -210,6 +212,7 @@ class WriteOutcome:
             "outcome": self.outcome,
             "image": self.image,
             "latency_ms": self.latency_ms,
+            "seq": self.seq,
         }
         if self.audit_pending:
             body |= {"audit_pending": True, "warning": AUDIT_PENDING_WARNING}
@@ -399,14 +402,14 @@ async def _write_locked(
 
     timeout_s = robot.writes.timeout_s
     deadline = started + timeout_s
-    confirmed = True
+    confirmed, shown_seq = True, None
     if plan.by_frame:
         item = await robot.confirmation.wait_for_frame(
             lambda f: frame_shows(f, plan.image, plan.by_frame),
             after_seq,
             max(0.0, deadline - time.perf_counter()),
         )
-        confirmed = item is not None
+        confirmed, shown_seq = item is not None, item.seq if item is not None else None
     if confirmed and plan.by_packet:
         confirmed = await link.wait_sent(packets_out, max(0.0, deadline - time.perf_counter()))
     latency_ms = (time.perf_counter() - started) * 1000
@@ -434,6 +437,7 @@ async def _write_locked(
         "confirmed",
         image=command_to_json(plan.image),
         latency_ms=round(latency_ms, 3),
+        seq=shown_seq,
         audit_pending=not audited,
     )
 

@@ -269,6 +269,13 @@ class WriteConfirmed(BaseModel):
     outcome: Literal["confirmed"]
     image: CommandImage
     latency_ms: float
+    seq: int | None = Field(
+        None,
+        description="the sequence number of the robot's frame that showed the write, as the "
+        "stream numbers its frames (`seq`): a display holds the value written until it shows "
+        "that frame or a newer one; null when no frame confirms it (bit input registers: the "
+        "O→T packet that carried them)",
+    )
     audit_pending: bool = Field(
         False,
         description="true: the audit trail could not be written (a full disk); this write's "
