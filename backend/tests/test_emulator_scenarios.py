@@ -197,7 +197,9 @@ async def test_di_1_follows_the_program(robot_host: str, plc_host: str) -> None:
 
 
 async def test_outputs_follow_the_plc_while_in_run_and_hold_when_idle(emulator: Emulator) -> None:
-    originator = await emulator.connect()
+    originator = await emulator.connect(
+        timeout_multiplier=5
+    )  # 1.28 s: a loaded run timed out at 160 ms
     assert await originator.wait_connected(10)
     command = command_from_json(
         {

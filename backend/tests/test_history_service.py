@@ -203,8 +203,13 @@ async def test_a_recorded_minute_equals_the_frames_the_scanner_saw(
     assert None not in wires
     steps = [(b - a) & 0xFFFF_FFFF for a, b in itertools.pairwise(wires)]
     assert min(steps) >= 1
+    # A new connection numbers its packets afresh (a loaded machine's stall past the timeout
+    # reconnects): one step of any size, back or forward, where the connection came up again.
+    reconnects = round(metric(metrics, "connects_total")) - 1
+    ordinary = sorted(steps)[: len(steps) - reconnects]
+    assert max(ordinary) < 1 << 31, "no step back within a connection"
     undelivered = metric(metrics, "frame_gaps_total") + metric(metrics, "frame_duplicates_total")
-    assert sum(step - 1 for step in steps) <= undelivered
+    assert sum(step - 1 for step in ordinary) <= undelivered
     # Each frame the stream showed is the recorded row of its wire number: time and values.
     rows = {wire: i for i, wire in enumerate(wires)}
     assert len(rows) == len(wires)

@@ -122,6 +122,9 @@ async def test_originator_reports_a_slow_emulator_once_and_its_recovery_once(
                 tcp_port=emu.target.tcp_port,
                 local_host=plc_host,
                 rpi_us=RPI_US,
+                # RPI × 512 (5.12 s): a loaded machine's stalls must not time the connection out
+                # (a new connection is judged anew and reported again: at load 15 it did).
+                timeout_multiplier=7,
             ),
             on_slow_target=reports.append,
         )
@@ -133,20 +136,9 @@ async def test_originator_reports_a_slow_emulator_once_and_its_recovery_once(
         assert slow is not None and slow.granted_ms == RPI_US / 1e3
         assert slow.sends_every_ms > 1.5 * slow.granted_ms
         assert originator.stats().slow_target == slow
-        # Many more windows of the slow target: still one report (one per connection: a machine
-        # loaded past the connection's timeout may reconnect, and a new connection is judged
-        # anew; then the test starts over from that connection's report).
-        connected_since = originator.stats().connected_since
+        # Many more windows of the slow target: still one report.
         frames = originator.frames
         await eventually(lambda: originator.frames >= frames + SLOW_FRAMES)
-        if originator.stats().connected_since != connected_since:
-            assert all(r is not None for r in reports), reports
-            slow = reports[-1]
-            del reports[:-1]
-            assert slow is not None
-            connected_since = originator.stats().connected_since
-            frames = originator.frames
-            await eventually(lambda: originator.frames >= frames + SLOW_FRAMES)
         assert reports == [slow]
         stats = originator.stats()
         assert stats.gaps == 0, "a slow target loses no packet"
@@ -230,6 +222,7 @@ async def test_scan_reports_a_slow_target_once_and_keeps_o2t_hex(
     async with _scan(
         robot_host, "--port", str(target.tcp_port), "--local-host", plc_host,
         "--o2t-hex", given.hex(), "--stats",
+        "--multiplier", "7",  # RPI × 512: a loaded machine's stalls time nothing out
     ) as scan:  # fmt: skip
         await eventually(lambda: scan.said(slow_words))
         await eventually(lambda: any('"slow_target":"the target grants' in s for s in scan.out))
