@@ -279,8 +279,12 @@ function RobotPanel(props: PanelProps) {
   );
 }
 
-/** Before a robot is known: why not, and the login (where viewing needs one). */
-function NoRobot({ reason, user, onUser }: { reason: string; user: User | null; onUser: (user: User | null) => void }) {
+/**
+ * Before a robot is known: why not, and the login (where viewing needs one). Not while the robots
+ * are still being asked for: the panel with its own login follows in a moment, and a name typed
+ * into this one would be lost with it (a test typing at once saw its user name vanish).
+ */
+function NoRobot({ reason, login, user, onUser }: { reason: string; login: boolean; user: User | null; onUser: (user: User | null) => void }) {
   return (
     <div className="panel" data-testid="panel">
       <header className="panel-header">
@@ -288,7 +292,7 @@ function NoRobot({ reason, user, onUser }: { reason: string; user: User | null; 
           {reason}
         </p>
         <div className="panel-header__control">
-          {user === null && <SessionBar robot="" user={null} ownership="nobody" onUser={onUser} onControl={() => undefined} />}
+          {login && user === null && <SessionBar robot="" user={null} ownership="nobody" onUser={onUser} onControl={() => undefined} />}
         </div>
       </header>
     </div>
@@ -352,7 +356,8 @@ export function PanelApp() {
           : known !== null
             ? "The service has no robot."
             : "Asking the service for its robots…";
-    return <NoRobot reason={reason} user={user} onUser={setUser} />;
+    const asking = unknown === null && fleet.error === null && known === null;
+    return <NoRobot reason={reason} login={!asking} user={user} onUser={setUser} />;
   }
   return (
     <>
