@@ -145,19 +145,46 @@ describe("markers", () => {
   });
 
   it("joins events too close to tell apart into one marker; zooming in separates them", () => {
-    const standby = { ...estop, id: 8, time: NOW + 26, to_name: "STANDALONE_STANDBY" } as HistoryEvent;
+    // Bins of 1.5 s over 100 s: 25 s and 25.4 s share the one from 24 s to 25.5 s.
+    const standby = { ...estop, id: 8, time: NOW + 25.4, to_name: "STANDALONE_STANDBY" } as HistoryEvent;
     const later = { ...estop, id: 9, time: NOW + 40, to_name: "STANDALONE_RUNNING" } as HistoryEvent;
     const markers = markersOf([estop, standby, later], range);
     expect(markers.map((m) => m.label)).toEqual(["State EMERGENCY_STOP; State STANDALONE_STANDBY", "State STANDALONE_RUNNING"]);
     expect(markers[0]!.time_s).toBe(NOW + 25);
-    expect(markers[0]!.last_s).toBe(NOW + 26);
+    expect(markers[0]!.last_s).toBe(NOW + 25.4);
     // A click shows every event of the marker, half a minute either side.
-    expect(rangeOfMarker(markers[0]!)).toEqual({ from_s: NOW - 5, to_s: NOW + 56 });
+    expect(rangeOfMarker(markers[0]!)).toEqual({ from_s: NOW - 5, to_s: NOW + 55.4 });
     expect(rangeOfMarker(markers[1]!)).toEqual({ from_s: NOW + 10, to_s: NOW + 70 });
     expect(markers[0]!.events).toHaveLength(2);
     expect(markers[1]!.kind).toBe("robot_state");
     const zoomed = markersOf([estop, standby, later], { from_s: NOW + 20, to_s: NOW + 30 });
-    expect(zoomed.map((m) => m.at)).toEqual([0.5, 0.6]);
+    expect(zoomed).toHaveLength(2);
+    expect(zoomed[0]!.at).toBeCloseTo(0.5, 6);
+    expect(zoomed[1]!.at).toBeCloseTo(0.54, 6);
+  });
+
+  it("a marker's events do not depend on the events around it (an answer with more of them)", () => {
+    // Events 8 s apart over 10 minutes, bins of 9 s: grouped by their neighbours, dropping the
+    // first event would regroup every marker after it; in bins, each keeps its events.
+    const wide: TimeRange = { from_s: NOW, to_s: NOW + 600 };
+    const all = Array.from({ length: 70 }, (_, i) => ({ ...estop, id: i, time: NOW + 3 + 8 * i }) as HistoryEvent);
+    const groups = (list: readonly HistoryEvent[]) =>
+      new Map(markersOf(list, wide).map((m) => [m.time_s, m.events.map((e) => e.time_s).join()]));
+    const full = groups(all);
+    const later = groups(all.slice(21));
+    for (const [time_s, events] of later) {
+      if (time_s > NOW + 3 + 8 * 22) expect(full.get(time_s)).toBe(events);
+    }
+  });
+
+  it("markers never overlap: one pushed right stays inside its bin", () => {
+    // Events at the end of one bin and the start of the next are a spacing apart on screen.
+    const a = { ...estop, id: 1, time: NOW + 2.9 } as HistoryEvent;
+    const b = { ...estop, id: 2, time: NOW + 3.05 } as HistoryEvent;
+    const markers = markersOf([a, b], range); // bins 1.5 s: 1.5–3 and 3–4.5
+    expect(markers).toHaveLength(2);
+    expect(markers[1]!.at - markers[0]!.at).toBeCloseTo(MARKER_SPACING, 9);
+    expect(markers[1]!.at).toBeLessThan(4.5 / 100);
   });
 
   it("on a narrow plot, markers closer than a marker's width share one", () => {

@@ -193,32 +193,50 @@ function urgent(e: MarkerEvent): boolean {
 }
 
 /**
- * The events of `range` as markers placed on the time axis (a fraction of the plotting area);
- * events within `spacing` (MARKER_SPACING, or a marker's width on a narrow plot) of a marker's
- * first event join it, so markers never overlap and each can be clicked. Zooming in separates
- * them.
+ * The events of `range` as markers placed on the time axis (a fraction of the plotting area).
+ * The area is cut into bins `spacing` wide (MARKER_SPACING, or a marker's width on a narrow
+ * plot), counted from the range's start: the events of a bin share its marker, so which marker
+ * an event is in depends on its own time and the range only — not on the events around it. A
+ * marker grouped by its neighbours would change its first event when an answer with more events
+ * of the range's start comes in, and a click a moment later would jump elsewhere than the marker
+ * read. Each marker sits at its first event, pushed right just enough not to cover the one
+ * before (never past its bin's end), so markers never overlap and each can be clicked. Zooming
+ * in separates them.
  */
 export function markersOf(events: readonly HistoryEvent[], range: TimeRange, spacing = MARKER_SPACING): Marker[] {
   const span = range.to_s - range.from_s;
-  if (!(span > 0)) return [];
-  const groups: { first: HistoryEvent; at: number; events: MarkerEvent[] }[] = [];
+  if (!(span > 0) || !(spacing > 0)) return [];
+  const bins = new Map<number, { first: HistoryEvent; at: number; events: MarkerEvent[] }>();
   for (const e of events) {
     if (!MARKER_KINDS.includes(e.kind) || e.time < range.from_s || e.time >= range.to_s) continue;
     const at = (e.time - range.from_s) / span;
+    const bin = Math.floor(at / spacing);
     const item = { time_s: e.time, kind: e.kind, label: eventLabel(e) };
-    const last = groups[groups.length - 1];
-    if (last !== undefined && at - last.at < spacing) last.events.push(item);
-    else groups.push({ first: e, at, events: [item] });
+    const group = bins.get(bin);
+    if (group === undefined) bins.set(bin, { first: e, at, events: [item] });
+    else if (e.time < group.first.time) {
+      // (The log answers oldest first; an out-of-order event still leads its bin.)
+      group.first = e;
+      group.at = at;
+      group.events.unshift(item);
+    } else group.events.push(item);
   }
-  return groups.map((g, i) => ({
-    id: `${g.first.id ?? i}-${g.first.time}`,
-    time_s: g.first.time,
-    last_s: g.events[g.events.length - 1]?.time_s ?? g.first.time,
-    kind: g.events.some(urgent) ? "alarm" : g.first.kind,
-    label: g.events.map((e) => e.label).join("; "),
-    events: g.events,
-    at: g.at,
-  }));
+  const markers: Marker[] = [];
+  let previousAt = -Infinity;
+  for (const [, g] of [...bins.entries()].sort(([a], [b]) => a - b)) {
+    const at = Math.max(g.at, previousAt + spacing);
+    previousAt = at;
+    markers.push({
+      id: `${g.first.id ?? markers.length}-${g.first.time}`,
+      time_s: g.first.time,
+      last_s: g.events[g.events.length - 1]?.time_s ?? g.first.time,
+      kind: g.events.some(urgent) ? "alarm" : g.first.kind,
+      label: g.events.map((e) => e.label).join("; "),
+      events: g.events,
+      at,
+    });
+  }
+  return markers;
 }
 
 // ---- Export
