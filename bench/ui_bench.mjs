@@ -16,7 +16,7 @@ import { spawn } from "node:child_process";
 import { mkdtempSync, readdirSync, readFileSync, rmSync, writeFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join, resolve } from "node:path";
-import { CHROMIUM, CHROMIUM_ARGS, chromium, freePort, load, loopbackPair, option, root, sleep } from "./ui_support.mjs";
+import { CHROMIUM, CHROMIUM_ARGS, chromium, freePort, load, loopbackPair, commandLine, root, sleep } from "./ui_support.mjs";
 
 const TARGET_FPS = 50;
 /** Redraws per second each plot in view must reach (monitoring values refresh every 100 ms). */
@@ -26,28 +26,33 @@ const HEAP_FIRST_S = 10;
 /** Share of wall time the renderer's main thread may be busy with the default panel (issue 24). */
 const TARGET_MAIN_BUSY = 0.3;
 
-const seconds = option("seconds", 60);
-const rpiMs = option("rpi-ms", 10);
-const kioskSeconds = option("kiosk-seconds", 60);
-const robot3dSeconds = option("robot3d-seconds", 10);
-const width = option("width", 1920);
-const height = option("height", 1080);
+const USAGE = `bench/ui [--seconds 60] [--baseline-seconds SECONDS] [--kiosk-seconds 60] [--robot3d-seconds 10]
+         [--rpi-ms 10] [--width 1920] [--height 1080]
+         [--heap-snapshots DIR] [--cpu-profile FILE] [--trace FILE] [--frontend-dir DIR]
+The panel in headless Chromium against its own emulator and service: frames/s, long tasks, JS heap,
+main-thread busy share beside a baseline (canvas picture off), then the kiosk and the 3D view.`;
+const args = commandLine(
+  USAGE,
+  { seconds: 60, "baseline-seconds": -1, "rpi-ms": 10, "kiosk-seconds": 60, "robot3d-seconds": 10, width: 1920, height: 1080 },
+  ["heap-snapshots", "cpu-profile", "trace", "frontend-dir"],
+);
+const seconds = args.seconds;
+const rpiMs = args["rpi-ms"];
+const kioskSeconds = args["kiosk-seconds"];
+const robot3dSeconds = args["robot3d-seconds"];
+const width = args.width;
+const height = args.height;
 // The baseline phase first (issue 24): the same panel with the plots' canvas picture off
 // (`?plotPicture=off`: Plotly draws every redraw), measured the same way; 0 leaves it out.
-const baselineSeconds = option("baseline-seconds", seconds);
+const baselineSeconds = args["baseline-seconds"] < 0 ? seconds : args["baseline-seconds"];
 // Diagnosis: write heap snapshots at 10 s and at the end into this directory (takes seconds each).
-const snapshotIdx = process.argv.indexOf("--heap-snapshots");
-const snapshotDir = snapshotIdx >= 0 ? process.argv[snapshotIdx + 1] : undefined;
+const snapshotDir = args["heap-snapshots"];
 // Diagnosis: a CPU profile of the page from 10 s to the end into this file (.cpuprofile).
-const profileIdx = process.argv.indexOf("--cpu-profile");
-const profileFile = profileIdx >= 0 ? process.argv[profileIdx + 1] : undefined;
+const profileFile = args["cpu-profile"];
 // Diagnosis: a DevTools performance trace of 5 s of the panel from 10 s on into this file (.json).
-const traceIdx = process.argv.indexOf("--trace");
-const traceFile = traceIdx >= 0 ? process.argv[traceIdx + 1] : undefined;
+const traceFile = args.trace;
 // Another build of the frontend (e.g. the previous commit's, for a comparison in the same hour).
-const distIdx = process.argv.indexOf("--frontend-dir");
-const frontendDir = distIdx >= 0 ? resolve(process.argv[distIdx + 1]) : join(root, "frontend", "dist");
-
+const frontendDir = args["frontend-dir"] !== undefined ? resolve(args["frontend-dir"]) : join(root, "frontend", "dist");
 
 /**
  * CPU time (ms) of the browser's processes by thread name (Linux /proc): the renderer's main

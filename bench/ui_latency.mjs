@@ -18,12 +18,15 @@ import { mkdtempSync, rmSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join } from "node:path";
 import { randomBytes } from "node:crypto";
-import { CHROMIUM, CHROMIUM_ARGS, chromium, freePort, load, loopbackPair, option, root, sleep } from "./ui_support.mjs";
+import { CHROMIUM, CHROMIUM_ARGS, chromium, freePort, load, loopbackPair, commandLine, root, sleep } from "./ui_support.mjs";
 
-const rounds = option("rounds", 5);
-const ageSeconds = option("seconds", 20);
-const rpiMs = option("rpi-ms", 10);
-const multiplier = option("timeout-multiplier", 2);
+const USAGE = `bench/ui_latency [--rounds 5] [--seconds 20] [--rpi-ms 10] [--timeout-multiplier 2]
+How soon the panel shows what the robot does: frame age, an emergency stop, a robot gone.`;
+const args = commandLine(USAGE, { rounds: 5, seconds: 20, "rpi-ms": 10, "timeout-multiplier": 2 });
+const rounds = args.rounds;
+const ageSeconds = args.seconds;
+const rpiMs = args["rpi-ms"];
+const multiplier = args["timeout-multiplier"];
 const timeoutMs = rpiMs * (4 << multiplier);
 const TARGET_SHOWN_MS = 1000;
 const TARGET_AGE_MEDIAN_MS = 300;

@@ -1,21 +1,54 @@
 // What the browser benchmarks share (bench/ui, bench/ui_latency): the repository's root,
 // Playwright's Chromium driver from the frontend's dependencies, Debian's Chromium and its
-// arguments, command-line numbers, free ports, the load average printed with every figure.
+// arguments, the checked command line, free ports, the load average printed with every figure.
 import { createRequire } from "node:module";
 import net from "node:net";
 import { loadavg } from "node:os";
 import { dirname, join, resolve } from "node:path";
 import { fileURLToPath } from "node:url";
+import { parseArgs } from "node:util";
 
 export const root = resolve(dirname(fileURLToPath(import.meta.url)), "..");
 export const { chromium } = createRequire(join(root, "frontend", "package.json"))("playwright-core");
 export const CHROMIUM = "/usr/bin/chromium";
 export const CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update", "--no-first-run"];
 
-/** `--name N` from the command line as a number, else `fallback`. */
-export function option(name, fallback) {
-  const i = process.argv.indexOf(`--${name}`);
-  return i >= 0 && process.argv[i + 1] !== undefined ? Number(process.argv[i + 1]) : fallback;
+/**
+ * The command line, checked (node:util parseArgs, strict): `numbers` are the numeric options and
+ * their defaults, `paths` the options that name a file or directory. `--help` prints `usage` (the
+ * wrapper script's header) and exits; an unknown option or a value that is no number is refused
+ * with the usage, before any browser or service starts.
+ */
+export function commandLine(usage, numbers, paths = []) {
+  const options = { help: { type: "boolean" } };
+  for (const name of [...Object.keys(numbers), ...paths]) options[name] = { type: "string" };
+  let values;
+  try {
+    ({ values } = parseArgs({ options, strict: true, allowPositionals: false }));
+  } catch (error) {
+    process.stderr.write(`${error.message}\n\n${usage}\n`);
+    process.exit(2);
+  }
+  if (values.help) {
+    process.stdout.write(`${usage}\n`);
+    process.exit(0);
+  }
+  const out = {};
+  for (const [name, fallback] of Object.entries(numbers)) {
+    const text = values[name];
+    if (text === undefined) {
+      out[name] = fallback;
+      continue;
+    }
+    const value = Number(text);
+    if (text.trim() === "" || !Number.isFinite(value) || value < 0) {
+      process.stderr.write(`--${name} ${text}: a number of at least 0, please\n\n${usage}\n`);
+      process.exit(2);
+    }
+    out[name] = value;
+  }
+  for (const name of paths) out[name] = values[name];
+  return out;
 }
 
 /** The load average now, printed with every figure: the machine may be shared. */
