@@ -16,12 +16,13 @@ from pathlib import Path
 import httpx
 import orjson
 import pytest
+from prometheus_client.parser import text_string_to_metric_families
 from websockets.asyncio.client import connect
 from websockets.exceptions import InvalidStatus
 from websockets.typing import Origin
 
 from cobot_hmi.emulator.target import Target
-from cobot_hmi.service.api.tls import TlsError, fingerprint_of, server_context
+from cobot_hmi.service.api.tls import TlsError, fingerprint_of, not_after_of, server_context
 from cobot_hmi.service.api.tls_redirect import redirect_listener
 from cobot_hmi.service.api.tls_selfsigned import self_signed_pair
 from cobot_hmi.service.config.loading import load_settings
@@ -171,6 +172,17 @@ async def test_a_replaced_certificate_is_served_without_a_restart(https: Https) 
     assert now == renewed and now != https.der
     async with https.client() as session:  # and HTTP on it works
         assert (await session.get("/api/v1/robots")).status_code == 200
+        # The operators see both in /metrics, and when the certificate served now expires.
+        metrics = (await session.get("/metrics")).text
+    samples = {
+        sample.name: sample.value
+        for family in text_string_to_metric_families(metrics)
+        for sample in family.samples
+    }
+    assert samples["cobot_hmi_tls_certificate_reloads_total"] == 1
+    assert samples["cobot_hmi_tls_certificate_reload_failures_total"] == 1
+    expiry = samples["cobot_hmi_tls_certificate_expiry_timestamp_seconds"]
+    assert expiry == pytest.approx(not_after_of(https.cert))  # the renewed certificate's
 
 
 async def test_the_plain_http_listener_only_redirects(https: Https) -> None:

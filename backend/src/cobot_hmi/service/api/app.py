@@ -76,10 +76,14 @@ def create_app(
     # outside everything else (service/api/security.py).
     refusals = security.install(app, security.policy_from_settings(service.settings))
     # One Prometheus registry per service (``GET /metrics``); the connection bounds' counters
-    # come with the server (``server.uvicorn_config``), after the app.
+    # and the TLS context come with the server (``server.uvicorn_config``), after the app.
     app.state.metrics = ServiceMetrics(
         service,
-        HttpCollector(refusals, lambda: getattr(app.state, "connection_counters", None)),
+        HttpCollector(
+            refusals,
+            lambda: getattr(app.state, "connection_counters", None),
+            lambda: getattr(app.state, "tls", None),
+        ),
     )
 
     @app.exception_handler(ApiError)

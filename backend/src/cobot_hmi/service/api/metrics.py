@@ -34,6 +34,7 @@ from prometheus_client.registry import Collector, CollectorRegistry
 from cobot_hmi.scanner.originator import ConnectionState, ConnectionStats
 from cobot_hmi.service.api.http_limits import ConnectionCounters
 from cobot_hmi.service.api.security import REFUSAL_REASONS, SecurityCounters
+from cobot_hmi.service.api.tls import ReloadingContext
 from cobot_hmi.service.extensions import MetricFamily
 from cobot_hmi.service.storage.audit_chain import ChainHead
 
@@ -340,9 +341,11 @@ class HttpCollector(Collector):
         self,
         refusals: SecurityCounters,
         connections: Callable[[], ConnectionCounters | None],
+        tls: Callable[[], ReloadingContext | None] = lambda: None,
     ) -> None:
         self._refusals = refusals
         self._connections = connections
+        self._tls = tls
 
     def collect(self) -> Iterator[Metric]:
         refusals = _counter(
@@ -363,6 +366,23 @@ class HttpCollector(Collector):
             for reason in _CONNECTION_CLOSINGS:
                 closed.add_metric([reason], connections.closed[reason])
             yield closed
+        tls = self._tls()
+        if tls is not None:  # HTTPS served by the service itself
+            yield CounterMetricFamily(
+                PREFIX + "tls_certificate_reloads",
+                "times a replaced certificate and key were loaded without a restart",
+                value=tls.reloads,
+            )
+            yield CounterMetricFamily(
+                PREFIX + "tls_certificate_reload_failures",
+                "replaced certificate files that could not be loaded (the last good pair stays)",
+                value=tls.failures,
+            )
+            yield GaugeMetricFamily(
+                PREFIX + "tls_certificate_expiry_timestamp_seconds",
+                "when the certificate served now expires (notAfter, seconds since the epoch)",
+                value=tls.not_after_s,
+            )
 
 
 class ServiceMetrics:

@@ -23,6 +23,7 @@ subdomains: a plant's other devices under the same domain are not this service's
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import ssl
@@ -90,6 +91,8 @@ class ReloadingContext:
         self.listener.sni_callback = self._on_hello
         self.current = self.listener
         """The context new connections use (the listener's until the files change)."""
+        self.not_after_s = not_after_of(cert)
+        """When the certificate in use expires (s since the epoch): for the operators' alert."""
         self.reloads = 0
         self.failures = 0
         self._failed: _Signature | None = None
@@ -116,6 +119,8 @@ class ReloadingContext:
             self._fail(str(error))
             return False
         self.current, self._signature, self._failed, self._error = fresh, signature, None, None
+        with contextlib.suppress(OSError, ValueError):  # loaded a moment ago; replaced since?
+            self.not_after_s = not_after_of(self.cert)
         self.reloads += 1
         log.warning("TLS certificate reloaded from %s (%s)", self.cert, fingerprint_of(self.cert))
         return True
@@ -134,6 +139,11 @@ class ReloadingContext:
         self.refresh()
         if self.current is not self.listener:
             connection.context = self.current
+
+
+def not_after_of(cert: Path) -> float:
+    """When the first certificate in a PEM file expires (its notAfter, s since the epoch)."""
+    return x509.load_pem_x509_certificate(cert.read_bytes()).not_valid_after_utc.timestamp()
 
 
 def fingerprint_of(cert: Path) -> str:
