@@ -242,6 +242,19 @@ export async function confirmIfAsked(page: Page): Promise<void> {
  * else. The form itself is tested where logging in is the subject (04, 10, 21, 22's phone and
  * headers).
  */
+/**
+ * The cell quiet again: `robots` back to running (their faults cleared, the program on) and every
+ * unacknowledged alarm of both robots acknowledged (one request each, `why` its audited comment),
+ * so the scenarios after a test that raised alarms start without them in the banner.
+ */
+export async function quietCell(robots: readonly Robot[], operatorApi: Service, why: string): Promise<void> {
+  for (const r of robots) await r.normalize();
+  for (const name of [settings.robotName, settings.robot2Name]) {
+    const ack = await operatorApi.api.post("/api/v1/alarms/ack", { data: { robot: name, comment: why } });
+    expect(ack.status(), await ack.text()).toBe(200);
+  }
+}
+
 export async function loggedIn(page: Page, user: { name: string; password: string }): Promise<void> {
   const answer = await page.request.post("/api/v1/auth/login", { data: { username: user.name, password: user.password } });
   expect(answer.status(), await answer.text()).toBe(200);

@@ -8,7 +8,7 @@
 // warning during an emergency stop). (axe-core's audits of the panel, the login and the kiosk:
 // 11-accessibility.spec.ts.)
 import type { Page } from "@playwright/test";
-import { expect, loginInPanel, operatorWithControl, test } from "../support/fixtures";
+import { expect, loginInPanel, operatorWithControl, quietCell, test } from "../support/fixtures";
 import { settings } from "../support/settings";
 
 const DO16_INDEX = 15; // DO 1–16 are indexes 0–15 of controlbox_do
@@ -257,10 +257,12 @@ for (const { touch, ...viewport } of [
   { width: 844, height: 390, touch: true },
 ]) {
   const compact = viewport.width < 1440 || viewport.height < 920;
-  test(`the ${viewport.width} × ${viewport.height} header keeps the alarm in view`, async ({ browser, robot }) => {
+  test(`the ${viewport.width} × ${viewport.height} header keeps the alarm in view`, async ({ browser, robot, robot2, operatorApi }) => {
     const context = await browser.newContext({ viewport, hasTouch: touch, isMobile: touch });
     const page = await context.newPage();
     try {
+      // The other robot's alarm too: its line shares the banner's row, never adds one.
+      await robot2.estop();
       await page.goto("/");
       await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
       if (compact) {
@@ -303,14 +305,17 @@ for (const { touch, ...viewport } of [
         }
         return wrong.map((w) => `${w} — ${where}`);
       };
+      await expect(page.getByTestId("alarm-banner-other")).toHaveAttribute("data-robot", settings.robot2Name);
       await expect.poll(problems, { timeout: 15_000 }).toEqual([]);
       await expect(page.getByTestId("alarm-banner")).toBeInViewport({ ratio: 1 });
+      await expect(page.getByTestId("alarm-banner-other")).toBeInViewport({ ratio: 1 });
       const essentials = viewport.height > 500 ? ["robot-select", "robot-state", "connection-status", "control-holder"] : ["robot-state", "connection-status"];
       for (const id of [...essentials, "release-control", ...(compact ? ["header-menu"] : [])]) {
         await expect(header.getByTestId(id), `${viewport.width} × ${viewport.height}: ${id}`).toBeInViewport({ ratio: 1 });
       }
     } finally {
       await context.close();
+      await quietCell([robot, robot2], operatorApi, "e2e 22: header layout");
     }
   });
 }

@@ -4,7 +4,7 @@
 // the robot's name, the state, the alarm banner and the tiles' values are at least 48 px, every
 // other text at least 24 px and the lamps at least 32 px.
 import type { Page } from "@playwright/test";
-import { expect, screenshot, test, type Robot, type Service } from "../support/fixtures";
+import { expect, quietCell, screenshot, test } from "../support/fixtures";
 import { settings } from "../support/settings";
 
 const SCREENS = [
@@ -142,22 +142,13 @@ async function checkScreens(page: Page, url: string, tiles: number, robot3d: boo
   }
 }
 
-/** Both robots back to running and their alarms acknowledged, so the scenarios after these start quiet. */
-async function quiet(robots: readonly Robot[], operatorApi: Service): Promise<void> {
-  for (const r of robots) await r.tryPost("/reset");
-  for (const name of [settings.robotName, settings.robot2Name]) {
-    const ack = await operatorApi.api.post("/api/v1/alarms/ack", { data: { robot: name, comment: "e2e 30: kiosk fit" } });
-    expect(ack.status(), await ack.text()).toBe(200);
-  }
-}
-
 test("the kiosk with two tiles and the 3D view fits 1920 × 1080, 1280 × 720 and 3840 × 2160 with an alarm", async ({ page, robot, operatorApi }, testInfo) => {
   test.setTimeout(240_000);
   await robot.estop();
   try {
     await checkScreens(page, `/kiosk?robot=${settings.robotName}&tiles=joint_position,joint_motor_temperature&robot3d=1`, 2, true, testInfo);
   } finally {
-    await quiet([robot], operatorApi);
+    await quietCell([robot], operatorApi, "e2e 30: kiosk fit");
   }
 });
 
@@ -167,7 +158,7 @@ test("the plain kiosk of the second robot fits the same screens with an alarm", 
   try {
     await checkScreens(page, `/kiosk?robot=${settings.robot2Name}`, 2, false, testInfo);
   } finally {
-    await quiet([robot2], operatorApi);
+    await quietCell([robot2], operatorApi, "e2e 30: kiosk fit");
     await robot2.normalize();
   }
 });

@@ -5,7 +5,7 @@
 // in one request, the service auditing each one; the SAFE_OFF that an e-stop's reset brings is
 // listed as suppressed by design (a consequence of the e-stop), with nothing to acknowledge.
 import type { Page } from "@playwright/test";
-import { expect, loggedIn, screenshot, test, type Robot, type Service } from "../support/fixtures";
+import { expect, loggedIn, quietCell, screenshot, test, type Service } from "../support/fixtures";
 import { seriousViolations } from "../support/a11y";
 import { settings } from "../support/settings";
 
@@ -13,15 +13,6 @@ const FIRST = settings.robotName;
 /** The robot state SAFE_OFF (servo off), as the layout numbers it. */
 const SAFE_OFF = 2;
 const SECOND = settings.robot2Name;
-
-/** Every unacknowledged alarm of both robots acknowledged (one request each), the robots running. */
-async function quiet(robots: readonly Robot[], operatorApi: Service): Promise<void> {
-  for (const r of robots) await r.normalize();
-  for (const name of [FIRST, SECOND]) {
-    const ack = await operatorApi.api.post("/api/v1/alarms/ack", { data: { robot: name, comment: "e2e 32: quiet start" } });
-    expect(ack.status(), await ack.text()).toBe(200);
-  }
-}
 
 interface AuditRow {
   readonly id: number;
@@ -41,11 +32,11 @@ const mark = (page: Page, robot: string) => page.locator(`[data-testid="robot-al
 const otherLine = (page: Page, robot: string) => page.locator(`[data-testid="alarm-banner-other"][data-robot="${robot}"]`);
 
 test.afterEach(async ({ robot, robot2, operatorApi }) => {
-  await quiet([robot, robot2], operatorApi);
+  await quietCell([robot, robot2], operatorApi, "e2e 32: quiet start");
 });
 
 test("another robot's emergency stop marks the switcher and names the robot in the banner", async ({ page, robot, robot2, operatorApi }, testInfo) => {
-  await quiet([robot, robot2], operatorApi);
+  await quietCell([robot, robot2], operatorApi, "e2e 32: quiet start");
   await page.goto(`/?robot=${FIRST}`);
   await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
   await expect(page.getByTestId("robot-alarm-mark")).toHaveCount(0);
@@ -89,7 +80,7 @@ test("acknowledge all shown: one request, one audited acknowledgement per alarm;
   robot2,
   operatorApi,
 }, testInfo) => {
-  await quiet([robot, robot2], operatorApi);
+  await quietCell([robot, robot2], operatorApi, "e2e 32: quiet start");
   const acks: string[] = [];
   page.on("request", (r) => {
     if (r.method() === "POST" && new URL(r.url()).pathname.startsWith("/api/v1/alarms/")) acks.push(new URL(r.url()).pathname);

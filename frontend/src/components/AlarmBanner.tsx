@@ -4,7 +4,7 @@
  * Read-only: it shows the live snapshot's alarms (the stream's hello and `alarm` events) and
  * writes nothing; the panel puts its own controls (mute, a link to the list) in `children`.
  * A panel also gives the other robots' alarms (`others`, from the stream's `cell_alarms`): a
- * line each under the robot's own, naming the robot and linking to its panel.
+ * line each beside the robot's own, naming the robot and linking to its panel.
  */
 import type { ReactNode } from "react";
 import { alarmPaint, alarmStateWords, alarmTitle, bannerView, countWords, isUnacknowledged, type Alarm } from "../lib/alarms";
@@ -53,51 +53,67 @@ function OtherRobotLines({ others }: { readonly others: readonly AlarmSummary[] 
   );
 }
 
-export function AlarmBanner({ alarms, size, listHref, children, others: otherRobots = [] }: Props) {
+/**
+ * The panel's alarms in one row of the header: the robot's own banner, then the other robots'
+ * lines beside it (shortened, whole in their titles), so another robot's alarm never adds a row
+ * to the sticky header (it must stay within a fifth of the window's height). The kiosk has its
+ * banner alone.
+ */
+export function AlarmBanner(props: Props) {
+  const others = props.others ?? [];
+  if (props.size === "kiosk") return <OwnBanner {...props} />;
+  const own = bannerView(props.alarms).top !== null;
+  if (!own && others.length === 0) return null;
+  return (
+    <div className="alarm-banner-row" data-testid="alarm-banner-row">
+      <OwnBanner {...props} />
+      <OtherRobotLines others={others} />
+    </div>
+  );
+}
+
+function OwnBanner({ alarms, size, listHref, children }: Props) {
   const view = bannerView(alarms);
   const top = view.top;
-  if (top === null) return <OtherRobotLines others={otherRobots} />;
+  if (top === null) return null;
   const paint = alarmPaint(top.colour);
   const unacknowledged = isUnacknowledged(top);
   const others = view.count - 1;
   const count = countWords(view);
   return (
-    <>
-      <div
-        className={`alarm-banner alarm-banner--${size}${unacknowledged ? " is-unacknowledged" : ""}${top.active ? "" : " is-returned"}`}
-        data-testid="alarm-banner"
-        data-alarm={top.id}
-        data-priority={top.priority}
-        data-colour={top.colour}
-        data-state={top.state}
-        data-unacknowledged={unacknowledged ? "true" : "false"}
-        data-count={view.count}
-        role="alert"
-        style={{ background: paint.background, color: paint.text }}
-      >
-        <span className="alarm-banner__priority">{top.priority}</span>
-        <span className="alarm-banner__title" data-testid="alarm-banner-title">
-          {alarmTitle(top)}
-        </span>
-        <span className="alarm-banner__state">
-          {unacknowledged && (
-            <span className="alarm-banner__unack" data-testid="alarm-banner-unack" aria-hidden="true">
-              ●
-            </span>
-          )}{" "}
-          {alarmStateWords(top)}
-          {top.activated_at !== null ? ` since ${formatMoment(top.activated_at * 1000, Date.now())}` : ""}
-        </span>
-        {top.message !== null && top.message !== "" && <span className="alarm-banner__message">{top.message}</span>}
-        {/* The kiosk's room is dear: a lone alarm's count repeats what its state words say. */}
-        {(size === "panel" || others > 0) && (
-          <span className="alarm-banner__count" data-testid="alarm-banner-count" title={count}>
-            {listHref !== undefined ? <a href={listHref}>{others > 0 ? `+${others} more · ${count}` : count}</a> : others > 0 ? `+${others} more · ${count}` : count}
+    <div
+      className={`alarm-banner alarm-banner--${size}${unacknowledged ? " is-unacknowledged" : ""}${top.active ? "" : " is-returned"}`}
+      data-testid="alarm-banner"
+      data-alarm={top.id}
+      data-priority={top.priority}
+      data-colour={top.colour}
+      data-state={top.state}
+      data-unacknowledged={unacknowledged ? "true" : "false"}
+      data-count={view.count}
+      role="alert"
+      style={{ background: paint.background, color: paint.text }}
+    >
+      <span className="alarm-banner__priority">{top.priority}</span>
+      <span className="alarm-banner__title" data-testid="alarm-banner-title">
+        {alarmTitle(top)}
+      </span>
+      <span className="alarm-banner__state">
+        {unacknowledged && (
+          <span className="alarm-banner__unack" data-testid="alarm-banner-unack" aria-hidden="true">
+            ●
           </span>
-        )}
-        {children}
-      </div>
-      <OtherRobotLines others={otherRobots} />
-    </>
+        )}{" "}
+        {alarmStateWords(top)}
+        {top.activated_at !== null ? ` since ${formatMoment(top.activated_at * 1000, Date.now())}` : ""}
+      </span>
+      {top.message !== null && top.message !== "" && <span className="alarm-banner__message">{top.message}</span>}
+      {/* The kiosk's room is dear: a lone alarm's count repeats what its state words say. */}
+      {(size === "panel" || others > 0) && (
+        <span className="alarm-banner__count" data-testid="alarm-banner-count" title={count}>
+          {listHref !== undefined ? <a href={listHref}>{others > 0 ? `+${others} more · ${count}` : count}</a> : others > 0 ? `+${others} more · ${count}` : count}
+        </span>
+      )}
+      {children}
+    </div>
   );
 }
