@@ -15,8 +15,7 @@ MAX_FINDINGS_SHOWN = 20
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    from cobot_hmi.service.config.arguments import add_arguments
-    from cobot_hmi.settings import HmiSettings
+    from cobot_hmi.cli.hmi_settings import add_hmi_arguments
 
     parser = subparsers.add_parser(
         "audit",
@@ -31,7 +30,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         "row count when intact; exit 1 naming the first row changed, inserted or deleted; "
         "exit 2 when the database cannot be read or has no chain yet. Read only.",
     )
-    add_arguments(verify, only=("state_dir", "database"), settings_class=HmiSettings)
+    add_hmi_arguments(verify, only=("state_dir", "database"))
     verify.set_defaults(handler=_verify)
 
 
@@ -43,12 +42,11 @@ def _fail(message: str) -> int:
 def _verify(args: argparse.Namespace) -> int:
     import contextlib
 
-    from cobot_hmi.service.config.arguments import settings_from_args
+    from cobot_hmi.cli.hmi_settings import hmi_settings
     from cobot_hmi.service.settings import SettingsError
-    from cobot_hmi.settings import HmiSettings
 
     try:
-        settings = settings_from_args(args, None, HmiSettings)
+        settings = hmi_settings(args)
     except SettingsError as error:
         return _fail(str(error))
     path = settings.database_path

@@ -11,8 +11,7 @@ import sys
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    from cobot_hmi.service.config.arguments import add_arguments
-    from cobot_hmi.settings import HmiSettings
+    from cobot_hmi.cli.hmi_settings import add_hmi_arguments
 
     parser = subparsers.add_parser(
         "export",
@@ -36,7 +35,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         metavar="FILE",
         help="where to write ('-': standard output; default: ROBOT_FROM_TO.FORMAT here)",
     )
-    add_arguments(parser, only=("state_dir", "history_dir", "database"), settings_class=HmiSettings)
+    add_hmi_arguments(parser, only=("state_dir", "history_dir", "database"))
     parser.set_defaults(handler=_export)
 
 
@@ -49,17 +48,16 @@ def _export(args: argparse.Namespace) -> int:
     import contextlib
     from pathlib import Path
 
+    from cobot_hmi.cli.hmi_settings import hmi_settings
     from cobot_hmi.history import export
     from cobot_hmi.history.schema import UnknownFieldError, select_elements
     from cobot_hmi.history.segments import list_robots
     from cobot_hmi.history.times import TimeFormatError, parse_time
     from cobot_hmi.service.api.routes.history import export_chunks
-    from cobot_hmi.service.config.arguments import settings_from_args
     from cobot_hmi.service.settings import SettingsError
-    from cobot_hmi.settings import HmiSettings
 
     try:
-        settings = settings_from_args(args, None, HmiSettings)
+        settings = hmi_settings(args)
     except SettingsError as error:
         return _fail(str(error))
     root = settings.history_path

@@ -40,8 +40,7 @@ DEMO_USER: Final = "operator"
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    from cobot_hmi.service.config.arguments import add_arguments
-    from cobot_hmi.settings import HmiSettings
+    from cobot_hmi.cli.hmi_settings import add_hmi_arguments
 
     serve = subparsers.add_parser(
         "serve",
@@ -54,7 +53,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
             "robot's defaults."
         ),
     )
-    add_arguments(serve, settings_class=HmiSettings)
+    add_hmi_arguments(serve)
     serve.set_defaults(handler=_serve)
 
     demo = subparsers.add_parser(
@@ -148,10 +147,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     add.add_argument("name")
     add.add_argument("--role", default="operator", help="viewer, operator or admin")
     add.add_argument("--password-stdin", action="store_true", help="read the password from stdin")
-    add_arguments(add, only=("state_dir", "users_file"), settings_class=HmiSettings)
+    add_hmi_arguments(add, only=("state_dir", "users_file"))
     add.set_defaults(handler=_users_add)
     listing = users_verbs.add_parser("list", help="list users and roles")
-    add_arguments(listing, only=("state_dir", "users_file"), settings_class=HmiSettings)
+    add_hmi_arguments(listing, only=("state_dir", "users_file"))
     listing.set_defaults(handler=_users_list)
     token = users_verbs.add_parser(
         "token",
@@ -165,11 +164,11 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     token.add_argument(
         "--expires-days", type=float, default=None, help="lifetime in days (default: until revoked)"
     )
-    add_arguments(token, only=("state_dir", "users_file"), settings_class=HmiSettings)
+    add_hmi_arguments(token, only=("state_dir", "users_file"))
     token.set_defaults(handler=_users_token)
     revoke = users_verbs.add_parser("revoke", help="revoke the API token NAME")
     revoke.add_argument("name")
-    add_arguments(revoke, only=("state_dir", "users_file"), settings_class=HmiSettings)
+    add_hmi_arguments(revoke, only=("state_dir", "users_file"))
     revoke.set_defaults(handler=_users_revoke)
 
 
@@ -179,15 +178,14 @@ def _fail(reason: str) -> int:
 
 
 def _serve(args: argparse.Namespace) -> int:
+    from cobot_hmi.cli.hmi_settings import hmi_settings
     from cobot_hmi.composition import build_service
     from cobot_hmi.service.api.server import prepare_process, serve
     from cobot_hmi.service.api.tls import TlsError
-    from cobot_hmi.service.config.arguments import settings_from_args
     from cobot_hmi.service.settings import SettingsError
-    from cobot_hmi.settings import HmiSettings
 
     try:
-        settings = settings_from_args(args, None, HmiSettings)
+        settings = hmi_settings(args)
         settings.require_robots()
     except SettingsError as error:
         return _fail(str(error))
@@ -201,13 +199,12 @@ def _serve(args: argparse.Namespace) -> int:
 
 
 def _users_add(args: argparse.Namespace) -> int:
+    from cobot_hmi.cli.hmi_settings import hmi_settings
     from cobot_hmi.service.access.users import Role, UsersError, UsersFile
-    from cobot_hmi.service.config.arguments import settings_from_args
     from cobot_hmi.service.settings import SettingsError
-    from cobot_hmi.settings import HmiSettings
 
     try:
-        settings = settings_from_args(args, None, HmiSettings)
+        settings = hmi_settings(args)
         role = Role.parse(args.role)
         if args.password_stdin:
             password = sys.stdin.readline().rstrip("\r\n")
@@ -223,13 +220,12 @@ def _users_add(args: argparse.Namespace) -> int:
 
 
 def _users_list(args: argparse.Namespace) -> int:
+    from cobot_hmi.cli.hmi_settings import hmi_settings
     from cobot_hmi.service.access.users import UsersError, UsersFile
-    from cobot_hmi.service.config.arguments import settings_from_args
     from cobot_hmi.service.settings import SettingsError
-    from cobot_hmi.settings import HmiSettings
 
     try:
-        settings = settings_from_args(args, None, HmiSettings)
+        settings = hmi_settings(args)
         users_file = UsersFile(settings.users_path)
         users = users_file.users()
         tokens = users_file.tokens()
@@ -248,13 +244,12 @@ def _users_list(args: argparse.Namespace) -> int:
 
 
 def _users_token(args: argparse.Namespace) -> int:
+    from cobot_hmi.cli.hmi_settings import hmi_settings
     from cobot_hmi.service.access.users import Role, UsersError, UsersFile
-    from cobot_hmi.service.config.arguments import settings_from_args
     from cobot_hmi.service.settings import SettingsError
-    from cobot_hmi.settings import HmiSettings
 
     try:
-        settings = settings_from_args(args, None, HmiSettings)
+        settings = hmi_settings(args)
         role = Role.parse(args.role)
         days = args.expires_days
         if days is not None and not (math.isfinite(days) and days > 0):
@@ -271,13 +266,12 @@ def _users_token(args: argparse.Namespace) -> int:
 
 
 def _users_revoke(args: argparse.Namespace) -> int:
+    from cobot_hmi.cli.hmi_settings import hmi_settings
     from cobot_hmi.service.access.users import UsersError, UsersFile
-    from cobot_hmi.service.config.arguments import settings_from_args
     from cobot_hmi.service.settings import SettingsError
-    from cobot_hmi.settings import HmiSettings
 
     try:
-        settings = settings_from_args(args, None, HmiSettings)
+        settings = hmi_settings(args)
         UsersFile(settings.users_path).revoke_token(args.name)
     except (SettingsError, UsersError) as error:
         return _fail(str(error))
