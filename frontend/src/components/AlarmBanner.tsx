@@ -7,7 +7,7 @@
  * line each beside the robot's own, naming the robot and linking to its panel.
  */
 import type { ReactNode } from "react";
-import { alarmPaint, alarmStateWords, alarmTitle, bannerView, countWords, isUnacknowledged, type Alarm } from "../lib/alarms";
+import { alarmPaint, alarmStateWords, alarmTitle, bannerView, countWords, isUnacknowledged, type Alarm, type BannerView } from "../lib/alarms";
 import { otherRobotLine, topUnacknowledged } from "../lib/alarmsCell";
 import { formatMoment } from "../lib/dates";
 import type { AlarmSummary } from "../lib/protocol";
@@ -61,19 +61,18 @@ function OtherRobotLines({ others }: { readonly others: readonly AlarmSummary[] 
  */
 export function AlarmBanner(props: Props) {
   const others = props.others ?? [];
-  if (props.size === "kiosk") return <OwnBanner {...props} />;
-  const own = bannerView(props.alarms).top !== null;
-  if (!own && others.length === 0) return null;
+  const view = bannerView(props.alarms);
+  if (props.size === "kiosk") return <OwnBanner {...props} view={view} />;
+  if (view.top === null && others.length === 0) return null;
   return (
     <div className="alarm-banner-row" data-testid="alarm-banner-row">
-      <OwnBanner {...props} />
+      <OwnBanner {...props} view={view} />
       <OtherRobotLines others={others} />
     </div>
   );
 }
 
-function OwnBanner({ alarms, size, listHref, children }: Props) {
-  const view = bannerView(alarms);
+function OwnBanner({ view, size, listHref, children }: Props & { readonly view: BannerView }) {
   const top = view.top;
   if (top === null) return null;
   const paint = alarmPaint(top.colour);
