@@ -96,7 +96,12 @@ export class Service {
     expect(answer.status(), await answer.text()).toBe(200);
     const { token } = (await answer.json()) as { token: string };
     await anonymous.dispose();
-    return new Service(await playwrightRequest.newContext({ baseURL, extraHTTPHeaders: { Authorization: `Bearer ${token}` } }));
+    // A connection per request: a test holds this context through long idle stretches, and a
+    // kept-alive connection the service closed after its idle 5 s raced a request written at
+    // that moment (ECONNRESET on a POST, which a client must not resend).
+    return new Service(
+      await playwrightRequest.newContext({ baseURL, extraHTTPHeaders: { Authorization: `Bearer ${token}`, Connection: "close" } }),
+    );
   }
 
   async status(): Promise<{ connection: { state: string; gaps: number }; control: { holder: { user: string } | null } }> {
