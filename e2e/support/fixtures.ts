@@ -86,6 +86,14 @@ export interface RobotListed {
   readonly model: string | null;
 }
 
+/**
+ * For the helpers' API contexts (the service's, the emulators' control APIs): a connection per
+ * request. A test holds these contexts through long idle stretches, and a kept-alive connection
+ * the server closed for idleness raced a request written at that moment (ECONNRESET on a POST,
+ * which a client must not resend: e2e 10's acknowledgement, e2e 22's /faults/clear).
+ */
+const ONE_CONNECTION_PER_REQUEST = { Connection: "close" } as const;
+
 /** The service's API as a script uses it (bearer token), for setup and for checks. */
 export class Service {
   constructor(readonly api: APIRequestContext) {}
@@ -96,11 +104,8 @@ export class Service {
     expect(answer.status(), await answer.text()).toBe(200);
     const { token } = (await answer.json()) as { token: string };
     await anonymous.dispose();
-    // A connection per request: a test holds this context through long idle stretches, and a
-    // kept-alive connection the service closed after its idle 5 s raced a request written at
-    // that moment (ECONNRESET on a POST, which a client must not resend).
     return new Service(
-      await playwrightRequest.newContext({ baseURL, extraHTTPHeaders: { Authorization: `Bearer ${token}`, Connection: "close" } }),
+      await playwrightRequest.newContext({ baseURL, extraHTTPHeaders: { Authorization: `Bearer ${token}`, ...ONE_CONNECTION_PER_REQUEST } }),
     );
   }
 
@@ -180,12 +185,12 @@ export const test = base.extend<Fixtures & { healthyRobot: void }, WorkerFixture
   // The worker's own service (what the config's `use.baseURL` names too, in the worker).
   baseURL: async ({ cell }, use) => use(cell.baseURL),
   robot: async ({}, use) => {
-    const api = await playwrightRequest.newContext({ baseURL: controlURL });
+    const api = await playwrightRequest.newContext({ baseURL: controlURL, extraHTTPHeaders: ONE_CONNECTION_PER_REQUEST });
     await use(new Robot(api));
     await api.dispose();
   },
   robot2: async ({}, use) => {
-    const api = await playwrightRequest.newContext({ baseURL: control2URL });
+    const api = await playwrightRequest.newContext({ baseURL: control2URL, extraHTTPHeaders: ONE_CONNECTION_PER_REQUEST });
     await use(new Robot(api));
     await api.dispose();
   },
