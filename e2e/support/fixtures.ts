@@ -247,12 +247,6 @@ export async function confirmIfAsked(page: Page): Promise<void> {
 }
 
 /**
- * Log `user` in for `page`'s browser context as the login form would (the same request from the
- * context, so the session cookie lands in its jar), without the form: for tests about something
- * else. The form itself is tested where logging in is the subject (04, 10, 21, 22's phone and
- * headers).
- */
-/**
  * The cell quiet again: `robots` back to running (their faults cleared, the program on) and every
  * unacknowledged alarm of both robots acknowledged (one request each, `why` its audited comment),
  * so the scenarios after a test that raised alarms start without them in the banner.
@@ -265,6 +259,12 @@ export async function quietCell(robots: readonly Robot[], operatorApi: Service, 
   }
 }
 
+/**
+ * Log `user` in for `page`'s browser context as the login form would (the same request from the
+ * context, so the session cookie lands in its jar), without the form: for tests about something
+ * else. The form itself is tested where logging in is the subject (04, 10, 21, 22's phone and
+ * headers).
+ */
 export async function loggedIn(page: Page, user: { name: string; password: string }): Promise<void> {
   const answer = await page.request.post("/api/v1/auth/login", { data: { username: user.name, password: user.password } });
   expect(answer.status(), await answer.text()).toBe(200);
