@@ -404,6 +404,14 @@ def main() -> int:
         f"  fast clients: frames missed {missing}, dropped notices {told}, out of order "
         f"{disorder}, closed by the server {len(closed)}"
     )
+    fast = [r for cycle in results.records for r in cycle]
+    if fast:
+        messages, frames = sum(r.messages for r in fast), sum(r.frames for r in fast)
+        print(
+            "  messages per fast client per second "
+            f"{messages / args.clients / results.load.seconds:.1f}"
+            f" ({frames / max(messages, 1):.1f} frames each)"
+        )
     if latencies:
         print(
             "  frame age when read (receive → client): "

@@ -80,6 +80,44 @@ async def test_stream_sends_at_once_then_every_rpi_waking_once_per_batch(
     assert span_s >= (count - 1) * 0.002 * 0.5, "paced at the RPI, not sent in bursts"
 
 
+async def test_the_fallback_waits_one_watchdog_timeout_after_the_last_read(
+    plc_host: str, robot_host: str
+) -> None:
+    """Given the connection's timeout, the fallback timer stays quiet while T→O is read (it
+    moves itself on once per timeout instead of every few wake-ups) and looks once T→O stops,
+    not before the timeout has passed since the last read (the watchdog's verdict is due then,
+    and a look earlier is a wake-up for nothing)."""
+    receiver = Receiver(robot_host)
+    sender = UdpEndpoint(plc_host, 0, lambda *_: None, receive_size=1501)
+    loop = asyncio.get_running_loop()
+    looks: list[float] = []
+    watchdog_s = 0.15
+    stream = O2TStream(
+        sender,
+        8,
+        receiver.addr,
+        0.01,
+        lambda: io.encode_io(8, 0, 0, b"\x00" * 20, 1),
+        on_timer=lambda now, lag_s: looks.append(now),
+        watchdog_s=watchdog_s,
+    )
+    try:
+        stream.start()
+        reading_until = loop.time() + 4 * watchdog_s
+        while loop.time() < reading_until:  # T→O read every RPI, as a steady stream is
+            stream.t2o_read()
+            await asyncio.sleep(0.01)
+        stream.t2o_read()
+        last_read = loop.time()
+        assert looks == [], "no look while T→O is read"
+        await eventually(lambda: bool(looks))
+    finally:
+        stream.stop()
+        sender.close()
+        receiver.close()
+    assert looks[0] - last_read >= watchdog_s - 1e-3, "not before the timeout since the last read"
+
+
 async def test_rebuild_puts_the_change_in_the_next_packet_with_the_same_numbers(
     plc_host: str, robot_host: str
 ) -> None:

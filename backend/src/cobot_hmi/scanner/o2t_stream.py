@@ -12,7 +12,12 @@ A fallback timer, pushed back every time T→O wakes us (``t2o_read``), fires on
 that is when the watchdog looks (``on_timer``). It is pushed back lazily: ``t2o_read`` only
 notes the time, and the timer, when it comes, moves itself on to the fallback's due time from
 that last read. A busy port wakes hundreds of times a second for its connections; cancelling and
-making a loop timer per connection per wake-up cost more than the packets' decoding.
+making a loop timer per connection per wake-up cost more than the packets' decoding. Given the
+connection's watchdog timeout (``watchdog_s``), the fallback is due exactly one timeout after
+the last read: a steady stream then moves its timer on once per timeout (at RPI 10 ms, × 16:
+every 160 ms) instead of every few wake-ups, and the timer that finds T→O silent fires when the
+watchdog's verdict is due, not up to a fallback period after it. A timer that fired late (our
+own loop stalled) looks again a wake-up period later, once the loop has read its sockets.
 """
 
 from __future__ import annotations
@@ -42,6 +47,7 @@ class O2TStream:
         has_cip_seq: bool = True,
         wake_period_s: float = BATCH_PERIOD_S,
         on_timer: Callable[[float, float], None] | None = None,
+        watchdog_s: float = 0.0,
     ) -> None:
         """``tag``: the stream's name in the pump, unique on ``udp`` (the connection ID when
         the socket serves one connection; an ``IoPort`` hands out its own, since two targets
@@ -49,7 +55,9 @@ class O2TStream:
         sequence count (not a zero-size heartbeat).
         ``wake_period_s``: how often T→O wakes us at most. ``on_timer(now, lag_s)``: at each
         fallback wake-up, with how late the timer fired (the watchdog's cue: the timer only
-        fires when T→O stopped coming, and a late timer means our own loop stalled)."""
+        fires when T→O stopped coming, and a late timer means our own loop stalled).
+        ``watchdog_s``: the connection's timeout, if it has one: the fallback waits that long
+        after the last read (never less than a wake-up period and an RPI)."""
         self.rpi_s = rpi_s
         self.wake_period_s = max(rpi_s, wake_period_s)
         self._udp = udp
@@ -63,7 +71,7 @@ class O2TStream:
         self._timer_due = 0.0
         self._last_read = 0.0
         """Loop time T→O was last read (the fallback is due ``_fallback_s`` after it)."""
-        self._fallback_s = 1.5 * self.wake_period_s + rpi_s
+        self._fallback_s = max(1.5 * self.wake_period_s + rpi_s, watchdog_s)
         self._active = False
         self._sent_at_stop = 0
         self.timer_wakeups = 0
@@ -138,11 +146,15 @@ class O2TStream:
             self._schedule(due)
             return
         self.timer_wakeups += 1
+        lag_s = now - self._timer_due
         if self._on_timer is not None:
-            self._on_timer(now, now - self._timer_due)
+            self._on_timer(now, lag_s)
             if not self._active:
                 return
-        self._arm(now)
+        if lag_s > self.rpi_s:  # our loop stalled: look again soon, after it has read T→O
+            self._schedule(now + self.wake_period_s)
+        else:
+            self._arm(now)
 
 
 __all__ = ["O2TStream", "PacketBuilder"]

@@ -212,6 +212,7 @@ class ConnectionLifecycle(O2TSender, T2OReceiver):
             has_cip_seq=not (s.input_only and s.heartbeat_o2t_size == 0),
             wake_period_s=self._t2o_batch_s,
             on_timer=lambda now, lag_s: self._check_t2o_silence(link, now, lag_s),
+            watchdog_s=self._timeout_s(link),
         )
         link.o2t.start()
         # The pump wakes us once T→O has been silent for the timeout, whatever the batch.
