@@ -46,8 +46,9 @@ from cobot_hmi.codec import T2O_SIZE, decode_frame, encode_frame
 from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot
 from cobot_hmi.history import segments
 from cobot_hmi.history.cells import forget_cells
+from cobot_hmi.history.journal_form import records_to_journal_batch
 from cobot_hmi.history.query import query, read_raw
-from cobot_hmi.history.schema import items_to_batch, select_elements, time_seconds
+from cobot_hmi.history.schema import select_elements, time_seconds
 from cobot_hmi.service.api.routes.history import answer_json
 
 RATE_HZ = 100
@@ -97,8 +98,9 @@ def ingest(root: Path, hours: float, pool: list[bytes]) -> tuple[float, int, int
         items = []
         for i in range(second_start, min(second_start + RATE_HZ, total)):
             seq += 1
-            items.append((seq, START_S + i / RATE_HZ, frames_pool[i % len(frames_pool)], seq))
-        writer.append(items_to_batch(items))
+            k = i % len(pool)
+            items.append((seq, START_S + i / RATE_HZ, frames_pool[k], seq, pool[k]))
+        writer.append(records_to_journal_batch(items))  # as the recorder appends
         simulated_now[0] = START_S + (second_start + RATE_HZ) / RATE_HZ
         if writer.due():
             closing = time.perf_counter()

@@ -25,7 +25,7 @@ from cobot_hmi.codec import decode_frame, encode_frame
 from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot
 from cobot_hmi.history import segments
 from cobot_hmi.history.closer import JournalCloser
-from cobot_hmi.history.schema import items_to_batch
+from cobot_hmi.history.journal_form import records_to_journal_batch
 
 RATE_HZ = 500
 """RPI 2 ms."""
@@ -68,10 +68,10 @@ def measure(closes: int, root: Path) -> Path | None:
     """Record until ``closes`` segments closed; print the figures; a copy of the first
     ten-minute journal for the baseline."""
     robot = SimulatedRobot(RobotSettings(), start_s=START_S - 5)
-    pool = [
-        decode_frame(encode_frame(robot.produce_frame(START_S + i / RATE_HZ)))
-        for i in range(RATE_HZ * 10)
+    payloads = [
+        encode_frame(robot.produce_frame(START_S + i / RATE_HZ)) for i in range(RATE_HZ * 10)
     ]
+    pool = [(decode_frame(payload), payload) for payload in payloads]
     simulated_now = [START_S]
     writer = segments.SegmentWriter(root, "r", SEGMENT_S, clock=lambda: simulated_now[0])
     closer = JournalCloser(retry_s=5.0)
@@ -89,8 +89,9 @@ def measure(closes: int, root: Path) -> Path | None:
             items = []
             for i in range(RATE_HZ):
                 seq += 1
-                items.append((seq, START_S + second + i / RATE_HZ, pool[seq % len(pool)], seq))
-            writer.append(items_to_batch(items))
+                frame, payload = pool[seq % len(pool)]
+                items.append((seq, START_S + second + i / RATE_HZ, frame, seq, payload))
+            writer.append(records_to_journal_batch(items))  # as the recorder appends
             second += 1
             simulated_now[0] = START_S + second
             if second == 300:
@@ -108,6 +109,12 @@ def measure(closes: int, root: Path) -> Path | None:
                     segment.path.unlink()
                     segment.rollup_path.unlink()
             if not writer.due():
+                continue
+            if closing is not None and closer.pending:
+                # Ten simulated minutes go by faster than a close: a live recorder has ten
+                # real minutes, so the next journal is handed over once this one is closed.
+                while closer.pending:
+                    time.sleep(0.01)
                 continue
             before = rss_mib()
             path = writer.finish_journal()

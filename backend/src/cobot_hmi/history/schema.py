@@ -23,11 +23,11 @@ channel's label without its spaces, ``joint_position.J1`` for ``joint_position.0
 (``robot_state``). The recording's own segments keep the 0-based names (the API's element keys);
 a file read back (``raw_from_columns``) may use either.
 
-Frames are converted whole batches at a time: the recorder joins the T→O payloads the frames
-were decoded from (nothing is encoded again) and this module slices the columns out of the
-``(n, 284)`` byte matrix with numpy, by the layout's offsets and bit positions, one gather per
-kind of column (``column_arrays``); the reverse (columns → bytes, for replay) is the same table
-read the other way.
+Frames are converted whole batches at a time: the recorder's journal keeps the T→O payloads
+the frames were decoded from (``journal_form``: nothing is encoded again) and this module
+slices the columns out of the ``(n, 284)`` byte matrix with numpy, by the layout's offsets and
+bit positions, one gather per kind of column (``column_arrays``); the reverse (columns → bytes,
+for replay) is the same table read the other way.
 """
 
 from __future__ import annotations
@@ -306,19 +306,6 @@ def items_to_batch(items: Sequence[tuple[int, float, Frame, int]]) -> pa.RecordB
         [item[1] for item in items],
         raw,
         [item[3] for item in items],
-    )
-
-
-def records_to_batch(records: Sequence[tuple[int, float, object, int, bytes]]) -> pa.RecordBatch:
-    """Frame records ``(seq, received_at, frame, t2o_sequence, payload)`` as one record batch:
-    the columns sliced from the T→O payloads the frames were decoded from (the recorder's
-    path: nothing is encoded again)."""
-    raw = np.frombuffer(b"".join(record[4] for record in records), dtype=np.uint8)
-    return raw_to_batch(
-        [record[0] for record in records],
-        [record[1] for record in records],
-        raw.reshape(len(records), T2O_SIZE),
-        [record[3] for record in records],
     )
 
 

@@ -42,6 +42,7 @@ import pyarrow.parquet as pq
 
 from cobot_hmi.codec import T2O_SIZE
 from cobot_hmi.history.cells import write_cells, write_cells_to
+from cobot_hmi.history.journal_form import expand, is_journal_form
 from cobot_hmi.history.rollup import join_split_cells, rollup_table
 from cobot_hmi.history.schema import (
     ELEMENTS,
@@ -140,12 +141,15 @@ def list_journals(root: Path, robot: str) -> list[tuple[int, Path]]:
 class _Journal:
     """What a reader has parsed of one journal: the batches up to ``offset`` bytes."""
 
-    __slots__ = ("batches", "identity", "offset", "schema")
+    __slots__ = ("batches", "file_schema", "identity", "offset", "schema")
 
     def __init__(self, identity: tuple[int, int]) -> None:
         self.identity = identity
         self.offset = 0
+        self.file_schema: pa.Schema | None = None
+        """The journal's own schema (its form: ``journal_form``)."""
         self.schema: pa.Schema | None = None
+        """The batches' schema once expanded (the recording's, for a journal of payloads)."""
         self.batches: list[pa.RecordBatch] = []
 
 
@@ -153,6 +157,8 @@ _JOURNALS: Final[OrderedDict[Path, _Journal]] = OrderedDict()
 _JOURNALS_LOCK: Final = threading.Lock()
 _JOURNALS_KEPT: Final = 16
 _CONSOLIDATE_BATCHES: Final = 128
+EXPAND_ROWS: Final = 4096
+"""Rows of a journal of payloads sliced into columns at a time when it is closed."""
 
 
 def read_journal(path: Path, columns: Sequence[str] | None = None) -> pa.Table:
@@ -208,10 +214,12 @@ def _parse_more(path: Path, entry: _Journal, size: int) -> None:
         if message is None:
             break
         try:
-            if entry.schema is None:
-                entry.schema = pa.ipc.read_schema(message)
+            if entry.file_schema is None:
+                entry.file_schema = pa.ipc.read_schema(message)
+                entry.schema = SCHEMA if is_journal_form(entry.file_schema) else entry.file_schema
             else:
-                entry.batches.append(pa.ipc.read_record_batch(message, entry.schema))
+                batch = pa.ipc.read_record_batch(message, entry.file_schema)
+                entry.batches.append(expand(batch))
         except (OSError, pa.ArrowException):
             break
         consumed = reader.tell()
@@ -342,12 +350,29 @@ def _journal_groups(path: Path) -> Iterator[pa.Table]:
                 table = pa.Table.from_batches(pending, schema=reader.schema)
                 pending = table.slice(ROW_GROUP_ROWS).to_batches()
                 rows -= ROW_GROUP_ROWS
-                group = conform(table.slice(0, ROW_GROUP_ROWS), SCHEMA.names)
+                group = conform(_expanded(table.slice(0, ROW_GROUP_ROWS)), SCHEMA.names)
                 del table  # the group holds its batches; the next ones are read meanwhile
                 yield group
                 del group
         if rows:
-            yield conform(pa.Table.from_batches(pending, schema=reader.schema), SCHEMA.names)
+            table = pa.Table.from_batches(pending, schema=reader.schema)
+            yield conform(_expanded(table), SCHEMA.names)
+
+
+def _expanded(table: pa.Table) -> pa.Table:
+    """A row group of a journal as the recording's columns: a journal of payloads is sliced
+    into element columns the whole group at once (``journal_form``)."""
+    if not is_journal_form(table.schema):
+        return table
+    # In slices of a few thousand rows: slicing unpacks each payload's bits to a byte each
+    # (2272 bytes a row, 150 MB for a whole group at once), and each slice's payloads are
+    # copied together (``combine_chunks``) a slice at a time, never the group's.
+    expanded = [
+        expand(batch)
+        for start in range(0, table.num_rows, EXPAND_ROWS)
+        for batch in table.slice(start, EXPAND_ROWS).combine_chunks().to_batches()
+    ]
+    return pa.Table.from_batches(expanded, schema=SCHEMA)
 
 
 def close_journal(path: Path, robot: str) -> Segment | None:
@@ -464,7 +489,9 @@ class SegmentWriter:
         path = directory / f"{start_us}{JOURNAL_SUFFIX}"
         sink = pa.OSFile(str(path), "wb")
         try:
-            writer = pa.ipc.new_stream(sink, SCHEMA)
+            # The batch's form decides the journal's: the recorder's batches are payloads
+            # (journal_form); a batch of element columns makes a journal of them.
+            writer = pa.ipc.new_stream(sink, batch.schema)
         except BaseException:
             sink.close()
             raise

@@ -48,7 +48,7 @@ import pyarrow as pa
 
 from cobot_hmi.history import retention, segments
 from cobot_hmi.history.closer import JournalCloser
-from cobot_hmi.history.schema import records_to_batch
+from cobot_hmi.history.journal_form import records_to_journal_batch
 from cobot_hmi.history.segments import Segment, SegmentWriter
 from cobot_hmi.service.extensions import MetricFamily
 from cobot_hmi.service.robots.frames import FrameRecord, Registration, Runs
@@ -222,7 +222,7 @@ class Recorder:
             track.frames_not_recorded += len(records)
             return
         try:
-            track.writer.append(records_to_batch(records))
+            track.writer.append(records_to_journal_batch(records))
         except (OSError, pa.ArrowException) as error:
             track.frames_not_recorded += len(records)
             self._write_failed(track, error)
