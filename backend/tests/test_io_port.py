@@ -36,7 +36,7 @@ from cobot_hmi.enip.connection_manager import (
 from cobot_hmi.enip.cpf import CpfItem, ItemType
 from cobot_hmi.enip.encapsulation import Command
 from cobot_hmi.layout import ROBOT_STATES
-from cobot_hmi.scanner.io_port import BUSY_BATCH_S, IoPort
+from cobot_hmi.scanner.io_port import BUSY_BATCH_S, HURRY_MIN_S, IoPort, hurry_window_s
 from cobot_hmi.scanner.originator import ConnectionState, Originator, OriginatorSettings
 from cobot_hmi.udp_endpoint import UdpEndpoint
 from conftest import _next_host as next_host
@@ -194,6 +194,9 @@ async def test_n_connections_to_n_targets_on_one_socket(plc_host: str) -> None:
         assert {t.connections()[0].peer.split(":")[0] for t in targets} == {plc_host}
 
         first, second, third = originators
+        await eventually(lambda: not port.hurried)  # the takeover's rebuild hurried it
+        first.set_run(True)  # an O→T change: its confirmation is read per datagram
+        assert port.hurried and port.batch_s == 0.0
         targets[1].faults.t2o_drop_percent = 30.0
         await eventually(lambda: second.stats().gaps >= 5)
         targets[1].faults.t2o_drop_percent = 0.0
@@ -511,3 +514,35 @@ async def test_first_o2t_of_the_robot_layout_is_the_assembly_read(
     run, o2t_data = io.split_run_idle(io.decode_io(fake.o2t[0]).payload)
     assert run is False
     assert o2t_data == fake.assembly
+
+
+async def test_a_hurried_busy_port_reads_per_datagram_for_its_window_then_batches_again(
+    plc_host: str,
+) -> None:
+    """An O→T change's confirmation must not wait for a busy port's batch: ``hurry`` makes the
+    port read per datagram for the window given (a second hurry within it extends it, never
+    shortens it), then it batches again by itself."""
+    port = IoPort(plc_host, 0)
+    await port.open()
+    try:
+        for _ in range(16):  # a cell of 16 robots at RPI 10 ms: a busy port
+            port.route(
+                port.new_connection_id(),
+                "127.0.0.1",
+                Recorder(),
+                batch_s=0.0,
+                silence_s=0.16,
+                packets_per_s=100,
+            )
+        assert port.batch_s == pytest.approx(BUSY_BATCH_S)
+        port.hurry(0.3)
+        assert port.hurried and port.batch_s == 0.0
+        port.hurry(0.01)  # shorter than what is left: the window stays
+        await asyncio.sleep(0.05)
+        assert port.hurried and port.batch_s == 0.0
+        await eventually(lambda: not port.hurried)
+        assert port.batch_s == pytest.approx(BUSY_BATCH_S)
+    finally:
+        port.close()
+    assert hurry_window_s(0.002) == pytest.approx(HURRY_MIN_S)
+    assert hurry_window_s(0.1) == pytest.approx(0.8), "eight RPIs of a slow connection"

@@ -17,7 +17,7 @@ from cobot_hmi.enip.encapsulation import ENIP_UDP_PORT
 from cobot_hmi.enip.sequence import SequenceTracker
 from cobot_hmi.scanner.connection.settings import OriginatorSettings
 from cobot_hmi.scanner.connection.state import ConnectionState
-from cobot_hmi.scanner.io_port import IoPort
+from cobot_hmi.scanner.io_port import IoPort, hurry_window_s
 from cobot_hmi.scanner.o2t_stream import O2TStream
 from cobot_hmi.scanner.session import EnipSession
 from cobot_hmi.scanner.stats import IntervalWindow
@@ -133,3 +133,6 @@ class OriginatorCore:
         link = self._link
         if link is not None and link.o2t is not None:
             link.o2t.rebuild()
+            if self._port is not None:
+                # The change's confirmation is the robot's next frames: read them as they come.
+                self._port.hurry(hurry_window_s(link.t2o_api_us / 1e6))
