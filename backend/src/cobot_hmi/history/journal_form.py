@@ -8,7 +8,8 @@ about a millisecond per batch, most of it building the columns' Arrow arrays one
 16 robots the recorder's thread was the service's third busiest. A batch of the journal's form
 costs four columns. The element columns are sliced when the journal is read (a query of the
 open segment parses each batch once, ``segments.read_journal``) and when it is closed into a
-Parquet segment, 64 Ki rows at a time, where the fixed cost per batch is spread over a group.
+Parquet segment, a few thousand rows at a time, where the fixed cost per batch is spread over
+many frames.
 
 A journal written by an earlier version holds the element columns themselves: readers tell the
 two forms apart by the schema (``is_journal_form``) and give both as the recording's schema.

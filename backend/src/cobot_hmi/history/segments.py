@@ -361,7 +361,7 @@ def _journal_groups(path: Path) -> Iterator[pa.Table]:
 
 def _expanded(table: pa.Table) -> pa.Table:
     """A row group of a journal as the recording's columns: a journal of payloads is sliced
-    into element columns the whole group at once (``journal_form``)."""
+    into element columns ``EXPAND_ROWS`` rows at a time (``journal_form``)."""
     if not is_journal_form(table.schema):
         return table
     # In slices of a few thousand rows: slicing unpacks each payload's bits to a byte each

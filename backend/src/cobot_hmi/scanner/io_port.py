@@ -161,6 +161,7 @@ class IoPort:
         if self._hurry_timer is not None:
             self._hurry_timer.cancel()
             self._hurry_timer = None
+        self._hurry_until = 0.0
         udp, self._udp = self._udp, None
         if udp is not None:
             udp.close()
@@ -235,7 +236,7 @@ class IoPort:
         (or longer, if a hurry is on already), so the change's confirmation is read as it
         arrives, not at the next batch. On the port's event loop."""
         loop = self._loop
-        if loop is None:  # not open: nothing to read
+        if loop is None or self._udp is None:  # not open: nothing to read
             return
         until = loop.time() + window_s
         if until <= self._hurry_until:
