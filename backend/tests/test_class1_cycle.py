@@ -9,6 +9,7 @@ Deadlines are generous: nothing here asserts a timing figure.
 from __future__ import annotations
 
 import asyncio
+import functools
 import socket
 import time
 
@@ -18,7 +19,7 @@ from cobot_hmi.codec import command_from_json
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import TICK_READ_MAX_RPI_US, Target
 from cobot_hmi.enip import io
-from cobot_hmi.scanner.o2t_stream import O2TStream
+from cobot_hmi.scanner.o2t_stream import O2TStream, on_rpi_grid
 from cobot_hmi.scanner.originator import ConnectionState, Originator, OriginatorSettings
 from cobot_hmi.udp_endpoint import UdpEndpoint
 from waiting import WAIT_DEADLINE_S, eventually
@@ -50,11 +51,11 @@ def sequences(packets: list[tuple[bytes, float]]) -> list[tuple[int, int | None,
     return [(p.encap_seq, p.cip_seq, p.payload) for p in decoded]
 
 
-async def test_stream_sends_at_once_then_every_rpi_waking_once_per_batch(
+async def test_stream_sends_from_the_next_rpi_tick_then_every_rpi_waking_once_per_batch(
     plc_host: str, robot_host: str
 ) -> None:
-    """At RPI 2 ms the packets leave from the pump: one each RPI, while we wake only for the
-    fallback timer (no T→O here), several packets per wake-up."""
+    """At RPI 2 ms the packets leave from the pump: one each RPI from the grid's next tick,
+    while we wake only for the fallback timer (no T→O here), several packets per wake-up."""
     receiver = Receiver(robot_host)
     sender = UdpEndpoint(plc_host, 0, lambda *_: None, receive_size=1501)
     stream = O2TStream(
@@ -78,6 +79,60 @@ async def test_stream_sends_at_once_then_every_rpi_waking_once_per_batch(
     arrivals = [at for _, at in receiver.packets]
     span_s = arrivals[-1] - arrivals[0]
     assert span_s >= (count - 1) * 0.002 * 0.5, "paced at the RPI, not sent in bursts"
+
+
+def test_the_rpi_grid_is_the_next_whole_number_of_rpis() -> None:
+    """Exact in nanoseconds: streams of one RPI started at scattered instants get the same
+    ticks, and a start on a tick keeps it."""
+    for rpi_s in (0.002, 0.01, 0.0125, 0.1):
+        period_ns = round(rpi_s * 1e9)
+        for now in (1234.5678912, 98765.000001, 5.0, 0.0):
+            due = on_rpi_grid(now, rpi_s)
+            due_ns = round(due * 1e9)
+            assert due_ns % period_ns == 0
+            assert 0 <= due_ns - round(now * 1e9) < period_ns
+            assert on_rpi_grid(due, rpi_s) == due, "a tick is its own next tick"
+
+
+async def test_streams_of_one_rpi_leave_on_one_phase_one_wake_up_for_all(
+    plc_host: str, robot_host: str
+) -> None:
+    """Eight connections' streams at RPI 10 ms, started at scattered instants, are due on the
+    same ticks: the pump sends them in one wake-up per RPI, not one per packet (a late
+    wake-up only gathers more packets, so a busy machine cannot fail this)."""
+    receiver = Receiver(robot_host)
+    sender = UdpEndpoint(plc_host, 0, lambda *_: None, receive_size=1501)
+    streams = [
+        O2TStream(
+            sender,
+            tag,
+            receiver.addr,
+            0.01,
+            functools.partial(io.encode_io, tag, 0, 0, bytes(20), 1),
+        )
+        for tag in range(1, 9)
+    ]
+    try:
+        for stream in streams:
+            stream.start()
+            await asyncio.sleep(0.0013)  # scattered starts
+        dues = set()
+        for tag in range(1, 9):
+            following = sender.periodic_next(tag)
+            assert following is not None
+            dues.add(round(following[2] * 1e9) % 10_000_000)
+        assert dues == {0}, "every stream on the 10 ms grid"
+        before = sender.counters()
+        await eventually(lambda: sender.counters()["sent"] - before["sent"] >= 400)
+        after = sender.counters()
+    finally:
+        for stream in streams:
+            stream.stop()
+        sender.close()
+        receiver.close()
+    sent = after["sent"] - before["sent"]
+    wakeups = after["wakeups"] - before["wakeups"]
+    assert wakeups <= sent / 4, f"{wakeups} wake-ups for {sent} packets of 8 streams"
 
 
 async def test_the_fallback_waits_one_watchdog_timeout_after_the_last_read(

@@ -286,3 +286,30 @@ async def test_silence_wakes_the_owner_once(plc_host: str) -> None:
     finally:
         endpoint.close()
     assert [d for d, _, _ in received] == [b"one", b"two"]
+
+
+def test_a_stalled_stream_catches_up_once_and_stays_on_its_grid() -> None:
+    """After a stall of several periods the stream sends one packet for the missed ones (no
+    burst) and its next ones stay on the ticks it started on, so streams sharing a phase keep
+    sharing it (the C pump does the same in cyclic_pump_periodic.c)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        state = pure._State(sock.fileno(), 4, 64, 4, 64)
+        try:
+            period_ns = 10_000_000
+            stream = pure._Periodic(
+                1, 5 * period_ns, period_ns, sock.getsockname(), bytearray(8), 0, 4, 1, 1
+            )
+            state.periodics[1] = stream
+            state.send_due(5 * period_ns)
+            assert state.counters[0] == 1
+            state.send_due(11 * period_ns + 3_000_000)  # stalled 5.3 periods
+            assert state.counters[0] == 2, "one packet for the missed ones"
+            assert stream.due_ns % period_ns == 0, "still on its grid"
+            assert 10 * period_ns < stream.due_ns <= 11 * period_ns + 3_000_000
+            state.send_due(stream.due_ns)
+            assert state.counters[0] == 3 and stream.due_ns == 12 * period_ns
+        finally:
+            state.sock.close()
+            os.close(state.kick_fd)
+            os.close(state.notify_fd)

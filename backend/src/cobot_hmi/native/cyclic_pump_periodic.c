@@ -21,7 +21,10 @@ void pump_send_periodic_due(pump *p, int64_t now) {
         s->count32++;
         s->count16++;
         s->due_ns += s->period_ns;
-        if (s->due_ns < now - s->period_ns) s->due_ns = now; /* stalled: resynchronise, no burst */
+        /* Stalled for more than a period: skip the missed packets (one catch-up, no burst) and
+         * stay on the stream's own grid, so streams started on one phase keep sharing it. */
+        if (s->due_ns < now - s->period_ns)
+            s->due_ns += (now - s->due_ns) / s->period_ns * s->period_ns;
     }
 }
 

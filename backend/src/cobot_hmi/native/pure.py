@@ -142,8 +142,8 @@ class _State:
                 s.count32 = (s.count32 + 1) & 0xFFFFFFFF
                 s.count16 = (s.count16 + 1) & 0xFFFF
                 s.due_ns += s.period_ns
-                if s.due_ns < now - s.period_ns:
-                    s.due_ns = now  # stalled: resynchronise, no burst
+                if s.due_ns < now - s.period_ns:  # stalled: one catch-up, on the stream's grid
+                    s.due_ns += (now - s.due_ns) // s.period_ns * s.period_ns
             next_ns = min(next_ns, s.due_ns)
         queue = self.queue
         sent = 0

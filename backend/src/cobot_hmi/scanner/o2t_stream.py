@@ -33,6 +33,22 @@ PacketBuilder = Callable[[], bytes]
 sends, whatever the template carries there)."""
 
 
+def on_rpi_grid(now: float, rpi_s: float) -> float:
+    """The first instant at or after ``now`` (loop time, ``time.monotonic``) that is a whole
+    number of RPIs since the clock's origin.
+
+    Every stream of one RPI starts on this grid, so the pump sends the O→T packets of all
+    connections with that RPI in one wake-up per RPI (a PLC's I/O scan does the same), not one
+    wake-up per connection at scattered phases: 16 robots at RPI 10 ms cost the pump 100
+    wake-ups a second instead of 1600. RPIs that divide one another share ticks too (every
+    fifth 2 ms tick is a 10 ms one). The first packet leaves at most one RPI after the Forward
+    Open, well within the target's watchdog (RPI × (4 << multiplier), CIP Vol 1 §3-5.4.1). Counted
+    in whole nanoseconds, the pump's unit, so that two streams' ticks are the same instant."""
+    period_ns = max(1, round(rpi_s * 1e9))
+    now_ns = round(now * 1e9)
+    return -(-now_ns // period_ns) * period_ns / 1e9
+
+
 class O2TStream:
     """One connection's O→T packets, a periodic stream of the pump of ``udp``."""
 
@@ -81,12 +97,13 @@ class O2TStream:
         return self._active
 
     def start(self) -> None:
-        """The first packet now (sequence numbers 1), then one per RPI."""
+        """The first packet at the next tick of the RPI's grid (sequence numbers 1), then one
+        per RPI (see ``on_rpi_grid``)."""
         self._active = True
         now = self._loop.time()
         self._udp.send_every(
             self._tag,
-            now,
+            on_rpi_grid(now, self.rpi_s),
             self.rpi_s,
             self._build(),
             self._addr,
