@@ -32,7 +32,7 @@ from cobot_hmi.service.extensions import ServiceExtension
 from cobot_hmi.service.recording.recorder import Recorder
 from cobot_hmi.service.robots.control import Control
 from cobot_hmi.service.robots.hub import Hub
-from cobot_hmi.service.robots.link import CyclicLoop, RobotLink
+from cobot_hmi.service.robots.link import CyclicLoop, RobotLink, stats_of
 from cobot_hmi.service.robots.robot import RobotRuntime
 from cobot_hmi.service.settings import ServiceSettings
 from cobot_hmi.service.storage.event_log import EventLog
@@ -225,14 +225,18 @@ class Service:
                 continue
             # Once per period for every stream: a panel of one robot sees the others' alarms.
             cell_alarms = self.cell_alarms()
-            for robot in self.robots.values():
-                if not robot.hub.clients:
-                    continue
+            watched = [robot for robot in self.robots.values() if robot.hub.clients]
+            try:
+                stats = await stats_of([robot.link for robot in watched])  # one hop for all
+            except Exception:
+                log.exception("the robots' connection statistics failed")
+                continue
+            for robot in watched:
                 try:
                     robot.hub.broadcast_status(
                         {
                             "robot": robot.name,
-                            "connection": await robot.connection_status(),
+                            "connection": await robot.connection_status(stats[robot.name]),
                             "cell_alarms": cell_alarms,
                         }
                     )

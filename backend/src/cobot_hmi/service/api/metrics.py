@@ -36,6 +36,7 @@ from cobot_hmi.service.api.http_limits import ConnectionCounters
 from cobot_hmi.service.api.security import REFUSAL_REASONS, SecurityCounters
 from cobot_hmi.service.api.tls import ReloadingContext
 from cobot_hmi.service.extensions import MetricFamily
+from cobot_hmi.service.robots.link import stats_of
 from cobot_hmi.service.storage.audit_chain import ChainHead
 
 if TYPE_CHECKING:
@@ -399,6 +400,6 @@ class ServiceMetrics:
         """The text of one scrape. Each robot's connection statistics come from the cyclic
         thread first (a consistent snapshot); the collection after them is synchronous, so no
         other scrape on this event loop can swap the snapshot in between."""
-        stats = {name: await robot.link.stats() for name, robot in self._service.robots.items()}
+        stats = await stats_of([robot.link for robot in self._service.robots.values()])
         self._collector.stats = stats
         return generate_latest(self.registry)

@@ -23,7 +23,7 @@ from typing import Any, Final
 from cobot_hmi.enip.errors import EnipError
 from cobot_hmi.enip.identity import IdentityInfo
 from cobot_hmi.layout import LAYOUT_VERSION
-from cobot_hmi.scanner.originator import ConnectionState
+from cobot_hmi.scanner.originator import ConnectionState, ConnectionStats
 from cobot_hmi.scanner.session import EnipSession, SessionError
 from cobot_hmi.scanner.t2o_pace import SlowTarget
 from cobot_hmi.service.alarms.engine import TICK_S, AlarmEngine, UserAlarm
@@ -319,9 +319,11 @@ class RobotRuntime:
 
     # ------------------------------------------------------------ answers
 
-    async def connection_status(self) -> dict[str, object]:
-        """``models.ConnectionStatus`` of this robot as JSON-ready data."""
-        stats = await self.link.stats()
+    async def connection_status(self, stats: ConnectionStats | None = None) -> dict[str, object]:
+        """``models.ConnectionStatus`` of this robot as JSON-ready data (from ``stats`` when
+        the caller fetched the cell's at once: ``link.stats_of``)."""
+        if stats is None:
+            stats = await self.link.stats()
         age = stats.last_frame_age_s
         stale = (
             stats.state is not ConnectionState.CONNECTED or age is None or age > self._stale_after_s
