@@ -19,6 +19,7 @@ from cobot_hmi.codec import command_from_json
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import TICK_READ_MAX_RPI_US, Target
 from cobot_hmi.enip import io
+from cobot_hmi.enip.encapsulation import ENIP_UDP_PORT
 from cobot_hmi.scanner.o2t_stream import O2TStream, on_rpi_grid
 from cobot_hmi.scanner.originator import ConnectionState, Originator, OriginatorSettings
 from cobot_hmi.udp_endpoint import UdpEndpoint
@@ -264,6 +265,40 @@ async def test_both_watchdogs_wait_out_a_stall_of_their_own_loop(
         assert ConnectionState.LOST not in states
         assert originator.state is ConnectionState.CONNECTED
         assert len(target.connections()) == 1
+    finally:
+        await originator.stop()
+
+
+async def test_a_silence_the_target_ends_right_after_the_first_look_keeps_the_connection(
+    target: Target, robot_host: str, plc_host: str
+) -> None:
+    """As when the whole machine stops for longer than the timeout (a VM's host taking its
+    CPUs): the target stopped too, and its next packet comes just after our first look at the
+    silence. The verdict waits one RPI more, so that packet keeps the connection; a silence
+    that goes on is still a timeout (test_service_robots and the e2e's emulator restart)."""
+    states: list[ConnectionState] = []
+    rpi_us = 200_000  # one RPI of grace: longer than any stall of this loop between two steps
+    originator = await held(
+        target, robot_host, plc_host, rpi_us, on_state=lambda state, reason: states.append(state)
+    )
+    try:
+        states.clear()
+        link = originator._link
+        assert link is not None and link.last_payload is not None
+        target.faults.t2o_silent = True
+        await eventually(lambda: link.silence_seen_at is not None)
+        # The target's packet after the stop, from its own address, next in both sequences.
+        encap, cip = link.sequence.last_encap_seq, link.sequence.last_cip_seq
+        assert encap is not None and cip is not None
+        packet = io.encode_io(link.t2o_id, encap + 1, (cip + 1) & 0xFFFF, link.last_payload[0])
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sender:
+            sender.bind((robot_host, 0))
+            sender.sendto(packet, (plc_host, ENIP_UDP_PORT))
+        target.faults.t2o_silent = False
+        before = originator.stats().packets_in
+        await eventually(lambda: originator.stats().packets_in >= before + 3)
+        assert ConnectionState.LOST not in states
+        assert originator.state is ConnectionState.CONNECTED
     finally:
         await originator.stop()
 

@@ -49,6 +49,9 @@ class Link:
     """The last T→O payload decoded, and its frame."""
     o2t: O2TStream | None = None
     routed: bool = False
+    silence_seen_at: float | None = None
+    """Loop time the watchdog first saw T→O silent past the timeout (its verdict waits one RPI
+    more: ``T2OReceiver._check_t2o_silence``); ``None`` while T→O comes."""
 
 
 class OriginatorCore:
