@@ -1,4 +1,4 @@
-"""Layer: history storage. Imports only ``segments`` and ``heap``.
+"""Layer: history storage. Imports only ``segments``.
 
 Journals closed by the recorder become segments here, on a thread of their own, one at a
 time in the order handed over (``JournalCloser.submit``). Closing a ten-minute journal of a
@@ -23,7 +23,6 @@ from pathlib import Path
 import pyarrow as pa
 
 from cobot_hmi.history import segments
-from cobot_hmi.history.heap import give_back_freed_memory
 from cobot_hmi.history.segments import Segment
 
 log = logging.getLogger(__name__)
@@ -131,8 +130,6 @@ class JournalCloser:
             self.last_error = f"{path.name}: {reason or error}"
             log.warning("history of %s: journal not closed yet: %s", robot, self.last_error)
             return False
-        finally:
-            give_back_freed_memory()  # the close's temporaries (heap.py says why)
         if self.on_closed is not None:
             try:
                 self.on_closed(robot, segment)
