@@ -1,5 +1,5 @@
 import { describe, expect, it } from "vitest";
-import { pointsWords, pointWords, tagChanges, bitWriteQuestion } from "./tags";
+import { bitClickRequest, bitWriteQuestion, pointsWords, pointWords, tagChanges } from "./tags";
 
 describe("tag names beside the spec's labels", () => {
   it("names a 0-based key by its label and its tag", () => {
@@ -34,5 +34,20 @@ describe("bitWriteQuestion", () => {
     expect(bitWriteQuestion("register", "5", "part present", false)).toBe("Set bit input register 5 (part present) OFF?");
     expect(bitWriteQuestion("output", "DO 3", "gripper close", true)).toBe("Switch DO 3 (gripper close) ON?");
     expect(bitWriteQuestion("output", "DO 3", " ", true)).toBe("Switch DO 3 ON?");
+  });
+});
+
+describe("what a click on a bit asks for", () => {
+  it("is the opposite of what the toggle shows, even before the frames show a confirmed write", () => {
+    // Confirmed ON, the toggle holds ON, the last frame still says off: the click asks OFF.
+    expect(bitClickRequest(true, false, true)).toBe(false);
+    expect(bitClickRequest(false, true, false)).toBe(true);
+  });
+
+  it("falls back on the robot's state, then the command, when the toggle shows no value", () => {
+    expect(bitClickRequest(null, true, false)).toBe(false);
+    expect(bitClickRequest(null, null, true)).toBe(false);
+    expect(bitClickRequest(null, null, null)).toBe(true);
+    expect(bitClickRequest("pending", false, true)).toBe(true);
   });
 });

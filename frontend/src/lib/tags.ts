@@ -37,3 +37,14 @@ export function bitWriteQuestion(kind: "output" | "register", label: string, tag
   const state = on ? "ON" : "OFF";
   return kind === "register" ? `Set bit input register ${label}${named} ${state}?` : `Switch ${label}${named} ${state}?`;
 }
+
+/**
+ * The value a click on a bit's toggle asks for: the opposite of what the toggle SHOWS. After a
+ * write is confirmed the toggle holds the value written until the robot's frames show it (they
+ * come over the stream, the confirmation over HTTP), so the frame's value may still be the old
+ * one; asking from it turned "ON, click" into "Switch ON?" again.
+ */
+export function bitClickRequest(shown: boolean | number | "pending" | null, actual: boolean | null, command: boolean | null): boolean {
+  const seen = typeof shown === "boolean" ? shown : null;
+  return !(seen ?? actual ?? command ?? false);
+}

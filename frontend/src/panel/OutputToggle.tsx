@@ -7,7 +7,7 @@ import { memo } from "react";
 import type { CommandFieldName } from "../generated/layout";
 import { useTagNames } from "../components/tagNames";
 import { tagLabel } from "../lib/alarms";
-import { bitWriteQuestion } from "../lib/tags";
+import { bitClickRequest, bitWriteQuestion } from "../lib/tags";
 import { writeKey } from "../lib/writes";
 import { useWrites, useWriteView } from "./writeContext";
 
@@ -46,7 +46,7 @@ export const OutputToggle = memo(function OutputToggle({
   const mismatch = !view.pending && actual !== null && command !== null && actual !== command;
 
   const onClick = () => {
-    const requested = !(actual ?? command ?? false);
+    const requested = bitClickRequest(view.shown, actual, command);
     const ask = kind === "output" || writes.confirmRegisters;
     const message = bitWriteQuestion(kind, label, tag, requested);
     void writes.write([key], [requested], { [field]: { [String(index)]: requested } }, ask ? message : null);
