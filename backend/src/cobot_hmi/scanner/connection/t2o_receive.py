@@ -80,12 +80,11 @@ class T2OReceiver(OriginatorCore):
         """The watchdog's second look at a silence (its connection may be gone meanwhile)."""
         if self._link is not link:
             return
-        now = asyncio.get_running_loop().time()
-        lag_s = now - due
-        if lag_s > link.o2t_api_us / 1e6:  # our loop stalled again: after it reads T→O
-            asyncio.get_running_loop().call_at(
-                now + link.t2o_api_us / 1e6, self._look_again, link, now + link.t2o_api_us / 1e6
-            )
+        loop = asyncio.get_running_loop()
+        now = loop.time()
+        if now - due > link.o2t_api_us / 1e6:  # our loop stalled again: after it reads T→O
+            again = now + link.t2o_api_us / 1e6
+            loop.call_at(again, self._look_again, link, again)
             return
         self._check_t2o_silence(link, now, 0.0)
 
