@@ -6,8 +6,11 @@ batches of a second → the journal; every 10 minutes the journal handed to the 
 writer as the recorder's start has it. Prints the process's RSS (anonymous + file-backed, as
 ``ps`` and the soak read it) before each close, its peak while the closer works (sampled every
 2 ms) and after, and the drift from simulated minute 5 to the end against the soak's target (±5 %).
-Baseline, the same run: one of those ten-minute journals converted the way it was before
-(read whole into memory, then written) in a fresh process, its peak and what stayed.
+Each in a fresh process: first with glibc's malloc arenas limited as ``cobot-hmi`` limits them
+(cli/process_memory.py), then, as the baseline of the same run, with glibc's default arenas
+(the step after the first close that the soak saw). And one of those ten-minute journals
+converted the way it was before (read whole into memory, then written) in a fresh process, its
+peak and what stayed.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ import threading
 import time
 from pathlib import Path
 
+from cobot_hmi.cli.process_memory import limit_malloc_arenas
 from cobot_hmi.codec import decode_frame, encode_frame
 from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot
 from cobot_hmi.history import segments
@@ -158,15 +162,37 @@ def baseline(journal: Path) -> None:
     subprocess.run([sys.executable, "-c", code, str(journal)], check=True)
 
 
+def measure_in_fresh_process(closes: int, arenas: str) -> None:
+    """``measure`` in a fresh Python with glibc's malloc arenas as ``arenas`` says: "limited"
+    as ``cobot-hmi`` sets them (cli/process_memory.py), or glibc's "default"."""
+    subprocess.run([sys.executable, __file__, arenas, str(closes)], check=True)
+
+
 def main(closes: int) -> int:
     print(f"load average before: {os.getloadavg()}")
-    print(f"\nmemory: a robot at RPI 2 ms ({RATE_HZ} frames/s), {closes} segments of "
-          f"{SEGMENT_S / 60:.0f} minutes closed while recording:")  # fmt: skip
+    for arenas, title in (
+        ("limited", "as cobot-hmi runs it (two malloc arenas)"),
+        ("default", "baseline: glibc's default malloc arenas (eight per core)"),
+    ):
+        print(f"\nmemory, {title}: a robot at RPI 2 ms ({RATE_HZ} frames/s), {closes} segments "
+              f"of {SEGMENT_S / 60:.0f} minutes closed while recording:", flush=True)  # fmt: skip
+        measure_in_fresh_process(closes, arenas)
+    print(f"\nload average after: {os.getloadavg()}")
+    return 0
+
+
+def child(arenas: str, closes: int) -> int:
+    """One measurement (in the process ``measure_in_fresh_process`` started)."""
+    if arenas == "limited":
+        assert limit_malloc_arenas(), "this C library takes no M_ARENA_MAX"
     with tempfile.TemporaryDirectory(prefix="cobot-history-memory-") as directory:
         kept = measure(closes, Path(directory))
-        if kept is not None:
+        if kept is not None and arenas == "limited":
             size_mib = kept.stat().st_size / 2**20
             print(f"  (a ten-minute journal: {size_mib:.0f} MiB)")
             baseline(kept)
-    print(f"\nload average after: {os.getloadavg()}")
     return 0
+
+
+if __name__ == "__main__":
+    sys.exit(child(sys.argv[1], int(sys.argv[2])))
