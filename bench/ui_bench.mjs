@@ -121,6 +121,51 @@ async function mainThreadBusy(cdp) {
 }
 
 /**
+ * The kiosk at `url` for `seconds`: rendered frames/s, the JS heap every 10 s (a one-off
+ * comparison of two points is noisy: Plotly's text-measure cache fills and resets, JIT warm-up;
+ * the series shows whether it levels off) and the main thread's busy share.
+ */
+async function measureKiosk(browser, url, seconds) {
+  const kiosk = await browser.newPage({ viewport: { width: 1920, height: 1080 } });
+  kiosk.on("pageerror", (e) => console.error("kiosk page error:", e.message));
+  await kiosk.addInitScript(() => {
+    const bench = { frames: 0 };
+    window.__bench = bench;
+    const loop = () => {
+      bench.frames++;
+      requestAnimationFrame(loop);
+    };
+    requestAnimationFrame(loop);
+  });
+  await kiosk.goto(url);
+  await kiosk.waitForFunction(
+    () => Number(document.querySelector('[data-testid="plot-joint-position"]')?.getAttribute("data-points") ?? 0) > 0,
+    null,
+    { timeout: 30_000 },
+  );
+  const cdp = await kiosk.context().newCDPSession(kiosk);
+  await cdp.send("Performance.enable", { timeDomain: "timeTicks" });
+  const busy0 = await mainThreadBusy(cdp);
+  const k0 = await kiosk.evaluate(() => ({ now: performance.now(), frames: window.__bench.frames }));
+  const heap = [];
+  for (let t = 10; t <= seconds; t += 10) {
+    await sleep(10_000);
+    heap.push(await liveHeapMb(kiosk));
+  }
+  const k1 = await kiosk.evaluate(() => ({ now: performance.now(), frames: window.__bench.frames }));
+  const busy1 = await mainThreadBusy(cdp);
+  await kiosk.close();
+  const span_s = (k1.now - k0.now) / 1000;
+  return {
+    seconds: span_s,
+    fps: (k1.frames - k0.frames) / span_s,
+    heap,
+    heapGrowth: (heap.at(-1) - heap[0]) / heap[0],
+    busy: (busy1.TaskDuration - busy0.TaskDuration) / (busy1.wall_s - busy0.wall_s),
+  };
+}
+
+/**
  * The page's JS heap (MB) right after a full GC, read in the same task as the GC: Chrome's
  * performance.memory.usedJSHeapSize, as the page and DevTools see it (V8's heap statistics,
  * Blink's objects on it included), unrounded with --enable-precise-memory-info.
@@ -531,43 +576,17 @@ try {
     );
   }
 
-  // The kiosk (a secondary figure: it runs for days): its frames/s and heap the same way.
+  // The kiosk (a secondary figure: it runs for days): its frames/s, heap and main thread the
+  // same way; then, as its baseline, the kiosk with Plotly drawing its plots (picture off).
   if (kioskSeconds > 0) {
     await page.close();
-    const kiosk = await browser.newPage({ viewport: { width: 1920, height: 1080 } });
-    kiosk.on("pageerror", (e) => console.error("kiosk page error:", e.message));
-    await kiosk.addInitScript(() => {
-      const bench = { frames: 0 };
-      window.__bench = bench;
-      const loop = () => {
-        bench.frames++;
-        requestAnimationFrame(loop);
-      };
-      requestAnimationFrame(loop);
-    });
-    const kheap = () => liveHeapMb(kiosk);
-    await kiosk.goto(`${base}/kiosk`);
-    await kiosk.waitForFunction(
-      () => Number(document.querySelector('[data-testid="plot-joint-position"]')?.getAttribute("data-points") ?? 0) > 0,
-      null,
-      { timeout: 30_000 },
-    );
-    // Heap every 10 s: a one-off comparison of two points is noisy (Plotly's text-measure cache
-    // fills and resets, JIT warm-up); the series shows whether it levels off.
-    const k0 = await kiosk.evaluate(() => ({ now: performance.now(), frames: window.__bench.frames }));
-    const series = [];
-    for (let t = 10; t <= kioskSeconds; t += 10) {
-      await sleep(10_000);
-      series.push(await kheap());
-    }
-    const k1 = await kiosk.evaluate(() => ({ now: performance.now(), frames: window.__bench.frames }));
-    const kHeap10 = series[0];
-    const kHeapEnd = series.at(-1);
-    const kGrowth = (kHeapEnd - kHeap10) / kHeap10;
+    const kiosk = await measureKiosk(browser, `${base}/kiosk`, kioskSeconds);
+    const plotly = await measureKiosk(browser, `${base}/kiosk?plotPicture=off`, Math.min(kioskSeconds, 20));
     console.log(
-      `  kiosk (1920x1080, ${((k1.now - k0.now) / 1000).toFixed(1)} s): ${((k1.frames - k0.frames) / ((k1.now - k0.now) / 1000)).toFixed(1)} frames/s, ` +
-        `JS heap ${kHeap10.toFixed(2)} MB at ${HEAP_FIRST_S} s, ${kHeapEnd.toFixed(2)} MB at the end (${(kGrowth * 100).toFixed(1)} %); ` +
-        `every 10 s: ${series.map((h) => h.toFixed(1)).join(" ")} MB; load average ${load()}`,
+      `  kiosk (1920x1080, ${kiosk.seconds.toFixed(1)} s): ${kiosk.fps.toFixed(1)} frames/s, ` +
+        `JS heap ${kiosk.heap[0].toFixed(2)} MB at ${HEAP_FIRST_S} s, ${kiosk.heap.at(-1).toFixed(2)} MB at the end (${(kiosk.heapGrowth * 100).toFixed(1)} %); ` +
+        `every 10 s: ${kiosk.heap.map((h) => h.toFixed(1)).join(" ")} MB; main thread busy ${(kiosk.busy * 100).toFixed(1)} % ` +
+        `(baseline, Plotly drawing its plots: ${(plotly.busy * 100).toFixed(1)} %, ${plotly.fps.toFixed(1)} frames/s); load average ${load()}`,
     );
   }
 } catch (error) {

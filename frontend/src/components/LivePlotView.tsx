@@ -10,7 +10,9 @@
  * export of the range in view (docs/architecture.md "Plots: from the ring into the recording").
  * There it is linked to the panel's one time axis and cursor (plots/plotWiring.ts; a "Linked"
  * box unlinks it), and while nobody points at it a canvas picture draws it rather than Plotly
- * (plots/canvasPlot.ts; `?plotPicture=off` keeps Plotly, bench/ui's baseline).
+ * (plots/canvasPlot.ts; `?plotPicture=off` keeps Plotly, bench/ui's baseline). The kiosk's plots,
+ * never pointed at, are always the picture: Plotly's redraws of its two plots ten times a second
+ * kept three quarters of the kiosk's main thread busy (a fifth with the picture).
  */
 import { memo, useEffect, useRef, useState, type KeyboardEvent, type MouseEvent } from "react";
 import {
@@ -32,7 +34,7 @@ import type { HistoryShown } from "../lib/plotRecordingView";
 import { LivePlot } from "../lib/plotting";
 import { DEFAULT_WINDOW_MS, HISTORY_WINDOWS_MS, WINDOWS_MS, axisTitles, traceColour, tracesOf, type PlotSpec } from "../lib/plots";
 import type { PlotStep } from "../lib/plotSteps";
-import { CanvasPlot } from "../plots/canvasPlot";
+import { CanvasPlot, followAreaSize } from "../plots/canvasPlot";
 import { STEP_BUTTONS, plotKeyAction } from "../plots/plotKeys";
 import { PlotWiring } from "../plots/plotWiring";
 import { usePlotHistory } from "./plotHistory";
@@ -67,7 +69,10 @@ const RANGE = "range";
  */
 const PICTURE_MARGIN = "40px 0px";
 
-/** The panel's plots draw a canvas picture while nobody points at them, unless the page says not. */
+/** The kiosk is read from three metres: no text under this size on its plots (CSS px). */
+const KIOSK_FONT_SIZE_PX = 18;
+
+/** Plots draw a canvas picture while nobody points at them, unless the page says not. */
 function pictureWanted(): boolean {
   return typeof window === "undefined" || new URLSearchParams(window.location.search).get("plotPicture") !== "off";
 }
@@ -121,15 +126,12 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
     const el = container.current;
     if (el === null) return;
     const canvas = canvasRef.current;
-    const look = { theme, readOnly, ...(height_px !== undefined ? { height_px } : {}) };
-    const picture = canvas !== null && !readOnly && pictureWanted() ? new CanvasPlot(canvas, spec, tracesOf(spec), look) : null;
+    // The kiosk is read from three metres: no text under 18 px there.
+    const look = { theme, readOnly, ...(height_px !== undefined ? { height_px } : {}), ...(readOnly ? { fontSize_px: KIOSK_FONT_SIZE_PX } : {}) };
+    const picture = canvas !== null && pictureWanted() ? new CanvasPlot(canvas, spec, tracesOf(spec), look) : null;
     const plot = new LivePlot(spec, live.ring, live.channels, plotlyBackend, {
+      ...look,
       window_ms: windowRef.current,
-      theme,
-      readOnly,
-      ...(height_px !== undefined ? { height_px } : {}),
-      // The kiosk is read from three metres: no text under 18 px there.
-      ...(readOnly ? { fontSize_px: 18 } : {}),
       ...(historyAccess !== null && historyRobot !== null
         ? { history: { fetchRange: historyAccess.fetcher(historyRobot, fields) } }
         : {}),
@@ -152,8 +154,9 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
     const wiring =
       readOnly || cursorOut === null || cursorLine === null
         ? null
-        : new PlotWiring(plot, { area: el, cursorOut, cursorLine }, historyAccess?.timeRange ?? null, picture, linkedRef.current);
+        : new PlotWiring(plot, { area: el, cursorOut, cursorLine }, historyAccess?.timeRange ?? null, linkedRef.current);
     wiringRef.current = wiring;
+    const stopSizing = picture !== null ? followAreaSize(picture, el, () => plot.redraw()) : null;
     let observer: IntersectionObserver | null = null;
     let nearObserver: IntersectionObserver | null = null;
     if (typeof IntersectionObserver !== "undefined") {
@@ -178,6 +181,7 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
       nearObserver?.disconnect();
       wiring?.dispose();
       wiringRef.current = null;
+      stopSizing?.();
       plot.onZoomedChange = null;
       plot.onHistory = null;
       coordinator.remove(plot);
@@ -448,13 +452,9 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
           data-view="ring"
           style={{ height: `${height}px` }}
         />
-        {!readOnly && (
-          <>
-            {/* The static picture over Plotly's plot while nobody points at it (plots/canvasPlot.ts). */}
-            <canvas className="plot__picture" ref={canvasRef} aria-hidden="true" style={{ height: `${height}px`, visibility: "hidden" }} />
-            <div className="plot__cursor-line" ref={cursorLineRef} aria-hidden="true" hidden />
-          </>
-        )}
+        {/* The static picture over Plotly's plot while nobody points at it (plots/canvasPlot.ts). */}
+        <canvas className="plot__picture" ref={canvasRef} aria-hidden="true" style={{ height: `${height}px`, visibility: "hidden" }} />
+        {!readOnly && <div className="plot__cursor-line" ref={cursorLineRef} aria-hidden="true" hidden />}
         <span className="plot__axis-title plot__axis-title--y" data-testid={`${spec.id}-axis-y`} style={{ top: titleTop }}>
           {titles.y}
         </span>

@@ -106,7 +106,7 @@ export abstract class LivePlotDrawing {
   /** The plotting area's width (px) at the last drawing, for the number of time ticks. */
   protected areaWidth_px = Number.NaN;
 
-  /** The static picture, when the plot has one (not read-only). */
+  /** The static picture, when the plot has one (the panel's plots and the kiosk's). */
   protected readonly picture: StaticPicture | null;
 
   /** The ring view is drawn by the picture now (Plotly's plot hidden and not updated). */
@@ -183,7 +183,7 @@ export abstract class LivePlotDrawing {
     this.window_ms = options.window_ms;
     this.visible = this.traces.map(() => true);
     this.ringView = new RingView(ring, this.ringChannels, this.window_ms);
-    this.picture = options.readOnly ? null : (options.staticPicture ?? null);
+    this.picture = options.staticPicture ?? null;
 
     const history = options.history;
     this.backfill =

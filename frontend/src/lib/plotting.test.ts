@@ -1,6 +1,9 @@
 import { describe, expect, it } from "vitest";
 import { TCP_PLOTS, axisTitle, axisTitles, tracesOf } from "./plots";
-import { setupPlot as setup, spec } from "./plotTestSupport";
+import { fakeBackend, fakeElement, setupPlot as setup, spec } from "./plotTestSupport";
+import { LivePlot, type StaticPicture } from "./plotting";
+import { ChannelMap } from "./plots";
+import { SampleRing } from "./ringBuffer";
 import { BUCKETS_PER_WINDOW } from "./plotAppearance";
 
 describe("plot definitions", () => {
@@ -126,5 +129,35 @@ describe("LivePlot", () => {
     plot.setTraceVisible(3, false);
     expect(backend.calls.at(-1)).toEqual({ op: "restyle", args: [expect.anything(), { visible: false }, [3]] });
     expect(plot.isTraceVisible(3)).toBe(false);
+  });
+});
+
+describe("the kiosk's plot (read-only)", () => {
+  it("is drawn by its picture on every update: Plotly is only mounted, never redrawn", () => {
+    const channels = new ChannelMap([spec]);
+    const ring = new SampleRing(4096, channels.channelCount);
+    const backend = fakeBackend();
+    const drawn: string[] = [];
+    const picture: StaticPicture = {
+      reset: () => drawn.push("reset"),
+      extend: () => drawn.push("extend"),
+      draw: () => {
+        drawn.push("draw");
+        return [0, 1];
+      },
+      show: (on) => drawn.push(on ? "show" : "hide"),
+    };
+    const plot = new LivePlot(spec, ring, channels, backend, { window_ms: 10_000, theme: "dark", readOnly: true, staticPicture: picture });
+    const el = fakeElement();
+    plot.mount(el);
+    plot.update(0);
+    for (let t = 0; t < 1000; t += 10) ring.push(1_000_000 + t, [1, 2, 3, 4, 5, 6]);
+    expect(plot.update(1)).toBe(true);
+    plot.setPointerInside(true); // no pointer counts on the kiosk: it stays a picture
+    ring.push(1_001_000, [1, 2, 3, 4, 5, 6]);
+    expect(plot.update(2)).toBe(true);
+    expect(backend.calls.map((c) => c.op)).toEqual(["newPlot"]);
+    expect(drawn).toEqual(["reset", "show", "draw", "extend", "draw", "extend", "draw"]);
+    expect(el.dataset.renderer).toBe("canvas");
   });
 });

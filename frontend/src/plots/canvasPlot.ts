@@ -254,3 +254,19 @@ export class CanvasPlot implements StaticPicture {
     ctx.stroke();
   }
 }
+
+/**
+ * Keep `picture` the size of `area` (CSS px, at the device's pixels per CSS px) from now on;
+ * `resized` is called after each change (the plot draws the picture again). Returns the undo.
+ */
+export function followAreaSize(picture: CanvasPlot, area: HTMLElement, resized: () => void): () => void {
+  const size = () => {
+    picture.resize(area.clientWidth, area.clientHeight, window.devicePixelRatio || 1);
+    resized();
+  };
+  size();
+  if (typeof ResizeObserver === "undefined") return () => {};
+  const observer = new ResizeObserver(size);
+  observer.observe(area);
+  return () => observer.disconnect();
+}

@@ -2,7 +2,6 @@
  * Layer: DOM glue of one live plot of the panel (no React, no Plotly): what
  * components/LivePlotView.tsx attaches to a `LivePlot` once it is mounted.
  *
- * - The static picture (plots/canvasPlot.ts) sized to the plotting area, on its own canvas.
  * - The panel's one time axis (lib/timeRange.ts): the plot linked (its moves reach every linked
  *   plot, it follows theirs) or unlinked, at the person's choice.
  * - The one cursor: the time under the pointer (or moved by Shift + ← / →) on any linked plot,
@@ -14,7 +13,6 @@
 import { hasSecondAxis, plotMargin, type PlotMargin } from "../lib/plotAppearance";
 import type { LivePlot } from "../lib/plotting";
 import { linkPlot, type PlotTimeRange } from "../lib/timeRange";
-import type { CanvasPlot } from "./canvasPlot";
 import { CursorReadout } from "./cursorReadout";
 import { cursorAfterKey, timeAtPixel, wheelFactor } from "./plotPointer";
 
@@ -31,17 +29,14 @@ export class PlotWiring {
   private readonly axis: PlotTimeRange | null;
   private readonly margin: PlotMargin;
   private readonly readout: CursorReadout;
-  private readonly picture: CanvasPlot | null;
   private unlink: (() => void) | null = null;
   private stopCursor: (() => void) | null = null;
-  private resizeObserver: ResizeObserver | null = null;
   private readonly cleanups: (() => void)[] = [];
 
-  constructor(plot: LivePlot, els: PlotElements, axis: PlotTimeRange | null, picture: CanvasPlot | null, linked: boolean) {
+  constructor(plot: LivePlot, els: PlotElements, axis: PlotTimeRange | null, linked: boolean) {
     this.plot = plot;
     this.els = els;
     this.axis = axis;
-    this.picture = picture;
     this.margin = plotMargin(hasSecondAxis(plot.spec));
     this.readout = new CursorReadout(els.cursorOut, els.cursorLine, plot, plot.traces, this.margin, plot.spec.id);
     plot.onDrawn = () => {
@@ -52,13 +47,6 @@ export class PlotWiring {
     this.listen("pointerleave", () => this.setCursor(null));
     this.listen("blur", () => this.setCursor(null));
     this.listen("wheel", (e) => this.wheel(e as WheelEvent), { passive: false });
-    if (picture !== null) {
-      this.sizePicture();
-      if (typeof ResizeObserver !== "undefined") {
-        this.resizeObserver = new ResizeObserver(() => this.sizePicture());
-        this.resizeObserver.observe(els.area);
-      }
-    }
   }
 
   private listen(type: string, handler: (e: Event) => void, options?: AddEventListenerOptions): void {
@@ -112,16 +100,9 @@ export class PlotWiring {
     this.plot.zoomAt(at, wheelFactor(e.deltaY, e.deltaMode));
   }
 
-  private sizePicture(): void {
-    const area = this.els.area;
-    this.picture?.resize(area.clientWidth, area.clientHeight, window.devicePixelRatio || 1);
-    this.plot.redraw();
-  }
-
   dispose(): void {
     this.unlink?.();
     this.stopCursor?.();
-    this.resizeObserver?.disconnect();
     for (const cleanup of this.cleanups) cleanup();
     this.plot.onDrawn = null;
   }
