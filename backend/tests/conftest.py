@@ -70,22 +70,29 @@ def pytest_configure(config: pytest.Config) -> None:
 
 SLOW_MODULES_FIRST: tuple[str, ...] = (
     "test_history_service.py",
+    "test_history_storage.py",
     "test_node_selection.py",
-    "test_demo.py",
-    "test_restart.py",
-    "test_service_stream.py",
+    "test_opcua.py",
     "test_cycles_service.py",
     "test_history_replay.py",
     "test_slow_target.py",
+    "test_codec.py",
+    "test_restart.py",
+    "test_demo.py",
+    "test_service_robots.py",
     "test_history_crash.py",
-    "test_history_storage.py",
-    "test_opcua.py",
-    "test_sparkplug_doors.py",
+    "test_hardening.py",
     "test_sparkplug_faults.py",
+    "test_emulator_scenarios.py",
+    "test_sparkplug_doors.py",
+    "test_alarm_words_and_consequences.py",
+    "test_service_api.py",
     "test_http_limits.py",
-    "test_alarms_service.py",
+    "test_class1_cycle.py",
+    "test_service_stream.py",
 )
-"""The modules whose tests take longest in all (a loaded run's ``--durations``), slowest first.
+"""The modules whose tests take longest in all (``--durations=0`` summed by module, 3 workers on
+2 cores), slowest first.
 pytest-xdist (``--dist loadfile``) hands a worker the next file as it frees up, in collection
 order: started first, these no longer leave one worker alone on a minute-long file at the end
 while the other idles."""
