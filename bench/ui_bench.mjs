@@ -108,6 +108,19 @@ function browserCpu_ms() {
  * not CPU time: on a loaded machine a task that waits for a core counts as busy (the CPU figures
  * beside it are not inflated so).
  */
+/** Count the page's animation frames in `window.__bench.frames` from its first script on. */
+function countAnimationFrames(page) {
+  return page.addInitScript(() => {
+    const bench = { frames: 0 };
+    window.__bench = bench;
+    const loop = () => {
+      bench.frames++;
+      requestAnimationFrame(loop);
+    };
+    requestAnimationFrame(loop);
+  });
+}
+
 async function mainThreadBusy(cdp) {
   const { metrics } = await cdp.send("Performance.getMetrics");
   const value = (name) => metrics.find((m) => m.name === name)?.value ?? Number.NaN;
@@ -128,15 +141,7 @@ async function mainThreadBusy(cdp) {
 async function measureKiosk(browser, url, seconds) {
   const kiosk = await browser.newPage({ viewport: { width: 1920, height: 1080 } });
   kiosk.on("pageerror", (e) => console.error("kiosk page error:", e.message));
-  await kiosk.addInitScript(() => {
-    const bench = { frames: 0 };
-    window.__bench = bench;
-    const loop = () => {
-      bench.frames++;
-      requestAnimationFrame(loop);
-    };
-    requestAnimationFrame(loop);
-  });
+  await countAnimationFrames(kiosk);
   await kiosk.goto(url);
   await kiosk.waitForFunction(
     () => Number(document.querySelector('[data-testid="plot-joint-position"]')?.getAttribute("data-points") ?? 0) > 0,
@@ -247,15 +252,7 @@ async function stopDemo() {
 async function panelPhase(path, phaseSeconds) {
   const page = await browser.newPage({ viewport: { width, height } });
   try {
-    await page.addInitScript(() => {
-      const bench = { frames: 0 };
-      window.__bench = bench;
-      const loop = () => {
-        bench.frames++;
-        requestAnimationFrame(loop);
-      };
-      requestAnimationFrame(loop);
-    });
+    await countAnimationFrames(page);
     const cdp = await page.context().newCDPSession(page);
     await cdp.send("Performance.enable", { timeDomain: "timeTicks" });
     await page.goto(`${base}${path}`);
