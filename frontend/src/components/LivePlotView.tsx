@@ -126,7 +126,6 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
     const el = container.current;
     if (el === null) return;
     const canvas = canvasRef.current;
-    // The kiosk is read from three metres: no text under 18 px there.
     const look = { theme, readOnly, ...(height_px !== undefined ? { height_px } : {}), ...(readOnly ? { fontSize_px: KIOSK_FONT_SIZE_PX } : {}) };
     const picture = canvas !== null && pictureWanted() ? new CanvasPlot(canvas, spec, tracesOf(spec), look) : null;
     const plot = new LivePlot(spec, live.ring, live.channels, plotlyBackend, {

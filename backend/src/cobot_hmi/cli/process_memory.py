@@ -7,8 +7,9 @@ than Python's own allocator are few but short-lived in their work: the history c
 ten-minute journal into Parquet, Arrow's I/O and CPU thread pools under it. Each took an arena
 at the first close and kept about 10 MiB in it for good, a step in the service's RSS at minute
 10 that the hour-long soak counts as growth. Two arenas for the whole process:
-``bench/history --memory`` (four closes at RPI 2 ms) measured RSS +10.1 MiB after the first
-close and 8.4 % drift with glibc's default, +2.1 MiB and 2.4 % with two. The hot paths do not
+``bench/history --memory`` (four closes at RPI 2 ms, both in the same run) measured RSS
++10.0 MiB after the first close and 11.3 % drift with glibc's default, +1.4 MiB and 3.8 % with
+two. The hot paths do not
 contend for them: Python objects come from Python's allocator (which takes its pools from
 ``mmap`` directly) under the GIL, and the cyclic pump allocates nothing per packet.
 
