@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import functools
+import itertools
 import socket
 import time
 
@@ -141,12 +142,14 @@ async def test_the_fallback_waits_one_watchdog_timeout_after_the_last_read(
 ) -> None:
     """Given the connection's timeout, the fallback timer stays quiet while T→O is read (it
     moves itself on once per timeout instead of every few wake-ups) and looks once T→O stops,
-    not before the timeout has passed since the last read (the watchdog's verdict is due then,
-    and a look earlier is a wake-up for nothing)."""
+    never before the timeout has passed since the last read (the watchdog's verdict is due then,
+    and a look earlier is a wake-up for nothing). A busy machine may hold the reads back longer
+    than the timeout: a look after such a gap is due, one sooner never is."""
     receiver = Receiver(robot_host)
     sender = UdpEndpoint(plc_host, 0, lambda *_: None, receive_size=1501)
     loop = asyncio.get_running_loop()
     looks: list[float] = []
+    reads: list[float] = []
     watchdog_s = 0.15
     stream = O2TStream(
         sender,
@@ -157,21 +160,32 @@ async def test_the_fallback_waits_one_watchdog_timeout_after_the_last_read(
         on_timer=lambda now, lag_s: looks.append(now),
         watchdog_s=watchdog_s,
     )
+
+    def read() -> None:
+        stream.t2o_read()
+        reads.append(loop.time())
+
+    started = loop.time()
     try:
         stream.start()
         reading_until = loop.time() + 4 * watchdog_s
         while loop.time() < reading_until:  # T→O read every RPI, as a steady stream is
-            stream.t2o_read()
+            read()
             await asyncio.sleep(0.01)
-        stream.t2o_read()
-        last_read = loop.time()
-        assert looks == [], "no look while T→O is read"
-        await eventually(lambda: bool(looks))
+        read()
+        looks_while_read = len(looks)
+        await eventually(lambda: len(looks) > looks_while_read)
     finally:
         stream.stop()
         sender.close()
         receiver.close()
-    assert looks[0] - last_read >= watchdog_s - 1e-3, "not before the timeout since the last read"
+    longest_gap_s = max(b - a for a, b in itertools.pairwise([reads[0], *reads]))
+    if longest_gap_s < watchdog_s - 1e-3:
+        assert looks_while_read == 0, "no look while T→O is read every RPI"
+    for look in looks:
+        last_read = max((r for r in reads if r <= look), default=started)
+        assert look - last_read >= watchdog_s - 1e-3, "not before the timeout since the last read"
+    assert looks[-1] >= reads[-1] + watchdog_s - 1e-3, "a look once T→O stopped"
 
 
 async def test_rebuild_puts_the_change_in_the_next_packet_with_the_same_numbers(

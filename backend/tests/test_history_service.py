@@ -87,6 +87,16 @@ async def wait_recorded(client: httpx.AsyncClient, from_s: float, last_seq: int)
     raise AssertionError(f"frame {last_seq} not recorded in time")
 
 
+def first_difference(
+    got: list[tuple[Any, ...]], expected: list[tuple[Any, ...]], edges: list[tuple[float, float]]
+) -> str:
+    """Where an answer's buckets first differ from the brute force's, for a failure's message."""
+    for i, (a, b) in enumerate(zip(got, expected, strict=False)):
+        if not same([a], [b]):
+            return f"bucket {i} of {len(edges)} {edges[i] if i < len(edges) else ''}: {a} != {b}"
+    return f"{len(got)} buckets answered, {len(expected)} expected"
+
+
 def as_recorded(table: pa.Table) -> pa.Table:
     """An export's table with the recording's column names (``joint_position.J1`` is
     ``joint_position.0``), to compare with the API's element keys."""
@@ -305,8 +315,8 @@ async def test_history_answer_equals_brute_force_over_the_recorded_rows(
                 (c, *(series[s][i] for s in ("min", "max", "first", "last")))
                 for i, c in enumerate(body["count"])
             ]
-            expected = brute_force(rows, name, edges)
-            assert same(got, [tuple(_json(v) for v in row) for row in expected]), (points, name)
+            expected = [tuple(_json(v) for v in row) for row in brute_force(rows, name, edges)]
+            assert same(got, expected), (points, name, first_difference(got, expected, edges))
 
 
 def _json(value: object) -> object:
