@@ -132,6 +132,22 @@ class _PendingTaskLog(logging.Handler):
             self.messages.append(message)
 
 
+@pytest.fixture(autouse=True, scope="module")
+def _earlier_objects_frozen() -> Iterator[None]:
+    """What the worker held before this module (the libraries' modules, the session's fixtures:
+    about 250,000 objects) is kept out of the cyclic garbage collector's way while the module's
+    tests run (``gc.freeze``): each test's own collection (``_no_leaked_tasks``) traverses what
+    the module made, not the whole worker again. A full collection after every test took 0.24 s
+    on average: 245 of the 530 CPU-s of a whole pytest run (307 s wall on 2 cores; 233 s with
+    the freeze). At the module's end everything is traversed once more, so its fixtures' garbage
+    is collected and checked as well."""
+    gc.collect()
+    gc.freeze()
+    yield
+    gc.unfreeze()
+    gc.collect()
+
+
 @pytest.fixture(autouse=True)
 def _no_leaked_tasks() -> Iterator[None]:
     """Fail a test that leaves an asyncio task pending or an exception unretrieved.
