@@ -5,12 +5,16 @@
  * results (every node checked, thousands on a panel of live plots) travel to the test and into a
  * blank page of their own to be put together. The panel has no frames, so the rules and the
  * nodes checked are the same; it takes half the time.
+ *
+ * Violations only (axe's `resultTypes`): every violating node is still reported, but the rules
+ * that pass list one node each instead of every node they checked. On the panel (4,300 elements)
+ * an audit took 4.3 CPU-s instead of 10, the same violations found.
  */
 import AxeBuilder from "@axe-core/playwright";
 import type { Page } from "@playwright/test";
 
 export async function seriousViolations(page: Page, include?: string): Promise<string[]> {
-  const builder = new AxeBuilder({ page }).setLegacyMode(true);
+  const builder = new AxeBuilder({ page }).setLegacyMode(true).options({ resultTypes: ["violations"] });
   if (include !== undefined) builder.include(include);
   const results = await builder.analyze();
   return results.violations
