@@ -12,8 +12,10 @@ import { POINTS_PER_BUCKET } from "./decimate";
 import { markersOf, type RangeData } from "./historyView";
 import { RingBackfill } from "./plotBackfill";
 import type { PlotBackend, StaticPicture } from "./plotBackend";
+import { PlotlyOnDemand } from "./plotlyOnDemand";
 import {
   BUCKETS_PER_WINDOW,
+  emptyTraces,
   historyLayout,
   markerShapes,
   pictureDrawing,
@@ -115,6 +117,16 @@ export abstract class LivePlotDrawing {
   /** The zoom in force while on the picture (Plotly's layout, not updated then, has no say). */
   protected pictureZoom: AxisRanges = {};
 
+  /**
+   * Plotly's plot is made in the element (`plotlyIn`): the first time the plot is drawn by
+   * Plotly, never for one that is only ever a picture (the kiosk's; a panel plot nobody
+   * pointed at).
+   */
+  protected plotlyMounted = false;
+
+  /** Plotly, asked for the first time the plot needs it (lib/plotlyAdapter.ts loads it then). */
+  private readonly plotly: PlotlyOnDemand;
+
   protected revision = 0;
 
   protected zoomed = false;
@@ -184,6 +196,7 @@ export abstract class LivePlotDrawing {
     this.visible = this.traces.map(() => true);
     this.ringView = new RingView(ring, this.ringChannels, this.window_ms);
     this.picture = options.staticPicture ?? null;
+    this.plotly = new PlotlyOnDemand(backend, () => this.plotlyCame());
 
     const history = options.history;
     this.backfill =
@@ -330,24 +343,66 @@ export abstract class LivePlotDrawing {
     this.onZoomedChange?.(zoomed);
   }
 
-  /** Save the plot as drawn now as `filename`.png. */
+  /** Save the plot as drawn now as `filename`.png: its picture while shown, else Plotly's plot. */
   exportPng(filename: string): void {
-    if (this.el !== null) this.backend.downloadPng?.(this.el, filename);
+    if (this.onPicture && this.picture?.savePng !== undefined) this.picture.savePng(filename);
+    else if (this.el !== null && this.plotlyMounted) this.backend.downloadPng?.(this.el, filename);
   }
 
   unmount(): void {
     this.recording?.stopRequests();
     this.backfill?.stop();
     this.clearRefresh();
-    if (this.el !== null) this.backend.purge(this.el);
+    if (this.el !== null && this.plotlyMounted) this.backend.purge(this.el);
+    this.plotlyMounted = false;
     this.el = null;
   }
 
-  /** Interactive (zoom, pan, mode bar; hover too when paused), or a static picture. */
+  /**
+   * Interactive (zoom, pan, mode bar; hover too when paused), or a static picture. A plot with a
+   * picture stays the picture until Plotly has come (asked for here, the first time it is wanted).
+   */
   get interactive(): boolean {
+    return this.wantsInteractive && (this.picture === null || this.plotlyReady());
+  }
+
+  /** A person points at the plot or its keys, paused it, or it shows the recording. */
+  protected get wantsInteractive(): boolean {
     // A view of the recording changes only when an answer comes: always interactive.
     return !this.options.readOnly && (this.paused || this.pointerInside || this.focusInside || this.view.kind !== "ring");
   }
+
+  /** Whether Plotly can draw now; if not, the plot keeps its picture until it comes. */
+  protected plotlyReady(): boolean {
+    return this.plotly.ready();
+  }
+
+  /** Plotly has come: a plot that wants it is drawn by it at once (a person may start a zoom box). */
+  private plotlyCame(): void {
+    const el = this.el;
+    if (el === null || !(this.wantsInteractive || this.picture === null)) return;
+    this.needsRebuild = true;
+    if (this.view.kind !== "ring") return; // the recording's drawing, at the next update
+    if (this.paused && this.stepZoom === null && this.pictureZoom.xaxis === undefined) {
+      // Paused on the picture: Plotly shows the range that froze, not the ring's newest.
+      const frozen = this.ringView.drawnRange();
+      if (frozen !== null) this.stepZoom = [frozen.from - this.tzShift_ms, frozen.to - this.tzShift_ms];
+    }
+    this.rebuild(el);
+  }
+
+  /** Plotly's plot in `el`, made the first time the plot is drawn by Plotly. */
+  protected plotlyIn(el: HTMLElement): PlotBackend {
+    if (!this.plotlyMounted) {
+      this.plotlyMounted = true;
+      this.backend.newPlot(el, emptyTraces(this.traces, this.visible, this.options.readOnly), this.layout(), plotConfig(this.interactive));
+      this.backend.onRelayout?.(el, () => this.personRelayout());
+    }
+    return this.backend;
+  }
+
+  /** After a person's zoom, pan or autoscale on Plotly's plot (`LivePlot` follows it). */
+  protected abstract personRelayout(): void;
 
   setTraceVisible(index: number, visible: boolean): void {
     if (this.visible[index] === undefined || this.visible[index] === visible) return;
@@ -355,7 +410,8 @@ export abstract class LivePlotDrawing {
     // A history drawing has several traces per signal (min, max, the ring's newest): redraw.
     if (this.view.kind !== "ring") this.needsRebuild = true;
     else if (this.onPicture) this.drawPicture();
-    else if (this.el !== null) this.backend.restyle(this.el, { visible }, [index]);
+    else if (this.el !== null && this.plotlyMounted) this.backend.restyle(this.el, { visible }, [index]);
+    else this.needsRebuild = true;
   }
 
   isTraceVisible(index: number): boolean {
@@ -404,7 +460,7 @@ export abstract class LivePlotDrawing {
       const axes = this.liveTicks
         ? { xaxis: ticksBefore(xs[xs.length - 1] ?? Number.NaN, this.window_ms, this.areaWidth_px, this.options.fontSize_px) }
         : undefined;
-      this.backend.extendTraces(el, { x: chunk.xs, y: chunk.ys }, this.traceIndices, this.maxPoints, axes);
+      this.plotlyIn(el).extendTraces(el, { x: chunk.xs, y: chunk.ys }, this.traceIndices, this.maxPoints, axes);
     }
     this.points = Math.min(this.maxPoints, this.points + chunk.buckets * POINTS_PER_BUCKET);
     this.lastUpdate_ms = now_ms;
@@ -416,6 +472,12 @@ export abstract class LivePlotDrawing {
   protected rebuild(el: HTMLElement): void {
     if (this.view.kind !== "ring") {
       this.drawHistory(el);
+      return;
+    }
+    const onPicture = this.picture !== null && !this.interactive;
+    if (!onPicture && !this.plotlyReady()) {
+      // Drawn when Plotly comes (`plotlyCame`).
+      this.needsRebuild = true;
       return;
     }
     this.needsRebuild = false;
@@ -432,7 +494,7 @@ export abstract class LivePlotDrawing {
     const zoom = this.stepZoom !== null ? { ...kept, xaxis: this.stepZoom } : kept;
     this.stepZoom = null;
     this.drawnRevision = this.revision;
-    if (this.picture !== null && !this.interactive) {
+    if (this.picture !== null && onPicture) {
       this.pictureZoom = zoom;
       this.picture.reset(chunk?.xs ?? [], chunk?.ys ?? []);
       this.showPicture(true);
@@ -444,7 +506,7 @@ export abstract class LivePlotDrawing {
         y: chunk?.ys[i] ?? [],
       }));
       this.showPicture(false);
-      this.backend.react(el, data, this.layout(zoom), plotConfig(this.interactive));
+      this.plotlyIn(el).react(el, data, this.layout(zoom), plotConfig(this.interactive));
     }
     this.updates++;
     this.mark();
@@ -477,6 +539,11 @@ export abstract class LivePlotDrawing {
    * as a line per signal; the events of the range as dotted lines on the time axis.
    */
   protected drawHistory(el: HTMLElement): void {
+    if (!this.plotlyReady()) {
+      // The recording is drawn by Plotly only: when it comes (the picture stays meanwhile).
+      this.needsRebuild = true;
+      return;
+    }
     this.needsRebuild = false;
     this.showPicture(false);
     this.tzShift_ms = new Date().getTimezoneOffset() * 60_000;
@@ -493,7 +560,7 @@ export abstract class LivePlotDrawing {
     const layout = historyLayout(this.layout({ xaxis: [from - shift, to - shift] }), shapes, this.revisions.x, this.revisions.y);
     this.drawnRange_ms = { from, to };
     this.points = drawing.points;
-    this.backend.react(el, drawing.traces, layout, plotConfig(this.interactive));
+    this.plotlyIn(el).react(el, drawing.traces, layout, plotConfig(this.interactive));
     this.updates++;
     el.dataset.from = String(range_s.from_s);
     el.dataset.to = String(range_s.to_s);

@@ -5,6 +5,13 @@
 type Datum = number | null;
 
 export interface PlotBackend {
+  /**
+   * Whether Plotly has come (lib/plotlyAdapter.ts loads it on first need); absent: always (the
+   * tests' fakes). No drawing call is made before.
+   */
+  ready?(): boolean;
+  /** Load Plotly (once; again after a failure); resolves when `ready()`. */
+  load?(): Promise<void>;
   newPlot(el: HTMLElement, data: object[], layout: object, config: object): void;
   react(el: HTMLElement, data: object[], layout: object, config: object): void;
   /**
@@ -52,4 +59,6 @@ export interface StaticPicture {
   draw(drawing: PictureDrawing): readonly [number, number] | null;
   /** Shown over Plotly's plot (true), or hidden for it. */
   show(on: boolean): void;
+  /** Save the picture as drawn now as `filename`.png. */
+  savePng?(filename: string): void;
 }

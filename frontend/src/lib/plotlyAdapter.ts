@@ -1,9 +1,40 @@
 /**
  * Layer: the one module that imports Plotly (its partial "basic" bundle: scatter only).
  * It adapts Plotly to `PlotBackend`; nothing else in the app calls Plotly directly.
+ *
+ * Plotly comes in its own chunk, loaded the first time a plot asks for it (`load`): a live plot
+ * nobody points at is the canvas picture (plots/canvasPlot.ts), so the kiosk never loads Plotly
+ * and the panel only when a person first points at a plot, focuses one, or shows the recording.
+ * Plotly's module and six empty plots cost the panel's page about a second of the main thread
+ * at every load on the 2-core machine (944 ms of script of 1.8 s busy), and its SVGs 1,200 of
+ * the page's 4,300 elements. The drawing calls are made only once `ready()`.
  */
-import Plotly from "plotly.js-basic-dist-min";
 import type { PlotBackend } from "./plotBackend";
+
+type PlotlyModule = typeof import("plotly.js-basic-dist-min").default;
+
+let plotly: PlotlyModule | null = null;
+let loading: Promise<void> | null = null;
+
+function load(): Promise<void> {
+  loading ??= import("plotly.js-basic-dist-min").then(
+    (module) => {
+      plotly = module.default;
+    },
+    (error: unknown) => {
+      // Asked again at the next need (a chunk the server could not give this time).
+      loading = null;
+      throw error;
+    },
+  );
+  return loading;
+}
+
+/** Plotly, which the callers only reach once `ready()` says it has come. */
+function loaded(): PlotlyModule {
+  if (plotly === null) throw new Error("Plotly asked to draw before it was loaded (PlotBackend.load)");
+  return plotly;
+}
 
 function ignore(promise: Promise<unknown>): void {
   // Plotly's promises reject only when the element was purged meanwhile: nothing to do.
@@ -11,11 +42,13 @@ function ignore(promise: Promise<unknown>): void {
 }
 
 export const plotlyBackend: PlotBackend = {
+  ready: () => plotly !== null,
+  load,
   newPlot(el, data, layout, config) {
-    ignore(Plotly.newPlot(el, data as never, layout as never, config as never));
+    ignore(loaded().newPlot(el, data as never, layout as never, config as never));
   },
   react(el, data, layout, config) {
-    ignore(Plotly.react(el, data as never, layout as never, config as never));
+    ignore(loaded().react(el, data as never, layout as never, config as never));
   },
   extendTraces(el, update, indices, maxPoints, axes) {
     if (axes !== undefined) {
@@ -28,13 +61,13 @@ export const plotlyBackend: PlotBackend = {
         if (typeof axis === "object" && axis !== null) Object.assign(axis, attributes);
       }
     }
-    ignore(Plotly.extendTraces(el, update, indices, maxPoints));
+    ignore(loaded().extendTraces(el, update, indices, maxPoints));
   },
   restyle(el, update, indices) {
-    ignore(Plotly.restyle(el, update as never, indices));
+    ignore(loaded().restyle(el, update as never, indices));
   },
   relayout(el, update) {
-    ignore(Plotly.relayout(el, update as never));
+    ignore(loaded().relayout(el, update as never));
   },
   zoomedAxes(el) {
     const layout = (el as HTMLElement & { layout?: Record<string, unknown> }).layout ?? {};
@@ -53,9 +86,10 @@ export const plotlyBackend: PlotBackend = {
     (el as HTMLElement & { on?: (event: string, cb: () => void) => void }).on?.("plotly_relayout", listener);
   },
   downloadPng(el, filename) {
-    ignore(Plotly.downloadImage(el, { format: "png", filename, width: el.clientWidth, height: el.clientHeight }));
+    ignore(loaded().downloadImage(el, { format: "png", filename, width: el.clientWidth, height: el.clientHeight }));
   },
   purge(el) {
-    Plotly.purge(el);
+    // Never drawn by Plotly when it has not come.
+    plotly?.purge(el);
   },
 };

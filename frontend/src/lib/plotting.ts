@@ -16,7 +16,6 @@
  */
 import type { TimeRange } from "./historyView";
 import { LivePlotDrawing } from "./livePlotDrawing";
-import { emptyTraces, plotConfig } from "./plotAppearance";
 import { axisSpan_ms, reachesRecording, sameSpan, showsRange } from "./plotFixedView";
 import type { PlotView } from "./plotRecordingView";
 import { stepRange, zoomAround, type PlotStep, type SpanMs } from "./plotSteps";
@@ -26,12 +25,18 @@ export type { PlotBackend, StaticPicture } from "./plotBackend";
 export type { LivePlotOptions } from "./livePlotDrawing";
 
 export class LivePlot extends LivePlotDrawing {
-  /** Create the Plotly plot in `el` (once). */
+  /**
+   * Draw into `el` from the next update on. Plotly's plot is made at once only for a plot
+   * without a picture (and Plotly there); otherwise the first time Plotly draws it.
+   */
   mount(el: HTMLElement): void {
     this.el = el;
-    this.backend.newPlot(el, emptyTraces(this.traces, this.visible, this.options.readOnly), this.layout(), plotConfig(this.interactive));
-    this.backend.onRelayout?.(el, () => this.checkZoom());
+    if (this.picture === null && this.plotlyReady()) this.plotlyIn(el);
     this.needsRebuild = true;
+  }
+
+  protected personRelayout(): void {
+    this.checkZoom();
   }
 
   private checkZoom(): void {
@@ -111,9 +116,13 @@ export class LivePlot extends LivePlotDrawing {
     const el = this.el;
     if (el === null) return;
     const x = [range.from - this.tzShift_ms, range.to - this.tzShift_ms];
-    if (this.paused) {
+    if (this.paused && this.onPicture) {
+      // Paused before Plotly came: the frozen picture, zoomed (no data added).
+      this.pictureZoom = { ...this.pictureZoom, xaxis: x };
+      this.drawPicture();
+    } else if (this.paused) {
       // Paused: the frozen picture stays (Plotly's relayout, as a person's zoom; no data added).
-      this.backend.relayout(el, { "xaxis.autorange": false, "xaxis.range": x });
+      this.plotlyIn(el).relayout(el, { "xaxis.autorange": false, "xaxis.range": x });
     } else {
       this.stepZoom = x;
       this.rebuild(el);

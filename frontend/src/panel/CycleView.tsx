@@ -47,9 +47,24 @@ function CyclePlots({ page, theme }: { readonly page: CyclePage; readonly theme:
   // What was drawn: the page is asked again every 2 s and mostly brings the same cycles, and
   // Plotly redraws (and measures) both plots whole, about 100 ms of the main thread here.
   const drawn = useRef("");
-  // Below the fold the plots are drawn once, and again only when they come near the screen
-  // (or the page is printed) with cycles they have not drawn.
+  // The plots are drawn when they come near the screen (or the page is printed) with cycles
+  // they have not drawn: below the fold nothing, not even Plotly's chunk (lib/plotlyAdapter.ts),
+  // which is asked for the first time they come near.
   const [near, setNear] = useState(() => typeof IntersectionObserver === "undefined");
+  const [plotlyHere, setPlotlyHere] = useState(() => plotlyBackend.ready?.() ?? true);
+  useEffect(() => {
+    if (!near || plotlyHere) return;
+    let gone = false;
+    plotlyBackend.load?.().then(
+      () => {
+        if (!gone) setPlotlyHere(true);
+      },
+      (error: unknown) => console.warn("Plotly could not be loaded for the cycle plots", error),
+    );
+    return () => {
+      gone = true;
+    };
+  }, [near, plotlyHere]);
   useEffect(() => {
     const target = grid.current;
     if (target === null || typeof IntersectionObserver === "undefined") return;
@@ -64,7 +79,7 @@ function CyclePlots({ page, theme }: { readonly page: CyclePage; readonly theme:
   }, []);
   useEffect(() => {
     const key = `${theme} ${page.cycles.map((c) => c.id).join(",")}`;
-    if (key === drawn.current || (!near && drawn.current !== "")) return;
+    if (key === drawn.current || !near || !plotlyHere) return;
     drawn.current = key;
     const durations = page.cycles.map((c) => c.duration_s);
     const c = colours(theme);
@@ -85,7 +100,7 @@ function CyclePlots({ page, theme }: { readonly page: CyclePage; readonly theme:
         CONFIG,
       );
     }
-  }, [page, theme, near]);
+  }, [page, theme, near, plotlyHere]);
   useEffect(() => {
     const elements = [trend.current, bars.current];
     return () => {

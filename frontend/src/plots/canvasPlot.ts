@@ -56,6 +56,8 @@ export interface PictureCanvas {
   height: number;
   getContext(kind: "2d"): PictureContext | null;
   readonly style: { visibility: string };
+  /** The picture as an image file (a page's canvas; the tests' fakes have none). */
+  toBlob?(callback: (blob: Blob | null) => void, type?: string): void;
 }
 
 interface Area {
@@ -131,6 +133,19 @@ export class CanvasPlot implements StaticPicture {
       if (x.length > maxPoints) x.splice(0, x.length - maxPoints);
       if (y.length > maxPoints) y.splice(0, y.length - maxPoints);
     });
+  }
+
+  /** Save the picture as drawn now as `filename`.png (what the person sees, axes and all). */
+  savePng(filename: string): void {
+    this.canvas.toBlob?.((blob) => {
+      if (blob === null) return;
+      const url = URL.createObjectURL(blob);
+      const link = document.createElement("a");
+      link.href = url;
+      link.download = `${filename}.png`;
+      link.click();
+      setTimeout(() => URL.revokeObjectURL(url), 0);
+    }, "image/png");
   }
 
   show(on: boolean): void {
