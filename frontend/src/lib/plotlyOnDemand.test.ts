@@ -1,4 +1,4 @@
-import { describe, expect, it } from "vitest";
+import { describe, expect, it, vi } from "vitest";
 import { fakeBackend, fakeElement, spec } from "./plotTestSupport";
 import { LivePlot, type StaticPicture } from "./plotting";
 import { ChannelMap } from "./plots";
@@ -109,6 +109,7 @@ describe("Plotly on demand", () => {
   });
 
   it("a failed load is asked again at the next need", async () => {
+    const warn = vi.spyOn(console, "warn").mockImplementation(() => undefined);
     const { plot, loads, fail, come, el } = panelPlot();
     plot.update(0);
     plot.setPointerInside(true);
@@ -119,6 +120,8 @@ describe("Plotly on demand", () => {
     expect(loads()).toBe(2);
     await come();
     expect(el.dataset.renderer).toBe("plotly");
+    expect(warn).toHaveBeenCalledOnce(); // the failure is said
+    warn.mockRestore();
   });
 
   it("paused before Plotly came, it shows the range that froze when it comes", async () => {
