@@ -7,7 +7,7 @@ import { settings } from "../support/settings";
 
 /**
  * Every piece of text on the page that a person can see and that is smaller than 18 px (HTML
- * text; Plotly's SVG text is measured apart). A text node counts as seen when it takes room on
+ * text; the plots' text is measured apart). A text node counts as seen when it takes room on
  * screen (its range has a box) and its element is visible (no `display: none` or
  * `visibility: hidden` on it or above it, not fully transparent).
  */
@@ -48,19 +48,39 @@ async function textCount(page: Page): Promise<number> {
 }
 
 /**
- * The kiosk's plot tick labels and titles (SVG text), their sizes in px: read in one go in the
- * page, because Plotly replaces them as the live plots redraw (an element handed back to the
- * test and measured later may be gone, and a detached element has no size).
+ * The kiosk's plots are canvas pictures (plots/canvasPlot.ts): their tick labels and titles are
+ * drawn with the canvas' `fillText`, which this init script watches, keeping the size in px of
+ * the font each text inside the kiosk was last drawn with (the pictures redraw ten times a
+ * second). Call before the page loads.
  */
-async function svgTextSizes(page: Page): Promise<number[]> {
-  return page.evaluate(() =>
-    Array.from(document.querySelectorAll('[data-testid="kiosk"] svg text'))
+async function watchPlotText(page: Page): Promise<void> {
+  await page.addInitScript(() => {
+    const sizes: number[] = [];
+    (window as unknown as { plotTextPx: number[] }).plotTextPx = sizes;
+    const fillText = CanvasRenderingContext2D.prototype.fillText;
+    CanvasRenderingContext2D.prototype.fillText = function (this: CanvasRenderingContext2D, ...args: Parameters<typeof fillText>) {
+      if (this.canvas.closest('[data-testid="kiosk"]') !== null && String(args[0]).trim() !== "") {
+        const px = /(\d+(?:\.\d+)?)px/.exec(this.font);
+        sizes.push(px === null ? 0 : Number(px[1]));
+        if (sizes.length > 500) sizes.splice(0, sizes.length - 500);
+      }
+      fillText.apply(this, args);
+    };
+  });
+}
+
+/** The sizes (px) of the newest texts the kiosk's plots drew (`watchPlotText`), and any SVG text's. */
+async function plotTextSizes(page: Page): Promise<number[]> {
+  return page.evaluate(() => [
+    ...(window as unknown as { plotTextPx: number[] }).plotTextPx,
+    ...Array.from(document.querySelectorAll('[data-testid="kiosk"] svg text'))
       .filter((el) => (el.textContent?.trim() ?? "") !== "")
       .map((el) => parseFloat(getComputedStyle(el).fontSize)),
-  );
+  ]);
 }
 
 test("the kiosk shows the tiles its URL chooses, the state in words, a clock; no small text", async ({ page, robot }, testInfo) => {
+  await watchPlotText(page);
   await page.goto(`/kiosk?robot=${settings.robotName}&tiles=joint_position,tcp_position,joint_motor_temperature`);
   await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
   const tiles = page.getByTestId("kiosk-tiles").locator(".tile");
@@ -95,7 +115,7 @@ test("the kiosk shows the tiles its URL chooses, the state in words, a clock; no
 
   // Readable from three metres: nothing under 18 px, plot tick labels included.
   expect(await smallText(page)).toEqual([]);
-  const tickSizes = await svgTextSizes(page);
+  const tickSizes = await plotTextSizes(page);
   expect(tickSizes.length).toBeGreaterThan(0);
   expect(Math.min(...tickSizes)).toBeGreaterThanOrEqual(18);
 
@@ -115,6 +135,7 @@ test("no text under 18 px with an alarm active and the 3D view shown", async ({ 
   const estopAlarm = `${settings.robotName}:emergency_stop`;
   await robot.estop();
   try {
+    await watchPlotText(page);
     await page.goto(`/kiosk?robot=${settings.robotName}&robot3d=1&tiles=joint_position,tcp_position,joint_motor_temperature`);
     await expect(page.getByTestId("connection-status")).toHaveAttribute("data-state", "connected");
     // Everything an alarm adds is there: the stop in large letters and the alarm banner.
@@ -129,12 +150,12 @@ test("no text under 18 px with an alarm active and the 3D view shown", async ({ 
     await expect(view).toContainText("M1013");
     await expect(page.getByTestId("kiosk-tiles").locator(".tile")).toHaveCount(3);
     // The plots drew their tick labels.
-    await expect.poll(async () => (await svgTextSizes(page)).length, { message: "plots drew" }).toBeGreaterThan(0);
+    await expect.poll(async () => (await plotTextSizes(page)).length, { message: "plots drew" }).toBeGreaterThan(0);
 
     // Every visible text node, the banner's, the stop's and the 3D view's included: 18 px or more.
     expect(await textCount(page)).toBeGreaterThan(20);
     expect(await smallText(page)).toEqual([]);
-    expect(Math.min(...(await svgTextSizes(page)))).toBeGreaterThanOrEqual(18);
+    expect(Math.min(...(await plotTextSizes(page)))).toBeGreaterThanOrEqual(18);
     await screenshot(page, testInfo, "kiosk-alarm-3d");
   } finally {
     await robot.tryPost("/reset");

@@ -109,8 +109,8 @@ function CyclePlots({ page, theme }: { readonly page: CyclePage; readonly theme:
   }, []);
   return (
     <div className="plot-grid" ref={grid}>
-      <div ref={trend} data-testid="cycle-trend" aria-label="cycle durations over time" />
-      <div ref={bars} data-testid="cycle-histogram" aria-label="histogram of cycle durations" />
+      <div ref={trend} data-testid="cycle-trend" role="figure" aria-label="cycle durations over time" />
+      <div ref={bars} data-testid="cycle-histogram" role="figure" aria-label="histogram of cycle durations" />
     </div>
   );
 }
