@@ -169,6 +169,9 @@ test("pause, zoom, resume: the plot is live again, not blank", async ({ page }) 
   await ringHoldsWindow(page);
   await page.getByTestId(`${PLOT}-pause`).click();
   await expect(plot).toHaveAttribute("data-paused", "true");
+  // Paused, the plot turns into Plotly's interactive plot once Plotly has come (it is loaded on
+  // the first need): a drag before then lands on the picture, which has no zoom box.
+  await expect(plot).toHaveAttribute("data-interactive", "true");
   const box = (await plot.boundingBox())!;
   const y = box.y + box.height / 2;
   // A zoom into the paused picture's newest seconds: what the ring holds (on a busy machine the
