@@ -1,6 +1,6 @@
 /** Fakes shared by the plot tests: a recording Plotly backend and a plot over a fresh ring. */
 import type { HistoryAnswer, TimeRange } from "./historyView";
-import { LivePlot, type PlotBackend } from "./plotting";
+import { LivePlot, type PlotBackend, type StaticPicture } from "./plotting";
 import { ChannelMap, JOINT_PLOTS } from "./plots";
 import { SampleRing } from "./ringBuffer";
 
@@ -51,6 +51,25 @@ export function fakeBackend(
     downloadPng: rec("downloadPng"),
     purge: rec("purge"),
   };
+}
+
+/**
+ * A static picture that records what it is asked (`drawn`); each drawing reports `range` as the
+ * x range it drew.
+ */
+export function recordingPicture(range: readonly [number, number] = [0, 1]): { picture: StaticPicture; drawn: string[] } {
+  const drawn: string[] = [];
+  const picture: StaticPicture = {
+    reset: () => drawn.push("reset"),
+    extend: () => drawn.push("extend"),
+    draw: () => {
+      drawn.push("draw");
+      return range;
+    },
+    show: (on) => drawn.push(on ? "show" : "hide"),
+    savePng: (name) => drawn.push(`png ${name}`),
+  };
+  return { picture, drawn };
 }
 
 export function fakeElement(): HTMLElement {

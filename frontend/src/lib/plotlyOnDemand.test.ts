@@ -1,6 +1,6 @@
 import { describe, expect, it, vi } from "vitest";
-import { fakeBackend, fakeElement, spec } from "./plotTestSupport";
-import { LivePlot, type StaticPicture } from "./plotting";
+import { fakeBackend, fakeElement, recordingPicture, spec } from "./plotTestSupport";
+import { LivePlot } from "./plotting";
 import { ChannelMap } from "./plots";
 import { SampleRing } from "./ringBuffer";
 
@@ -41,26 +41,11 @@ function lateBackend() {
   };
 }
 
-function recordingPicture() {
-  const drawn: string[] = [];
-  const picture: StaticPicture = {
-    reset: () => drawn.push("reset"),
-    extend: () => drawn.push("extend"),
-    draw: () => {
-      drawn.push("draw");
-      return [1_000_000, 1_000_990];
-    },
-    show: (on) => drawn.push(on ? "show" : "hide"),
-    savePng: (name) => drawn.push(`png ${name}`),
-  };
-  return { picture, drawn };
-}
-
 function panelPlot(withPicture = true) {
   const channels = new ChannelMap([spec]);
   const ring = new SampleRing(4096, channels.channelCount);
   const late = lateBackend();
-  const { picture, drawn } = recordingPicture();
+  const { picture, drawn } = recordingPicture([1_000_000, 1_000_990]);
   const plot = new LivePlot(spec, ring, channels, late.backend, {
     window_ms: 10_000,
     theme: "light",

@@ -1,7 +1,7 @@
 import { describe, expect, it } from "vitest";
 import { TCP_PLOTS, axisTitle, axisTitles, tracesOf } from "./plots";
-import { fakeBackend, fakeElement, setupPlot as setup, spec } from "./plotTestSupport";
-import { LivePlot, type StaticPicture } from "./plotting";
+import { fakeBackend, fakeElement, recordingPicture, setupPlot as setup, spec } from "./plotTestSupport";
+import { LivePlot } from "./plotting";
 import { ChannelMap } from "./plots";
 import { SampleRing } from "./ringBuffer";
 import { BUCKETS_PER_WINDOW } from "./plotAppearance";
@@ -137,16 +137,7 @@ describe("the kiosk's plot (read-only)", () => {
     const channels = new ChannelMap([spec]);
     const ring = new SampleRing(4096, channels.channelCount);
     const backend = fakeBackend();
-    const drawn: string[] = [];
-    const picture: StaticPicture = {
-      reset: () => drawn.push("reset"),
-      extend: () => drawn.push("extend"),
-      draw: () => {
-        drawn.push("draw");
-        return [0, 1];
-      },
-      show: (on) => drawn.push(on ? "show" : "hide"),
-    };
+    const { picture, drawn } = recordingPicture();
     const plot = new LivePlot(spec, ring, channels, backend, { window_ms: 10_000, theme: "dark", readOnly: true, staticPicture: picture });
     const el = fakeElement();
     plot.mount(el);
