@@ -7,7 +7,7 @@
 // the banner whole in it; the confirmation dialog keeps focus, Escape cancels and Enter confirms (with a
 // warning during an emergency stop). (axe-core's audits of the panel, the login and the kiosk:
 // 11-accessibility.spec.ts.)
-import type { Page } from "@playwright/test";
+import type { Locator, Page } from "@playwright/test";
 import { expect, loginInPanel, operatorWithControl, quietCell, test } from "../support/fixtures";
 import { settings } from "../support/settings";
 
@@ -320,6 +320,45 @@ for (const { touch, ...viewport } of [
   });
 }
 
+/**
+ * Press `key` on `control` with the keyboard and expect `opened` to show. The control must be
+ * enabled and focused when the key goes down: on a loaded machine the panel can block writing
+ * for a moment (its frames over a second old: "Cannot write while stale", the button disabled
+ * with the reason as its title), and a key pressed then does nothing, as for a person. So what
+ * the control was at the key's keydown is recorded in the page: a press on an enabled, focused
+ * control that opens nothing fails at once; a press the panel blocked (its reason said) is made
+ * again, a few times at most.
+ */
+async function pressToOpen(page: Page, control: Locator, key: string, opened: Locator): Promise<void> {
+  const blocked: string[] = [];
+  for (let attempt = 0; attempt < 3; attempt++) {
+    await expect(control).toBeEnabled();
+    await control.focus();
+    await expect(control).toBeFocused();
+    await control.evaluate((el) => {
+      const w = window as unknown as { __e2eKeydown?: string };
+      delete w.__e2eKeydown;
+      document.addEventListener(
+        "keydown",
+        () => {
+          const button = el as HTMLButtonElement;
+          w.__e2eKeydown =
+            document.activeElement !== el ? `focus on ${document.activeElement?.outerHTML.slice(0, 80) ?? "nothing"}` : button.disabled ? `disabled: ${button.title}` : "ok";
+        },
+        { capture: true, once: true },
+      );
+    });
+    await page.keyboard.press(key);
+    const atKeydown = await page.evaluate(() => (window as unknown as { __e2eKeydown?: string }).__e2eKeydown ?? "no keydown seen");
+    if (atKeydown === "ok") {
+      await expect(opened, `${key} on the enabled, focused control opens it`).toBeVisible();
+      return;
+    }
+    blocked.push(atKeydown);
+  }
+  throw new Error(`the key never reached an enabled, focused control: ${blocked.join("; ")}`);
+}
+
 test("Escape closes the dialog, focus stays inside, Enter confirms", async ({ page, robot, operatorApi }) => {
   await operatorApi.write({ controlbox_do: { [DO16_INDEX]: false } }); // whatever a failed run left
   await operatorWithControl(page);
@@ -329,9 +368,7 @@ test("Escape closes the dialog, focus stays inside, Enter confirms", async ({ pa
   const dialog = page.getByTestId("confirm-dialog");
 
   // Keyboard only: the toggle is reachable and opens the question; the answer has the focus.
-  await toggle.focus();
-  await page.keyboard.press("Space");
-  await expect(dialog).toBeVisible();
+  await pressToOpen(page, toggle, "Space", dialog);
   await expect(page.getByTestId("confirm-yes")).toBeFocused();
   for (let i = 0; i < 3; i++) {
     await page.keyboard.press("Tab");
@@ -345,8 +382,7 @@ test("Escape closes the dialog, focus stays inside, Enter confirms", async ({ pa
   expect((await robot.status()).frame.controlbox_do[DO16_INDEX]).toBe(false);
 
   // Enter confirms.
-  await page.keyboard.press("Space");
-  await expect(dialog).toBeVisible();
+  await pressToOpen(page, toggle, "Space", dialog);
   await page.getByTestId("confirm-no").focus();
   await page.getByTestId("confirm-yes").focus();
   await page.keyboard.press("Enter");
