@@ -4,12 +4,13 @@
  * histogram (Plotly, through lib/plotlyAdapter), the newest cycles as a table, the CSV export and
  * a printed page of the statistics. Asked again every few seconds: a cycle lasts seconds.
  */
-import { memo, useEffect, useRef, useState } from "react";
+import { memo, useEffect, useMemo, useRef, useState } from "react";
 import { api } from "../lib/api";
 import { CYCLE_WINDOW, cyclesCsvUrl, fetchCycles, formatCycle_s, histogram, type CyclePage } from "../lib/cycles";
 import { formatTimestamp } from "../lib/dates";
 import type { PlotTheme } from "../lib/plotAppearance";
 import { plotlyBackend } from "../lib/plotlyAdapter";
+import { PlotlyOnDemand } from "../lib/plotlyOnDemand";
 import { printSection } from "../lib/searchPrint";
 import "../styles/cycles.css";
 
@@ -51,20 +52,10 @@ function CyclePlots({ page, theme }: { readonly page: CyclePage; readonly theme:
   // they have not drawn: below the fold nothing, not even Plotly's chunk (lib/plotlyAdapter.ts),
   // which is asked for the first time they come near.
   const [near, setNear] = useState(() => typeof IntersectionObserver === "undefined");
-  const [plotlyHere, setPlotlyHere] = useState(() => plotlyBackend.ready?.() ?? true);
-  useEffect(() => {
-    if (!near || plotlyHere) return;
-    let gone = false;
-    plotlyBackend.load?.().then(
-      () => {
-        if (!gone) setPlotlyHere(true);
-      },
-      (error: unknown) => console.warn("Plotly could not be loaded for the cycle plots", error),
-    );
-    return () => {
-      gone = true;
-    };
-  }, [near, plotlyHere]);
+  // Plotly asked for as the live plots ask (lib/plotlyOnDemand.ts): once, and again at the next
+  // drawing after a failed load; `plotlyCame` draws what waited for it.
+  const [plotlyCame, setPlotlyCame] = useState(false);
+  const plotly = useMemo(() => new PlotlyOnDemand(plotlyBackend, () => setPlotlyCame(true)), []);
   useEffect(() => {
     const target = grid.current;
     if (target === null || typeof IntersectionObserver === "undefined") return;
@@ -79,7 +70,7 @@ function CyclePlots({ page, theme }: { readonly page: CyclePage; readonly theme:
   }, []);
   useEffect(() => {
     const key = `${theme} ${page.cycles.map((c) => c.id).join(",")}`;
-    if (key === drawn.current || !near || !plotlyHere) return;
+    if (key === drawn.current || !near || !plotly.ready()) return;
     drawn.current = key;
     const durations = page.cycles.map((c) => c.duration_s);
     const c = colours(theme);
@@ -100,7 +91,7 @@ function CyclePlots({ page, theme }: { readonly page: CyclePage; readonly theme:
         CONFIG,
       );
     }
-  }, [page, theme, near, plotlyHere]);
+  }, [page, theme, near, plotly, plotlyCame]);
   useEffect(() => {
     const elements = [trend.current, bars.current];
     return () => {
