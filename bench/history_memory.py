@@ -1,35 +1,40 @@
 """``bench/history --memory``: the recorder's memory across segment closes of a robot at RPI 2 ms.
 
 Records simulated time as fast as it goes through the recorder's own path (hub items → record
-batches of a second → the journal; every 10 minutes the journal handed to the closer's thread,
-``history.closer``, which turns it into Parquet and cells), after the closer loaded the Parquet
-writer as the recorder's start has it. Prints the process's RSS (anonymous + file-backed, as
-``ps`` and the soak read it) before each close, its peak while the closer works (sampled every
-2 ms) and after, and the drift from simulated minute 5 to the end against the soak's target (±5 %).
-Each in a fresh process: first with glibc's malloc arenas limited as ``cobot-hmi`` limits them
-(cli/process_memory.py), then, as the baseline of the same run, with glibc's default arenas
-(the step after the first close that the soak saw). And one of those ten-minute journals
-converted the way it was before (read whole into memory, then written) in a fresh process, its
-peak and what stayed.
+batches of a second → the journal; every 10 minutes the journal handed to the closer,
+``history.closer``, which turns it into Parquet and cells in a process of its own,
+``history.close_process``). Prints the process's RSS (anonymous + file-backed, as ``ps`` and
+the soak read it) before each close, its peak while the closer works (sampled every 2 ms) and
+after, and the drift from simulated minute 5 to the end against the soak's target (±5 %). Each
+in a fresh process with glibc's malloc arenas limited as ``cobot-hmi`` limits them
+(cli/process_memory.py): first as the closer works now, then, as the baseline of the same run,
+with each journal closed in the recording process (on the closer's thread, the Parquet writer
+loaded before the first close, Arrow's and glibc's freed memory handed back after each), as it
+was before.
 """
 
 from __future__ import annotations
 
+import ctypes
 import os
-import shutil
 import subprocess
 import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
+
+import pyarrow as pa
 
 from cobot_hmi.cli.process_memory import limit_malloc_arenas
 from cobot_hmi.codec import decode_frame, encode_frame
 from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot
 from cobot_hmi.history import segments
+from cobot_hmi.history.close_process import close_in_child
 from cobot_hmi.history.closer import JournalCloser
 from cobot_hmi.history.journal_form import records_to_journal_batch
+from cobot_hmi.history.segments import Segment
 
 RATE_HZ = 500
 """RPI 2 ms."""
@@ -68,9 +73,8 @@ class PeakSampler:
         self._thread.join()
 
 
-def measure(closes: int, root: Path) -> Path | None:
-    """Record until ``closes`` segments closed; print the figures; a copy of the first
-    ten-minute journal for the baseline."""
+def measure(closes: int, root: Path, convert: Callable[[Path, str], Segment | None]) -> None:
+    """Record until ``closes`` segments closed; print the figures."""
     robot = SimulatedRobot(RobotSettings(), start_s=START_S - 5)
     payloads = [
         encode_frame(robot.produce_frame(START_S + i / RATE_HZ)) for i in range(RATE_HZ * 10)
@@ -78,13 +82,12 @@ def measure(closes: int, root: Path) -> Path | None:
     pool = [(decode_frame(payload), payload) for payload in payloads]
     simulated_now = [START_S]
     writer = segments.SegmentWriter(root, "r", SEGMENT_S, clock=lambda: simulated_now[0])
-    closer = JournalCloser(retry_s=5.0)
-    closer.start()  # loads the Parquet writer on its thread, as the recorder's start does
+    closer = JournalCloser(retry_s=5.0, convert=convert)
+    closer.start()
     sampler = PeakSampler()
-    kept: Path | None = None
     minute_5: float | None = None
     after_each: list[float] = []
-    print(f"  start (Parquet writer loaded): RSS {rss_mib():.1f} MiB")
+    print(f"  start: RSS {rss_mib():.1f} MiB")
     seq = second = 0
     closing: tuple[float, float] | None = None
     """RSS before the hand-over and its time, while the closer works."""
@@ -123,9 +126,6 @@ def measure(closes: int, root: Path) -> Path | None:
             before = rss_mib()
             path = writer.finish_journal()
             assert path is not None
-            if kept is None:
-                kept = root / "baseline.journal"
-                shutil.copyfile(path, kept)
             sampler.reset()
             closing = (before, time.perf_counter())
             closer.submit("r", path)
@@ -138,59 +138,56 @@ def measure(closes: int, root: Path) -> Path | None:
         verdict = "OK" if drift <= TARGET_DRIFT else "MISSED"
         print(f"  RSS at minute 5 {minute_5:.1f} MiB, after the closes {low:.1f} … {high:.1f}: "
               f"{drift * 100:.1f} % (target ±{TARGET_DRIFT * 100:.0f} %) {verdict}")  # fmt: skip
-    return kept
 
 
-def baseline(journal: Path) -> None:
-    """In a fresh process: the journal read whole, then written (the way before)."""
-    code = (
-        "import sys, threading, time\n"
-        "from pathlib import Path\n"
-        f"sys.path.insert(0, {str(Path(__file__).parent)!r})\n"
-        "from history_memory import PeakSampler, rss_mib\n"
-        "from cobot_hmi.history import segments\n"
-        "journal = Path(sys.argv[1])\n"
-        "segments.load_writers()\n"
-        "sampler = PeakSampler(); before = rss_mib(); sampler.reset()\n"
-        "started = time.perf_counter()\n"
-        "segments.write_segment(segments.read_journal(journal), journal.parent, 'r')\n"
-        "took = time.perf_counter() - started; after = rss_mib(); sampler.stop()\n"
-        "print(f'  baseline, the journal read whole then written (fresh process): RSS before '\n"
-        "      f'{before:.1f} MiB, peak {sampler.peak:.1f} (+{sampler.peak - before:.1f}), '\n"
-        "      f'after {after:.1f} ({after - before:+.1f}); {took:.1f} s')\n"
-    )
-    subprocess.run([sys.executable, "-c", code, str(journal)], check=True)
+def close_here(path: Path, robot: str) -> Segment | None:
+    """The baseline's closing: in this process (the way before), what it freed handed back."""
+    try:
+        return segments.close_journal(path, robot)
+    finally:
+        pa.default_memory_pool().release_unused()
+        ctypes.CDLL(None).malloc_trim(0)
 
 
-def measure_in_fresh_process(closes: int, arenas: str) -> None:
-    """``measure`` in a fresh Python with glibc's malloc arenas as ``arenas`` says: "limited"
-    as ``cobot-hmi`` sets them (cli/process_memory.py), or glibc's "default"."""
-    subprocess.run([sys.executable, __file__, arenas, str(closes)], check=True)
+def load_writers_here(root: Path) -> None:
+    """The baseline's start: a one-frame journal closed here, so the Parquet writer's code and
+    tables (about 20 MiB for the process's life) are in memory before minute 5, as the closer's
+    thread loaded them before."""
+    robot = SimulatedRobot(RobotSettings(), start_s=START_S - 5)
+    payload = encode_frame(robot.produce_frame(START_S - 1))
+    writer = segments.SegmentWriter(root, "warm-up", SEGMENT_S)
+    writer.append(records_to_journal_batch([(1, START_S - 1, decode_frame(payload), 1, payload)]))
+    path = writer.finish_journal()
+    assert path is not None
+    close_here(path, "warm-up")
+
+
+def measure_in_fresh_process(closes: int, closing: str) -> None:
+    """``measure`` in a fresh Python, journals closed as ``closing`` says: "child" (the closer's
+    process per journal) or "here" (the baseline: in the recording process)."""
+    subprocess.run([sys.executable, __file__, closing, str(closes)], check=True)
 
 
 def main(closes: int) -> int:
     print(f"load average before: {os.getloadavg()}")
-    for arenas, title in (
-        ("limited", "as cobot-hmi runs it (two malloc arenas)"),
-        ("default", "baseline: glibc's default malloc arenas (eight per core)"),
+    for closing, title in (
+        ("child", "as cobot-hmi records (each journal closed in a process of its own)"),
+        ("here", "baseline: each journal closed in the recording process, as before"),
     ):
         print(f"\nmemory, {title}: a robot at RPI 2 ms ({RATE_HZ} frames/s), {closes} segments "
               f"of {SEGMENT_S / 60:.0f} minutes closed while recording:", flush=True)  # fmt: skip
-        measure_in_fresh_process(closes, arenas)
+        measure_in_fresh_process(closes, closing)
     print(f"\nload average after: {os.getloadavg()}")
     return 0
 
 
-def child(arenas: str, closes: int) -> int:
+def child(closing: str, closes: int) -> int:
     """One measurement (in the process ``measure_in_fresh_process`` started)."""
-    if arenas == "limited":
-        assert limit_malloc_arenas(), "this C library takes no M_ARENA_MAX"
+    assert limit_malloc_arenas(), "this C library takes no M_ARENA_MAX"
     with tempfile.TemporaryDirectory(prefix="cobot-history-memory-") as directory:
-        kept = measure(closes, Path(directory))
-        if kept is not None and arenas == "limited":
-            size_mib = kept.stat().st_size / 2**20
-            print(f"  (a ten-minute journal: {size_mib:.0f} MiB)")
-            baseline(kept)
+        if closing == "here":
+            load_writers_here(Path(directory))
+        measure(closes, Path(directory), close_here if closing == "here" else close_in_child)
     return 0
 
 

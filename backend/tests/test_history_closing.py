@@ -1,19 +1,27 @@
-"""A journal becomes a segment a row group at a time, and on the closer's thread.
+"""A journal becomes a segment a row group at a time, in a process of the closer's.
 
 The streamed conversion equals converting the whole journal at once (frames, row groups, and
 the cells of a second split between two row groups joined into one); a torn last batch is
 left out; the closer converts in order, keeps a journal whose conversion fails and tries it
-again, and converts what is left when it stops."""
+again, and converts what is left when it stops; its conversions run in a child process, which
+says why one failed and does not outlive the process that started it."""
 
 from __future__ import annotations
 
+import array
+import asyncio
+import fcntl
+import os
+import sys
+import termios
 from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
 
-from cobot_hmi.history import segments
+from cobot_hmi.history import close_process, segments
 from cobot_hmi.history.cells import read_cells_file
+from cobot_hmi.history.close_process import JournalCloseError, close_in_child
 from cobot_hmi.history.closer import JournalCloser
 from cobot_hmi.history.rollup import LEVELS_S, coarsen, levels, rollup_table
 from cobot_hmi.history.schema import items_to_batch
@@ -135,9 +143,92 @@ def test_stopping_converts_what_is_waiting(tmp_path: Path) -> None:
     assert len(segments.list_segments(tmp_path, "r")) == 3
 
 
-def test_loading_the_writers_writes_nothing(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    monkeypatch.chdir(tmp_path)
-    segments.load_writers()
-    assert list(tmp_path.iterdir()) == []
+def test_the_closer_converts_in_a_process_of_its_own(tmp_path: Path) -> None:
+    """The segment is made by a child (what its conversion allocated leaves with it): the
+    closer's answer names the same segment a conversion here would have made."""
+    journal = journal_of(tmp_path, "r", synthetic_items(300))
+    made = close_in_child(journal, "r")
+    assert made is not None and made.robot == "r"
+    assert made == segments.list_segments(tmp_path, "r")[0]
+    assert pq.read_metadata(made.path).num_rows == 300
+    assert not journal.exists()
+    # A journal without a complete frame makes no segment; the answer says so.
+    empty = tmp_path / "r" / f"{int(T0 * 1e6) + 10**9}{segments.JOURNAL_SUFFIX}"
+    empty.write_bytes(b"")
+    assert close_in_child(empty, "r") is None
+
+
+def test_a_failed_conversion_says_why_and_keeps_the_journal(tmp_path: Path) -> None:
+    journal = journal_of(tmp_path, "r", synthetic_items(50))
+    (journal.parent / f"{journal.name}{segments.SEGMENT_SUFFIX}.tmp").mkdir()
+    with pytest.raises(JournalCloseError) as failed:
+        close_in_child(journal, "r")
+    assert "directory" in failed.value.reason  # the child's OSError, in its words
+    assert segments.read_journal(journal).num_rows == 50
+
+
+def test_a_child_whose_parent_is_already_gone_touches_nothing(tmp_path: Path) -> None:
+    journal = journal_of(tmp_path, "r", synthetic_items(50))
+    # This test's process is not the child's parent: it stops before converting.
+    with pytest.raises(SystemExit) as ended:
+        close_process.main(["--parent-pid", str(os.getpid() + 1), str(journal), "r"])
+    assert ended.value.code == 3
+    assert journal.exists() and segments.list_segments(tmp_path, "r") == []
+
+
+async def test_a_conversion_ends_with_the_service_that_started_it(tmp_path: Path) -> None:
+    """``kill -9`` of the service: its conversion under way does not run on beside the next
+    start's recovery of the same journal. The conversion's temporary Parquet is a FIFO with a
+    one-page buffer that this test holds open and never reads: once the child has written into
+    it (past its start, converting), it waits in its write for as long as it lives."""
+    journal = journal_of(tmp_path, "r", synthetic_items(200))
+    parquet_tmp = journal.parent / f"{journal.name}{segments.SEGMENT_SUFFIX}.tmp"
+    os.mkfifo(parquet_tmp)
+    never_read = os.open(parquet_tmp, os.O_RDONLY | os.O_NONBLOCK)
+    fcntl.fcntl(never_read, fcntl.F_SETPIPE_SZ, 4096)
+    service = await asyncio.create_subprocess_exec(
+        sys.executable,
+        "-c",
+        "import sys; from pathlib import Path; "
+        "from cobot_hmi.history.close_process import close_in_child; "
+        "close_in_child(Path(sys.argv[1]), 'r')",
+        str(journal),
+    )
+    try:
+
+        def converting() -> int | None:
+            """The child, once it has written Parquet into the FIFO."""
+            waiting = array.array("i", [0])
+            fcntl.ioctl(never_read, termios.FIONREAD, waiting)
+            if waiting[0] == 0:
+                return None
+            for entry in Path("/proc").iterdir():
+                try:
+                    words = (entry / "cmdline").read_bytes().split(b"\0")
+                    parent = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+                except (OSError, ValueError, IndexError):
+                    continue
+                if parent == service.pid and str(journal).encode() in words:
+                    return int(entry.name)
+            return None
+
+        await eventually(converting)
+        child = converting()
+        assert child is not None
+        service.kill()
+        await service.wait()
+
+        def gone() -> bool:
+            try:
+                state = Path(f"/proc/{child}/stat").read_text().rsplit(")", 1)[1].split()[0]
+            except OSError:
+                return True
+            return state in ("Z", "X")  # dead, not yet reaped by whoever inherited it
+
+        await eventually(gone)
+    finally:
+        if service.returncode is None:
+            service.kill()
+            await service.wait()
+        os.close(never_read)  # a child still alive (the test failed) ends on a broken pipe
+    assert journal.exists() and segments.list_segments(tmp_path, "r") == []

@@ -1,7 +1,9 @@
-"""Layer: history storage. Imports only ``segments``.
+"""Layer: history storage. Imports only ``segments`` and ``close_process``.
 
-Journals closed by the recorder become segments here, on a thread of their own, one at a
-time in the order handed over (``JournalCloser.submit``). Closing a ten-minute journal of a
+Journals closed by the recorder become segments here, one at a time in the order handed over
+(``JournalCloser.submit``), each in a short-lived process of its own started and waited for by
+a thread of the closer's (``close_process``: the memory a conversion takes goes back to the
+system with the process). Closing a ten-minute journal of a
 robot at RPI 2 ms (300,000 frames) takes seconds of a busy machine; done on the recorder's
 thread it held every robot's frames in their queues meanwhile (frames dropped when they
 overflowed), and after a full disk it held the resumption back until the old journal was
@@ -20,9 +22,7 @@ import threading
 from collections.abc import Callable
 from pathlib import Path
 
-import pyarrow as pa
-
-from cobot_hmi.history import segments
+from cobot_hmi.history.close_process import JournalCloseError, close_in_child
 from cobot_hmi.history.segments import Segment
 
 log = logging.getLogger(__name__)
@@ -38,9 +38,13 @@ class JournalCloser:
         *,
         retry_s: float,
         on_closed: Callable[[str, Segment | None], None] | None = None,
+        convert: Callable[[Path, str], Segment | None] = close_in_child,
     ) -> None:
         self.retry_s = retry_s
         self.on_closed = on_closed
+        self._convert_journal = convert
+        """How a journal becomes its segment: in a child process (``close_process``); a
+        benchmark's baseline converts in its own process."""
         self.errors = 0
         """Conversions that failed (each tried again)."""
         self.last_error: str | None = None
@@ -57,15 +61,10 @@ class JournalCloser:
             return len(self._jobs) + (self._busy is not None)
 
     def start(self) -> None:
-        """Start the thread, and wait until it has loaded the Parquet writer
-        (``segments.load_writers``: paid now, not at the first segment). Blocks briefly."""
+        """Start the thread."""
         self._stopping = False
-        ready = threading.Event()
-        self._thread = threading.Thread(
-            target=self._run, args=(ready,), name="history closer", daemon=True
-        )
+        self._thread = threading.Thread(target=self._run, name="history closer", daemon=True)
         self._thread.start()
-        ready.wait()
 
     def submit(self, robot: str, path: Path) -> None:
         """Convert ``path`` (a closed journal of ``robot``) when the ones before it are done;
@@ -95,14 +94,7 @@ class JournalCloser:
                 lambda: not self._jobs and self._busy is None, timeout_s
             )
 
-    def _run(self, ready: threading.Event) -> None:
-        try:
-            # On this thread: its allocator's heap is the one the conversions use.
-            segments.load_writers()
-        except Exception:
-            log.exception("history: the Parquet writer did not load")
-        finally:
-            ready.set()
+    def _run(self) -> None:
         while True:
             with self._condition:
                 self._condition.wait_for(lambda: self._jobs or self._stopping)
@@ -123,10 +115,11 @@ class JournalCloser:
         if not path.exists():
             return True  # closed meanwhile (``segments.recover``)
         try:
-            segment = segments.close_journal(path, robot)
-        except (OSError, pa.ArrowException) as error:
+            segment = self._convert_journal(path, robot)
+        except (OSError, JournalCloseError) as error:
+            # OSError: the closing process could not be started (no memory, no processes left).
             self.errors += 1
-            reason = error.strerror if isinstance(error, OSError) else None
+            reason = error.reason if isinstance(error, JournalCloseError) else error.strerror
             self.last_error = f"{path.name}: {reason or error}"
             log.warning("history of %s: journal not closed yet: %s", robot, self.last_error)
             return False

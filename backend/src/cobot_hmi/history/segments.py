@@ -25,7 +25,6 @@ by a crash (its complete batches), and recording resumes in a new journal.
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import os
 import re
 import threading
@@ -36,12 +35,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
-import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from cobot_hmi.codec import T2O_SIZE
-from cobot_hmi.history.cells import write_cells, write_cells_to
+from cobot_hmi.history.cells import write_cells
 from cobot_hmi.history.journal_form import expand, is_journal_form
 from cobot_hmi.history.rollup import join_split_cells, rollup_table
 from cobot_hmi.history.schema import (
@@ -51,7 +48,6 @@ from cobot_hmi.history.schema import (
     T2O_SEQUENCE,
     TIME,
     conform,
-    raw_to_batch,
 )
 
 JOURNAL_SUFFIX: Final = ".journal.arrows"
@@ -377,49 +373,12 @@ def _expanded(table: pa.Table) -> pa.Table:
 
 def close_journal(path: Path, robot: str) -> Segment | None:
     """Turn a journal into a closed segment and delete it (also after a crash), a row group at
-    a time (memory holds about one, 64 Ki rows, and its cells), then hand the memory it took
-    back to the system (``release_memory``)."""
+    a time (memory holds about one, 64 Ki rows, and its cells). The service does this in a
+    process of its own (``close_process``), whose memory leaves with it."""
     forget_journal(path)
-    try:
-        segment = _write_segment(_journal_groups(path), path.parent, robot, path.name)
-    finally:
-        release_memory()
+    segment = _write_segment(_journal_groups(path), path.parent, robot, path.name)
     path.unlink(missing_ok=True)
     return segment
-
-
-def release_memory() -> None:
-    """Hand the memory a segment's closing freed back to the system: pyarrow's allocator
-    (mimalloc) and the C library's (numpy's arrays) both keep freed memory for reuse, which
-    showed as a lasting step of the service's RSS after its first segment closed."""
-    pa.default_memory_pool().release_unused()
-    if _MALLOC_TRIM is not None:
-        _MALLOC_TRIM(0)
-
-
-def _malloc_trim() -> Callable[[int], int] | None:
-    """glibc's ``malloc_trim`` (``None`` on a C library without it)."""
-    try:
-        function: Callable[[int], int] = ctypes.CDLL(None).malloc_trim
-    except (OSError, AttributeError):
-        return None
-    return function
-
-
-_MALLOC_TRIM: Final = _malloc_trim()
-
-
-def load_writers() -> None:
-    """Write a one-frame segment to memory and drop it. The first segment a process writes
-    loads the Parquet, zstd and LZ4 code and builds their tables, about 20 MiB that stay for
-    the process's life (``bench/history --memory``); the recorder pays that when it starts,
-    so the service's memory does not step up at its first segment ten minutes later."""
-    raw = np.zeros((1, T2O_SIZE), dtype=np.uint8)
-    table = pa.Table.from_batches([raw_to_batch([1], [0.0], raw, [0])])
-    written = _write_parquet(iter([table]), pa.BufferOutputStream())
-    assert written is not None
-    write_cells_to(written[0], pa.BufferOutputStream())
-    release_memory()
 
 
 def recover(root: Path, robot: str) -> list[Segment]:

@@ -7,15 +7,14 @@ and counted when full: the cyclic connection never waits). One thread of the rec
 drains the queues every ``history_flush_s``, turns the frames into one record batch per robot
 (numpy over the wire bytes, ``history.schema``) and appends it to the robot's open segment;
 every ``history_segment_s`` it closes the segment's journal and records on in a new one at
-once, while a thread of its own turns the closed journal into Parquet (``history.closer``:
-seconds of work for ten minutes at RPI 2 ms, which on this thread held every robot's frames in
-their queues), and retention (``history.retention``) runs. The work holds the GIL in short
+once, while the closed journal is turned into Parquet in a short-lived process of its own
+(``history.closer``: seconds of work for ten minutes at RPI 2 ms, which on this thread held every
+robot's frames in their queues; in a process, the memory it takes leaves with it), and retention
+(``history.retention``) runs. The work holds the GIL in short
 stretches (a second of frames is converted in a few milliseconds; pyarrow's encoding and
 writing release it); the cyclic connection does not depend on it for its timing (its receive
 times are the kernel's, its O→T packets are sent by the C pump thread, which needs no GIL;
-bench/history compares the receive interval with and without recording). The Parquet writer
-is loaded when the recorder starts (``JournalCloser.start``), so the service's memory does not
-step up when the first segment closes.
+bench/history compares the receive interval with and without recording).
 
 A disk that fills (or any write error: read-only, removed directory) pauses recording for every
 robot with a ``recording`` event (state ``paused`` and the reason) on each robot's stream and
@@ -133,7 +132,7 @@ class Recorder:
             # Persisted from a pause before a restart: recording starts again (a disk still
             # full pauses it again at the first check).
             self._alarm_now(track.robot, paused=False, reason="recording resumed")
-        await asyncio.to_thread(self.closer.start)
+        self.closer.start()
         self._thread = threading.Thread(target=self._run, name="history recorder", daemon=True)
         self._thread.start()
 
