@@ -51,8 +51,8 @@ import type { SampleRing } from "./ringBuffer";
 export interface LivePlotOptions extends PlotLook {
   readonly window_ms: number;
   /**
-   * Draws the ring view while the plot is not interactive (the panel's plots: plots/canvasPlot.ts);
-   * none: Plotly's static plot does (the kiosk).
+   * Draws the ring view while the plot is not interactive (plots/canvasPlot.ts: the panel's plots
+   * and the kiosk's, which is only ever its picture); none: Plotly draws every view.
    */
   readonly staticPicture?: StaticPicture;
   /** The plot's way into the recording (the panel's plots); none: the ring only (the kiosk). */
