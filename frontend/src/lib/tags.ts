@@ -6,7 +6,6 @@
  */
 import { tagLabel } from "./alarms";
 import { keyLabel } from "./layoutInfo";
-import type { WriteView } from "./writes";
 
 export type TagNames = Readonly<Record<string, string>>;
 
@@ -45,7 +44,7 @@ export function bitWriteQuestion(kind: "output" | "register", label: string, tag
  * come over the stream, the confirmation over HTTP), so the frame's value may still be the old
  * one; asking from it turned "ON, click" into "Switch ON?" again.
  */
-export function bitClickRequest(shown: WriteView["shown"], actual: boolean | null, command: boolean | null): boolean {
+export function bitClickRequest(shown: boolean | number | "pending" | null, actual: boolean | null, command: boolean | null): boolean {
   const seen = typeof shown === "boolean" ? shown : null;
   return !(seen ?? actual ?? command ?? false);
 }
