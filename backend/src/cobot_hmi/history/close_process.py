@@ -115,7 +115,7 @@ def _die_with_parent(parent_pid: int) -> None:
         libc = ctypes.CDLL(None, use_errno=True)
         libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
     except (OSError, AttributeError):
-        return  # not Linux: a conversion outliving its service is then possible, not harmful
+        pass  # no prctl (not Linux): a parent gone before this start is still seen below
     if os.getppid() != parent_pid:
         sys.exit(3)
 
