@@ -155,9 +155,14 @@ static void drain_socket(pump *p) {
                 stamp = (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec + mono_minus_real;
             }
         }
+        if (stamp < 0) stamp = mono_ns();
+        /* Receive times never go backwards: the kernel's stamps are wall-clock times moved onto
+         * the monotonic clock by an offset read from two clocks one after the other, and a
+         * thread preempted between the reads shifts one drain's offset by microseconds. */
+        if (stamp < p->last_rx_ns) stamp = p->last_rx_ns;
         ring_meta *m = &p->ring[slot];
-        m->stamp_ns = stamp >= 0 ? stamp : mono_ns();
-        p->last_rx_ns = m->stamp_ns;
+        m->stamp_ns = stamp;
+        p->last_rx_ns = stamp;
         p->silence_reported = 0;
         m->ip = ntohl(from.sin_addr.s_addr);
         m->port = ntohs(from.sin_port);

@@ -175,6 +175,9 @@ class _State:
                     stamp = seconds * 1_000_000_000 + nanoseconds + mono_minus_real
             if stamp < 0:
                 stamp = time.monotonic_ns()
+            # Never backwards (as the C pump): the offset above is read from two clocks one
+            # after the other, and a thread preempted between them shifts it by microseconds.
+            stamp = max(stamp, self.last_rx_ns)
             host, port = source
             ip = sources.get(host)
             if ip is None:
