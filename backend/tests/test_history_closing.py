@@ -26,6 +26,7 @@ from cobot_hmi.history.closer import JournalCloser
 from cobot_hmi.history.rollup import LEVELS_S, coarsen, levels, rollup_table
 from cobot_hmi.history.schema import items_to_batch
 from cobot_hmi.history.segments import Segment
+from process_support import all_ended, children
 from test_history_storage import T0, Item, synthetic_items
 from waiting import eventually
 
@@ -196,36 +197,17 @@ async def test_a_conversion_ends_with_the_service_that_started_it(tmp_path: Path
     )
     try:
 
-        def converting() -> int | None:
-            """The child, once it has written Parquet into the FIFO."""
+        def converting() -> list[int]:
+            """The service's child, once it has written Parquet into the FIFO."""
             waiting = array.array("i", [0])
             fcntl.ioctl(never_read, termios.FIONREAD, waiting)
-            if waiting[0] == 0:
-                return None
-            for entry in Path("/proc").iterdir():
-                try:
-                    words = (entry / "cmdline").read_bytes().split(b"\0")
-                    parent = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
-                except (OSError, ValueError, IndexError):
-                    continue
-                if parent == service.pid and str(journal).encode() in words:
-                    return int(entry.name)
-            return None
+            return children(service.pid) if waiting[0] > 0 else []
 
         await eventually(converting)
-        child = converting()
-        assert child is not None
+        (child,) = converting()
         service.kill()
         await service.wait()
-
-        def gone() -> bool:
-            try:
-                state = Path(f"/proc/{child}/stat").read_text().rsplit(")", 1)[1].split()[0]
-            except OSError:
-                return True
-            return state in ("Z", "X")  # dead, not yet reaped by whoever inherited it
-
-        await eventually(gone)
+        await all_ended([child])
     finally:
         if service.returncode is None:
             service.kill()
