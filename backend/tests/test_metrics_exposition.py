@@ -25,9 +25,9 @@ from sparkplug_support import cell
 
 LEGACY = Path(__file__).parent / "legacy"
 
-# Families added after 58f13a2: the history closer's (a journal becoming its segment on a thread
-# of its own), every frame consumer's drops (robots.frames) and the audit's on a full disk
-# (outcomes kept in memory until the disk takes them).
+# Families added after 58f13a2: the history closer's (a journal becoming its segment in a process
+# of its own), every frame consumer's drops (robots.frames), the audit's on a full disk
+# (outcomes kept in memory until the disk takes them) and the cyclic pump's.
 ADDED_SINCE_58F13A2: dict[str, Any] = {
     "cobot_hmi_history_journals_closing": {
         "type": "gauge",
@@ -40,6 +40,34 @@ ADDED_SINCE_58F13A2: dict[str, Any] = {
     "cobot_hmi_consumer_dropped_frames": {
         "type": "counter",
         "samples": {"cobot_hmi_consumer_dropped_frames_total": ["consumer,robot"]},
+    },
+    "cobot_hmi_cyclic_pump_datagrams_sent": {
+        "type": "counter",
+        "samples": {"cobot_hmi_cyclic_pump_datagrams_sent_total": [""]},
+    },
+    "cobot_hmi_cyclic_pump_send_errors": {
+        "type": "counter",
+        "samples": {"cobot_hmi_cyclic_pump_send_errors_total": [""]},
+    },
+    "cobot_hmi_cyclic_pump_datagrams_received": {
+        "type": "counter",
+        "samples": {"cobot_hmi_cyclic_pump_datagrams_received_total": [""]},
+    },
+    "cobot_hmi_cyclic_pump_ring_overflows": {
+        "type": "counter",
+        "samples": {"cobot_hmi_cyclic_pump_ring_overflows_total": [""]},
+    },
+    "cobot_hmi_cyclic_pump_wakeups": {
+        "type": "counter",
+        "samples": {"cobot_hmi_cyclic_pump_wakeups_total": [""]},
+    },
+    "cobot_hmi_cyclic_pump_send_late_max_seconds": {
+        "type": "gauge",
+        "samples": {"cobot_hmi_cyclic_pump_send_late_max_seconds": [""]},
+    },
+    "cobot_hmi_cyclic_pump_realtime": {
+        "type": "gauge",
+        "samples": {"cobot_hmi_cyclic_pump_realtime": [""]},
     },
     "cobot_hmi_audit_backlog": {
         "type": "gauge",

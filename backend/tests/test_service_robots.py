@@ -19,6 +19,7 @@ import orjson
 import pytest
 import pytest_asyncio
 from hypothesis import strategies as st
+from prometheus_client.parser import text_string_to_metric_families
 from pydantic import BaseModel
 from websockets.asyncio.client import connect
 from websockets.exceptions import ConnectionClosed
@@ -359,6 +360,34 @@ def _invalid_writes(metrics: str, robot: str) -> float:
     )
     assert found is not None, metrics
     return float(found[1])
+
+
+@SHARED
+async def test_the_cyclic_pump_counts_every_robots_packets(shared_cell: Cell) -> None:
+    """The one UDP 2222 socket's pump (``cyclic_pump_*``): what it read is at least every
+    robot's frames counted before it (the pump reads a datagram before its originator sees it)
+    and at most what both emulators sent to it (read after the scrape; only they send to this
+    service's address)."""
+    hmi, left, right = shared_cell
+    robots = hmi.service.robots.values()
+    await eventually(lambda: all(r.intervals.frames_in > 0 for r in robots))
+    families = {f.name: f for f in text_string_to_metric_families(await hmi.metrics())}
+    sent_by_emulators = sum(e.pump_counters()["sent"] for e in (left, right))
+
+    def value(name: str) -> float:
+        (sample,) = families[name].samples
+        return sample.value
+
+    frames = sum(s.value for s in families["cobot_hmi_frames_received"].samples)
+    received = value("cobot_hmi_cyclic_pump_datagrams_received")
+    assert frames > 0
+    assert frames <= received <= sent_by_emulators
+    assert value("cobot_hmi_cyclic_pump_datagrams_sent") > 0
+    assert value("cobot_hmi_cyclic_pump_wakeups") > 0
+    assert value("cobot_hmi_cyclic_pump_realtime") in (0, 1)
+    assert 0 <= value("cobot_hmi_cyclic_pump_send_late_max_seconds") < 3600
+    for counter in ("send_errors", "ring_overflows"):
+        assert families[f"cobot_hmi_cyclic_pump_{counter}"].type == "counter"
 
 
 async def test_each_robot_streams_its_own_frames_and_events(

@@ -4,9 +4,9 @@
 The registry is the service's own, never the library's global default: tests run several
 services in one process, and the process's own metrics are not the HMI's. Its collectors are
 custom ones (``prometheus_client.registry.Collector``): at each scrape they read the counters the
-service keeps anyway (the originator's ``ConnectionStats``, the hub's, the write pipeline's, the
-alarms', the security middlewares'), so nothing on the frame path changes and nothing is counted
-twice.
+service keeps anyway (the originator's ``ConnectionStats``, the cyclic pump's, the hub's, the
+write pipeline's, the alarms', the security middlewares'), so nothing on the frame path changes
+and nothing is counted twice.
 
 Names follow Prometheus conventions (base units: seconds; ``_total`` for counters, which
 ``prometheus_client`` writes on the samples and on HELP and TYPE of a counter family whatever
@@ -98,6 +98,8 @@ class ServiceCollector(Collector):
     def __init__(self, service: Service) -> None:
         self._service = service
         self.stats: dict[str, ConnectionStats] = {}
+        self.pump: dict[str, int] = {}
+        """The cyclic pump's counters (``CyclicLoop.pump_counters``), set with ``stats``."""
 
     def collect(self) -> Iterator[Metric]:
         service = self._service
@@ -117,6 +119,7 @@ class ServiceCollector(Collector):
             "times the cyclic I/O thread died and restarted",
             value=service.cyclic.restarts,
         )
+        yield from _pump_families(self.pump)
         yield from _timing_families(robots)
         yield from _hub_families(robots)
         yield from _control_families(robots)
@@ -204,6 +207,53 @@ def _connection_families(robots: _Robots) -> Iterator[Metric]:
     )
     for metric, help_text, value in counters:
         yield _per_robot(_counter(metric, help_text, ["robot"]), robots, value)
+
+
+_PUMP_COUNTERS: Final = (
+    ("sent", "cyclic_pump_datagrams_sent_total", "O→T datagrams the cyclic pump sent"),
+    (
+        "send_errors",
+        "cyclic_pump_send_errors_total",
+        "O→T datagrams the kernel refused to send (the pump goes on with the next)",
+    ),
+    (
+        "received",
+        "cyclic_pump_datagrams_received_total",
+        "datagrams the cyclic pump read from the UDP 2222 socket (every robot's T→O)",
+    ),
+    (
+        "ring_overflows",
+        "cyclic_pump_ring_overflows_total",
+        "received datagrams the pump's ring gave up, oldest first, because the service did not "
+        "take them in time (frames lost inside this process, not on the wire)",
+    ),
+    (
+        "wakeups",
+        "cyclic_pump_wakeups_total",
+        "times the pump's thread woke (a send due, a datagram in, a timeout)",
+    ),
+)
+
+
+def _pump_families(pump: dict[str, int]) -> Iterator[Metric]:
+    """The cyclic pump of the service's UDP 2222 socket (``native/cyclic_pump.c``): one for
+    every robot, so no robot label. Counted since the cyclic thread last started (a restart
+    opens a new socket: a counter reset, as Prometheus expects of a restart); absent while the
+    thread is down."""
+    if not pump:
+        return
+    for key, name, help_text in _PUMP_COUNTERS:
+        yield CounterMetricFamily(PREFIX + name, help_text, value=pump[key])
+    yield GaugeMetricFamily(
+        PREFIX + "cyclic_pump_send_late_max_seconds",
+        "the latest an O→T datagram left after its due time, since the cyclic thread started",
+        value=pump["max_late_ns"] / 1e9,
+    )
+    yield GaugeMetricFamily(
+        PREFIX + "cyclic_pump_realtime",
+        "1 if the pump's thread got real-time scheduling (SCHED_FIFO), 0 if it runs as others",
+        value=pump["realtime"],
+    )
 
 
 def _timing_families(robots: _Robots) -> Iterator[Metric]:
@@ -401,5 +451,7 @@ class ServiceMetrics:
         thread first (a consistent snapshot); the collection after them is synchronous, so no
         other scrape on this event loop can swap the snapshot in between."""
         stats = await stats_of([robot.link for robot in self._service.robots.values()])
-        self._collector.stats = stats
+        # After the statistics: the pump's counts include every packet they counted.
+        pump = await self._service.cyclic.pump_counters()
+        self._collector.stats, self._collector.pump = stats, pump
         return generate_latest(self.registry)

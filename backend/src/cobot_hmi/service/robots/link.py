@@ -310,6 +310,20 @@ class CyclicLoop:
 
     # ------------------------------------------------------------ calls on the cyclic loop
 
+    async def pump_counters(self) -> dict[str, int]:
+        """The shared UDP port's cyclic pump counters (``UdpEndpoint.counters``; since the
+        thread last started: a restart opens a new port), read on the cyclic thread, where the
+        port closes. Empty while the thread is down."""
+
+        async def read() -> dict[str, int]:
+            port = self._port
+            return port.udp.counters() if port is not None and port.is_open else {}
+
+        try:
+            return await self.call(read)
+        except NotConnectedError:
+            return {}
+
     async def call(self, make: Callable[[], Awaitable[_T]]) -> _T:
         """Run ``make()`` on the cyclic loop; ``NotConnectedError`` while the thread is down
         (also when it dies during the call: the answer would never come)."""
