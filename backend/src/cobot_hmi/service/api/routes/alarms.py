@@ -15,7 +15,6 @@ from dataclasses import dataclass
 from typing import Annotated, Any, Final, Literal, TypeVar
 
 from fastapi import APIRouter, Body, Path, Query, Request, Response
-from fastapi.responses import StreamingResponse
 
 from cobot_hmi.codec import dumps
 from cobot_hmi.service.alarms.engine import AlarmEngine, AlarmRefusedError, UnknownAlarmError
@@ -23,6 +22,7 @@ from cobot_hmi.service.alarms.persistence import HISTORY_COLUMNS, AlarmStore
 from cobot_hmi.service.alarms.summary import annunciated
 from cobot_hmi.service.api import models
 from cobot_hmi.service.api.deps import RobotFilterDep, ServiceDep, ViewerDep, WriterDep
+from cobot_hmi.service.api.downloads import download
 from cobot_hmi.service.api.openapi_extras import CSV_RESPONSE, errors
 from cobot_hmi.service.api.routes.read import OrjsonResponse
 from cobot_hmi.service.api.search import From, Text, To, epoch_s
@@ -31,6 +31,8 @@ from cobot_hmi.service.robots.robot import RobotRuntime
 from cobot_hmi.service.runtime import Service
 from cobot_hmi.service.storage.store import MAX_PAGE, AuditEntry, to_csv
 from cobot_hmi.service.writes.pipeline import Writer, authorize_audited
+
+HISTORY_FILENAME: Final = "alarm-history.csv"
 
 router = APIRouter(prefix="/api/v1", tags=["alarms"])
 
@@ -166,14 +168,7 @@ async def alarm_history(
         q=q,
     )
     if format == "csv":
-        return Response(
-            to_csv(page.items, HISTORY_COLUMNS),
-            media_type="text/csv; charset=utf-8",
-            headers={
-                "Content-Disposition": 'attachment; filename="alarm-history.csv"',
-                "X-Total-Count": str(page.total),
-            },
-        )
+        return download(to_csv(page.items, HISTORY_COLUMNS), HISTORY_FILENAME, total=page.total)
     return Response(
         dumps({"items": page.items, "total": page.total}), media_type="application/json"
     )
@@ -187,7 +182,7 @@ async def _history_csv(
     since: float | None,
     until: float | None,
     q: str | None,
-) -> StreamingResponse:
+) -> Response:
     """The whole filtered history as CSV, newest first, streamed a batch of rows at a time
     (memory does not grow with the history), as of the request: later transitions are not in
     it, so the rows match X-Total-Count."""
@@ -202,14 +197,7 @@ async def _history_csv(
         ):
             yield to_csv(items, HISTORY_COLUMNS, header=False)
 
-    return StreamingResponse(
-        body(),
-        media_type="text/csv; charset=utf-8",
-        headers={
-            "Content-Disposition": 'attachment; filename="alarm-history.csv"',
-            "X-Total-Count": str(total),
-        },
-    )
+    return download(body(), HISTORY_FILENAME, total=total)
 
 
 @router.get(

@@ -19,6 +19,7 @@ from typing import Annotated, Final
 from fastapi import APIRouter, FastAPI, Path, Request, Response
 
 from cobot_hmi.service.api.deps import RobotDep, ViewerDep, WriterDep
+from cobot_hmi.service.api.downloads import download
 from cobot_hmi.service.api.openapi_extras import WRITE, errors
 from cobot_hmi.service.api.routes.read import OrjsonResponse
 from cobot_hmi.service.commissioning import models
@@ -285,15 +286,7 @@ async def report_csv(
     robot: RobotDep, checkout_id: CheckoutId, _: ViewerDep, request: Request
 ) -> Response:
     checkout = await _book(request, robot).get(checkout_id)
-    return Response(
-        report(checkout, robot.tags.names),
-        media_type="text/csv; charset=utf-8",
-        headers={
-            "Content-Disposition": (
-                f'attachment; filename="{robot.name}-checkout-{checkout.id}.csv"'
-            )
-        },
-    )
+    return download(report(checkout, robot.tags.names), f"{robot.name}-checkout-{checkout.id}.csv")
 
 
 def _time(value: object) -> str:

@@ -9,6 +9,7 @@ from fastapi import APIRouter, Query, Response
 
 from cobot_hmi.codec import dumps
 from cobot_hmi.service.api.deps import RobotDep, ServiceDep, ViewerDep
+from cobot_hmi.service.api.downloads import download
 from cobot_hmi.service.api.models_cycles import CyclePage
 from cobot_hmi.service.api.openapi_extras import CSV_RESPONSE, errors
 from cobot_hmi.service.api.search import From, To, epoch_s
@@ -56,13 +57,10 @@ async def get_cycles(
         robot.name, since=epoch_s(since), until=epoch_s(until), limit=limit, last_n=last
     )
     if format == "csv":
-        return Response(
+        return download(
             to_csv(found.cycles, CYCLE_COLUMNS, time_columns=("start", "end")),
-            media_type="text/csv; charset=utf-8",
-            headers={
-                "Content-Disposition": f'attachment; filename="cycles-{robot.name}.csv"',
-                "X-Total-Count": str(found.stats.count),
-            },
+            f"cycles-{robot.name}.csv",
+            total=found.stats.count,
         )
     meter = cycles.meters.get(robot.name)
     stats = found.stats

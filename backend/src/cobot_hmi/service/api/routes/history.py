@@ -13,7 +13,6 @@ from typing import Annotated, Any, Final
 
 import orjson
 from fastapi import APIRouter, Query, Response
-from fastapi.responses import StreamingResponse
 
 from cobot_hmi.history import export as history_export
 from cobot_hmi.history import segments
@@ -22,6 +21,7 @@ from cobot_hmi.history.schema import Element, UnknownFieldError, select_elements
 from cobot_hmi.history.times import TimeFormatError, parse_time
 from cobot_hmi.service.api import models
 from cobot_hmi.service.api.deps import RobotDep, ServiceDep, ViewerDep
+from cobot_hmi.service.api.downloads import download
 from cobot_hmi.service.api.openapi_extras import READ, errors
 from cobot_hmi.service.errors import ApiError
 from cobot_hmi.service.events.text import with_text
@@ -292,7 +292,7 @@ async def get_export(
     to: To,
     format: Format,
     fields: Fields = None,
-) -> StreamingResponse:
+) -> Response:
     from_s, to_s = _times(from_, to, 1)
     elements = _elements(fields)
     filename = history_export.export_filename(robot.name, from_s, to_s, format)
@@ -305,8 +305,4 @@ async def get_export(
         to_s=to_s,
         fmt=format,
     )
-    return StreamingResponse(
-        chunks,
-        media_type=history_export.MEDIA_TYPES[format],
-        headers={"Content-Disposition": f'attachment; filename="{filename}"'},
-    )
+    return download(chunks, filename, media_type=history_export.MEDIA_TYPES[format])

@@ -11,6 +11,7 @@ from fastapi import APIRouter, Query, Response
 from cobot_hmi.codec import dumps
 from cobot_hmi.service.api import models
 from cobot_hmi.service.api.deps import OperatorDep, RobotFilterDep, ServiceDep, ViewerDep
+from cobot_hmi.service.api.downloads import download
 from cobot_hmi.service.api.openapi_extras import CSV_RESPONSE, LOG, errors
 from cobot_hmi.service.api.search import From, Text, To, epoch_s
 from cobot_hmi.service.events.text import with_text
@@ -47,14 +48,7 @@ def _responses(model: type) -> dict[int | str, dict[str, Any]]:
 def _answer(page: Page, columns: tuple[str, ...], fmt: str, name: str) -> Response:
     if fmt == "csv":
         rows = event_csv_rows(page.items) if name == "events" else page.items
-        return Response(
-            to_csv(rows, columns),
-            media_type="text/csv; charset=utf-8",
-            headers={
-                "Content-Disposition": f'attachment; filename="{name}.csv"',
-                "X-Total-Count": str(page.total),
-            },
-        )
+        return download(to_csv(rows, columns), f"{name}.csv", total=page.total)
     return Response(
         dumps({"items": page.items, "total": page.total}), media_type="application/json"
     )

@@ -12,6 +12,7 @@ from typing import Annotated, Final
 from fastapi import APIRouter, Path, Request, Response
 
 from cobot_hmi.service.api.deps import RobotDep, ViewerDep, WriterDep
+from cobot_hmi.service.api.downloads import download
 from cobot_hmi.service.api.openapi_extras import WRITE, errors
 from cobot_hmi.service.api.routes.read import OrjsonResponse
 from cobot_hmi.service.commissioning import models
@@ -68,11 +69,7 @@ async def list_presets(robot: RobotDep, _: ViewerDep) -> OrjsonResponse:
     },
 )
 async def presets_csv(robot: RobotDep, _: ViewerDep) -> Response:
-    return Response(
-        to_csv(await _book(robot).all()),
-        media_type="text/csv; charset=utf-8",
-        headers={"Content-Disposition": f'attachment; filename="{robot.name}-presets.csv"'},
-    )
+    return download(to_csv(await _book(robot).all()), f"{robot.name}-presets.csv")
 
 
 def _action(robot: RobotRuntime, writer: Writer, request: Request, action: str) -> AuditedAction:

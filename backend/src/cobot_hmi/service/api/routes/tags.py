@@ -18,6 +18,7 @@ from fastapi import APIRouter, Request, Response
 from cobot_hmi.service.access.users import Role
 from cobot_hmi.service.api import models
 from cobot_hmi.service.api.deps import RobotDep, ViewerDep, WriterDep
+from cobot_hmi.service.api.downloads import download
 from cobot_hmi.service.api.openapi_extras import errors
 from cobot_hmi.service.api.routes.read import OrjsonResponse
 from cobot_hmi.service.errors import ApiError
@@ -73,11 +74,7 @@ async def get_tags(robot: RobotDep, _: ViewerDep) -> OrjsonResponse:
     },
 )
 async def get_tags_csv(robot: RobotDep, _: ViewerDep) -> Response:
-    return Response(
-        to_csv(robot.tags.names),
-        media_type="text/csv; charset=utf-8",
-        headers={"Content-Disposition": f'attachment; filename="{robot.name}-tags.csv"'},
-    )
+    return download(to_csv(robot.tags.names), f"{robot.name}-tags.csv")
 
 
 def _changes(before: Mapping[str, str], after: Mapping[str, str]) -> list[str]:
