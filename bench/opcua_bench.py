@@ -24,9 +24,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
-import functools
 import os
-import subprocess
 import tempfile
 import threading
 import time
@@ -38,17 +36,14 @@ from asyncua import Client, ua
 from fanout_sweep import ROOT, baseline_source
 from proc_stats import own_cpu_s, process_cpu_s
 from service_bench_support import (
-    _accepts,
-    _cli,
+    Cell,
     _wait,
+    emulated_cell,
     free_port,
     histogram_quantile,
-    loopback_cell,
     stop_process,
 )
 from sparkplug_bench import HISTOGRAM, _ready, _scrape, percentile
-
-from cobot_hmi.service.access.users import Role, UsersFile
 
 SAMPLING_MS = 100.0
 BROWSE_BATCH = 100
@@ -182,36 +177,19 @@ class Phase:
 def run_phase(
     args: argparse.Namespace,
     condition: Condition,
-    *,
-    state: Path,
-    config: Path,
-    service_host: str,
-    names: list[str],
+    cell: Cell,
 ) -> Phase:
-    on, received = condition.on, condition.received
-    http_port = free_port(service_host)
-    base_url = f"http://{service_host}:{http_port}"
-    endpoint = f"opc.tcp://{service_host}:{free_port(service_host)}"
+    on, received, names = condition.on, condition.received, cell.names
+    endpoint = f"opc.tcp://{cell.service_host}:{free_port(cell.service_host)}"
     extra = ["--opcua-url", endpoint] if on else []
-    service = _cli(
-        "serve",
-        "--config",
-        str(config),
-        "--local-host",
-        service_host,
-        "--host",
-        service_host,
-        "--port",
-        str(http_port),
-        "--rpi-ms",
-        str(args.rpi_ms),
-        "--state-dir",
-        str(state),
+    service, http_port = cell.serve(
+        args.rpi_ms,
         "--no-history",
         *extra,
-        log=state / f"service-{condition.label}.log",
+        log=f"service-{condition.label}.log",
         source=condition.source,
     )
+    base_url = f"http://{cell.service_host}:{http_port}"
     subscriber = Subscriber(endpoint, names, received) if on else None
     try:
         _wait(lambda: _ready(base_url, names), "service", service, 120)
@@ -273,61 +251,20 @@ def main() -> int:
         help="where the baseline is checked out (default: beside the repository; made if missing)",
     )
     args = parser.parse_args()
-    robot_hosts, service_host = loopback_cell(args.robots)
-    names = [f"r{i + 1}" for i in range(args.robots)]
     conditions = [Condition("off", False), Condition("on", True)]
     if args.baseline:
         worktree = args.baseline_worktree or ROOT.parent / f"cobot-hmi-bench-{args.baseline}"
         source = baseline_source(args.baseline, worktree)
         conditions.insert(1, Condition(f"baseline {args.baseline}", True, source))
     phases: list[Phase] = []
-    with tempfile.TemporaryDirectory(prefix="cobot-bench-opcua-") as directory:
-        state = Path(directory)
-        UsersFile(state / "users.json").add("bench", Role.OPERATOR, "bench-password")
-        ports = [free_port(host) for host in robot_hosts]
-        config = state / "cell.toml"
-        config.write_text(
-            "".join(
-                f'[[robots]]\nname = "{n}"\nhost = "{h}"\ntcp_port = {p}\n'
-                for n, h, p in zip(names, robot_hosts, ports, strict=True)
-            )
-        )
-        emulators: list[subprocess.Popen[bytes]] = []
-        try:
-            for index, (host, port) in enumerate(zip(robot_hosts, ports, strict=True)):
-                emulators.append(
-                    _cli(
-                        "emulator",
-                        "--host",
-                        host,
-                        "--tcp-port",
-                        str(port),
-                        "--control-port",
-                        "0",
-                        "--seed",
-                        str(index + 1),
-                        log=state / f"emulator-{index + 1}.log",
-                        niceness=args.robot_niceness,
-                    )
-                )
-            for host, port, emulator in zip(robot_hosts, ports, emulators, strict=True):
-                _wait(functools.partial(_accepts, host, port), "emulator", emulator, 120)
-            for _ in range(args.cycles):
-                for condition in conditions:
-                    phases.append(
-                        run_phase(
-                            args,
-                            condition,
-                            state=state,
-                            config=config,
-                            service_host=service_host,
-                            names=names,
-                        )
-                    )
-        finally:
-            for process in emulators:
-                stop_process(process)
-    report(args, names, conditions, phases)
+    with (
+        tempfile.TemporaryDirectory(prefix="cobot-bench-opcua-") as directory,
+        emulated_cell(args.robots, Path(directory), robot_niceness=args.robot_niceness) as cell,
+    ):
+        for _ in range(args.cycles):
+            for condition in conditions:
+                phases.append(run_phase(args, condition, cell))
+    report(args, cell.names, conditions, phases)
     return 0
 
 

@@ -149,6 +149,89 @@ def _ready(running: Stack) -> bool:
     )
 
 
+@dataclass
+class Cell:
+    """The robots of a bench's cell: one emulator process each, named r1, r2, … in a
+    ``[[robots]]`` TOML file (``config``) the service reads with ``--config``."""
+
+    names: list[str]
+    robot_hosts: list[str]
+    service_host: str
+    state: Path
+    config: Path
+    emulators: list[subprocess.Popen[bytes]]
+
+    def serve(
+        self, rpi_ms: float, *service_args: str, log: str, source: Path | None = None
+    ) -> tuple[subprocess.Popen[bytes], int]:
+        """The service of this cell (``cobot-hmi serve``: its web side on the service's address,
+        a fresh port), logging to ``log`` in the state directory: the process and its HTTP
+        port. ``source``: the service of another commit (``_cli``)."""
+        http_port = free_port(self.service_host)
+        process = _cli(
+            "serve",
+            "--config",
+            str(self.config),
+            "--local-host",
+            self.service_host,
+            "--host",
+            self.service_host,
+            "--port",
+            str(http_port),
+            "--rpi-ms",
+            str(rpi_ms),
+            "--state-dir",
+            str(self.state),
+            *service_args,
+            log=self.state / log,
+            source=source,
+        )
+        return process, http_port
+
+
+@contextmanager
+def emulated_cell(robots: int, state: Path, *, robot_niceness: int = 0) -> Iterator[Cell]:
+    """``robots`` emulators on fresh loopback addresses (each its own process, accepting before
+    this yields, stopped at the end), their ``[[robots]]`` file and the bench's operator user in
+    the state directory ``state``."""
+    robot_hosts, service_host = loopback_cell(robots)
+    names = [f"r{i + 1}" for i in range(robots)]
+    tcp_ports = [free_port(host) for host in robot_hosts]
+    UsersFile(state / "users.json").add(BENCH_USER[0], Role.OPERATOR, BENCH_USER[1])
+    config = state / "cell.toml"
+    config.write_text(
+        "".join(
+            f'[[robots]]\nname = "{name}"\nhost = "{host}"\ntcp_port = {port}\n'
+            for name, host, port in zip(names, robot_hosts, tcp_ports, strict=True)
+        ),
+        encoding="utf-8",
+    )
+    emulators: list[subprocess.Popen[bytes]] = []
+    try:
+        for index, (host, port) in enumerate(zip(robot_hosts, tcp_ports, strict=True)):
+            emulators.append(
+                _cli(
+                    "emulator",
+                    "--host",
+                    host,
+                    "--tcp-port",
+                    str(port),
+                    "--control-port",
+                    "0",
+                    "--seed",
+                    str(index + 1),
+                    log=state / f"emulator-{index + 1}.log",
+                    niceness=robot_niceness,
+                )
+            )
+        for host, port, emulator in zip(robot_hosts, tcp_ports, emulators, strict=True):
+            _wait(functools.partial(_accepts, host, port), "emulator", emulator, 120)
+        yield Cell(names, robot_hosts, service_host, state, config, emulators)
+    finally:
+        for process in emulators:
+            stop_process(process)
+
+
 @contextmanager
 def stack(
     rpi_ms: float,
@@ -164,66 +247,28 @@ def stack(
     machine, whose frame timing does not suffer from this host's other processes.
     ``service_source``: the service of another commit (``_cli``); the emulators stay this one.
     """
-    robot_hosts, service_host = loopback_cell(robots)
-    names = [f"r{i + 1}" for i in range(robots)]
-    tcp_ports = [free_port(host) for host in robot_hosts]
-    http_port = free_port(service_host)
-    with tempfile.TemporaryDirectory(prefix="cobot-bench-") as directory:
-        state = Path(directory)
-        UsersFile(state / "users.json").add(BENCH_USER[0], Role.OPERATOR, BENCH_USER[1])
-        config = state / "cell.toml"
-        config.write_text(
-            "".join(
-                f'[[robots]]\nname = "{name}"\nhost = "{host}"\ntcp_port = {port}\n'
-                for name, host, port in zip(names, robot_hosts, tcp_ports, strict=True)
-            ),
-            encoding="utf-8",
-        )
-        emulators: list[subprocess.Popen[bytes]] = []
+    with (
+        tempfile.TemporaryDirectory(prefix="cobot-bench-") as directory,
+        emulated_cell(robots, Path(directory), robot_niceness=robot_niceness) as cell,
+    ):
         service: subprocess.Popen[bytes] | None = None
         try:
-            for index, (host, port) in enumerate(zip(robot_hosts, tcp_ports, strict=True)):
-                emulators.append(
-                    _cli(
-                        "emulator",
-                        "--host",
-                        host,
-                        "--tcp-port",
-                        str(port),
-                        "--control-port",
-                        "0",
-                        "--seed",
-                        str(index + 1),
-                        log=state / f"emulator-{index + 1}.log",
-                        niceness=robot_niceness,
-                    )
-                )
-            for host, port, emulator in zip(robot_hosts, tcp_ports, emulators, strict=True):
-                _wait(functools.partial(_accepts, host, port), "emulator", emulator, 120)
-            service = _cli(
-                "serve",
-                "--config",
-                str(config),
-                "--local-host",
-                service_host,
-                "--host",
-                service_host,
-                "--port",
-                str(http_port),
-                "--rpi-ms",
-                str(rpi_ms),
-                "--state-dir",
-                str(state),
-                *service_args,
-                log=state / "service.log",
-                source=service_source,
+            service, http_port = cell.serve(
+                rpi_ms, *service_args, log="service.log", source=service_source
             )
-            running = Stack(robot_hosts, names, service_host, http_port, emulators, service, state)
+            running = Stack(
+                cell.robot_hosts,
+                cell.names,
+                cell.service_host,
+                http_port,
+                cell.emulators,
+                service,
+                cell.state,
+            )
             _wait(lambda: _ready(running), "service", service, 240)
             yield running
         finally:
-            for process in (service, *emulators):
-                stop_process(process)
+            stop_process(service)
 
 
 class Mosquitto:

@@ -22,10 +22,8 @@ Targets: latency p99 ≤ 50 ms, ratio ≤ 1.1, publisher CPU ≤ 5 % of a core p
 from __future__ import annotations
 
 import argparse
-import functools
 import os
 import statistics
-import subprocess
 import tempfile
 import threading
 import time
@@ -36,18 +34,15 @@ import paho.mqtt.client as mqtt
 from paho.mqtt.enums import CallbackAPIVersion
 from proc_stats import own_cpu_s, process_cpu_s
 from service_bench_support import (
-    _accepts,
-    _cli,
+    Cell,
     _wait,
     broker,
-    free_port,
+    emulated_cell,
     histogram_quantile,
-    loopback_cell,
     metrics,
     stop_process,
 )
 
-from cobot_hmi.service.access.users import Role, UsersFile
 from cobot_hmi.sparkplug.payload import parse_payload
 
 HISTOGRAM = "cobot_hmi_frame_receive_interval_seconds"
@@ -135,35 +130,16 @@ def run_phase(
     args: argparse.Namespace,
     on: bool,
     *,
-    state: Path,
-    config: Path,
-    service_host: str,
+    cell: Cell,
     broker_url: str,
     broker_pid: int,
-    names: list[str],
     subscription: Subscription,
     probe: mqtt.Client,
 ) -> Phase:
-    http_port = free_port(service_host)
-    base_url = f"http://{service_host}:{http_port}"
+    names = cell.names
     extra = ["--mqtt-url", broker_url, "--sparkplug-node", "bench"] if on else []
-    service = _cli(
-        "serve",
-        "--config",
-        str(config),
-        "--local-host",
-        service_host,
-        "--host",
-        service_host,
-        "--port",
-        str(http_port),
-        "--rpi-ms",
-        str(args.rpi_ms),
-        "--state-dir",
-        str(state),
-        *extra,
-        log=state / f"service-{'on' if on else 'off'}.log",
-    )
+    service, http_port = cell.serve(args.rpi_ms, *extra, log=f"service-{'on' if on else 'off'}.log")
+    base_url = f"http://{cell.service_host}:{http_port}"
     try:
         _wait(lambda: _ready(base_url, names), "service", service, 60)
         time.sleep(args.settle_seconds)
@@ -224,76 +200,42 @@ def main() -> int:
         help="nice value of the emulators (a real robot is its own machine; 0: same as the rest)",
     )
     args = parser.parse_args()
-    robot_hosts, service_host = loopback_cell(args.robots)
-    names = [f"r{i + 1}" for i in range(args.robots)]
     subscription = Subscription()
     phases: list[Phase] = []
-    with tempfile.TemporaryDirectory(prefix="cobot-bench-sparkplug-") as directory:
-        state = Path(directory)
-        UsersFile(state / "users.json").add("bench", Role.OPERATOR, "bench-password")
-        ports = [free_port(host) for host in robot_hosts]
-        config = state / "cell.toml"
-        config.write_text(
-            "".join(
-                f'[[robots]]\nname = "{n}"\nhost = "{h}"\ntcp_port = {p}\n'
-                for n, h, p in zip(names, robot_hosts, ports, strict=True)
-            )
-        )
-        emulators: list[subprocess.Popen[bytes]] = []
-        try:
-            for index, (host, port) in enumerate(zip(robot_hosts, ports, strict=True)):
-                emulators.append(
-                    _cli(
-                        "emulator",
-                        "--host",
-                        host,
-                        "--tcp-port",
-                        str(port),
-                        "--control-port",
-                        "0",
-                        "--seed",
-                        str(index + 1),
-                        log=state / f"emulator-{index + 1}.log",
-                        niceness=args.robot_niceness,
-                    )
-                )
-            for host, port, emulator in zip(robot_hosts, ports, emulators, strict=True):
-                _wait(functools.partial(_accepts, host, port), "emulator", emulator, 15)
-            with broker(service_host, state) as (broker_port, broker_process):
-                client = mqtt.Client(CallbackAPIVersion.VERSION2, protocol=mqtt.MQTTv311)
-                client.on_message = subscription.on_message
-                client.on_connect = lambda c, *_: c.subscribe("spBv1.0/#", qos=0)
-                client.connect(service_host, broker_port)
-                client.loop_start()
-                client.subscribe(PROBE_TOPIC, qos=0)
-                probe = mqtt.Client(CallbackAPIVersion.VERSION2, protocol=mqtt.MQTTv311)
-                probe.connect(service_host, broker_port)
-                probe.loop_start()
-                try:
-                    url = f"mqtt://{service_host}:{broker_port}"
-                    for _ in range(args.cycles):
-                        for on in (False, True):
-                            phases.append(
-                                run_phase(
-                                    args,
-                                    on,
-                                    state=state,
-                                    config=config,
-                                    service_host=service_host,
-                                    broker_url=url,
-                                    broker_pid=broker_process.pid,
-                                    names=names,
-                                    subscription=subscription,
-                                    probe=probe,
-                                )
+    with (
+        tempfile.TemporaryDirectory(prefix="cobot-bench-sparkplug-") as directory,
+        emulated_cell(args.robots, Path(directory), robot_niceness=args.robot_niceness) as cell,
+    ):
+        state, service_host, names = cell.state, cell.service_host, cell.names
+        with broker(service_host, state) as (broker_port, broker_process):
+            client = mqtt.Client(CallbackAPIVersion.VERSION2, protocol=mqtt.MQTTv311)
+            client.on_message = subscription.on_message
+            client.on_connect = lambda c, *_: c.subscribe("spBv1.0/#", qos=0)
+            client.connect(service_host, broker_port)
+            client.loop_start()
+            client.subscribe(PROBE_TOPIC, qos=0)
+            probe = mqtt.Client(CallbackAPIVersion.VERSION2, protocol=mqtt.MQTTv311)
+            probe.connect(service_host, broker_port)
+            probe.loop_start()
+            try:
+                url = f"mqtt://{service_host}:{broker_port}"
+                for _ in range(args.cycles):
+                    for on in (False, True):
+                        phases.append(
+                            run_phase(
+                                args,
+                                on,
+                                cell=cell,
+                                broker_url=url,
+                                broker_pid=broker_process.pid,
+                                subscription=subscription,
+                                probe=probe,
                             )
-                finally:
-                    for each in (client, probe):
-                        each.disconnect()
-                        each.loop_stop()
-        finally:
-            for process in emulators:
-                stop_process(process)
+                        )
+            finally:
+                for each in (client, probe):
+                    each.disconnect()
+                    each.loop_stop()
     report(args, names, phases, subscription)
     return 0
 
