@@ -33,7 +33,7 @@ from service_bench_support import (
 from cobot_hmi.service.access.users import Role, UsersFile
 
 DEMO_ROBOTS = (("m1013", "M1013", 1), ("m0609", "M0609", 2))
-"""Name, model and seed of the demo's robots (``cli/service_verbs.py`` ``DEMO_ROBOTS``)."""
+"""Name, model and seed of the demo's robots (``cli/demo_verb.py`` ``DEMO_ROBOTS``)."""
 READY_POLL_S = 0.02
 """How often a restarted process is asked whether it accepts connections (the fault's end)."""
 

@@ -11,6 +11,7 @@ import contextlib
 import os
 import resource
 import signal
+import ssl
 import sys
 from collections.abc import AsyncIterator, Callable
 from pathlib import Path
@@ -102,11 +103,14 @@ async def read_until(
 
 
 async def wait_ready(
-    base_url: str, process: asyncio.subprocess.Process, path: str = "/readyz"
+    base_url: str,
+    process: asyncio.subprocess.Process,
+    path: str = "/readyz",
+    verify: ssl.SSLContext | bool = True,
 ) -> None:
     """Until the service at ``base_url`` answers ``path`` with 200 (it fails if ``process``
-    ends first)."""
-    async with httpx.AsyncClient(base_url=base_url, timeout=DEADLINE_S) as client:
+    ends first); ``verify``: how HTTPS is trusted (httpx's)."""
+    async with httpx.AsyncClient(base_url=base_url, timeout=DEADLINE_S, verify=verify) as client:
 
         async def ready() -> bool:
             assert process.returncode is None, "the service exited"

@@ -6,8 +6,10 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import hashlib
 import signal
 import socket
+import ssl
 import tempfile
 from asyncio.subprocess import Process
 from pathlib import Path
@@ -24,6 +26,7 @@ from process_support import (
     children,
     cli_process,
     read_until,
+    wait_ready,
 )
 from service_support import DEADLINE_S, eventually_async
 
@@ -134,6 +137,45 @@ async def test_an_interrupt_before_the_service_runs_stops_a_demo_begun_with_it_i
         demo.send_signal(signal.SIGINT)
         await asyncio.wait_for(demo.wait(), PROCESS_DEADLINE_S)
     assert demo.returncode in (0, 130)
+
+
+async def test_tls_with_the_plain_http_redirect() -> None:
+    """``demo --tls --http-redirect-port``: HTTPS with the self-signed certificate whose
+    fingerprint it prints, and plain HTTP beside it that only redirects to it."""
+    _, flags = _addresses(1)
+    host = flags[flags.index("--host") + 1]
+    redirect_port = free_tcp_port(host)
+    extra = ("--tls", "--http-redirect-port", str(redirect_port))
+    async with demo_process("--robots", "1", *flags, *extra) as demo:
+        text = "".join(await read_until(demo, "Ctrl-C stops all"))
+        base_url = text.split("HMI at ")[1].split()[0].rstrip("/")
+        assert base_url.startswith(f"https://{host}:")
+        cert = Path(text.split("TLS certificate ")[1].split(" (self-signed)")[0])
+        printed = text.split("SHA-256 fingerprint")[1].split()[0]
+        assert f"plain HTTP on http://{host}:{redirect_port}/ redirects to it" in text
+        trusted = ssl.create_default_context(cafile=str(cert))  # verified, host name included
+        await wait_ready(base_url, demo, verify=trusted)
+        async with httpx.AsyncClient(timeout=DEADLINE_S) as client:
+            moved = await client.get(f"http://{host}:{redirect_port}/kiosk?x=1")
+        assert moved.status_code == 301
+        assert moved.headers["location"] == f"{base_url}/kiosk?x=1"
+        https_port = int(base_url.rsplit(":", 1)[1])
+        served = ssl.PEM_cert_to_DER_cert(
+            await asyncio.to_thread(ssl.get_server_certificate, (host, https_port))
+        )
+        assert printed == ":".join(f"{byte:02X}" for byte in hashlib.sha256(served).digest())
+        demo.send_signal(signal.SIGINT)
+        await asyncio.wait_for(demo.wait(), PROCESS_DEADLINE_S)
+    assert demo.returncode == 0
+
+
+async def test_a_redirect_without_tls_is_refused_before_anything_starts() -> None:
+    _, flags = _addresses(1)
+    async with demo_process("--robots", "1", *flags, "--http-redirect-port", "8080") as demo:
+        out, err = await asyncio.wait_for(demo.communicate(), PROCESS_DEADLINE_S)
+    assert demo.returncode == 2
+    assert "--http-redirect-port redirects to HTTPS: give --tls too" in err.decode()
+    assert "password" not in out.decode()
 
 
 @pytest.mark.parametrize("taken", ["emulator", "http"])

@@ -19,6 +19,7 @@ from cobot_hmi.cli.process_memory import limit_malloc_arenas
 VERB_MODULES = (
     "cobot_hmi.cli.audit_verbs",
     "cobot_hmi.cli.codec_verbs",
+    "cobot_hmi.cli.demo_verb",
     "cobot_hmi.cli.discovery_verbs",
     "cobot_hmi.cli.emulator_verb",
     "cobot_hmi.cli.history_verbs",
