@@ -27,7 +27,8 @@ LEGACY = Path(__file__).parent / "legacy"
 
 # Families added after 58f13a2: the history closer's (a journal becoming its segment in a process
 # of its own), every frame consumer's drops (robots.frames), the audit's on a full disk
-# (outcomes kept in memory until the disk takes them) and the cyclic pump's.
+# (outcomes kept in memory until the disk takes them), the rows of the events, alarms and
+# cycles waiting for the disk likewise, and the cyclic pump's.
 ADDED_SINCE_58F13A2: dict[str, Any] = {
     "cobot_hmi_history_journals_closing": {
         "type": "gauge",
@@ -68,6 +69,10 @@ ADDED_SINCE_58F13A2: dict[str, Any] = {
     "cobot_hmi_cyclic_pump_realtime": {
         "type": "gauge",
         "samples": {"cobot_hmi_cyclic_pump_realtime": [""]},
+    },
+    "cobot_hmi_rows_waiting_for_disk": {
+        "type": "gauge",
+        "samples": {"cobot_hmi_rows_waiting_for_disk": ["what"]},
     },
     "cobot_hmi_audit_backlog": {
         "type": "gauge",

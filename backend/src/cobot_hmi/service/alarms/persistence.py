@@ -5,28 +5,25 @@ of every transition.
 Two tables beside the audit and the events (``service.storage.store``; created by
 ``service.storage.migrations``), written through the store's one worker thread (``Store.call``). A
 transition is queued where it happens (the frame path never waits on the disk) and written in
-order by one writer task, a batch per transaction; an operator's acknowledgement or shelving
-waits for its batch (``flush``) before the answer, committed with fsync.
+order by one writer task (``storage.queued_writer``), a batch per transaction; an operator's
+acknowledgement or shelving waits for its batch (``flush``) before the answer, committed with
+fsync. On a full disk the transitions wait in memory and are written, in order, once it has
+room.
 """
 
 from __future__ import annotations
 
-import asyncio
 import functools
-import logging
 import sqlite3
 from collections.abc import AsyncIterator
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Final
+from typing import Final
 
 import orjson
 
+from cobot_hmi.service.storage.queued_writer import QueuedWriter
 from cobot_hmi.service.storage.search import Search
-
-if TYPE_CHECKING:
-    from cobot_hmi.service.storage.store import Page, Store
-
-log = logging.getLogger(__name__)
+from cobot_hmi.service.storage.store import Page, Store
 
 HISTORY_TEXT_COLUMNS: Final = (
     "robot",
@@ -89,7 +86,6 @@ class AlarmChange:
     """The alarm's whole record after the change (``state.AlarmStatus.to_json``)."""
     suppressed_by: str | None = None
     """The cause's alarm id when the alarm is suppressed by design (state ``suppressed``)."""
-    """The alarm's whole record after the change (``state.AlarmStatus.to_json``)."""
 
 
 class AlarmStore:
@@ -98,19 +94,21 @@ class AlarmStore:
 
     def __init__(self, store: Store) -> None:
         self._store = store
-        self._queue: asyncio.Queue[AlarmChange | None] = asyncio.Queue()
-        self._writer: asyncio.Task[None] | None = None
-        self.write_errors = 0
+        self.writer: QueuedWriter[AlarmChange] = QueuedWriter(
+            lambda changes: store.call(functools.partial(_write_sync, changes=changes)),
+            "alarm changes",
+        )
+
+    @property
+    def write_errors(self) -> int:
+        """Changes lost: not written and given up (``QueuedWriter.lost``)."""
+        return self.writer.lost
 
     async def open(self) -> None:
-        if self._writer is None:
-            self._writer = asyncio.create_task(self._write(), name="alarm-store")
+        self.writer.open()
 
     async def close(self) -> None:
-        if self._writer is not None:
-            self._queue.put_nowait(None)
-            await self._writer
-            self._writer = None
+        await self.writer.close()
 
     async def load(self, robot: str) -> dict[str, dict[str, object]]:
         """The persisted records of one robot's alarms, by key."""
@@ -133,30 +131,12 @@ class AlarmStore:
 
     def submit(self, change: AlarmChange) -> None:
         """Queue a transition; never blocks (the frame path calls it)."""
-        self._queue.put_nowait(change)
+        self.writer.submit(change)
 
-    async def flush(self) -> None:
-        """Wait until every transition queued so far is committed."""
-        await self._queue.join()
-
-    async def _write(self) -> None:
-        stopping = False
-        while not stopping:
-            first = await self._queue.get()
-            batch = [first]
-            while not self._queue.empty():
-                batch.append(self._queue.get_nowait())
-            changes = [c for c in batch if c is not None]
-            stopping = len(changes) != len(batch)
-            try:
-                if changes:
-                    await self._store.call(functools.partial(_write_sync, changes=changes))
-            except Exception:  # a full disk (or any failure) must not stop the alarms
-                self.write_errors += len(changes)
-                log.exception("alarm history: %d changes not written", len(changes))
-            finally:
-                for _ in batch:
-                    self._queue.task_done()
+    async def flush(self) -> bool:
+        """Wait until every transition queued so far has been tried: ``True`` if all are
+        committed, ``False`` if some wait in memory for room on the disk."""
+        return await self.writer.flush()
 
     async def history_page(
         self,
@@ -170,8 +150,6 @@ class AlarmStore:
         q: str | None = None,
     ) -> Page:
         """Transitions, newest first, optionally of one robot, one priority, a time range."""
-        from cobot_hmi.service.storage.store import Page
-
         where, params = _history_filter(robot, priority, since, until, q)
 
         def read(db: sqlite3.Connection) -> tuple[int, list[tuple[object, ...]]]:

@@ -132,9 +132,22 @@ class ServiceCollector(Collector):
         )
         yield CounterMetricFamily(
             PREFIX + "event_write_errors_total",
-            "events that could not be stored",
+            "events lost: not stored and given up (a disk full for longer than the memory "
+            "backlog lasts)",
             value=service.store.event_write_errors,
         )
+        waiting = _gauge(
+            "rows_waiting_for_disk",
+            "rows kept in memory because the disk has no room, written once it has",
+            ["what"],
+        )
+        waiting.add_metric(["events"], len(service.store.event_writer.waiting))
+        waiting.add_metric(
+            ["alarm_changes"],
+            sum(len(robot.alarm_store.writer.waiting) for robot in service.robots.values()),
+        )
+        waiting.add_metric(["cycles"], len(service.cycles.store.writer.waiting))
+        yield waiting
         backlog = service.store.audit_backlog
         yield GaugeMetricFamily(
             PREFIX + "audit_backlog",
@@ -377,7 +390,12 @@ def _control_families(robots: _Robots) -> Iterator[Metric]:
         lambda r, s: int(r.alarms.failed),
     )
     yield _per_robot(
-        _counter("alarm_write_errors_total", "alarm changes that could not be stored", ["robot"]),
+        _counter(
+            "alarm_write_errors_total",
+            "alarm changes lost: not stored and given up (a disk full for longer than the "
+            "memory backlog lasts)",
+            ["robot"],
+        ),
         robots,
         lambda r, s: r.alarm_store.write_errors,
     )

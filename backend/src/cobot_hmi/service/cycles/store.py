@@ -2,25 +2,23 @@
 ``service.storage.migrations``), written through the store's one worker thread (``Store.call``).
 
 A cycle is queued where it is measured (the frame path never waits on the disk) and written by
-one writer task, a batch per transaction without an fsync of its own (as events are: a cycle
-lost to a power cut is measured again by the next one). A range is read with its statistics
+one writer task (``storage.queued_writer``: on a full disk they wait in memory until it has
+room), a batch per transaction without an fsync of its own (as events are: a cycle lost to a
+power cut is measured again by the next one). A range is read with its statistics
 in one call: the cycles whose start lies in it, and the last, mean, minimum and maximum of its
 newest N.
 """
 
 from __future__ import annotations
 
-import asyncio
 import functools
-import logging
 import sqlite3
 from dataclasses import dataclass
 from typing import Final
 
 from cobot_hmi.service.cycles.meter import Cycle
+from cobot_hmi.service.storage.queued_writer import QueuedWriter
 from cobot_hmi.service.storage.store import Store
-
-log = logging.getLogger(__name__)
 
 _Row = tuple[object, ...]
 
@@ -53,48 +51,25 @@ class CycleStore:
 
     def __init__(self, store: Store) -> None:
         self._store = store
-        self._queue: asyncio.Queue[Cycle | None] = asyncio.Queue()
-        self._writer: asyncio.Task[None] | None = None
-        self.written = 0
-        self.write_errors = 0
+        self.writer: QueuedWriter[Cycle] = QueuedWriter(
+            lambda cycles: store.call(functools.partial(_insert, cycles=cycles), fsync=False),
+            "measured cycles",
+        )
 
     def open(self) -> None:
-        if self._writer is None:
-            self._writer = asyncio.create_task(self._write(), name="cycle-store")
+        self.writer.open()
 
     async def close(self) -> None:
-        if self._writer is not None:
-            self._queue.put_nowait(None)
-            await self._writer
-            self._writer = None
+        await self.writer.close()
 
     def submit(self, cycle: Cycle) -> None:
         """Queue a measured cycle; never blocks."""
-        self._queue.put_nowait(cycle)
+        self.writer.submit(cycle)
 
-    async def flush(self) -> None:
-        """Wait until every cycle queued so far is committed."""
-        await self._queue.join()
-
-    async def _write(self) -> None:
-        stopping = False
-        while not stopping:
-            batch = [await self._queue.get()]
-            while not self._queue.empty():
-                batch.append(self._queue.get_nowait())
-            cycles = [c for c in batch if c is not None]
-            stopping = len(cycles) != len(batch)
-            rows = [(c.robot, c.start, c.end, c.duration_s) for c in cycles]
-            try:
-                if rows:
-                    await self._store.call(functools.partial(_insert, rows=rows), fsync=False)
-                    self.written += len(rows)
-            except Exception:  # a full disk must not stop the measuring
-                self.write_errors += len(rows)
-                log.exception("cycles: %d not written", len(rows))
-            finally:
-                for _ in batch:
-                    self._queue.task_done()
+    async def flush(self) -> bool:
+        """Wait until every cycle queued so far has been tried: ``True`` if all are committed,
+        ``False`` if some wait in memory for room on the disk."""
+        return await self.writer.flush()
 
     async def read_range(
         self,
@@ -145,8 +120,11 @@ class CycleStore:
         return CycleRange(cycles, stats)
 
 
-def _insert(db: sqlite3.Connection, rows: list[tuple[str, float, float, float]]) -> None:
-    db.executemany("INSERT INTO cycles (robot, start, end, duration_s) VALUES (?, ?, ?, ?)", rows)
+def _insert(db: sqlite3.Connection, cycles: list[Cycle]) -> None:
+    db.executemany(
+        "INSERT INTO cycles (robot, start, end, duration_s) VALUES (?, ?, ?, ?)",
+        [(c.robot, c.start, c.end, c.duration_s) for c in cycles],
+    )
 
 
 def _number(value: object) -> float | None:

@@ -1,7 +1,8 @@
 """Layer: service. The event log: every event on the event bus into the database.
 
 An event consumer (``events.bus``): ``Store.log_event`` queues the row for the store's writer
-thread, so the bus never waits on the disk (a full disk counts the events it could not store:
+thread, so the bus never waits on the disk (on a full disk the events wait in memory until it
+has room, ``storage.queued_writer``; those given up are counted:
 ``cobot_hmi_event_write_errors_total``).
 """
 

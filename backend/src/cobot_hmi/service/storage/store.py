@@ -8,9 +8,10 @@ change) are also fsync'd (``synchronous=FULL``): they survive power loss too. A 
 fsync (``synchronous=NORMAL``); the outcome's fsync a few milliseconds later covers it too (the
 WAL is one sequential file), which keeps one disk flush instead of two on every write's path.
 Events (robot state, flags, connection) arrive in bursts from the broadcast loop; they are
-queued and written a batch per transaction, without fsync of their own. The tables (these two,
-the alarms' and the tag names') are created and upgraded by ``migrations`` when the store opens;
-imports nothing else of the project but ``errors`` and ``audit_backlog``.
+queued and written a batch per transaction, without fsync of their own (``queued_writer``: on
+a full disk they wait in memory until it has room). The tables (these two, the alarms' and the
+tag names') are created and upgraded by ``migrations`` when the store opens; imports nothing
+else of the project but ``errors``, ``audit_backlog``, ``audit_chain`` and ``queued_writer``.
 
 A full disk (or any failed write): ``add_audit`` raises ``AuditUnavailableError`` (503), so a
 caller that must audit before it acts does not act. What already happened (a write's outcome
@@ -48,6 +49,7 @@ import orjson
 from cobot_hmi.service.errors import AuditUnavailableError
 from cobot_hmi.service.storage import audit_chain, migrations
 from cobot_hmi.service.storage.audit_backlog import AuditBacklog, Deferred
+from cobot_hmi.service.storage.queued_writer import QueuedWriter
 from cobot_hmi.service.storage.search import NO_SEARCH, Search
 
 _T = TypeVar("_T")
@@ -60,6 +62,8 @@ EVENT_COLUMNS: Final = ("id", "time", "robot", "kind", "text", "data")
 """The CSV columns of the event log (``text``: the event in words; ``data``: the kind's own
 fields as JSON text)."""
 _EVENT_KEYS: Final = frozenset({"id", "time", "robot", "kind"})
+_Event = tuple[float, str, str | None, dict[str, object]]
+"""An event as it waits to be written: time (s since the epoch), kind, robot, its own fields."""
 AUDIT_TEXT_COLUMNS: Final = (
     "robot",
     "user",
@@ -138,12 +142,9 @@ class Store:
         self._chain_task: asyncio.Task[None] | None = None
         self._executor: ThreadPoolExecutor | None = None
         self._connection: sqlite3.Connection | None = None
-        self._events: asyncio.Queue[tuple[float, str, str | None, dict[str, object]]] = (
-            asyncio.Queue()
+        self.event_writer: QueuedWriter[_Event] = QueuedWriter(
+            lambda events: self._run(self._add_events_sync, events), "events"
         )
-        self._writer: asyncio.Task[None] | None = None
-        self.events_written = 0
-        self.event_write_errors = 0
         self.audit_backlog = AuditBacklog(AUDIT_BACKLOG_MAX)
         """Audit rows and outcomes waiting for room (used on the worker thread only)."""
         self._backlog_waiting = asyncio.Event()
@@ -162,7 +163,7 @@ class Store:
             self._executor = None
             raise
         self.chain_head = await self._run(lambda: audit_chain.head(self._db()))
-        self._writer = asyncio.create_task(self._write_events(), name="store-events")
+        self.event_writer.open()
         self._loop = asyncio.get_running_loop()
         self._retrier = asyncio.create_task(self._retry_backlog(), name="store-audit-backlog")
         self._chain_task = asyncio.create_task(self._watch_chain_head(), name="store-chain-head")
@@ -224,10 +225,7 @@ class Store:
             self._retrier = None
             if not await self._run(self._flush_backlog_sync):
                 await self._run(self.audit_backlog.give_up)
-        if self._writer is not None:
-            self._events.put_nowait((0.0, "", None, {}))  # sentinel: flush and stop
-            await self._writer
-            self._writer = None
+        await self.event_writer.close()
         if self._executor is not None:
             if self._connection is not None:
                 await self._run(self._connection.close)
@@ -380,7 +378,7 @@ class Store:
         self, time_s: float, kind: str, data: dict[str, object], robot: str | None = None
     ) -> None:
         """Queue an event for the log; never blocks, written within one batch."""
-        self._events.put_nowait((time_s, kind, robot, data))
+        self.event_writer.submit((time_s, kind, robot, data))
 
     def log_event(self, event: Mapping[str, object]) -> None:
         """Queue an event as the stream carries it (``kind``, ``time``, ``robot`` and the kind's
@@ -394,39 +392,20 @@ class Store:
             robot if isinstance(robot, str) else None,
         )
 
-    async def _write_events(self) -> None:
-        stopping = False
-        while not stopping:
-            batch = [await self._events.get()]
-            while not self._events.empty():
-                batch.append(self._events.get_nowait())
-            rows = []
-            for t, kind, robot, data in batch:
-                if not kind:
-                    stopping = True
-                    continue
-                rows.append((t, robot, kind, orjson.dumps(data).decode()))
-            if rows:
-                try:
-                    await self._run(self._add_events_sync, rows)
-                    self.events_written += len(rows)
-                except sqlite3.Error:
-                    # A full disk must not stop the service; the count shows in /metrics.
-                    self.event_write_errors += len(rows)
+    @property
+    def event_write_errors(self) -> int:
+        """Events lost: not written and given up (``QueuedWriter.lost``)."""
+        return self.event_writer.lost
 
-    def _add_events_sync(self, rows: list[tuple[float, str | None, str, str]]) -> None:
+    def _add_events_sync(self, events: list[_Event]) -> None:
+        rows = [(t, robot, kind, orjson.dumps(data).decode()) for t, kind, robot, data in events]
         with self._synchronous("NORMAL") as db:
             db.executemany("INSERT INTO events (time, robot, kind, data) VALUES (?, ?, ?, ?)", rows)
 
-    async def flush_events(self) -> None:
-        """Wait until every event submitted so far is committed (tests, shutdown)."""
-        for _ in range(1000):
-            if self._events.empty():
-                # One more round trip through the worker: the batch in flight is done after it.
-                await self._run(lambda: None)
-                if self._events.empty():
-                    return
-            await asyncio.sleep(0.005)
+    async def flush_events(self) -> bool:
+        """Wait until every event submitted so far has been tried (tests, shutdown): ``True``
+        if all are committed, ``False`` if some wait for room on the disk."""
+        return await self.event_writer.flush()
 
     async def events_page(
         self,

@@ -244,7 +244,8 @@ class _Change:
 
     async def act(self, change: Callable[[], _T], refused: Callable[[str], ApiError]) -> _T:
         """``change()`` on the engine; a refusal audited and raised as ``refused(reason)``.
-        The alarm's new state is in the database before the answer."""
+        The alarm's new state is in the database before the answer (on a full disk it waits in
+        memory and is written, in order, once there is room: ``AlarmStore.flush``)."""
         try:
             result = change()
         except AlarmRefusedError as error:
