@@ -119,10 +119,13 @@ class ReloadingContext:
             self._fail(str(error))
             return False
         self.current, self._signature, self._failed, self._error = fresh, signature, None, None
-        with contextlib.suppress(OSError, ValueError):  # loaded a moment ago; replaced since?
-            self.not_after_s = not_after_of(self.cert)
         self.reloads += 1
-        log.warning("TLS certificate reloaded from %s (%s)", self.cert, fingerprint_of(self.cert))
+        fingerprint = "?"
+        with contextlib.suppress(OSError, ValueError):  # loaded a moment ago; replaced since?
+            certificate = _certificate(self.cert)
+            self.not_after_s = certificate.not_valid_after_utc.timestamp()
+            fingerprint = _fingerprint(certificate)
+        log.warning("TLS certificate reloaded from %s (%s)", self.cert, fingerprint)
         return True
 
     def _fail(self, why: str) -> None:
@@ -141,13 +144,21 @@ class ReloadingContext:
             connection.context = self.current
 
 
+def _certificate(cert: Path) -> x509.Certificate:
+    """The first certificate in a PEM file."""
+    return x509.load_pem_x509_certificate(cert.read_bytes())
+
+
+def _fingerprint(certificate: x509.Certificate) -> str:
+    return ":".join(f"{byte:02X}" for byte in certificate.fingerprint(hashes.SHA256()))
+
+
 def not_after_of(cert: Path) -> float:
     """When the first certificate in a PEM file expires (its notAfter, s since the epoch)."""
-    return x509.load_pem_x509_certificate(cert.read_bytes()).not_valid_after_utc.timestamp()
+    return _certificate(cert).not_valid_after_utc.timestamp()
 
 
 def fingerprint_of(cert: Path) -> str:
     """The SHA-256 fingerprint of the first certificate in a PEM file (``AB:CD:…``), as a
     browser shows it."""
-    digest = x509.load_pem_x509_certificate(cert.read_bytes()).fingerprint(hashes.SHA256())
-    return ":".join(f"{byte:02X}" for byte in digest)
+    return _fingerprint(_certificate(cert))
