@@ -23,6 +23,7 @@ from service_support import (
     Running,
     emulator,
     eventually,
+    eventually_async,
     hmi_fixture,
     running_service,
     service_settings,
@@ -233,9 +234,18 @@ async def test_control_released_on_logout_and_expiry(
         # Nobody uses the session: it expires within a second and control goes with it.
         await eventually(lambda: hmi.service.control.holder is None)
         assert hmi.service.link.run is False
-        await hmi.service.store.flush_events()
-        page = await hmi.service.store.events_page("control", 10, 0)
-        reasons = [item["reason"] for item in page.items]
+
+        # Announced once the release is audited (after the holder is gone): wait for the log.
+        async def control_events() -> list[object]:
+            await hmi.service.store.flush_events()
+            page = await hmi.service.store.events_page("control", 10, 0)
+            return [item["reason"] for item in page.items]
+
+        async def all_four() -> bool:
+            return len(await control_events()) >= 4
+
+        await eventually_async(all_four)
+        reasons = await control_events()
         assert reasons[:4] == ["session expired", "taken", "logged out", "taken"]
 
 
