@@ -37,6 +37,7 @@ from service_support import (
     running_service,
     service_settings,
 )
+from tmpfs_support import fill, free, small_tmpfs
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -232,6 +233,42 @@ async def test_estop_alarm_ack_restart_reset(emu: Emulator, plc_host: str, tmp_p
             metrics
         )
         assert 'cobot_hmi_alarms{priority="critical",robot="robot",state="active"} 0.0' in metrics
+
+
+async def test_an_acknowledgement_on_a_full_disk_is_answered_and_kept(
+    emu: Emulator, plc_host: str, tmp_path: Path
+) -> None:
+    """The disk full when an operator acknowledges: the acknowledgement takes effect and is
+    answered as such; its audit row and its history row wait in memory and are in the
+    database once the disk has room (nothing lost, nothing answered as refused)."""
+    with small_tmpfs(tmp_path / "state", 16) as disk:
+        settings = emulated_settings(emu, plc_host, disk, history_dir=tmp_path / "history")
+        async with running_service(settings) as hmi:
+            await eventually(lambda: state_is(hmi, 14))  # STANDALONE_RUNNING
+            await emu.post("/estop")
+            engine = hmi.service.default_robot.alarms
+            await eventually(lambda: engine.find(ESTOP).status.state.active)
+            async with hmi.client(await hmi.login(OPERATOR)) as operator:
+                filler = fill(disk)
+                try:
+                    acked = await operator.post(
+                        f"/api/v1/alarms/{ESTOP}/ack", json={"comment": "on a full disk"}
+                    )
+                    assert acked.status_code == 200, acked.text
+                    assert acked.json()["changed"] is True
+                    assert acked.json()["alarm"]["state"] == "active_acknowledged"
+                    assert hmi.service.store.audit_backlog.items  # waiting, not lost
+                finally:
+                    free(filler)
+                await eventually(lambda: not hmi.service.store.audit_backlog.items)
+                await eventually(lambda: not hmi.service.default_robot.alarm_store.writer.waiting)
+                audit = (await operator.get("/api/v1/audit?limit=10")).json()["items"]
+                history = (await operator.get("/api/v1/alarms/history?robot=robot")).json()
+        acks = [(r["action"], r["outcome"], r["requested"]) for r in audit]
+        assert ("alarm.ack", "acknowledged", {"comment": "on a full disk"}) in acks
+        transitions = [(h["key"], h["transition"]) for h in history["items"]]
+        assert ("emergency_stop", "acknowledged") in transitions
+        assert hmi.service.default_robot.alarm_store.write_errors == 0
 
 
 async def test_shelving_with_expiry_and_refusals(

@@ -226,7 +226,10 @@ class _Change:
     origin: str
 
     async def audit(self, outcome: str, reason: str | None, summary: str | None = None) -> None:
-        await self.robot.store.add_audit(
+        """The outcome's audit row. It is about what already happened (an alarm's state is
+        changed in memory, its history row queued): on a full disk it waits in memory and is
+        written once there is room (``keep_audit``), and the answer says what happened."""
+        await self.robot.store.keep_audit(
             AuditEntry(
                 self.user,
                 self.writer.client,
@@ -239,7 +242,8 @@ class _Change:
                 robot=self.robot.name,
                 origin=self.origin,
                 summary=summary,
-            )
+            ),
+            happened=outcome != "refused",
         )
 
     async def act(self, change: Callable[[], _T], refused: Callable[[str], ApiError]) -> _T:
