@@ -54,7 +54,6 @@ class QueuedWriter(Generic[T]):
         """Rows that could not be written yet, oldest first."""
         self._retry_at = 0.0
         """``time.monotonic()`` of the next try while rows wait."""
-        self.written = 0
         self.lost = 0
         """Rows given up: beyond ``limit`` while waiting, or still waiting at ``close``."""
 
@@ -142,7 +141,6 @@ class QueuedWriter(Generic[T]):
         if self.waiting:
             log.warning("%s are written again (%d waited)", self.what, len(self.waiting))
         self.waiting = []
-        self.written += len(pending)
 
     def _keep(self, pending: list[T]) -> None:
         """``pending`` waits, the oldest given up beyond ``limit``."""
