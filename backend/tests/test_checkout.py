@@ -251,3 +251,70 @@ async def test_a_restart_keeps_the_checkout_and_goes_on_watching(
         # Still watched after the restart: DI 7 seen without a request.
         await emu.post("/inputs", {"controlbox_di": {"6": True}})
         await eventually_async(lambda: seen(olivia, checkout_id, "controlbox_di.6"))
+
+
+async def test_the_evidence_keeps_every_switch_a_fail_needs_a_comment_and_one_is_open(
+    emu: Emulator, plc_host: str, tmp_path: Path
+) -> None:
+    """Issue 38: DO 3 confirmed on, passed, switched off: the point's evidence (its JSON and the
+    report) still has the on with its confirmation time, then the off; a fail without a comment
+    is refused (422); a second checkout is refused while one is open, naming it."""
+    async with (
+        running_service(settings_for(emu, plc_host, tmp_path)) as hmi,
+        hmi.client(await hmi.login(OPERATOR)) as olivia,
+        hmi.client(await hmi.login(OPERATOR_2)) as oscar,
+    ):
+        started = await olivia.post(f"{ROBOT}/checkouts", json={})
+        assert started.status_code == 201, started.text
+        checkout_id = started.json()["id"]
+        second = await oscar.post(f"{ROBOT}/checkouts", json={})
+        assert second.status_code == 409
+        reason = second.json()["detail"]["reason"]
+        assert f"checkout {checkout_id}" in reason and "open" in reason and "olivia" in reason
+        assert [c["id"] for c in (await oscar.get(f"{ROBOT}/checkouts")).json()["items"]] == [
+            checkout_id
+        ]
+
+        do3 = f"{ROBOT}/checkouts/{checkout_id}/points/controlbox_do.2"
+        assert (await olivia.post(f"{ROBOT}/control/take", json={})).status_code == 200
+        on = await olivia.post(f"{do3}/switch", json={"value": True})
+        assert on.status_code == 200, on.text
+        passed = await olivia.post(f"{do3}/result", json={"result": "pass", "comment": "valve"})
+        assert passed.status_code == 200, passed.text
+        off = await olivia.post(f"{do3}/switch", json={"value": False})
+        assert off.status_code == 200, off.text
+        do3_point = point(await get_checkout(oscar, checkout_id), "controlbox_do.2")
+        switches = do3_point["switches"]
+        assert [s["value"] for s in switches] == [True, False]
+        assert all(s["by"] == "olivia" and s["latency_ms"] is not None for s in switches)
+        assert switches[0]["time"] <= passed.json()["recorded_at"] <= switches[1]["time"]
+        assert do3_point["result"] == "pass" and do3_point["switched_value"] is False
+
+        report = await oscar.get(f"{ROBOT}/checkouts/{checkout_id}/report.csv")
+        row = next(r for r in csv.DictReader(io.StringIO(report.text)) if r["label"] == "DO 3")
+        on_words, off_words = row["switches"].split("; ")
+        assert on_words.startswith("on confirmed 20") and on_words.endswith("by olivia")
+        assert off_words.startswith("off confirmed 20")
+        assert on_words.split()[2] < off_words.split()[2]  # ISO 8601 times, in order
+
+        bare = await oscar.post(
+            f"{ROBOT}/checkouts/{checkout_id}/points/tool_do.1/result", json={"result": "fail"}
+        )
+        assert bare.status_code == 422, bare.text
+        assert "comment" in bare.json()["detail"]["reason"]
+        blank = await oscar.post(
+            f"{ROBOT}/checkouts/{checkout_id}/points/tool_do.1/result",
+            json={"result": "fail", "comment": "   "},
+        )
+        assert blank.status_code == 422
+        assert point(await get_checkout(oscar, checkout_id), "tool_do.1")["result"] == "untested"
+
+        closed = await olivia.post(f"{ROBOT}/checkouts/{checkout_id}/close", json={})
+        assert closed.status_code == 200
+        again = await oscar.post(f"{ROBOT}/checkouts", json={})
+        assert again.status_code == 201, again.text
+        audit = (await olivia.get("/api/v1/audit?limit=100")).json()["items"]
+        outcomes = {(r["action"], r["outcome"], r["user"]) for r in audit}
+        assert ("checkout.start", "refused", "oscar") in outcomes
+        assert ("checkout.result", "invalid", "oscar") in outcomes
+        await olivia.post(f"{ROBOT}/control/release", json={})

@@ -123,7 +123,7 @@ export interface paths {
         };
         get?: never;
         put?: never;
-        /** Shelve an alarm (operator): not annunciated until it expires or is unshelved */
+        /** Shelve an alarm (operator): not annunciated until it expires, is unshelved, or its condition clears and comes again; never a safety stop or a critical alarm (409), at most its priority's longest (422) */
         post: operations["shelve_api_v1_alarms__alarm_id__shelve_post"];
         delete?: never;
         options?: never;
@@ -383,7 +383,7 @@ export interface paths {
         /** The robot's checkouts, newest first (without their points) */
         get: operations["list_checkouts_api_v1_robots__name__checkouts_get"];
         put?: never;
-        /** Start a checkout: every I/O point and bit register of the layout, untested */
+        /** Start a checkout: every I/O point and bit register of the layout, untested (409 while the robot has an open checkout: resume that one) */
         post: operations["start_checkout_api_v1_robots__name__checkouts_post"];
         delete?: never;
         options?: never;
@@ -451,7 +451,7 @@ export interface paths {
         };
         get?: never;
         put?: never;
-        /** Record pass or fail of a point with a comment (pass: seen, or confirmed by the robot) */
+        /** Record pass or fail of a point with a comment (pass: seen, or confirmed by the robot; fail: a comment is needed) */
         post: operations["record_result_api_v1_robots__name__checkouts__checkout_id__points__key__result_post"];
         delete?: never;
         options?: never;
@@ -483,7 +483,7 @@ export interface paths {
             path?: never;
             cookie?: never;
         };
-        /** The checkout's report as CSV: every point with its result, who and when */
+        /** The checkout's report as CSV: every point with its result, who and when, every switch of an output with its confirmation time */
         get: operations["report_csv_api_v1_robots__name__checkouts__checkout_id__report_csv_get"];
         put?: never;
         post?: never;
@@ -1000,10 +1000,25 @@ export interface components {
             priority_rank: number;
             /** Robot */
             robot: string;
+            /**
+             * Shelve Max S
+             * @description the longest it may be shelved, s (its priority's alarm_shelve_max_*_s); null: never shelved (a safety stop or a critical alarm, shelve_refusal says why)
+             */
+            shelve_max_s?: number | null;
             /** Shelve Reason */
             shelve_reason: string | null;
+            /**
+             * Shelve Refusal
+             * @description why it is never shelved, in words; null: it may be
+             */
+            shelve_refusal?: string | null;
             /** Shelved */
             shelved: boolean;
+            /**
+             * Shelved At
+             * @description when it was shelved: a condition that clears after this and comes again ends the shelving (annunciated again)
+             */
+            shelved_at?: number | null;
             /** Shelved By */
             shelved_by: string | null;
             /** Shelved Until */
@@ -1266,6 +1281,11 @@ export interface components {
             user: string | null;
             /** Value */
             value: boolean | number | null;
+            /**
+             * Value Words
+             * @description the value as a person reads it: a state alarm's robot state by its label ("Emergency stop"), a number with its unit ("81.2 °C"), a bit "on"/"off"
+             */
+            value_words?: string | null;
         };
         /**
          * AlarmList
@@ -1284,7 +1304,7 @@ export interface components {
         AlarmShelve: {
             /**
              * Duration S
-             * @description until it unshelves itself, s (at most alarm_shelve_max_s)
+             * @description until it unshelves itself, s (at most the alarm's shelve_max_s: its priority's alarm_shelve_max_*_s)
              */
             duration_s: number;
             /**
@@ -1620,6 +1640,11 @@ export interface components {
             /** Switched Value */
             switched_value: boolean | number | null;
             /**
+             * Switches
+             * @description output: every switch the robot confirmed, oldest first (the evidence of a pass: on confirmed, then off confirmed)
+             */
+            switches: components["schemas"]["CheckoutSwitchRecord"][];
+            /**
              * Tag
              * @description its tag name (null: none)
              */
@@ -1684,12 +1709,44 @@ export interface components {
             value: boolean | number;
         };
         /**
+         * CheckoutSwitchRecord
+         * @description One switch of an output from the checkout, as the robot confirmed it.
+         */
+        CheckoutSwitchRecord: {
+            /**
+             * By
+             * @description who switched it
+             */
+            by: string;
+            /**
+             * Latency Ms
+             * @description from the write to the robot's confirmation
+             */
+            latency_ms: number | null;
+            /**
+             * Seq
+             * @description the number of the robot's frame that showed it (null: not kept)
+             */
+            seq?: number | null;
+            /**
+             * Time
+             * @description when the service had the robot's confirmation, s since the epoch
+             */
+            time: number;
+            /**
+             * Value
+             * @description the value switched to (a bit, or an AO's number)
+             */
+            value: boolean | number;
+        };
+        /**
          * CheckoutVerdict
          * @description The checker's result of one point.
          */
         CheckoutVerdict: {
             /**
              * Comment
+             * @description what was checked; a fail needs one (422 without)
              * @default
              */
             comment?: string;
@@ -2337,7 +2394,11 @@ export interface components {
         };
         /** FrameItem */
         FrameItem: {
-            frame: components["schemas"]["Frame"];
+            /**
+             * Frame
+             * @description every field; after a `subscribed` answer naming fields, only those
+             */
+            frame: components["schemas"]["Frame"] | components["schemas"]["SubscribedFrame"];
             /**
              * Seq
              * @description the service's frame counter for this robot: gaps are visible
@@ -2407,6 +2468,12 @@ export interface components {
              * @default null
              */
             session?: string | null;
+            /**
+             * Time Zone
+             * @description the plant's time zone (the time_zone setting, an IANA name): the pages write every time in it
+             * @default UTC
+             */
+            time_zone?: string;
             /**
              * @description discriminator enum property added by openapi-typescript
              * @enum {string}
@@ -3083,7 +3150,216 @@ export interface components {
             type: "status";
         };
         /** @description One message of WS /api/v1/robots/{name}/stream (JSON text), told apart by `type`. */
-        StreamMessage: components["schemas"]["HelloMessage"] | components["schemas"]["FramesMessage"] | components["schemas"]["DroppedMessage"] | components["schemas"]["StatusMessage"] | components["schemas"]["EventMessage"];
+        StreamMessage: components["schemas"]["HelloMessage"] | components["schemas"]["FramesMessage"] | components["schemas"]["DroppedMessage"] | components["schemas"]["StatusMessage"] | components["schemas"]["EventMessage"] | components["schemas"]["SubscribedMessage"];
+        /**
+         * SubscribedFrame
+         * @description The fields of a frame a client's subscription asked for (WebSocket `subscribe`): each as in Frame, the others absent.
+         */
+        SubscribedFrame: {
+            /**
+             * Analog Input
+             * @description Analog inputs 0–1; unit: mA or V per its type; index 0 is AI 0, index 1 is AI 1
+             * @default null
+             */
+            analog_input?: (number | null)[] | null;
+            /**
+             * Analog Input Type
+             * @description Analog input type: In0, In1; coding: 0 = current, 1 = voltage; index 0 is AI 0, index 1 is AI 1
+             * @default null
+             */
+            analog_input_type?: number[] | null;
+            /**
+             * Analog Output
+             * @description Analog outputs 0–1 (actual); unit: mA or V per its type; index 0 is AO 0, index 1 is AO 1
+             * @default null
+             */
+            analog_output?: (number | null)[] | null;
+            /**
+             * Analog Output Type
+             * @description Analog output type: Out0, Out1; coding: 0 = current, 1 = voltage; index 0 is AO 0, index 1 is AO 1
+             * @default null
+             */
+            analog_output_type?: number[] | null;
+            /**
+             * Bit Output Registers
+             * @description Bit output registers 0–63; index 0 is Register 0, index 63 is Register 63
+             * @default null
+             */
+            bit_output_registers?: boolean[] | null;
+            /**
+             * Controlbox Di
+             * @description ControlBox digital inputs 1–16; index 0 is DI 1, index 15 is DI 16
+             * @default null
+             */
+            controlbox_di?: boolean[] | null;
+            /**
+             * Controlbox Do
+             * @description ControlBox digital outputs 1–16 (actual state); index 0 is DO 1, index 15 is DO 16
+             * @default null
+             */
+            controlbox_do?: boolean[] | null;
+            /**
+             * @description Controller version: major, minor, patch
+             * @default null
+             */
+            controller_version?: components["schemas"]["ControllerVersion"] | null;
+            /**
+             * Direct Teach Button Pressed
+             * @description Direct-teach button pressed
+             * @default null
+             */
+            direct_teach_button_pressed?: boolean | null;
+            /**
+             * Emergency Stopped
+             * @description Emergency stopped
+             * @default null
+             */
+            emergency_stopped?: boolean | null;
+            /**
+             * External Force
+             * @description External force X, Y, Z (base frame); unit: N; index 0 is X, index 2 is Z
+             * @default null
+             */
+            external_force?: (number | null)[] | null;
+            /**
+             * External Moment
+             * @description External moment X, Y, Z (base frame); unit: N·m; index 0 is X, index 2 is Z
+             * @default null
+             */
+            external_moment?: (number | null)[] | null;
+            /**
+             * Joint External Torque
+             * @description Joint 1–6 external torque; unit: N·m; index 0 is J 1, index 5 is J 6
+             * @default null
+             */
+            joint_external_torque?: (number | null)[] | null;
+            /**
+             * Joint Motor Current
+             * @description Joint 1–6 motor current; unit: A; index 0 is J 1, index 5 is J 6
+             * @default null
+             */
+            joint_motor_current?: (number | null)[] | null;
+            /**
+             * Joint Motor Temperature
+             * @description Joint 1–6 motor temperature; unit: °C; index 0 is J 1, index 5 is J 6
+             * @default null
+             */
+            joint_motor_temperature?: (number | null)[] | null;
+            /**
+             * Joint Position
+             * @description Joint 1–6 position; unit: degree; index 0 is J 1, index 5 is J 6
+             * @default null
+             */
+            joint_position?: (number | null)[] | null;
+            /**
+             * Joint Torque
+             * @description Joint 1–6 torque; unit: N·m; index 0 is J 1, index 5 is J 6
+             * @default null
+             */
+            joint_torque?: (number | null)[] | null;
+            /**
+             * Joint Velocity
+             * @description Joint 1–6 velocity; unit: degree/s; index 0 is J 1, index 5 is J 6
+             * @default null
+             */
+            joint_velocity?: (number | null)[] | null;
+            /**
+             * Power Button Pressed
+             * @description Power button pressed
+             * @default null
+             */
+            power_button_pressed?: boolean | null;
+            /**
+             * Robot State
+             * @description Robot state (see the state enum)
+             * @default null
+             */
+            robot_state?: number | null;
+            /**
+             * Robot State Name
+             * @description Robot state (see the state enum): its name (UNKNOWN if unknown)
+             * @default null
+             */
+            robot_state_name?: ("EMERGENCY_STOP" | "INITIALIZING" | "SAFE_OFF" | "INTERRUPTED" | "MANUAL_STANDBY" | "MANUAL_JOGGING" | "MANUAL_HANDGUIDING" | "RECOVERY_STANDBY" | "RECOVERY_JOGGING" | "BACKDRIVE_HOLD" | "BACKDRIVE_RELEASE" | "BACKDRIVE_RELEASE_BY_COCKPIT" | "RECOVERY_HANDGUIDING" | "STANDALONE_STANDBY" | "STANDALONE_RUNNING" | "COLLABORATIVE_STANDBY" | "COLLABORATIVE_RUNNING" | "HIGH_PRIORITY_RUNNING" | "AUTO_MEASURE" | "HANDGUIDING_CONTROL_STANDBY" | "HANDGUIDING_CONTROL_RUNNING" | "UNKNOWN") | null;
+            /**
+             * Safety Stopped
+             * @description Safety stopped
+             * @default null
+             */
+            safety_stopped?: boolean | null;
+            /**
+             * Servo On
+             * @description Servo on
+             * @default null
+             */
+            servo_on?: boolean | null;
+            /**
+             * Tcp Angular Velocity
+             * @description TCP angular velocity RX, RY, RZ (base frame); unit: degree/s; index 0 is RX, index 2 is RZ
+             * @default null
+             */
+            tcp_angular_velocity?: (number | null)[] | null;
+            /**
+             * Tcp Orientation
+             * @description TCP orientation A, B, C (base frame, Euler Z-Y-Z); unit: degree; index 0 is A, index 2 is C
+             * @default null
+             */
+            tcp_orientation?: (number | null)[] | null;
+            /**
+             * Tcp Position
+             * @description TCP position X, Y, Z (base frame); unit: mm; index 0 is X, index 2 is Z
+             * @default null
+             */
+            tcp_position?: (number | null)[] | null;
+            /**
+             * Tcp Velocity
+             * @description TCP velocity X, Y, Z (base frame); unit: mm/s; index 0 is X, index 2 is Z
+             * @default null
+             */
+            tcp_velocity?: (number | null)[] | null;
+            /**
+             * Tool Di
+             * @description Tool digital inputs 1–6; index 0 is Tool DI 1, index 5 is Tool DI 6
+             * @default null
+             */
+            tool_di?: boolean[] | null;
+            /**
+             * Tool Do
+             * @description Tool digital outputs 1–6 (actual state); index 0 is Tool DO 1, index 5 is Tool DO 6
+             * @default null
+             */
+            tool_do?: boolean[] | null;
+            /**
+             * Tool Offset Orientation
+             * @description Tool offset angle A, B, C (tool frame); unit: degree; index 0 is A, index 2 is C
+             * @default null
+             */
+            tool_offset_orientation?: (number | null)[] | null;
+            /**
+             * Tool Offset Position
+             * @description Tool offset length X, Y, Z (tool frame); unit: mm; index 0 is X, index 2 is Z
+             * @default null
+             */
+            tool_offset_position?: (number | null)[] | null;
+        };
+        /**
+         * SubscribedMessage
+         * @description The service's answer to a `subscribe`: the frames after it are these.
+         */
+        SubscribedMessage: {
+            /**
+             * Fields
+             * @description the fields the frames now carry, in layout order
+             */
+            fields: string[] | null;
+            /** Rate Hz */
+            rate_hz: number | null;
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            type: "subscribed";
+        };
         /**
          * TagImport
          * @description ``POST /api/v1/robots/{name}/tags/import``: CSV text (``key,label,name``, as the export),
@@ -3449,6 +3725,7 @@ export interface operations {
                 q?: string | null;
                 /** @description page size (JSON: 100 unless given) */
                 limit?: number | null;
+                /** @description skip this many rows (newest first), 0 to 2^53 − 1 */
                 offset?: number | null;
                 /** @description csv: the whole filtered history (or the page asked for) as CSV */
                 format?: "json" | "csv";
@@ -3926,7 +4203,9 @@ export interface operations {
                 to?: string | null;
                 /** @description only rows whose words contain this text (case-insensitive) */
                 q?: string | null;
+                /** @description at most this many rows */
                 limit?: number;
+                /** @description skip this many rows (newest first), 0 to 2^53 − 1 */
                 offset?: number;
                 /** @description csv: the whole page as CSV */
                 format?: "json" | "csv";
@@ -4534,7 +4813,9 @@ export interface operations {
                 q?: string | null;
                 /** @description only events of this kind */
                 kind?: ("connection" | "robot_state" | "flag" | "write" | "control" | "recording" | "alarm" | "session" | "cycle") | null;
+                /** @description at most this many rows */
                 limit?: number;
+                /** @description skip this many rows (newest first), 0 to 2^53 − 1 */
                 offset?: number;
                 /** @description csv: the whole page as CSV */
                 format?: "json" | "csv";

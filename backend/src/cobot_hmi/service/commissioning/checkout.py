@@ -10,16 +10,21 @@ A point's ``result`` is ``untested``, ``seen``, ``pass`` or ``fail``:
 - an analog input is ``seen`` once the checker captured its value at two points of their choice
   (``capture``);
 - an output is switched by the checker through the write pipeline (``switched``: the robot
-  confirmed the value);
+  confirmed the value); every switch is kept in order with its confirmation time, so the
+  evidence of "DO 3 on, confirmed; off, confirmed" survives the last switch off;
 - the checker records ``pass`` or ``fail`` with a comment (``record``): ``pass`` only for an
-  input seen or an output the robot confirmed, ``fail`` always.
+  input seen or an output the robot confirmed, ``fail`` always, and only with a comment saying
+  what is wrong (422 without one).
 
-A closed checkout is read-only (``CheckoutError`` 409). This module keeps the state and its
-rows; authorization, audit and the write itself are the routes' (``api.routes.checkouts``).
+A robot has at most one open checkout: starting another while one is open is refused (409,
+naming the open one, to be resumed). A closed checkout is read-only (``CheckoutError`` 409).
+This module keeps the state and its rows; authorization, audit and the write itself are the
+routes' (``api.routes.checkouts``).
 """
 
 from __future__ import annotations
 
+import asyncio
 import sqlite3
 import time
 from collections.abc import Iterable, Mapping
@@ -59,6 +64,9 @@ class PointState:
     """Analog inputs: ``{"time", "value", "by"}`` per capture."""
     switched: dict[str, Any] | None = None
     """Outputs: the last value the robot confirmed, ``{"time", "value", "by", "latency_ms"}``."""
+    switches: list[dict[str, Any]] = field(default_factory=list)
+    """Outputs: every switch the robot confirmed, oldest first, each as ``switched``
+    (``time``: when the service had the robot's confirmation; ``seq``: the frame showing it)."""
     recorded: dict[str, Any] | None = None
     """``{"time", "by", "comment"}`` of the checker's pass or fail."""
 
@@ -67,6 +75,7 @@ class PointState:
             "seen": self.seen,
             "samples": self.samples,
             "switched": self.switched,
+            "switches": self.switches,
             "recorded": self.recorded,
         }
 
@@ -87,6 +96,7 @@ class PointState:
             "switched_at": switched["time"] if switched else None,
             "switched_value": switched["value"] if switched else None,
             "switched_by": switched["by"] if switched else None,
+            "switches": self.switches,
             "recorded_at": recorded["time"] if recorded else None,
             "recorded_by": recorded["by"] if recorded else None,
             "comment": recorded["comment"] if recorded else None,
@@ -154,6 +164,8 @@ class CheckoutBook:
         self.store = store
         self.open: dict[int, Checkout] = {}
         """Open checkouts by id (the frame watcher marks their inputs)."""
+        self._starting = asyncio.Lock()
+        """Two starts at once: the second sees the first's checkout open."""
 
     async def load(self) -> None:
         """The open checkouts from the database (after a restart: they go on)."""
@@ -167,6 +179,19 @@ class CheckoutBook:
         return [c for (row_id,) in rows if (c := _read(db, row_id)) is not None]
 
     async def start(self, by: str, identity: dict[str, object] | None) -> Checkout:
+        """A new checkout; 409 while one is open (it is resumed, not started again)."""
+        async with self._starting:
+            return await self._start(by, identity)
+
+    async def _start(self, by: str, identity: dict[str, object] | None) -> Checkout:
+        already = next(iter(self.open.values()), None)
+        if already is not None:
+            raise CheckoutError(
+                409,
+                f"checkout {already.id} of robot {self.robot} is open (started by "
+                f"{already.started_by}): resume it, or close it before starting another",
+                "checkout",
+            )
         started_at = time.time()
         checkout_id = await self.store.call(
             lambda db: _insert(db, self.robot, started_at, by, identity)
@@ -225,16 +250,26 @@ class CheckoutBook:
         await self.save(checkout, [state])
 
     async def switched(
-        self, checkout: Checkout, key: str, value: object, latency_ms: float | None, by: str
+        self,
+        checkout: Checkout,
+        key: str,
+        value: object,
+        *,
+        latency_ms: float | None,
+        seq: int | None,
+        by: str,
     ) -> None:
-        """The robot confirmed the output ``key`` at ``value`` (a write that went through)."""
+        """The robot confirmed the output ``key`` at ``value`` (a write that went through):
+        the last switch, and one more in the point's evidence."""
         state = checkout.point(key)
         state.switched = {
             "time": time.time(),
             "value": value,
             "by": by,
             "latency_ms": latency_ms,
+            "seq": seq,
         }
+        state.switches.append(state.switched)
         await self.save(checkout, [state])
 
     async def record(
@@ -260,6 +295,10 @@ class CheckoutBook:
                 )
         elif result != "fail":
             raise CheckoutError(422, "a checker records pass or fail", "result")
+        elif not comment.strip():
+            raise CheckoutError(
+                422, f"{p.label}: a fail needs a comment saying what is wrong", "comment"
+            )
         state.result = result
         state.recorded = {"time": time.time(), "by": by, "comment": comment}
         await self.save(checkout, [state])
@@ -328,6 +367,16 @@ def _read(db: sqlite3.Connection, checkout_id: int) -> Checkout | None:
             data.get("seen"),
             list(data.get("samples") or []),
             data.get("switched"),
+            _switches(data),
             data.get("recorded"),
         )
     return checkout
+
+
+def _switches(data: dict[str, Any]) -> list[dict[str, Any]]:
+    """A point's switches; a row written before they were kept has its last one only."""
+    switches = data.get("switches")
+    if isinstance(switches, list):
+        return switches
+    last = data.get("switched")
+    return [last] if last else []

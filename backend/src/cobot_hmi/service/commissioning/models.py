@@ -20,6 +20,20 @@ class CheckoutSample(BaseModel):
     by: str = Field(description="who captured it")
 
 
+class CheckoutSwitchRecord(BaseModel):
+    """One switch of an output from the checkout, as the robot confirmed it."""
+
+    time: float = Field(
+        description="when the service had the robot's confirmation, s since the epoch"
+    )
+    value: PresetValue = Field(description="the value switched to (a bit, or an AO's number)")
+    by: str = Field(description="who switched it")
+    latency_ms: float | None = Field(description="from the write to the robot's confirmation")
+    seq: int | None = Field(
+        default=None, description="the number of the robot's frame that showed it (null: not kept)"
+    )
+
+
 class CheckoutPoint(BaseModel):
     """One point of a checkout and what became of it."""
 
@@ -38,6 +52,10 @@ class CheckoutPoint(BaseModel):
     switched_at: float | None = Field(description="output: when the robot confirmed it last")
     switched_value: PresetValue | None
     switched_by: str | None
+    switches: list[CheckoutSwitchRecord] = Field(
+        description="output: every switch the robot confirmed, oldest first (the evidence of a "
+        "pass: on confirmed, then off confirmed)"
+    )
     recorded_at: float | None = Field(description="when the checker recorded pass or fail")
     recorded_by: str | None
     comment: str | None
@@ -81,7 +99,9 @@ class CheckoutVerdict(BaseModel):
     model_config = _STRICT
 
     result: Literal["pass", "fail"]
-    comment: str = Field(default="", max_length=500)
+    comment: str = Field(
+        default="", max_length=500, description="what was checked; a fail needs one (422 without)"
+    )
 
 
 class CheckoutSwitch(BaseModel):

@@ -18,6 +18,7 @@ from typing import Annotated, Final
 
 from fastapi import APIRouter, FastAPI, Path, Request, Response
 
+from cobot_hmi.service.api.bounds import row_id
 from cobot_hmi.service.api.deps import RobotDep, ViewerDep, WriterDep
 from cobot_hmi.service.api.downloads import download
 from cobot_hmi.service.api.openapi_extras import WRITE, errors
@@ -46,7 +47,7 @@ router = APIRouter(prefix="/api/v1", tags=["checkouts"], lifespan=_lifespan)
 
 _READ: Final = errors(401, 404)
 _CHANGE: Final = errors(401, 403, 404, 409, 413, 415, 422, 429, 503)
-CheckoutId = Annotated[int, Path(ge=1, description="the checkout's id (POST …/checkouts)")]
+CheckoutId = Annotated[int, row_id("the checkout's id (POST …/checkouts)")]
 PointKey = Annotated[
     str, Path(description="the point's key, field.index: controlbox_di.4 is DI 5", max_length=40)
 ]
@@ -67,6 +68,7 @@ CSV_COLUMNS: Final = (
     "switched_at",
     "switched_value",
     "switched_by",
+    "switches",
     "recorded_at",
     "recorded_by",
     "comment",
@@ -101,7 +103,8 @@ async def list_checkouts(robot: RobotDep, _: ViewerDep, request: Request) -> Orj
 
 @router.post(
     "/robots/{name}/checkouts",
-    summary="Start a checkout: every I/O point and bit register of the layout, untested",
+    summary="Start a checkout: every I/O point and bit register of the layout, untested (409 "
+    "while the robot has an open checkout: resume that one)",
     response_model=models.Checkout,
     status_code=201,
     responses=_CHANGE,
@@ -110,7 +113,10 @@ async def start_checkout(robot: RobotDep, writer: WriterDep, request: Request) -
     action = _action(robot, writer, request, "checkout.start")
     user = await action.authorize("starting a checkout")
     identity = robot.identity.to_json() if robot.identity is not None else None
-    checkout = await _book(request, robot).start(user, identity)
+    try:
+        checkout = await _book(request, robot).start(user, identity)
+    except CheckoutError as error:
+        raise await action.refused(error) from None
     _watch(request, robot)
     await action.audit(
         "started",
@@ -135,7 +141,8 @@ async def get_checkout(
 
 @router.post(
     "/robots/{name}/checkouts/{checkout_id}/points/{key}/result",
-    summary="Record pass or fail of a point with a comment (pass: seen, or confirmed by the robot)",
+    summary="Record pass or fail of a point with a comment (pass: seen, or confirmed by the robot; "
+    "fail: a comment is needed)",
     response_model=models.CheckoutPoint,
     responses=_CHANGE,
 )
@@ -198,7 +205,14 @@ async def switch_output(
     if not outcome.ok:
         raise outcome.error()
     assert writer.user is not None  # the pipeline authorized the writer
-    await book.switched(checkout, key, switch.value, outcome.latency_ms, writer.user)
+    await book.switched(
+        checkout,
+        key,
+        switch.value,
+        latency_ms=outcome.latency_ms,
+        seq=outcome.seq,
+        by=writer.user,
+    )
     return OrjsonResponse(state.answer(robot.tags.names.get(key)))
 
 
@@ -272,7 +286,8 @@ async def close_checkout(
 
 @router.get(
     "/robots/{name}/checkouts/{checkout_id}/report.csv",
-    summary="The checkout's report as CSV: every point with its result, who and when",
+    summary="The checkout's report as CSV: every point with its result, who and when, every "
+    "switch of an output with its confirmation time",
     response_class=Response,
     responses={
         200: {
@@ -301,6 +316,13 @@ def _cell(value: object) -> str:
     return str(value)
 
 
+def _switch_words(switch: dict[str, object]) -> str:
+    """One switch in the report: "on confirmed 2026-12-07T04:01:02.345Z by olivia"."""
+    return (
+        f"{_cell(switch.get('value'))} confirmed {_time(switch.get('time'))} by {switch.get('by')}"
+    )
+
+
 def report(checkout: Checkout, tags: Mapping[str, str]) -> str:
     """The CSV report: one row per point, in layout order."""
     out = io.StringIO()
@@ -309,6 +331,7 @@ def report(checkout: Checkout, tags: Mapping[str, str]) -> str:
     for state in checkout.points.values():
         p = state.answer(tags.get(state.point.key))
         samples = " ".join(f"{s['value']:g}@{_time(s['time'])}" for s in state.samples)
+        switches = "; ".join(_switch_words(s) for s in state.switches)
         writer.writerow(
             (
                 checkout.id,
@@ -327,6 +350,7 @@ def report(checkout: Checkout, tags: Mapping[str, str]) -> str:
                 _time(p["switched_at"]),
                 _cell(p["switched_value"]),
                 _cell(p["switched_by"]),
+                switches,
                 _time(p["recorded_at"]),
                 _cell(p["recorded_by"]),
                 _cell(p["comment"]),
