@@ -198,6 +198,12 @@ MIGRATIONS: Final = (
             " SELECT 1, 0, '" + "0" * 64 + "', coalesce(max(id), 0) FROM audit",
         ),
     ),
+    Migration(
+        8,
+        "cycle times: what interrupted a cycle (a stop, a lost link, the robot out of its "
+        "running states); NULL for a whole cycle, as every cycle measured before",
+        ("ALTER TABLE cycles ADD COLUMN interruption TEXT",),
+    ),
 )
 SCHEMA_VERSION: Final = MIGRATIONS[-1].version
 """The version this code writes and reads."""
