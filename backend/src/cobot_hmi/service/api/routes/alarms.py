@@ -21,6 +21,7 @@ from cobot_hmi.service.alarms.engine import AlarmEngine, AlarmRefusedError, Unkn
 from cobot_hmi.service.alarms.persistence import HISTORY_COLUMNS, AlarmStore
 from cobot_hmi.service.alarms.summary import annunciated
 from cobot_hmi.service.api import models
+from cobot_hmi.service.api.bounds import OptionalOffset
 from cobot_hmi.service.api.deps import RobotFilterDep, ServiceDep, ViewerDep, WriterDep
 from cobot_hmi.service.api.downloads import download
 from cobot_hmi.service.api.openapi_extras import CSV_RESPONSE, errors
@@ -145,7 +146,7 @@ async def alarm_history(
     limit: Annotated[
         int | None, Query(ge=1, le=MAX_PAGE, description="page size (JSON: 100 unless given)")
     ] = None,
-    offset: Annotated[int | None, Query(ge=0)] = None,
+    offset: OptionalOffset = None,
     format: Annotated[
         Literal["json", "csv"],
         Query(description="csv: the whole filtered history (or the page asked for) as CSV"),

@@ -10,6 +10,7 @@ from fastapi import APIRouter, Query, Response
 
 from cobot_hmi.codec import dumps
 from cobot_hmi.service.api import models
+from cobot_hmi.service.api.bounds import Offset, PageSize
 from cobot_hmi.service.api.deps import OperatorDep, RobotFilterDep, ServiceDep, ViewerDep
 from cobot_hmi.service.api.downloads import download
 from cobot_hmi.service.api.openapi_extras import CSV_RESPONSE, LOG, errors
@@ -20,7 +21,6 @@ from cobot_hmi.service.storage.search import Search
 from cobot_hmi.service.storage.store import (
     AUDIT_COLUMNS,
     EVENT_COLUMNS,
-    MAX_PAGE,
     Page,
     event_csv_rows,
     to_csv,
@@ -28,8 +28,6 @@ from cobot_hmi.service.storage.store import (
 
 router = APIRouter(prefix="/api/v1", tags=["log"])
 
-Limit = Annotated[int, Query(ge=1, le=MAX_PAGE)]
-Offset = Annotated[int, Query(ge=0)]
 Format = Annotated[Literal["json", "csv"], Query(description="csv: the whole page as CSV")]
 Kind = Annotated[models.EventKind | None, Query(description="only events of this kind")]
 
@@ -67,7 +65,7 @@ async def get_audit(
     until: To = None,
     *,
     q: Text = None,
-    limit: Limit = 100,
+    limit: PageSize = 100,
     offset: Offset = 0,
     format: Format = "json",
 ) -> Response:
@@ -88,7 +86,7 @@ async def get_events(
     *,
     q: Text = None,
     kind: Kind = None,
-    limit: Limit = 100,
+    limit: PageSize = 100,
     offset: Offset = 0,
     format: Format = "json",
 ) -> Response:
