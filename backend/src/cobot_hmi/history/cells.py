@@ -1,4 +1,4 @@
-"""Layer: history storage. Imports only the history rollup and pyarrow.
+"""Layer: history storage. Imports only the history rollup and formats, and pyarrow.
 
 A closed segment's cells file (``START-END.cells.arrow``, beside its Parquet, ``segments``):
 the per-second cells of its frames and their coarser levels (``rollup``), an Arrow IPC file
@@ -6,7 +6,9 @@ compressed with LZ4, one record batch per cell width of ``rollup.LEVELS_S`` (1 s
 named in the schema's ``cell_widths_s`` metadata. A query memory-maps it and decompresses only
 the columns of the one batch it reads, about 0.7 ms a file where Parquet's footer of 750
 columns alone costs several, and keeps what it read (``read_cells_file``). A cells file
-written before the coarser widths existed holds the per-second batch only and no metadata.
+written before the coarser widths existed holds the per-second batch only and no metadata. A
+cells file carries its format's version and the layout's (``formats``); one of a newer format
+is refused by name.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from typing import Any, Final
 
 import pyarrow as pa
 
+from cobot_hmi.history.formats import CELLS, check_versions, version_metadata
 from cobot_hmi.history.rollup import LEVELS_S, levels, rollup_schema
 
 CELL_WIDTHS_KEY: Final = b"cell_widths_s"
@@ -46,7 +49,7 @@ def write_cells_to(cells: pa.Table, sink: Any) -> None:
     """``write_cells`` into an open file or stream."""
     options = pa.ipc.IpcWriteOptions(compression="lz4")
     widths = ",".join(str(w) for w in LEVELS_S).encode()
-    schema = cells.schema.with_metadata({CELL_WIDTHS_KEY: widths})
+    schema = cells.schema.with_metadata({CELL_WIDTHS_KEY: widths, **version_metadata(CELLS)})
     with pa.ipc.new_file(sink, schema, options=options) as writer:
         for level in levels(cells):
             # One batch per level: the reader finds a level by its index.
@@ -107,7 +110,8 @@ def forget_cells() -> None:
 
 def read_cells_file(path: Path, columns: list[str], width_s: int = 1) -> pa.Table | None:
     """``columns`` of a cells file's cells of ``width_s`` seconds (``OSError``/
-    ``ArrowException``); ``None`` when the file has no such level (written before it existed).
+    ``ArrowException``; ``FormatVersionError`` for a newer format); ``None`` when the file has
+    no such level (written before it existed).
     The columns read are kept (``_CellsCache``, 128 MiB), so a plot that pans and zooms over
     days reads each file once."""
     key = (path, width_s)
@@ -143,6 +147,7 @@ def _read_cells_columns(path: Path, columns: list[str], width_s: int) -> pa.Tabl
                 raise pa.ArrowInvalid(f"{path}: a column is missing")
             reader = _open_cells(source, indices)
             assert reader is not None
+        check_versions(CELLS, reader.schema.metadata, path)
         widths = (reader.schema.metadata or {}).get(CELL_WIDTHS_KEY)
         if widths is None:  # written before the coarser levels: per-second cells only
             if width_s != 1:

@@ -1,4 +1,4 @@
-"""Layer: history storage. Imports only ``segments``.
+"""Layer: history storage. Imports only ``segments`` and ``stored_format``'s error.
 
 A closed journal becomes its segment in a short-lived process of its own
 (``close_in_child``; the child is ``python -m cobot_hmi.history.close_process``), so the memory
@@ -18,7 +18,8 @@ leaves only a temporary file and the journal, which the next conversion uses
 
 The child answers with one JSON line on its standard output: ``{"segment": null}`` (the journal
 held no complete frame), ``{"segment": {"path", "start_us", "end_us"}}``, or
-``{"error": reason}`` for a conversion that failed (a full disk, a journal it could not read).
+``{"error": reason}`` for a conversion that failed (a full disk, a journal it could not read),
+``{"refused": reason}`` for a journal of a newer format than this build reads (left as it is).
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ import pyarrow as pa
 
 from cobot_hmi.history import segments
 from cobot_hmi.history.segments import Segment
+from cobot_hmi.stored_format import FormatVersionError
 
 _PR_SET_PDEATHSIG: Final = 1
 """prctl(2): the signal a process gets when the thread that started it ends."""
@@ -51,6 +53,11 @@ class JournalCloseError(Exception):
     def __init__(self, reason: str) -> None:
         super().__init__(reason)
         self.reason = reason
+
+
+class JournalRefusedError(JournalCloseError):
+    """The journal is of a newer format than this build reads: kept as it is, never tried
+    again by this process (``reason`` names it and its version)."""
 
 
 def close_in_child(path: Path, robot: str) -> Segment | None:
@@ -78,8 +85,10 @@ def close_in_child(path: Path, robot: str) -> Segment | None:
             parsed = None
         if isinstance(parsed, dict):
             answer = parsed
-    if answer is None or (done.returncode != 0 and "error" not in answer):
+    if answer is None or (done.returncode != 0 and not {"error", "refused"} & answer.keys()):
         raise JournalCloseError(_failure_words(done))
+    if "refused" in answer:
+        raise JournalRefusedError(str(answer["refused"]))
     if "error" in answer:
         raise JournalCloseError(str(answer["error"]))
     made = answer.get("segment")
@@ -134,6 +143,9 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     except pa.ArrowException as error:
         print(json.dumps({"error": str(error)}), flush=True)
+        return 1
+    except FormatVersionError as error:
+        print(json.dumps({"refused": str(error)}), flush=True)
         return 1
     made = (
         None

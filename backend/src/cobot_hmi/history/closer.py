@@ -1,4 +1,5 @@
-"""Layer: history storage. Imports only ``segments`` and ``close_process``.
+"""Layer: history storage. Imports only ``segments``, ``close_process`` and ``stored_format``'s
+error.
 
 Journals closed by the recorder become segments here, one at a time in the order handed over
 (``JournalCloser.submit``), each in a short-lived process of its own started and waited for by
@@ -12,7 +13,8 @@ converted. Now the recorder hands the journal over and records on in a new one a
 A closed journal stays a journal on disk until its segment is complete (a query reads it as
 the journal until then, ``query._sources``), so nothing recorded is out of reach or lost
 meanwhile; a crash leaves it for the next start. A conversion that fails (a full disk) is
-tried again every ``retry_s``, the journal kept.
+tried again every ``retry_s``, the journal kept. A journal of a newer format than this build
+reads (``formats``) is left on disk as it is, said once, and not tried again.
 """
 
 from __future__ import annotations
@@ -22,8 +24,9 @@ import threading
 from collections.abc import Callable
 from pathlib import Path
 
-from cobot_hmi.history.close_process import JournalCloseError, close_in_child
+from cobot_hmi.history.close_process import JournalCloseError, JournalRefusedError, close_in_child
 from cobot_hmi.history.segments import Segment
+from cobot_hmi.stored_format import FormatVersionError
 
 log = logging.getLogger(__name__)
 
@@ -47,6 +50,8 @@ class JournalCloser:
         benchmark's baseline converts in its own process."""
         self.errors = 0
         """Conversions that failed (each tried again)."""
+        self.refused = 0
+        """Journals of a newer format, left on disk as they are."""
         self.last_error: str | None = None
         self._jobs: list[tuple[str, Path]] = []
         self._busy: tuple[str, Path] | None = None
@@ -116,6 +121,12 @@ class JournalCloser:
             return True  # closed meanwhile (``segments.recover``)
         try:
             segment = self._convert_journal(path, robot)
+        except (JournalRefusedError, FormatVersionError) as error:
+            # In a child (``close_in_child``) or in this process (a benchmark's baseline).
+            self.refused += 1
+            self.last_error = str(error)
+            log.error("history of %s: journal left as it is: %s", robot, error)
+            return True
         except (OSError, JournalCloseError) as error:
             # OSError: the closing process could not be started (no memory, no processes left).
             self.errors += 1

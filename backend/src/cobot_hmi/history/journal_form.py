@@ -1,4 +1,5 @@
-"""Layer: history storage. Imports only the recording's schema, the codec's sizes and pyarrow/numpy.
+"""Layer: history storage. Imports only the recording's schema and formats, the codec's sizes and
+pyarrow/numpy.
 
 The open segment's journal keeps each frame as it came off the wire: ``time``, ``seq``,
 ``t2o_sequence`` and the 284-byte T→O payload (``t2o_payload``, ``fixed_size_binary(284)``),
@@ -13,6 +14,7 @@ many frames.
 
 A journal written by an earlier version holds the element columns themselves: readers tell the
 two forms apart by the schema (``is_journal_form``) and give both as the recording's schema.
+The journal's schema carries its format's version and the layout's (``formats``).
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ import numpy as np
 import pyarrow as pa
 
 from cobot_hmi.codec import T2O_SIZE
+from cobot_hmi.history.formats import JOURNAL, version_metadata
 from cobot_hmi.history.schema import (
     SCHEMA,
     SEQ,
@@ -51,7 +54,7 @@ JOURNAL_SCHEMA: Final = pa.schema(
             metadata={"description": "the T→O payload as received (the layout's bytes)"},
         ),
     ],
-    metadata=SCHEMA.metadata,
+    metadata={**(SCHEMA.metadata or {}), **version_metadata(JOURNAL)},
 )
 
 

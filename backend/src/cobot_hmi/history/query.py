@@ -1,4 +1,5 @@
-"""Layer: history storage. Imports only the history schema, rollup and segments.
+"""Layer: history storage. Imports only the history schema, rollup and segments, and
+``stored_format``'s error.
 
 A range of a robot's recording, decimated for a plot of ``points`` buckets, without losing a
 peak (the M4 idea: per bucket the min, the max, the first and the last value, so a line drawn
@@ -15,13 +16,16 @@ through them has every extreme of the raw frames):
   made of 8,640 ten-second cells instead of 86,400 per-second ones or 8.64 million frames.
   The first and last bucket may then reach past ``from`` and ``to`` to their edges.
 
-Only non-empty buckets are answered; ``count`` says how many frames each holds.
+Only non-empty buckets are answered; ``count`` says how many frames each holds. A file of a
+newer format than this build reads (``formats``) is left out, with a warning naming it once.
 """
 
 from __future__ import annotations
 
 import contextlib
+import logging
 import math
+import threading
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,7 +34,6 @@ from typing import Final
 import numpy as np
 import numpy.typing as npt
 import pyarrow as pa
-import pyarrow.parquet as pq
 
 from cobot_hmi.history.cells import read_cells_file
 from cobot_hmi.history.rollup import (
@@ -56,7 +59,16 @@ from cobot_hmi.history.schema import (
     conform,
     time_seconds,
 )
-from cobot_hmi.history.segments import Segment, list_journals, list_segments, read_journal
+from cobot_hmi.history.segments import (
+    Segment,
+    list_journals,
+    list_segments,
+    open_segment,
+    read_journal,
+)
+from cobot_hmi.stored_format import FormatVersionError
+
+log = logging.getLogger(__name__)
 
 MAX_POINTS: Final = 5000
 CELL_S: Final = 1.0
@@ -65,6 +77,19 @@ LEVEL_SLACK: Final = 1.25
 """How much wider than asked a bucket may grow to be made of coarser cells."""
 
 F64 = npt.NDArray[np.float64]
+
+
+_REFUSED: Final[set[str]] = set()
+_REFUSED_LOCK: Final = threading.Lock()
+
+
+def _left_out(error: FormatVersionError) -> None:
+    """A file of a newer format is left out of every answer; said once per file."""
+    with _REFUSED_LOCK:
+        if error.where in _REFUSED:
+            return
+        _REFUSED.add(error.where)
+    log.warning("history: left out of queries: %s", error)
 
 
 class QueryError(ValueError):
@@ -140,14 +165,18 @@ def _journal_frames(root: Path, robot: str, path: Path, columns: Sequence[str]) 
     """A journal's frames; if the recorder closed it since it was listed (it is gone), its
     closed segment's (named by the same first receive time): a streamed export or a query
     reading the older segments first must not lose the newest ones."""
-    table = read_journal(path, columns)
+    try:
+        table = read_journal(path, columns)
+    except FormatVersionError as error:
+        _left_out(error)
+        return conform(SCHEMA.empty_table(), columns)
     if table.num_rows or path.exists():
         return table
     start_us = int(path.name.partition(".")[0])
     for segment in list_segments(root, robot):
         if segment.start_us == start_us:
-            with contextlib.suppress(OSError, pa.ArrowException):
-                return conform(pq.ParquetFile(segment.path).read(columns=list(columns)), columns)
+            with contextlib.suppress(OSError, pa.ArrowException, FormatVersionError):
+                return conform(open_segment(segment.path).read(columns=list(columns)), columns)
     return table
 
 
@@ -161,8 +190,11 @@ def iter_raw(
     closed, journals = _sources(root, robot, start_us, end_us)
     for segment in closed:
         try:
-            table = conform(pq.ParquetFile(segment.path).read(columns=list(columns)), columns)
+            table = conform(open_segment(segment.path).read(columns=list(columns)), columns)
         except (OSError, pa.ArrowException):  # deleted by retention meanwhile
+            continue
+        except FormatVersionError as error:
+            _left_out(error)
             continue
         # Compared as _clip compares (receive times in seconds), not by whole microseconds.
         partial = segment.start_us / 1e6 < from_s or segment.end_us / 1e6 >= to_s
@@ -214,12 +246,15 @@ def read_cells(
             if table is None:  # a recording older than the coarser cells
                 seconds = read_cells_file(segment.rollup_path, columns)
                 table = None if seconds is None else coarsen(seconds, width_s)
-        except (OSError, pa.ArrowException):
+        except (OSError, pa.ArrowException, FormatVersionError):
             table = None
         if table is None:
             try:  # a rollup lost or unreadable: made again from the frames
-                raw = pq.ParquetFile(segment.path).read()
+                raw = open_segment(segment.path).read()
             except (OSError, pa.ArrowException):
+                continue
+            except FormatVersionError as error:
+                _left_out(error)
                 continue
             table = coarsen(rollup_table(raw, list(elements)).select(columns), width_s)
         whole = segment.start_us >= start_us and segment.end_us < end_us

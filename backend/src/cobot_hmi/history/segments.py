@@ -1,5 +1,5 @@
-"""Layer: history storage. Imports only the codec, the history schema, rollup and cells, numpy
-and pyarrow.
+"""Layer: history storage. Imports only the codec, the history schema, formats, rollup and cells,
+numpy and pyarrow.
 
 A robot's recording is a directory of segments (``HISTORY_DIR/ROBOT/``):
 
@@ -18,8 +18,10 @@ A robot's recording is a directory of segments (``HISTORY_DIR/ROBOT/``):
   directory fsync'd, cells first: a ``.parquet`` exists only complete. Then the journal goes.
 
 ``START``/``END`` are the first and last frame's receive times in epoch microseconds, so a
-query picks its segments from the names alone. On start, ``recover`` closes every journal left
-by a crash (its complete batches), and recording resumes in a new journal.
+query picks its segments from the names alone. Journals and segments carry their format's
+version and the layout's (``formats``); one newer than this build reads is refused by name. On
+start, ``recover`` closes every journal left by a crash (its complete batches), and recording
+resumes in a new journal.
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from cobot_hmi.history.cells import write_cells
+from cobot_hmi.history.formats import JOURNAL, SEGMENT, check_versions, version_metadata
 from cobot_hmi.history.journal_form import expand, is_journal_form
 from cobot_hmi.history.rollup import join_split_cells, rollup_table
 from cobot_hmi.history.schema import (
@@ -49,6 +52,7 @@ from cobot_hmi.history.schema import (
     TIME,
     conform,
 )
+from cobot_hmi.stored_format import FormatVersionError
 
 JOURNAL_SUFFIX: Final = ".journal.arrows"
 ROLLUP_SUFFIX: Final = ".cells.arrow"
@@ -119,6 +123,14 @@ def list_segments(root: Path, robot: str) -> list[Segment]:
     return out
 
 
+def open_segment(path: Path) -> pq.ParquetFile:
+    """A closed segment's Parquet file, its footer read (``OSError``, ``ArrowException``); one
+    of a newer format raises ``FormatVersionError``."""
+    file = pq.ParquetFile(path)
+    check_versions(SEGMENT, file.metadata.metadata, path)
+    return file
+
+
 def list_journals(root: Path, robot: str) -> list[tuple[int, Path]]:
     """The robot's journals (the open segment; more than one only after a crash)."""
     out = []
@@ -160,7 +172,8 @@ EXPAND_ROWS: Final = 4096
 def read_journal(path: Path, columns: Sequence[str] | None = None) -> pa.Table:
     """Every complete batch of a journal (a torn last batch, from a crash, is left out),
     ``columns`` only (default: every column of the recording's schema; one a journal written
-    before it existed lacks comes back as nulls, ``schema.conform``).
+    before it existed lacks comes back as nulls, ``schema.conform``). A journal of a newer
+    format raises ``FormatVersionError``.
 
     A journal only grows, a batch a second: the batches parsed are kept per journal (the last
     few journals read), so a query of the open segment parses only the new ones; parsing all
@@ -211,8 +224,10 @@ def _parse_more(path: Path, entry: _Journal, size: int) -> None:
             break
         try:
             if entry.file_schema is None:
-                entry.file_schema = pa.ipc.read_schema(message)
-                entry.schema = SCHEMA if is_journal_form(entry.file_schema) else entry.file_schema
+                file_schema = pa.ipc.read_schema(message)
+                check_versions(JOURNAL, file_schema.metadata, path)  # refused: raised
+                entry.file_schema = file_schema
+                entry.schema = SCHEMA if is_journal_form(file_schema) else file_schema
             else:
                 batch = pa.ipc.read_record_batch(message, entry.file_schema)
                 entry.batches.append(expand(batch))
@@ -269,6 +284,7 @@ def _write_parquet(groups: Iterator[pa.Table], sink: Any) -> tuple[pa.Table, int
                     use_dictionary=_DICTIONARY_COLUMNS,
                     column_encoding=_ENCODINGS,
                 )
+                writer.add_key_value_metadata(version_metadata(SEGMENT))
                 first_us = _time_us(group, 0)
             writer.write_table(group, row_group_size=ROW_GROUP_ROWS)
             last_us = _time_us(group, -1)
@@ -333,6 +349,7 @@ def _journal_groups(path: Path) -> Iterator[pa.Table]:
             reader = pa.ipc.open_stream(source)
         except (OSError, pa.ArrowException):  # empty, or its schema torn
             return
+        check_versions(JOURNAL, reader.schema.metadata, path)  # a newer one stays a journal
         while True:
             try:
                 batch = reader.read_next_batch()
@@ -373,7 +390,8 @@ def _expanded(table: pa.Table) -> pa.Table:
 
 def close_journal(path: Path, robot: str) -> Segment | None:
     """Turn a journal into a closed segment and delete it (also after a crash), a row group at
-    a time (memory holds about one, 64 Ki rows, and its cells). The service does this in a
+    a time (memory holds about one, 64 Ki rows, and its cells). A journal of a newer format
+    raises ``FormatVersionError`` and stays as it is. The service does this in a
     process of its own (``close_process``), whose memory leaves with it."""
     forget_journal(path)
     segment = _write_segment(_journal_groups(path), path.parent, robot, path.name)
@@ -382,10 +400,14 @@ def close_journal(path: Path, robot: str) -> Segment | None:
 
 
 def recover(root: Path, robot: str) -> list[Segment]:
-    """Close every journal a crash left behind; the closed segments made."""
+    """Close every journal a crash left behind; the closed segments made (a journal of a
+    newer format is left as it is)."""
     made = []
     for _, path in list_journals(root, robot):
-        segment = close_journal(path, robot)
+        try:
+            segment = close_journal(path, robot)
+        except FormatVersionError:
+            continue
         if segment is not None:
             made.append(segment)
     return made
@@ -450,7 +472,10 @@ class SegmentWriter:
         try:
             # The batch's form decides the journal's: the recorder's batches are payloads
             # (journal_form); a batch of element columns makes a journal of them.
-            writer = pa.ipc.new_stream(sink, batch.schema)
+            schema = batch.schema.with_metadata(
+                {**(batch.schema.metadata or {}), **version_metadata(JOURNAL)}
+            )
+            writer = pa.ipc.new_stream(sink, schema)
         except BaseException:
             sink.close()
             raise

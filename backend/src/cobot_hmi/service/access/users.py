@@ -1,16 +1,20 @@
 """Layer: service. The users file: names, roles, salted scrypt password hashes, API tokens.
 
-A JSON file ``{"users": {"alice": {"role": "operator", "password": "scrypt$…"}}, "tokens":
-{"kiosk-hall": {"role": "viewer", "sha256": "…", "created": t, "expires": t | null}}}``,
-written atomically (temporary file + rename) with mode 0600. The service re-reads it when its
-modification time changes, so ``cobot-hmi users add`` (or ``token``, ``revoke``) takes effect
-without a restart.
+A JSON file ``{"format_version": 2, "users": {"alice": {"role": "operator", "password":
+"scrypt$…"}}, "tokens": {"kiosk-hall": {"role": "viewer", "sha256": "…", "created": t,
+"expires": t | null}}}``, written atomically (temporary file + rename) with mode 0600. The
+service re-reads it when its modification time changes, so ``cobot-hmi users add`` (or
+``token``, ``revoke``) takes effect without a restart.
 
 API tokens are long-lived bearer tokens for kiosks and scripts (``cobot-hmi users token``):
 ``chmi_`` and 43 random URL-safe characters (256 bits), shown once; the file keeps only their
 SHA-256 (a random 256-bit secret needs no slow hash: nothing can be guessed from its digest).
-A token acts as the pseudo-user ``token:NAME`` with its own role. Pure file I/O; imports
-nothing of the project.
+A token acts as the pseudo-user ``token:NAME`` with its own role.
+
+``format_version`` (``stored_format``): version 1, written before the file carried one, has
+the same shape and is read as it is (and written as version 2 at the next change); a newer
+version is refused by name, the last good table kept. Pure file I/O; imports only
+``stored_format`` of the project.
 """
 
 from __future__ import annotations
@@ -29,6 +33,8 @@ from dataclasses import dataclass
 from enum import IntEnum
 from pathlib import Path
 from typing import Final
+
+from cobot_hmi.stored_format import StoredFormat
 
 
 class Role(IntEnum):
@@ -63,6 +69,7 @@ _SCRYPT_P: Final = 1
 _SALT_BYTES: Final = 16
 _KEY_BYTES: Final = 32
 _NAME_PATTERN: Final = re.compile(r"^[A-Za-z0-9_.@-]{1,64}$")
+USERS_FORMAT: Final = StoredFormat("users file", 2)
 MIN_PASSWORD_CHARS: Final = 8
 API_TOKEN_PREFIX: Final = "chmi_"
 TOKEN_USER_PREFIX: Final = "token:"
@@ -168,6 +175,8 @@ class UsersFile:
             return self._entries
         try:
             document = json.loads(self.path.read_text(encoding="utf-8"))
+            # FormatVersionError is a ValueError: refused below, the last good table kept.
+            USERS_FORMAT.read_version(document.get("format_version"), self.path)
             entries: dict[str, tuple[Role, str]] = {}
             for name, entry in document["users"].items():
                 entries[name] = (Role.parse(entry["role"]), str(entry["password"]))
@@ -268,7 +277,8 @@ class UsersFile:
 
     def _save(self, entries: dict[str, tuple[Role, str]], tokens: dict[str, ApiToken]) -> None:
         document: dict[str, object] = {
-            "users": {n: {"role": r.label, "password": h} for n, (r, h) in sorted(entries.items())}
+            "format_version": USERS_FORMAT.version,
+            "users": {n: {"role": r.label, "password": h} for n, (r, h) in sorted(entries.items())},
         }
         if tokens:
             document["tokens"] = {
