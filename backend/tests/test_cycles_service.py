@@ -9,6 +9,7 @@ from __future__ import annotations
 import csv
 import io
 import itertools
+import time
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -19,9 +20,10 @@ import pytest
 
 from cobot_hmi.emulator.robot import RobotSettings as SimulationSettings
 from cobot_hmi.emulator.robot import SimulatedRobot
+from cobot_hmi.generated.frames import RobotState
 from cobot_hmi.history.schema import ELEMENT_BY_EXPORT_NAME, time_seconds
 from cobot_hmi.service.cycles.meter import MAX_GAP_S
-from emulator_harness import FAST_TIMINGS
+from emulator_harness import FAST_TIMINGS, running_emulator
 from service_support import (
     DEADLINE_S,
     Running,
@@ -79,20 +81,22 @@ def starts_in(table: pa.Table) -> list[float]:
     return [t for (_, was), (t, now) in itertools.pairwise(frames) if now and not was]
 
 
-def cycles_in(table: pa.Table) -> list[tuple[float, float]]:
-    """The cycles of the recorded frames, from one rise to the next, by brute force: frames
-    further apart than the meter's MAX_GAP_S (a robot silent that long, as a loaded machine's
-    emulator can be) end the cycle in progress, and the next rise after them only opens one."""
-    found: list[tuple[float, float]] = []
+def cycles_in(table: pa.Table) -> list[tuple[float, float, bool]]:
+    """The cycles of the recorded frames, from one rise to the next, by brute force, each with
+    whether frames further apart than the meter's MAX_GAP_S (a robot silent that long, as a
+    loaded machine's emulator can be) interrupted it; the frame after such a silence only says
+    where the level is."""
+    found: list[tuple[float, float, bool]] = []
     start: float | None = None
+    silent = False
     for (was_s, was), (t, now) in itertools.pairwise(_marker_frames(table)):
         if t - was_s > MAX_GAP_S:
-            start = None
-            continue  # the frame after the silence only says where the level is
+            silent = True
+            continue
         if now and not was:
             if start is not None:
-                found.append((start, t))
-            start = t
+                found.append((start, t, silent))
+            start, silent = t, False
     return found
 
 
@@ -146,22 +150,23 @@ async def test_cycles_equal_those_computed_from_the_recorded_frames(
     assert cycle_events[-1]["text"] == f"Cycle of {measured_cycles[-1]['duration_s']:.2f} s"
     expected = cycles_in(table)
     assert len(expected) == len(measured_cycles)
-    for (start, end), cycle in zip(expected, measured_cycles, strict=True):
+    for (start, end, silent), cycle in zip(expected, measured_cycles, strict=True):
+        assert cycle["interrupted"] is silent
         assert cycle["start"] == pytest.approx(start, abs=TIME_TOLERANCE_S)
         assert cycle["end"] == pytest.approx(end, abs=TIME_TOLERANCE_S)
         assert cycle["duration_s"] == pytest.approx(end - start, abs=2 * TIME_TOLERANCE_S)
     # The demo program's cycle (~8 s), about the same each time (a busy machine delays frames).
-    durations = [c["duration_s"] for c in measured_cycles]
+    durations = [c["duration_s"] for c in measured_cycles if not c["interrupted"]]
     assert min(durations) > 1.0 and max(durations) - min(durations) < 1.0
     assert body["trigger"] == {
         "text": TRIGGER,
-        "label": f"rising edge of bit_output_registers.{MARKER}",
+        "label": f"rising edge of Register out {MARKER}",
     }
     stats = body["statistics"]
-    assert stats["count"] == len(measured_cycles)
+    assert stats["count"] == len(durations)
     assert stats["last_s"] == pytest.approx(durations[-1])
-    assert stats["window"] == 2
-    assert stats["mean_s"] == pytest.approx(sum(durations[-2:]) / 2)
+    assert stats["window"] == min(2, len(durations))
+    assert stats["mean_s"] == pytest.approx(sum(durations[-2:]) / len(durations[-2:]))
     assert stats["min_s"] == pytest.approx(min(durations[-2:]))
     assert stats["max_s"] == pytest.approx(max(durations[-2:]))
     assert body["in_progress_since"] == pytest.approx(last["end"])
@@ -173,7 +178,9 @@ async def test_cycles_equal_those_computed_from_the_recorded_frames(
     assert csv_answer.headers["content-type"].startswith("text/csv")
     rows = list(csv.DictReader(io.StringIO(csv_answer.text)))
     assert int(csv_answer.headers["x-total-count"]) == len(rows) >= CYCLES
-    assert [float(r["duration_s"]) for r in rows[: len(durations)]] == pytest.approx(durations)
+    assert [float(r["duration_s"]) for r in rows[: len(measured_cycles)]] == pytest.approx(
+        [c["duration_s"] for c in measured_cycles]
+    )
     assert datetime.fromisoformat(rows[0]["start"]).timestamp() == pytest.approx(
         measured_cycles[0]["start"], abs=1e-5
     )
@@ -195,6 +202,8 @@ async def test_a_robot_without_a_trigger_answers_no_cycles_and_bad_input_is_refu
     assert body["trigger"] is None and body["cycles"] == []
     assert body["statistics"] == {
         "count": 0,
+        "interrupted": 0,
+        "include_interrupted": False,
         "last_s": None,
         "window": 0,
         "mean_s": None,
@@ -205,3 +214,69 @@ async def test_a_robot_without_a_trigger_answers_no_cycles_and_bad_input_is_refu
     assert "ISO 8601" in bad_time.json()["detail"]["reason"]
     assert bad_last.status_code == 422
     assert unknown.status_code == 404
+
+
+async def test_a_cycle_across_an_emergency_stop_is_interrupted_and_left_out(
+    robot_host: str, plc_host: str, tmp_path: Path
+) -> None:
+    """Issue 38: the demo program's cycle in progress when the robot is e-stopped (reset, the
+    program started again) is kept, marked interrupted with what did it, and left out of the
+    statistics unless include_interrupted=true; the trigger is named by its label."""
+    settings = SimulationSettings(timings=FAST_TIMINGS, cycle_marker_register=MARKER)
+    async with running_emulator(robot_host, plc_host, settings) as emu:
+        hmi_settings = service_settings(
+            robot_host, emu.target.tcp_port, plc_host, tmp_path, cycle_trigger=TRIGGER
+        )
+        async with running_service(hmi_settings) as hmi:
+            robot = hmi.service.default_robot
+
+            async def state_is(*states: RobotState) -> bool:
+                latest = robot.frames.latest
+                return latest is not None and latest.frame.robot_state in states
+
+            async def in_progress() -> bool:
+                return (await cycles(hmi))["in_progress_since"] is not None
+
+            await eventually_async(in_progress, timeout_s=60)
+            await emu.post("/estop")
+            await eventually_async(lambda: state_is(RobotState.EMERGENCY_STOP))
+            await emu.post("/reset")
+            await eventually_async(lambda: state_is(RobotState.STANDALONE_STANDBY))
+            await emu.post("/program", {"running": True})
+
+            async def whole_after_interrupted() -> bool:
+                rows = (await cycles(hmi))["cycles"]
+                return any(c["interrupted"] for c in rows) and not rows[-1]["interrupted"]
+
+            await eventually_async(whole_after_interrupted, timeout_s=120)
+            body = await cycles(hmi)
+            included = await cycles(hmi, include_interrupted="true")
+            async with hmi.client() as client:
+                csv_answer = await client.get(
+                    f"/api/v1/robots/{ROBOT}/cycles", params={"format": "csv"}
+                )
+                marked = await client.get(
+                    f"/api/v1/robots/{ROBOT}/history/events",
+                    params={"from": body["cycles"][0]["start"] - 0.5, "to": time.time()},
+                )
+    rows = body["cycles"]
+    texts = [e["text"] for e in marked.json()["items"] if e["kind"] == "cycle"]
+    assert any(t.endswith("s, interrupted: Emergency stop") for t in texts), texts
+    interrupted = [c for c in rows if c["interrupted"]]
+    whole = [c for c in rows if not c["interrupted"]]
+    assert [c["interruption"] for c in interrupted] == ["Emergency stop"]
+    assert all(c["interruption"] is None for c in whole)
+    long_one = interrupted[0]["duration_s"]
+    assert long_one > max(c["duration_s"] for c in whole)
+    stats = body["statistics"]
+    assert stats["count"] == len(whole) and stats["interrupted"] == 1
+    assert stats["include_interrupted"] is False
+    assert stats["max_s"] == pytest.approx(max(c["duration_s"] for c in whole))
+    assert stats["last_s"] == pytest.approx(whole[-1]["duration_s"])
+    every = included["statistics"]
+    assert every["count"] == len(rows) and every["include_interrupted"] is True
+    assert every["max_s"] == pytest.approx(long_one)
+    assert body["trigger"]["label"] == f"rising edge of Register out {MARKER}"
+    csv_rows = list(csv.DictReader(io.StringIO(csv_answer.text)))
+    assert [r["interrupted"] for r in csv_rows] == [str(c["interrupted"]) for c in rows]
+    assert int(csv_answer.headers["x-total-count"]) == len(rows)

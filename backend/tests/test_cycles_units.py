@@ -40,15 +40,17 @@ def test_trigger_texts_and_their_refusals() -> None:
     marker = parse_trigger(" bit_output_registers.63:rising ")
     assert marker is not None
     assert (marker.field, marker.index, marker.falling) == ("bit_output_registers", 63, False)
-    assert marker.label == "rising edge of bit_output_registers.63"
+    assert marker.label == "rising edge of Register out 63"  # as the checkout names it
     di5 = parse_trigger("controlbox_di.4:falling")
     assert di5 is not None and di5.falling and di5.index == 4
+    assert di5.label == "falling edge of DI 5"
     servo = parse_trigger("servo_on:rising")
     assert servo is not None and servo.index is None
+    assert servo.label == "rising edge of Servo on"
     running = parse_trigger("state:standalone_running")
     assert running is not None and running.state == RobotState.STANDALONE_RUNNING
     assert running.text == "state:STANDALONE_RUNNING"
-    assert running.label == "entering STANDALONE_RUNNING"
+    assert running.label == "entering Standalone running"
     assert parse_trigger("") is None
     for text, words in (
         ("bit_output_registers.64:rising", "bits 0–63"),
@@ -62,7 +64,7 @@ def test_trigger_texts_and_their_refusals() -> None:
             parse_trigger(text)
 
 
-def test_the_meter_measures_from_edge_to_edge_and_never_across_a_silence() -> None:
+def test_the_meter_measures_from_edge_to_edge_and_marks_a_cycle_across_a_silence() -> None:
     trigger = parse_trigger("bit_output_registers.63:rising")
     assert trigger is not None
     meter = CycleMeter("robot", trigger, max_gap_s=1.0)
@@ -79,14 +81,18 @@ def test_the_meter_measures_from_edge_to_edge_and_never_across_a_silence() -> No
     assert meter.observe(low, 100.5) is None
     cycle = meter.observe(high, 101.42)
     assert cycle is not None and (cycle.start, cycle.end) == (100.02, 101.42)
-    assert cycle.duration_s == pytest.approx(1.4)
-    # Frames stopped for longer than max_gap_s: the cycle in progress is dropped.
-    assert meter.observe(low, 102.5) is None
-    assert meter.started_at is None
-    assert meter.observe(high, 102.51) is None  # opens a cycle, ends none
-    assert meter.observe(low, 102.52) is None
-    cycle = meter.observe(high, 103.01)
-    assert cycle is not None and cycle.start == 102.51
+    assert cycle.duration_s == pytest.approx(1.4) and not cycle.interrupted
+    # Frames stopped for longer than max_gap_s (a lost link): the cycle in progress goes on,
+    # interrupted; the frame after the silence only says where the level is.
+    assert meter.observe(high, 103.5) is None
+    assert meter.started_at == 101.42
+    assert meter.observe(low, 103.52) is None
+    cycle = meter.observe(high, 104.01)
+    assert cycle is not None and (cycle.start, cycle.end) == (101.42, 104.01)
+    assert cycle.interruption == "no frames for 2.1 s (link lost)"
+    assert meter.observe(low, 104.5) is None
+    cycle = meter.observe(high, 105.01)
+    assert cycle is not None and cycle.start == 104.01 and not cycle.interrupted
 
 
 def test_falling_edges_and_states_start_cycles() -> None:
@@ -163,3 +169,49 @@ def test_the_emulator_marks_each_cycle_start_on_its_register() -> None:
     assert max(periods) - min(periods) <= 2 * RPI_S + 1e-9
     # On through a good part of each cycle (its first steps): a late frame never hides an edge.
     assert 0.2 < high_s / (4000 * RPI_S) < 0.8
+
+
+def test_a_stop_or_leaving_the_running_states_interrupts_the_cycle() -> None:
+    """Issue 38: a cycle in which the robot stopped (e-stop, protective stop, safe off) or left
+    its running states is interrupted, with what did it; one that ran through is whole."""
+    trigger = parse_trigger("bit_output_registers.63:rising")
+    assert trigger is not None
+    running = RobotState.STANDALONE_RUNNING
+    high = frame_with(BASE, bit_output_registers=registers(True), robot_state=running)
+    low = frame_with(BASE, bit_output_registers=registers(False), robot_state=running)
+    stops = (
+        (
+            low._replace(emergency_stopped=True, robot_state=RobotState.EMERGENCY_STOP),
+            "Emergency stop",
+        ),
+        (low._replace(robot_state=RobotState.INTERRUPTED), "Protective stop"),
+        (low._replace(robot_state=RobotState.SAFE_OFF), "Safe off (servo off)"),
+        (low._replace(safety_stopped=True), "Safety stop"),
+        (
+            low._replace(robot_state=RobotState.STANDALONE_STANDBY),
+            "left running: Standalone standby",
+        ),
+        (low, None),
+    )
+    for stop, words in stops:
+        meter = CycleMeter("robot", trigger)
+        t = 0.0
+        for frame in (low, high, low, stop, low):
+            assert meter.observe(frame, t) is None
+            t += 0.01
+        cycle = meter.observe(high, t)
+        assert cycle is not None and cycle.interruption == words
+        assert cycle.interrupted is (words is not None)
+        # The next cycle starts whole.
+        assert meter.observe(low, t + 0.01) is None
+        after = meter.observe(high, t + 0.02)
+        assert after is not None and not after.interrupted
+
+    # A state trigger leaves its state every cycle: only a stop interrupts there.
+    state = parse_trigger("state:STANDALONE_RUNNING")
+    assert state is not None
+    standby = low._replace(robot_state=RobotState.STANDALONE_STANDBY)
+    meter = CycleMeter("robot", state)
+    ends = [meter.observe(f, i * 0.5) for i, f in enumerate((standby, low, standby, low))]
+    cycle = ends[-1]
+    assert cycle is not None and not cycle.interrupted

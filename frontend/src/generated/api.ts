@@ -165,6 +165,23 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/v1/auth/activity": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        get?: never;
+        put?: never;
+        /** Its person acted (a click, a key): the session's idle deadline is renewed. A page sends it on its person's actions, never on a timer of its own */
+        post: operations["activity_api_v1_auth_activity_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/auth/login": {
         parameters: {
             query?: never;
@@ -206,7 +223,7 @@ export interface paths {
             path?: never;
             cookie?: never;
         };
-        /** The logged-in user, or null */
+        /** The logged-in user, or null, and how long before the session idles out (a read: it never renews the session) */
         get: operations["me_api_v1_auth_me_get"];
         put?: never;
         post?: never;
@@ -552,7 +569,7 @@ export interface paths {
             path?: never;
             cookie?: never;
         };
-        /** The robot's cycles in a range and their statistics (last, mean/min/max of the last N, count) */
+        /** The robot's cycles in a range and their statistics (last, mean/min/max of the last N, count); interrupted cycles are marked and left out of the statistics unless include_interrupted */
         get: operations["get_cycles_api_v1_robots__name__cycles_get"];
         put?: never;
         post?: never;
@@ -2094,6 +2111,16 @@ export interface components {
             /** Id */
             id: number;
             /**
+             * Interrupted
+             * @description the robot stopped, lost its link or left its running states during it: shown apart, left out of the statistics unless include_interrupted
+             */
+            interrupted: boolean;
+            /**
+             * Interruption
+             * @description what interrupted it, in words ("Emergency stop", "no frames for 3.2 s (link lost)", "left running: Standalone standby"); null: a whole cycle
+             */
+            interruption: string | null;
+            /**
              * Start
              * @description s since the epoch
              */
@@ -2103,9 +2130,19 @@ export interface components {
         CycleStatistics: {
             /**
              * Count
-             * @description cycles that started in the range
+             * @description cycles that started in the range and the statistics are of (without the interrupted ones unless include_interrupted)
              */
             count: number;
+            /**
+             * Include Interrupted
+             * @description whether the statistics include them
+             */
+            include_interrupted: boolean;
+            /**
+             * Interrupted
+             * @description interrupted cycles that started in the range
+             */
+            interrupted: number;
             /**
              * Last S
              * @description the newest cycle's duration, s
@@ -2127,7 +2164,7 @@ export interface components {
         CycleTriggerInfo: {
             /**
              * Label
-             * @description in words: 'rising edge of bit_output_registers.63'
+             * @description in words, as the robot labels the element: 'rising edge of Register out 63'
              */
             label: string;
             /**
@@ -2451,6 +2488,11 @@ export interface components {
             connection: components["schemas"]["ConnectionStatus"];
             control: components["schemas"]["ControlStatus"];
             /**
+             * @description the kiosk's settings (plot window, shifts)
+             * @default null
+             */
+            kiosk?: components["schemas"]["KioskConfig"] | null;
+            /**
              * Layout Version
              * @constant
              */
@@ -2688,6 +2730,22 @@ export interface components {
         };
         Json: JsonValue;
         /**
+         * KioskConfig
+         * @description The kiosk's settings (docs/operations.md, "Kiosk"), for every page of the stream.
+         */
+        KioskConfig: {
+            /**
+             * Plot Window S
+             * @description how far the kiosk's plots look back, s
+             */
+            plot_window_s: number;
+            /**
+             * Shift Starts
+             * @description when the plant's shifts start, HH:MM in the plant's time zone, sorted
+             */
+            shift_starts: string[];
+        };
+        /**
          * LayoutDocument
          * @description ``GET /api/v1/layout``: the I/O layout every other shape derives from.
          */
@@ -2762,6 +2820,16 @@ export interface components {
          * @description Who this request's session belongs to (null: no session).
          */
         Me: {
+            /**
+             * Idle Expires In S
+             * @description seconds left before it idles out unless its person acts (a changing request, POST /api/v1/auth/activity); reads never renew it
+             */
+            idle_expires_in_s?: number | null;
+            /**
+             * Idle Timeout S
+             * @description a login session ends this long after its person's last action (session_ttl_s); null: no session, or an API token's (which never idles out)
+             */
+            idle_timeout_s?: number | null;
             user: components["schemas"]["User"] | null;
         };
         /** Preset */
@@ -3717,9 +3785,9 @@ export interface operations {
                 since?: number | null;
                 /** @description before this time, s since the epoch */
                 until?: number | null;
-                /** @description from this time on (inclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the service's local time) */
+                /** @description from this time on (inclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the plant's time zone, the time_zone setting) */
                 from?: string | null;
-                /** @description before this time (exclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the service's local time) */
+                /** @description before this time (exclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the plant's time zone, the time_zone setting) */
                 to?: string | null;
                 /** @description only rows whose words contain this text (case-insensitive) */
                 q?: string | null;
@@ -4197,9 +4265,9 @@ export interface operations {
     get_audit_api_v1_audit_get: {
         parameters: {
             query?: {
-                /** @description from this time on (inclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the service's local time) */
+                /** @description from this time on (inclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the plant's time zone, the time_zone setting) */
                 from?: string | null;
-                /** @description before this time (exclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the service's local time) */
+                /** @description before this time (exclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the plant's time zone, the time_zone setting) */
                 to?: string | null;
                 /** @description only rows whose words contain this text (case-insensitive) */
                 q?: string | null;
@@ -4266,6 +4334,62 @@ export interface operations {
             };
             /** @description invalid request: the answer names the field; nothing was applied */
             422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    activity_api_v1_auth_activity_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["Me"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the role is too low, or the request is not same-origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description a body that is not application/json */
+            415: {
                 headers: {
                     [name: string]: unknown;
                 };
@@ -4805,9 +4929,9 @@ export interface operations {
     get_events_api_v1_events_get: {
         parameters: {
             query?: {
-                /** @description from this time on (inclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the service's local time) */
+                /** @description from this time on (inclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the plant's time zone, the time_zone setting) */
                 from?: string | null;
-                /** @description before this time (exclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the service's local time) */
+                /** @description before this time (exclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the plant's time zone, the time_zone setting) */
                 to?: string | null;
                 /** @description only rows whose words contain this text (case-insensitive) */
                 q?: string | null;
@@ -6205,9 +6329,9 @@ export interface operations {
     get_cycles_api_v1_robots__name__cycles_get: {
         parameters: {
             query?: {
-                /** @description from this time on (inclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the service's local time) */
+                /** @description from this time on (inclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the plant's time zone, the time_zone setting) */
                 from?: string | null;
-                /** @description before this time (exclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the service's local time) */
+                /** @description before this time (exclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the plant's time zone, the time_zone setting) */
                 to?: string | null;
                 /** @description at most this many (the newest) cycles */
                 limit?: number;
@@ -6215,6 +6339,8 @@ export interface operations {
                 last?: number;
                 /** @description csv: the cycles as CSV */
                 format?: "json" | "csv";
+                /** @description true: the statistics include the interrupted cycles (a stop, a lost link, the robot out of its running states); by default they leave them out */
+                include_interrupted?: boolean;
             };
             header?: never;
             path: {

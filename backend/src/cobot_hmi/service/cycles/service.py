@@ -49,14 +49,15 @@ class CycleConsumer:
             if cycle is not None:
                 self._last[cycle.robot] = cycle
                 self._store.submit(cycle)
-                self._publish(
-                    {
-                        "kind": "cycle",
-                        "time": cycle.start,
-                        "end": cycle.end,
-                        "duration_s": round(cycle.duration_s, 6),
-                    }
-                )
+                event: Event = {
+                    "kind": "cycle",
+                    "time": cycle.start,
+                    "end": cycle.end,
+                    "duration_s": round(cycle.duration_s, 6),
+                }
+                if cycle.interruption is not None:
+                    event["interruption"] = cycle.interruption
+                self._publish(event)
 
 
 class Cycles:

@@ -6,7 +6,9 @@ one writer task (``storage.queued_writer``: on a full disk they wait in memory u
 room), a batch per transaction without an fsync of its own (as events are: a cycle lost to a
 power cut is measured again by the next one). A range is read with its statistics
 in one call: the cycles whose start lies in it, and the last, mean, minimum and maximum of its
-newest N.
+newest N. An interrupted cycle (``meter``: a stop, a lost link, the robot out of its running
+states) is kept with what interrupted it (the column ``interruption``, migration step 8) and
+listed with the others, marked; the statistics leave it out unless asked to include it.
 """
 
 from __future__ import annotations
@@ -22,16 +24,19 @@ from cobot_hmi.service.storage.store import Store
 
 _Row = tuple[object, ...]
 
-CYCLE_COLUMNS: Final = ("id", "start", "end", "duration_s")
+CYCLE_COLUMNS: Final = ("id", "start", "end", "duration_s", "interrupted", "interruption")
 """A cycle as the API answers it and the CSV lists it (times in seconds since the epoch)."""
+_SELECT: Final = "id, start, end, duration_s, interruption IS NOT NULL, interruption"
 
 
 @dataclass(frozen=True, slots=True)
 class CycleStats:
     count: int
-    """Cycles in the range."""
+    """Cycles in the range the statistics are of (without the interrupted ones unless asked)."""
+    interrupted: int
+    """Interrupted cycles in the range."""
     last_s: float | None
-    """The newest cycle's duration."""
+    """The newest such cycle's duration."""
     window: int
     """How many of the newest cycles the mean, min and max are of (at most the asked N)."""
     mean_s: float | None
@@ -79,9 +84,11 @@ class CycleStore:
         until: float | None,
         limit: int,
         last_n: int,
+        include_interrupted: bool = False,
     ) -> CycleRange:
         """The cycles of ``robot`` that started in ``[since, until)`` (the newest ``limit``,
-        oldest first) and the statistics of the range's newest ``last_n``."""
+        oldest first, interrupted ones marked) and the statistics of the range's newest
+        ``last_n`` (of whole cycles only, unless ``include_interrupted``)."""
         clauses = ["robot = ?"]
         params: list[object] = [robot]
         if since is not None:
@@ -91,26 +98,34 @@ class CycleStore:
             clauses.append("start < ?")
             params.append(until)
         where = "WHERE " + " AND ".join(clauses)
+        counted = where if include_interrupted else f"{where} AND interruption IS NULL"
 
-        def read(db: sqlite3.Connection) -> tuple[int, list[_Row], _Row]:
-            count = int(db.execute(f"SELECT count(*) FROM cycles {where}", params).fetchone()[0])
+        def read(db: sqlite3.Connection) -> tuple[_Row, list[_Row], _Row, _Row | None]:
+            counts = db.execute(
+                f"SELECT count(*), count(interruption) FROM cycles {where}", params
+            ).fetchone()
             rows = db.execute(
-                f"SELECT {', '.join(CYCLE_COLUMNS)} FROM cycles {where}"
-                " ORDER BY start DESC LIMIT ?",
+                f"SELECT {_SELECT} FROM cycles {where} ORDER BY start DESC LIMIT ?",
                 (*params, limit),
             ).fetchall()
             stats = db.execute(
                 "SELECT count(*), avg(duration_s), min(duration_s), max(duration_s) FROM"
-                f" (SELECT duration_s FROM cycles {where} ORDER BY start DESC LIMIT ?)",
+                f" (SELECT duration_s FROM cycles {counted} ORDER BY start DESC LIMIT ?)",
                 (*params, last_n),
             ).fetchone()
-            return count, rows, stats
+            newest = db.execute(
+                f"SELECT duration_s FROM cycles {counted} ORDER BY start DESC LIMIT 1", params
+            ).fetchone()
+            return counts, rows, stats, newest
 
-        count, rows, (window, mean, low, high) = await self._store.call(read, fsync=False)
-        cycles = [dict(zip(CYCLE_COLUMNS, row, strict=True)) for row in reversed(rows)]
-        last = rows[0][3] if rows else None
+        counts, rows, stats_row, newest = await self._store.call(read, fsync=False)
+        (total, interrupted), (window, mean, low, high) = counts, stats_row
+        cycles = [_row(row) for row in reversed(rows)]
+        last = newest[0] if newest else None
+        count = int(total) - (0 if include_interrupted else int(interrupted))  # type: ignore[call-overload]
         stats = CycleStats(
             count,
+            int(interrupted),  # type: ignore[call-overload]
             float(last) if isinstance(last, int | float) else None,
             int(window),  # type: ignore[call-overload]
             _number(mean),
@@ -120,10 +135,16 @@ class CycleStore:
         return CycleRange(cycles, stats)
 
 
+def _row(row: _Row) -> dict[str, object]:
+    cycle = dict(zip(CYCLE_COLUMNS, row, strict=True))
+    cycle["interrupted"] = bool(cycle["interrupted"])
+    return cycle
+
+
 def _insert(db: sqlite3.Connection, cycles: list[Cycle]) -> None:
     db.executemany(
-        "INSERT INTO cycles (robot, start, end, duration_s) VALUES (?, ?, ?, ?)",
-        [(c.robot, c.start, c.end, c.duration_s) for c in cycles],
+        "INSERT INTO cycles (robot, start, end, duration_s, interruption) VALUES (?, ?, ?, ?, ?)",
+        [(c.robot, c.start, c.end, c.duration_s, c.interruption) for c in cycles],
     )
 
 

@@ -63,12 +63,29 @@ class CycleTrigger:
 
     @property
     def label(self) -> str:
-        """In words, for the panel ("rising edge of bit_output_registers.63")."""
+        """In words, named as the robot prints it, for the panel: "rising edge of Register out
+        63", "falling edge of DI 5", "rising edge of Servo on", "entering Standalone running"."""
         if self.state is not None:
-            return f"entering {self.text.partition(':')[2]}"
+            return f"entering {_STATE_LABELS.get(self.state, self.text.partition(':')[2])}"
         edge = "falling" if self.falling else "rising"
-        where = self.field if self.index is None else f"{self.field}.{self.index}"
-        return f"{edge} edge of {where}"
+        return f"{edge} edge of {_element_label(self.field, self.index)}"
+
+
+_REGISTERS: Final = {"bit_output_registers": "Register out"}
+"""The layout labels both register banks "Register n"; the robot's own bank (T→O) is named by
+its direction, as the I/O checkout names it ("Register out 63")."""
+_STATE_LABELS: Final = {state.value: state.label or state.name for state in ROBOT_STATES}
+
+
+def _element_label(name: str, index: int | None) -> str:
+    field: Field | None = _BIT_ARRAYS.get(name) or _FLAGS.get(name)
+    if field is None:
+        return name if index is None else f"{name}.{index}"
+    if index is None or not field.channels:
+        return field.description if index is None else f"{name}.{index}"
+    label = field.channels[index]
+    prefix = _REGISTERS.get(name)
+    return label.replace("Register", prefix, 1) if prefix else label
 
 
 def _array_bit(name: str, index_text: str, edge: str, text: str) -> CycleTrigger:

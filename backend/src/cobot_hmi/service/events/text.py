@@ -180,7 +180,8 @@ def event_text(event: Mapping[str, object]) -> str:
     if kind == "cycle":
         duration_s = event.get("duration_s")
         if isinstance(duration_s, int | float):
-            return f"Cycle of {duration_s:.2f} s"
+            why = event.get("interruption")
+            return f"Cycle of {duration_s:.2f} s" + (f", interrupted: {why}" if why else "")
         return "Cycle"
     return f"{kind} event"
 

@@ -317,7 +317,7 @@ def _cell(value: object) -> str:
 
 
 def _switch_words(switch: dict[str, object]) -> str:
-    """One switch in the report: "on confirmed 2026-12-07T04:01:02.345Z by olivia"."""
+    """One switch in the report: "on confirmed 2026-12-07T05:01:02.345678+01:00 by olivia"."""
     return (
         f"{_cell(switch.get('value'))} confirmed {_time(switch.get('time'))} by {switch.get('by')}"
     )

@@ -25,7 +25,8 @@ DEFAULT_LAST: Final = 20
 @router.get(
     "/robots/{name}/cycles",
     summary="The robot's cycles in a range and their statistics (last, mean/min/max of the "
-    "last N, count)",
+    "last N, count); interrupted cycles are marked and left out of the statistics unless "
+    "include_interrupted",
     responses={
         200: {
             "model": CyclePage,
@@ -50,17 +51,29 @@ async def get_cycles(
         int, Query(ge=1, le=MAX_PAGE, description="N: mean, min and max are of the newest N")
     ] = DEFAULT_LAST,
     format: Annotated[Literal["json", "csv"], Query(description="csv: the cycles as CSV")] = "json",
+    include_interrupted: Annotated[
+        bool,
+        Query(
+            description="true: the statistics include the interrupted cycles (a stop, a lost "
+            "link, the robot out of its running states); by default they leave them out"
+        ),
+    ] = False,
 ) -> Response:
     cycles = service.cycles
     await cycles.store.flush()  # what was measured before the request is in the answer
     found = await cycles.store.read_range(
-        robot.name, since=epoch_s(since), until=epoch_s(until), limit=limit, last_n=last
+        robot.name,
+        since=epoch_s(since),
+        until=epoch_s(until),
+        limit=limit,
+        last_n=last,
+        include_interrupted=include_interrupted,
     )
     if format == "csv":
         return download(
             to_csv(found.cycles, CYCLE_COLUMNS, time_columns=("start", "end")),
             f"cycles-{robot.name}.csv",
-            total=found.stats.count,
+            total=found.stats.count + (0 if include_interrupted else found.stats.interrupted),
         )
     meter = cycles.meters.get(robot.name)
     stats = found.stats
@@ -72,6 +85,8 @@ async def get_cycles(
         "cycles": found.cycles,
         "statistics": {
             "count": stats.count,
+            "interrupted": stats.interrupted,
+            "include_interrupted": include_interrupted,
             "last_s": stats.last_s,
             "window": stats.window,
             "mean_s": stats.mean_s,
