@@ -34,6 +34,7 @@ from cobot_hmi.eventloop import precise_event_loop
 from cobot_hmi.opcua import security
 from cobot_hmi.opcua.address_space import build
 from cobot_hmi.opcua.auth import Permissions, UserManager
+from cobot_hmi.opcua.build_info import build_info, describe
 from cobot_hmi.opcua.companion import load
 from cobot_hmi.opcua.feed import ServiceFeed
 from cobot_hmi.opcua.sessions import RobotInternalServer
@@ -185,6 +186,7 @@ class OpcUaServer:
         server.set_server_name(SERVER_NAME)
         server.product_uri = PRODUCT_URI
         await server.set_application_uri(self.certificates.application_uri)
+        await describe(server, build_info(PRODUCT_URI))
         server.set_security_policy(
             security.policies(
                 loopback=settings.opcua_loopback,
