@@ -2,9 +2,10 @@
 
 Each robot gets a namespace of its own (``urn:cobot-hmi:robot:<name>``: its NodeIds stay the
 same whatever other robots the cell has) holding its Robotics instances (``robotics``), its
-whole I/O layout (``layout_nodes``), and beside them on the robot's object: ``Status``
-(``ConnectionState``, ``ControlHolder``) and the methods ``TakeControl`` and
-``ReleaseControl`` (linked by ``writes``).
+whole I/O layout (``layout_nodes``), its Machinery building blocks (``machinery``: found from
+``Objects/Machines``), and beside them on the robot's object: ``Status`` (``ConnectionState``,
+``ControlHolder``) and the methods ``TakeControl`` and ``ReleaseControl`` (linked by
+``writes``).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from asyncua import Server, ua
 from cobot_hmi.opcua.bindings import RobotNodes
 from cobot_hmi.opcua.companion import Companion
 from cobot_hmi.opcua.layout_nodes import LayoutBuilder
+from cobot_hmi.opcua.machinery import MachineryBuilder
 from cobot_hmi.opcua.nodes import NodeBuilder, child_id
 from cobot_hmi.opcua.robotics import RoboticsBuilder
 
@@ -40,6 +42,7 @@ async def build(
         nodes = RobotNodes(robot, namespace)
         system = await RoboticsBuilder(builder, companion, nodes).add()
         LayoutBuilder(builder, nodes, writable=writable).add(system)
+        await MachineryBuilder(builder, companion, nodes).add(system)
         _status_and_control(builder, nodes, system)
         await builder.commit()
         built[robot] = nodes

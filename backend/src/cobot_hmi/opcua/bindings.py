@@ -59,6 +59,24 @@ class JointRange:
     speed: bool
 
 
+@dataclass(frozen=True, slots=True)
+class MachineState:
+    """A state of a finite state machine of the companion models: its name and its node."""
+
+    name: str
+    node: ua.NodeId
+
+
+@dataclass(frozen=True, slots=True)
+class StateMachineBinding:
+    """A state machine whose ``CurrentState`` (and its ``Id``) is ``read(frame)``, or
+    ``read(None)`` while there is no frame (the link down, none yet)."""
+
+    current_state: ua.NodeId
+    state_id: ua.NodeId
+    read: Callable[[Frame | None], MachineState]
+
+
 @dataclass
 class RobotNodes:
     """Every node of one robot that the updater writes (see the module docstring)."""
@@ -75,6 +93,9 @@ class RobotNodes:
     product_codes: list[ua.NodeId] = field(default_factory=list)
     software_revisions: list[ua.NodeId] = field(default_factory=list)
     """``SoftwareRevision`` properties: the frame's controller version."""
+    product_instance_uris: list[ua.NodeId] = field(default_factory=list)
+    """``ProductInstanceUri`` properties (Machinery): made of the identity."""
+    state_machines: list[StateMachineBinding] = field(default_factory=list)
     connection_state: ua.NodeId | None = None
     control_holder: ua.NodeId | None = None
     take_control: ua.NodeId | None = None

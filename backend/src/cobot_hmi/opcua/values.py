@@ -10,7 +10,8 @@ While the robot's link is down every frame-derived variable is Null with
 ``BadCommunicationError`` (its SourceTimestamp the moment the link went), and Good again with
 the first frame after it returns; before the first frame they are ``BadWaitingForInitialData``.
 The command image is the service's own (what it sends, or would send): always Good. The
-nameplates (identity) and the software revision keep their last value.
+nameplates (identity) and the software revision keep their last value. The Machinery state
+machines (``machinery``) stay Good: without a frame the robot is NotAvailable, mode None.
 """
 
 from __future__ import annotations
@@ -24,7 +25,8 @@ from asyncua import Server, ua
 
 from cobot_hmi.arms import ARMS, Arm
 from cobot_hmi.codec import CommandImage, Frame
-from cobot_hmi.opcua.bindings import RobotNodes
+from cobot_hmi.opcua.bindings import MachineState, RobotNodes
+from cobot_hmi.opcua.machinery import MANUFACTURER_URI
 from cobot_hmi.opcua.units import analog_unit
 
 _VALUE: Final = ua.AttributeIds.Value
@@ -42,6 +44,12 @@ class Identity:
     product_name: str
     serial_number: str
     product_code: str
+
+    @property
+    def product_instance_uri(self) -> str:
+        """Machinery's ProductInstanceUri, globally unique per robot as OPC 40001-1 recommends
+        it: the manufacturer's URI, then the product code and the serial number."""
+        return f"{MANUFACTURER_URI}/{self.product_code}/{self.serial_number}"
 
     @property
     def arm(self) -> Arm:
@@ -95,6 +103,7 @@ class RobotValues:
         self.nodes = nodes
         self._frame_values: list[object] = [None] * len(nodes.frame)
         self._command_values: list[object] = [None] * len(nodes.command)
+        self._machine_states: list[MachineState | None] = [None] * len(nodes.state_machines)
         self._analog_types: list[str | None] = [None] * len(nodes.analog_units)
         self._frame_status: ua.StatusCode | None = None
         self._revision: str | None = None
@@ -135,9 +144,14 @@ class RobotValues:
             await self._write(node, variant, GOOD, now)
         for node in self.nodes.unsupported:
             await self._write(node, _NULL, NOT_SUPPORTED, now)
-        for node in (*self.nodes.models, *self.nodes.serial_numbers, *self.nodes.product_codes):
+        nodes = self.nodes
+        identity = (nodes.models, nodes.serial_numbers, nodes.product_codes)
+        for node in (node for group in identity for node in group):
+            await self._write(node, _NULL, WAITING, now)
+        for node in nodes.product_instance_uris:
             await self._write(node, _NULL, WAITING, now)
         await self._frames_status(WAITING, now)
+        await self._state_machines(None, now)
 
     async def update(self, sample: Sample) -> None:
         now = time.time()
@@ -157,9 +171,11 @@ class RobotValues:
         if not sample.connected:
             if self._frame_status is GOOD:
                 await self._frames_status(COMMUNICATION_ERROR, _utc(now))
+            await self._state_machines(None, _utc(now))
             return
         if sample.frame is not None:
             await self._frame(sample.frame, _utc(sample.received_at))
+            await self._state_machines(sample.frame, _utc(sample.received_at))
 
     async def _frames_status(self, status: ua.StatusCode, source: datetime) -> None:
         """Every frame-derived variable Null with ``status`` (the link down, no data yet)."""
@@ -186,6 +202,19 @@ class RobotValues:
             self._revision = revision
             for node in self.nodes.software_revisions:
                 await self._write(node, ua.Variant(revision, ua.VariantType.String), GOOD, source)
+
+    async def _state_machines(self, frame: Frame | None, source: datetime) -> None:
+        """Each state machine's CurrentState and its Id, when the state changed: Good even
+        without a frame (the machine's state is then known: not available)."""
+        for index, machine in enumerate(self.nodes.state_machines):
+            state = machine.read(frame)
+            if state == self._machine_states[index]:
+                continue
+            self._machine_states[index] = state
+            text = ua.Variant(ua.LocalizedText(state.name), ua.VariantType.LocalizedText)
+            await self._write(machine.current_state, text, GOOD, source)
+            state_id = ua.Variant(state.node, ua.VariantType.NodeId)
+            await self._write(machine.state_id, state_id, GOOD, source)
 
     async def _command(self, image: CommandImage, source: datetime) -> None:
         values = self._command_values
@@ -220,6 +249,9 @@ class RobotValues:
         code = ua.Variant(identity.product_code, ua.VariantType.String)
         for node in self.nodes.product_codes:
             await self._write(node, code, GOOD, source)
+        uri = ua.Variant(identity.product_instance_uri, ua.VariantType.String)
+        for node in self.nodes.product_instance_uris:
+            await self._write(node, uri, GOOD, source)
         arm = identity.arm
         for joint_range in self.nodes.joint_ranges:
             joint = arm.joints[joint_range.joint]
