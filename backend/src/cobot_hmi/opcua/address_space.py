@@ -4,8 +4,8 @@ Each robot gets a namespace of its own (``urn:cobot-hmi:robot:<name>``: its Node
 same whatever other robots the cell has) holding its Robotics instances (``robotics``), its
 whole I/O layout (``layout_nodes``), its Machinery building blocks (``machinery``: found from
 ``Objects/Machines``), and beside them on the robot's object: ``Status`` (``ConnectionState``,
-``ControlHolder``) and the methods ``TakeControl`` and ``ReleaseControl`` (linked by
-``writes``).
+``ControlHolder``) and, with writes on only, the methods ``TakeControl`` and ``ReleaseControl``
+(linked by ``writes``).
 """
 
 from __future__ import annotations
@@ -43,13 +43,15 @@ async def build(
         system = await RoboticsBuilder(builder, companion, nodes).add()
         LayoutBuilder(builder, nodes, writable=writable).add(system)
         await MachineryBuilder(builder, companion, nodes).add(system)
-        _status_and_control(builder, nodes, system)
+        _status_and_control(builder, nodes, system, writable=writable)
         await builder.commit()
         built[robot] = nodes
     return built, time.perf_counter() - started
 
 
-def _status_and_control(builder: NodeBuilder, nodes: RobotNodes, system: ua.NodeId) -> None:
+def _status_and_control(
+    builder: NodeBuilder, nodes: RobotNodes, system: ua.NodeId, *, writable: bool
+) -> None:
     ns = nodes.namespace
     status = builder.add_object(
         system,
@@ -74,6 +76,8 @@ def _status_and_control(builder: NodeBuilder, nodes: RobotNodes, system: ua.Node
         string,
         description="The user holding control of the robot's outputs (empty: nobody)",
     )
+    if not writable:  # a session that cannot write must not hold control (writes.py)
+        return
     result = ua.Argument(
         Name="Holder",
         DataType=string,

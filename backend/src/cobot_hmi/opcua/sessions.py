@@ -3,11 +3,12 @@
 asyncua hands a Write to its attribute service and a Call to its method service without
 saying which session sent it. ``RobotSession`` (the class of every client's session, made by
 ``RobotInternalServer.create_session``) takes the Write values and method calls that belong
-to the robots (``writes.CommandWrites``) with its own user, peer and id, and passes the rest
-on unchanged; it also sets the peer for the login throttle while a session is activated
-(``auth.PEER``), whether its channel is signed while it is created (``security.SECURE_CHANNEL``:
-a client certificate over SecurityPolicy None is ignored, Part 4 §5.6.2), and tells
-``CommandWrites`` when it closes.
+to the robots (``writes.CommandWrites``) with its own user, peer and id, answers a write to a
+variable nobody may write ``BadNotWritable`` (``writes.access_level_refusal``; asyncua would
+say ``BadUserAccessDenied``), and passes the rest on unchanged; it also sets the peer for the
+login throttle while a session is activated (``auth.PEER``), whether its channel is signed
+while it is created (``security.SECURE_CHANNEL``: a client certificate over SecurityPolicy None
+is ignored, Part 4 §5.6.2), and tells ``CommandWrites`` when it closes.
 
 A new subscription is created in phase with the server's monitoring ticks: asyncua starts a
 subscription's publishing cycle when it creates it (then every publishing interval on that
@@ -31,7 +32,7 @@ from asyncua.server.user_managers import UserManager
 
 from cobot_hmi.opcua.auth import PEER
 from cobot_hmi.opcua.security import SECURE_CHANNEL
-from cobot_hmi.opcua.writes import Caller, CommandWrites
+from cobot_hmi.opcua.writes import Caller, CommandWrites, access_level_refusal
 
 log = logging.getLogger(__name__)
 
@@ -123,13 +124,14 @@ class RobotSession(InternalSession):
         routes = self._server.routes
         values = params.NodesToWrite
         mine = [i for i, v in enumerate(values) if routes is not None and routes.owns_write(v)]
-        if not mine or routes is None:
-            passed: list[ua.StatusCode] = await super().write(params)
-            return passed
         results: list[ua.StatusCode | None] = [None] * len(values)
-        statuses = await routes.write(self._caller(), [values[i] for i in mine])
-        for position, status in zip(mine, statuses, strict=True):
-            results[position] = status
+        if mine and routes is not None:
+            statuses = await routes.write(self._caller(), [values[i] for i in mine])
+            for position, status in zip(mine, statuses, strict=True):
+                results[position] = status
+        for position, value in enumerate(values):  # read-only for everyone: BadNotWritable
+            if results[position] is None:
+                results[position] = access_level_refusal(self._server.aspace, value)
         others = [i for i in range(len(values)) if results[i] is None]
         if others:
             rest = ua.WriteParameters(NodesToWrite=[values[i] for i in others])

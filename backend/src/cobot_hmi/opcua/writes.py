@@ -1,7 +1,11 @@
 """Layer: service (OPC UA). Writes to the command image, and taking and releasing control.
 
 Off unless ``opcua_writes``: then the command variables are read-only (their AccessLevel
-says so) and a write is ``BadNotWritable`` before it reaches anything. On, the variables of
+says so), a write is ``BadNotWritable`` before it reaches anything (``access_level_refusal``,
+as for every variable whose AccessLevel has no CurrentWrite: OPC 10000-4 §5.10.4 keeps
+``BadUserAccessDenied`` for a variable this user may not write, which others may), and the
+robot's object has no ``TakeControl`` and ``ReleaseControl``: a session that cannot write must
+not hold control and lock the panel's operator out. On, the variables of
 one robot written in one Write request become one write body (``{field: {index: value}}``, as
 ``PATCH …/command`` takes it) that goes through the service's one write pipeline: validated
 whole, audited with the OPC UA user and the session (``client``: the peer's address and the
@@ -18,7 +22,8 @@ invalid (422)               BadTypeMismatch (a value of another type), else BadO
 timeout (504)               BadTimeout (the robot's frame did not show it in time)
 =========================  ===============================================================
 
-``TakeControl`` and ``ReleaseControl`` (methods of the robot's object) go through the same
+``TakeControl`` and ``ReleaseControl`` (methods of the robot's object, with writes on only) go
+through the same
 pipeline's control steps for the session's own control session; their output is the holder
 afterwards. A closed session's control is released (``closed``).
 """
@@ -32,6 +37,7 @@ from typing import Any, Final
 
 from asyncua import ua
 from asyncua.crypto.permission_rules import User
+from asyncua.server.address_space import AddressSpace
 
 from cobot_hmi.opcua.auth import OpcUaUser
 from cobot_hmi.opcua.bindings import CommandBinding, RobotNodes
@@ -50,6 +56,26 @@ _STATUS: Final = {
     422: ua.StatusCodes.BadOutOfRange,
     504: ua.StatusCodes.BadTimeout,
 }
+
+
+def access_level_refusal(aspace: AddressSpace, value: ua.WriteValue) -> ua.StatusCode | None:
+    """``BadNotWritable`` for a write no user may make: an attribute other than the Value (no
+    node here has a WriteMask) or a variable whose AccessLevel has no CurrentWrite; ``None``
+    for the rest (an unknown node, a writable variable: asyncua's own checks answer those)."""
+    if value.AttributeId != ua.AttributeIds.Value:
+        found = aspace.read_attribute_value(value.NodeId, value.AttributeId).StatusCode
+        if found is not None and found.value == ua.StatusCodes.BadNodeIdUnknown:
+            return None
+        if found is not None and found.value == ua.StatusCodes.BadAttributeIdInvalid:
+            return found
+        return ua.StatusCode(ua.StatusCodes.BadNotWritable)
+    level = aspace.read_attribute_value(value.NodeId, ua.AttributeIds.AccessLevel)
+    if level.StatusCode is not None and not level.StatusCode.is_good():
+        return None  # no such node, or not a variable
+    mask = level.Value.Value if level.Value is not None else None
+    if isinstance(mask, int) and not mask & ua.AccessLevel.CurrentWrite.mask:
+        return ua.StatusCode(ua.StatusCodes.BadNotWritable)
+    return None
 
 
 @dataclass(frozen=True, slots=True)
@@ -92,9 +118,9 @@ class CommandWrites:
             if enabled:
                 for node, binding in nodes.command_by_node.items():
                     self._commands[node] = (name, binding)
-            if nodes.take_control is not None:
+            if enabled and nodes.take_control is not None:
                 self._methods[nodes.take_control] = (name, True)
-            if nodes.release_control is not None:
+            if enabled and nodes.release_control is not None:
                 self._methods[nodes.release_control] = (name, False)
         self.outcomes: dict[str, int] = {}
 
