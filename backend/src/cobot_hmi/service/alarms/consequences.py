@@ -22,6 +22,10 @@ within the window after the cause cleared):
 A protective stop a few seconds after an emergency stop's reset is news (the rule is "while
 active"); SAFE_OFF long after a reset is an error of its own (outside the window).
 
+Of two possible causes the most recent is named (an active one before one that cleared, else
+the one that cleared last): a SAFE_OFF after a protective stop's reset is the protective
+stop's, though an emergency stop cleared a few seconds before that is still within its window.
+
 A cause that is itself suppressed does not suppress others: the cause named is always an alarm
 that was annunciated (the root). Suppression is decided when the consequence comes: an alarm
 already annunciated before its cause came stays annunciated (nothing the operator was told is
@@ -30,6 +34,7 @@ withdrawn).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Final
 
@@ -59,22 +64,36 @@ CAUSES: Final[Mapping[str, tuple[tuple[str, bool], ...]]] = _causes()
 ``CONSEQUENCES`` names them (the first that holds is named)."""
 
 
+def _recency(
+    status: AlarmStatus, after: bool, time_s: float, window_s: float
+) -> tuple[bool, float] | None:
+    """How recent a cause is for a consequence coming at ``time_s`` (greater is more recent:
+    (active, when it came or cleared)), or ``None`` when it is no cause of it now. An active
+    cause is more recent than any cleared one (it holds now; among several, the one that came
+    last counts); a cleared one counts from when it cleared."""
+    if status.suppressed_by is not None:
+        return None  # itself a consequence (now, or when it last came): not the root
+    if status.state.active:
+        return (True, math.inf if status.activated_at is None else status.activated_at)
+    # Frame alarms run on receive times, connection alarms on the clock: both epoch seconds,
+    # not ordered to the millisecond, so the window counts either way.
+    cleared = status.cleared_at
+    if after and cleared is not None and abs(time_s - cleared) <= window_s:
+        return (False, cleared)
+    return None
+
+
 def cause_of(
     key: str, statuses: Mapping[str, AlarmStatus], time_s: float, window_s: float
 ) -> str | None:
     """The key of the cause whose consequence alarm ``key`` is if its condition comes at
-    ``time_s``, or ``None`` (it is news: annunciate it)."""
+    ``time_s``, or ``None`` (it is news: annunciate it). Of several possible causes the most
+    recent is named: a SAFE_OFF after a protective stop's reset is the protective stop's, even
+    with an emergency stop cleared a few seconds before it (ties: ``CONSEQUENCES``'s order)."""
+    best: tuple[tuple[bool, float], str] | None = None
     for cause, after in CAUSES.get(key, ()):
         status = statuses.get(cause)
-        if status is None or status.suppressed_by is not None:
-            continue  # itself a consequence (now, or when it last came): not the root
-        if status.state.active:
-            return cause
-        if not after:
-            continue
-        # Frame alarms run on receive times, connection alarms on the clock: both epoch
-        # seconds, not ordered to the millisecond, so the window counts either way.
-        cleared = status.cleared_at
-        if cleared is not None and abs(time_s - cleared) <= window_s:
-            return cause
-    return None
+        recency = None if status is None else _recency(status, after, time_s, window_s)
+        if recency is not None and (best is None or recency > best[0]):
+            best = (recency, cause)
+    return None if best is None else best[1]
