@@ -20,7 +20,7 @@ import orjson
 import pytest
 from websockets.asyncio.client import connect
 
-from cobot_hmi.service.alarms.persistence import HISTORY_COLUMNS
+from cobot_hmi.service.alarms.persistence import HISTORY_CSV_COLUMNS
 from cobot_hmi.service.api.models import EVENT, STREAM_MESSAGE, AlarmHistoryPage, AlarmList
 from cobot_hmi.settings import HmiSettings
 from conftest import free_tcp_port
@@ -223,7 +223,7 @@ async def test_estop_alarm_ack_restart_reset(emu: Emulator, plc_host: str, tmp_p
         assert history_csv.status_code == 200
         assert history_csv.headers["content-type"].startswith("text/csv")
         rows = list(csv.reader(io.StringIO(history_csv.text)))
-        assert tuple(rows[0]) == HISTORY_COLUMNS
+        assert tuple(rows[0]) == HISTORY_CSV_COLUMNS
         assert len(rows) - 1 == page["total"] == int(history_csv.headers["x-total-count"])
         for row in rows[1:]:
             when = datetime.fromisoformat(row[1])

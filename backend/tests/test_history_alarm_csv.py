@@ -11,7 +11,7 @@ from pathlib import Path
 
 from cobot_hmi.service.alarms.persistence import (
     HISTORY_BATCH_ROWS,
-    HISTORY_COLUMNS,
+    HISTORY_CSV_COLUMNS,
     AlarmChange,
     AlarmStore,
 )
@@ -52,7 +52,7 @@ async def fill(store: AlarmStore, robot: str, first: int, count: int) -> None:
 
 def rows_of(text: str) -> list[dict[str, str]]:
     reader = csv.DictReader(io.StringIO(text))
-    assert reader.fieldnames == list(HISTORY_COLUMNS)
+    assert reader.fieldnames == list(HISTORY_CSV_COLUMNS)
     return list(reader)
 
 

@@ -25,6 +25,7 @@ from cobot_hmi.service.access.auth import LoginThrottle, Session, Sessions
 from cobot_hmi.service.access.directory import Directory
 from cobot_hmi.service.access.users import User, UsersFile
 from cobot_hmi.service.alarms.summary import cell_summary
+from cobot_hmi.service.config.plant_time import PLANT_ZONE
 from cobot_hmi.service.cycles.service import Cycles
 from cobot_hmi.service.errors import UnknownRobotError
 from cobot_hmi.service.events.bus import EventBus
@@ -59,6 +60,7 @@ class Service:
     ) -> None:
         self.settings = settings
         robot_settings = settings.require_robots()
+        PLANT_ZONE.use(settings.time_zone)  # one plant, one zone (config.plant_time)
         self.users = UsersFile(settings.users_path)
         self.store = Store(settings.database_path)
         self.cyclic = CyclicLoop(

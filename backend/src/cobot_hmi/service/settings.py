@@ -41,6 +41,7 @@ from cobot_hmi.service.config.fields import (
     RobotName,
     Seconds,
     SettingsError,
+    TimeZoneName,
     connection_setting,
     rpi_ms_setting,
     setting,
@@ -134,6 +135,11 @@ class ServiceSettings(  # each concern's fields; flags and TOML keys list the la
     )
     link_down_unhealthy_s: Seconds = setting(
         30.0, "/healthz fails when a robot has not been connected for this long, s"
+    )
+    time_zone: TimeZoneName = setting(
+        "",
+        "the plant's time zone, an IANA name (Europe/Berlin): every time the pages, the CSV "
+        "exports and the prints show is in it; empty: the service host's zone",
     )
 
     @classmethod

@@ -21,6 +21,8 @@ from typing import Final
 
 import orjson
 
+from cobot_hmi.service.alarms import definitions as d
+from cobot_hmi.service.labels import robot_state_words, unit_of
 from cobot_hmi.service.storage.queued_writer import QueuedWriter
 from cobot_hmi.service.storage.search import Search
 from cobot_hmi.service.storage.store import Page, Store
@@ -61,6 +63,34 @@ HISTORY_COLUMNS: Final = (
     "comment",
     "suppressed_by",
 )
+HISTORY_CSV_COLUMNS: Final = (
+    *HISTORY_COLUMNS[: HISTORY_COLUMNS.index("value") + 1],
+    "value_words",
+    *HISTORY_COLUMNS[HISTORY_COLUMNS.index("value") + 1 :],
+)
+"""A history CSV's columns: the stored ones and the value in words beside the value."""
+_STATE_KEYS: Final = frozenset({d.EMERGENCY_STOP, d.PROTECTIVE_STOP, d.SAFE_OFF})
+_UNITS: Final = {
+    d.MOTOR_TEMPERATURE: unit_of("joint_motor_temperature.0"),
+    d.PACKET_LOSS: "gaps/min",
+}
+
+
+def value_words(key: str, value: object) -> str | None:
+    """A history row's watched value as a person reads it: a state alarm's robot state by its
+    label ("Emergency stop", never "0"), a temperature with its unit ("81.2 °C"), a rate with
+    its ("12 gaps/min"), a bit "on"/"off"; ``None`` when the row has no value. Read from the
+    key and the value alone, so rows written before the words existed read the same."""
+    if value is None:
+        return None
+    if isinstance(value, bool):
+        return "on" if value else "off"
+    if key in _STATE_KEYS and isinstance(value, int | float) and float(value).is_integer():
+        return robot_state_words(int(value))
+    if isinstance(value, int | float):
+        unit = _UNITS.get(key.partition(".")[0], "")
+        return f"{value:g} {unit}".rstrip()
+    return str(value)
 
 
 @dataclass(frozen=True, slots=True)
@@ -240,6 +270,7 @@ def _history_item(row: tuple[object, ...]) -> dict[str, object]:
     item["shelved"] = bool(item["shelved"])
     text = item["value"]
     item["value"] = orjson.loads(text) if isinstance(text, str) else None
+    item["value_words"] = value_words(str(item["key"]), item["value"])
     return item
 
 

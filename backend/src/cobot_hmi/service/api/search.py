@@ -3,8 +3,8 @@ time range (``from``, ``to``), in the same words on every route (the events, the
 the alarm history, the cycles).
 
 A time is seconds since the epoch or ISO 8601 with its offset (``2026-11-27T12:00:00+01:00``;
-without an offset it is the service's local time). The text matches, case-insensitively, any
-part of a row's words (``storage.search``).
+without an offset it is the plant's time zone, ``config.plant_time``). The text matches,
+case-insensitively, any part of a row's words (``storage.search``).
 """
 
 from __future__ import annotations
@@ -16,9 +16,11 @@ from typing import Annotated, Final
 from fastapi import Query
 from pydantic import AfterValidator
 
+from cobot_hmi.service.config.plant_time import PLANT_ZONE
+
 _TIME_HELP: Final = (
     "seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without "
-    "an offset: the service's local time)"
+    "an offset: the plant's time zone, the time_zone setting)"
 )
 
 
@@ -33,8 +35,8 @@ def epoch_s(text: str | None) -> float | None:
             moment = datetime.fromisoformat(text)
         except ValueError:
             raise ValueError(f"expected {_TIME_HELP}; got {text!r}") from None
-        if moment.tzinfo is None:
-            moment = moment.astimezone()
+        if moment.tzinfo is None:  # the plant's time, as the pages show it
+            moment = moment.replace(tzinfo=PLANT_ZONE.zone)
         return moment.timestamp()
     if not math.isfinite(value):
         raise ValueError(f"expected a finite time, got {text!r}")

@@ -4,8 +4,9 @@ units and checks they share, and the constants every concern's settings use.
 Declaring a setting: one field, ``name: type = setting(default, "help", bounds…)``; its flag
 (``--name``, or ``flag=``) and environment variable (``COBOT_HMI_NAME``) are derived. Connection
 settings take default, bounds and help from ``cobot_hmi.connection_params``, shared with the
-emulator and the scanner. Pure: imports nothing of the project but the connection declarations
-(and, lazily, the layout whose units and field names key the Sparkplug deadbands)."""
+emulator and the scanner. Pure: imports nothing of the project but the connection declarations,
+the time zones' check (``plant_time``) and, lazily, the layout whose units and field names key
+the Sparkplug deadbands."""
 
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ from pydantic import AfterValidator, BeforeValidator, Field
 from pydantic_settings import NoDecode
 
 from cobot_hmi import connection_params as cp
+from cobot_hmi.service.config.plant_time import check_zone_name
 
 O2T_SIZE: Final = cp.O2T_SIZE.default
 T2O_SIZE: Final = cp.T2O_SIZE.default
@@ -118,6 +120,8 @@ Milliseconds = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 Port = Annotated[int, Field(ge=0, le=65535)]
 """A TCP or UDP port; 0 asks the OS for any free one (the HTTP port in tests)."""
 RobotName = Annotated[str, Field(pattern=ROBOT_NAME_PATTERN)]
+TimeZoneName = Annotated[str, AfterValidator(check_zone_name)]
+"""An IANA time zone name ("Europe/Berlin") this machine knows, or empty (the host's zone)."""
 SPARKPLUG_ID_PATTERN: Final = r"^[^+#/]+$"
 """A Sparkplug group, edge node or device id: no MQTT wildcard, no topic level separator."""
 SparkplugId = Annotated[str, Field(pattern=SPARKPLUG_ID_PATTERN)]

@@ -29,6 +29,7 @@ from cobot_hmi.scanner.t2o_pace import SlowTarget
 from cobot_hmi.service.alarms.engine import TICK_S, AlarmEngine, UserAlarm
 from cobot_hmi.service.alarms.persistence import AlarmStore
 from cobot_hmi.service.api import models
+from cobot_hmi.service.config.plant_time import PLANT_ZONE
 from cobot_hmi.service.events.bus import EventBus
 from cobot_hmi.service.events.text import Event
 from cobot_hmi.service.robots.confirmation import FrameWaiters
@@ -365,4 +366,5 @@ class RobotRuntime:
             "connection": await self.connection_status(),
             "control": self.control.status(),
             "rate_hz": rate_hz,
+            "time_zone": PLANT_ZONE.name,
         }

@@ -2,14 +2,30 @@
 (``since`` inclusive, ``until`` exclusive) and a text (``q``) that any of the table's word
 columns contains, case-insensitively (``LIKE`` with ``%`` and ``_`` taken literally; SQLite's
 ``LIKE`` folds ASCII case). Used by the event log, the audit trail and the alarm history.
-Imports nothing of the project.
+A text finds its synonyms too (``synonyms``): people write "e-stop" or "estop" where the
+records say "Emergency stop". Imports nothing of the project.
 """
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Final
+
+_SYNONYMS: Final = ((re.compile(r"\be[-\s]?stop", re.IGNORECASE), "emergency stop"),)
+"""What people write → the records' words ("e-stop", "E stop", "estop" → "emergency stop")."""
+
+
+def synonyms(text: str) -> list[str]:
+    """``text`` and, where it uses a short form, the same text in the records' words:
+    ``"e-stop reset"`` → ``["e-stop reset", "emergency stop reset"]``."""
+    out = [text]
+    for short, words in _SYNONYMS:
+        expanded = short.sub(words, text)
+        if expanded not in out:
+            out.append(expanded)
+    return out
 
 
 def like_pattern(text: str) -> str:
@@ -48,10 +64,10 @@ class Search:
             clauses.append(f"{time_column} < ?")
             params.append(self.until)
         if self.q and text_columns:
-            pattern = like_pattern(self.q)
-            likes = " OR ".join(f"{c} LIKE ? ESCAPE '\\'" for c in text_columns)
+            patterns = [like_pattern(text) for text in synonyms(self.q)]
+            likes = " OR ".join(f"{c} LIKE ? ESCAPE '\\'" for _ in patterns for c in text_columns)
             clauses.append(f"({likes})")
-            params.extend(pattern for _ in text_columns)
+            params.extend(pattern for pattern in patterns for _ in text_columns)
         return ("WHERE " + " AND ".join(clauses)) if clauses else "", params
 
 

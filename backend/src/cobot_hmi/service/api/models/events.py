@@ -184,6 +184,11 @@ class AlarmHistoryRow(BaseModel):
     shelved: bool
     message: str | None
     value: bool | float | None
+    value_words: str | None = Field(
+        default=None,
+        description="the value as a person reads it: a state alarm's robot state by its label "
+        '("Emergency stop"), a number with its unit ("81.2 °C"), a bit "on"/"off"',
+    )
     label: str | None
     tag: str | None
     user: str | None

@@ -42,6 +42,11 @@ class HelloMessage(BaseModel):
     connection: ConnectionStatus
     control: ControlStatus
     rate_hz: float | None
+    time_zone: str = Field(
+        default="UTC",
+        description="the plant's time zone (the time_zone setting, an IANA name): the pages "
+        "write every time in it",
+    )
     alarms: list[Alarm] = Field(
         default_factory=list,
         description="the robot's alarms that are active or unacknowledged when the stream "

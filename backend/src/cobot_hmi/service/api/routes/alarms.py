@@ -18,7 +18,7 @@ from fastapi import APIRouter, Body, Path, Query, Request, Response
 
 from cobot_hmi.codec import dumps
 from cobot_hmi.service.alarms.engine import AlarmEngine, AlarmRefusedError, UnknownAlarmError
-from cobot_hmi.service.alarms.persistence import HISTORY_COLUMNS, AlarmStore
+from cobot_hmi.service.alarms.persistence import HISTORY_CSV_COLUMNS, AlarmStore
 from cobot_hmi.service.alarms.summary import annunciated
 from cobot_hmi.service.api import models
 from cobot_hmi.service.api.bounds import OptionalOffset
@@ -169,7 +169,7 @@ async def alarm_history(
         q=q,
     )
     if format == "csv":
-        return download(to_csv(page.items, HISTORY_COLUMNS), HISTORY_FILENAME, total=page.total)
+        return download(to_csv(page.items, HISTORY_CSV_COLUMNS), HISTORY_FILENAME, total=page.total)
     return Response(
         dumps({"items": page.items, "total": page.total}), media_type="application/json"
     )
@@ -192,11 +192,11 @@ async def _history_csv(
     )
 
     async def body() -> AsyncIterator[str]:
-        yield to_csv([], HISTORY_COLUMNS)
+        yield to_csv([], HISTORY_CSV_COLUMNS)
         async for items in store.history_all(
             newest_id, robot=robot, priority=priority, since=since, until=until, q=q
         ):
-            yield to_csv(items, HISTORY_COLUMNS, header=False)
+            yield to_csv(items, HISTORY_CSV_COLUMNS, header=False)
 
     return download(body(), HISTORY_FILENAME, total=total)
 
