@@ -15,7 +15,7 @@ setup(
                 f"{NATIVE}/cyclic_pump.c",
                 f"{NATIVE}/cyclic_pump_periodic.c",
             ],
-            depends=[f"{NATIVE}/cyclic_pump.h", f"{NATIVE}/cyclic_pump_internal.h"],
+            depends=[f"{NATIVE}/cyclic_pump.h", f"{NATIVE}/cyclic_pump_periodic.h"],
             include_dirs=[NATIVE],
             extra_compile_args=["-std=gnu11", "-O2", "-Wall", "-Wextra"],
             extra_link_args=["-pthread"],

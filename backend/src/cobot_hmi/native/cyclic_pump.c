@@ -9,10 +9,11 @@
  *   - send queue: datagrams Python built ahead of time, each with the CLOCK_MONOTONIC instant
  *     it is due; the thread sleeps until the earliest one (1 us timer slack) and sends it.
  *     Python can take back what has not left yet (pump_cancel) when the data changes.
- *   - periodic streams (cyclic_pump_periodic.c): one datagram sent every period from a template
- *     whose two counters (a 32-bit and a 16-bit little-endian field at offsets Python gives) rise
- *     by one per packet; Python replaces the template when the data changes
- *     (pump_periodic_data), without waking for each packet.
+ *   - periodic streams (a table of them, cyclic_pump_periodic.c, which knows nothing of the
+ *     pump): one datagram sent every period from a template whose two counters (a 32-bit and a
+ *     16-bit little-endian field at offsets Python gives) rise by one per packet; Python
+ *     replaces the template when the data changes (pump_periodic_data), without waking for
+ *     each packet.
  *   - receive ring: at every wake-up the thread reads every datagram waiting in the socket,
  *     with the kernel's receive time (SO_TIMESTAMPNS, turned into CLOCK_MONOTONIC), into a ring
  *     Python empties with pump_take. Nothing is lost by reading late: the receive time travels
@@ -23,8 +24,7 @@
  *     has come for `silence` (a watchdog's cue: Python then looks at once, not at its next
  *     batch).
  *
- * It knows nothing of EtherNet/IP, nor of Python: cyclic_pump.h is the whole interface (the
- * pump's state, which its two C files share, is in cyclic_pump_internal.h), which
+ * It knows nothing of EtherNet/IP, nor of Python: cyclic_pump.h is the whole interface, which
  * _cyclic_pump_module.c wraps as the extension module cobot_hmi.native._cyclic_pump and
  * backend/tests/native/tsan_harness.c drives under ThreadSanitizer.
  *
@@ -50,7 +50,61 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "cyclic_pump_internal.h"
+#include "cyclic_pump_periodic.h"
+
+#define NEVER INT64_MAX
+
+typedef struct {
+    int64_t due_ns;
+    int64_t tag;
+    uint32_t ip; /* host order, like every address and port of this interface */
+    uint16_t port;
+    int32_t len; /* -1: free slot */
+} send_slot;
+
+typedef struct {
+    int64_t stamp_ns;
+    uint32_t ip;
+    uint16_t port;
+    int32_t len;
+} ring_meta;
+
+/* The pump's state. Every field after `lock` is read and written under it. */
+struct pump {
+    int fd;
+    int kick_fd;
+    int notify_fd;
+    pthread_mutex_t life; /* pump_start and pump_stop: thread, thread_started */
+    pthread_t thread;
+    int thread_started;
+    pthread_mutex_t lock; /* everything below */
+    atomic_int running;
+
+    int queue_cap;
+    int queue_bytes;
+    send_slot *queue;
+    uint8_t *queue_data;
+    int queued;
+    periodic periodics[PERIODIC_MAX];
+
+    int ring_cap;
+    int ring_bytes;
+    ring_meta *ring;
+    uint8_t *ring_data;
+    int ring_head;
+    int ring_count;
+
+    int read_on_readable;
+    int64_t notify_interval_ns;
+    int64_t silence_ns; /* 0: off */
+    int64_t last_rx_ns; /* receive time of the newest datagram, 0 before the first */
+    int silence_reported;
+    int64_t last_notify_ns;
+    int notified;
+    int64_t sleeping_until;
+
+    int64_t counters[C_COUNT];
+};
 
 /* Real-time priority of the thread when the system allows it (as a PLC runtime's I/O task):
  * low among real-time priorities, and the thread sleeps between packets, so it only ever
@@ -115,7 +169,8 @@ pump *pump_new(int fd, int queue_cap, int queue_bytes, int ring_cap, int ring_by
 
 int pump_notify_fd(pump *p) { return p->notify_fd; }
 
-void pump_kick(pump *p) {
+/* Wake the pump's thread (it re-reads its schedule). */
+static void pump_kick(pump *p) {
     uint64_t one = 1;
     ssize_t ignored = write(p->kick_fd, &one, sizeof one);
     (void)ignored;
@@ -188,8 +243,9 @@ static int earliest(pump *p) {
     return best;
 }
 
-void pump_send_one(pump *p, const uint8_t *data, int32_t len, uint32_t ip, uint16_t port,
-                   int64_t due_ns, int64_t now) {
+/* Send one datagram now (lock held), counting it and how late it left. */
+static void pump_send_one(pump *p, const uint8_t *data, int32_t len, uint32_t ip, uint16_t port,
+                          int64_t due_ns, int64_t now) {
     struct sockaddr_in to = {0};
     to.sin_family = AF_INET;
     to.sin_addr.s_addr = htonl(ip);
@@ -206,8 +262,12 @@ void pump_send_one(pump *p, const uint8_t *data, int32_t len, uint32_t ip, uint1
 
 /* Send what is due; return when the next send is due (NEVER: nothing left). */
 static int64_t send_due(pump *p, int64_t now) {
-    pump_send_periodic_due(p, now);
-    int64_t next = pump_periodic_next_due(p);
+    int from = 0;
+    for (periodic *s; (s = periodic_next_due_packet(p->periodics, now, &from));) {
+        pump_send_one(p, s->data, s->len, s->ip, s->port, s->due_ns, now);
+        periodic_advance(s, now);
+    }
+    int64_t next = periodic_next_due(p->periodics);
     for (;;) {
         int i = earliest(p);
         if (i < 0) return next;
@@ -435,4 +495,58 @@ void pump_counters(pump *p, int64_t *out) {
     pthread_mutex_lock(&p->lock);
     memcpy(out, p->counters, sizeof p->counters);
     pthread_mutex_unlock(&p->lock);
+}
+
+/* Start (or restart) the periodic stream `tag`: `data` every `period_ns` from `first_due_ns` to
+ * `ip`:`port`, with the 32-bit counter at `off32` and the 16-bit one at `off16` (little-endian,
+ * -1: none) starting at `first32` and `first16` and rising by one per packet. 0, -1 when every
+ * stream is taken, -2 when the datagram is longer than a slot or a counter lies outside it. */
+int pump_periodic_start(pump *p, int64_t tag, int64_t first_due_ns, int64_t period_ns, uint32_t ip,
+                        uint16_t port, const uint8_t *data, int len, int off32, uint32_t first32,
+                        int off16, uint16_t first16) {
+    if (!periodic_fits(len, p->queue_bytes, off32, off16) || period_ns <= 0) return -2;
+    pthread_mutex_lock(&p->lock);
+    periodic *s = periodic_slot(p->periodics, tag);
+    if (!s) {
+        pthread_mutex_unlock(&p->lock);
+        return -1;
+    }
+    periodic_set(s, tag, first_due_ns, period_ns, ip, port, data, len, off32, first32, off16,
+                 first16);
+    int wake = first_due_ns < p->sleeping_until;
+    if (wake) p->sleeping_until = first_due_ns;
+    pthread_mutex_unlock(&p->lock);
+    if (wake) pump_kick(p);
+    return 0;
+}
+
+/* The periodic stream `tag` sends `data` from its next packet on (its counters go on rising).
+ * 0, -1 when there is no such stream, -2 when the datagram does not fit. */
+int pump_periodic_data(pump *p, int64_t tag, const uint8_t *data, int len) {
+    pthread_mutex_lock(&p->lock);
+    periodic *s = periodic_find(p->periodics, tag);
+    int result = !s ? -1 : !periodic_fits(len, p->queue_bytes, s->off32, s->off16) ? -2 : 0;
+    if (result == 0) {
+        memcpy(s->data, data, (size_t)len);
+        s->len = len;
+    }
+    pthread_mutex_unlock(&p->lock);
+    return result;
+}
+
+/* The periodic stream `tag`'s next packet: its counters and due time into *next32, *next16 and
+ * *next_due_ns; with `stop`, the stream ends (that packet is not sent). 0, or -1 when there is
+ * no such stream. */
+int pump_periodic_next(pump *p, int64_t tag, int stop, uint32_t *next32, uint16_t *next16,
+                       int64_t *next_due_ns) {
+    pthread_mutex_lock(&p->lock);
+    periodic *s = periodic_find(p->periodics, tag);
+    if (s) {
+        if (stop) s->active = 0;
+        *next32 = s->count32;
+        *next16 = s->count16;
+        *next_due_ns = s->due_ns;
+    }
+    pthread_mutex_unlock(&p->lock);
+    return s ? 0 : -1;
 }
