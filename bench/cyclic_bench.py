@@ -42,28 +42,12 @@ import time
 import urllib.request
 from typing import Any
 
-from proc_stats import own_cpu_s, process_cpu_s
+from proc_stats import load_average, own_cpu_s, process_cpu_s, wakeups
 
 from cobot_hmi.codec import Frame, decode_frame
 from cobot_hmi.eventloop import freeze_startup_heap, precise_event_loop
 from cobot_hmi.scanner.explicit import ExplicitReader
 from cobot_hmi.scanner.originator import ConnectionState, Originator, OriginatorSettings
-
-
-def wakeups(pid: int) -> int:
-    """Voluntary context switches of every thread of a process (each a sleep and a wake-up)."""
-    total = 0
-    for task in os.listdir(f"/proc/{pid}/task"):
-        with open(f"/proc/{pid}/task/{task}/status") as status:
-            for line in status:
-                if line.startswith("voluntary_ctxt_switches:"):
-                    total += int(line.split()[1])
-    return total
-
-
-def load_average() -> str:
-    with open("/proc/loadavg") as loadavg:
-        return " ".join(loadavg.read().split()[:3])
 
 
 class Meter:

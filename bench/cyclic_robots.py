@@ -33,24 +33,9 @@ import urllib.request
 from collections.abc import Callable
 from typing import Any
 
-from proc_stats import own_cpu_s
+from proc_stats import load_average, own_cpu_s, wakeups
 
 PUMPS = ("native", "python")
-
-
-def wakeups(pid: int) -> int:
-    total = 0
-    for task in os.listdir(f"/proc/{pid}/task"):
-        with open(f"/proc/{pid}/task/{task}/status") as status:
-            for line in status:
-                if line.startswith("voluntary_ctxt_switches:"):
-                    total += int(line.split()[1])
-    return total
-
-
-def load_average() -> str:
-    with open("/proc/loadavg") as loadavg:
-        return " ".join(loadavg.read().split()[:3])
 
 
 def free_port(host: str) -> int:

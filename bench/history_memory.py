@@ -26,6 +26,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pyarrow as pa
+from proc_stats import rss_mib
 
 from cobot_hmi.cli.process_memory import limit_malloc_arenas
 from cobot_hmi.codec import decode_frame, encode_frame
@@ -41,15 +42,6 @@ RATE_HZ = 500
 SEGMENT_S = 600.0
 START_S = 1_900_000_000.0
 TARGET_DRIFT = 0.05
-
-
-def rss_mib(pid: int | None = None) -> float:
-    """Resident set size of a process (this one by default), MiB."""
-    with open(f"/proc/{pid or 'self'}/status") as status:
-        for line in status:
-            if line.startswith("VmRSS:"):
-                return int(line.split()[1]) / 1024
-    return 0.0
 
 
 class PeakSampler:
