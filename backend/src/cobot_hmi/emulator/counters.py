@@ -6,7 +6,7 @@ input never crashes a process: clear error, counted, last good state kept").
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 
 @dataclass
@@ -37,6 +37,3 @@ class TargetCounters:
     udp_list_identity: int = 0
     udp_list_services: int = 0
     udp_discovery_ignored: int = 0
-
-    def as_dict(self) -> dict[str, int]:
-        return asdict(self)

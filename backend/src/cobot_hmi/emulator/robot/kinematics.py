@@ -77,11 +77,6 @@ def from_rpy(xyz: Vector3, rpy_rad: Vector3) -> Transform:
     )
 
 
-def rot_z(angle_rad: float) -> Transform:
-    c, s = math.cos(angle_rad), math.sin(angle_rad)
-    return (c, -s, 0.0, 0.0, s, c, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0)
-
-
 def from_euler_zyz_deg(position_mm: Sequence[float], abc_deg: Sequence[float]) -> Transform:
     """A pose as the controller writes it: position in mm, ``Rz(A)·Ry(B)·Rz(C)`` in degrees."""
     a, b, c = (math.radians(v) for v in abc_deg)
