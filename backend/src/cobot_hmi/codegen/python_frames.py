@@ -8,6 +8,7 @@ arrays. ``bench/codec`` measures it against a bare ``unpack_from``.
 from __future__ import annotations
 
 import re
+from typing import Final
 
 from cobot_hmi.codegen.common import HEADER, quoted
 from cobot_hmi.codegen.struct_plan import BitChunk, bit_chunks, item_index, slots, struct_format
@@ -136,7 +137,21 @@ def _encode_args(assembly: Assembly, var: str) -> list[str]:
 
 
 def frames_module() -> str:
-    out: list[str] = [
+    out = _module_head()
+    out += _typed_frames()
+    out += _BIT_HELPERS
+    for assembly in ASSEMBLIES:
+        out += _assembly_codec(assembly)
+    out += [
+        "",
+        "_STATE_NAMES: Final = {state.value: state.name for state in RobotState}",
+        "",
+    ]
+    return re.sub(r"\n{4,}", "\n\n\n", "\n".join(out))
+
+
+def _module_head() -> list[str]:
+    return [
         f'"""{HEADER}',
         "",
         "Layer: codec (pure, no I/O). The typed frames and their wire form, one struct per",
@@ -155,6 +170,12 @@ def frames_module() -> str:
         "",
         f"LAYOUT_VERSION: Final = {LAYOUT_VERSION}",
         f"UNKNOWN_STATE_NAME: Final = {quoted(UNKNOWN_STATE_NAME)}",
+    ]
+
+
+def _typed_frames() -> list[str]:
+    """The state enum, the controller version and one NamedTuple per assembly."""
+    out = [
         "",
         "",
         "class RobotState(IntEnum):",
@@ -181,134 +202,148 @@ def frames_module() -> str:
         if assembly is T2O_ASSEMBLY:
             out.append('    extra: bytes = b""')
             out.append('    """Bytes after the 284 the layout describes (longer frames)."""')
-    out += [
+    return out
+
+
+_BIT_HELPERS: Final = [
+    "",
+    "",
+    "_new = tuple.__new__",
+    "_TF: Final = (False, True)",
+    "_BITS: Final = tuple(",
+    "    tuple(tuple(bool(v >> i & 1) for i in range(width)) for v in range(1 << width))",
+    "    for width in range(9)",
+    ")",
+    '"""``_BITS[w][v]``: the ``w`` low bits of ``v`` as booleans, bit 0 first."""',
+    "_B8: Final = _BITS[8]",
+    "_INTS: Final = tuple(",
+    "    tuple(tuple(v >> i & 1 for i in range(width)) for v in range(1 << width))",
+    "    for width in range(9)",
+    ")",
+    '"""``_INTS[w][v]``: the ``w`` low bits of ``v`` as 0/1 codes, bit 0 first."""',
+    "",
+    "",
+    "_PACKED: Final[dict[object, int]] = {",
+    "    bits: v for table in _BITS for v, bits in enumerate(table)",
+    "}",
+    '"""Every tuple of up to 8 booleans (or 0/1) to its bits as an int, bit 0 first."""',
+    "",
+    "",
+    "def _pack_bits(bits: Sequence[bool | int], shift: int) -> int:",
+    "    try:",
+    "        word = _PACKED.get(bits)  # one look-up for the usual tuple of booleans",
+    "    except TypeError:  # unhashable (a list)",
+    "        word = None",
+    "    if word is None:",
+    "        word = 0",
+    "        for i, bit in enumerate(bits):",
+    "            if bit:",
+    "                word |= 1 << i",
+    "    return word << shift",
+    "",
+]
+"""The generated module's bit tables and packer, shared by every assembly's codec."""
+
+
+def _assembly_codec(assembly: Assembly) -> list[str]:
+    """One assembly's struct, sizes, ``decode_*``, ``encode_*`` and ``*_to_dict``."""
+    cls = _class_name(assembly)
+    tag = assembly.direction.value.lower()
+    var = "frame" if cls == "Frame" else "image"
+    arrays = [f for f in assembly.fields if not f.scalar]
+    out = [
         "",
-        "",
-        "_new = tuple.__new__",
-        "_TF: Final = (False, True)",
-        "_BITS: Final = tuple(",
-        "    tuple(tuple(bool(v >> i & 1) for i in range(width)) for v in range(1 << width))",
-        "    for width in range(9)",
-        ")",
-        '"""``_BITS[w][v]``: the ``w`` low bits of ``v`` as booleans, bit 0 first."""',
-        "_B8: Final = _BITS[8]",
-        "_INTS: Final = tuple(",
-        "    tuple(tuple(v >> i & 1 for i in range(width)) for v in range(1 << width))",
-        "    for width in range(9)",
-        ")",
-        '"""``_INTS[w][v]``: the ``w`` low bits of ``v`` as 0/1 codes, bit 0 first."""',
-        "",
-        "",
-        "_PACKED: Final[dict[object, int]] = {",
-        "    bits: v for table in _BITS for v, bits in enumerate(table)",
-        "}",
-        '"""Every tuple of up to 8 booleans (or 0/1) to its bits as an int, bit 0 first."""',
-        "",
-        "",
-        "def _pack_bits(bits: Sequence[bool | int], shift: int) -> int:",
-        "    try:",
-        "        word = _PACKED.get(bits)  # one look-up for the usual tuple of booleans",
-        "    except TypeError:  # unhashable (a list)",
-        "        word = None",
-        "    if word is None:",
-        "        word = 0",
-        "        for i, bit in enumerate(bits):",
-        "            if bit:",
-        "                word |= 1 << i",
-        "    return word << shift",
-        "",
+        f"{tag.upper()}_STRUCT: Final = struct.Struct({quoted(struct_format(assembly))})",
+        f"_{tag.upper()}_UNPACK: Final = {tag.upper()}_STRUCT.unpack_from",
+        f"{tag.upper()}_SIZE: Final = {assembly.size_bytes}",
+        f"{tag.upper()}_COUNTS: Final = {{",
     ]
-    for assembly in ASSEMBLIES:
-        cls = _class_name(assembly)
-        tag = assembly.direction.value.lower()
-        var = "frame" if cls == "Frame" else "image"
+    out += [f"    {quoted(f.name)}: {f.count}," for f in arrays]
+    out += ["}", ""]
+    out += [
+        f"_{tag.upper()}_ARRAYS: Final = attrgetter("
+        + ", ".join(quoted(f.name) for f in arrays)
+        + ")",
+        f"_{tag.upper()}_ARRAY_COUNTS: Final = {tuple(f.count for f in arrays)!r}",
+    ]
+    elements, constants = _decode_elements(assembly)
+    out += constants
+    out += _decode_function(assembly, cls, tag, elements)
+    out += _encode_function(assembly, cls, tag, var)
+    out += _to_dict_function(assembly, cls, tag, var)
+    return out
+
+
+def _decode_function(assembly: Assembly, cls: str, tag: str, elements: list[str]) -> list[str]:
+    size = assembly.size_bytes
+    out = ["", "", f"def decode_{tag}(data: bytes | bytearray | memoryview) -> {cls}:"]
+    if cls == "Frame":
         out += [
-            "",
-            f"{tag.upper()}_STRUCT: Final = struct.Struct({quoted(struct_format(assembly))})",
-            f"{tag.upper()}_SIZE: Final = {assembly.size_bytes}",
-            f"{tag.upper()}_COUNTS: Final = {{",
+            f'    """Decode a T→O frame: bytes past {size} are kept as ``extra``, fewer is an'
+            ' error."""',
+            "    size = len(data)",
+            f"    if size == {size}:",
+            '        extra = b""',
+            f"    elif size > {size}:",
+            f"        extra = bytes(data[{size}:])",
+            "    else:",
+            f'        raise FrameSizeError("T→O frame too short", {size}, size)',
         ]
-        arrays = [f for f in assembly.fields if not f.scalar]
-        out += [f"    {quoted(f.name)}: {f.count}," for f in arrays]
-        out += ["}", ""]
+    else:
         out += [
-            f"_{tag.upper()}_ARRAYS: Final = attrgetter("
-            + ", ".join(quoted(f.name) for f in arrays)
-            + ")",
-            f"_{tag.upper()}_ARRAY_COUNTS: Final = {tuple(f.count for f in arrays)!r}",
+            f'    """Decode an O→T command image, which is exactly {size} bytes."""',
+            f"    if len(data) != {size}:",
+            f'        raise FrameSizeError("O→T command image", {size}, len(data))',
         ]
-        elements, constants = _decode_elements(assembly)
-        out += constants
-        size = assembly.size_bytes
-        out += ["", "", f"def decode_{tag}(data: bytes | bytearray | memoryview) -> {cls}:"]
-        if cls == "Frame":
-            out += [
-                f'    """Decode a T→O frame: bytes past {size} are kept as ``extra``, fewer is an'
-                ' error."""',
-                "    size = len(data)",
-                f"    if size == {size}:",
-                '        extra = b""',
-                f"    elif size > {size}:",
-                f"        extra = bytes(data[{size}:])",
-                "    else:",
-                f'        raise FrameSizeError("T→O frame too short", {size}, size)',
-            ]
+    out += [
+        f"    v = _{tag.upper()}_UNPACK(data)",
+        "    return _new(",
+        f"        {cls},",
+        "        (",
+    ]
+    out += [f"            {element}," for element in elements]
+    if cls == "Frame":
+        out.append("            extra,")
+    out += ["        ),", "    )", ""]
+    return out
+
+
+def _encode_function(assembly: Assembly, cls: str, tag: str, var: str) -> list[str]:
+    out = [
+        "",
+        f"def encode_{tag}({var}: {cls}) -> bytes:",
+        f'    """The {assembly.size_bytes} wire bytes of ``{var}``; reserved bits are zero."""',
+        f"    if tuple(map(len, _{tag.upper()}_ARRAYS({var}))) != _{tag.upper()}_ARRAY_COUNTS:",
+        f"        for name, count in {tag.upper()}_COUNTS.items():",
+        f"            if len(getattr({var}, name)) != count:",
+        "                raise ValueError(",
+        f'                    f"{{name}} has {{len(getattr({var}, name))}} values, "',
+        '                    f"expected {count}"',
+        "                )",
+        f"    return {tag.upper()}_STRUCT.pack(",
+    ]
+    out += [f"        {arg}," for arg in _encode_args(assembly, var)]
+    out += ["    )", ""]
+    return out
+
+
+def _to_dict_function(assembly: Assembly, cls: str, tag: str, var: str) -> list[str]:
+    out = [
+        "",
+        f"def {tag}_to_dict({var}: {cls}) -> dict[str, object]:",
+        '    """The JSON form: the spec\'s canonical names and shapes, in layout order."""',
+        "    return {",
+    ]
+    for f in assembly.fields:
+        if f.element_names:
+            members = ", ".join(
+                f"{quoted(n)}: {var}.{f.name}[{i}]" for i, n in enumerate(f.element_names)
+            )
+            out.append(f"        {quoted(f.name)}: {{{members}}},")
         else:
-            out += [
-                f'    """Decode an O→T command image, which is exactly {size} bytes."""',
-                f"    if len(data) != {size}:",
-                f'        raise FrameSizeError("O→T command image", {size}, len(data))',
-            ]
-        out += [
-            f"    v = _{tag.upper()}_UNPACK(data)",
-            "    return _new(",
-            f"        {cls},",
-            "        (",
-        ]
-        out += [f"            {element}," for element in elements]
-        if cls == "Frame":
-            out.append("            extra,")
-        out += ["        ),", "    )", ""]
-        out += [
-            "",
-            f"def encode_{tag}({var}: {cls}) -> bytes:",
-            f'    """The {assembly.size_bytes} wire bytes of ``{var}``; reserved bits are zero."""',
-            f"    if tuple(map(len, _{tag.upper()}_ARRAYS({var}))) != _{tag.upper()}_ARRAY_COUNTS:",
-            f"        for name, count in {tag.upper()}_COUNTS.items():",
-            f"            if len(getattr({var}, name)) != count:",
-            "                raise ValueError(",
-            f'                    f"{{name}} has {{len(getattr({var}, name))}} values, "',
-            '                    f"expected {count}"',
-            "                )",
-            f"    return {tag.upper()}_STRUCT.pack(",
-        ]
-        out += [f"        {arg}," for arg in _encode_args(assembly, var)]
-        out += ["    )", ""]
-        out += [
-            "",
-            f"def {tag}_to_dict({var}: {cls}) -> dict[str, object]:",
-            '    """The JSON form: the spec\'s canonical names and shapes, in layout order."""',
-            "    return {",
-        ]
-        for f in assembly.fields:
-            if f.element_names:
-                members = ", ".join(
-                    f"{quoted(n)}: {var}.{f.name}[{i}]" for i, n in enumerate(f.element_names)
-                )
-                out.append(f"        {quoted(f.name)}: {{{members}}},")
-            else:
-                out.append(f"        {quoted(f.name)}: {var}.{f.name},")
-            if f.enum:
-                state = f"_STATE_NAMES.get({var}.{f.name}, UNKNOWN_STATE_NAME)"
-                out.append(f"        {quoted(f.name + '_name')}: {state},")
-        out += ["    }", ""]
-        out.insert(
-            out.index(f"{tag.upper()}_SIZE: Final = {assembly.size_bytes}"),
-            f"_{tag.upper()}_UNPACK: Final = {tag.upper()}_STRUCT.unpack_from",
-        )
-    out += [
-        "",
-        "_STATE_NAMES: Final = {state.value: state.name for state in RobotState}",
-        "",
-    ]
-    return re.sub(r"\n{4,}", "\n\n\n", "\n".join(out))
+            out.append(f"        {quoted(f.name)}: {var}.{f.name},")
+        if f.enum:
+            state = f"_STATE_NAMES.get({var}.{f.name}, UNKNOWN_STATE_NAME)"
+            out.append(f"        {quoted(f.name + '_name')}: {state},")
+    out += ["    }", ""]
+    return out
