@@ -323,68 +323,91 @@ def _mcap(
         name=EVENT_SCHEMA_NAME, encoding="jsonschema", data=json.dumps(EVENT_JSON_SCHEMA).encode()
     )
     frames = writer.register_channel(f"/{robot}/frames", "json", frame_schema)
-    event_channel = writer.register_channel(f"/{robot}/events", "json", event_schema)
+    feed = _EventFeed(
+        writer, writer.register_channel(f"/{robot}/events", "json", event_schema), events
+    )
     writer.add_metadata(COLUMNS_METADATA, mcap_columns(elements))
-    # In time order as given (the service's reader streams them so): one event held at a time.
-    pending = iter(events)
-    upcoming = next(pending, None)
+    fields = _field_columns(elements)
+    yield sink.take()
+    for table in _chunks(tables_):
+        for time_ns, data, sequence in _frame_messages(table, elements, fields):
+            feed.until(time_ns)
+            writer.add_message(frames, time_ns, data, time_ns, sequence)
+        yield sink.take()
+    feed.until(None)
+    writer.finish()  # type: ignore[no-untyped-call]
+    yield sink.take()
 
-    def events_until(time_ns: int | None) -> None:
-        nonlocal upcoming
-        while upcoming is not None:
-            event_ns = _event_time_ns(upcoming)
+
+class _EventFeed:
+    """The events (in time order, as the service's reader streams them) written to their
+    channel as the frames pass their times: one event held at a time."""
+
+    def __init__(self, writer: Writer, channel: int, events: Iterable[Mapping[str, object]]):
+        self._writer = writer
+        self._channel = channel
+        self._pending = iter(events)
+        self._upcoming = next(self._pending, None)
+
+    def until(self, time_ns: int | None) -> None:
+        """Write every event up to ``time_ns`` (``None``: all that are left)."""
+        while self._upcoming is not None:
+            event_ns = _event_time_ns(self._upcoming)
             if time_ns is not None and event_ns > time_ns:
                 return
-            data = orjson.dumps(upcoming, option=orjson.OPT_NON_STR_KEYS)
-            writer.add_message(event_channel, event_ns, data, event_ns)
-            upcoming = next(pending, None)
+            data = orjson.dumps(self._upcoming, option=orjson.OPT_NON_STR_KEYS)
+            self._writer.add_message(self._channel, event_ns, data, event_ns)
+            self._upcoming = next(self._pending, None)
 
+
+def _field_columns(elements: Sequence[Element]) -> list[tuple[Field, list[str]]]:
+    """The elements grouped by their field, in order: each field and its columns."""
     fields: list[tuple[Field, list[str]]] = []
     for e in elements:
         if not fields or fields[-1][0] is not e.field:
             fields.append((e.field, []))
         fields[-1][1].append(e.name)
-    yield sink.take()
-    for table in _chunks(tables_):
-        micros = table.column(TIME).cast(pa.int64()).to_numpy()
-        times_ns = (micros.astype(np.int64) * 1000).tolist()
-        times_s = (micros / 1e6).tolist()
-        seqs = table.column(SEQ).to_pylist()
-        wire = table.column(T2O_SEQUENCE).to_pylist()
-        values = {e.name: table.column(e.name).to_pylist() for e in elements if e.kind != "float"}
-        # REAL arrays as float32 rows: orjson writes each as the shortest text that reads back
-        # as the same float32 (as the CSV does), not the 17 digits of its double.
-        blocks = {
-            f.name: np.column_stack(
-                [table.column(c).to_numpy(zero_copy_only=False) for c in columns]
-            ).astype(np.float32)
-            for f, columns in fields
-            if f.value_kind == "float"
+    return fields
+
+
+def _frame_messages(
+    table: pa.Table, elements: Sequence[Element], fields: list[tuple[Field, list[str]]]
+) -> Iterator[tuple[int, bytes, int]]:
+    """Each row of ``table`` as a ``/ROBOT/frames`` message: its time, ns, its JSON (the frame's
+    shape, ``codec.frame_to_json``: scalars, arrays, records) and its sequence number."""
+    micros = table.column(TIME).cast(pa.int64()).to_numpy()
+    times_ns = (micros.astype(np.int64) * 1000).tolist()
+    times_s = (micros / 1e6).tolist()
+    seqs = table.column(SEQ).to_pylist()
+    wire = table.column(T2O_SEQUENCE).to_pylist()
+    values = {e.name: table.column(e.name).to_pylist() for e in elements if e.kind != "float"}
+    # REAL arrays as float32 rows: orjson writes each as the shortest text that reads back
+    # as the same float32 (as the CSV does), not the 17 digits of its double.
+    blocks = {
+        f.name: np.column_stack(
+            [table.column(c).to_numpy(zero_copy_only=False) for c in columns]
+        ).astype(np.float32)
+        for f, columns in fields
+        if f.value_kind == "float"
+    }
+    for row, time_ns in enumerate(times_ns):
+        message: dict[str, object] = {
+            "time": times_s[row],
+            "seq": seqs[row],
+            T2O_SEQUENCE: wire[row],
         }
-        for row, time_ns in enumerate(times_ns):
-            events_until(time_ns)
-            message: dict[str, object] = {
-                "time": times_s[row],
-                "seq": seqs[row],
-                T2O_SEQUENCE: wire[row],
-            }
-            # The frame's JSON shape (``codec.frame_to_json``): scalars, arrays, records.
-            for f, columns in fields:
-                if f.name in blocks:
-                    message[f.name] = blocks[f.name][row]
-                elif f.scalar:
-                    message[f.name] = values[columns[0]][row]
-                elif f.element_names:
-                    message[f.name] = {
-                        n: values[c][row] for n, c in zip(f.element_names, columns, strict=True)
-                    }
-                else:
-                    message[f.name] = [values[c][row] for c in columns]
-            data = orjson.dumps(message, option=orjson.OPT_SERIALIZE_NUMPY)
-            # MCAP's message sequence is a uint32, as the wire number is.
-            sequence = wire[row] if wire[row] is not None else seqs[row] & 0xFFFFFFFF
-            writer.add_message(frames, time_ns, data, time_ns, sequence)
-        yield sink.take()
-    events_until(None)
-    writer.finish()  # type: ignore[no-untyped-call]
-    yield sink.take()
+        for f, columns in fields:
+            if f.name in blocks:
+                message[f.name] = blocks[f.name][row]
+            elif f.scalar:
+                message[f.name] = values[columns[0]][row]
+            elif f.element_names:
+                message[f.name] = {
+                    n: values[c][row] for n, c in zip(f.element_names, columns, strict=True)
+                }
+            else:
+                message[f.name] = [values[c][row] for c in columns]
+        data = orjson.dumps(message, option=orjson.OPT_SERIALIZE_NUMPY)
+        # MCAP's message sequence is a uint32, as the wire number is.
+        sequence = wire[row] if wire[row] is not None else seqs[row] & 0xFFFFFFFF
+        yield time_ns, data, sequence
