@@ -42,6 +42,15 @@ from tmpfs_support import fill, free, small_tmpfs
 pytestmark = pytest.mark.timeout(180)
 
 ESTOP = "robot:emergency_stop"
+DOOR = {
+    "name": "door-open",
+    "field": "controlbox_di",
+    "index": 2,  # DI 3
+    "active_when": True,
+    "priority": "high",
+    "message": "Cell door open",
+}
+"""A user alarm on an input the emulator sets at will (``POST /inputs``)."""
 
 
 class Stream:
@@ -274,9 +283,10 @@ async def test_an_acknowledgement_on_a_full_disk_is_answered_and_kept(
 async def test_shelving_with_expiry_and_refusals(
     emu: Emulator, plc_host: str, tmp_path: Path
 ) -> None:
-    settings = emulated_settings(emu, plc_host, tmp_path, alarm_shelve_max_s=60)
+    # A high alarm the emulator raises at will (the safety stops are never shelved).
+    settings = emulated_settings(emu, plc_host, tmp_path, alarm_shelve_max_s=60, alarms=[DOOR])
     async with running_service(settings) as hmi:
-        alarm_id = "robot:protective_stop"
+        alarm_id = "robot:user.door-open"
         async with hmi.client(await hmi.login(OPERATOR)) as operator:
             path = f"/api/v1/alarms/{alarm_id}/shelve"
             for body, field in (
@@ -299,8 +309,7 @@ async def test_shelving_with_expiry_and_refusals(
             assert shelved.json()["alarm"]["shelved"] is True
             assert shelved.json()["alarm"]["shelve_reason"] == "guard being replaced"
             # While shelved the alarm still follows its condition.
-            await eventually(lambda: state_is(hmi, 14))  # servo on, running
-            await emu.post("/protective-stop")
+            await emu.post("/inputs", {"controlbox_di": {"2": True}})
             await eventually(
                 lambda: hmi.service.default_robot.alarms.find(alarm_id).status.state.active
             )
@@ -322,9 +331,10 @@ async def test_shelving_with_expiry_and_refusals(
         shelve_rows = [(r["outcome"], r["reason"]) for r in audit if r["action"] == "alarm.shelve"]
         assert shelve_rows[0] == ("shelved", None)
         assert shelve_rows[1] == ("shelved", None)
-        assert ("refused", "shelve for more than 0 and at most 60 s (alarm_shelve_max_s)") in (
-            shelve_rows
+        longest = (
+            "a high alarm is shelved for more than 0 and at most 60 s (1 min, alarm_shelve_max_s)"
         )
+        assert ("refused", longest) in shelve_rows
 
 
 async def test_unshelve_is_authorized_and_audited_like_ack_and_shelve(
@@ -334,7 +344,7 @@ async def test_unshelve_is_authorized_and_audited_like_ack_and_shelve(
     "not shelved"), the real one with its summary."""
     settings = emulated_settings(emu, plc_host, tmp_path)
     async with running_service(settings) as hmi:
-        alarm_id = "robot:protective_stop"
+        alarm_id = "robot:safe_off"
         path = f"/api/v1/alarms/{alarm_id}/unshelve"
         async with hmi.client(await hmi.login(VIEWER)) as viewer:
             refused = await viewer.post(path)
@@ -357,18 +367,12 @@ async def test_unshelve_is_authorized_and_audited_like_ack_and_shelve(
             for r in reversed(audit)
             if r["action"] == "alarm.unshelve"
         ]
-        assert rows[0][:5] == (VIEWER[0], "forbidden", rows[0][2], None, ["protective_stop"])
+        assert rows[0][:5] == (VIEWER[0], "forbidden", rows[0][2], None, ["safe_off"])
         assert rows[0][2] and "operator" in rows[0][2]
+        words = "Servo off after an error (SAFE_OFF): unshelved"
         assert rows[1:] == [
-            (
-                OPERATOR[0],
-                "unchanged",
-                "not shelved",
-                {},
-                ["protective_stop"],
-                "Protective stop: unshelved",
-            ),
-            (OPERATOR[0], "unshelved", None, {}, ["protective_stop"], "Protective stop: unshelved"),
+            (OPERATOR[0], "unchanged", "not shelved", {}, ["safe_off"], words),
+            (OPERATOR[0], "unshelved", None, {}, ["safe_off"], words),
         ]
         assert {r["origin"] for r in audit if r["action"] == "alarm.unshelve"} == {f"POST {path}"}
 

@@ -71,6 +71,7 @@ def test_state_machine_follows_isa_18_2(operations: list[str]) -> None:
     status = AlarmStatus()
     expected = A
     shelved_until: float | None = None
+    cleared_while_shelved = False
     for step, operation in enumerate(operations):
         t = float(step)
         before = status.state
@@ -81,6 +82,11 @@ def test_state_machine_follows_isa_18_2(operations: list[str]) -> None:
                 assert transition is (
                     Transition.ACTIVATED if operation == "come" else Transition.CLEARED
                 )
+                if shelved_until is not None and operation == "go":
+                    cleared_while_shelved = True
+                elif cleared_while_shelved:  # it came again: a new occurrence, annunciated
+                    shelved_until = None
+                    cleared_while_shelved = False
             else:
                 assert transition is None
         elif operation == "ack":
@@ -94,14 +100,17 @@ def test_state_machine_follows_isa_18_2(operations: list[str]) -> None:
         elif operation == "shelve":
             status.shelve("olivia", "maintenance", t + 3, t)
             shelved_until = t + 3
+            cleared_while_shelved = False
         elif operation == "unshelve":
             assert (status.unshelve(t) is not None) == (shelved_until is not None)
             shelved_until = None
+            cleared_while_shelved = False
         else:
             expired = status.expire(t)
             if shelved_until is not None and t >= shelved_until:
                 assert expired is Transition.SHELVE_EXPIRED
                 shelved_until = None
+                cleared_while_shelved = False
             else:
                 assert expired is None
         assert status.state is expected

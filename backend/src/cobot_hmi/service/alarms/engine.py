@@ -41,6 +41,12 @@ from cobot_hmi.service.alarms.conditions import (
 from cobot_hmi.service.alarms.consequences import cause_of
 from cobot_hmi.service.alarms.definitions import AlarmDefinition
 from cobot_hmi.service.alarms.persistence import AlarmChange
+from cobot_hmi.service.alarms.shelving import (
+    DEFAULT_MAX_S,
+    AlarmRefusedError,
+    NotShelvableError,
+    ShelvingRules,
+)
 from cobot_hmi.service.alarms.state import (
     AlarmState,
     AlarmStatus,
@@ -49,6 +55,14 @@ from cobot_hmi.service.alarms.state import (
 )
 from cobot_hmi.service.alarms.summary import priority_counts, robot_summary
 
+__all__ = [
+    "AlarmEngine",
+    "AlarmRefusedError",
+    "NotShelvableError",
+    "UnknownAlarmError",
+    "UserAlarm",
+]
+
 log = logging.getLogger(__name__)
 
 TICK_S: Final = 0.5
@@ -56,6 +70,8 @@ TICK_S: Final = 0.5
 GAP_WINDOW_S: Final = 60.0
 
 Event = dict[str, object]
+RETURNED_WORDS: Final = "unshelved: the condition cleared while shelved and came again"
+"""The comment of an activation that ended a shelving (``AlarmStatus.process``)."""
 _STATE_VALUES: Final = {s.name: s.value for s in ROBOT_STATES}
 
 
@@ -64,10 +80,6 @@ class UnknownAlarmError(LookupError):
         super().__init__(f"no alarm {alarm_id!r}")
         self.alarm_id = alarm_id
         self.known = known
-
-
-class AlarmRefusedError(ValueError):
-    """An operator's request that does not apply (acknowledge a normal alarm, a bad shelving)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -114,6 +126,7 @@ class AlarmEngine:
         gap_rate_per_min: float,
         connection_delay_s: float,
         shelve_max_s: float,
+        shelve_max_by_priority_s: Mapping[str, float] | None = None,
         consequence_window_s: float = 5.0,
         user_alarms: tuple[UserAlarm, ...] = (),
         publish: Callable[[Event], None] | None = None,
@@ -124,7 +137,13 @@ class AlarmEngine:
         self.robot = robot
         self.gap_rate_per_min = gap_rate_per_min
         self.connection_delay_s = connection_delay_s
-        self.shelve_max_s = shelve_max_s
+        longest = (
+            DEFAULT_MAX_S
+            if shelve_max_by_priority_s is None
+            else {d.Priority(p): s for p, s in shelve_max_by_priority_s.items()}
+        )
+        self.shelving = ShelvingRules(shelve_max_s, longest)
+        """Which alarms may be shelved, and for how long (``shelving``)."""
         self.consequence_window_s = consequence_window_s
         """An alarm coming this long after its cause cleared is still its consequence, s."""
         self.publish = publish
@@ -391,12 +410,9 @@ class AlarmEngine:
 
     def shelve(self, alarm_id: str, user: str, reason: str, duration_s: float) -> Event:
         alarm = self.find(alarm_id)
+        self.shelving.check(alarm.definition, duration_s)
         if not reason.strip():
             raise AlarmRefusedError("shelving needs a reason")
-        if not 0 < duration_s <= self.shelve_max_s:
-            raise AlarmRefusedError(
-                f"shelve for more than 0 and at most {self.shelve_max_s:g} s (alarm_shelve_max_s)"
-            )
         now_s = self._clock()
         transition = alarm.status.shelve(user, reason.strip(), now_s + duration_s, now_s)
         self._emit(self._changed(alarm, transition, now_s, user=user, comment=reason.strip()))
@@ -438,6 +454,8 @@ class AlarmEngine:
             "active": status.state.active,
             "acknowledged": status.state.acknowledged,
             "shelved": status.shelved,
+            "shelve_max_s": self.shelving.max_s(definition),
+            "shelve_refusal": self.shelving.refusal(definition),
             **status.to_json(),
             "suppressed_by": None if cause is None else self.alarm_id(cause.definition.key),
             "suppressed_by_name": None if cause is None else cause.definition.name,
@@ -482,11 +500,14 @@ class AlarmEngine:
         if active and not alarm.status.state.active:
             statuses = {key: other.status for key, other in self.alarms.items()}
             cause = cause_of(alarm.definition.key, statuses, time_s, self.consequence_window_s)
+        was_shelved = alarm.status.shelved
         transition = alarm.status.process(active, time_s, suppressed_by=cause)
         alarm.status.value = value
         alarm.status.message = message
         if transition is None:
             return None
+        if was_shelved and not alarm.status.shelved:  # it cleared while shelved and came again
+            return self._changed(alarm, transition, time_s, comment=RETURNED_WORDS)
         return self._changed(alarm, transition, time_s)
 
     def _changed(

@@ -92,7 +92,19 @@ class AlarmLimitSettings(BaseModel):
     alarm_connection_delay_s: float = setting(
         2.0, "connection lost or stale this long raises its alarm, s", ge=0, le=3600
     )
-    alarm_shelve_max_s: Seconds = setting(8 * 3600.0, "longest an alarm may be shelved, s")
+    alarm_shelve_max_s: Seconds = setting(
+        8 * 3600.0, "longest any alarm may be shelved (caps each priority's own longest), s"
+    )
+    # Critical alarms and the safety stops are never shelved (alarms/shelving.py).
+    alarm_shelve_max_high_s: Seconds = setting(
+        3600.0, "longest a high-priority alarm may be shelved, s"
+    )
+    alarm_shelve_max_medium_s: Seconds = setting(
+        4 * 3600.0, "longest a medium-priority alarm may be shelved, s"
+    )
+    alarm_shelve_max_low_s: Seconds = setting(
+        8 * 3600.0, "longest a low-priority alarm may be shelved, s"
+    )
     alarm_consequence_window_s: float = setting(
         5.0,
         "an alarm coming this long after its cause cleared (or while the cause is active) is its "

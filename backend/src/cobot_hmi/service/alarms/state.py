@@ -20,7 +20,10 @@ comes again (D→B) still needs its acknowledgement.
 
 Shelving (§11.4.3: an operator's temporary suppression, with a reason and an expiry) is kept
 beside the state: a shelved alarm still follows its condition (so unshelving shows the truth)
-but is not annunciated; it is unshelved by the operator or when its time runs out.
+but is not annunciated; it is unshelved by the operator, when its time runs out, or when its
+condition clears and comes again: a new occurrence is annunciated (active, unacknowledged), as
+the shelving was meant for the occurrence the operator saw, not for the next one. Which alarms
+may be shelved, and for how long, is ``shelving``'s.
 """
 
 from __future__ import annotations
@@ -100,6 +103,7 @@ class AlarmStatus:
     acknowledged_by: str | None = None
     ack_comment: str | None = None
     shelved_until: float | None = None
+    shelved_at: float | None = None
     shelved_by: str | None = None
     shelve_reason: str | None = None
     value: float | bool | None = None
@@ -123,6 +127,8 @@ class AlarmStatus:
         new = PROCESS.get((self.state, active))
         if new is None:
             return None
+        if active and self._cleared_while_shelved():
+            self.unshelve(time_s)  # a new occurrence: annunciated again
         if active and suppressed_by is not None and self.state is AlarmState.NORMAL:
             new = AlarmState.SUPPRESSED
         self.state = new
@@ -135,6 +141,14 @@ class AlarmStatus:
             return Transition.ACTIVATED
         self.cleared_at = time_s
         return Transition.CLEARED
+
+    def _cleared_while_shelved(self) -> bool:
+        cleared, shelved = self.cleared_at, self.shelved_at
+        return (
+            self.shelved_until is not None
+            and cleared is not None
+            and (shelved is None or cleared >= shelved)
+        )
 
     def acknowledge(self, user: str, comment: str | None, time_s: float) -> Transition | None:
         """The operator acknowledges: ACKNOWLEDGED, ``None`` when already acknowledged (C), or
@@ -154,6 +168,7 @@ class AlarmStatus:
     def shelve(self, user: str, reason: str, until_s: float, time_s: float) -> Transition:
         """Shelve (again: a new expiry and reason) until ``until_s``."""
         self.shelved_until = until_s
+        self.shelved_at = time_s
         self.shelved_by = user
         self.shelve_reason = reason
         self.changed_at = time_s
@@ -163,7 +178,7 @@ class AlarmStatus:
         """End the shelving: UNSHELVED (or SHELVE_EXPIRED), ``None`` if it was not shelved."""
         if self.shelved_until is None:
             return None
-        self.shelved_until = self.shelved_by = self.shelve_reason = None
+        self.shelved_until = self.shelved_at = self.shelved_by = self.shelve_reason = None
         self.changed_at = time_s
         return Transition.SHELVE_EXPIRED if expired else Transition.UNSHELVED
 
@@ -184,6 +199,7 @@ class AlarmStatus:
             "acknowledged_by": self.acknowledged_by,
             "ack_comment": self.ack_comment,
             "shelved_until": self.shelved_until,
+            "shelved_at": self.shelved_at,
             "shelved_by": self.shelved_by,
             "shelve_reason": self.shelve_reason,
             "value": self.value,
@@ -206,6 +222,7 @@ class AlarmStatus:
             "cleared_at",
             "acknowledged_at",
             "shelved_until",
+            "shelved_at",
         ):
             value = data.get(name)
             if isinstance(value, int | float) and not isinstance(value, bool):

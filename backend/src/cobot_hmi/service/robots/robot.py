@@ -151,6 +151,11 @@ class RobotRuntime:
             gap_rate_per_min=service_settings.alarm_gap_rate_per_min,
             connection_delay_s=service_settings.alarm_connection_delay_s,
             shelve_max_s=service_settings.alarm_shelve_max_s,
+            shelve_max_by_priority_s={
+                "high": service_settings.alarm_shelve_max_high_s,
+                "medium": service_settings.alarm_shelve_max_medium_s,
+                "low": service_settings.alarm_shelve_max_low_s,
+            },
             consequence_window_s=service_settings.alarm_consequence_window_s,
             user_alarms=tuple(
                 UserAlarm(**alarm.model_dump(exclude={"robot"}))

@@ -133,6 +133,14 @@ class Alarm(BaseModel):
         description="nothing to acknowledge: state normal, active_acknowledged or suppressed"
     )
     shelved: bool
+    shelve_max_s: float | None = Field(
+        default=None,
+        description="the longest it may be shelved, s (its priority's alarm_shelve_max_*_s); "
+        "null: never shelved (a safety stop or a critical alarm, shelve_refusal says why)",
+    )
+    shelve_refusal: str | None = Field(
+        default=None, description="why it is never shelved, in words; null: it may be"
+    )
     changed_at: float | None = Field(description="last change of this record, s since the epoch")
     activated_at: float | None
     cleared_at: float | None
@@ -140,6 +148,11 @@ class Alarm(BaseModel):
     acknowledged_by: str | None
     ack_comment: str | None
     shelved_until: float | None
+    shelved_at: float | None = Field(
+        default=None,
+        description="when it was shelved: a condition that clears after this and comes again "
+        "ends the shelving (annunciated again)",
+    )
     shelved_by: str | None
     shelve_reason: str | None
     value: bool | float | None = Field(description="the watched value at the last change")
@@ -220,7 +233,8 @@ class AlarmShelve(BaseModel):
     duration_s: float = Field(
         gt=0,
         allow_inf_nan=False,
-        description="until it unshelves itself, s (at most alarm_shelve_max_s)",
+        description="until it unshelves itself, s (at most the alarm's shelve_max_s: its "
+        "priority's alarm_shelve_max_*_s)",
     )
 
 

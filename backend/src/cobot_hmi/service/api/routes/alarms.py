@@ -17,7 +17,12 @@ from typing import Annotated, Any, Final, Literal, TypeVar
 from fastapi import APIRouter, Body, Path, Query, Request, Response
 
 from cobot_hmi.codec import dumps
-from cobot_hmi.service.alarms.engine import AlarmEngine, AlarmRefusedError, UnknownAlarmError
+from cobot_hmi.service.alarms.engine import (
+    AlarmEngine,
+    AlarmRefusedError,
+    NotShelvableError,
+    UnknownAlarmError,
+)
 from cobot_hmi.service.alarms.persistence import HISTORY_CSV_COLUMNS, AlarmStore
 from cobot_hmi.service.alarms.summary import annunciated
 from cobot_hmi.service.api import models
@@ -247,15 +252,17 @@ class _Change:
             happened=outcome != "refused",
         )
 
-    async def act(self, change: Callable[[], _T], refused: Callable[[str], ApiError]) -> _T:
-        """``change()`` on the engine; a refusal audited and raised as ``refused(reason)``.
+    async def act(
+        self, change: Callable[[], _T], refused: Callable[[AlarmRefusedError], ApiError]
+    ) -> _T:
+        """``change()`` on the engine; a refusal audited and raised as ``refused(error)``.
         The alarm's new state is in the database before the answer (on a full disk it waits in
         memory and is written, in order, once there is room: ``AlarmStore.flush``)."""
         try:
             result = change()
         except AlarmRefusedError as error:
             await self.audit("refused", str(error))
-            raise refused(str(error)) from None
+            raise refused(error) from None
         await self.robot.alarm_store.flush()
         return result
 
@@ -300,8 +307,16 @@ def _summary(alarm: dict[str, object], what: str) -> str:
     return f"{alarm['name']}{f' [{where}]' if where else ''}: {what}"
 
 
-def _shelve_refused(reason: str) -> ApiError:
-    return ApiError(422, reason, field="duration_s")
+def _shelve_refused(error: AlarmRefusedError) -> ApiError:
+    """409 for an alarm that is never shelved (a safety stop, a critical alarm), 422 naming
+    the longest shelving for a duration over it."""
+    if isinstance(error, NotShelvableError):
+        return ApiError(409, str(error), field="alarm_id")
+    return ApiError(422, str(error), field="duration_s")
+
+
+def _conflict(error: AlarmRefusedError) -> ApiError:
+    return conflict(str(error))
 
 
 async def _authorize_ack(
@@ -322,7 +337,7 @@ async def _acknowledge(change: _Change, alarm_id: str, comment: str | None) -> d
     """Acknowledge one authorized alarm and audit the outcome; 409 ``ApiError`` (audited as
     refused) for a normal alarm. ``{alarm, changed, reason}`` (``reason``: why unchanged)."""
     alarm, changed = await change.act(
-        lambda: change.engine.acknowledge(alarm_id, change.user, comment), conflict
+        lambda: change.engine.acknowledge(alarm_id, change.user, comment), _conflict
     )
     unchanged = (
         f"suppressed by design (a consequence of {alarm['suppressed_by_name']}): nothing to "
@@ -441,7 +456,9 @@ async def acknowledge_many(
 
 @router.post(
     "/alarms/{alarm_id}/shelve",
-    summary="Shelve an alarm (operator): not annunciated until it expires or is unshelved",
+    summary="Shelve an alarm (operator): not annunciated until it expires, is unshelved, or "
+    "its condition clears and comes again; never a safety stop or a critical alarm (409), at "
+    "most its priority's longest (422)",
     response_model=models.AlarmAnswer,
     responses=errors(*_CHANGE),
 )
@@ -489,7 +506,7 @@ async def unshelve(
         requested=None,
     )
     alarm, changed = await change.act(
-        lambda: change.engine.unshelve(alarm_id, change.user), conflict
+        lambda: change.engine.unshelve(alarm_id, change.user), _conflict
     )
     await change.audit(
         "unshelved" if changed else "unchanged",
