@@ -220,7 +220,7 @@ def test_session_use_renews_it_and_logout_ends_it() -> None:
         # Each use moves the idle deadline a whole TTL past it (checked on the deadline, not by
         # sleeping in between: a busy machine may pause this thread longer than the TTL).
         used_at = time.monotonic()
-        assert sessions.get(session.token) is session
+        assert sessions.get(session.token, renew=True) is session
         assert session.expires_at_mono >= used_at + 0.3
     sessions.end(session, "logged out")
     sessions.end(session, "logged out")  # twice: reported once

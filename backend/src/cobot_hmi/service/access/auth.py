@@ -2,6 +2,13 @@
 
 Sessions live in memory: a restart logs everyone out, which also drops control (no session
 outlives the process that could release it). Imports only ``users`` of the service package.
+
+A login session idles out ``ttl_s`` after its person's last action: only what a person does
+renews it (``get(..., renew=True)``: the API's changing requests, among them
+``POST /api/v1/auth/activity``, which a page sends on its person's clicks and keys). Reading
+never renews it: a page that polls, a stream that reconnects, a script that reads keep the
+idle clock running (``api/deps.py`` decides from the request's method, not from anything the
+client claims).
 """
 
 from __future__ import annotations
@@ -31,7 +38,8 @@ class Session:
     created_at: float
     """Epoch seconds."""
     expires_at_mono: float
-    """``time.monotonic()`` deadline; pushed back by each use (idle expiry)."""
+    """``time.monotonic()`` deadline; pushed back by each of its person's actions (idle
+    expiry), never by a read."""
     id: str = field(default_factory=lambda: secrets.token_hex(8))
     """Public handle (never the token) for logs and control ownership."""
 
@@ -141,8 +149,15 @@ class Sessions:
         self._by_token[token] = session
         return session
 
-    def get(self, token: str | None) -> Session | None:
-        """The live session of ``token`` (its idle deadline renewed), or ``None``."""
+    def expires_in_s(self, session: Session) -> float | None:
+        """Seconds until ``session`` idles out (``None``: an API token's, which never does)."""
+        if math.isinf(session.expires_at_mono):
+            return None
+        return max(0.0, session.expires_at_mono - time.monotonic())
+
+    def get(self, token: str | None, *, renew: bool = False) -> Session | None:
+        """The live session of ``token``, or ``None``; ``renew``: a person acted with it, its
+        idle deadline moves a whole ``ttl_s`` past now (a read never renews it)."""
         if not token:
             return None
         if self._resolve_token is not None and token.startswith(API_TOKEN_PREFIX):
@@ -158,7 +173,8 @@ class Sessions:
         if changed is not None:
             self.end(session, changed)
             return None
-        session.expires_at_mono = now + self.ttl_s
+        if renew:
+            session.expires_at_mono = now + self.ttl_s
         return session
 
     def end(self, session: Session, reason: str) -> None:

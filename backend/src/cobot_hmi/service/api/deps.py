@@ -9,7 +9,7 @@ deprecated single-robot paths get the first robot of the settings.
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Final
 
 from fastapi import Depends, Path, Query, Request
 from starlette.requests import HTTPConnection
@@ -41,8 +41,16 @@ def session_token(connection: HTTPConnection) -> str | None:
     return None
 
 
+_READS: Final = frozenset({"GET", "HEAD", "OPTIONS"})
+"""Methods that never renew a session: reading is not a person's action."""
+
+
 async def current_session(request: Request) -> Session | None:
-    return get_service(request).sessions.get(session_token(request))
+    """The request's session; a changing request (a person's action: a write, an
+    acknowledgement, taking control, ``POST /api/v1/auth/activity``) renews its idle deadline,
+    a read never does (``access.auth``: the page's own polling must not keep it alive)."""
+    renew = request.method not in _READS
+    return get_service(request).sessions.get(session_token(request), renew=renew)
 
 
 async def _service(connection: HTTPConnection) -> Service:

@@ -72,6 +72,16 @@ class Me(BaseModel):
     """Who this request's session belongs to (null: no session)."""
 
     user: User | None
+    idle_timeout_s: float | None = Field(
+        default=None,
+        description="a login session ends this long after its person's last action (session_"
+        "ttl_s); null: no session, or an API token's (which never idles out)",
+    )
+    idle_expires_in_s: float | None = Field(
+        default=None,
+        description="seconds left before it idles out unless its person acts (a changing "
+        "request, POST /api/v1/auth/activity); reads never renew it",
+    )
 
 
 class LoginAnswer(BaseModel):

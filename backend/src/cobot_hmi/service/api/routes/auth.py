@@ -1,4 +1,5 @@
-"""Layer: service. Login, logout and who-am-I.
+"""Layer: service. Login, logout, who-am-I and a person's activity (which alone, with the
+API's other changing requests, keeps a session from idling out: ``access.auth``).
 
 A login is checked against the users file first; a name the file does not have is asked of the
 directory when one is configured (``access.directory``: a local name is never a directory
@@ -18,7 +19,7 @@ from typing import Final
 from fastapi import APIRouter, Request, Response
 from pydantic import BaseModel, Field
 
-from cobot_hmi.service.access.auth import SESSION_COOKIE
+from cobot_hmi.service.access.auth import SESSION_COOKIE, Session
 from cobot_hmi.service.access.directory import (
     UNREACHABLE,
     DirectoryUnreachableError,
@@ -132,6 +133,7 @@ async def _audit_login(
     "/logout",
     summary="End the session (and release control if it holds it)",
     responses=errors(403, 415),
+    response_model_exclude_unset=True,
 )
 async def logout(response: Response, service: ServiceDep, session: SessionDep) -> Me:
     if session is not None:
@@ -140,6 +142,35 @@ async def logout(response: Response, service: ServiceDep, session: SessionDep) -
     return Me(user=None)
 
 
-@router.get("/me", summary="The logged-in user, or null")
-async def me(session: SessionDep) -> Me:
-    return Me(user=None if session is None else _user_model(session.user))
+def _me(service: ServiceDep, session: Session | None) -> Me:
+    if session is None:
+        return Me(user=None)
+    left_s = service.sessions.expires_in_s(session)
+    return Me(
+        user=_user_model(session.user),
+        idle_timeout_s=None if left_s is None else service.sessions.ttl_s,
+        idle_expires_in_s=left_s,
+    )
+
+
+@router.get(
+    "/me",
+    summary="The logged-in user, or null, and how long before the session idles out (a read: "
+    "it never renews the session)",
+    response_model_exclude_unset=True,  # no session: {"user": null}, as before
+)
+async def me(service: ServiceDep, session: SessionDep) -> Me:
+    return _me(service, session)
+
+
+@router.post(
+    "/activity",
+    summary="Its person acted (a click, a key): the session's idle deadline is renewed. A page "
+    "sends it on its person's actions, never on a timer of its own",
+    responses=errors(401, 403, 415),
+    response_model_exclude_unset=True,
+)
+async def activity(service: ServiceDep, session: SessionDep) -> Me:
+    if session is None:
+        raise unauthorized("no session (it expired or ended): log in again")
+    return _me(service, session)
