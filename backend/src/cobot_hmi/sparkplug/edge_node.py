@@ -102,6 +102,7 @@ class EdgeNode(DeviceReports, CommandHandling, NodeMetrics):
         client.on_socket_open = self._on_socket_open
         client.on_connect = self._on_connect
         client.on_disconnect = self._on_disconnect
+        client.on_connect_fail = self._on_connect_fail
         client.on_message = self._on_message
         self._client = client
         client.connect_async(self.address.host, self.address.port, KEEPALIVE_S)
@@ -141,6 +142,7 @@ class EdgeNode(DeviceReports, CommandHandling, NodeMetrics):
         if reason_code.is_failure:
             self._to_loop(self._connect_refused, str(reason_code))
             return
+        self._backoff.connected()
         # Subscribed before the NBIRTH, as the specification asks.
         for topic_filter in self.topics.command_filters:
             client.subscribe(topic_filter, qos=1)
@@ -150,13 +152,18 @@ class EdgeNode(DeviceReports, CommandHandling, NodeMetrics):
 
     def _on_disconnect(
         self,
-        _client: mqtt.Client,
+        client: mqtt.Client,
         _userdata: object,
         _flags: object,
         reason_code: Any,
         _properties: object,
     ) -> None:
+        self._backoff.arm(client)  # paho waits right after this callback, then reconnects
         self._to_loop(self._disconnected, str(reason_code))
+
+    def _on_connect_fail(self, client: mqtt.Client, _userdata: object) -> None:
+        """An attempt that got no connection (refused, unreachable): the next wait."""
+        self._backoff.arm(client)
 
     def _on_message(self, _client: mqtt.Client, _userdata: object, message: Any) -> None:
         self._to_loop(self._on_message_in_loop, str(message.topic), bytes(message.payload))

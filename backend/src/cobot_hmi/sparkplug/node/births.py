@@ -18,6 +18,7 @@ from cobot_hmi.sparkplug.node.device import Device, now_ms
 from cobot_hmi.sparkplug.payload import (
     DataType,
     MetricValue,
+    Payload,
     PayloadError,
     Property,
     add_metric,
@@ -106,6 +107,9 @@ class Births(NodeCore):
         if self.buffer.records_buffered:  # its history, if it has some, after its birth
             self._replay_again = True
             if not self._replaying:
+                # Marked here, not when the task first runs: the next robot's DBIRTH, in the
+                # same turn of the loop, must find it running (one replay, not one per birth).
+                self._replaying = True
                 self._spawn(self._replay(), "sparkplug replay")
 
     def _publish_device_death(self, device: Device) -> None:
@@ -152,8 +156,8 @@ class Births(NodeCore):
 
     async def _replay(self) -> None:
         """The buffered DDATA, oldest first, marked historical, each after its robot's DBIRTH
-        (a robot not born yet keeps its records for a replay after its birth)."""
-        self._replaying = True
+        (a robot not born yet keeps its records for a replay after its birth). One at a time:
+        ``_replaying`` is set by whoever spawns it; a birth meanwhile asks for another pass."""
         try:
             self._replay_again = True
             while self._replay_again and self.active:
@@ -165,13 +169,13 @@ class Births(NodeCore):
             self._replaying = False
 
     async def _replay_segment(self, path: Path) -> bool:
-        """One segment; ``False`` when the node stopped being born midway."""
+        """One segment, in order; ``False`` when the node stopped being born midway (what did
+        not go out is kept, still the oldest, for the next replay)."""
         records = self.buffer.read(path)
         deferred: list[tuple[str, bytes]] = []
+        waiting: set[str] = set()
+        """Robots with a record deferred: their later ones wait too, so they stay in order."""
         for index, (topic, data) in enumerate(records):
-            if not self.active:
-                self.buffer.put_back(path, deferred + records[index:])
-                return False
             try:
                 payload = parse_payload(data)
             except PayloadError:
@@ -181,19 +185,38 @@ class Births(NodeCore):
             if device is None:  # buffered by a run with other robots or ids
                 self.buffer.records_dropped += 1
                 continue
-            if not device.born:
+            if not device.born or device.device_name in waiting:
+                waiting.add(device.device_name)
                 deferred.append((topic, data))
                 continue
-            for metric in payload.metrics:
-                # The robot's place in the settings may have changed since.
-                metric.alias = device.alias_base + metric.alias % ALIAS_STRIDE
-                metric.is_historical = True
-            self._publish(topic, payload, device)
+            self._as_historical(payload, device)
+            # Not published: paho already knows the connection is gone (this loop is told
+            # next); the record stays for the next connection.
+            if not self.active or not self._publish(topic, payload, device):
+                self.buffer.put_back(path, deferred + records[index:])
+                return False
             self.replayed += 1
             if index % REPLAY_BATCH == REPLAY_BATCH - 1:
-                await asyncio.sleep(0.01)  # let paho's thread drain its queue
+                try:
+                    await asyncio.sleep(0.01)  # let paho's thread drain its queue
+                except asyncio.CancelledError:  # the service stops: keep what did not go out
+                    self.buffer.put_back(path, deferred + records[index + 1 :])
+                    raise
         if deferred:
             self.buffer.put_back(path, deferred)
         else:
             self.buffer.finish(path)
         return True
+
+    @staticmethod
+    def _as_historical(payload: Payload, device: Device) -> None:
+        """A buffered DDATA as it goes out now (Sparkplug 3.0, "Payloads"): the payload's
+        timestamp is when it is published, each metric keeps the time its value was captured
+        and is marked historical, and carries no datatype (a DDATA's metrics should not;
+        buffers written by older versions have it)."""
+        payload.timestamp = now_ms()
+        for metric in payload.metrics:
+            # The robot's place in the settings may have changed since.
+            metric.alias = device.alias_base + metric.alias % ALIAS_STRIDE
+            metric.is_historical = True
+            metric.ClearField("datatype")

@@ -20,7 +20,12 @@ from cobot_hmi.service.access.users import Role, User
 from cobot_hmi.service.writes.pipeline import Writer
 from cobot_hmi.sparkplug.buffer import DiskBuffer
 from cobot_hmi.sparkplug.catalogue import Catalogue
-from cobot_hmi.sparkplug.mqtt_client import BrokerAddress, ClientOptions
+from cobot_hmi.sparkplug.mqtt_client import (
+    BrokerAddress,
+    ClientOptions,
+    ReconnectBackoff,
+    queued,
+)
 from cobot_hmi.sparkplug.node.device import Device
 from cobot_hmi.sparkplug.payload import Payload
 from cobot_hmi.sparkplug.session import NodeSession
@@ -87,6 +92,8 @@ class NodeCore:
         """The last attempt opened its socket, so its CONNECT (and bdSeq) went out."""
         self._connecting_bd_seq = self.session.bd_seq
         self._client: mqtt.Client | None = None
+        self._backoff = ReconnectBackoff()
+        """Used on paho's thread only (its callbacks)."""
         self._loop: asyncio.AbstractEventLoop | None = None
         self._tasks: list[asyncio.Task[None]] = []
         self._background: set[asyncio.Task[None]] = set()
@@ -123,14 +130,17 @@ class NodeCore:
             device.messages[kind] += 1
             device.bytes[kind] += size
 
-    def _publish(self, topic: str, payload: Payload, device: Device | None) -> None:
-        """Number it (``seq``) and send it (QoS 0: paho queues; its thread writes)."""
+    def _publish(self, topic: str, payload: Payload, device: Device | None) -> bool:
+        """Number it (``seq``) and send it (QoS 0: paho queues; its thread writes); ``False``
+        (not counted) when paho has no connection to queue it on."""
         if not payload.HasField("seq"):
             payload.seq = self.session.next_seq()
         data = payload.SerializeToString()
         assert self._client is not None
-        self._client.publish(topic, data, qos=0, retain=False)
+        if not queued(self._client.publish(topic, data, qos=0, retain=False)):
+            return False
         kind = topic.split("/")[2]
         if any(m.is_historical for m in payload.metrics[:1]):
             kind += "_historical"
         self._count(device, kind, len(data))
+        return True

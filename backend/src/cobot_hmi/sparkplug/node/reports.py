@@ -127,9 +127,15 @@ class DeviceReports(Births):
                 datatype=metric.datatype,
                 value=value,
                 properties=(Property("name", DataType.STRING, name),) if name else (),
+                with_datatype=False,  # the DBIRTH gave it (Sparkplug 3.0: not in DATA)
             )
         topic = self.topics.device_topic(MessageType.DDATA, device.device_name)
         if self.active and device.born:
-            self._publish(topic, payload, device)
-        elif not self.active and self.buffer.append(topic, payload.SerializeToString()):
+            if self._publish(topic, payload, device):
+                return
+            # paho knows the connection is gone and this loop is told next: keep it.
+            payload.ClearField("seq")
+        elif self.active:
+            return  # not born on this connection yet: its DBIRTH will carry the values
+        if self.buffer.append(topic, payload.SerializeToString()):
             device.messages["DDATA_buffered"] += 1
