@@ -39,7 +39,7 @@ import hashlib
 import sqlite3
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Final, Literal
+from typing import Any, Final, Literal
 
 import orjson
 
@@ -188,7 +188,33 @@ class Verdict:
 def verify(db: sqlite3.Connection) -> Verdict:
     """Walk the chain from its first seal: the findings in chain order (the first row changed,
     inserted or deleted first), then rows without a seal that are not pending."""
-    # One read transaction: the head and the rows of one moment, while the service seals more.
+    stored, legacy_last_id, legacy_sealed_at, rows = _read_audit(db)
+    chain = [row for row in rows if row[0] is not None]
+    verdict = Verdict(
+        rows=len(rows),
+        sealed=len(chain),
+        head=stored,
+        legacy_last_id=int(legacy_last_id or 0),
+        legacy_sealed_at=legacy_sealed_at,
+    )
+    last_seq, last_hash, last_id = _walk_chain(chain, stored, verdict.findings)
+    _check_head(stored, last_seq, last_hash, last_id, verdict.findings)
+    for _, _, *content in rows[len(chain) :]:
+        row_id, outcome = content[0], content[SEALED.index("outcome")]
+        if outcome == PENDING:
+            verdict.pending.append(row_id)
+        else:
+            text = (
+                f"row {row_id} inserted: it carries no seal (outcome {outcome!r}; only pending "
+                "rows are not sealed yet)"
+            )
+            verdict.findings.append(Finding("inserted", row_id, text))
+    return verdict
+
+
+def _read_audit(db: sqlite3.Connection) -> tuple[ChainHead, Any, Any, list[Any]]:
+    """The head, the legacy seal's row and time, and every audit row (sealed ones in chain
+    order first), read in one transaction: one moment, while the service seals more."""
     own = not db.in_transaction
     if own:
         db.execute("BEGIN")
@@ -204,15 +230,14 @@ def verify(db: sqlite3.Connection) -> Verdict:
     finally:
         if own:
             db.rollback()
-    chain = [row for row in rows if row[0] is not None]
-    verdict = Verdict(
-        rows=len(rows),
-        sealed=len(chain),
-        head=stored,
-        legacy_last_id=int(legacy_last_id or 0),
-        legacy_sealed_at=legacy_sealed_at,
-    )
-    findings = verdict.findings
+    return stored, legacy_last_id, legacy_sealed_at, rows
+
+
+def _walk_chain(
+    chain: list[Any], stored: ChainHead, findings: list[Finding]
+) -> tuple[int, str, int | None]:
+    """Each sealed row against the one before it: what was inserted, deleted or changed into
+    ``findings``; the last seal's number and hash and its row."""
     previous, expected, previous_id = GENESIS, 1, None
     by_seq: dict[int, int] = {}
     for seq, digest, *content in chain:
@@ -242,32 +267,32 @@ def verify(db: sqlite3.Connection) -> Verdict:
             findings.append(Finding("changed", row_id, text))
         by_seq[seq] = row_id
         previous, expected, previous_id = str(digest), seq + 1, row_id
-    last_seq = expected - 1
+    return expected - 1, previous, previous_id
+
+
+def _check_head(
+    stored: ChainHead,
+    last_seq: int,
+    last_hash: str,
+    last_id: int | None,
+    findings: list[Finding],
+) -> None:
+    """The chain's last seal against the stored head: newest rows deleted, or rows appended
+    (or the head rewritten)."""
     if stored.seq > last_seq:
         first = last_seq + 1
         missing = f"#{first}" if stored.seq == first else f"#{first}–#{stored.seq}"
         text = (
             f"{stored.seq - last_seq} newest row(s) deleted: seal {missing} missing after "
-            f"{_row(previous_id)} (the head is seal #{stored.seq})"
+            f"{_row(last_id)} (the head is seal #{stored.seq})"
         )
         findings.append(Finding("deleted", None, text))
-    elif stored.seq < last_seq or (last_seq and stored.hash != previous):
+    elif stored.seq < last_seq or (last_seq and stored.hash != last_hash):
         text = (
-            f"{_row(previous_id)} (seal #{last_seq}) is not the chain's head "
+            f"{_row(last_id)} (seal #{last_seq}) is not the chain's head "
             f"({stored.describe()}): rows appended or the head rewritten"
         )
-        findings.append(Finding("inserted", previous_id, text))
-    for _, _, *content in rows[len(chain) :]:
-        row_id, outcome = content[0], content[SEALED.index("outcome")]
-        if outcome == PENDING:
-            verdict.pending.append(row_id)
-        else:
-            text = (
-                f"row {row_id} inserted: it carries no seal (outcome {outcome!r}; only pending "
-                "rows are not sealed yet)"
-            )
-            findings.append(Finding("inserted", row_id, text))
-    return verdict
+        findings.append(Finding("inserted", last_id, text))
 
 
 def _row(row_id: int | None) -> str:
