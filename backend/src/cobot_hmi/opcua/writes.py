@@ -59,19 +59,19 @@ _STATUS: Final = {
 
 
 def access_level_refusal(aspace: AddressSpace, value: ua.WriteValue) -> ua.StatusCode | None:
-    """``BadNotWritable`` for a write no user may make: an attribute other than the Value (no
-    node here has a WriteMask) or a variable whose AccessLevel has no CurrentWrite; ``None``
-    for the rest (an unknown node, a writable variable: asyncua's own checks answer those)."""
+    """What a write no user may make is answered: ``BadNodeIdUnknown`` or
+    ``BadAttributeIdInvalid`` for what does not exist (asyncua would say
+    ``BadUserAccessDenied``), ``BadNotWritable`` for an attribute other than the Value (no node
+    here has a WriteMask) or a variable whose AccessLevel has no CurrentWrite; ``None`` for a
+    writable variable (asyncua's own checks answer it: its UserAccessLevel, its data type)."""
     if value.AttributeId != ua.AttributeIds.Value:
         found = aspace.read_attribute_value(value.NodeId, value.AttributeId).StatusCode
-        if found is not None and found.value == ua.StatusCodes.BadNodeIdUnknown:
-            return None
-        if found is not None and found.value == ua.StatusCodes.BadAttributeIdInvalid:
+        if found is not None and not found.is_good():
             return found
         return ua.StatusCode(ua.StatusCodes.BadNotWritable)
     level = aspace.read_attribute_value(value.NodeId, ua.AttributeIds.AccessLevel)
     if level.StatusCode is not None and not level.StatusCode.is_good():
-        return None  # no such node, or not a variable
+        return level.StatusCode  # no such node, or not a variable (no AccessLevel)
     mask = level.Value.Value if level.Value is not None else None
     if isinstance(mask, int) and not mask & ua.AccessLevel.CurrentWrite.mask:
         return ua.StatusCode(ua.StatusCodes.BadNotWritable)
