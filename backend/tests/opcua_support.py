@@ -9,7 +9,9 @@ from __future__ import annotations
 import asyncio
 import itertools
 import json
+import random
 import shutil
+import socket
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +28,22 @@ LINE_BYTES = 64 * 1024 * 1024
 """The longest answer (a browse of the whole DeviceSet is a few MB)."""
 ANSWER_S = 60.0
 """How long one request may take before the test fails (a functional bound, never a figure)."""
+
+
+def listening_port(host: str) -> int:
+    """A TCP port free on ``host`` below the kernel's ephemeral range, for a server the test
+    starts later: a port from ``free_tcp_port`` is in that range, and the service's own
+    outgoing connections from ``host`` (its EtherNet/IP sessions, made before the OPC UA server
+    listens) may take it meanwhile."""
+    low = int(Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split()[0])
+    while True:
+        port = random.randrange(20_000, low)
+        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+            try:
+                probe.bind((host, port))
+            except OSError:
+                continue
+        return port
 
 
 class PeerError(RuntimeError):

@@ -33,7 +33,14 @@ from cobot_hmi.emulator.target import Target
 from conftest import _next_host as next_host
 from conftest import free_tcp_port
 from emulator_harness import FAST_TIMINGS
-from opcua_support import ANSWER_S, CLIENT_URI, PEERS, client_certificate, trust
+from opcua_support import (
+    ANSWER_S,
+    CLIENT_URI,
+    PEERS,
+    client_certificate,
+    listening_port,
+    trust,
+)
 from service_support import OPERATOR, Running, cell_settings, running_service
 from waiting import eventually_async
 
@@ -120,7 +127,7 @@ async def _cell(state_dir: Path) -> AsyncIterator[Cell]:
         create_control_app(robot, target), robot_host, free_tcp_port(robot_host)
     )
     await control.start()
-    endpoint = f"opc.tcp://{plc_host}:{free_tcp_port(plc_host)}"
+    endpoint = f"opc.tcp://{plc_host}:{listening_port(plc_host)}"
     settings = cell_settings(
         [(ROBOT, robot_host, target.tcp_port)],
         plc_host,
@@ -190,13 +197,24 @@ async def _children(client: Client, node: ua.NodeId, reference: int) -> list[Any
 async def test_a_read_only_variable_answers_bad_not_writable(cell: Cell) -> None:
     """With writes off, the operator's write to a command output (and to a frame value) is
     BadNotWritable (OPC 10000-4: the AccessLevel does not allow writing), not
-    BadUserAccessDenied; the AccessLevel says so, and the robot's command is unchanged."""
-    items = []
-    for path in (DO_3, "Frame.controlbox_do.2"):
-        value = ua.DataValue(ua.Variant(True, ua.VariantType.Boolean))
-        items.append(ua.WriteValue(NodeId=cell.node(path), AttributeId=13, Value=value))
+    BadUserAccessDenied; the AccessLevel says so, and the robot's command is unchanged. What
+    does not exist is answered so, not BadUserAccessDenied either."""
+    value = ua.DataValue(ua.Variant(True, ua.VariantType.Boolean))
+    items = [
+        ua.WriteValue(NodeId=cell.node(path), AttributeId=ua.AttributeIds.Value, Value=value)
+        for path in (DO_3, "Frame.controlbox_do.2", "NoSuchNode", "Status")
+    ]
+    name = ua.DataValue(ua.Variant(ua.LocalizedText("DO 3"), ua.VariantType.LocalizedText))
+    attribute = ua.AttributeIds.DisplayName
+    items.append(ua.WriteValue(NodeId=cell.node(DO_3), AttributeId=attribute, Value=name))
     statuses = await cell.operator.uaclient.write(ua.WriteParameters(NodesToWrite=items))
-    assert [s.name for s in statuses] == ["BadNotWritable", "BadNotWritable"]
+    assert [s.name for s in statuses] == [
+        "BadNotWritable",
+        "BadNotWritable",
+        "BadNodeIdUnknown",  # no such node
+        "BadAttributeIdInvalid",  # an object has no Value
+        "BadNotWritable",  # no attribute but the Value is ever writable
+    ]
     (level,) = await _read(cell.operator, [cell.node(DO_3)], ua.AttributeIds.AccessLevel)
     assert not level.Value.Value & ua.AccessLevel.CurrentWrite.mask
     assert cell.running.service.robots[ROBOT].link.command.controlbox_do[2] is False
