@@ -12,7 +12,7 @@ Machinery (umati) look for.
   ``MachineryItemState`` (``MachineryItemState_StateMachineType``) and to
   ``MachineryOperationMode`` (``MachineryOperationModeStateMachineType``), whose
   ``CurrentState`` and ``CurrentState/Id`` follow the robot's state (``item_state``,
-  ``operation_mode``; the mapping is in docs/api.md, "OPC UA").
+  ``operation_mode``; the mapping is in docs/api.md, "OPC UA: the Machinery building blocks").
 """
 
 from __future__ import annotations
@@ -35,56 +35,61 @@ HAS_ADD_IN: Final = ua.NodeId(ua.ObjectIds.HasAddIn)
 _FOLDER_TYPE: Final = ua.NodeId(ua.ObjectIds.FolderType)
 _STRING: Final = ua.NodeId(ua.ObjectIds.String)
 
-S = RobotState
+_S = RobotState
 _EXECUTING: Final = frozenset(
     {
-        S.MANUAL_JOGGING,
-        S.MANUAL_HANDGUIDING,
-        S.STANDALONE_RUNNING,
-        S.COLLABORATIVE_RUNNING,
-        S.HIGH_PRIORITY_RUNNING,
-        S.AUTO_MEASURE,
-        S.HANDGUIDING_CONTROL_RUNNING,
+        _S.MANUAL_JOGGING,
+        _S.MANUAL_HANDGUIDING,
+        _S.STANDALONE_RUNNING,
+        _S.COLLABORATIVE_RUNNING,
+        _S.HIGH_PRIORITY_RUNNING,
+        _S.AUTO_MEASURE,
+        _S.HANDGUIDING_CONTROL_RUNNING,
     }
 )
 _NOT_EXECUTING: Final = frozenset(
-    {S.MANUAL_STANDBY, S.STANDALONE_STANDBY, S.COLLABORATIVE_STANDBY, S.HANDGUIDING_CONTROL_STANDBY}
+    {
+        _S.MANUAL_STANDBY,
+        _S.STANDALONE_STANDBY,
+        _S.COLLABORATIVE_STANDBY,
+        _S.HANDGUIDING_CONTROL_STANDBY,
+    }
 )
 _OUT_OF_SERVICE: Final = frozenset(
     {
-        S.EMERGENCY_STOP,
-        S.SAFE_OFF,
-        S.INTERRUPTED,
-        S.RECOVERY_STANDBY,
-        S.RECOVERY_JOGGING,
-        S.RECOVERY_HANDGUIDING,
-        S.BACKDRIVE_HOLD,
-        S.BACKDRIVE_RELEASE,
-        S.BACKDRIVE_RELEASE_BY_COCKPIT,
+        _S.EMERGENCY_STOP,
+        _S.SAFE_OFF,
+        _S.INTERRUPTED,
+        _S.RECOVERY_STANDBY,
+        _S.RECOVERY_JOGGING,
+        _S.RECOVERY_HANDGUIDING,
+        _S.BACKDRIVE_HOLD,
+        _S.BACKDRIVE_RELEASE,
+        _S.BACKDRIVE_RELEASE_BY_COCKPIT,
     }
 )
 _SETUP: Final = frozenset(
-    {S.MANUAL_STANDBY, S.MANUAL_JOGGING, S.MANUAL_HANDGUIDING, S.AUTO_MEASURE}
+    {_S.MANUAL_STANDBY, _S.MANUAL_JOGGING, _S.MANUAL_HANDGUIDING, _S.AUTO_MEASURE}
 )
 _MAINTENANCE: Final = frozenset(
     {
-        S.RECOVERY_STANDBY,
-        S.RECOVERY_JOGGING,
-        S.RECOVERY_HANDGUIDING,
-        S.BACKDRIVE_HOLD,
-        S.BACKDRIVE_RELEASE,
-        S.BACKDRIVE_RELEASE_BY_COCKPIT,
+        _S.RECOVERY_STANDBY,
+        _S.RECOVERY_JOGGING,
+        _S.RECOVERY_HANDGUIDING,
+        _S.BACKDRIVE_HOLD,
+        _S.BACKDRIVE_RELEASE,
+        _S.BACKDRIVE_RELEASE_BY_COCKPIT,
     }
 )
 _PROCESSING: Final = frozenset(
     {
-        S.STANDALONE_STANDBY,
-        S.STANDALONE_RUNNING,
-        S.COLLABORATIVE_STANDBY,
-        S.COLLABORATIVE_RUNNING,
-        S.HIGH_PRIORITY_RUNNING,
-        S.HANDGUIDING_CONTROL_STANDBY,
-        S.HANDGUIDING_CONTROL_RUNNING,
+        _S.STANDALONE_STANDBY,
+        _S.STANDALONE_RUNNING,
+        _S.COLLABORATIVE_STANDBY,
+        _S.COLLABORATIVE_RUNNING,
+        _S.HIGH_PRIORITY_RUNNING,
+        _S.HANDGUIDING_CONTROL_STANDBY,
+        _S.HANDGUIDING_CONTROL_RUNNING,
     }
 )
 
