@@ -1,7 +1,9 @@
 // Scenario 34 (issue 23): an I/O checkout run by hand on the panel: the checker starts one, DI 5
 // changes on the robot (its control API) and the row turns "seen" without anyone touching the
 // screen; DO 3 is switched from the checkout (with control), the robot confirms it, the checker
-// passes it with a comment; the printed page (print media) shows the report without a single
+// passes it with a comment, then switches it off: the evidence keeps both switches with their
+// confirmation times (issue 38); a fail needs a comment; while the checkout is open no second one
+// is offered, only to resume it; the printed page (print media) shows the report without a single
 // button, with the signature lines. Then output presets: "All outputs off", which every robot
 // has, and a preset saved from the registers being sent, each applied after a confirmation that
 // lists what changes, and one typed by hand.
@@ -31,12 +33,31 @@ test("a checkout run by hand: DI 5 seen, DO 3 passed, the printed report without
   await page.getByTestId("checkout-find").fill("DO 3");
   const do3 = page.locator(`[data-testid=checkout-row][data-key='${DO3}']`);
   await do3.getByTestId("checkout-switch-on").click();
-  await expect(do3.getByTestId("checkout-evidence")).toHaveText("on (confirmed)");
+  await expect(do3.getByTestId("checkout-evidence")).toHaveText(/^on confirmed \d\d:\d\d:\d\d$/);
   expect((await robot.status()).frame.controlbox_do[2]).toBe(true);
   await do3.getByTestId("checkout-comment").fill("valve opens");
   await do3.getByTestId("checkout-pass").click();
   await expect(do3).toHaveAttribute("data-result", "pass");
   await expect(do3).toContainText("valve opens");
+  // Switched off again: what proved the pass stays in its evidence (issue 38).
+  await do3.getByTestId("checkout-switch-off").click();
+  await expect(do3.getByTestId("checkout-evidence")).toHaveText(/^on confirmed \d\d:\d\d:\d\d, off confirmed \d\d:\d\d:\d\d$/);
+  await expect(do3).toHaveAttribute("data-result", "pass");
+
+  // A fail needs a comment saying what is wrong.
+  await page.getByTestId("checkout-find").fill("Tool DO 2");
+  const toolDo2 = page.locator("[data-testid=checkout-row][data-key='tool_do.1']");
+  await expect(toolDo2.getByTestId("checkout-fail")).toBeDisabled();
+  await toolDo2.getByTestId("checkout-comment").fill("no wire at the tool flange");
+  await toolDo2.getByTestId("checkout-fail").click();
+  await expect(toolDo2).toHaveAttribute("data-result", "fail");
+
+  // One open checkout per robot: no second one offered, the open one resumed.
+  await expect(page.getByTestId("checkout-start")).toHaveCount(0);
+  await page.getByTestId("checkout-choose").selectOption("");
+  await page.getByTestId("checkout-resume").click();
+  await expect(page.getByTestId("checkout-header")).toContainText("I/O checkout");
+  await expect(page.getByTestId("checkout-resume")).toHaveCount(0);
 
   // The printed page: every point, the signature lines, no button anywhere.
   await page.getByTestId("checkout-find").fill("");
@@ -48,6 +69,8 @@ test("a checkout run by hand: DI 5 seen, DO 3 passed, the printed report without
   await expect(page.locator("[data-testid=checkout-row]:visible")).toHaveCount(176);
   await expect(di5).toContainText("seen");
   await expect(do3).toContainText("pass");
+  await expect(do3.getByTestId("checkout-evidence")).toContainText("on confirmed");
+  await expect(do3.getByTestId("checkout-evidence")).toContainText("off confirmed");
   await page.emulateMedia({ media: "screen" });
   await expect(page.getByTestId("checkout-signatures")).toBeHidden();
 
@@ -56,6 +79,7 @@ test("a checkout run by hand: DI 5 seen, DO 3 passed, the printed report without
   await page.getByTestId("confirm-yes").click();
   await expect(page.getByTestId("checkout-header")).toContainText("closed");
   await expect(page.getByTestId("checkout-pass")).toHaveCount(0);
+  await expect(page.getByTestId("checkout-start")).toBeVisible();
   await robot.post("/inputs", { controlbox_di: { "4": false } });
   await page.getByTestId("release-control").click();
 });

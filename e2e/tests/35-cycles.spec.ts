@@ -13,7 +13,7 @@ test("the cycle panel shows the emulator's cycles", async ({ page, request }) =>
   await page.goto(`/?robot=${settings.robotName}`);
   const view = page.getByTestId("cycle-view");
   await view.scrollIntoViewIfNeeded();
-  await expect(page.getByTestId("cycle-trigger")).toContainText("rising edge of bit_output_registers.63");
+  await expect(page.getByTestId("cycle-trigger")).toContainText("rising edge of Register out 63");
   const last = page.getByTestId("cycle-last");
   await expect(last).toHaveText(/^\d+\.\d\d s$/, { timeout: CYCLES_TIMEOUT_MS });
   // What the panel shows is what the service measured.
@@ -29,7 +29,7 @@ test("the cycle panel shows the emulator's cycles", async ({ page, request }) =>
   await expect(page.getByTestId("cycle-trend").locator(".main-svg").first()).toBeVisible();
   await expect(page.getByTestId("cycle-histogram").locator(".main-svg").first()).toBeVisible();
   const csv = await request.get(`/api/v1/robots/${settings.robotName}/cycles`, { params: { format: "csv" } });
-  expect((await csv.text()).split(/\r?\n/)[0]).toBe("id,start,end,duration_s");
+  expect((await csv.text()).split(/\r?\n/)[0]).toBe("id,start,end,duration_s,interrupted,interruption");
   // Printed: the cycle statistics alone, without a control.
   await page.evaluate(() => {
     document.body.dataset.printSection = "cycles";
@@ -44,6 +44,35 @@ test("the cycle panel shows the emulator's cycles", async ({ page, request }) =>
   await page.goto(`/?robot=${settings.robot2Name}`);
   await page.getByTestId("cycle-no-trigger").scrollIntoViewIfNeeded();
   await expect(page.getByTestId("cycle-no-trigger")).toContainText("No cycle trigger");
+});
+
+test("a cycle across an emergency stop is shown apart and left out of the statistics (issue 38)", async ({ page, robot, request }) => {
+  const cyclesOf = async () => {
+    const answer = await request.get(`/api/v1/robots/${settings.robotName}/cycles`);
+    expect(answer.status()).toBe(200);
+    return (await answer.json()) as {
+      cycles: { duration_s: number; interrupted: boolean; interruption: string | null }[];
+      statistics: { interrupted: number };
+      in_progress_since: number | null;
+    };
+  };
+  await page.goto(`/?robot=${settings.robotName}`);
+  await page.getByTestId("cycle-view").scrollIntoViewIfNeeded();
+  // A cycle under way, then the e-stop, the reset and the program started again.
+  await expect.poll(async () => (await cyclesOf()).in_progress_since, { timeout: CYCLES_TIMEOUT_MS }).not.toBeNull();
+  await robot.estop();
+  await expect.poll(async () => (await robot.status()).frame.robot_state_name).toBe("EMERGENCY_STOP");
+  await robot.normalize();
+  const apart = page.getByTestId("cycle-interrupted");
+  await expect(apart).toContainText("Emergency stop", { timeout: CYCLES_TIMEOUT_MS });
+  await expect(page.getByTestId("cycle-interrupted-note")).toContainText(/interrupted cycles?, left out of the statistics/);
+  const body = await cyclesOf();
+  const stopped = body.cycles.filter((c) => c.interruption === "Emergency stop");
+  expect(stopped.length).toBeGreaterThanOrEqual(1);
+  expect(body.statistics.interrupted).toBeGreaterThanOrEqual(stopped.length);
+  // Included on request: the statistics say so.
+  await page.getByTestId("cycle-include-interrupted").check();
+  await expect(page.getByTestId("cycle-interrupted-note")).toContainText("included in the statistics");
 });
 
 test("the event log is searched by text and time range without a login", async ({ page }) => {

@@ -1,5 +1,15 @@
 import { describe, expect, it } from "vitest";
-import { countsWords, evidenceWords, filterPoints, pointTime_s, pointWho, type CheckoutPoint } from "./checkout";
+import {
+  countsWords,
+  evidenceWords,
+  filterPoints,
+  openCheckout,
+  pointTime_s,
+  pointWho,
+  verdictRefusal,
+  type CheckoutPoint,
+  type CheckoutSummary,
+} from "./checkout";
 
 function point(over: Partial<CheckoutPoint>): CheckoutPoint {
   return {
@@ -16,6 +26,7 @@ function point(over: Partial<CheckoutPoint>): CheckoutPoint {
     switched_at: null,
     switched_value: null,
     switched_by: null,
+    switches: [],
     recorded_at: null,
     recorded_by: null,
     comment: null,
@@ -51,6 +62,40 @@ describe("checkout points", () => {
     expect(pointWho(DO3)).toBe("oscar");
     expect(pointWho(AI0)).toBe("olivia");
     expect(pointWho(DI5)).toBe("");
+  });
+
+  it("keeps every switch of an output with its confirmation time (issue 38)", () => {
+    const clock = (ms: number) => `t${ms / 1000}`;
+    const onThenOff = point({
+      ...DO3,
+      switched_at: 14,
+      switched_value: false,
+      switches: [
+        { time: 11, value: true, by: "olivia", latency_ms: 12, seq: 100 },
+        { time: 14, value: false, by: "olivia", latency_ms: 11, seq: 400 },
+      ],
+    });
+    expect(evidenceWords(onThenOff, clock)).toBe("on confirmed t11, off confirmed t14");
+    const ao = point({ key: "analog_output.0", label: "AO 0", kind: "output", signal: "analog", switches: [{ time: 3, value: 12.5, by: "ada", latency_ms: null }] });
+    expect(evidenceWords(ao, clock)).toBe("12.5 confirmed t3");
+  });
+
+  it("asks a comment of a fail and offers the open checkout to resume (issue 38)", () => {
+    expect(verdictRefusal("fail", "  ")).toBe("A fail needs a comment saying what is wrong.");
+    expect(verdictRefusal("fail", "no wire")).toBeNull();
+    expect(verdictRefusal("pass", "")).toBeNull();
+    const summary = (id: number, closed_at: number | null): CheckoutSummary => ({
+      id,
+      robot: "robot",
+      started_at: id,
+      started_by: "olivia",
+      closed_at,
+      closed_by: closed_at === null ? null : "olivia",
+      identity: null,
+      counts: { untested: 176, seen: 0, pass: 0, fail: 0 },
+    });
+    expect(openCheckout([summary(3, null), summary(2, 5)])?.id).toBe(3);
+    expect(openCheckout([summary(2, 5)])).toBeNull();
   });
 
   it("counts in words", () => {

@@ -5,6 +5,7 @@
  */
 import { API, api, errorReason, type JsonClient, type PageAnswer } from "./api";
 import type { components } from "../generated/api";
+import { formatClock } from "./dates";
 import type { HttpAnswer } from "./writes";
 
 type Schemas = components["schemas"];
@@ -12,6 +13,7 @@ export type Checkout = Schemas["Checkout"];
 export type CheckoutPoint = Schemas["CheckoutPoint"];
 export type CheckoutSummary = Schemas["CheckoutSummary"];
 export type CheckoutResult = CheckoutPoint["result"];
+export type CheckoutSwitch = Schemas["CheckoutSwitchRecord"];
 
 const JSON_CONTENT = { "Content-Type": "application/json" } as const;
 
@@ -117,13 +119,33 @@ function valueWords(value: boolean | number | null | undefined): string {
   return String(value);
 }
 
-/** What the frames or the robot showed of a point, in words: "off → on", "4, 20", "on (confirmed)". */
-export function evidenceWords(p: CheckoutPoint): string {
+/** One switch of an output as the evidence lists it: "on confirmed 07:21:04". */
+export function switchWords(s: CheckoutSwitch, clock: (epoch_ms: number) => string = formatClock): string {
+  return `${valueWords(s.value)} confirmed ${clock(s.time * 1000)}`;
+}
+
+/**
+ * What the frames or the robot showed of a point, in words: "off → on", "4, 20", and for an
+ * output every switch the robot confirmed, in order ("on confirmed 07:21:04, off confirmed
+ * 07:21:09"): a pass keeps what proved it after the output is switched off again.
+ */
+export function evidenceWords(p: CheckoutPoint, clock: (epoch_ms: number) => string = formatClock): string {
   if (p.kind === "input" && p.signal === "digital") {
     return p.seen_at === null ? "" : `${valueWords(p.seen_before)} → ${valueWords(p.seen_after)}`;
   }
   if (p.kind === "input") return p.samples.map((s) => s.value.toFixed(3)).join(", ");
+  if (p.switches.length > 0) return p.switches.map((s) => switchWords(s, clock)).join(", ");
   return p.switched_at === null ? "" : `${valueWords(p.switched_value)} (confirmed)`;
+}
+
+/** Why the checker's verdict cannot be sent yet ("a fail needs a comment"), or null. */
+export function verdictRefusal(result: "pass" | "fail", comment: string): string | null {
+  return result === "fail" && comment.trim() === "" ? "A fail needs a comment saying what is wrong." : null;
+}
+
+/** The robot's open checkout (at most one): resumed rather than a second one started. */
+export function openCheckout(list: readonly CheckoutSummary[]): CheckoutSummary | null {
+  return list.find((c) => c.closed_at === null) ?? null;
 }
 
 /** When the point last changed: its verdict, else what the robot showed. */

@@ -16,9 +16,37 @@ export const CYCLE_WINDOW = 20;
 /** The trend and the histogram show at most this many (the newest) cycles. */
 export const CYCLES_SHOWN = 500;
 
-/** The robot's newest cycles (the service's default range: all) and their statistics. */
-export async function fetchCycles(client: JsonClient, robot: string, last = CYCLE_WINDOW, limit = CYCLES_SHOWN): Promise<PageAnswer<CyclePage>> {
-  return pageAnswer(await client.GET("/api/v1/robots/{name}/cycles", { params: { path: { name: robot }, query: { last, limit } } }));
+/**
+ * The robot's newest cycles (the service's default range: all) and their statistics, of whole
+ * cycles unless `includeInterrupted` (docs/api.md "Cycle timing").
+ */
+export async function fetchCycles(
+  client: JsonClient,
+  robot: string,
+  last = CYCLE_WINDOW,
+  limit = CYCLES_SHOWN,
+  includeInterrupted = false,
+): Promise<PageAnswer<CyclePage>> {
+  const query = { last, limit, ...(includeInterrupted ? { include_interrupted: true } : {}) };
+  return pageAnswer(await client.GET("/api/v1/robots/{name}/cycles", { params: { path: { name: robot }, query } }));
+}
+
+/**
+ * The cycles the trend and the histogram draw, and the interrupted ones shown apart (a stop, a
+ * lost link, the robot out of its running states: one 142 s "cycle" across two e-stops would
+ * squash 61 cycles of 8 s into one bar). `include`: every cycle drawn, as the statistics then are.
+ */
+export function splitCycles(cycles: readonly CycleRow[], include = false): { drawn: CycleRow[]; interrupted: CycleRow[] } {
+  const interrupted = cycles.filter((c) => c.interrupted);
+  return { drawn: include ? [...cycles] : cycles.filter((c) => !c.interrupted), interrupted };
+}
+
+/** "2 interrupted cycles, left out of the statistics" (or "…, included"); "" when there are none. */
+export function interruptedWords(statistics: CycleStatistics): string {
+  const n = statistics.interrupted;
+  if (n === 0) return "";
+  const what = n === 1 ? "1 interrupted cycle" : `${n} interrupted cycles`;
+  return `${what}, ${statistics.include_interrupted ? "included in" : "left out of"} the statistics`;
 }
 
 /** The CSV export of every cycle of the robot (a download link: the session cookie goes along). */

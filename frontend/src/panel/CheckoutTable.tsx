@@ -5,7 +5,7 @@
  * the print stylesheet (styles/print.css) hides every button and input.
  */
 import { memo, useState } from "react";
-import { evidenceWords, pointTime_s, pointWho, type CheckoutPoint } from "../lib/checkout";
+import { evidenceWords, pointTime_s, pointWho, verdictRefusal, type CheckoutPoint } from "../lib/checkout";
 import { formatTimestamp } from "../lib/dates";
 
 export interface PointActions {
@@ -58,6 +58,7 @@ const Row = memo(function Row({
 }) {
   const [comment, setComment] = useState("");
   const time_s = pointTime_s(point);
+  const failRefused = verdictRefusal("fail", comment);
   return (
     <tr data-testid="checkout-row" data-key={point.key} data-result={point.result}>
       <td className="nowrap">{point.label}</td>
@@ -93,7 +94,13 @@ const Row = memo(function Row({
           <button type="button" data-testid="checkout-pass" disabled={busy} onClick={() => actions.record(point, "pass", comment)}>
             Pass
           </button>
-          <button type="button" data-testid="checkout-fail" disabled={busy} onClick={() => actions.record(point, "fail", comment)}>
+          <button
+            type="button"
+            data-testid="checkout-fail"
+            disabled={busy || failRefused !== null}
+            title={failRefused ?? `Record ${point.label} as failed`}
+            onClick={() => actions.record(point, "fail", comment)}
+          >
             Fail
           </button>
         </td>
@@ -122,7 +129,7 @@ export function CheckoutTable({
             <th>tag</th>
             <th>kind</th>
             <th>result</th>
-            <th>seen / confirmed</th>
+            <th>seen / switched and confirmed</th>
             <th>when</th>
             <th>who</th>
             <th>comment</th>

@@ -3,8 +3,10 @@
  * or open one of the robot's checkouts; every point of the layout with its result. Inputs turn
  * "seen" by themselves when the robot's frames show them change (the view asks again every
  * second while the checkout is open); outputs are switched from here through the write
- * pipeline (control needed) and pass only once the robot confirmed them. Several checkers may
- * work at once; a closed checkout is read-only. The report: CSV, or this view printed (the
+ * pipeline (control needed) and pass only once the robot confirmed them, every switch kept with
+ * its confirmation time; a fail needs a comment. Several checkers may work at once on the
+ * robot's one open checkout: while it is open, "Resume checkout N" takes its place of "Start a
+ * checkout" (the service refuses a second). A closed checkout is read-only. The report: CSV, or this view printed (the
  * print stylesheet leaves the robot's identity, start and end, every point, who and when, and
  * the signature lines, without any button).
  */
@@ -15,6 +17,7 @@ import {
   checkoutCsvUrl,
   countsWords,
   filterPoints,
+  openCheckout,
   type Checkout,
   type CheckoutPoint,
   type CheckoutSummary,
@@ -139,6 +142,7 @@ export const CheckoutView = memo(function CheckoutView({ robot, user }: { readon
   usePoll(robot, chosen, open || shown === null, setCheckout, setError);
 
   const points = useMemo(() => (shown === null ? [] : filterPoints(shown.points, filter, text)), [shown, filter, text]);
+  const resumable = openCheckout(list);
 
   const act = useCallback(
     async (action: () => Promise<{ ok: true; page: CheckoutPoint } | { ok: false; reason: string }>) => {
@@ -176,7 +180,11 @@ export const CheckoutView = memo(function CheckoutView({ robot, user }: { readon
         setChosen(answer.page.id);
         setError(null);
         setReload((n) => n + 1);
-      } else setError(answer.reason);
+      } else {
+        setError(answer.reason);
+        // Another checker started one meanwhile (409): the list offers it to resume.
+        setReload((n) => n + 1);
+      }
     } finally {
       setBusy(false);
     }
@@ -210,9 +218,14 @@ export const CheckoutView = memo(function CheckoutView({ robot, user }: { readon
             ))}
           </select>
         </label>
-        {operator && (
+        {operator && resumable === null && (
           <button type="button" className="primary" data-testid="checkout-start" disabled={busy} onClick={() => void start()}>
             Start a checkout
+          </button>
+        )}
+        {resumable !== null && resumable.id !== chosen && (
+          <button type="button" className="primary" data-testid="checkout-resume" onClick={() => setChosen(resumable.id)}>
+            Resume checkout {resumable.id}
           </button>
         )}
         {shown !== null && (

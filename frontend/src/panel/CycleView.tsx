@@ -3,10 +3,24 @@
  * last one, the mean, minimum and maximum of the newest N, a trend of the durations and their
  * histogram (Plotly, through lib/plotlyAdapter), the newest cycles as a table, the CSV export and
  * a printed page of the statistics. Asked again every few seconds: a cycle lasts seconds.
+ * Interrupted cycles (the robot stopped, lost its link or left its running states) are listed
+ * apart with what interrupted them and left out of the statistics, the trend and the histogram,
+ * unless "include interrupted cycles" is ticked.
  */
 import { memo, useEffect, useMemo, useRef, useState } from "react";
 import { api } from "../lib/api";
-import { CYCLE_WINDOW, cyclesCsvUrl, fetchCycles, formatCycle_s, histogram, type CyclePage } from "../lib/cycles";
+import {
+  CYCLE_WINDOW,
+  CYCLES_SHOWN,
+  cyclesCsvUrl,
+  fetchCycles,
+  formatCycle_s,
+  histogram,
+  interruptedWords,
+  splitCycles,
+  type CyclePage,
+  type CycleRow,
+} from "../lib/cycles";
 import { formatTimestamp } from "../lib/dates";
 import type { PlotTheme } from "../lib/plotAppearance";
 import { plotlyBackend } from "../lib/plotlyAdapter";
@@ -41,7 +55,7 @@ const CONFIG = { displaylogo: false, responsive: true };
 const NEAR_MARGIN = "300px 0px";
 
 /** The trend and the histogram, drawn into their own elements (no samples in React state). */
-function CyclePlots({ page, theme }: { readonly page: CyclePage; readonly theme: PlotTheme }) {
+function CyclePlots({ cycles, theme }: { readonly cycles: readonly CycleRow[]; readonly theme: PlotTheme }) {
   const trend = useRef<HTMLDivElement>(null);
   const bars = useRef<HTMLDivElement>(null);
   const grid = useRef<HTMLDivElement>(null);
@@ -69,15 +83,15 @@ function CyclePlots({ page, theme }: { readonly page: CyclePage; readonly theme:
     };
   }, []);
   useEffect(() => {
-    const key = `${theme} ${page.cycles.map((c) => c.id).join(",")}`;
+    const key = `${theme} ${cycles.map((c) => c.id).join(",")}`;
     if (key === drawn.current || !near || !plotly.ready()) return;
     drawn.current = key;
-    const durations = page.cycles.map((c) => c.duration_s);
+    const durations = cycles.map((c) => c.duration_s);
     const c = colours(theme);
     if (trend.current !== null) {
       plotlyBackend.react(
         trend.current,
-        [{ type: "scatter", mode: "lines+markers", x: page.cycles.map((x) => new Date(x.start * 1000)), y: durations, line: { color: c.trace }, name: "cycle" }],
+        [{ type: "scatter", mode: "lines+markers", x: cycles.map((x) => new Date(x.start * 1000)), y: durations, line: { color: c.trace }, name: "cycle" }],
         layoutOf(theme, "cycle start", "duration (s)", "date"),
         CONFIG,
       );
@@ -91,7 +105,7 @@ function CyclePlots({ page, theme }: { readonly page: CyclePage; readonly theme:
         CONFIG,
       );
     }
-  }, [page, theme, near, plotly, plotlyCame]);
+  }, [cycles, theme, near, plotly, plotlyCame]);
   useEffect(() => {
     const elements = [trend.current, bars.current];
     return () => {
@@ -114,13 +128,44 @@ function Figure({ label, value, testId }: { readonly label: string; readonly val
   );
 }
 
+function InterruptedCycles({ cycles }: { readonly cycles: readonly CycleRow[] }) {
+  if (cycles.length === 0) return null;
+  return (
+    <div className="table-scroll" tabIndex={0} role="region" aria-label="interrupted cycles">
+      <table data-testid="cycle-interrupted">
+        <caption>Interrupted cycles</caption>
+        <thead>
+          <tr>
+            <th>start</th>
+            <th>duration</th>
+            <th>interrupted by</th>
+          </tr>
+        </thead>
+        <tbody>
+          {cycles
+            .slice(-TABLE_ROWS)
+            .reverse()
+            .map((c) => (
+              <tr key={c.id}>
+                <td className="nowrap">{formatTimestamp(c.start)}</td>
+                <td>{formatCycle_s(c.duration_s)}</td>
+                <td>{c.interruption ?? ""}</td>
+              </tr>
+            ))}
+        </tbody>
+      </table>
+    </div>
+  );
+}
+
 export const CycleView = memo(function CycleView({ robot, theme }: { readonly robot: string; readonly theme: PlotTheme }) {
   const [page, setPage] = useState<CyclePage | null>(null);
   const [error, setError] = useState<string | null>(null);
+  const [include, setInclude] = useState(false);
   useEffect(() => {
     let cancelled = false;
     const load = () => {
-      fetchCycles(api.client, robot)
+      fetchCycles(api.client, robot, CYCLE_WINDOW, CYCLES_SHOWN, include)
         .then((answer) => {
           if (cancelled) return;
           if (answer.ok) {
@@ -132,14 +177,16 @@ export const CycleView = memo(function CycleView({ robot, theme }: { readonly ro
           if (!cancelled) setError(String(e));
         });
     };
-    setPage(null);
     load();
     const timer = window.setInterval(load, POLL_MS);
     return () => {
       cancelled = true;
       window.clearInterval(timer);
     };
-  }, [robot]);
+  }, [robot, include]);
+  // Another robot: nothing of the last one's shown meanwhile.
+  useEffect(() => setPage(null), [robot]);
+  const split = useMemo(() => splitCycles(page?.cycles ?? [], include), [page, include]);
 
   if (page === null) return <p className="hint">{error ?? "loading…"}</p>;
   if (page.trigger === null) {
@@ -151,6 +198,7 @@ export const CycleView = memo(function CycleView({ robot, theme }: { readonly ro
   }
   const s = page.statistics;
   const newest = page.cycles.slice(-TABLE_ROWS).reverse();
+  const apart = interruptedWords(s);
   return (
     <div className="cycle-view" data-testid="cycle-view">
       <div className="table-view__bar">
@@ -158,6 +206,10 @@ export const CycleView = memo(function CycleView({ robot, theme }: { readonly ro
         <span className="table-view__source">
           {s.count} cycles measured{page.in_progress_since !== null ? `; this one since ${formatTimestamp(page.in_progress_since)}` : ""}
         </span>
+        <label className="no-print">
+          <input type="checkbox" data-testid="cycle-include-interrupted" checked={include} onChange={(e) => setInclude(e.target.checked)} />{" "}
+          include interrupted cycles
+        </label>
         <a data-testid="cycles-csv" href={cyclesCsvUrl(robot)} download>
           Export CSV
         </a>
@@ -173,7 +225,13 @@ export const CycleView = memo(function CycleView({ robot, theme }: { readonly ro
         <Figure label="min" value={formatCycle_s(s.min_s)} testId="cycle-min" />
         <Figure label="max" value={formatCycle_s(s.max_s)} testId="cycle-max" />
       </div>
-      <CyclePlots page={page} theme={theme} />
+      {apart !== "" && (
+        <p className="hint" data-testid="cycle-interrupted-note">
+          {apart}
+        </p>
+      )}
+      <CyclePlots cycles={split.drawn} theme={theme} />
+      <InterruptedCycles cycles={split.interrupted} />
       <div className="table-scroll" tabIndex={0} role="region" aria-label="newest cycles">
         <table data-testid="cycle-table">
           <thead>
@@ -185,10 +243,13 @@ export const CycleView = memo(function CycleView({ robot, theme }: { readonly ro
           </thead>
           <tbody>
             {newest.map((c) => (
-              <tr key={c.id}>
+              <tr key={c.id} data-interrupted={c.interrupted ? "true" : undefined}>
                 <td className="nowrap">{formatTimestamp(c.start)}</td>
                 <td className="nowrap">{formatTimestamp(c.end)}</td>
-                <td>{formatCycle_s(c.duration_s)}</td>
+                <td>
+                  {formatCycle_s(c.duration_s)}
+                  {c.interrupted ? ` (interrupted: ${c.interruption ?? ""})` : ""}
+                </td>
               </tr>
             ))}
             {newest.length === 0 && (
