@@ -16,6 +16,7 @@ from typing import Any
 
 from cobot_hmi.codec import CodecError, decode_command
 from cobot_hmi.enip import epath
+from cobot_hmi.enip.cip import MessageRouterResponse
 from cobot_hmi.enip.connection_manager import (
     ConnectionType,
     ForwardCloseRequest,
@@ -30,7 +31,7 @@ from cobot_hmi.enip.encapsulation import ENIP_UDP_PORT
 from cobot_hmi.enip.errors import EnipError
 from cobot_hmi.scanner.connection.core import Link
 from cobot_hmi.scanner.connection.o2t_send import O2TSender
-from cobot_hmi.scanner.connection.settings import local_address_to
+from cobot_hmi.scanner.connection.settings import OriginatorSettings, local_address_to
 from cobot_hmi.scanner.connection.state import ConnectionState
 from cobot_hmi.scanner.connection.t2o_receive import T2OReceiver
 from cobot_hmi.scanner.io_port import IoPort
@@ -42,6 +43,37 @@ log = logging.getLogger(__name__)
 
 ORIGINATOR_VENDOR_ID = 0xFFFE
 """Vendor ID in our Forward Opens (a placeholder; part of the connection triplet only)."""
+
+
+def _forward_open_request(s: OriginatorSettings, link: Link) -> ForwardOpenRequest:
+    """The Forward Open of ``link``: both directions point to point at the RPI, the O→T size
+    with its run/idle header (or the heartbeat's), the T→O size with its sequence count."""
+    o2t_size = s.heartbeat_o2t_size if s.input_only else s.o2t_size + 6
+    return ForwardOpenRequest(
+        o2t_connection_id=0,
+        t2o_connection_id=link.t2o_id,
+        connection_serial=link.connection_serial,
+        vendor_id=ORIGINATOR_VENDOR_ID,
+        originator_serial=link.originator_serial,
+        timeout_multiplier=s.timeout_multiplier,
+        o2t_rpi_us=s.rpi_us,
+        o2t_params=NetworkParams(o2t_size, ConnectionType.POINT_TO_POINT, Priority.SCHEDULED),
+        t2o_rpi_us=s.rpi_us,
+        t2o_params=NetworkParams(s.t2o_size + 2, ConnectionType.POINT_TO_POINT, Priority.SCHEDULED),
+        path=link.path,
+        large=s.large_forward_open,
+    )
+
+
+def _o2t_address(target_host: str, items: list[CpfItem]) -> tuple[str, int]:
+    """Where O→T goes: the target's UDP 2222, or the address its reply's sockaddr item names."""
+    address = (target_host, ENIP_UDP_PORT)
+    for item in items:
+        if item.type_id == ItemType.SOCKADDR_O2T:
+            announced = decode_sockaddr(item.data)
+            host = announced.host if announced.host != "0.0.0.0" else target_host
+            address = (host, announced.port)
+    return address
 
 
 class _RefusedError(Exception):
@@ -130,34 +162,19 @@ class ConnectionLifecycle(O2TSender, T2OReceiver):
         self._session = session
         await session.open()
         await self._read_o2t_assembly(session)
-
-        o2t_point = s.heartbeat_instance if s.input_only else s.o2t_instance
-        o2t_size = s.heartbeat_o2t_size if s.input_only else s.o2t_size + 6
         link = Link(
             t2o_id=port.new_connection_id(),
             connection_serial=self._rng.getrandbits(16),
             originator_serial=self._rng.getrandbits(32),
-            path=epath.connection_path(s.config_instance, o2t_point, s.t2o_instance),
+            path=epath.connection_path(
+                s.config_instance,
+                s.heartbeat_instance if s.input_only else s.o2t_instance,
+                s.t2o_instance,
+            ),
             target_host=session.peer_host or await self._target_ip(),
             o2t_api_us=s.rpi_us,
             t2o_api_us=s.rpi_us,
             last_rx=loop.time(),
-        )
-        request = ForwardOpenRequest(
-            o2t_connection_id=0,
-            t2o_connection_id=link.t2o_id,
-            connection_serial=link.connection_serial,
-            vendor_id=ORIGINATOR_VENDOR_ID,
-            originator_serial=link.originator_serial,
-            timeout_multiplier=s.timeout_multiplier,
-            o2t_rpi_us=s.rpi_us,
-            o2t_params=NetworkParams(o2t_size, ConnectionType.POINT_TO_POINT, Priority.SCHEDULED),
-            t2o_rpi_us=s.rpi_us,
-            t2o_params=NetworkParams(
-                s.t2o_size + 2, ConnectionType.POINT_TO_POINT, Priority.SCHEDULED
-            ),
-            path=link.path,
-            large=s.large_forward_open,
         )
         extra: list[CpfItem] = []
         if s.request_t2o_port is not None:
@@ -166,13 +183,24 @@ class ConnectionLifecycle(O2TSender, T2OReceiver):
         self._seeded = False
         self._window.clear()
         self._pace.restart(s.rpi_us)  # again with the API the reply grants
-        self._lost = loop.create_future()
-        self._first_frame = loop.create_future()
-        self._link = link
+        lost: asyncio.Future[str] = loop.create_future()
+        first_frame: asyncio.Future[None] = loop.create_future()
+        self._lost, self._first_frame, self._link = lost, first_frame, link
         # A point-to-point T→O connection ID is ours (CIP Vol 1 §3-5.4.1): the target may
         # produce on it as soon as it has opened the connection, before we read its reply.
         self._route(port, link, silence_s=0.0)
-        response, items = await session.request(request.request(), extra)
+        response, items = await session.request(_forward_open_request(s, link).request(), extra)
+        self._accept_reply(port, link, response)
+        link.o2t_addr = _o2t_address(link.target_host, items)
+        self._start_o2t(port, link)
+        await self._await_first_frame(port, link, first_frame, lost)
+        self._connected_since = time.time()
+        self._set_state(ConnectionState.CONNECTED, None)
+
+    def _accept_reply(self, port: IoPort, link: Link, response: MessageRouterResponse) -> None:
+        """The Forward Open's reply: refused, or its connection IDs and granted APIs taken
+        (``_RefusedError`` when they cannot be)."""
+        s = self.settings
         if not response.ok:
             with contextlib.suppress(EnipError):
                 decode_failure_reply(response.data)
@@ -196,13 +224,10 @@ class ConnectionLifecycle(O2TSender, T2OReceiver):
         link.o2t_api_us = reply.o2t_api_us or s.rpi_us
         link.t2o_api_us = reply.t2o_api_us or s.rpi_us
         self._pace.restart(link.t2o_api_us)
-        link.o2t_addr = (link.target_host, ENIP_UDP_PORT)
-        for item in items:
-            if item.type_id == ItemType.SOCKADDR_O2T:
-                announced = decode_sockaddr(item.data)
-                host = announced.host if announced.host != "0.0.0.0" else link.target_host
-                link.o2t_addr = (host, announced.port)
-        # O→T from now on, at the RPI, built ahead into the cyclic pump (o2t_stream).
+
+    def _start_o2t(self, port: IoPort, link: Link) -> None:
+        """O→T from now on, at the RPI, built ahead into the cyclic pump (o2t_stream)."""
+        s = self.settings
         link.o2t = O2TStream(
             port.udp,
             port.new_tag(),
@@ -217,18 +242,24 @@ class ConnectionLifecycle(O2TSender, T2OReceiver):
         link.o2t.start()
         # The pump wakes us once T→O has been silent for the timeout, whatever the batch.
         self._route(port, link, silence_s=self._timeout_s(link))
-        first_timeout_s = max(s.first_frame_timeout_s, self._timeout_s(link))
-        waits: list[asyncio.Future[Any]] = [self._first_frame, self._lost]
+
+    async def _await_first_frame(
+        self,
+        port: IoPort,
+        link: Link,
+        first_frame: asyncio.Future[None],
+        lost: asyncio.Future[str],
+    ) -> None:
+        first_timeout_s = max(self.settings.first_frame_timeout_s, self._timeout_s(link))
+        waits: list[asyncio.Future[Any]] = [first_frame, lost]
         done, _ = await asyncio.wait(
             waits, timeout=first_timeout_s, return_when=asyncio.FIRST_COMPLETED
         )
-        if self._first_frame not in done:
+        if first_frame not in done:
             raise TimeoutError(
                 f"no T→O frame within {first_timeout_s:.1f} s of the Forward Open "
                 f"(T→O connection 0x{link.t2o_id:08X} on UDP {port.local_host}:{port.udp_port})"
             )
-        self._connected_since = time.time()
-        self._set_state(ConnectionState.CONNECTED, None)
 
     def _route(self, port: IoPort, link: Link, *, silence_s: float) -> None:
         port.route(
