@@ -26,6 +26,8 @@ from cobot_hmi.history.journal_form import expand, records_to_journal_batch
 from cobot_hmi.history.query import read_raw
 from cobot_hmi.history.schema import SCHEMA, TIME, select_elements
 from cobot_hmi.service.access.users import Role, UsersError, UsersFile
+from cobot_hmi.sparkplug.buffer import DiskBuffer
+from cobot_hmi.sparkplug.payload import parse_payload
 from cobot_hmi.stored_format import FormatVersionError
 
 V1 = Path(__file__).parent / "legacy" / "stored_formats" / "v1"
@@ -247,3 +249,53 @@ def test_the_fixtures_times_are_what_the_tests_assume() -> None:
     path = V1 / "history-closed" / ROBOT / f"{SEGMENT_NAME}{segments.SEGMENT_SUFFIX}"
     times = pq.read_table(path, columns=[TIME]).column(TIME).cast(pa.int64()).to_pylist()
     assert times[0] == int(START_S * 1e6) and len(times) == FRAMES
+
+
+# --------------------------------------------------------------------- Sparkplug spool
+
+
+def test_a_spool_segment_of_the_previous_version_replays_and_is_written_back_as_today(
+    v1: Path,
+) -> None:
+    spool = v1 / "sparkplug-spool"
+    old = spool / "0000000000.seg"
+    assert not old.read_bytes().startswith(b"CHMISPL")
+    buffer = DiskBuffer(spool, 1 << 20)
+    assert buffer.records_buffered == 3
+    [sealed] = buffer.sealed()
+    records = buffer.read(sealed)
+    assert [topic for topic, _ in records] == ["spBv1.0/cell/DDATA/edge/m1013"] * 3
+    values = [parse_payload(payload).metrics[0].int_value for _, payload in records]
+    assert values == [1, 2, 3]
+    buffer.put_back(sealed, records[1:])  # a replay cut short: the rest stays, as version 2
+    assert sealed.read_bytes().startswith(b"CHMISPL\n\x02\x00")
+    assert [parse_payload(p).metrics[0].int_value for _, p in buffer.read(sealed)] == [2, 3]
+    assert DiskBuffer(spool, 1 << 20).records_buffered == 2
+
+
+def test_a_new_spool_segment_says_its_version(tmp_path: Path) -> None:
+    buffer = DiskBuffer(tmp_path, 1 << 20)
+    assert buffer.append("spBv1.0/cell/DDATA/edge/m1013", b"\x08\x01")
+    [path] = sorted(tmp_path.glob("*.seg"))
+    assert path.read_bytes()[:10] == b"CHMISPL\n\x02\x00"
+    assert buffer.bytes_buffered == path.stat().st_size
+    assert DiskBuffer(tmp_path, 1 << 20).read(path) == [
+        ("spBv1.0/cell/DDATA/edge/m1013", b"\x08\x01")
+    ]
+
+
+def test_a_spool_segment_of_a_newer_version_is_refused_by_name_and_kept(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    newer = tmp_path / "0000000007.seg"
+    newer.write_bytes(b"CHMISPL\n\x03\x00" + b"records of a format this build does not know")
+    before = newer.read_bytes()
+    with caplog.at_level("ERROR", logger="cobot_hmi.sparkplug.buffer"):
+        buffer = DiskBuffer(tmp_path, 1 << 20)
+    assert "Sparkplug spool segment version 3" in caplog.text
+    assert buffer.records_buffered == 0 and buffer.sealed() == []
+    assert buffer.append("spBv1.0/cell/DDATA/edge/m1013", b"\x08\x01")
+    assert sorted(p.name for p in tmp_path.glob("*.seg")) == ["0000000007.seg", "0000000008.seg"]
+    assert newer.read_bytes() == before
+    with pytest.raises(FormatVersionError, match="Sparkplug spool segment version 3"):
+        buffer.read(newer)

@@ -8,7 +8,12 @@ what could not go out yet (another disconnect, a robot not born yet) is written 
 left by a previous run are replayed too. Writes go through the page cache (no fsync per record): a
 power cut may lose the newest records, never corrupts older ones (a torn last record is cut).
 
-Imports nothing of the project.
+Each segment starts with its format's version (``SPOOL_FORMAT``): an 8-byte mark and a 16-bit
+version, then the records. Version 1, written before segments carried one, is the records
+alone (no record starts with the mark: its topic would be 18,499 bytes long) and is read as it
+is; a segment of a newer version is refused by name, left on disk as it is and never replayed.
+
+Imports only ``stored_format`` of the project.
 """
 
 from __future__ import annotations
@@ -20,7 +25,14 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Final
 
+from cobot_hmi.stored_format import FormatVersionError, StoredFormat
+
 log = logging.getLogger(__name__)
+
+SPOOL_FORMAT: Final = StoredFormat("Sparkplug spool segment", 2)
+_MARK: Final = b"CHMISPL\n"
+_FILE_HEADER: Final = struct.Struct("<8sH")
+"""The mark and the format's version at the start of a segment."""
 
 _HEADER: Final = struct.Struct("<HI")
 """Topic length, payload length."""
@@ -31,8 +43,23 @@ _SEGMENTS: Final = 16
 Record = tuple[str, bytes]
 
 
-def _records(data: bytes) -> Iterator[Record]:
-    offset = 0
+def _file_header() -> bytes:
+    return _FILE_HEADER.pack(_MARK, SPOOL_FORMAT.version)
+
+
+def _records_start(data: bytes, where: Path) -> int:
+    """Where a segment's records start (after its header; 0 in a version 1 segment), its version
+    checked (``FormatVersionError`` for a newer one)."""
+    if not data.startswith(_MARK):
+        return 0
+    if len(data) < _FILE_HEADER.size:
+        return len(data)  # a header torn by a crash: no records
+    _, version = _FILE_HEADER.unpack_from(data)
+    SPOOL_FORMAT.read_version(version, where)
+    return _FILE_HEADER.size
+
+
+def _records(data: bytes, offset: int = 0) -> Iterator[Record]:
     while offset + _HEADER.size <= len(data):
         topic_len, payload_len = _HEADER.unpack_from(data, offset)
         start = offset + _HEADER.size
@@ -77,11 +104,16 @@ class DiskBuffer:
                     number = int(path.stem)
                 except (OSError, ValueError):
                     continue
-                count = sum(1 for _ in _records(data))
+                self._next_number = max(self._next_number, number + 1)
+                try:
+                    start = _records_start(data, path)
+                except FormatVersionError as error:
+                    log.error("Sparkplug buffer: left as it is, not replayed: %s", error)
+                    continue
+                count = sum(1 for _ in _records(data, start))
                 self._segments.append((path, len(data), count))
                 self.records_buffered += count
                 self.bytes_buffered += len(data)
-                self._next_number = max(self._next_number, number + 1)
         if self._segments:
             log.info(
                 "Sparkplug buffer: %d records from a previous run in %s",
@@ -103,6 +135,8 @@ class DiskBuffer:
         record = encode_record(topic, payload)
         if not self._segments or self._segments[-1][1] + len(record) > self.segment_bytes:
             self._new_segment()
+        if self._segments[-1][1] == 0:
+            record = _file_header() + record  # a new segment starts with its version
         while self.bytes_buffered + len(record) > self.max_bytes and len(self._segments) > 1:
             self._drop_oldest()
         path, size, count = self._segments[-1]
@@ -139,9 +173,10 @@ class DiskBuffer:
     def read(self, path: Path) -> list[Record]:
         """A segment's records (none if it cannot be read)."""
         try:
-            return list(_records(path.read_bytes()))
+            data = path.read_bytes()
         except OSError:
             return []
+        return list(_records(data, _records_start(data, path)))
 
     def finish(self, path: Path) -> None:
         """The segment went out: delete it."""
@@ -156,7 +191,7 @@ class DiskBuffer:
 
     def put_back(self, path: Path, remaining: list[Record]) -> None:
         """Replay stopped part-way: keep what did not go out, still the oldest."""
-        data = b"".join(encode_record(topic, payload) for topic, payload in remaining)
+        data = _file_header() + b"".join(encode_record(t, payload) for t, payload in remaining)
         for i, (candidate, size, count) in enumerate(self._segments):
             if candidate == path:
                 try:
