@@ -10,7 +10,9 @@
   it. Its application URI is the server's.
 - **The trust list**: a client's certificate is accepted when it is in the trusted directory
   (``opcua_trust_dir``, default ``STATE_DIR/opcua/pki/trusted``, DER or PEM), read again for
-  each new session, so adding a file takes effect without a restart. A refused certificate is
+  each new secure channel and session, so adding a file takes effect without a restart. It is
+  checked when the secure channel opens (``ClientValidator.check_channel``, from
+  ``channel_policy``), and again with the application URI at CreateSession. A refused certificate is
   written to ``pki/rejected/`` (named by its thumbprint): moving it into ``trusted/`` trusts it,
   as in UaExpert's and most servers' workflow.
 """
@@ -21,7 +23,9 @@ import contextvars
 import ipaddress
 import logging
 import os
+import re
 import socket
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Final
 
@@ -151,9 +155,10 @@ SECURE_CHANNEL: Final[contextvars.ContextVar[bool]] = contextvars.ContextVar(
 
 
 class ClientValidator:
-    """Checks a client's certificate at CreateSession: its validity period, that its
-    subjectAltName names the client's application URI, and that it is trusted; an untrusted
-    one goes to the rejected directory."""
+    """Checks a client's certificate when its secure channel opens (``check_channel``: its
+    validity period, that it is trusted) and at CreateSession (those, and that its
+    subjectAltName names the client's application URI); a refused one goes to the rejected
+    directory."""
 
     def __init__(self, trusted_dir: Path, rejected_dir: Path) -> None:
         self._trusted_dir = trusted_dir
@@ -181,15 +186,51 @@ class ClientValidator:
             self._reject(certificate, description, error)
             raise error from None
         except ServiceError as error:
-            self._reject(certificate, description, error)
+            self._reject(certificate, description.ApplicationUri, error)
             raise
 
-    def _reject(
-        self,
-        certificate: x509.Certificate,
-        description: ua.ApplicationDescription,
-        error: ServiceError,
-    ) -> None:
+    def check_channel(self, certificate: x509.Certificate) -> None:
+        """At OpenSecureChannel (OPC 10000-6 §6.7): the validity period, and trusted (the
+        application URI is checked at CreateSession, which names it). Synchronous: asyncua
+        selects a channel's policy in a plain call; the trust list is a few small files."""
+        now = datetime.now(UTC)
+        if not certificate.not_valid_before_utc <= now <= certificate.not_valid_after_utc:
+            error = ServiceError(ua.StatusCodes.BadCertificateTimeInvalid)
+        elif not self._trusted(certificate):
+            error = ServiceError(ua.StatusCodes.BadCertificateUntrusted)
+        else:
+            return
+        self._reject(certificate, _uri_of(certificate), error)
+        raise error
+
+    def _trusted(self, certificate: x509.Certificate) -> bool:
+        """Whether the trusted directory, as it is now, trusts ``certificate`` (the same
+        verification as asyncua's ``TrustStore.is_trusted``)."""
+        trusted: list[x509.Certificate] = []
+        for path in sorted(self._trusted_dir.glob("*.*")):
+            if not _TRUST_FILE.match(path.name.lower()):
+                continue
+            try:
+                data = path.read_bytes()
+                trusted.append(
+                    x509.load_pem_x509_certificate(data)
+                    if data.lstrip().startswith(b"-----")
+                    else x509.load_der_x509_certificate(data)
+                )
+            except (OSError, ValueError) as error:
+                log.warning("OPC UA: %s is not a readable certificate (%s)", path, error)
+        if not trusted:
+            return False
+        verifier = self._store.policy_builder.store(
+            x509.verification.Store(trusted)
+        ).build_client_verifier()
+        try:
+            verifier.verify(certificate, [])
+        except x509.verification.VerificationError:
+            return False
+        return True
+
+    def _reject(self, certificate: x509.Certificate, who: str, error: ServiceError) -> None:
         self.rejected += 1
         name = certificate.fingerprint(hashes.SHA1()).hex()
         path = self._rejected_dir / f"{name}.der"
@@ -198,11 +239,25 @@ class ClientValidator:
         log.warning(
             "OPC UA: client certificate of %s refused (%s); saved as %s: move it into %s "
             "to trust it",
-            description.ApplicationUri,
+            who,
             ua.StatusCode(error.code).name,
             path,
             self._trusted_dir,
         )
+
+
+_TRUST_FILE: Final = re.compile(r".*(der|pem)")
+"""The trusted directory's certificate files (asyncua's ``TrustStore`` reads the same)."""
+
+
+def _uri_of(certificate: x509.Certificate) -> str:
+    """The application URI in a certificate's subjectAltName, for the log."""
+    try:
+        names = certificate.extensions.get_extension_for_class(x509.SubjectAlternativeName)
+    except x509.ExtensionNotFound:
+        return certificate.subject.rfc4514_string()
+    uris = names.value.get_values_for_type(x509.UniformResourceIdentifier)
+    return uris[0] if uris else certificate.subject.rfc4514_string()
 
 
 async def load_into(server: Server, certificates: Certificates) -> None:

@@ -2,7 +2,8 @@
 
 ``OpcUaServer.start`` (on the service's web loop) starts a thread running an event loop of its
 own (epoll, ``eventloop.precise_event_loop``) on which asyncua runs: the certificates
-(``security``), the companion models (``companion``), every robot's nodes
+(``security``), the server's own checks of channels and sessions (``channel_policy``), the
+companion models (``companion``), every robot's nodes
 (``address_space``), the users (``auth``), the robots' writes (``writes``, ``sessions``), then
 the listening socket; ``start`` returns once the server listens, or raises what stopped it
 (``OpcUaStartError``: a taken port, an unreadable certificate …), so a misconfigured server
@@ -28,13 +29,14 @@ from concurrent.futures import Future
 from pathlib import Path
 from typing import Final
 
-from asyncua import Server, ua
+from asyncua import ua
 
 from cobot_hmi.eventloop import precise_event_loop
 from cobot_hmi.opcua import security
 from cobot_hmi.opcua.address_space import build
 from cobot_hmi.opcua.auth import Permissions, UserManager
 from cobot_hmi.opcua.build_info import build_info, describe
+from cobot_hmi.opcua.channel_policy import EndpointGuard, GuardedServer
 from cobot_hmi.opcua.companion import load
 from cobot_hmi.opcua.feed import ServiceFeed
 from cobot_hmi.opcua.sessions import RobotInternalServer
@@ -155,13 +157,12 @@ class OpcUaServer:
 
     async def _main(self) -> None:
         self._stop = asyncio.Event()
-        server, internal = await self._make_server()
+        server = await self._make_server()
         try:
             self.feed.open()
             for values in self.values.values():
                 await values.start()
             await server.start()
-            internal.binary_server = server.bserver
         except BaseException:
             self.feed.close()
             raise
@@ -173,13 +174,18 @@ class OpcUaServer:
             self.feed.close()
             await server.stop()
 
-    async def _make_server(self) -> tuple[Server, RobotInternalServer]:
+    async def _make_server(self) -> GuardedServer:
         settings = self.settings
         mark = time.perf_counter()
         await asyncio.to_thread(self.certificates.ensure)
         self.users = UserManager(self.feed)
-        internal = RobotInternalServer(self.users)
-        server = Server(iserver=internal)
+        offered = security.policies(
+            loopback=settings.opcua_loopback, allow_no_security=settings.opcua_allow_no_security
+        )
+        validator = self.certificates.validator()
+        guard = EndpointGuard(offered, validator)
+        internal = RobotInternalServer(self.users, guard)
+        server = GuardedServer(internal, guard)
         await server.init()
         self.startup_s["base address space"] = time.perf_counter() - mark
         server.set_endpoint(self.endpoint)
@@ -187,19 +193,13 @@ class OpcUaServer:
         server.product_uri = PRODUCT_URI
         await server.set_application_uri(self.certificates.application_uri)
         await describe(server, build_info(PRODUCT_URI))
-        server.set_security_policy(
-            security.policies(
-                loopback=settings.opcua_loopback,
-                allow_no_security=settings.opcua_allow_no_security,
-            ),
-            permission_ruleset=Permissions(),
-        )
+        server.set_security_policy(offered, permission_ruleset=Permissions())
         tokens: list[type] = [ua.UserNameIdentityToken]
         if self.feed.anonymous_reads:
             tokens.insert(0, ua.AnonymousIdentityToken)
         server.set_identity_tokens(tokens)
         await security.load_into(server, self.certificates)
-        server.set_certificate_validator(self.certificates.validator())
+        server.set_certificate_validator(validator)
         companion = await load(server)
         self.startup_s["companion models"] = companion.import_s
         nodes, build_s = await build(
@@ -212,7 +212,7 @@ class OpcUaServer:
         )
         internal.routes = self.routes
         internal.subscription_phase = self._subscription_phase
-        return server, internal
+        return server
 
     def _subscription_phase(self) -> float:
         now = asyncio.get_running_loop().time()

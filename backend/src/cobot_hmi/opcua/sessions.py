@@ -8,7 +8,9 @@ variable nobody may write ``BadNotWritable`` (``writes.access_level_refusal``; a
 say ``BadUserAccessDenied``), and passes the rest on unchanged; it also sets the peer for the
 login throttle while a session is activated (``auth.PEER``), whether its channel is signed
 while it is created (``security.SECURE_CHANNEL``: a client certificate over SecurityPolicy None
-is ignored, Part 4 §5.6.2), and tells ``CommandWrites`` when it closes.
+is ignored, Part 4 §5.6.2), and tells ``CommandWrites`` when it closes. Before asyncua creates
+or activates a session, the server's ``channel_policy.EndpointGuard`` checks its channel and
+identity token (and decrypts the password: ``RobotInternalServer.decrypt_user_token``).
 
 A new subscription is created in phase with the server's monitoring ticks: asyncua starts a
 subscription's publishing cycle when it creates it (then every publishing interval on that
@@ -31,6 +33,7 @@ from asyncua.server.internal_session import InternalSession
 from asyncua.server.user_managers import UserManager
 
 from cobot_hmi.opcua.auth import PEER
+from cobot_hmi.opcua.channel_policy import EndpointGuard
 from cobot_hmi.opcua.security import SECURE_CHANNEL
 from cobot_hmi.opcua.writes import Caller, CommandWrites, access_level_refusal
 
@@ -42,12 +45,12 @@ _ANONYMOUS = User(role=UserRole.Anonymous)
 class RobotInternalServer(InternalServer):
     """asyncua's internal server whose client sessions are ``RobotSession``s."""
 
-    def __init__(self, user_manager: UserManager | Any) -> None:
+    def __init__(self, user_manager: UserManager | Any, guard: EndpointGuard) -> None:
         super().__init__(user_manager=user_manager)
+        self.guard = guard
+        """The server's own checks of channels, sessions and identity tokens."""
         self.routes: CommandWrites | None = None
         """Set once the robots' nodes exist (before the server listens)."""
-        self.binary_server: Any = None
-        """asyncua's ``BinaryServer`` (its open connections), set once the server listens."""
         self.subscription_phase: Callable[[], float] | None = None
         """Seconds until a new subscription's publishing cycle should start (``server``)."""
         self._closing: set[asyncio.Task[None]] = set()
@@ -59,16 +62,16 @@ class RobotInternalServer(InternalServer):
             return super().create_session(name, user, external)
         return RobotSession(self, name, user)
 
-    def channel_is_signed(self, session: InternalSession) -> bool:
-        """Whether ``session`` came over a Sign or SignAndEncrypt channel. asyncua tells only
-        its connection (``UaProcessor``, whose secure connection is private): found by the
-        session it created; not found, the session counts as signed (its certificate checked)."""
-        for protocol in getattr(self.binary_server, "clients", ()):
-            processor = getattr(protocol, "processor", None)
-            if processor is not None and processor.session is session:
-                policy = processor._connection.security_policy
-                return bool(policy.Mode != ua.MessageSecurityMode.None_)
-        return True
+    def channel_is_signed(self) -> bool:
+        """Whether the current request came over a Sign or SignAndEncrypt channel; a channel
+        that is not one of the endpoints is refused here (``EndpointGuard``)."""
+        policy = self.guard.check_session_channel().security_policy
+        return bool(policy.Mode != ua.MessageSecurityMode.None_)
+
+    def decrypt_user_token(self, isession: Any, token: ua.UserNameIdentityToken) -> tuple[str, str]:
+        """The user name and password, the password as its token policy says it must come
+        (``EndpointGuard.password``: asyncua would take it in clear or encrypted alike)."""
+        return token.UserName, self.guard.password(token, isession.nonce, self.private_key)
 
     def session_closed(self, user: User) -> None:
         routes = self.routes
@@ -94,7 +97,7 @@ class RobotSession(InternalSession):
     async def create_session(
         self, params: ua.CreateSessionParameters, sockname: tuple[str, int] | None = None
     ) -> ua.CreateSessionResult:
-        token = SECURE_CHANNEL.set(self._server.channel_is_signed(self))
+        token = SECURE_CHANNEL.set(self._server.channel_is_signed())
         try:
             return await super().create_session(params, sockname=sockname)
         finally:
@@ -105,6 +108,7 @@ class RobotSession(InternalSession):
     ) -> ua.ActivateSessionResult:
         token = PEER.set(str(self.name))
         try:
+            self._server.guard.token_policy(params.UserIdentityToken)  # channel and token policy
             return super().activate_session(params, peer_certificate)
         finally:
             PEER.reset(token)
