@@ -11,9 +11,16 @@ from __future__ import annotations
 import argparse
 import contextlib
 import itertools
+import sys
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 from cobot_hmi.layout import CONNECTION_POINTS, O2T_ASSEMBLY, T2O_ASSEMBLY
+
+if TYPE_CHECKING:  # the scanner is imported inside the handlers, when a verb runs
+    from cobot_hmi.codec import Frame
+    from cobot_hmi.scanner.originator import ConnectionState, ConnectionStats, OriginatorSettings
+    from cobot_hmi.scanner.t2o_pace import SlowTarget
 
 _DEFAULT_INSTANCES = (CONNECTION_POINTS.configuration, CONNECTION_POINTS.o2t, CONNECTION_POINTS.t2o)
 _DEFAULT_SIZES = (O2T_ASSEMBLY.size_bytes, T2O_ASSEMBLY.size_bytes)
@@ -40,6 +47,11 @@ def _hex_bytes(text: str) -> bytes:
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    _register_probe(subparsers)
+    _register_scan(subparsers)
+
+
+def _register_probe(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     probe = subparsers.add_parser(
         "probe",
         help="read a robot's identity, assembly sizes and one T→O frame explicitly",
@@ -59,6 +71,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     probe.add_argument("--raw", action="store_true", help="never decode the T→O data as a frame")
     probe.set_defaults(handler=_probe)
 
+
+def _register_scan(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     scan = subparsers.add_parser(
         "scan",
         help="hold a class 1 connection and print the frames",
@@ -138,8 +152,6 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
 
 
 def _probe(args: argparse.Namespace) -> int:
-    import sys
-
     from cobot_hmi.codec import dumps, frame_to_json
     from cobot_hmi.scanner.explicit import ExplicitError, probe
 
@@ -183,24 +195,19 @@ def _probe(args: argparse.Namespace) -> int:
 
 def _scan(args: argparse.Namespace) -> int:
     import asyncio
-    import signal
-    import sys
-    import time
-    from dataclasses import asdict
 
-    from cobot_hmi.codec import Frame, dumps, frame_to_json
-    from cobot_hmi.eventloop import freeze_startup_heap, precise_event_loop
-    from cobot_hmi.scanner.originator import (
-        ConnectionState,
-        ConnectionStats,
-        Originator,
-        OriginatorSettings,
-    )
-    from cobot_hmi.scanner.t2o_pace import SlowTarget
+    from cobot_hmi.eventloop import precise_event_loop
+
+    with asyncio.Runner(loop_factory=precise_event_loop) as runner:
+        return runner.run(_scan_until_stopped(args, _ScanPrinter(args.stats)))
+
+
+def _scan_settings(args: argparse.Namespace) -> OriginatorSettings:
+    from cobot_hmi.scanner.originator import OriginatorSettings
 
     cfg, o2t, t2o = args.instances
     o2t_size, t2o_size = args.sizes
-    settings = OriginatorSettings(
+    return OriginatorSettings(
         robot_host=args.host,
         tcp_port=args.port,
         local_host=args.local_host,
@@ -219,83 +226,102 @@ def _scan(args: argparse.Namespace) -> int:
         raw=args.raw,
         api_bounds_us=args.api_range_us,
     )
-    out = sys.stdout
-    seen: set[ConnectionState] = set()
 
-    # ``seq`` in the lines counts the frames delivered (1, 2, …), as it always has; the
-    # callbacks' own third argument is the packet's wire sequence number.
-    delivered = itertools.count(1)
 
-    def on_frame(frame: Frame, _payload: bytes, received_at: float, _t2o_sequence: int) -> None:
-        seq = next(delivered)
-        if not args.stats:
-            line = {"seq": seq, "received_at": received_at, "frame": frame_to_json(frame)}
-            out.write(dumps(line).decode() + "\n")
+class _ScanPrinter:
+    """What ``scan`` prints: a JSON line per frame (or per second with ``--stats``) on stdout,
+    the connection's states and a slow target in words on stderr."""
 
-    def on_data(data: bytes, received_at: float, _t2o_sequence: int) -> None:
-        seq = next(delivered)
-        if not args.stats:
-            line = {"t": received_at, "seq": seq, "data_hex": data.hex()}
-            out.write(dumps(line).decode() + "\n")
+    def __init__(self, stats_only: bool) -> None:
+        self.stats_only = stats_only
+        self.out = sys.stdout
+        self.seen: set[ConnectionState] = set()
+        # ``seq`` in the lines counts the frames delivered (1, 2, …), as it always has; the
+        # callbacks' own third argument is the packet's wire sequence number.
+        self._delivered = itertools.count(1)
+        self._slow: list[SlowTarget] = []
 
-    def on_state(state: ConnectionState, reason: str | None) -> None:
-        seen.add(state)
+    def on_frame(self, frame: Frame, _payload: bytes, received_at: float, _seq: int) -> None:
+        from cobot_hmi.codec import frame_to_json
+
+        seq = next(self._delivered)
+        if not self.stats_only:
+            self.line({"seq": seq, "received_at": received_at, "frame": frame_to_json(frame)})
+
+    def on_data(self, data: bytes, received_at: float, _t2o_sequence: int) -> None:
+        seq = next(self._delivered)
+        if not self.stats_only:
+            self.line({"t": received_at, "seq": seq, "data_hex": data.hex()})
+
+    def on_state(self, state: ConnectionState, reason: str | None) -> None:
+        self.seen.add(state)
         print(f"cobot-hmi scan: {state}{': ' + reason if reason else ''}", file=sys.stderr)
 
-    found: list[SlowTarget] = []
-
-    def on_slow_target(slow: SlowTarget | None) -> None:
+    def on_slow_target(self, slow: SlowTarget | None) -> None:
         if slow is not None:
-            found.append(slow)
+            self._slow.append(slow)
             print(f"cobot-hmi scan: {slow.words()}", file=sys.stderr)
-        elif found:
-            print(f"cobot-hmi scan: {found[-1].kept_words()}", file=sys.stderr)
+        elif self._slow:
+            print(f"cobot-hmi scan: {self._slow[-1].kept_words()}", file=sys.stderr)
 
+    def line(self, document: dict[str, object]) -> None:
+        from cobot_hmi.codec import dumps
+
+        self.out.write(dumps(document).decode() + "\n")
+
+    @staticmethod
     def stats_json(stats: ConnectionStats) -> dict[str, object]:
         """The counters, the slow target in words (null while it keeps its grant)."""
+        from dataclasses import asdict
+
         slow = stats.slow_target
         return {**asdict(stats), "slow_target": slow.words() if slow is not None else None}
 
-    async def run() -> int:
-        try:
-            originator = Originator(
-                settings,
-                on_frame=on_frame,
-                on_state=on_state,
-                on_data=on_data,
-                on_slow_target=on_slow_target,
-            )
-        except ValueError as error:  # --o2t-hex longer than O→T, or not a command image
-            print(f"cobot-hmi scan: {error}", file=sys.stderr)
-            return 1
-        stop = asyncio.Event()
-        loop = asyncio.get_running_loop()
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            loop.add_signal_handler(sig, stop.set)
-        end = loop.time() + args.seconds if args.seconds is not None else None
-        freeze_startup_heap()
-        await originator.start()
-        try:
-            while not stop.is_set():
-                remaining = 1.0 if end is None else min(1.0, end - loop.time())
-                if remaining <= 0:
-                    break
-                with contextlib.suppress(TimeoutError):
-                    await asyncio.wait_for(stop.wait(), remaining)
-                if args.stats:
-                    stats = stats_json(originator.stats())
-                    out.write(dumps({"t": time.time(), **stats}).decode() + "\n")
-                out.flush()
-            summary = stats_json(originator.stats())
-        finally:
-            await originator.stop()
-        out.write(dumps({"summary": summary}).decode() + "\n")
-        out.flush()
-        if ConnectionState.REFUSED in seen:
-            return 2
-        if ConnectionState.LOST in seen or summary["state"] != ConnectionState.CONNECTED:
-            return 3
-        return 0
 
-    with asyncio.Runner(loop_factory=precise_event_loop) as runner:
-        return runner.run(run())
+async def _scan_until_stopped(args: argparse.Namespace, printer: _ScanPrinter) -> int:
+    """Hold the connection until ^C, SIGTERM or ``--seconds``; the exit status."""
+    import asyncio
+    import signal
+    import time
+
+    from cobot_hmi.eventloop import freeze_startup_heap
+    from cobot_hmi.scanner.originator import ConnectionState, Originator
+
+    try:
+        originator = Originator(
+            _scan_settings(args),
+            on_frame=printer.on_frame,
+            on_state=printer.on_state,
+            on_data=printer.on_data,
+            on_slow_target=printer.on_slow_target,
+        )
+    except ValueError as error:  # --o2t-hex longer than O→T, or not a command image
+        print(f"cobot-hmi scan: {error}", file=sys.stderr)
+        return 1
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(sig, stop.set)
+    end = loop.time() + args.seconds if args.seconds is not None else None
+    freeze_startup_heap()
+    await originator.start()
+    try:
+        while not stop.is_set():
+            remaining = 1.0 if end is None else min(1.0, end - loop.time())
+            if remaining <= 0:
+                break
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(stop.wait(), remaining)
+            if args.stats:
+                printer.line({"t": time.time(), **printer.stats_json(originator.stats())})
+            printer.out.flush()
+        summary = printer.stats_json(originator.stats())
+    finally:
+        await originator.stop()
+    printer.line({"summary": summary})
+    printer.out.flush()
+    if ConnectionState.REFUSED in printer.seen:
+        return 2
+    if ConnectionState.LOST in printer.seen or summary["state"] != ConnectionState.CONNECTED:
+        return 3
+    return 0
