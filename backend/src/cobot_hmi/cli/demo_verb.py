@@ -64,6 +64,14 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         + ", ".join(host for _, host, _, _ in DEMO_ROBOTS)
         + ")",
     )
+    _add_address_arguments(demo)
+    _add_door_arguments(demo)
+    demo.set_defaults(handler=_demo)
+
+
+def _add_address_arguments(demo: argparse.ArgumentParser) -> None:
+    """Where the emulators, the service's T→O port and its HTTP listener are; the RPI; the state
+    directory, the frontend and HTTPS."""
     demo.add_argument("--robot-tcp-port", type=int, default=44818, help="emulators' TCP port")
     demo.add_argument("--robot-udp-port", type=int, default=2222, help="emulators' UDP port")
     demo.add_argument(
@@ -98,6 +106,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="with --tls: plain HTTP on this port of --host that only redirects to HTTPS "
         "(80 beside 443 on a kiosk's address)",
     )
+
+
+def _add_door_arguments(demo: argparse.ArgumentParser) -> None:
+    """The doors the demo may open too: Sparkplug B and OPC UA."""
     demo.add_argument(
         "--mqtt-url",
         default=None,
@@ -122,7 +134,6 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         action="store_true",
         help="with --opcua-url: clients may write the command image (through control, audited)",
     )
-    demo.set_defaults(handler=_demo)
 
 
 def _fail(reason: str) -> int:
