@@ -28,6 +28,7 @@ import {
   type ExportFormat,
   type TimeRange,
 } from "../lib/historyView";
+import { nothingRecordedWords } from "../lib/plotExport";
 import { plotlyBackend } from "../lib/plotlyAdapter";
 import { DEFAULT_PLOT_HEIGHT_PX, plotMargin, type PlotTheme } from "../lib/plotAppearance";
 import type { HistoryShown } from "../lib/plotRecordingView";
@@ -100,6 +101,8 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
   // The plot is rebuilt with the window picked so far (a theme change recreates it).
   const windowRef = useRef(window_ms);
   const [shown, setShown] = useState<HistoryShown | null>(null);
+  // The start of the view the recording has nothing of: said beside the export links.
+  const [unrecorded, setUnrecorded] = useState<TimeRange | null>(null);
   // The plot's width when it last drew the recording: how close markers may be on screen.
   const [width_px, setWidth] = useState(0);
   const [custom, setCustom] = useState<{ from: string; to: string } | null>(null);
@@ -141,6 +144,7 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
     // Each drawing of the recording (not each frame): the range, its markers, an error.
     plot.onHistory = (next) => {
       setShown(next.view === "ring" ? null : next);
+      setUnrecorded(plot.unrecorded());
       setWidth(el.clientWidth);
       setPaused(plot.isPaused);
     };
@@ -187,6 +191,7 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
       plot.unmount();
       plotRef.current = null;
       setShown(null);
+      setUnrecorded(null);
     };
   }, [spec, live, coordinator, theme, readOnly, height_px, historyAccess, historyRobot, fields]);
 
@@ -501,6 +506,11 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
           {shown?.error != null && (
             <span className="hint" role="alert" data-testid={`${spec.id}-history-error`}>
               {shown.error}
+            </span>
+          )}
+          {unrecorded !== null && (
+            <span className="hint" data-testid={`${spec.id}-unrecorded`}>
+              {nothingRecordedWords(unrecorded)}
             </span>
           )}
           <span className="history__export" role="group" aria-label={`${spec.title}: export the range in view`}>

@@ -204,6 +204,7 @@ export abstract class LivePlotDrawing {
         ? null
         : new RingBackfill(history, ring, () => {
             if (this.view.kind === "ring") this.needsRebuild = true;
+            this.tell(); // what of the window is recorded: said on the plot
           });
     this.clock = history?.now_ms ?? Date.now;
     this.recording =

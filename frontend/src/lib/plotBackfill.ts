@@ -10,8 +10,9 @@
  * Must not import lib/plotting.ts, Plotly or React.
  */
 import type { TraceChunk } from "./decimate";
-import type { HistoryAnswer, RangeData } from "./historyView";
+import type { HistoryAnswer, RangeData, TimeRange } from "./historyView";
 import { BUCKETS_PER_WINDOW } from "./plotAppearance";
+import { backfilledFrom_ms, unrecordedStart } from "./plotExport";
 import { PlotRecording, type PlotHistorySource } from "./plotRecordingView";
 import type { TraceInfo } from "./plots";
 import type { SampleRing } from "./ringBuffer";
@@ -76,6 +77,8 @@ export class RingBackfill {
   /** The window asked for (ms); null: none yet. */
   private askedFor_ms: number | null = null;
   private answer: HistoryAnswer | null = null;
+  /** The range asked for (s since the epoch): the window's start before the ring's oldest frame. */
+  private asked: TimeRange | null = null;
 
   /** `arrived`: an answer came (the ring view draws again). */
   constructor(source: PlotHistorySource, ring: SampleRing, arrived: () => void) {
@@ -117,6 +120,7 @@ export class RingBackfill {
     const oldest = this.ring.timeAt(this.ring.oldestSeq);
     const from = newest - window_ms;
     if (oldest <= from + window_ms * WHOLE_SHARE) return;
+    this.asked = { from_s: from / 1000, to_s: oldest / 1000 };
     // Buckets as wide as the ring view's, so the window holds its 400 points in all.
     const buckets = Math.max(1, Math.round((BUCKETS_PER_WINDOW * (oldest - from)) / window_ms));
     this.loader.request({ from, to: oldest }, buckets, true);
@@ -141,6 +145,20 @@ export class RingBackfill {
       xs: traces.map((_, i) => [...(back.xs[i] ?? []), ...(chunk?.xs[i] ?? [])]),
       ys: traces.map((_, i) => [...(back.ys[i] ?? []), ...(chunk?.ys[i] ?? [])]),
     };
+  }
+
+  /**
+   * Where the drawn `window_ms` window starts (ms since the epoch) while the recording fills its
+   * front: the time axis shows it, an export of the view covers it; null: the ring's own start.
+   */
+  drawnFrom_ms(window_ms: number): number | null {
+    const newest = this.ring.newestTime();
+    return this.answer === null || newest === null ? null : backfilledFrom_ms(newest, window_ms, this.answer);
+  }
+
+  /** The part of the range asked for that the recording has nothing of (s since the epoch), or null. */
+  unrecorded(): TimeRange | null {
+    return this.answer === null || this.asked === null ? null : unrecordedStart(this.asked, this.answer);
   }
 
   stop(): void {

@@ -16,6 +16,7 @@
  */
 import type { TimeRange } from "./historyView";
 import { LivePlotDrawing } from "./livePlotDrawing";
+import { unrecordedStart } from "./plotExport";
 import { axisSpan_ms, reachesRecording, sameSpan, showsRange } from "./plotFixedView";
 import type { PlotView } from "./plotRecordingView";
 import { stepRange, zoomAround, type PlotStep, type SpanMs } from "./plotSteps";
@@ -231,7 +232,20 @@ export class LivePlot extends LivePlotDrawing {
     const frozen = this.paused ? this.ringView.drawnRange() : null;
     if (frozen !== null) return { from_s: frozen.from / 1000, to_s: frozen.to / 1000 };
     const to = this.ring.newestTime() ?? this.clock();
-    return { from_s: this.ringView.start_ms(to) / 1000, to_s: to / 1000 };
+    // While the recording fills the window's front (lib/plotBackfill.ts) the axis shows the whole
+    // window: so does the export, not only what reached the page since it opened (issue 38).
+    const from = this.backfill?.drawnFrom_ms(this.window_ms) ?? this.ringView.start_ms(to);
+    return { from_s: from / 1000, to_s: to / 1000 };
+  }
+
+  /**
+   * The start of the view the recording has nothing of (s since the epoch), or null: said on the
+   * plot and by its export ("nothing recorded from … to …", lib/plotExport.ts).
+   */
+  unrecorded(): TimeRange | null {
+    if (this.view.kind === "ring") return this.backfill?.unrecorded() ?? null;
+    const data = this.historyData;
+    return data === null ? null : unrecordedStart(data.range, data.answer);
   }
 
   /**

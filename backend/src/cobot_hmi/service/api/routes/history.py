@@ -8,6 +8,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 from collections.abc import Iterator
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Annotated, Any, Final
 
@@ -266,9 +267,24 @@ def export_chunks(
         else iter(())
     )
     tables = history_export.tables(root, robot, elements, from_s=from_s, to_s=to_s, fmt=fmt)
+    lines = 0
     for chunk in history_export.export(tables, robot, elements, fmt, events):
         if chunk:
+            lines += chunk.count(b"\n")
             yield chunk
+    if fmt == "csv" and lines <= 1:  # the header alone: the file says why it holds no row
+        yield nothing_recorded_line(from_s, to_s)
+
+
+def nothing_recorded_line(from_s: float, to_s: float) -> bytes:
+    """The last line of a CSV export of a range without a recorded frame: "# nothing recorded
+    from 2026-12-07T04:00:00.000000Z to 2026-12-07T04:02:00.000000Z" (the plot says the same,
+    frontend lib/plotExport.ts); pandas skips it with ``comment="#"``."""
+
+    def utc(time_s: float) -> str:
+        return datetime.fromtimestamp(time_s, UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+
+    return f"# nothing recorded from {utc(from_s)} to {utc(to_s)}\n".encode()
 
 
 @router.get(
