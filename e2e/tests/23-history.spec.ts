@@ -88,7 +88,7 @@ test("a live plot: zoom back into history, the e-stop's marker, every plot jumps
   // Over 5 minutes, events seconds apart share a marker (`data-time` its first event's,
   // `data-last` its last's): the program started by the test's set-up just before the stop,
   // and the reset after it, may be in it.
-  const markers = page.locator(`[data-testid="${PLOT}-marker"][aria-label*="EMERGENCY_STOP"]`);
+  const markers = page.locator(`[data-testid="${PLOT}-marker"][aria-label*="Robot state Emergency stop"]`);
   const marker = markers.last();
   await expect(marker).toBeVisible();
   const first_s = Number(await marker.getAttribute("data-time"));

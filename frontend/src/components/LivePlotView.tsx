@@ -28,6 +28,7 @@ import {
   type ExportFormat,
   type TimeRange,
 } from "../lib/historyView";
+import { formatDateTime_ms, formatInputDateTime, parseInputDateTime } from "../lib/dates";
 import { nothingRecordedWords } from "../lib/plotExport";
 import { plotlyBackend } from "../lib/plotlyAdapter";
 import { DEFAULT_PLOT_HEIGHT_PX, plotMargin, type PlotTheme } from "../lib/plotAppearance";
@@ -51,14 +52,26 @@ interface Props {
   readonly height_px?: number;
 }
 
-/** A `datetime-local` input's value (local time, seconds) for epoch seconds. */
+/** A `datetime-local` input's value (the plant's time, seconds) for epoch seconds. */
 function localInput(time_s: number): string {
-  const d = new Date(time_s * 1000 - new Date(time_s * 1000).getTimezoneOffset() * 60_000);
-  return d.toISOString().slice(0, 19);
+  return formatInputDateTime(time_s * 1000);
 }
 
+/** The pages' one date format, in the plant's zone (lib/dates.ts). */
 function localText(time_s: number): string {
-  return new Date(time_s * 1000).toLocaleString();
+  return formatDateTime_ms(time_s * 1000);
+}
+
+/** What the markers' badges mean, shown under them (issue 38: "▲!22" read as a code). */
+const MARKER_KEY = "Events on the time axis: ▲ an event, ▲! an alarm or an emergency stop, a number beside it: that many events together (zoom in to tell them apart). A click shows that moment in every plot.";
+
+/**
+ * A marker's accessible name: its visible count first (WCAG 2.5.3, the name holds the text the
+ * button shows), then its events in words and the time.
+ */
+function markerName(m: { readonly events: readonly unknown[]; readonly label: string }, at: string): string {
+  const count = m.events.length;
+  return `${count > 1 ? `${count} events: ` : ""}${m.label} at ${at}`;
 }
 
 const CUSTOM = "custom";
@@ -141,6 +154,12 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
     });
     // Whether it is zoomed away from the moving window is configuration (the button shown).
     plot.onZoomedChange = setZoomed;
+    // A window picked here or on a linked plot (lib/timeRange.ts): the picker shows it.
+    plot.onWindowChange = (ms) => {
+      windowRef.current = ms;
+      setWindow(ms);
+      setCustom(null);
+    };
     // Each drawing of the recording (not each frame): the range, its markers, an error.
     plot.onHistory = (next) => {
       setShown(next.view === "ring" ? null : next);
@@ -186,6 +205,7 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
       wiringRef.current = null;
       stopSizing?.();
       plot.onZoomedChange = null;
+      plot.onWindowChange = null;
       plot.onHistory = null;
       coordinator.remove(plot);
       plot.unmount();
@@ -223,7 +243,7 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
     else wiringRef.current?.cursorKey(action.cursor);
   };
   const exportPng = () => {
-    const stamp = new Date().toISOString().replace(/[:.]/g, "-");
+    const stamp = formatInputDateTime(Date.now()).replace(/:/g, "-");
     plotRef.current?.exportPng(`${spec.id.replace(/^plot-/, "")}-${stamp}`);
   };
   const chooseWindow = (value: string) => {
@@ -243,7 +263,7 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
   };
   const applyCustom = () => {
     if (custom === null) return;
-    const result = customRange(Date.parse(custom.from) / 1000, Date.parse(custom.to) / 1000);
+    const result = customRange(parseInputDateTime(custom.from) / 1000, parseInputDateTime(custom.to) / 1000);
     if (typeof result === "string") {
       setCustomError(result);
       return;
@@ -481,19 +501,24 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
               data-kinds={m.events.map((e) => e.kind).join(" ")}
               data-time={m.time_s}
               data-last={m.last_s}
-              title={`${m.label} at ${localText(m.time_s)}: show this moment in every plot`}
-              aria-label={`${m.label} at ${localText(m.time_s)}`}
+              title={`${markerName(m, localText(m.time_s))}: show this moment in every plot`}
+              aria-label={markerName(m, localText(m.time_s))}
               onClick={() => plotRef.current?.showRange(rangeOfMarker(m))}
               style={{
                 // Kept inside the strip at its ends (no overflow of a narrow screen).
                 left: `clamp(22px, calc(${margin.l}px + (100% - ${margin.l + margin.r}px) * ${m.at}), calc(100% - 22px))`,
               }}
             >
-              {m.kind === "alarm" ? "▲!" : "▲"}
+              <span aria-hidden="true">{m.kind === "alarm" ? "▲!" : "▲"}</span>
               {m.events.length > 1 ? <small>{m.events.length}</small> : null}
             </button>
           ))}
         </div>
+      )}
+      {shown !== null && markers.length > 0 && (
+        <p className="history__key" data-testid={`${spec.id}-marker-key`}>
+          {MARKER_KEY}
+        </p>
       )}
       {history !== null && (
         <p className="history__status">

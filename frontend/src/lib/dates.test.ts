@@ -1,5 +1,18 @@
 import { describe, expect, it } from "vitest";
-import { formatClock, formatDateTime_ms, formatMoment, formatTimestamp, formatUtcOffset, timeZoneLabel, utcOffset_min } from "./dates";
+import {
+  axisShift_ms,
+  formatClock,
+  formatDateTime_ms,
+  formatInputDateTime,
+  formatMoment,
+  formatTimestamp,
+  formatUtcOffset,
+  parseInputDateTime,
+  setSiteTimeZone,
+  siteTimeZone,
+  timeZoneLabel,
+  utcOffset_min,
+} from "./dates";
 
 // 2026-11-27 06:21:04.737 UTC (winter: Berlin is UTC+01:00, New York UTC−05:00).
 const WINTER_MS = Date.UTC(2026, 10, 27, 6, 21, 4, 737);
@@ -43,5 +56,40 @@ describe("one date format", () => {
   it("writes a dash for a time that is not one", () => {
     expect(formatClock(NaN, "UTC")).toBe("—");
     expect(formatDateTime_ms(Infinity, true, "UTC")).toBe("—");
+  });
+});
+
+describe("the plant's time zone (issue 38 item 9)", () => {
+  it("is the one the service names, whatever zone the browser is in; an unknown name is ignored", () => {
+    const browser = siteTimeZone();
+    try {
+      expect(setSiteTimeZone("Asia/Tokyo")).toBe(true);
+      expect(siteTimeZone()).toBe("Asia/Tokyo");
+      // Every format follows: the tables, the clock, the zone's name on the page.
+      expect(formatTimestamp(WINTER_MS / 1000)).toBe("2026-11-27 15:21:04.737");
+      expect(formatClock(WINTER_MS)).toBe("15:21:04");
+      expect(timeZoneLabel(WINTER_MS)).toBe("Asia/Tokyo, UTC+09:00");
+      expect(setSiteTimeZone("Mars/Olympus_Mons")).toBe(false);
+      expect(siteTimeZone()).toBe("Asia/Tokyo");
+      expect(setSiteTimeZone("Asia/Tokyo")).toBe(false); // no change
+    } finally {
+      setSiteTimeZone(null);
+    }
+    expect(siteTimeZone()).toBe(browser);
+  });
+
+  it("shifts the plots' time axis by the plant's offset, summer and winter", () => {
+    // With the sign of Date.getTimezoneOffset: Berlin is east of UTC.
+    expect(axisShift_ms(WINTER_MS, "Europe/Berlin")).toBe(-3_600_000);
+    expect(axisShift_ms(SUMMER_MS, "Europe/Berlin")).toBe(-7_200_000);
+    expect(axisShift_ms(WINTER_MS, "America/New_York")).toBe(5 * 3_600_000);
+  });
+
+  it("reads and writes a custom range's inputs in the plant's time", () => {
+    expect(formatInputDateTime(WINTER_MS, "Europe/Berlin")).toBe("2026-11-27T07:21:04");
+    expect(parseInputDateTime("2026-11-27T07:21:04", "Europe/Berlin")).toBe(Math.floor(WINTER_MS / 1000) * 1000);
+    expect(parseInputDateTime("2026-07-01T14:00", "Europe/Berlin")).toBe(SUMMER_MS);
+    expect(parseInputDateTime("2026-11-27T01:21:04.737", "America/New_York")).toBe(WINTER_MS);
+    expect(parseInputDateTime("yesterday", "UTC")).toBeNaN();
   });
 });

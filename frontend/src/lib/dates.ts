@@ -4,16 +4,18 @@
  * Every date and time on the pages is written one way: ISO 8601's order and the 24-hour clock,
  * "2026-11-27 07:21:04" (the date and the time separated by a space, as RFC 3339 allows),
  * ".737" added where milliseconds matter (the event, audit and alarm tables), the time alone,
- * "07:21:04", where the day is today. The time is the site's: the time zone of the browser the
- * page runs in (a cell's screens are set to the site's zone), named once on each page
- * (`timeZoneLabel`, "Europe/Berlin, UTC+01:00") rather than after every time. Each function takes
- * the zone as an optional last argument (an IANA name), so the tests fix it.
+ * "07:21:04", where the day is today. The time is the plant's: the zone the service names in the
+ * stream's hello (its `time_zone` setting, docs/operations.md "Settings"; `setSiteTimeZone`), the
+ * same the CSV exports and reports are written in, whatever zone the browser is set to; the
+ * browser's own until the service has said. It is named once on each page (`timeZoneLabel`,
+ * "Europe/Berlin, UTC+01:00") rather than after every time. Each function takes the zone as an
+ * optional last argument (an IANA name), so the tests fix it.
  */
 
 let browserZone: string | null = null;
+let plantZone: string | null = null;
 
-/** The browser's time zone (an IANA name, "Europe/Berlin"; "UTC" when it has none), asked once. */
-export function siteTimeZone(): string {
+function browserTimeZone(): string {
   if (browserZone === null) {
     try {
       browserZone = Intl.DateTimeFormat().resolvedOptions().timeZone || "UTC";
@@ -22,6 +24,29 @@ export function siteTimeZone(): string {
     }
   }
   return browserZone;
+}
+
+/** The plant's time zone (an IANA name, "Europe/Berlin"): the service's, else the browser's. */
+export function siteTimeZone(): string {
+  return plantZone ?? browserTimeZone();
+}
+
+/**
+ * The plant's zone as the service names it (the stream's hello); a name this browser does not
+ * know is ignored (the browser's zone stays), null forgets it. True when it changed.
+ */
+export function setSiteTimeZone(zone: string | null | undefined): boolean {
+  const next = zone === null || zone === undefined || zone === "" ? null : zone;
+  if (next === plantZone) return false;
+  if (next !== null) {
+    try {
+      new Intl.DateTimeFormat("en-US", { timeZone: next });
+    } catch {
+      return false;
+    }
+  }
+  plantZone = next;
+  return true;
 }
 
 interface Parts {
@@ -124,4 +149,34 @@ export function formatUtcOffset(offset_min: number): string {
 export function timeZoneLabel(now_ms: number, zone = siteTimeZone()): string {
   const offset = formatUtcOffset(utcOffset_min(now_ms, zone));
   return zone === "UTC" || zone === "Etc/UTC" ? "UTC" : `${zone}, ${offset}`;
+}
+
+/**
+ * What a plot's time axis is shifted by, ms (Plotly's date axis shows UTC): the plant's offset
+ * with the sign of `Date.getTimezoneOffset` (Berlin in winter −3 600 000), so the axis reads the
+ * plant's time.
+ */
+export function axisShift_ms(epoch_ms: number, zone = siteTimeZone()): number {
+  return -utcOffset_min(epoch_ms, zone) * 60_000;
+}
+
+/** "2026-11-27T07:21:04": a `datetime-local` input's value for `epoch_ms`, in the plant's zone. */
+export function formatInputDateTime(epoch_ms: number, zone = siteTimeZone()): string {
+  return formatDateTime_ms(epoch_ms, false, zone).replace(" ", "T");
+}
+
+/**
+ * A `datetime-local` input's value ("2026-11-27T07:21" or with seconds) read as the plant's wall
+ * time: epoch ms, NaN when it is no such time.
+ */
+export function parseInputDateTime(text: string, zone = siteTimeZone()): number {
+  const m = /^(\d{4})-(\d{2})-(\d{2})T(\d{2}):(\d{2})(?::(\d{2})(?:\.(\d{1,3}))?)?$/.exec(text.trim());
+  if (m === null) return NaN;
+  const [year, month, day, hour, minute, second = "0", ms = "0"] = m.slice(1);
+  const wall = Date.UTC(Number(year), Number(month) - 1, Number(day), Number(hour), Number(minute), Number(second), Number(ms.padEnd(3, "0")));
+  if (!Number.isFinite(wall)) return NaN;
+  // The offset at the wall time read as UTC, then again at the moment found (a change of offset
+  // between the two, around a daylight saving switch, is taken from the second).
+  const first = wall - utcOffset_min(wall, zone) * 60_000;
+  return wall - utcOffset_min(first, zone) * 60_000;
 }

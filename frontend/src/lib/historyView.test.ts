@@ -139,7 +139,8 @@ describe("markers", () => {
     const markers = markersOf([estop], range);
     expect(markers).toHaveLength(1);
     expect(markers[0]!.at).toBeCloseTo(0.25);
-    expect(markers[0]!.label).toBe("State EMERGENCY_STOP");
+    // In words, as the robot's pendant says it (issue 38): never "State EMERGENCY_STOP".
+    expect(markers[0]!.label).toBe("Robot state Emergency stop");
     expect(markers[0]!.kind).toBe("alarm"); // an emergency stop is marked as urgent
     expect(markers[0]!.time_s).toBe(NOW + 25);
   });
@@ -149,7 +150,7 @@ describe("markers", () => {
     const standby = { ...estop, id: 8, time: NOW + 25.4, to_name: "STANDALONE_STANDBY" } as HistoryEvent;
     const later = { ...estop, id: 9, time: NOW + 40, to_name: "STANDALONE_RUNNING" } as HistoryEvent;
     const markers = markersOf([estop, standby, later], range);
-    expect(markers.map((m) => m.label)).toEqual(["State EMERGENCY_STOP; State STANDALONE_STANDBY", "State STANDALONE_RUNNING"]);
+    expect(markers.map((m) => m.label)).toEqual(["Robot state Emergency stop; Robot state Standalone standby", "Robot state Standalone running"]);
     expect(markers[0]!.time_s).toBe(NOW + 25);
     expect(markers[0]!.last_s).toBe(NOW + 25.4);
     // A click shows every event of the marker, half a minute either side.

@@ -10,6 +10,7 @@
  * Times here are seconds since the epoch, as the service's answers have them.
  */
 import type { components } from "../generated/api";
+import { LAYOUT } from "../generated/layout";
 import { traceColour, tracesOf, type PlotSpec } from "./plots";
 
 export type HistoryAnswer = components["schemas"]["HistoryAnswer"];
@@ -140,6 +141,8 @@ export interface MarkerEvent {
   readonly time_s: number;
   readonly kind: HistoryEvent["kind"];
   readonly label: string;
+  /** An alarm or an emergency stop: its marker is drawn as urgent ("▲!"). */
+  readonly urgent: boolean;
 }
 
 /** One marker: an event, or events too close together to tell apart at this zoom. */
@@ -170,13 +173,25 @@ export function markerSpacing(width_px: number, marker_px = MARKER_WIDTH_PX): nu
   return width_px > 0 ? Math.max(MARKER_SPACING, marker_px / width_px) : MARKER_SPACING;
 }
 
-/** The words of an event on its marker. */
+const STATE_WORDS = new Map<string, string>(LAYOUT.robot_states.map((s) => [s.name, s.label]));
+
+/** An alarm's transition as the service's event text says it (service/events/text.py). */
+const TRANSITION_WORDS: Readonly<Record<string, string>> = {
+  activated: "activated",
+  cleared: "returned to normal",
+  acknowledged: "acknowledged",
+  shelved: "shelved",
+  unshelved: "unshelved",
+  shelve_expired: "unshelved (shelving expired)",
+};
+
+/** The words of an event on its marker: never a state's or a transition's code. */
 export function eventLabel(event: HistoryEvent): string {
   switch (event.kind) {
     case "robot_state":
-      return `State ${event.to_name}`;
+      return `Robot state ${STATE_WORDS.get(event.to_name) ?? `${event.to} (unknown)`}`;
     case "alarm":
-      return `${event.alarm.name} ${event.transition}`;
+      return `${event.alarm.name} ${TRANSITION_WORDS[event.transition] ?? event.transition.replace(/_/g, " ")}`;
     case "cycle":
       return `Cycle ${event.duration_s.toFixed(2)} s`;
     default:
@@ -188,9 +203,11 @@ export function eventLabel(event: HistoryEvent): string {
  * each cycle's start (the robot's cycle trigger). */
 export const MARKER_KINDS: readonly HistoryEvent["kind"][] = ["robot_state", "alarm", "connection", "recording", "cycle"];
 
-function urgent(e: MarkerEvent): boolean {
-  return e.kind === "alarm" || e.label.includes("EMERGENCY_STOP");
+function isUrgent(e: HistoryEvent): boolean {
+  return e.kind === "alarm" || (e.kind === "robot_state" && e.to_name === "EMERGENCY_STOP");
 }
+
+const urgent = (e: MarkerEvent) => e.urgent;
 
 /**
  * The events of `range` as markers placed on the time axis (a fraction of the plotting area).
@@ -211,7 +228,7 @@ export function markersOf(events: readonly HistoryEvent[], range: TimeRange, spa
     if (!MARKER_KINDS.includes(e.kind) || e.time < range.from_s || e.time >= range.to_s) continue;
     const at = (e.time - range.from_s) / span;
     const bin = Math.floor(at / spacing);
-    const item = { time_s: e.time, kind: e.kind, label: eventLabel(e) };
+    const item = { time_s: e.time, kind: e.kind, label: eventLabel(e), urgent: isUrgent(e) };
     const group = bins.get(bin);
     if (group === undefined) bins.set(bin, { first: e, at, events: [item] });
     else if (e.time < group.first.time) {

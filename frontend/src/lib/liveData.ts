@@ -12,6 +12,7 @@
  */
 import { LAYOUT_VERSION, type Frame } from "../generated/layout";
 import { alarmsFromHello, applyAlarm, type Alarm } from "./alarms";
+import { setSiteTimeZone } from "./dates";
 import { connectionHealth, type Health, type SocketState } from "./health";
 import { FLAG_FIELDS, isFlagField } from "./layoutInfo";
 import { ChannelMap, type PlotSpec } from "./plots";
@@ -103,6 +104,8 @@ export class LiveData {
   private rate_hz: number | null = null;
   private staleSince_ms: number | null = null;
   private closeReason: string | null = null;
+  /** A confirmed write's frame (`seq`), published the moment it is here (`showFrame`). */
+  private awaitedSeq: number | null = null;
   private robot: string | null = null;
   private alarms: readonly Alarm[] = [];
   private session: string | null = null;
@@ -139,6 +142,19 @@ export class LiveData {
   /** The page's beat (lib/plotCoordinator.ts `onBeat`): republish when the last is an interval old. */
   beat(): void {
     if (this.now() - this.publishedAt_ms >= this.publishInterval_ms) this.publish();
+  }
+
+  /**
+   * A write was confirmed by the frame `seq` (its answer names it): show that frame the moment it
+   * is here, not at the next periodic publish (up to `publishInterval_ms` later), so what the page
+   * shows after "confirmed" is the robot's frame that confirmed it: the analog outputs, a preset's
+   * values and everything else the frame carries.
+   */
+  showFrame(seq: number): void {
+    if (this.lastSeq !== null && this.lastSeq >= seq) {
+      this.awaitedSeq = null;
+      this.publish();
+    } else this.awaitedSeq = seq;
   }
 
   stop(): void {
@@ -183,6 +199,8 @@ export class LiveData {
         this.control = message.control;
         this.rate_hz = message.rate_hz;
         this.robot = message.robot ?? null;
+        // Every time on the page is the plant's (lib/dates.ts), as the service names it.
+        setSiteTimeZone(message.time_zone);
         this.alarms = alarmsFromHello(message.alarms);
         this.session = message.session ?? null;
         this.cellAlarms = message.cell_alarms ?? null;
@@ -193,6 +211,12 @@ export class LiveData {
       case "frames": {
         const before = this.frame;
         for (const stamped of message.frames) this.addFrame(stamped.seq, stamped.t, stamped.frame);
+        if (this.awaitedSeq !== null && this.lastSeq !== null && this.lastSeq >= this.awaitedSeq) {
+          // A confirmed write's frame came: shown at once (`showFrame`).
+          this.awaitedSeq = null;
+          this.publish();
+          return;
+        }
         // A state or flag change is shown at once, not at the next periodic publish.
         if (this.frame !== null && before !== this.frame && signalsChanged(before, this.frame)) this.publish();
         return;

@@ -8,6 +8,7 @@
  * person's zoom, pan, steps and wheel, the panel's time axis, pause, back to live).
  * Must not import Plotly or React.
  */
+import { axisShift_ms } from "./dates";
 import { POINTS_PER_BUCKET } from "./decimate";
 import { markersOf, type RangeData } from "./historyView";
 import { RingBackfill } from "./plotBackfill";
@@ -133,6 +134,8 @@ export abstract class LivePlotDrawing {
 
   /** Told when the plot is zoomed away from the moving window, or back on it. */
   onZoomedChange: ((zoomed: boolean) => void) | null = null;
+  /** The window picked changed (here, or followed from a linked plot): its picker shows it. */
+  onWindowChange: ((window_ms: number) => void) | null = null;
 
   /** Told when the view changes and whenever a range of the recording is drawn or fails. */
   onHistory: ((shown: HistoryShown) => void) | null = null;
@@ -482,7 +485,7 @@ export abstract class LivePlotDrawing {
       return;
     }
     this.needsRebuild = false;
-    this.tzShift_ms = new Date().getTimezoneOffset() * 60_000;
+    this.tzShift_ms = axisShift_ms(Date.now());
     this.ringView.shift_ms = this.tzShift_ms;
     this.backfill?.askIfShort(this.window_ms);
     const ringChunk = this.ringView.rebuild();
@@ -547,7 +550,7 @@ export abstract class LivePlotDrawing {
     }
     this.needsRebuild = false;
     this.showPicture(false);
-    this.tzShift_ms = new Date().getTimezoneOffset() * 60_000;
+    this.tzShift_ms = axisShift_ms(Date.now());
     const shift = this.tzShift_ms;
     const range = this.wantedRange_ms();
     const { from, to } = range;

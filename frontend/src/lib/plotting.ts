@@ -267,6 +267,7 @@ export class LivePlot extends LivePlotDrawing {
     if (window_ms === this.window_ms && this.view.kind !== "fixed") return;
     this.told({ kind: "window", window_ms });
     this.window_ms = window_ms;
+    this.onWindowChange?.(window_ms);
     this.ringView.setWindow(window_ms);
     // A new window length starts from autorange, not the old zoom (a new revision).
     this.enterView(this.viewForWindow(window_ms), { immediate: true, redraw: true, fresh: true });
