@@ -108,7 +108,7 @@ test("the kiosk shows the tiles its URL chooses, the state in words, a clock; no
 
   // What the state means, in the layout's words, and a running clock.
   await expect(page.getByTestId("kiosk-state-words")).toHaveAttribute("data-state-title", "Standalone running");
-  await expect(page.getByTestId("kiosk-state-words")).toContainText("The task program is being executed.");
+  await expect(page.getByTestId("kiosk-state-words")).toContainText("Running its program");
   const clock = page.getByTestId("kiosk-clock");
   const first = await clock.textContent();
   await expect.poll(async () => await clock.textContent()).not.toBe(first);

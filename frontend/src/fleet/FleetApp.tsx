@@ -82,7 +82,8 @@ function Tile({ tile, stale }: { tile: FleetTile; stale: boolean }) {
           </div>
         )}
       </dl>
-      <nav className="fleet-tile__links">
+      {/* One navigation landmark per tile: each named by its robot (axe's landmark-unique). */}
+      <nav className="fleet-tile__links" aria-label={`${tile.name}: its pages`}>
         <a href={tile.panelHref}>Panel</a>
         <a href={tile.kioskHref} data-testid="fleet-kiosk-link">
           Kiosk

@@ -2880,6 +2880,11 @@ export interface components {
             changes: components["schemas"]["PresetChange"][];
             /** Preset */
             preset: string;
+            /**
+             * Seq
+             * @description apply: the stream's number of the frame that confirmed the write (a page shows that frame as soon as it has it); null: what applying would change, or no frame confirms it
+             */
+            seq?: number | null;
         };
         /**
          * PresetCreate

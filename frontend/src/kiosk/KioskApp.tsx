@@ -120,7 +120,7 @@ function Kiosk() {
     }),
     [options],
   );
-  const body = useRef<HTMLDivElement | null>(null);
+  const body = useRef<HTMLElement | null>(null);
   const layout = useKioskLayout(
     body,
     content,
@@ -148,6 +148,7 @@ function Kiosk() {
           style={{ transform: `translate(${offset.dx_px}px, ${offset.dy_px}px)` }}
         >
           <header className="kiosk__header">
+            <h1 className="visually-hidden">Kiosk{live.robot !== null ? ` of ${live.robot}` : ""}</h1>
             <div className="kiosk__top">
               <div className="kiosk__ident">
                 {live.robot !== null && (
@@ -179,7 +180,8 @@ function Kiosk() {
           {/* Above everything but the state; read-only: the stream's alarms, no acknowledge here. */}
           <AlarmBanner alarms={live.alarms} size="kiosk" />
           <StaleBanner live={live} />
-          <div className={`kiosk__body${stale ? " is-stale" : ""}`} ref={body} style={style}>
+          {/* The page's main landmark: what the kiosk is for, below its header and banners. */}
+          <main className={`kiosk__body${stale ? " is-stale" : ""}`} ref={body} style={style}>
             {(options.tiles.fields.length > 0 || options.tiles.unknown.length > 0) && (
               <div className="kiosk__tiles-area">
                 <KioskTiles fields={options.tiles.fields} unknown={options.tiles.unknown} frame={withCycleTimes(frame, cycleTimes)} grid={layout.body?.tileGrid ?? null} />
@@ -197,7 +199,7 @@ function Kiosk() {
                 <Robot3DView model={options.arm ?? model} theme={theme} interactive={false} height_px="fill" />
               </div>
             )}
-          </div>
+          </main>
           <KioskLamps frame={frame} />
         </div>
       </div>

@@ -1,5 +1,5 @@
 import { describe, expect, it } from "vitest";
-import type { Frame } from "../generated/layout";
+import { LAYOUT, type Frame } from "../generated/layout";
 import { frameField } from "./layoutInfo";
 import { formatTileValue, plainName, stateWords, tileCells, tileDecimals, tilesFromSearch, TILE_FIELDS } from "./kioskTiles";
 
@@ -73,7 +73,17 @@ describe("stateWords", () => {
     expect(plainName("STANDALONE_RUNNING")).toBe("Standalone running");
     const words = stateWords(14);
     expect(words.title).toBe("Standalone running");
-    expect(words.detail).toBe("The task program is being executed.");
+    expect(words.detail).toBe("Running its program");
+  });
+
+  it("says what a state means at the cell in a few words, never the manual's sentence (issue 38)", () => {
+    expect(stateWords(13).detail).toBe("Ready, no program running");
+    for (const state of LAYOUT.robot_states) {
+      const { detail } = stateWords(state.value);
+      expect(detail, state.name).not.toMatch(/Teach Pendant|mode execution screen|is displayed for/);
+      expect(detail.split(" ").length, `${state.name}: ${detail}`).toBeLessThanOrEqual(9);
+      expect(detail, state.name).not.toBe(state.description);
+    }
   });
 
   it("says when there is no data or the value is unknown", () => {

@@ -5,9 +5,9 @@
  * tcp_position`): any numeric field of the robot's frame, by its layout name. Names, channel
  * labels and units come from the generated layout; this module decides only how many decimals a
  * number gets (fixed per field, so digits do not jump about as values change) and how a state
- * reads in plain words.
+ * reads in plain words (a few, for the person at the cell: not the manual's sentence).
  */
-import { LAYOUT, type FieldInfo, type Frame, type FrameFieldName } from "../generated/layout";
+import { LAYOUT, type FieldInfo, type Frame, type FrameFieldName, type RobotStateName } from "../generated/layout";
 import { CYCLE_TILE } from "./cyclesTile";
 import type { TileShape } from "./kioskLayout";
 import { stateBadge } from "./stateBadge";
@@ -108,12 +108,41 @@ export function plainName(name: string): string {
 }
 
 /**
- * The robot's state in plain words: the layout's state name as a phrase and the first sentence
- * of its description ("Standalone running", "The task program is being executed.").
+ * What each state means to the person at the cell, in a few words read from 3 m (issue 38: the
+ * subtitle was the manual's sentence, "The Teach Pendant UI is in the actual mode execution
+ * screen in a single work space."). Every state has one: the type makes a new state in the layout
+ * a compile error here until it has its words.
+ */
+const STATE_SUBTITLES: Readonly<Record<RobotStateName, string>> = {
+  EMERGENCY_STOP: "Emergency stop pressed: release it and reset",
+  INITIALIZING: "Starting up",
+  SAFE_OFF: "Servo off after an error: reset to go on",
+  INTERRUPTED: "Protective stop: clear the cause and reset",
+  MANUAL_STANDBY: "Teaching, waiting",
+  MANUAL_JOGGING: "Teaching, being jogged",
+  MANUAL_HANDGUIDING: "Teaching, being moved by hand",
+  RECOVERY_STANDBY: "Recovery, safety limits off: waiting",
+  RECOVERY_JOGGING: "Recovery: being jogged back within its limits",
+  BACKDRIVE_HOLD: "Brakes on, backdrive locked",
+  BACKDRIVE_RELEASE: "A joint's brake is released",
+  BACKDRIVE_RELEASE_BY_COCKPIT: "A joint's brake is released from the Cockpit",
+  RECOVERY_HANDGUIDING: "Recovery: being moved by hand back within its limits",
+  STANDALONE_STANDBY: "Ready, no program running",
+  STANDALONE_RUNNING: "Running its program",
+  COLLABORATIVE_STANDBY: "Ready, no program running (collaborative zone)",
+  COLLABORATIVE_RUNNING: "Running its program (collaborative zone)",
+  HIGH_PRIORITY_RUNNING: "Running its program (high-priority zone)",
+  AUTO_MEASURE: "Measuring the tool's weight and centre of gravity",
+  HANDGUIDING_CONTROL_STANDBY: "Program waiting to be guided by hand",
+  HANDGUIDING_CONTROL_RUNNING: "Program: being guided by hand",
+};
+
+/**
+ * The robot's state in plain words: the layout's state name as a phrase and what it means at the
+ * cell ("Standalone standby", "Ready, no program running"), never the manual's sentence.
  */
 export function stateWords(value: number | null | undefined): { readonly title: string; readonly detail: string } {
   const badge = stateBadge(value);
   if (!badge.known) return { title: value === null || value === undefined ? "No data" : "Unknown state", detail: badge.description };
-  const first = badge.description.match(/^.*?[.!?](\s|$)/)?.[0]?.trim() ?? badge.description;
-  return { title: plainName(badge.name), detail: first };
+  return { title: plainName(badge.name), detail: STATE_SUBTITLES[badge.name as RobotStateName] };
 }

@@ -245,7 +245,7 @@ function AlarmHistory({ robot, newest }: { robot: string; newest: number | null 
           </td>
           <td>{row.transition.replaceAll("_", " ")}</td>
           <td>{alarmStateWords(row)}</td>
-          <td>{value(row.value, "")}</td>
+          <td>{row.value_words ?? value(row.value, "")}</td>
           <td>{row.user ?? ""}</td>
           <td>{row.comment ?? ""}</td>
         </tr>

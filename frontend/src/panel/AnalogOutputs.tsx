@@ -26,6 +26,10 @@ function AnalogOutput({ index, label, frame }: { index: number; label: string; f
   const [setpoint, setSetpoint] = useState("");
   const [chosenType, setChosenType] = useState<number | null>(null);
   const [localReason, setLocalReason] = useState<string | null>(null);
+  // What is shown: the written value and type from their confirmation on (lib/writes.ts), the
+  // robot's frame otherwise; the type's name and the unit follow the type shown.
+  const shownValue = typeof valueView.shown === "number" ? valueView.shown : null;
+  const shownType = typeof typeView.shown === "number" ? typeView.shown : actualType;
   const type = chosenType ?? actualType ?? commandType ?? 0;
   const range = analogRange(typeField, type);
   const pending = valueView.pending || typeView.pending;
@@ -75,14 +79,13 @@ function AnalogOutput({ index, label, frame }: { index: number; label: string; f
       className={`analog analog--output${pending ? " is-pending" : ""}`}
       data-testid={testId}
       data-state={pending ? "pending" : "idle"}
-      data-value={actual ?? ""}
-      data-type={analogTypeName(typeField, actualType) ?? ""}
+      data-value={pending ? (actual ?? "") : (shownValue ?? "")}
+      data-type={analogTypeName(typeField, pending ? actualType : shownType) ?? ""}
     >
       <span className="analog__label">{label}</span>
-      <span className="analog__type">{analogTypeName(typeField, actualType) ?? "—"}</span>
+      <span className="analog__type">{analogTypeName(typeField, pending ? actualType : shownType) ?? "—"}</span>
       <span className="analog__value" data-testid={`${testId}-actual`}>
-        {pending ? "…" : formatAnalog(valueView.shown === "pending" ? null : (valueView.shown as number | null))}{" "}
-        <span className="analog__unit">{analogUnit(typeField, actualType)}</span>
+        {pending ? "…" : formatAnalog(shownValue)} <span className="analog__unit">{analogUnit(typeField, pending ? actualType : shownType)}</span>
       </span>
       <span className="analog__command" title="command being sent">
         cmd {formatAnalog(command)} {analogUnit(typeField, commandType)}

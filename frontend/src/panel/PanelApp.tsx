@@ -130,6 +130,7 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
               if (e.key === "Escape" && menuOpen) setMenuOpen(false);
             }}
           >
+            <h1 className="visually-hidden">Panel of {robot}</h1>
             <RobotSwitcher robot={robot} robots={robots} onSelect={onSelect} alarms={alarmsByRobot(live.cellAlarms)} />
             <StateBadge value={live.frame?.robot_state} stale={stale} size="panel" />
             <FlagBadges frame={live.frame} stale={stale} />
@@ -288,6 +289,7 @@ function NoRobot({ reason, login, user, onUser }: { reason: string; login: boole
   return (
     <div className="panel" data-testid="panel">
       <header className="panel-header">
+        <h1 className="visually-hidden">Panel</h1>
         <p className="hint" data-testid="robots-reason">
           {reason}
         </p>

@@ -6,8 +6,9 @@
  * or the registers only) or values typed by hand ("Register in 0 = on, DO 3 = off"), deletes
  * one, imports the CSV or JSON export.
  */
-import { memo, useCallback, useEffect, useState, type ChangeEvent } from "react";
+import { memo, useCallback, useContext, useEffect, useState, type ChangeEvent } from "react";
 import { ConfirmDialog } from "../components/ConfirmDialog";
+import { RuntimeContext } from "../components/runtimeContext";
 import { roleAtLeast, type User } from "../lib/protocol";
 import { changeLines, parsePresetItems, presetWords, presetsApi, presetsCsvUrl, presetsJsonUrl, type Preset } from "../lib/presets";
 
@@ -29,6 +30,7 @@ export const PresetsView = memo(function PresetsView({ robot, user }: { readonly
   const [pending, setPending] = useState<Pending | null>(null);
   const [note, setNote] = useState<string | null>(null);
   const [error, setError] = useState<string | null>(null);
+  const runtime = useContext(RuntimeContext);
   const [busy, setBusy] = useState(false);
   const [reload, setReload] = useState(0);
   const operator = roleAtLeast(user, "operator");
@@ -76,6 +78,9 @@ export const PresetsView = memo(function PresetsView({ robot, user }: { readonly
     void run(async () => {
       const applied = await presetsApi.apply(robot, asked.preset);
       if (!applied.ok) return applied.reason;
+      // The outputs show the frame that confirmed it the moment it is here (lib/liveData.ts).
+      const seq = applied.page.seq;
+      if (seq !== null && seq !== undefined) runtime?.live.showFrame(seq);
       setNote(`“${asked.preset}” applied: ${applied.page.changes.length} value(s) changed, confirmed by the robot`);
       return null;
     });

@@ -10,6 +10,7 @@ import { createContext, useCallback, useContext, useEffect, useMemo, useRef, use
 import type { CommandPatch } from "../generated/layout";
 import { api as rest } from "../lib/api";
 import type { LiveSnapshot } from "../lib/liveData";
+import { RuntimeContext } from "../components/runtimeContext";
 import { controlOwnership } from "../lib/controlSession";
 import { roleAtLeast, type CommandState, type User } from "../lib/protocol";
 import { stopWarning } from "../lib/writeChecks";
@@ -85,6 +86,8 @@ export function WriteProvider({
   children: ReactNode;
 }) {
   const tracker = useMemo(() => new WriteTracker(), []);
+  // The page's live pipeline (null in a test without one): a confirmed write's frame is shown at once.
+  const runtime = useContext(RuntimeContext);
   const [command, setCommand] = useState<CommandState | null>(null);
   const [confirmRegisters, setConfirmRegistersState] = useState(readSetting);
   const [confirm, setConfirm] = useState<ConfirmRequest | null>(null);
@@ -137,10 +140,12 @@ export function WriteProvider({
   const write = useCallback(
     async (keys: readonly string[], values: readonly WriteValue[], patch: CommandPatch, confirmMessage: string | null) => {
       if (confirmMessage !== null && !(await ask(confirmMessage))) return;
-      await performWrite(tracker, keys, values, () => rest.patchCommand(robot, patch));
+      const outcome = await performWrite(tracker, keys, values, () => rest.patchCommand(robot, patch));
+      // Everything the page shows comes from the confirming frame at once (lib/liveData.ts).
+      if (outcome.kind === "confirmed" && outcome.seq !== null) runtime?.live.showFrame(outcome.seq);
       refreshCommand();
     },
-    [ask, tracker, refreshCommand, robot],
+    [ask, tracker, refreshCommand, robot, runtime],
   );
 
   const blockReason = blockReasonOf(user, live);

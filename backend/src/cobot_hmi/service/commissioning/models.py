@@ -164,3 +164,9 @@ class PresetChanges(BaseModel):
 
     preset: str
     changes: list[PresetChange]
+    seq: int | None = Field(
+        default=None,
+        description="apply: the stream's number of the frame that confirmed the write (a page "
+        "shows that frame as soon as it has it); null: what applying would change, or no frame "
+        "confirms it",
+    )

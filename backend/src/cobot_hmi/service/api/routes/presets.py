@@ -206,4 +206,4 @@ async def apply_preset(
     outcome = await submit_write(robot, writer, found.body(), origin=origin)
     if not outcome.ok:
         raise outcome.error()
-    return OrjsonResponse({"preset": found.name, "changes": before})
+    return OrjsonResponse({"preset": found.name, "changes": before, "seq": outcome.seq})
