@@ -18,6 +18,12 @@ Sources:
   ``dsr_description2/urdf/m0609.urdf`` (J1 z 0.1345 m, J2 y 0.0062 m, J3 x 0.411 m, J4 y −0.368 m,
   J6 y −0.121 m; J3 ±150°; 150°/s on J1–J2, 180°/s on J3, 225°/s on J4–J6). The URDF writes
   π/2 as 1.571; exact π/2 is used here, as the spec does for the M1013.
+- Rated joint torque, speed and life (``JointRating``, read by the health engine's reducer-life
+  law, docs/health.md): Doosan does not publish them for these arms, so every one is an
+  assumption (``assumed=True``), taken from the strain-wave reducer sizes an arm of this reach
+  and payload carries (rated torque at the maker's rated input speed of 2000 rpm through a
+  100:1 ratio, i.e. 120°/s at the joint, and the maker's rated life of 10,000 h). Replace a value
+  with the maker's when it is published, and clear its ``assumed``.
 """
 
 from __future__ import annotations
@@ -54,12 +60,26 @@ class ArmLink:
 
 
 @dataclass(frozen=True, slots=True)
+class JointRating:
+    """A joint reducer's rated values, the reference of the life law
+    ``L = L_rated · (ω_rated/ω)·(τ_rated/τ)^(10/3)`` (docs/health.md)."""
+
+    rated_torque_nm: float
+    rated_speed_deg_s: float
+    rated_life_h: float
+    assumed: bool = True
+    """True where the maker has not published the value (docs/health.md says so)."""
+
+
+@dataclass(frozen=True, slots=True)
 class Arm:
-    """An arm's published geometry: six joints, J1 first, and the six links they move."""
+    """An arm's published geometry: six joints, J1 first, and the six links they move; and
+    each joint's rated values (``ratings``, J1 first)."""
 
     name: str
     joints: tuple[ArmJoint, ...]
     links: tuple[ArmLink, ...]
+    ratings: tuple[JointRating, ...] = ()
 
 
 M1013_ARM: Final = Arm(
@@ -79,6 +99,16 @@ M1013_ARM: Final = Arm(
         ArmLink(3.82, (7.1e-05, 0.091879, -0.18252)),
         ArmLink(2.82, (-0.000273, 0.003651, 0.032088)),
         ArmLink(1.16, (-0.000292, 7e-06, -0.0539)),
+    ),
+    # Assumed (not published by Doosan): a size-40 reducer in J1–J2, size 32 in J3, size 20 in
+    # the wrist; 120°/s rated speed (2000 rpm in, 100:1), 10,000 h rated life.
+    ratings=(
+        JointRating(294.0, 120.0, 10_000.0, assumed=True),
+        JointRating(294.0, 120.0, 10_000.0, assumed=True),
+        JointRating(137.0, 120.0, 10_000.0, assumed=True),
+        JointRating(40.0, 120.0, 10_000.0, assumed=True),
+        JointRating(40.0, 120.0, 10_000.0, assumed=True),
+        JointRating(40.0, 120.0, 10_000.0, assumed=True),
     ),
 )
 
@@ -100,7 +130,26 @@ M0609_ARM: Final = Arm(
         ArmLink(2.83, (-6.8e-05, 0.003827, 0.031969)),
         ArmLink(1.16, (-3e-05, -4.5e-05, -0.0539)),
     ),
+    # Assumed (not published by Doosan): a size-32 reducer in J1–J2, size 25 in J3, size 20 in
+    # the wrist; 120°/s rated speed (2000 rpm in, 100:1), 10,000 h rated life.
+    ratings=(
+        JointRating(178.0, 120.0, 10_000.0, assumed=True),
+        JointRating(178.0, 120.0, 10_000.0, assumed=True),
+        JointRating(84.0, 120.0, 10_000.0, assumed=True),
+        JointRating(40.0, 120.0, 10_000.0, assumed=True),
+        JointRating(40.0, 120.0, 10_000.0, assumed=True),
+        JointRating(40.0, 120.0, 10_000.0, assumed=True),
+    ),
 )
 
 ARMS: Final = (M1013_ARM, M0609_ARM)
 """Every known arm; the first is the default."""
+
+
+def arm_by_name(name: str) -> Arm:
+    """The arm called ``name`` (case-insensitive); ``KeyError`` naming the choices otherwise."""
+    for arm in ARMS:
+        if arm.name == name.upper():
+            return arm
+    choices = ", ".join(arm.name for arm in ARMS)
+    raise KeyError(f"unknown arm {name!r}; choose one of {choices}")

@@ -22,6 +22,7 @@ VERB_MODULES = (
     "cobot_hmi.cli.demo_verb",
     "cobot_hmi.cli.discovery_verbs",
     "cobot_hmi.cli.emulator_verb",
+    "cobot_hmi.cli.health_verb",
     "cobot_hmi.cli.history_verbs",
     "cobot_hmi.cli.openapi_verb",
     "cobot_hmi.cli.scanner_verbs",

@@ -1,4 +1,5 @@
-"""Layer: emulator, pure robot model (no I/O). Imports only ``robot.models``, ``robot.kinematics``.
+"""Layer: emulator, pure robot model (no I/O). Imports only ``robot.models``, ``robot.kinematics``,
+``robot.wear``.
 
 "Dynamics-ish" monitoring values: believable, consistent with the motion, not a full rigid-body
 model. Joint torque is what the motor must give: gravity (every link's mass at its URDF centre of
@@ -6,7 +7,8 @@ mass, plus the payload at the TCP) plus an inertia term (the masses beyond the j
 their distance from its axis, plus the motor's reflected inertia, times the joint's acceleration)
 plus viscous friction. Motor current is torque over the joint's torque constant, plus noise. Motor
 temperature approaches, first-order, a level that rises with the square of the current (copper
-losses), starting at room temperature.
+losses), starting at room temperature. Wear (``robot.wear``) adds friction to the torque
+(``worn_torques``) and heat to a motor's settling level.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from typing import Final, NamedTuple
 
 from cobot_hmi.emulator.robot.kinematics import RAD_PER_DEG, Kinematics
 from cobot_hmi.emulator.robot.models import RobotModel
+from cobot_hmi.emulator.robot.wear import Wear
 
 GRAVITY_M_S2: Final = 9.80665
 
@@ -131,6 +134,24 @@ def joint_torques(
     return tuple(torques)
 
 
+def worn_torques(
+    model: RobotModel,
+    wear: Wear,
+    torques_nm: Sequence[float],
+    velocity_deg_s: Sequence[float],
+    *,
+    temperatures_c: Sequence[float],
+    now_s: float,
+) -> tuple[float, ...]:
+    """The torques with the friction the wear adds (the healthy friction is in ``torques_nm``)."""
+    return tuple(
+        torque + wear.friction_nm(j, v, t, spec.viscous_friction_nm_s_deg, now_s)
+        for j, (torque, v, t, spec) in enumerate(
+            zip(torques_nm, velocity_deg_s, temperatures_c, model.joints, strict=True)
+        )
+    )
+
+
 def motor_currents(
     model: RobotModel, torques_nm: Sequence[float], noise_a: Sequence[float]
 ) -> tuple[float, ...]:
@@ -168,8 +189,12 @@ class MotorThermal:
             for current, rated in zip(currents_a, self.rated_current_a, strict=True)
         )
 
-    def update(self, currents_a: Sequence[float], dt_s: float) -> tuple[float, ...]:
-        """Advance ``dt_s`` seconds under ``currents_a`` (exact for a constant current)."""
+    def update(
+        self, currents_a: Sequence[float], dt_s: float, extra_c: Sequence[float] | None = None
+    ) -> tuple[float, ...]:
+        """Advance ``dt_s`` seconds under ``currents_a`` (exact for a constant current);
+        ``extra_c``: degrees each motor settles above what its current explains (a worn
+        motor, ``Wear.extra_heat_c``)."""
         if dt_s > 0.0:
             keep = math.exp(-dt_s / self.time_constant_s)
             room_c, rise_c = self.room_temperature_c, self.rise_at_rated_current_c
@@ -182,5 +207,9 @@ class MotorThermal:
             ):
                 target_c = room_c + rise_c * (current / rated) ** 2
                 append(target_c + (temperature - target_c) * keep)
+            if extra_c is not None:
+                temperatures_c = [
+                    t + e * (1.0 - keep) for t, e in zip(temperatures_c, extra_c, strict=True)
+                ]
             self.temperatures_c = tuple(temperatures_c)
         return self.temperatures_c

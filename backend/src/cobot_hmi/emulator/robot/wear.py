@@ -1,0 +1,175 @@
+"""Layer: emulator, pure robot model (no I/O). Imports nothing of the project.
+
+The emulated robot's wear (issue 40, docs/emulator.md "Wear"): per joint, friction added
+(``friction_percent`` of the joint's healthy viscous friction, or Coulomb and viscous terms of
+its own), friction that is higher cold and settles as the motor warms, a motor that runs hot
+for its duty, and backlash; each reaching its full size over ``ramp_s`` of wear time. Wear time
+runs ``time_factor`` times faster than the robot's clock, so days of wear fit in minutes for
+tests and demos. Collisions are events, not wear (``SimulatedRobot.collide``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, fields
+from typing import Final
+
+COLD_C: Final = 25.0
+"""``cold_friction_percent`` is the extra friction at or below this motor temperature ..."""
+WARM_C: Final = 45.0
+"""... fading linearly to none at this one."""
+MAX_PERCENT: Final = 1000.0
+MAX_RAMP_S: Final = 365 * 86_400.0
+MAX_TIME_FACTOR: Final = 1_000_000.0
+
+
+class WearError(ValueError):
+    """A wear entry that cannot be applied; ``field`` names the bad value."""
+
+    def __init__(self, reason: str, field: str | None = None) -> None:
+        super().__init__(reason)
+        self.field = field
+
+
+@dataclass(frozen=True, slots=True)
+class JointWear:
+    friction_percent: float = 0.0
+    """Extra friction, in % of the joint's healthy friction at its temperature."""
+    coulomb_nm: float = 0.0
+    viscous_nm_s_deg: float = 0.0
+    cold_friction_percent: float = 0.0
+    hot_c: float = 0.0
+    """The motor settles this many °C above what its current explains."""
+    backlash_deg: float = 0.0
+    """Lost motion: the reported position trails the motion by half of it."""
+    ramp_s: float = 0.0
+    """Wear seconds to reach full size (0: at once)."""
+
+
+_LIMITS: Final = {
+    "friction_percent": (-90.0, MAX_PERCENT),
+    "coulomb_nm": (0.0, 500.0),
+    "viscous_nm_s_deg": (0.0, 10.0),
+    "cold_friction_percent": (0.0, MAX_PERCENT),
+    "hot_c": (0.0, 100.0),
+    "backlash_deg": (0.0, 5.0),
+    "ramp_s": (0.0, MAX_RAMP_S),
+}
+
+
+def parse_entry(data: Mapping[str, object], joints: int) -> tuple[int, JointWear]:
+    """``{"joint": 3, "friction_percent": 25, ...}`` (joints 1–N as the robot labels them) →
+    (joint index from 0, its wear); ``ramp_h`` is accepted for ``ramp_s``/3600."""
+    allowed = ("joint", "ramp_h", *_LIMITS)
+    for name in data:
+        if name not in allowed:
+            raise WearError(f"unknown field {name!r}; expected {', '.join(allowed)}", name)
+    joint = data.get("joint")
+    if isinstance(joint, bool) or not isinstance(joint, int) or not 1 <= joint <= joints:
+        raise WearError(f"joint: expected an integer 1–{joints}, got {joint!r}", "joint")
+    values: dict[str, float] = {}
+    for name, value in data.items():
+        if name == "joint":
+            continue
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, int | float)
+            or not math.isfinite(value)
+        ):
+            raise WearError(f"{name}: expected a finite number, got {value!r}", name)
+        key, number = (
+            ("ramp_s", float(value) * 3600.0) if name == "ramp_h" else (name, float(value))
+        )
+        low, high = _LIMITS[key]
+        if not low <= number <= high:
+            raise WearError(f"{name}: {value} is outside {low:g}–{high:g}", name)
+        values[key] = number
+    return joint - 1, JointWear(**values)
+
+
+class Wear:
+    """Each joint's wear, applied at a time of the robot's clock, and the wear clock's factor."""
+
+    def __init__(self, joints: int) -> None:
+        self.joints: list[JointWear] = [JointWear()] * joints
+        self.applied_at_s: list[float] = [0.0] * joints
+        self.time_factor = 1.0
+        self.active = False
+
+    def set(self, joint: int, wear: JointWear, now_s: float) -> None:
+        self.joints[joint] = wear
+        self.applied_at_s[joint] = now_s
+        self.active = any(w != JointWear() for w in self.joints)
+
+    def set_time_factor(self, factor: float) -> None:
+        if not 1.0 <= factor <= MAX_TIME_FACTOR:
+            raise WearError(
+                f"time_factor: {factor} is outside 1–{MAX_TIME_FACTOR:g}", "time_factor"
+            )
+        self.time_factor = factor
+
+    def clear(self) -> None:
+        self.joints = [JointWear()] * len(self.joints)
+        self.active = False
+
+    def level(self, joint: int, now_s: float) -> float:
+        """How far the joint's wear has grown (0–1)."""
+        ramp_s = self.joints[joint].ramp_s
+        if ramp_s <= 0.0:
+            return 1.0
+        return min(1.0, max(0.0, (now_s - self.applied_at_s[joint]) * self.time_factor / ramp_s))
+
+    def friction_coefficients(
+        self, joint: int, temperature_c: float, healthy_viscous_nm_s_deg: float, now_s: float
+    ) -> tuple[float, float]:
+        """The viscous (N·m per °/s) and Coulomb (N·m) friction the wear adds to the joint."""
+        wear = self.joints[joint]
+        level = self.level(joint, now_s)
+        cold = min(1.0, max(0.0, (WARM_C - temperature_c) / (WARM_C - COLD_C)))
+        # friction_percent is of the healthy friction at this temperature, the cold part with it.
+        cold_factor = 1.0 + wear.cold_friction_percent * cold / 100.0
+        percent = (cold_factor - 1.0) * 100.0 + cold_factor * wear.friction_percent * level
+        viscous = healthy_viscous_nm_s_deg * percent / 100.0 + wear.viscous_nm_s_deg * level
+        return viscous, wear.coulomb_nm * level
+
+    def friction_nm(
+        self,
+        joint: int,
+        velocity_deg_s: float,
+        temperature_c: float,
+        healthy_viscous_nm_s_deg: float,
+        now_s: float,
+    ) -> float:
+        """The friction torque the wear adds to the joint's healthy friction."""
+        viscous, coulomb = self.friction_coefficients(
+            joint, temperature_c, healthy_viscous_nm_s_deg, now_s
+        )
+        sign = 1.0 if velocity_deg_s > 0.0 else -1.0 if velocity_deg_s < 0.0 else 0.0
+        return viscous * velocity_deg_s + sign * coulomb
+
+    def extra_heat_c(self, now_s: float) -> tuple[float, ...]:
+        return tuple(w.hot_c * self.level(j, now_s) for j, w in enumerate(self.joints))
+
+    def reported_positions(
+        self, position_deg: Sequence[float], velocity_deg_s: Sequence[float], now_s: float
+    ) -> tuple[float, ...]:
+        """Positions as the arm's link is, trailing the motion by half the backlash."""
+        return tuple(
+            q - math.copysign(w.backlash_deg * self.level(j, now_s) / 2.0, v) if v else q
+            for j, (q, v, w) in enumerate(
+                zip(position_deg, velocity_deg_s, self.joints, strict=True)
+            )
+        )
+
+    def view(self) -> dict[str, object]:
+        """The control API's answer: each joint's wear and how far it has grown."""
+        return {
+            "time_factor": self.time_factor,
+            "joints": [
+                {"joint": j + 1, **asdict(w)} for j, w in enumerate(self.joints) if w != JointWear()
+            ],
+        }
+
+
+WEAR_FIELDS: Final = tuple(f.name for f in fields(JointWear))

@@ -1,0 +1,98 @@
+"""Layer: health (pure). Imports the other ``health`` modules' pure parts.
+
+A robot's healthy reference, learned from frames the operator names (the next N cycles, or
+until a time) and kept with the arm model and layout version it was learned on. Re-baselining
+starts a new one with a reason and who asked; the engine keeps the old ones (their reasons and
+dates, not their cells) so a trend can span them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cobot_hmi.health.frames import FloatArray, FrameBlock
+from cobot_hmi.health.friction import CellTable
+from cobot_hmi.health.heat import HeatFit, cycle_heat
+from cobot_hmi.health.settings import HealthSettings
+from cobot_hmi.health.signature import quantiles, resample
+
+
+class Baseline:
+    """One baseline: its record (``info``) and what it learned (see the module docstring)."""
+
+    def __init__(self, settings: HealthSettings, joints: int, info: dict[str, object]) -> None:
+        self.settings = settings
+        self.info = info
+        """id, reason, by, arm, layout_version, started_s, finished_s, target_cycles, until_s."""
+        self.cells = CellTable(settings)
+        self.signature_sum: FloatArray = np.zeros((settings.signature_points, joints))
+        self.distribution_sum: FloatArray = np.zeros((101, joints))
+        self.heat = HeatFit(joints)
+        self.durations = np.zeros(3)  # n, Σd, Σd²
+
+    @property
+    def cycles(self) -> int:
+        return int(self.durations[0])
+
+    @property
+    def finished(self) -> bool:
+        return self.info.get("finished_s") is not None
+
+    def add_frames(self, block: FrameBlock) -> None:
+        self.cells.add(block)
+
+    def add_cycle(self, block: FrameBlock, start_s: float, end_s: float) -> None:
+        points = self.settings.signature_points
+        self.signature_sum += resample(block, start_s, end_s, points)
+        self.distribution_sum += quantiles(block)
+        self.heat.add(*cycle_heat(block, self.settings.thermal_time_constant_s))
+        d = end_s - start_s
+        self.durations += (1.0, d, d * d)
+
+    def due(self, now_s: float) -> bool:
+        """Learned enough: the cycles asked for, or the period's end passed."""
+        target = self.info.get("target_cycles")
+        until = self.info.get("until_s")
+        if isinstance(target, int) and self.cycles >= target:
+            return True
+        return isinstance(until, int | float) and now_s >= until and self.cycles > 0
+
+    @property
+    def signature(self) -> FloatArray:
+        return self.signature_sum / max(self.cycles, 1)
+
+    @property
+    def distribution(self) -> FloatArray:
+        return self.distribution_sum / max(self.cycles, 1)
+
+    def cycle_time(self) -> tuple[float, float]:
+        n, total, squares = self.durations
+        mean = total / n
+        variance = max(squares / n - mean * mean, 0.0)
+        return mean, float(np.sqrt(variance))
+
+    def to_state(self) -> dict[str, object]:
+        return {
+            "info": self.info,
+            "cells": self.cells.to_state(),
+            "signature_sum": self.signature_sum.tolist(),
+            "distribution_sum": self.distribution_sum.tolist(),
+            "heat_sums": self.heat.sums.tolist(),
+            "durations": self.durations.tolist(),
+        }
+
+    @classmethod
+    def from_state(
+        cls, settings: HealthSettings, joints: int, state: dict[str, object]
+    ) -> Baseline:
+        info = state["info"]
+        assert isinstance(info, dict)
+        baseline = cls(settings, joints, dict(info))
+        cells = state["cells"]
+        assert isinstance(cells, dict)
+        baseline.cells = CellTable.from_state(settings, cells)
+        baseline.signature_sum = np.array(state["signature_sum"], dtype=np.float64)
+        baseline.distribution_sum = np.array(state["distribution_sum"], dtype=np.float64)
+        baseline.heat.sums = np.array(state["heat_sums"], dtype=np.float64)
+        baseline.durations = np.array(state["durations"], dtype=np.float64)
+        return baseline
