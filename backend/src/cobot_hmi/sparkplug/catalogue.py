@@ -86,33 +86,34 @@ class FieldSpan:
     scalar: bool
 
 
-class Catalogue:
-    """Every metric of one robot, in a fixed order (see the module docstring)."""
+class _MetricList:
+    """The catalogue's metrics as they are added, each at the next offset, and the spans of
+    the T→O fields among them."""
 
-    def __init__(self, deadbands: Mapping[str, float]) -> None:
-        """``deadbands``: by T→O field name or by unit (a field's name wins)."""
-        metrics: list[MetricDef] = []
-        discrete: list[FieldSpan] = []
-        analog: list[FieldSpan] = []
+    def __init__(self) -> None:
+        self.metrics: list[MetricDef] = []
+        self.discrete: list[FieldSpan] = []
+        self.analog: list[FieldSpan] = []
 
-        def add(**kwargs: object) -> MetricDef:
-            metric = MetricDef(offset=len(metrics), **kwargs)  # type: ignore[arg-type]
-            metrics.append(metric)
-            return metric
+    def add(self, **kwargs: object) -> MetricDef:
+        metric = MetricDef(offset=len(self.metrics), **kwargs)  # type: ignore[arg-type]
+        self.metrics.append(metric)
+        return metric
 
+    def add_frame_fields(self, deadbands: Mapping[str, float]) -> None:
+        """Every T→O field's elements, a span each (discrete or analog)."""
         for f in T2O_FIELDS:
-            datatype = _datatype(f)
             role = Role.ANALOG if f.cip_type is CipType.REAL else Role.DISCRETE
             deadband = 0.0
             if role is Role.ANALOG:
                 deadband = float(deadbands.get(f.name, deadbands.get(f.unit, 0.0)))
-            span = FieldSpan(f.name, len(metrics), 1 if f.scalar else f.count, f.scalar)
-            (analog if role is Role.ANALOG else discrete).append(span)
+            span = FieldSpan(f.name, len(self.metrics), 1 if f.scalar else f.count, f.scalar)
+            (self.analog if role is Role.ANALOG else self.discrete).append(span)
             names = (f.name,) if f.scalar else tuple(f"{f.name}/{e}" for e in _element_names(f))
             for index, name in enumerate(names):
-                add(
+                self.add(
                     name=name,
-                    datatype=datatype,
+                    datatype=_datatype(f),
                     role=role,
                     field=f.name,
                     index=None if f.scalar else index,
@@ -121,9 +122,12 @@ class Catalogue:
                     deadband=deadband,
                     value_names=f.value_names,
                 )
+
+    def add_command_fields(self) -> None:
+        """Every O→T element, writable, under ``COMMAND_PREFIX``."""
         for f in O2T_FIELDS:
             for index, element in enumerate(_element_names(f)):
-                add(
+                self.add(
                     name=f"{COMMAND_PREFIX}{f.name}/{element}",
                     datatype=_datatype(f),
                     role=Role.COMMAND,
@@ -134,42 +138,51 @@ class Catalogue:
                     value_names=f.value_names,
                     writable=True,
                 )
-        self.control_holder = add(
-            name=CONTROL_HOLDER,
-            datatype=DataType.STRING,
+
+    def add_status(
+        self, name: str, datatype: DataType, description: str, *, writable: bool = False
+    ) -> MetricDef:
+        return self.add(
+            name=name,
+            datatype=datatype,
             role=Role.STATUS,
-            description="who holds control of the robot's outputs (empty: nobody)",
+            description=description,
+            writable=writable,
         )
-        self.control_take = add(
-            name=CONTROL_TAKE,
-            datatype=DataType.BOOLEAN,
-            role=Role.STATUS,
-            description="DCMD true: take control for MQTT writes",
-            writable=True,
+
+
+class Catalogue:
+    """Every metric of one robot, in a fixed order (see the module docstring)."""
+
+    def __init__(self, deadbands: Mapping[str, float]) -> None:
+        """``deadbands``: by T→O field name or by unit (a field's name wins)."""
+        made = _MetricList()
+        made.add_frame_fields(deadbands)
+        made.add_command_fields()
+        self.control_holder = made.add_status(
+            CONTROL_HOLDER,
+            DataType.STRING,
+            "who holds control of the robot's outputs (empty: nobody)",
         )
-        self.control_release = add(
-            name=CONTROL_RELEASE,
-            datatype=DataType.BOOLEAN,
-            role=Role.STATUS,
-            description="DCMD true: release control",
-            writable=True,
+        self.control_take = made.add_status(
+            CONTROL_TAKE, DataType.BOOLEAN, "DCMD true: take control for MQTT writes", writable=True
         )
-        self.write_outcome = add(
-            name=WRITE_OUTCOME,
-            datatype=DataType.STRING,
-            role=Role.STATUS,
-            description="outcome of the last DCMD (confirmed, refused, invalid, timeout, …)",
+        self.control_release = made.add_status(
+            CONTROL_RELEASE, DataType.BOOLEAN, "DCMD true: release control", writable=True
         )
-        self.write_reason = add(
-            name=WRITE_REASON,
-            datatype=DataType.STRING,
-            role=Role.STATUS,
-            description="why, when the last DCMD was not confirmed",
+        self.write_outcome = made.add_status(
+            WRITE_OUTCOME,
+            DataType.STRING,
+            "outcome of the last DCMD (confirmed, refused, invalid, timeout, …)",
         )
+        self.write_reason = made.add_status(
+            WRITE_REASON, DataType.STRING, "why, when the last DCMD was not confirmed"
+        )
+        metrics = made.metrics
         assert len(metrics) < ALIAS_STRIDE
         self.metrics: tuple[MetricDef, ...] = tuple(metrics)
-        self.discrete_spans: tuple[FieldSpan, ...] = tuple(discrete)
-        self.analog_spans: tuple[FieldSpan, ...] = tuple(analog)
+        self.discrete_spans: tuple[FieldSpan, ...] = tuple(made.discrete)
+        self.analog_spans: tuple[FieldSpan, ...] = tuple(made.analog)
         self.command_metrics: tuple[MetricDef, ...] = tuple(
             m for m in metrics if m.role is Role.COMMAND
         )

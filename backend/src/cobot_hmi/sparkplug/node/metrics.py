@@ -13,10 +13,54 @@ if TYPE_CHECKING:
     from cobot_hmi.service.extensions import MetricFamily
 
 
+def _single(name: str, kind: str, text: str, value: float) -> MetricFamily:
+    """A family of one sample without labels."""
+    return (name, kind, text, [({}, float(value))])
+
+
 class NodeMetrics(NodeCore):
     """``metric_families`` for the service's collector."""
 
     def metric_families(self) -> list[MetricFamily]:
+        # In this order since 58f13a2 (tests/test_metrics_exposition.py keeps it).
+        return [
+            *self._session_families(),
+            *self._message_families(),
+            *self._buffer_families(),
+            *self._work_families(),
+        ]
+
+    def _session_families(self) -> list[MetricFamily]:
+        """The MQTT session: connected, born, reconnects, refusals."""
+        return [
+            _single(
+                "sparkplug_broker_connected",
+                "gauge",
+                "1 while the edge node is connected to its MQTT broker",
+                self.online,
+            ),
+            _single(
+                "sparkplug_born",
+                "gauge",
+                "1 while the node's births are out (connected, and its primary host online)",
+                self.active,
+            ),
+            _single(
+                "sparkplug_reconnects_total",
+                "counter",
+                "MQTT connections after the first one (each one a new bdSeq)",
+                self.reconnects,
+            ),
+            _single(
+                "sparkplug_connect_refusals_total",
+                "counter",
+                "CONNECTs the broker refused (credentials, ACL, protocol)",
+                self.connect_refusals,
+            ),
+        ]
+
+    def _message_families(self) -> list[MetricFamily]:
+        """Messages and bytes by type (the node's, then each robot's)."""
         devices = list(self.devices.values())
 
         def per_device(counter: Callable[[Device], Counter[str]]) -> list[Any]:
@@ -26,88 +70,67 @@ class NodeMetrics(NodeCore):
                 for kind, count in sorted(counter(d).items())
             ]
 
-        node_label = "type"
         return [
-            (
-                "sparkplug_broker_connected",
-                "gauge",
-                "1 while the edge node is connected to its MQTT broker",
-                [({}, float(self.online))],
-            ),
-            (
-                "sparkplug_born",
-                "gauge",
-                "1 while the node's births are out (connected, and its primary host online)",
-                [({}, float(self.active))],
-            ),
-            (
-                "sparkplug_reconnects_total",
-                "counter",
-                "MQTT connections after the first one (each one a new bdSeq)",
-                [({}, float(self.reconnects))],
-            ),
-            (
-                "sparkplug_connect_refusals_total",
-                "counter",
-                "CONNECTs the broker refused (credentials, ACL, protocol)",
-                [({}, float(self.connect_refusals))],
-            ),
             (
                 "sparkplug_messages_total",
                 "counter",
                 "Sparkplug messages by type (node messages have no robot label; "
                 "DDATA_buffered went to the disk buffer)",
-                [
-                    ({node_label: kind}, float(count))
-                    for kind, count in sorted(self.node_messages.items())
-                ]
+                [({"type": kind}, float(n)) for kind, n in sorted(self.node_messages.items())]
                 + per_device(lambda d: d.messages),
             ),
             (
                 "sparkplug_published_bytes_total",
                 "counter",
                 "payload bytes published, by message type",
-                [
-                    ({node_label: kind}, float(size))
-                    for kind, size in sorted(self.node_bytes.items())
-                ]
+                [({"type": kind}, float(n)) for kind, n in sorted(self.node_bytes.items())]
                 + per_device(lambda d: d.bytes),
             ),
-            (
+        ]
+
+    def _buffer_families(self) -> list[MetricFamily]:
+        """The disk buffer: held, dropped, replayed."""
+        return [
+            _single(
                 "sparkplug_buffered_messages",
                 "gauge",
                 "DDATA held on disk for replay",
-                [({}, float(self.buffer.records_buffered))],
+                self.buffer.records_buffered,
             ),
-            (
+            _single(
                 "sparkplug_buffered_bytes",
                 "gauge",
                 "bytes the disk buffer holds",
-                [({}, float(self.buffer.bytes_buffered))],
+                self.buffer.bytes_buffered,
             ),
-            (
+            _single(
                 "sparkplug_buffer_dropped_total",
                 "counter",
                 "buffered DDATA dropped (buffer full or off)",
-                [({}, float(self.buffer.records_dropped))],
+                self.buffer.records_dropped,
             ),
-            (
+            _single(
                 "sparkplug_replayed_total",
                 "counter",
                 "buffered DDATA published as historical after a reconnect",
-                [({}, float(self.replayed))],
+                self.replayed,
             ),
+        ]
+
+    def _work_families(self) -> list[MetricFamily]:
+        """Frames the node's queues dropped, its reports' CPU time, the DCMD outcomes."""
+        return [
             (
                 "sparkplug_frames_dropped_total",
                 "counter",
                 "frames the edge node's queue dropped before it read them",
-                [({"robot": d.device_name}, float(d.dropped)) for d in devices],
+                [({"robot": d.device_name}, float(d.dropped)) for d in self.devices.values()],
             ),
-            (
+            _single(
                 "sparkplug_tick_seconds_total",
                 "counter",
                 "CPU time of the edge node's reports on the web event loop",
-                [({}, self.tick_seconds)],
+                self.tick_seconds,
             ),
             (
                 "sparkplug_commands_total",
