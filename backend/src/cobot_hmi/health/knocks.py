@@ -24,7 +24,8 @@ KINDS: Final = ("collision", "protective_stop", "emergency_stop", "servo_off")
 
 def _rising(now: BoolArray, before: BoolArray) -> BoolArray:
     previous = np.concatenate([before[None, ...], now[:-1]], axis=0)
-    return now & ~previous
+    rising: BoolArray = now & ~previous
+    return rising
 
 
 class KnockCounter:

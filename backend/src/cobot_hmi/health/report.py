@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 import time
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -135,7 +135,7 @@ def _cycle_time(drift: CycleTimeDrift | None) -> dict[str, object]:
 
 def build_report(engine: HealthEngine, now_s: float) -> dict[str, object]:
     heat = engine.heat.relative_c()
-    figures = {
+    figures: dict[str, list[Any]] = {
         "friction": engine.friction_percent(),
         "per_week": engine.friction_per_week(),
         "heat": [float(h) for h in heat],
@@ -172,14 +172,18 @@ def engine_state(engine: HealthEngine) -> dict[str, object]:
         "baseline": engine.baseline.to_state() if engine.baseline is not None else None,
         "learning": engine.learning.to_state() if engine.learning is not None else None,
         "recent": engine.recent.to_state(),
-        "heat_excess_c": [_round(float(v), 6) for v in engine.heat.excess_c],
-        "signature_rms": [_round(float(v), 6) for v in engine.signature_rms],
-        "signature_distribution": [_round(float(v), 6) for v in engine.signature_distribution],
+        "heat_excess_c": _list(engine.heat.excess_c),
+        "signature_rms": _list(engine.signature_rms),
+        "signature_distribution": _list(engine.signature_distribution),
         "drift": engine.drift.to_state() if engine.drift is not None else None,
         "life": engine.life.to_state(),
         "knocks": engine.knocks.to_state(),
         "trend": [[None if math.isnan(v) else v for v in row] for row in engine.trend],
     }
+
+
+def _list(values: np.ndarray) -> list[float | None]:  # type: ignore[type-arg]
+    return [None if math.isnan(v) else float(v) for v in values]
 
 
 def _array(values: object) -> np.ndarray:  # type: ignore[type-arg]

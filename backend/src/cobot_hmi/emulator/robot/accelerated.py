@@ -73,6 +73,8 @@ class AcceleratedArm:
         else:
             raise RuntimeError("the program did not complete a cycle in 120 s")
         frames = [row[1] for row in rows]
+        self.recorded_start_s = float(rows[0][0])  # type: ignore[arg-type]
+        """When the recorded cycle started on the robot's clock (powered on at 0)."""
         self.offsets_s = np.array([row[0] for row in rows]) - float(rows[0][0])  # type: ignore[arg-type]
         self.position = np.array([f.joint_position for f in frames])  # type: ignore[attr-defined]
         self.velocity = np.array([f.joint_velocity for f in frames])  # type: ignore[attr-defined]
