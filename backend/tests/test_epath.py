@@ -244,15 +244,15 @@ def test_segments_out_of_place_are_path_errors() -> None:
 
 # --------------------------------------------------------------------------- electronic key
 
-IDENTITY = default_identity()  # vendor 0xFFFE, device type 0x2B, product 1013, revision 2.12
+IDENTITY = default_identity()  # vendor 1573, device type 0x2B, product 1013, revision 2.12
 
 
 @pytest.mark.parametrize(
     ("key", "expected"),
     [
         (epath.ElectronicKey(), None),  # all zero: any device
-        (epath.ElectronicKey(0xFFFE, 0x2B, 1013, 2, 12), None),  # exact
-        (epath.ElectronicKey(0xFFFE, 0, 0, 0, 0), None),
+        (epath.ElectronicKey(1573, 0x2B, 1013, 2, 12), None),  # exact
+        (epath.ElectronicKey(1573, 0, 0, 0, 0), None),
         (epath.ElectronicKey(0x0001), ExtendedStatus.VENDOR_PRODUCT_MISMATCH),
         (epath.ElectronicKey(0, 0, 1014), ExtendedStatus.VENDOR_PRODUCT_MISMATCH),
         (epath.ElectronicKey(0, 0x0C), ExtendedStatus.DEVICE_TYPE_MISMATCH),

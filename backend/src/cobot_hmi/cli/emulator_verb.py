@@ -20,6 +20,16 @@ def _rpi_range(text: str) -> tuple[int, int]:
     return low, high
 
 
+def _vendor_id(text: str) -> int:
+    try:
+        value = int(text, 0)
+    except ValueError:
+        raise argparse.ArgumentTypeError("expected a number, e.g. 1573 or 0xFFFE") from None
+    if not 0 <= value <= 0xFFFF:
+        raise argparse.ArgumentTypeError("expected 0 to 65535 (0xFFFF)")
+    return value
+
+
 def _register_map(text: str) -> tuple[int | None, ...]:
     from cobot_hmi.emulator.robot.robot_io import parse_register_map
 
@@ -113,6 +123,12 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     robot = parser.add_argument_group("the simulated robot (docs/emulator.md)")
     robot.add_argument("--model", choices=("M1013", "M0609"), default="M1013")
     robot.add_argument(
+        "--vendor-id",
+        type=_vendor_id,
+        default=None,
+        help="the Identity object's vendor ID (default 1573, Doosan Robotics in ODVA's list)",
+    )
+    robot.add_argument(
         "--static", action="store_true", help="a robot that stands still instead of the simulation"
     )
     robot.add_argument(
@@ -200,7 +216,7 @@ def _run(args: argparse.Namespace) -> int:
     from cobot_hmi.emulator.discovery import DiscoveryServer
     from cobot_hmi.emulator.process_image import IdleBehaviour, ProcessImage
     from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot
-    from cobot_hmi.emulator.settings import TargetSettings, default_identity
+    from cobot_hmi.emulator.settings import DOOSAN_VENDOR_ID, TargetSettings, default_identity
     from cobot_hmi.emulator.static_robot import StaticRobot
     from cobot_hmi.emulator.target import Target
     from cobot_hmi.eventloop import freeze_startup_heap, precise_event_loop
@@ -233,7 +249,9 @@ def _run(args: argparse.Namespace) -> int:
             tuple(args.discovery_broadcast) if args.discovery_broadcast is not None else None
         ),
         control_token=args.control_token,
-        identity=default_identity(args.model),
+        identity=default_identity(
+            args.model, DOOSAN_VENDOR_ID if args.vendor_id is None else args.vendor_id
+        ),
     )
 
     simulated: SimulatedRobot | None = None

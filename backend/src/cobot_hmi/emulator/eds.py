@@ -27,7 +27,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Final
 
-from cobot_hmi.emulator.settings import TargetSettings
+from cobot_hmi.emulator.settings import DOOSAN_VENDOR_ID, TargetSettings
 from cobot_hmi.enip import epath
 from cobot_hmi.layout import LAYOUT_VERSION
 
@@ -145,6 +145,11 @@ def _hex_path(path: bytes) -> str:
     return '"' + " ".join(f"{byte:02X}" for byte in path) + '"'
 
 
+def _vendor_name(vendor_id: int) -> str:
+    """The vendor's name as ODVA lists it when the emulator identifies as Doosan (its default)."""
+    return "Doosan Robotics" if vendor_id == DOOSAN_VENDOR_ID else "cobot-hmi (emulated adapter)"
+
+
 def eds_text(settings: TargetSettings | None = None) -> str:
     """The EDS file of the target ``settings`` describe (the emulator's defaults if none)."""
     s = settings if settings is not None else TargetSettings()
@@ -166,7 +171,7 @@ def eds_text(settings: TargetSettings | None = None) -> str:
         "",
         "[Device]",
         f"        VendCode = {identity.vendor_id};",
-        f"        VendName = {_quoted('cobot-hmi (emulated adapter)')};",
+        f"        VendName = {_quoted(_vendor_name(identity.vendor_id))};",
         f"        ProdType = {identity.device_type};",
         f"        ProdTypeStr = {_quoted(product_type)};",
         f"        ProdCode = {identity.product_code};",

@@ -1,8 +1,10 @@
 """Layer: emulator (no I/O here). Imports ``cobot_hmi.enip`` and the emulator's own modules.
 
 The target's Identity object (class 0x01, instance 1; CIP Vol 1 Chapter 5, object library):
-Get_Attributes_All, Get_Attribute_Single of attributes 1–7 and the class attributes; every
-attribute is read-only. The values are ``enip.identity``'s (``TargetSettings.identity``).
+Get_Attributes_All (attributes 1–7), Get_Attribute_Single of attributes 1–8 and the class
+attributes; every attribute is read-only. The values are ``enip.identity``'s
+(``TargetSettings.identity``); attribute 8, State (USINT, 3 = operational), is the state the
+ListIdentity reply carries, so both ways of asking agree.
 """
 
 from __future__ import annotations
@@ -14,6 +16,8 @@ from cobot_hmi.enip.identity import IdentityInfo
 from cobot_hmi.enip.status import GeneralStatus
 
 CLASS_REVISION = 1
+STATE_ATTRIBUTE = 8
+"""Identity attribute 8, State (CIP Vol 1 §5-2.2): one USINT."""
 
 
 def handle_identity_request(
@@ -29,6 +33,8 @@ def handle_identity_request(
     if request.service == Service.GET_ATTRIBUTE_SINGLE:
         if path.attribute is None:
             return reply(request, GeneralStatus.PATH_SEGMENT_ERROR)
+        if path.attribute == STATE_ATTRIBUTE:
+            return reply(request, data=bytes((identity.state,)))
         try:
             return reply(request, data=identity.encode_attribute(path.attribute))
         except KeyError:

@@ -14,14 +14,23 @@ from cobot_hmi.emulator.process_image import IdleBehaviour
 from cobot_hmi.enip.encapsulation import ENIP_TCP_PORT, ENIP_UDP_PORT
 from cobot_hmi.enip.identity import IdentityInfo
 
+DOOSAN_VENDOR_ID = 1573
+"""Doosan Robotics' vendor ID in ODVA's list of vendor IDs: the robots the emulator stands in
+for identify with it, so a scanner matching EDS files by vendor treats the emulator as the
+robot."""
 
-def default_identity(model: str = "M1013") -> IdentityInfo:
-    """The identity of the emulated ``model`` (``M1013``, ``M0609``): product code and serial
-    number from its digits, so each arm of a cell says which it is."""
-    # Placeholder identity values: a real controller's come from its EDS file.
+
+def default_identity(model: str = "M1013", vendor_id: int = DOOSAN_VENDOR_ID) -> IdentityInfo:
+    """The identity of the emulated ``model`` (``M1013``, ``M0609``): Doosan's vendor ID unless
+    ``vendor_id`` says otherwise, product code and serial number from the model's digits, so
+    each arm of a cell says which it is."""
+    # The device type, product code and revision are placeholders: a real controller's come
+    # from its EDS file.
+    if not 0 <= vendor_id <= 0xFFFF:
+        raise ValueError(f"vendor_id must be 0..65535 (a UINT), got {vendor_id}")
     digits = model.lstrip("M")
     return IdentityInfo(
-        vendor_id=0xFFFE,
+        vendor_id=vendor_id,
         device_type=0x2B,  # generic device (keyable)
         product_code=int(digits),
         revision_major=2,
@@ -57,8 +66,11 @@ class TargetSettings:
     t2o_port_default: int = ENIP_UDP_PORT
     """Where T→O goes on the originator's address unless its 0x8001 item says otherwise."""
     identity: IdentityInfo = field(default_factory=default_identity)
-    seed: int = 0
-    """Seed of the random numbers for connection IDs and fault drops."""
+    seed: int | None = None
+    """Seed of the random numbers for connection IDs and fault drops; ``None`` (the default):
+    drawn from the operating system at every start, so a restarted target's first O→T
+    connection ID is not the one it gave before (the originator could take the new connection
+    for the old one); a seed repeats them (tests)."""
     batch_period_s: float = 0.040
     """How often the target wakes while a connection runs at an RPI under 10 ms (the I/O cycle
     of the emulated controller): it reads the O→T that came meanwhile and the robot's data once
