@@ -6,7 +6,9 @@ asyncua's encoders and its client-side ``SecureConnection`` for the chunks and t
 every request and its parameters chosen by the test): a None channel where no endpoint offers
 None, a session asked over it, a password in clear where its token policy says encrypted, a
 certificate nobody trusted. asyncua's own ``Client`` then shows that a client that follows the
-endpoints still gets in.
+endpoints still gets in. Run against the server before issue 37 (asyncua's checks alone), the
+five refusal tests fail; the two others (TakeControl over SignAndEncrypt, asyncua's client over
+None) are the positive controls and pass either way.
 
 One cell for the module: one simulated robot, the service with OPC UA on a loopback address
 (None offered there, writes on) and, from the same service, a second OPC UA server bound to
