@@ -50,6 +50,7 @@ from cobot_hmi.emulator.robot import (
     RobotStateConflictError,
     SimulatedRobot,
 )
+from cobot_hmi.emulator.robot.wear import WearError, parse_entry
 
 log = logging.getLogger(__name__)
 
@@ -286,6 +287,7 @@ def create_control_app(
             "robot_state": frame.robot_state,
             "robot_state_name": frame_to_json(frame)["robot_state_name"],
             **robot.status(),
+            "wear": robot.wear.view(),
         }
 
     @app.get("/status")
@@ -372,6 +374,31 @@ def create_control_app(
     command("/joints", set_joints, needs_body=True)
     command("/inputs", set_inputs, needs_body=True)
     command("/tool-offset", set_tool_offset, needs_body=True)
+
+    def set_wear(data: dict[str, object], now_s: float) -> None:
+        """``{"joint": 3, "friction_percent": 25, ...}`` and/or ``{"time_factor": 1000}``;
+        ``{"joint": 2, "collision_nm": 60}``: a collision (docs/emulator.md, "Wear")."""
+        joints = len(robot.model.joints)
+        entry = {k: v for k, v in data.items() if k not in ("time_factor", "collision_nm")}
+        factor = _number(data, "time_factor", 1.0, 1e6) if "time_factor" in data else None
+        collision = _number(data, "collision_nm", 1.0, 1000.0) if "collision_nm" in data else None
+        try:
+            parsed = parse_entry(entry, joints) if entry else None
+        except WearError as error:
+            raise ControlError(422, str(error), error.field) from None
+        if parsed is None and factor is None:
+            raise ControlError(422, "expected a joint's wear, a collision or a time_factor")
+        if collision is not None and parsed is None:
+            raise ControlError(422, "collision_nm: expected the joint it hits", "joint")
+        if factor is not None:
+            robot.wear.set_time_factor(factor)
+        if parsed is not None and collision is not None:
+            robot.collide(parsed[0], collision, now_s)
+        elif parsed is not None:
+            robot.set_wear(parsed[0], parsed[1], now_s)
+
+    command("/wear", set_wear, needs_body=True)
+    command("/wear/clear", no_body(robot.clear_wear), needs_body=False)
 
     fault_fields: Final = (
         "t2o_drop_percent",

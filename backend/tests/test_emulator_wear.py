@@ -1,0 +1,109 @@
+"""The emulator's wear through its control API (issue 40, docs/emulator.md "Wear"), on a real
+emulator over HTTP: wear set, shown and cleared; a collision's external-torque spike and
+protective stop in the frame; bad entries refused with 422 and nothing changed."""
+
+from __future__ import annotations
+
+from collections.abc import AsyncIterator
+from typing import Any
+
+import pytest
+
+from cobot_hmi.emulator.robot import RobotSettings
+from cobot_hmi.generated.frames import RobotState
+from emulator_harness import FAST_TIMINGS, Emulator, running_emulator
+from waiting import eventually_async
+
+
+@pytest.fixture
+async def emulator(robot_host: str, plc_host: str) -> AsyncIterator[Emulator]:
+    async with running_emulator(robot_host, plc_host) as emulator:
+        yield emulator
+
+
+async def test_wear_is_set_shown_and_cleared(emulator: Emulator) -> None:
+    response = await emulator.api.post("/wear", json={"joint": 3, "friction_percent": 25})
+    assert response.status_code == 200, response.text
+    wear = response.json()["robot"]["wear"]
+    assert wear["joints"] == [
+        {
+            "joint": 3,
+            "friction_percent": 25.0,
+            "coulomb_nm": 0.0,
+            "viscous_nm_s_deg": 0.0,
+            "cold_friction_percent": 0.0,
+            "hot_c": 0.0,
+            "backlash_deg": 0.0,
+            "ramp_s": 0.0,
+        }
+    ]
+    response = await emulator.api.post("/wear", json={"time_factor": 1000})
+    assert response.json()["robot"]["wear"]["time_factor"] == 1000.0
+    response = await emulator.api.post("/wear/clear", json={})
+    assert response.status_code == 200
+    assert response.json()["robot"]["wear"]["joints"] == []
+
+
+@pytest.mark.parametrize(
+    ("body", "field"),
+    [
+        ({"joint": 7, "friction_percent": 10}, "joint"),
+        ({"joint": 0, "friction_percent": 10}, "joint"),
+        ({"joint": 3, "friction_percent": "lots"}, "friction_percent"),
+        ({"joint": 3, "grease": 1}, "grease"),
+        ({"joint": 3, "hot_c": 1e9}, "hot_c"),
+        ({"time_factor": 0.5}, "time_factor"),
+    ],
+)
+async def test_bad_wear_is_refused_and_changes_nothing(
+    emulator: Emulator, body: dict[str, object], field: str
+) -> None:
+    response = await emulator.api.post("/wear", json=body)
+    assert response.status_code == 422, response.text
+    assert response.json()["detail"]["field"] == field
+    status = (await emulator.api.get("/status")).json()
+    assert status["robot"]["model"] == "M1013"
+    view = (await emulator.api.post("/wear", json={"time_factor": 1})).json()["robot"]["wear"]
+    assert view == {"time_factor": 1.0, "joints": []}
+
+
+async def _frame(emulator: Emulator) -> dict[str, Any]:
+    frame: dict[str, Any] = (await emulator.api.get("/status")).json()["frame"]
+    return frame
+
+
+async def test_a_collision_shows_its_spike_and_a_protective_stop(emulator: Emulator) -> None:
+    async def running() -> bool:
+        return (await _frame(emulator))["robot_state"] == RobotState.STANDALONE_RUNNING
+
+    await eventually_async(running)
+    response = await emulator.api.post("/wear", json={"joint": 2, "collision_nm": 60})
+    assert response.status_code == 200, response.text
+    frame = await _frame(emulator)
+    assert frame["robot_state"] == RobotState.INTERRUPTED
+    assert frame["joint_external_torque"][1] == pytest.approx(60.0, abs=2.0)
+    assert abs(frame["joint_external_torque"][0]) < 2.0
+
+
+async def test_a_hot_motor_runs_hotter_than_its_twin(robot_host: str, plc_host: str) -> None:
+    # A short thermal time constant, so the motor settles in seconds rather than minutes.
+    settings = RobotSettings(timings=FAST_TIMINGS, thermal_time_constant_s=0.2)
+    async with running_emulator(robot_host, plc_host, settings) as emulator:
+        before = (await _frame(emulator))["joint_motor_temperature"]
+        response = await emulator.api.post("/wear", json={"joint": 5, "hot_c": 20})
+        assert response.status_code == 200, response.text
+
+        async def hot() -> bool:
+            temperatures = (await _frame(emulator))["joint_motor_temperature"]
+            return bool(temperatures[4] > before[4] + 15.0)
+
+        await eventually_async(hot)
+        temperatures = (await _frame(emulator))["joint_motor_temperature"]
+        assert temperatures[5] == pytest.approx(before[5], abs=3.0)  # J6 stays as it was
+        await emulator.api.post("/wear/clear", json={})
+
+        async def cooled() -> bool:
+            temperatures = (await _frame(emulator))["joint_motor_temperature"]
+            return bool(temperatures[4] < before[4] + 3.0)
+
+        await eventually_async(cooled)
