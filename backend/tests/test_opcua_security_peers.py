@@ -56,9 +56,8 @@ from cobot_hmi.emulator.target import Target
 from cobot_hmi.opcua.feed import ServiceFeed
 from cobot_hmi.opcua.server import OpcUaServer
 from conftest import _next_host as next_host
-from conftest import free_tcp_port
 from emulator_harness import FAST_TIMINGS
-from opcua_support import CLIENT_URI, client_certificate, trust
+from opcua_support import CLIENT_URI, client_certificate, listening_port, trust
 from service_support import OPERATOR, Running, cell_settings, running_service
 
 pytestmark = [pytest.mark.timeout(300), pytest.mark.asyncio(loop_scope="module")]
@@ -287,7 +286,7 @@ async def _cell(state_dir: Path) -> AsyncIterator[Cell]:
     robot = SimulatedRobot(RobotSettings(timings=FAST_TIMINGS))
     target = Target(TargetSettings(host=robot_host, tcp_port=0), robot)
     await target.start()
-    port = free_tcp_port(plc_host)
+    port = listening_port(plc_host)
     settings = cell_settings(
         [("still", robot_host, target.tcp_port)],
         plc_host,
@@ -297,7 +296,7 @@ async def _cell(state_dir: Path) -> AsyncIterator[Cell]:
     )
     certificate = client_certificate(state_dir / "client")
     trust(certificate[0], settings.opcua_trusted_dir(state_dir))
-    open_port = free_tcp_port("0.0.0.0")
+    open_port = listening_port("0.0.0.0")
     open_settings = settings.replace(opcua_url=f"opc.tcp://0.0.0.0:{open_port}")
     try:
         async with running_service(settings) as running:
