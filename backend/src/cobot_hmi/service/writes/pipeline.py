@@ -360,75 +360,41 @@ def _refusal_to_write(robot: WriteTarget, writer: Writer) -> str | None:
 async def _write_locked(
     robot: WriteTarget, writer: Writer, body: object, origin: str, started: float
 ) -> WriteOutcome:
-    link, store = robot.link, robot.store
+    link = robot.link
     before_image = link.command
     plan = validate(body, before_image)
     refusal = _refusal_to_write(robot, writer)
     if refusal is not None:
         raise _RefusedError(409, refusal)
     words = _Words.of(robot, plan)
-
-    row_id = await _pending_row(
-        store,
-        AuditEntry(
-            writer.user,
-            writer.client,
-            ACTION,
-            plan.field_names,
-            plan.values(before_image),
-            plan.values(plan.image),
-            "pending",
-            None,
-            robot=robot.name,
-            origin=origin,
-            summary=words.summary,
-            tags=words.tags or None,
-        ),
-        "the write was not applied",
+    entry = AuditEntry(
+        writer.user,
+        writer.client,
+        ACTION,
+        plan.field_names,
+        plan.values(before_image),
+        plan.values(plan.image),
+        "pending",
+        None,
+        robot=robot.name,
+        origin=origin,
+        summary=words.summary,
+        tags=words.tags or None,
     )
+    row_id = await _pending_row(robot.store, entry, "the write was not applied")
     after_seq = robot.frames.seq
     try:
         packets_out = await link.set_command(plan.image)
     except (NotConnectedError, ReadOnlyError) as error:
         audited = await _finish(
-            robot,
-            row_id,
-            writer=writer,
-            words=words,
-            outcome="refused",
-            reason=str(error),
+            robot, row_id, writer=writer, words=words, outcome="refused", reason=str(error)
         )
         return WriteOutcome(409, "refused", str(error), audit_pending=not audited)
-
-    timeout_s = robot.writes.timeout_s
-    deadline = started + timeout_s
-    confirmed, shown_seq = True, None
-    if plan.by_frame:
-        item = await robot.confirmation.wait_for_frame(
-            lambda f: frame_shows(f, plan.image, plan.by_frame),
-            after_seq,
-            max(0.0, deadline - time.perf_counter()),
-        )
-        confirmed, shown_seq = item is not None, item.seq if item is not None else None
-    if confirmed and plan.by_packet:
-        confirmed = await link.wait_sent(packets_out, max(0.0, deadline - time.perf_counter()))
+    deadline = started + robot.writes.timeout_s
+    confirmed, shown_seq = await _confirmation(robot, plan, after_seq, packets_out, deadline)
     latency_ms = (time.perf_counter() - started) * 1000
     if not confirmed:
-        latest = robot.frames.latest
-        reports = robot_reports(latest.frame if latest is not None else None, plan.by_frame)
-        if plan.by_frame:
-            reason = f"the robot did not show the new outputs within {timeout_s * 1000:.0f} ms"
-        else:
-            reason = (
-                "the O→T packet with the bit input registers did not go out within "
-                f"{timeout_s * 1000:.0f} ms"
-            )
-        audited = await _finish(
-            robot, row_id, writer=writer, words=words, outcome="timeout", reason=reason
-        )
-        return WriteOutcome(
-            504, "timeout", reason, robot_reports=reports, audit_pending=not audited
-        )
+        return await _timed_out(robot, row_id, writer, words, plan)
     audited = await _finish(
         robot, row_id, writer=writer, words=words, outcome="confirmed", reason=None
     )
@@ -440,6 +406,46 @@ async def _write_locked(
         seq=shown_seq,
         audit_pending=not audited,
     )
+
+
+async def _confirmation(
+    robot: WriteTarget, plan: PlannedWrite, after_seq: int, packets_out: int, deadline: float
+) -> tuple[bool, int | None]:
+    """Step 6: whether the robot's own frames showed the outputs (after frame ``after_seq``)
+    and the O→T packets carried the bit input registers before ``deadline`` (perf_counter);
+    the number of the frame that showed them."""
+    confirmed, shown_seq = True, None
+    if plan.by_frame:
+        item = await robot.confirmation.wait_for_frame(
+            lambda f: frame_shows(f, plan.image, plan.by_frame),
+            after_seq,
+            max(0.0, deadline - time.perf_counter()),
+        )
+        confirmed, shown_seq = item is not None, item.seq if item is not None else None
+    if confirmed and plan.by_packet:
+        remaining_s = max(0.0, deadline - time.perf_counter())
+        confirmed = await robot.link.wait_sent(packets_out, remaining_s)
+    return confirmed, shown_seq
+
+
+async def _timed_out(
+    robot: WriteTarget, row_id: int, writer: Writer, words: _Words, plan: PlannedWrite
+) -> WriteOutcome:
+    """A write the robot did not confirm in time: audited so, 504 with what it reports."""
+    timeout_s = robot.writes.timeout_s
+    latest = robot.frames.latest
+    reports = robot_reports(latest.frame if latest is not None else None, plan.by_frame)
+    if plan.by_frame:
+        reason = f"the robot did not show the new outputs within {timeout_s * 1000:.0f} ms"
+    else:
+        reason = (
+            "the O→T packet with the bit input registers did not go out within "
+            f"{timeout_s * 1000:.0f} ms"
+        )
+    audited = await _finish(
+        robot, row_id, writer=writer, words=words, outcome="timeout", reason=reason
+    )
+    return WriteOutcome(504, "timeout", reason, robot_reports=reports, audit_pending=not audited)
 
 
 async def _pending_row(store: Store, entry: AuditEntry, not_done: str) -> int:
