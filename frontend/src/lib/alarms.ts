@@ -211,3 +211,44 @@ export function cueTone(priority: AlarmPriority): CueTone {
       return { frequency_hz: 520, beeps: 1, period_ms: 8000 };
   }
 }
+
+/** Shelving durations a panel offers, s and in words (each alarm gets those within its maximum). */
+export const SHELVE_CHOICES_S: readonly (readonly [number, string])[] = [
+  [15 * 60, "15 min"],
+  [60 * 60, "1 h"],
+  [4 * 3600, "4 h"],
+  [8 * 3600, "8 h"],
+];
+
+function durationWords(seconds: number): string {
+  if (seconds >= 3600 && seconds % 3600 === 0) return `${seconds / 3600} h`;
+  if (seconds >= 60 && seconds % 60 === 0) return `${seconds / 60} min`;
+  return `${seconds} s`;
+}
+
+/**
+ * The durations this alarm may be shelved for, shortest first: those of `SHELVE_CHOICES_S` within
+ * its `shelve_max_s` (its priority's longest, ISA-18.2 §11.4.3), or that maximum alone when it is
+ * shorter than them all; none for an alarm that is never shelved (a safety stop, a critical alarm:
+ * `shelve_max_s` null). A service that does not say (no `shelve_max_s`) gets every choice: it
+ * refuses what it does not allow.
+ */
+export function shelveChoices(alarm: Pick<Alarm, "shelve_max_s">): readonly (readonly [number, string])[] {
+  const longest = alarm.shelve_max_s;
+  if (longest === undefined) return SHELVE_CHOICES_S;
+  if (longest === null) return [];
+  const fitting = SHELVE_CHOICES_S.filter(([s]) => s <= longest);
+  return fitting.length > 0 ? fitting : [[longest, durationWords(longest)]];
+}
+
+/** Why this alarm is never shelved (the service's words), or null when it may be. */
+export function shelveRefusal(alarm: Pick<Alarm, "shelve_max_s" | "shelve_refusal">): string | null {
+  if (alarm.shelve_max_s !== null) return null;
+  return alarm.shelve_refusal ?? "this alarm cannot be shelved";
+}
+
+/** The duration a shelving form starts with: 1 h where allowed, else the longest allowed. */
+export function defaultShelveChoice(choices: readonly (readonly [number, string])[]): number | null {
+  if (choices.some(([s]) => s === 3600)) return 3600;
+  return choices[choices.length - 1]?.[0] ?? null;
+}

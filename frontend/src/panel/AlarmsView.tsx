@@ -14,7 +14,10 @@ import {
   alarmPaint,
   alarmStateWords,
   alarmTitle,
+  defaultShelveChoice,
   isUnacknowledged,
+  shelveChoices,
+  shelveRefusal,
   tagLabel,
   type Alarm,
   type AlarmPriority,
@@ -23,14 +26,6 @@ import { acknowledgeable, suppressionWords } from "../lib/alarmsCell";
 import { formatMoment, formatTimestamp } from "../lib/dates";
 import { roleAtLeast, type User } from "../lib/protocol";
 import { printSection } from "../lib/searchPrint";
-
-/** Shelving durations offered (the service caps them at its alarm_shelve_max_s). */
-const SHELVE_CHOICES_S = [
-  [15 * 60, "15 min"],
-  [60 * 60, "1 h"],
-  [4 * 3600, "4 h"],
-  [8 * 3600, "8 h"],
-] as const;
 
 const PERIODS = [
   ["hour", "last hour", 3600],
@@ -52,7 +47,9 @@ function value(v: boolean | number | null, unit: string): string {
 
 function ShelveForm({ alarm, onDone }: { alarm: Alarm; onDone: () => void }) {
   const [reason, setReason] = useState("");
-  const [duration_s, setDuration] = useState<number>(SHELVE_CHOICES_S[1][0]);
+  // Only the durations this alarm's priority allows (the service refuses longer ones, 422).
+  const choices = shelveChoices(alarm);
+  const [duration_s, setDuration] = useState<number>(defaultShelveChoice(choices) ?? 0);
   const [busy, setBusy] = useState(false);
   const [error, setError] = useState<string | null>(null);
   const submit = async (e: FormEvent) => {
@@ -80,7 +77,7 @@ function ShelveForm({ alarm, onDone }: { alarm: Alarm; onDone: () => void }) {
         }}
       />
       <select aria-label="Shelve for" data-testid="alarm-shelve-duration" value={duration_s} onChange={(e) => setDuration(Number(e.target.value))}>
-        {SHELVE_CHOICES_S.map(([s, words]) => (
+        {choices.map(([s, words]) => (
           <option key={s} value={s}>
             {words}
           </option>
@@ -108,6 +105,8 @@ function AlarmRow({ alarm, canAct }: { alarm: Alarm; canAct: boolean }) {
   const paint = alarmPaint(alarm.colour);
   const unacknowledged = isUnacknowledged(alarm);
   const suppression = suppressionWords(alarm);
+  // A safety stop or a critical alarm is never shelved (ISA-18.2): no Shelve, the reason instead.
+  const notShelvable = shelveRefusal(alarm);
   const act = async (action: () => Promise<{ ok: boolean; reason?: string }>) => {
     setBusy(true);
     setError(null);
@@ -173,6 +172,10 @@ function AlarmRow({ alarm, canAct }: { alarm: Alarm; canAct: boolean }) {
           <button type="button" data-testid="alarm-unshelve" disabled={!canAct || busy} onClick={() => void act(() => alarmsApi.unshelve(alarm.id))}>
             Unshelve
           </button>
+        ) : notShelvable !== null ? (
+          <span className="hint" data-testid="alarm-shelve-refused" title={notShelvable}>
+            never shelved
+          </span>
         ) : (
           !shelving && (
             <button type="button" data-testid="alarm-shelve" disabled={!canAct || busy} onClick={() => setShelving(true)}>
