@@ -33,6 +33,8 @@ import { createLiveRuntime } from "../lib/runtime";
 import { fetchTagNames } from "../lib/tagNames";
 import type { TagNames } from "../lib/tags";
 import { KioskLamps } from "./KioskLamps";
+import { KioskOtherAlarms } from "./KioskOtherAlarms";
+import { kioskOtherAlarms } from "../lib/kioskOtherAlarms";
 import { CYCLE_TILE, withCycleTimes } from "../lib/cyclesTile";
 import { KioskClock, KioskStateWords, KioskTiles } from "./KioskTiles";
 import { usePlotHeight, useKioskLayout } from "./useKioskLayout";
@@ -110,6 +112,7 @@ function Kiosk() {
   const stale = live.health !== "connected";
   const frame = live.frame;
   const estop = frame?.emergency_stopped === true;
+  const otherAlarms = kioskOtherAlarms(live.cellAlarms, live.robot);
   const theme = useTheme();
   const content = useMemo(
     () => ({
@@ -125,7 +128,7 @@ function Kiosk() {
     body,
     content,
     // What changes the room the header and banners leave: a relayout from the full scale.
-    [estop, stale, live.alarms.length > 0, live.robot, live.control.holder?.user ?? null].join("|"),
+    [estop, stale, live.alarms.length > 0, otherAlarms.length, live.robot, live.control.holder?.user ?? null].join("|"),
   );
   const style = {
     gridTemplateColumns: layout.body?.columns,
@@ -179,6 +182,8 @@ function Kiosk() {
           </header>
           {/* Above everything but the state; read-only: the stream's alarms, no acknowledge here. */}
           <AlarmBanner alarms={live.alarms} size="kiosk" />
+          {/* The other robots' critical and unacknowledged alarms: a line each, naming the robot. */}
+          <KioskOtherAlarms lines={otherAlarms} />
           <StaleBanner live={live} />
           {/* The page's main landmark: what the kiosk is for, below its header and banners. */}
           <main className={`kiosk__body${stale ? " is-stale" : ""}`} ref={body} style={style}>
