@@ -13,6 +13,7 @@ import type { paths } from "../generated/api";
 import type { CommandPatch } from "../generated/layout";
 import type { RobotsAnswer } from "./fleet";
 import { type AuditPage, type CommandState, type ControlStatus, type EventKind, type EventPage, type User } from "./protocol";
+import type { SessionState } from "./sessionIdle";
 import type { HttpAnswer } from "./writes";
 
 export const API = "/api/v1";
@@ -68,6 +69,25 @@ export class HmiApi {
   async me(): Promise<User | null> {
     const result = await this.client.GET("/api/v1/auth/me");
     return result.data?.user ?? null;
+  }
+
+  /** The session as it is (a read: it renews nothing); throws when the service does not answer. */
+  async session(): Promise<SessionState> {
+    const result = await this.client.GET("/api/v1/auth/me");
+    if (result.data === undefined) throw new Error(`HTTP ${result.response.status}`);
+    return result.data;
+  }
+
+  /**
+   * The person acted (a click, a key): the only request of the page, with its writes, that renews
+   * the session (the service renews on changing requests, never on reads: lib/sessionIdle.ts).
+   * `null`: no session any more (401).
+   */
+  async activity(): Promise<SessionState | null> {
+    const result = await this.client.POST("/api/v1/auth/activity", { headers: JSON_CONTENT });
+    if (result.response.status === 401) return null;
+    if (result.data === undefined) throw new Error(`HTTP ${result.response.status}`);
+    return result.data;
   }
 
   async login(username: string, password: string): Promise<HttpAnswer> {

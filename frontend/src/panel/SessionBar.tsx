@@ -1,6 +1,12 @@
-/** Login form, the logged-in user, and Take control / Release of the robot shown. */
-import { useState, type FormEvent } from "react";
+/**
+ * Login form, the logged-in user, and Take control / Release of the robot shown. While logged in
+ * it keeps the session's idle clock (useSessionIdle): an expired session turns the page to
+ * logged out at once, with "Session expired: log in again" (the service has released control).
+ */
+import { useCallback, useState, type FormEvent } from "react";
 import { api, controlOf, errorReason } from "../lib/api";
+import { SESSION_EXPIRED_WORDS } from "../lib/sessionIdle";
+import { useSessionIdle } from "./useSessionIdle";
 import type { Ownership } from "../lib/controlSession";
 import { roleAtLeast, userOf, type ControlStatus, type User } from "../lib/protocol";
 import type { HttpAnswer } from "../lib/writes";
@@ -28,6 +34,12 @@ export function SessionBar({ robot, user, ownership, onUser, onControl, onLoginW
   const [busy, setBusy] = useState(false);
   const [loginError, setLoginError] = useState<string | null>(null);
   const [controlError, setControlError] = useState<string | null>(null);
+  const [expired, setExpired] = useState(false);
+  const onExpired = useCallback(() => {
+    setExpired(true);
+    onUser(null);
+  }, [onUser]);
+  useSessionIdle(user, onExpired);
 
   const submit = async (e: FormEvent) => {
     e.preventDefault();
@@ -37,6 +49,7 @@ export function SessionBar({ robot, user, ownership, onUser, onControl, onLoginW
       const answer = await api.login(username, password);
       if (answer.status === 200) {
         setPassword("");
+        setExpired(false);
         onUser(userOf((answer.body as { user?: unknown } | null)?.user));
       } else {
         setLoginError(answer.status === 401 ? "wrong user name or password" : errorReason(answer));
@@ -66,6 +79,11 @@ export function SessionBar({ robot, user, ownership, onUser, onControl, onLoginW
   if (user === null) {
     return (
       <>
+        {expired && (
+          <span className="session__expired reason" data-testid="session-expired" role="alert">
+            {SESSION_EXPIRED_WORDS}
+          </span>
+        )}
         {onLoginWanted !== undefined && (
           <button
             type="button"
