@@ -10,6 +10,7 @@ from typing import Any
 import pytest
 
 from cobot_hmi.emulator.robot import RobotSettings
+from cobot_hmi.emulator.robot.wear import JointWear, Wear
 from cobot_hmi.generated.frames import RobotState
 from emulator_harness import FAST_TIMINGS, Emulator, running_emulator
 from waiting import eventually_async
@@ -35,6 +36,7 @@ async def test_wear_is_set_shown_and_cleared(emulator: Emulator) -> None:
             "hot_c": 0.0,
             "backlash_deg": 0.0,
             "ramp_s": 0.0,
+            "level": 1.0,
         }
     ]
     response = await emulator.api.post("/wear", json={"time_factor": 1000})
@@ -74,7 +76,7 @@ async def _frame(emulator: Emulator) -> dict[str, Any]:
 
 async def test_a_collision_shows_its_spike_and_a_protective_stop(emulator: Emulator) -> None:
     async def running() -> bool:
-        return (await _frame(emulator))["robot_state"] == RobotState.STANDALONE_RUNNING
+        return bool((await _frame(emulator))["robot_state"] == RobotState.STANDALONE_RUNNING)
 
     await eventually_async(running)
     response = await emulator.api.post("/wear", json={"joint": 2, "collision_nm": 60})
@@ -107,3 +109,17 @@ async def test_a_hot_motor_runs_hotter_than_its_twin(robot_host: str, plc_host: 
             return bool(temperatures[4] < before[4] + 3.0)
 
         await eventually_async(cooled)
+
+
+def test_a_week_of_wear_grows_in_minutes_with_the_time_factor() -> None:
+    wear = Wear(6)
+    wear.set(2, JointWear(friction_percent=20.0, ramp_s=7 * 86_400.0), now_s=100.0)
+    assert wear.level(2, 100.0 + 3600.0) == pytest.approx(3600.0 / (7 * 86_400.0))
+    wear.set_time_factor(1000.0, now_s=100.0 + 3600.0)  # what ran before keeps its time
+    week_in_s = 7 * 86_400.0 / 1000.0
+    assert wear.level(2, 100.0 + 3600.0 + week_in_s / 2) == pytest.approx(
+        0.5 + 3600.0 / 604_800.0, rel=1e-6
+    )
+    assert wear.level(2, 100.0 + 3600.0 + week_in_s) == 1.0
+    viscous, coulomb = wear.friction_coefficients(2, 50.0, 0.05, 100.0 + 3600.0 + week_in_s)
+    assert (viscous, coulomb) == (pytest.approx(0.01), 0.0)  # +20 % of 0.05 N·m per °/s

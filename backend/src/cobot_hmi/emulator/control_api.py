@@ -287,7 +287,7 @@ def create_control_app(
             "robot_state": frame.robot_state,
             "robot_state_name": frame_to_json(frame)["robot_state_name"],
             **robot.status(),
-            "wear": robot.wear.view(),
+            "wear": robot.wear.view(now_s),
         }
 
     @app.get("/status")
@@ -390,15 +390,16 @@ def create_control_app(
             raise ControlError(422, "expected a joint's wear, a collision or a time_factor")
         if collision is not None and parsed is None:
             raise ControlError(422, "collision_nm: expected the joint it hits", "joint")
-        if factor is not None:
-            robot.wear.set_time_factor(factor)
         if parsed is not None and collision is not None:
-            robot.collide(parsed[0], collision, now_s)
+            robot.protective_stop(now_s)  # first: a robot that refuses it (409) changes nothing
+            robot.wear.collide(parsed[0], collision, now_s)
         elif parsed is not None:
-            robot.set_wear(parsed[0], parsed[1], now_s)
+            robot.wear.set(parsed[0], parsed[1], now_s)
+        if factor is not None:
+            robot.wear.set_time_factor(factor, now_s)
 
     command("/wear", set_wear, needs_body=True)
-    command("/wear/clear", no_body(robot.clear_wear), needs_body=False)
+    command("/wear/clear", no_body(robot.wear.clear), needs_body=False)
 
     fault_fields: Final = (
         "t2o_drop_percent",

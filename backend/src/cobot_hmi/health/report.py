@@ -15,6 +15,7 @@ import numpy as np
 
 from cobot_hmi.health.baseline import Baseline
 from cobot_hmi.health.drift import CycleTimeDrift
+from cobot_hmi.health.frames import FloatArray
 from cobot_hmi.health.friction import CellTable
 from cobot_hmi.health.verdict import Finding, day_text, friction_text, level_of, verdict
 
@@ -33,8 +34,8 @@ def _date(epoch_s: float) -> str:
 
 
 def _joint(
-    engine: HealthEngine, j: int, now_s: float, figures: dict[str, list]
-) -> dict[str, object]:  # type: ignore[type-arg]
+    engine: HealthEngine, j: int, now_s: float, figures: dict[str, list[Any]]
+) -> dict[str, object]:
     s = engine.settings
     rating = engine.arm.ratings[j]
     friction, per_week = figures["friction"][j], figures["per_week"][j]
@@ -182,12 +183,13 @@ def engine_state(engine: HealthEngine) -> dict[str, object]:
     }
 
 
-def _list(values: np.ndarray) -> list[float | None]:  # type: ignore[type-arg]
+def _list(values: FloatArray) -> list[float | None]:
     return [None if math.isnan(v) else float(v) for v in values]
 
 
-def _array(values: object) -> np.ndarray:  # type: ignore[type-arg]
-    return np.array([np.nan if v is None else v for v in values], dtype=np.float64)  # type: ignore[attr-defined]
+def _array(values: object) -> FloatArray:
+    assert isinstance(values, list)
+    return np.array([np.nan if v is None else v for v in values], dtype=np.float64)
 
 
 def restore_engine(engine: HealthEngine, body: dict[str, object]) -> None:

@@ -47,15 +47,13 @@ from cobot_hmi.emulator.robot.states import (
     StateTimings,
 )
 from cobot_hmi.emulator.robot.trajectory import DEMO_STEPS, JointSample, ProgramRunner, at_rest
-from cobot_hmi.emulator.robot.wear import JointWear, Wear
+from cobot_hmi.emulator.robot.wear import Wear
 from cobot_hmi.generated.frames import ControllerVersion, Frame, RobotState
 
 CYCLE_MARKER_STEPS: Final = len(DEMO_STEPS) // 2
 """The cycle-start marker register is on while the program is in its first this many steps
 (to the pick and back up: about a third of the cycle), so a late or lost frame never hides an
 edge."""
-COLLISION_S: Final = 0.2
-"""How long a collision's external-torque spike shows in the frames."""
 KINEMATIC_REFRESH_MS_REAL: Final = 100.0
 """Doosan: monitoring values refresh about every 100 ms whatever the RPI (spec, reference facts)."""
 
@@ -158,9 +156,8 @@ class SimulatedRobot:
         self._frame_at_s: float | None = None
         self._state_and_flags = self._states.state_and_flags()
         """Worked out at every ``_advance``: what the frame reports."""
-        self.wear = Wear(len(self.model.joints))
-        self._collision: tuple[int, float, float] | None = None
-        """A collision's joint, external torque (N·m) and end time."""
+        self.wear = Wear(len(self.model.joints), self._wear_changed)
+        """The robot's wear (``robot.wear``): set through it; the robot hears of each change."""
 
     # ------------------------------------------------------------------ simulation
 
@@ -238,14 +235,7 @@ class SimulatedRobot:
             currents = (0.0,) * joints  # brakes hold the arm; the drives carry no current
         self._currents_a = currents
         external_torque = noise(joints, s.external_torque_noise_nm)
-        collision = self._collision
-        if collision is not None:
-            if self._now_s < collision[2]:
-                spiked = list(external_torque)
-                spiked[collision[0]] += collision[1]
-                external_torque = tuple(spiked)
-            else:
-                self._collision = None
+        external_torque = self.wear.external_torques(external_torque, self._now_s)
         linear, angular = tcp_velocity(kin, velocity)
         # Noise drawn in this order (currents, external torque, force, moment): the seed's frames.
         return (
@@ -469,24 +459,9 @@ class SimulatedRobot:
         self._tool = _tool_transform(position, angles)
         self._monitoring = None
 
-    def set_wear(self, joint: int, wear: JointWear, now_s: float) -> None:
-        """Wear joint ``joint`` (from 0) from now, growing over its ramp (``robot.wear``)."""
+    def _wear_changed(self, now_s: float) -> None:
+        """The wear is about to change: up to now without it, then fresh values with it."""
         self._command(now_s)
-        self.wear.set(joint, wear, now_s)
-        self._monitoring = None
-
-    def clear_wear(self, now_s: float) -> None:
-        self._command(now_s)
-        self.wear.clear()
-        self._monitoring = None
-
-    def collide(self, joint: int, external_torque_nm: float, now_s: float) -> None:
-        """A collision on joint ``joint`` (from 0): an external-torque spike in the frames for
-        ``COLLISION_S`` and the protective stop the controller answers it with."""
-        self._command(now_s)
-        self._collision = (joint, external_torque_nm, now_s + COLLISION_S)
-        self._states.protective_stop()
-        self._applied()
         self._monitoring = None
 
     # ------------------------------------------------------------------ introspection

@@ -5,13 +5,18 @@ The emulated robot's wear (issue 40, docs/emulator.md "Wear"): per joint, fricti
 its own), friction that is higher cold and settles as the motor warms, a motor that runs hot
 for its duty, and backlash; each reaching its full size over ``ramp_s`` of wear time. Wear time
 runs ``time_factor`` times faster than the robot's clock, so days of wear fit in minutes for
-tests and demos. Collisions are events, not wear (``SimulatedRobot.collide``).
+tests and demos. A collision (``Wear.collide``) is an event rather than wear: an external-torque
+spike on one joint for a moment, which the control API pairs with the protective stop the
+controller answers it with.
+
+The robot that owns a ``Wear`` hears of every change before it is made (``changed``), so it
+first brings its simulation up to that instant: wear never reaches back into the past.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, fields
 from typing import Final
 
@@ -22,6 +27,8 @@ WARM_C: Final = 45.0
 MAX_PERCENT: Final = 1000.0
 MAX_RAMP_S: Final = 365 * 86_400.0
 MAX_TIME_FACTOR: Final = 1_000_000.0
+COLLISION_S: Final = 0.2
+"""How long a collision's external-torque spike shows in the frames."""
 
 
 class WearError(ValueError):
@@ -91,34 +98,72 @@ def parse_entry(data: Mapping[str, object], joints: int) -> tuple[int, JointWear
 class Wear:
     """Each joint's wear, applied at a time of the robot's clock, and the wear clock's factor."""
 
-    def __init__(self, joints: int) -> None:
+    def __init__(self, joints: int, changed: Callable[[float], None] | None = None) -> None:
         self.joints: list[JointWear] = [JointWear()] * joints
         self.applied_at_s: list[float] = [0.0] * joints
+        """On the wear clock (``wear_clock_s``)."""
         self.time_factor = 1.0
+        self._clock_at_s = 0.0
+        self._clock_base_s = 0.0
         self.active = False
+        self._changed = changed
+        self._collision: tuple[int, float, float] | None = None
+        """A collision's joint, external torque (N·m) and end time."""
+
+    def _change(self, now_s: float) -> None:
+        if self._changed is not None:
+            self._changed(now_s)
 
     def set(self, joint: int, wear: JointWear, now_s: float) -> None:
+        self._change(now_s)
         self.joints[joint] = wear
-        self.applied_at_s[joint] = now_s
+        self.applied_at_s[joint] = self.wear_clock_s(now_s)
         self.active = any(w != JointWear() for w in self.joints)
 
-    def set_time_factor(self, factor: float) -> None:
+    def set_time_factor(self, factor: float, now_s: float) -> None:
         if not 1.0 <= factor <= MAX_TIME_FACTOR:
             raise WearError(
                 f"time_factor: {factor} is outside 1–{MAX_TIME_FACTOR:g}", "time_factor"
             )
+        self._change(now_s)
+        self._clock_base_s = self.wear_clock_s(now_s)
+        self._clock_at_s = now_s
         self.time_factor = factor
 
-    def clear(self) -> None:
+    def wear_clock_s(self, now_s: float) -> float:
+        """The wear clock: ``time_factor`` seconds for each of the robot's since it was set."""
+        return self._clock_base_s + (now_s - self._clock_at_s) * self.time_factor
+
+    def clear(self, now_s: float) -> None:
+        """No wear on any joint (the time factor stays)."""
+        self._change(now_s)
         self.joints = [JointWear()] * len(self.joints)
         self.active = False
+
+    def collide(self, joint: int, external_torque_nm: float, now_s: float) -> None:
+        self._change(now_s)
+        self._collision = (joint, external_torque_nm, now_s + COLLISION_S)
+
+    def external_torques(self, noise_nm: Sequence[float], now_s: float) -> Sequence[float]:
+        """The external torques with a collision's spike while it lasts."""
+        collision = self._collision
+        if collision is None:
+            return noise_nm
+        joint, torque_nm, until_s = collision
+        if now_s >= until_s:
+            self._collision = None
+            return noise_nm
+        spiked = list(noise_nm)
+        spiked[joint] += torque_nm
+        return tuple(spiked)
 
     def level(self, joint: int, now_s: float) -> float:
         """How far the joint's wear has grown (0–1)."""
         ramp_s = self.joints[joint].ramp_s
         if ramp_s <= 0.0:
             return 1.0
-        return min(1.0, max(0.0, (now_s - self.applied_at_s[joint]) * self.time_factor / ramp_s))
+        grown_s = self.wear_clock_s(now_s) - self.applied_at_s[joint]
+        return min(1.0, max(0.0, grown_s / ramp_s))
 
     def friction_coefficients(
         self, joint: int, temperature_c: float, healthy_viscous_nm_s_deg: float, now_s: float
@@ -162,12 +207,14 @@ class Wear:
             )
         )
 
-    def view(self) -> dict[str, object]:
-        """The control API's answer: each joint's wear and how far it has grown."""
+    def view(self, now_s: float) -> dict[str, object]:
+        """The control API's answer: each worn joint's wear and how far it has grown (0–1)."""
         return {
             "time_factor": self.time_factor,
             "joints": [
-                {"joint": j + 1, **asdict(w)} for j, w in enumerate(self.joints) if w != JointWear()
+                {"joint": j + 1, **asdict(w), "level": round(self.level(j, now_s), 6)}
+                for j, w in enumerate(self.joints)
+                if w != JointWear()
             ],
         }
 
