@@ -1,17 +1,25 @@
-"""The emulator's wear through its control API (issue 40, docs/emulator.md "Wear"), on a real
-emulator over HTTP: wear set, shown and cleared; a collision's external-torque spike and
-protective stop in the frame; bad entries refused with 422 and nothing changed."""
+"""The emulator's wear (issue 40, docs/emulator.md "Wear") on a real emulator over HTTP: wear
+set, shown and cleared through the control API; a collision's external-torque spike and
+protective stop in the frame; a hot motor in the frames' temperatures; bad entries refused with
+422 and nothing changed; the wear clock's time factor; ``cobot-hmi emulator --wear FILE``
+starting with a scenario, and refusing a bad one by name."""
 
 from __future__ import annotations
 
+import asyncio
+import json
+import sys
 from collections.abc import AsyncIterator
+from pathlib import Path
 from typing import Any
 
+import httpx
 import pytest
 
 from cobot_hmi.emulator.robot import RobotSettings
 from cobot_hmi.emulator.robot.wear import JointWear, Wear
 from cobot_hmi.generated.frames import RobotState
+from conftest import free_tcp_port
 from emulator_harness import FAST_TIMINGS, Emulator, running_emulator
 from waiting import eventually_async
 
@@ -123,3 +131,66 @@ def test_a_week_of_wear_grows_in_minutes_with_the_time_factor() -> None:
     assert wear.level(2, 100.0 + 3600.0 + week_in_s) == 1.0
     viscous, coulomb = wear.friction_coefficients(2, 50.0, 0.05, 100.0 + 3600.0 + week_in_s)
     assert (viscous, coulomb) == (pytest.approx(0.01), 0.0)  # +20 % of 0.05 N·m per °/s
+
+
+async def _emulator_process(host: str, *args: str) -> asyncio.subprocess.Process:
+    return await asyncio.create_subprocess_exec(
+        sys.executable,
+        "-m",
+        "cobot_hmi.cli",
+        "emulator",
+        "--host",
+        host,
+        "--tcp-port",
+        str(free_tcp_port(host)),
+        *args,
+        stdout=asyncio.subprocess.PIPE,
+        stderr=asyncio.subprocess.STDOUT,
+    )
+
+
+async def test_the_emulator_starts_with_a_wear_scenario_file(
+    robot_host: str, tmp_path: Path
+) -> None:
+    scenario = tmp_path / "wear.json"
+    scenario.write_text(
+        json.dumps(
+            {
+                "time_factor": 1000,
+                "wear": [
+                    {"joint": 3, "friction_percent": 25, "ramp_h": 168},
+                    {"joint": 2, "hot_c": 8},
+                ],
+            }
+        )
+    )
+    port = free_tcp_port(robot_host)
+    process = await _emulator_process(
+        robot_host, "--control-port", str(port), "--wear", str(scenario)
+    )
+    try:
+        assert process.stdout is not None
+        banner = await asyncio.wait_for(process.stdout.readline(), 20)
+        assert b"control API" in banner, banner
+        async with httpx.AsyncClient(base_url=f"http://{robot_host}:{port}") as api:
+            wear = (await api.get("/status")).json()["wear"]
+        assert wear["time_factor"] == 1000.0
+        assert [(j["joint"], j["friction_percent"], j["hot_c"]) for j in wear["joints"]] == [
+            (2, 0.0, 8.0),
+            (3, 25.0, 0.0),
+        ]
+        assert wear["joints"][1]["ramp_s"] == 168 * 3600.0
+        assert 0.0 < wear["joints"][1]["level"] < 1.0  # a week at 1000×: about 10 minutes
+    finally:
+        if process.returncode is None:
+            process.terminate()
+        await process.wait()
+
+
+async def test_a_bad_wear_scenario_file_is_refused_by_name(robot_host: str, tmp_path: Path) -> None:
+    scenario = tmp_path / "wear.json"
+    scenario.write_text(json.dumps({"wear": [{"joint": 9, "friction_percent": 25}]}))
+    process = await _emulator_process(robot_host, "--wear", str(scenario))
+    output, _ = await asyncio.wait_for(process.communicate(), 30)
+    assert process.returncode == 2
+    assert b"wear[0]: joint: expected an integer 1" in output

@@ -6,8 +6,12 @@ from __future__ import annotations
 import argparse
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from cobot_hmi.layout import CONNECTION_POINTS, O2T_ASSEMBLY, T2O_ASSEMBLY
+
+if TYPE_CHECKING:
+    from cobot_hmi.emulator.robot import SimulatedRobot
 
 
 def _rpi_range(text: str) -> tuple[int, int]:
@@ -153,6 +157,12 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     robot.add_argument("--seed", type=int, default=1, help="seed of the simulation's noise")
     robot.add_argument(
+        "--wear",
+        type=Path,
+        metavar="FILE",
+        help="a wear scenario (JSON) the simulated robot starts with (docs/emulator.md, Wear)",
+    )
+    robot.add_argument(
         "--no-program", action="store_true", help="do not start the demo program by itself"
     )
     robot.add_argument("--collaborative", action="store_true", help="start in collaborative mode")
@@ -205,6 +215,24 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     parser.add_argument("-v", "--verbose", action="store_true", help="log connections")
     parser.set_defaults(handler=_run)
+
+
+def _apply_wear_scenario(path: Path, robot: SimulatedRobot) -> bool:
+    """The scenario file's wear on the robot from now; False (said why) when it is unusable."""
+    import json
+    import time
+
+    from cobot_hmi.emulator.robot.wear import WearError, parse_scenario
+
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+        scenario = parse_scenario(data, len(robot.model.joints))
+    except (OSError, ValueError) as error:  # WearError and JSONDecodeError are ValueErrors
+        kind = "wear scenario" if isinstance(error, WearError) else "cannot read"
+        print(f"cobot-hmi emulator: --wear {path}: {kind}: {error}", flush=True)
+        return False
+    scenario.apply(robot.wear, time.time())
+    return True
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -291,6 +319,8 @@ def _run(args: argparse.Namespace) -> int:
             )
         )
         robot = simulated
+        if args.wear is not None and not _apply_wear_scenario(args.wear, simulated):
+            return 2
 
     async def serve() -> None:
         target = Target(settings, robot)

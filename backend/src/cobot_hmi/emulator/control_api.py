@@ -299,6 +299,7 @@ def create_control_app(
                 "time": now_s,
                 "frame": frame_to_json(robot.produce_frame(now_s)),
                 "robot": robot.status(),
+                "wear": robot.wear.view(now_s),
                 "connections": [_snapshot(c) for c in target.connections()],
                 "faults": dataclasses.asdict(target.faults),
                 "plc_command": command_to_json(robot.command_image()),

@@ -219,4 +219,44 @@ class Wear:
         }
 
 
+@dataclass(frozen=True, slots=True)
+class WearScenario:
+    """A wear scenario file (``cobot-hmi emulator --wear FILE``, docs/emulator.md "Wear"):
+    ``{"time_factor": 1000, "wear": [{"joint": 3, "friction_percent": 25, "ramp_h": 168}]}``."""
+
+    time_factor: float
+    entries: tuple[tuple[int, JointWear], ...]
+
+    def apply(self, wear: Wear, now_s: float) -> None:
+        wear.set_time_factor(self.time_factor, now_s)
+        for joint, entry in self.entries:
+            wear.set(joint, entry, now_s)
+
+
+def parse_scenario(data: object, joints: int) -> WearScenario:
+    """A scenario from its JSON (``WearError`` naming what is wrong, nothing applied)."""
+    if not isinstance(data, dict):
+        raise WearError(f"expected a JSON object, got {type(data).__name__}")
+    unknown = sorted(set(data) - {"time_factor", "wear"})
+    if unknown:
+        raise WearError(f"unknown field {unknown[0]!r}; expected time_factor, wear", unknown[0])
+    factor = data.get("time_factor", 1.0)
+    if isinstance(factor, bool) or not isinstance(factor, int | float):
+        raise WearError(f"time_factor: expected a number, got {factor!r}", "time_factor")
+    if not 1.0 <= factor <= MAX_TIME_FACTOR:
+        raise WearError(f"time_factor: {factor} is outside 1–{MAX_TIME_FACTOR:g}", "time_factor")
+    entries = data.get("wear", [])
+    if not isinstance(entries, list):
+        raise WearError("wear: expected a list of joint entries", "wear")
+    parsed = []
+    for i, entry in enumerate(entries):
+        if not isinstance(entry, dict):
+            raise WearError(f"wear[{i}]: expected an object", "wear")
+        try:
+            parsed.append(parse_entry(entry, joints))
+        except WearError as error:
+            raise WearError(f"wear[{i}]: {error}", error.field) from None
+    return WearScenario(float(factor), tuple(parsed))
+
+
 WEAR_FIELDS: Final = tuple(f.name for f in fields(JointWear))
