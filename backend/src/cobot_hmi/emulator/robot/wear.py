@@ -144,7 +144,7 @@ class Wear:
         self._change(now_s)
         self._collision = (joint, external_torque_nm, now_s + COLLISION_S)
 
-    def external_torques(self, noise_nm: Sequence[float], now_s: float) -> Sequence[float]:
+    def external_torques(self, noise_nm: tuple[float, ...], now_s: float) -> tuple[float, ...]:
         """The external torques with a collision's spike while it lasts."""
         collision = self._collision
         if collision is None:
