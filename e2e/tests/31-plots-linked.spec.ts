@@ -147,3 +147,17 @@ test("a plot opened on its window fills it from the recording at once", async ({
   const [from, to] = await shownRange(velocity);
   expect(to - from).toBeGreaterThan(25_000);
 });
+
+test("a window picked on one plot: every linked plot's picker shows it, an unlinked one keeps its own (issue 38)", async ({ page }) => {
+  await openPanel(page);
+  const picker = (id: string) => page.getByTestId(`${id}-window`);
+  await picker(POSITION).selectOption("30000");
+  for (const id of [VELOCITY, "plot-tcp-position"]) await expect(picker(id)).toHaveValue("30000");
+  await picker(VELOCITY).selectOption("120000");
+  for (const id of [POSITION, "plot-tcp-position"]) await expect(picker(id)).toHaveValue("120000");
+  // Unlinked, the velocity plot's picker stays on its own window.
+  await page.getByTestId(`${VELOCITY}-linked`).uncheck();
+  await picker(POSITION).selectOption("10000");
+  await expect(picker("plot-tcp-position")).toHaveValue("10000");
+  await expect(picker(VELOCITY)).toHaveValue("120000");
+});

@@ -195,7 +195,8 @@ export function eventLabel(event: HistoryEvent): string {
     case "cycle":
       return `Cycle ${event.duration_s.toFixed(2)} s`;
     default:
-      return event.kind.replace("_", " ");
+      // The service's own words ("Connection connected", "Recording resumed").
+      return typeof event.text === "string" && event.text !== "" ? event.text : event.kind.replace("_", " ");
   }
 }
 
