@@ -353,25 +353,7 @@ class Store:
         self, limit: int, offset: int, *, robot: str | None = None, search: Search = NO_SEARCH
     ) -> Page:
         """Audit rows, newest first, optionally of one robot, a time range, a text."""
-        return await self._run(self._audit_page_sync, limit, offset, robot, search)
-
-    def _audit_page_sync(self, limit: int, offset: int, robot: str | None, search: Search) -> Page:
-        db = self._db()
-        where, params = search.where({"robot": robot}, AUDIT_TEXT_COLUMNS)
-        total = db.execute(f"SELECT count(*) FROM audit {where}", params).fetchone()[0]
-        rows = db.execute(
-            f"SELECT {', '.join(AUDIT_COLUMNS)} FROM audit {where} ORDER BY id DESC"
-            " LIMIT ? OFFSET ?",
-            (*params, limit, offset),
-        ).fetchall()
-        items = []
-        for row in rows:
-            item = dict(zip(AUDIT_COLUMNS, row, strict=True))
-            for name in _AUDIT_JSON:
-                text = item[name]
-                item[name] = orjson.loads(text) if isinstance(text, str) else None
-            items.append(item)
-        return Page(items, int(total))
+        return await self._run(_audit_page, self._db(), limit, offset, robot, search)
 
     # ----------------------------------------------------------------- events
 
@@ -420,33 +402,60 @@ class Store:
         """Events, newest first, optionally of one kind, one robot, a time range, a text. Each
         item is the event as the stream carries it plus its ``id`` (``event_csv_rows`` gathers
         the kind's fields)."""
-        return await self._run(self._events_page_sync, kind, limit, offset, robot, search)
+        page = functools.partial(_events_page, robot=robot, search=search)
+        return await self._run(page, self._db(), kind, limit, offset)
 
-    def _events_page_sync(
-        self, kind: str | None, limit: int, offset: int, robot: str | None, search: Search
-    ) -> Page:
-        db = self._db()
-        where, params = search.where({"kind": kind, "robot": robot}, EVENT_TEXT_COLUMNS)
-        total = db.execute(f"SELECT count(*) FROM events {where}", params).fetchone()[0]
-        rows = db.execute(
-            f"SELECT id, time, robot, kind, data FROM events {where} ORDER BY id DESC"
-            " LIMIT ? OFFSET ?",
-            (*params, limit, offset),
-        ).fetchall()
-        items = []
-        for row_id, time_s, robot_name, kind_name, data in rows:
-            fields = orjson.loads(data)
-            own = fields if isinstance(fields, dict) else {"data": fields}
-            items.append(
-                {
-                    **{k: v for k, v in own.items() if k not in _EVENT_KEYS},
-                    "id": row_id,
-                    "time": time_s,
-                    "robot": robot_name,
-                    "kind": kind_name,
-                }
-            )
-        return Page(items, int(total))
+
+def _audit_page(
+    db: sqlite3.Connection, limit: int, offset: int, robot: str | None, search: Search
+) -> Page:
+    """Audit rows, newest first (on the store's worker thread)."""
+    where, params = search.where({"robot": robot}, AUDIT_TEXT_COLUMNS)
+    total = db.execute(f"SELECT count(*) FROM audit {where}", params).fetchone()[0]
+    rows = db.execute(
+        f"SELECT {', '.join(AUDIT_COLUMNS)} FROM audit {where} ORDER BY id DESC LIMIT ? OFFSET ?",
+        (*params, limit, offset),
+    ).fetchall()
+    items = []
+    for row in rows:
+        item = dict(zip(AUDIT_COLUMNS, row, strict=True))
+        for name in _AUDIT_JSON:
+            text = item[name]
+            item[name] = orjson.loads(text) if isinstance(text, str) else None
+        items.append(item)
+    return Page(items, int(total))
+
+
+def _events_page(
+    db: sqlite3.Connection,
+    kind: str | None,
+    limit: int,
+    offset: int,
+    *,
+    robot: str | None,
+    search: Search,
+) -> Page:
+    """Events, newest first (on the store's worker thread)."""
+    where, params = search.where({"kind": kind, "robot": robot}, EVENT_TEXT_COLUMNS)
+    total = db.execute(f"SELECT count(*) FROM events {where}", params).fetchone()[0]
+    rows = db.execute(
+        f"SELECT id, time, robot, kind, data FROM events {where} ORDER BY id DESC LIMIT ? OFFSET ?",
+        (*params, limit, offset),
+    ).fetchall()
+    items = []
+    for row_id, time_s, robot_name, kind_name, data in rows:
+        fields = orjson.loads(data)
+        own = fields if isinstance(fields, dict) else {"data": fields}
+        items.append(
+            {
+                **{k: v for k, v in own.items() if k not in _EVENT_KEYS},
+                "id": row_id,
+                "time": time_s,
+                "robot": robot_name,
+                "kind": kind_name,
+            }
+        )
+    return Page(items, int(total))
 
 
 def _insert_audit(db: sqlite3.Connection, entry: AuditEntry) -> int:
