@@ -1,0 +1,396 @@
+"""Layer: plant (a door above the service). Pure: the Sparkplug 3.0 host application's rules,
+fed the messages it receives, answering what to publish and what to record; no I/O, no clock
+of its own (each message comes with the time it was received).
+
+By the specification ("Host Applications", "Sparkplug Session Management"): an NBIRTH starts a
+node's session (its ``bdSeq``, its metrics' names and aliases, ``seq`` 0); every later message
+of the node carries the next ``seq`` (modulo 256); a gap, a metric by an alias the births did
+not name, or data from a node or device not born is answered with a rebirth request (NCMD
+``Node Control/Rebirth`` = true), at most one per node per ``rebirth_interval_s``. An NDEATH
+ends the session only when its ``bdSeq`` is the NBIRTH's (a late will of an older connection
+is ignored); NDEATH and DDEATH mark the node or device offline since then, its last values
+kept. A metric marked ``is_historical`` (a cell's store-and-forward after an outage) is
+recorded where it belongs in time, never taken as the live value.
+
+Imports ``sparkplug.payload`` and ``sparkplug.topics`` (the wire) and the plant's model.
+"""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Final
+
+from cobot_hmi.plant.model import (
+    ALARM_PREFIX,
+    AlarmLog,
+    AlarmTransition,
+    DeviceView,
+    MetricState,
+    MetricValue,
+    NodeView,
+)
+from cobot_hmi.sparkplug.payload import (
+    DataType,
+    Payload,
+    PayloadError,
+    add_metric,
+    make_payload,
+    parse_payload,
+)
+from cobot_hmi.sparkplug.topics import NAMESPACE, MessageType
+
+SEQ_MODULO: Final = 256
+BD_SEQ: Final = "bdSeq"
+REBIRTH: Final = "Node Control/Rebirth"
+REBIRTH_INTERVAL_S: Final = 5.0
+_SIGNED_BITS: Final[dict[int, int]] = {
+    DataType.INT8: 8,
+    DataType.INT16: 16,
+    DataType.INT32: 32,
+    DataType.INT64: 64,
+}
+
+
+@dataclass(frozen=True, slots=True)
+class Outgoing:
+    topic: str
+    payload: bytes
+    qos: int = 0
+    retain: bool = False
+
+
+@dataclass(frozen=True, slots=True)
+class Sample:
+    """One metric value as received, for the history."""
+
+    time_ms: int
+    group: str
+    node: str
+    device: str
+    metric: str
+    value: MetricValue | None
+    historical: bool
+
+
+@dataclass(slots=True)
+class Answer:
+    """What one message asks of the host's surroundings."""
+
+    publish: list[Outgoing] = field(default_factory=list)
+    samples: list[Sample] = field(default_factory=list)
+    transitions: list[AlarmTransition] = field(default_factory=list)
+
+
+@dataclass(slots=True)
+class _Session:
+    """A node's Sparkplug session as the host follows it."""
+
+    born: bool = False
+    seq: int = 0
+    aliases: dict[int, tuple[str | None, str]] = field(default_factory=dict)
+    """alias → (device or ``None`` for the node, metric name); unique across the node."""
+    datatypes: dict[tuple[str | None, str], int] = field(default_factory=dict)
+    born_devices: set[str] = field(default_factory=set)
+    last_rebirth_s: float = -1e18
+
+
+def state_payload(online: bool, timestamp_ms: int) -> bytes:
+    """The host's STATE (Sparkplug 3.0: JSON, ``online`` and ``timestamp``)."""
+    return json.dumps({"online": online, "timestamp": timestamp_ms}).encode()
+
+
+def state_topic(host_id: str) -> str:
+    return f"{NAMESPACE}/STATE/{host_id}"
+
+
+def decode_value(metric: Payload.Metric, datatype: int) -> MetricValue | None:
+    """The metric's value, signed integers given their sign back (the wire carries them in
+    unsigned fields, two's complement)."""
+    which = metric.WhichOneof("value")
+    if which is None or metric.is_null:
+        return None
+    value: MetricValue = getattr(metric, which)
+    bits = _SIGNED_BITS.get(datatype)
+    if bits is not None and isinstance(value, int) and not isinstance(value, bool):
+        value &= (1 << bits) - 1
+        if value >= 1 << (bits - 1):
+            value -= 1 << bits
+    return value
+
+
+@dataclass(slots=True)
+class _Received:
+    """One message being handled: whose it is and what it asks."""
+
+    session: _Session
+    view: NodeView
+    device: str | None
+    payload: Payload
+    stamp_ms: int
+    now_s: float
+    answer: Answer
+
+    @property
+    def metrics(self) -> dict[str, MetricState]:
+        if self.device is None:
+            return self.view.metrics
+        return self.view.devices[self.device].metrics
+
+
+class HostApplication:
+    """The host's view of every edge node of its groups (``groups`` empty: all)."""
+
+    def __init__(
+        self,
+        host_id: str,
+        groups: frozenset[str] = frozenset(),
+        rebirth_interval_s: float = REBIRTH_INTERVAL_S,
+    ) -> None:
+        self.host_id = host_id
+        self.groups = groups
+        self.rebirth_interval_s = rebirth_interval_s
+        self.nodes: dict[tuple[str, str], NodeView] = {}
+        self.alarms = AlarmLog()
+        self._sessions: dict[tuple[str, str], _Session] = {}
+        self.rebirths: Counter[str] = Counter()
+        """Rebirth requests sent, by reason (seq gap, unknown alias, before birth)."""
+        self.rebirths_held = 0
+        """Requests not sent: one went to that node less than ``rebirth_interval_s`` ago."""
+        self.stale_deaths = 0
+        self.bad_messages = 0
+
+    @property
+    def subscriptions(self) -> list[str]:
+        """The topic filters: the host's own STATE and every (or each named) group."""
+        groups = sorted(self.groups) or ["+"]
+        return [state_topic(self.host_id)] + [f"{NAMESPACE}/{g}/#" for g in groups]
+
+    def on_message(self, topic: str, data: bytes, now_s: float) -> Answer:
+        """One received message; what to publish (rebirth requests) and record."""
+        answer = Answer()
+        parts = topic.split("/")
+        if len(parts) not in (4, 5) or parts[0] != NAMESPACE or parts[1] == "STATE":
+            return answer
+        group, node = parts[1], parts[3]
+        if self.groups and group not in self.groups:
+            return answer
+        try:
+            message_type = MessageType(parts[2])
+            payload = parse_payload(data)
+        except (ValueError, PayloadError):
+            self.bad_messages += 1
+            return answer
+        if message_type in (MessageType.NCMD, MessageType.DCMD):
+            return answer
+        key = (group, node)
+        stamp_ms = payload.timestamp if payload.HasField("timestamp") else int(now_s * 1000)
+        device = parts[4] if len(parts) == 5 else None
+        view = self.nodes.setdefault(key, NodeView(group, node))
+        if device is not None:
+            view.devices.setdefault(device, DeviceView(device))
+        received = _Received(
+            self._sessions.setdefault(key, _Session()),
+            view,
+            device,
+            payload,
+            stamp_ms,
+            now_s,
+            answer,
+        )
+        self._dispatch(message_type, received)
+        return answer
+
+    def _dispatch(self, message_type: MessageType, received: _Received) -> None:
+        session = received.session
+        if message_type is MessageType.NBIRTH:
+            self._node_birth(received)
+            return
+        if message_type is MessageType.NDEATH:
+            self._node_death(received)
+            return
+        if not session.born:
+            self._request_rebirth(received, "before birth")
+            return
+        payload = received.payload
+        if payload.HasField("seq"):
+            if payload.seq != (session.seq + 1) % SEQ_MODULO:
+                self._request_rebirth(received, "seq gap")
+            session.seq = payload.seq
+        if message_type is MessageType.NDATA:
+            self._data(received)
+        elif received.device is not None:
+            self._device_message(message_type, received)
+
+    # ------------------------------------------------------------ node
+
+    def _node_birth(self, received: _Received) -> None:
+        session, view, payload = received.session, received.view, received.payload
+        session.born = True
+        session.seq = payload.seq if payload.HasField("seq") else 0
+        session.aliases.clear()
+        session.datatypes.clear()
+        session.born_devices.clear()
+        view.online = True
+        view.since_ms = received.stamp_ms
+        view.metrics.clear()
+        for device_view in view.devices.values():  # until their DBIRTH (Sparkplug 3.0)
+            if device_view.online:
+                device_view.online = False
+                device_view.since_ms = received.stamp_ms
+        self._births(received)
+        bd_seq = view.metrics.get(BD_SEQ)
+        view.bd_seq = int(bd_seq.value) if bd_seq and isinstance(bd_seq.value, int) else None
+
+    def _node_death(self, received: _Received) -> None:
+        session, view = received.session, received.view
+        bd_seq = next(
+            (decode_value(m, DataType.INT64) for m in received.payload.metrics if m.name == BD_SEQ),
+            None,
+        )
+        if session.born and view.bd_seq is not None and bd_seq != view.bd_seq:
+            self.stale_deaths += 1  # the will of a connection before the current session
+            return
+        session.born = False
+        session.born_devices.clear()
+        if view.online:
+            view.online = False
+            view.since_ms = received.stamp_ms
+        for device_view in view.devices.values():
+            if device_view.online:
+                device_view.online = False
+                device_view.since_ms = received.stamp_ms
+
+    # ------------------------------------------------------------ device
+
+    def _device_message(self, message_type: MessageType, received: _Received) -> None:
+        device = received.device
+        assert device is not None
+        session = received.session
+        device_view = received.view.devices[device]
+        if message_type is MessageType.DBIRTH:
+            session.born_devices.add(device)
+            device_view.online = True
+            device_view.since_ms = received.stamp_ms
+            self._births(received)
+        elif device not in session.born_devices:
+            self._request_rebirth(received, "before birth")
+        elif message_type is MessageType.DDEATH:
+            session.born_devices.discard(device)
+            device_view.online = False
+            device_view.since_ms = received.stamp_ms
+        elif message_type is MessageType.DDATA:
+            self._data(received)
+
+    # ------------------------------------------------------------ metrics
+
+    def _births(self, received: _Received) -> None:
+        """A birth's metrics: names, aliases and data types learnt, every value live."""
+        session = received.session
+        for metric in received.payload.metrics:
+            if not metric.name:
+                continue
+            if metric.HasField("alias"):
+                session.aliases[metric.alias] = (received.device, metric.name)
+            session.datatypes[(received.device, metric.name)] = metric.datatype
+        self._apply(received)
+
+    def _data(self, received: _Received) -> None:
+        aliases = received.session.aliases
+        if any(
+            not m.name and (not m.HasField("alias") or m.alias not in aliases)
+            for m in received.payload.metrics
+        ):
+            self._request_rebirth(received, "unknown alias")
+        self._apply(received)
+
+    def _apply(self, received: _Received) -> None:
+        session, view, device = received.session, received.view, received.device
+        metrics = received.metrics
+        device_view = view.devices.get(device) if device is not None else None
+        for metric in received.payload.metrics:
+            name = metric.name
+            if not name and metric.HasField("alias"):
+                name = session.aliases.get(metric.alias, (None, ""))[1]
+            if not name:
+                continue
+            datatype = metric.datatype or session.datatypes.get((device, name), 0)
+            value = decode_value(metric, datatype)
+            time_ms = metric.timestamp if metric.HasField("timestamp") else received.stamp_ms
+            historical = metric.is_historical
+            received.answer.samples.append(
+                Sample(time_ms, view.group, view.node, device or "", name, value, historical)
+            )
+            if device_view is not None and name.startswith(ALARM_PREFIX):
+                self._alarm(received, device_view, name, value, time_ms, historical=historical)
+            if not historical:
+                current = metrics.get(name)
+                if current is None or time_ms >= current.timestamp_ms:
+                    metrics[name] = MetricState(value, time_ms)
+
+    def _alarm(
+        self,
+        received: _Received,
+        device_view: DeviceView,
+        name: str,
+        value: MetricValue | None,
+        time_ms: int,
+        *,
+        historical: bool,
+    ) -> None:
+        """An ``Alarm/<id>/Active`` value that changes what the host knew is a transition;
+        a historical one is one the cell kept while it could not publish."""
+        if not name.endswith("/Active") or not isinstance(value, bool):
+            return
+        alarm = name[len(ALARM_PREFIX) : -len("/Active")]
+        if not historical:
+            if (device_view.value(name) is True) == value:
+                return
+            if value:
+                device_view.alarm_since_ms[alarm] = time_ms
+            else:
+                device_view.alarm_since_ms.pop(alarm, None)
+        view = received.view
+        transition = AlarmTransition(
+            time_ms,
+            view.group,
+            view.node,
+            device_view.name,
+            alarm,
+            value,
+            device_view.alarm_priority(alarm),
+            device_view.alarm_text(alarm),
+            historical,
+        )
+        self.alarms.add(transition)
+        received.answer.transitions.append(transition)
+
+    # ------------------------------------------------------------ rebirth
+
+    def _request_rebirth(self, received: _Received, reason: str) -> None:
+        session = received.session
+        if received.now_s - session.last_rebirth_s < self.rebirth_interval_s:
+            self.rebirths_held += 1
+            return
+        session.last_rebirth_s = received.now_s
+        self.rebirths[reason] += 1
+        view = received.view
+        received.answer.publish.append(
+            rebirth_request(view.group, view.node, int(received.now_s * 1000))
+        )
+
+
+def rebirth_request(group: str, node: str, now_ms: int) -> Outgoing:
+    """NCMD ``Node Control/Rebirth`` = true to one edge node."""
+    payload = make_payload(now_ms, None)
+    add_metric(
+        payload,
+        alias=None,
+        name=REBIRTH,
+        timestamp_ms=now_ms,
+        datatype=DataType.BOOLEAN,
+        value=True,
+    )
+    topic = f"{NAMESPACE}/{group}/{MessageType.NCMD}/{node}"
+    return Outgoing(topic, payload.SerializeToString())

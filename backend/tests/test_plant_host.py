@@ -1,0 +1,287 @@
+"""The plant's host application rules (``cobot_hmi.plant.host``), pure: messages in, what to
+publish and record out. Payloads are written here byte by byte (the protobuf wire format of
+Sparkplug B's ``Payload``), and the rebirth requests read back with the tests' own reader
+(``mosquitto_support.decode_payload``), so neither side is checked by the code under test."""
+
+from __future__ import annotations
+
+import json
+import struct
+from typing import Any
+
+from cobot_hmi.plant.host import HostApplication, state_payload
+from cobot_hmi.plant.model import alarm_figures
+from mosquitto_support import decode_payload
+
+BOOLEAN, INT8, INT32, INT64, UINT8, FLOAT, STRING = 11, 1, 3, 4, 5, 9, 12
+T0 = 1_800_000_000_000
+GROUP, NODE = "plant", "cell-1"
+
+
+def _varint(value: int) -> bytes:
+    out = bytearray()
+    while True:
+        byte = value & 0x7F
+        value >>= 7
+        if value:
+            out.append(byte | 0x80)
+        else:
+            out.append(byte)
+            return bytes(out)
+
+
+def _key(number: int, wire: int) -> bytes:
+    return _varint(number << 3 | wire)
+
+
+def _bytes(number: int, raw: bytes) -> bytes:
+    return _key(number, 2) + _varint(len(raw)) + raw
+
+
+def metric(
+    name: str | None = None,
+    *,
+    alias: int | None = None,
+    datatype: int | None = None,
+    value: Any = None,
+    timestamp: int | None = None,
+    historical: bool = False,
+) -> bytes:
+    out = b""
+    if name is not None:
+        out += _bytes(1, name.encode())
+    if alias is not None:
+        out += _key(2, 0) + _varint(alias)
+    if timestamp is not None:
+        out += _key(3, 0) + _varint(timestamp)
+    if datatype is not None:
+        out += _key(4, 0) + _varint(datatype)
+    if historical:
+        out += _key(5, 0) + _varint(1)
+    if isinstance(value, bool):
+        out += _key(14, 0) + _varint(int(value))
+    elif isinstance(value, float):
+        out += _key(12, 5) + struct.pack("<f", value)
+    elif isinstance(value, str):
+        out += _bytes(15, value.encode())
+    elif isinstance(value, int):
+        field = 11 if datatype == INT64 else 10
+        out += _key(field, 0) + _varint(value & (0xFFFFFFFF if field == 10 else 2**64 - 1))
+    return out
+
+
+def payload(*metrics: bytes, seq: int | None, timestamp: int = T0) -> bytes:
+    out = _key(1, 0) + _varint(timestamp)
+    for m in metrics:
+        out += _bytes(2, m)
+    if seq is not None:
+        out += _key(3, 0) + _varint(seq)
+    return out
+
+
+def topic(kind: str, device: str | None = None, node: str = NODE) -> str:
+    return f"spBv1.0/{GROUP}/{kind}/{node}" + (f"/{device}" if device else "")
+
+
+def nbirth(bd_seq: int = 3) -> bytes:
+    return payload(
+        metric("bdSeq", datatype=INT64, value=bd_seq),
+        metric("Node Control/Rebirth", datatype=BOOLEAN, value=False),
+        metric("Node Info/HMI URL", datatype=STRING, value="https://cell-1.example:8443/"),
+        seq=0,
+    )
+
+
+def dbirth(seq: int) -> bytes:
+    return payload(
+        metric("robot_state", alias=1001, datatype=UINT8, value=16, timestamp=T0),
+        metric("temperature", alias=1002, datatype=INT8, value=-5, timestamp=T0),
+        metric("Alarm/estop/Active", alias=1003, datatype=BOOLEAN, value=False, timestamp=T0),
+        metric("Alarm/estop/Priority", alias=1004, datatype=STRING, value="critical"),
+        metric("Alarm/estop/Text", alias=1005, datatype=STRING, value="Emergency stop"),
+        seq=seq,
+    )
+
+
+def born(host: HostApplication, now_s: float = 100.0) -> None:
+    assert not host.on_message(topic("NBIRTH"), nbirth(), now_s).publish
+    assert not host.on_message(topic("DBIRTH", "m1013"), dbirth(1), now_s).publish
+
+
+def rebirth_of(answer_publish: list[Any]) -> list[str]:
+    """The nodes each outgoing message asks to rebirth (read with the tests' own decoder)."""
+    nodes = []
+    for out in answer_publish:
+        message = decode_payload(out.topic, out.payload, 0.0)
+        assert message.kind == "NCMD"
+        assert [(m.name, m.value) for m in message.metrics] == [("Node Control/Rebirth", True)]
+        nodes.append(out.topic)
+    return nodes
+
+
+def test_a_birth_then_data_in_order_is_live_and_asks_nothing() -> None:
+    host = HostApplication("plant-host")
+    born(host)
+    answer = host.on_message(
+        topic("DDATA", "m1013"), payload(metric(alias=1001, value=14), seq=2), 101.0
+    )
+    assert not answer.publish
+    node = host.nodes[(GROUP, NODE)]
+    assert node.online and node.bd_seq == 3
+    assert node.text("Node Info/HMI URL") == "https://cell-1.example:8443/"
+    device = node.devices["m1013"]
+    assert device.online and device.state() == "STANDALONE_RUNNING"
+    assert device.value("temperature") == -5  # INT8 given its sign back
+    assert [s.metric for s in answer.samples] == ["robot_state"]
+
+
+def test_a_seq_gap_asks_for_a_rebirth_rate_limited() -> None:
+    host = HostApplication("plant-host", rebirth_interval_s=5.0)
+    born(host)
+    gap = host.on_message(
+        topic("DDATA", "m1013"), payload(metric(alias=1001, value=13), seq=5), 101
+    )
+    assert rebirth_of(gap.publish) == [topic("NCMD")]
+    # The data itself is still taken: it is the cell's, only something before it was lost.
+    assert host.nodes[(GROUP, NODE)].devices["m1013"].state() == "STANDALONE_STANDBY"
+    again = host.on_message(
+        topic("DDATA", "m1013"), payload(metric(alias=1001, value=14), seq=9), 102
+    )
+    assert not again.publish and host.rebirths_held == 1
+    later = host.on_message(
+        topic("DDATA", "m1013"), payload(metric(alias=1001, value=14), seq=20), 106.5
+    )
+    assert rebirth_of(later.publish) == [topic("NCMD")]
+    assert host.rebirths["seq gap"] == 2
+    # seq wraps at 256 without a gap.
+    host2 = HostApplication("h")
+    host2.on_message(topic("NBIRTH"), nbirth(), 1.0)
+    host2.on_message(topic("DBIRTH", "m1013"), dbirth(1), 1.0)
+    for seq in [*range(2, 256), 0, 1]:
+        ok = host2.on_message(
+            topic("DDATA", "m1013"), payload(metric(alias=1001, value=1), seq=seq), 2
+        )
+        assert not ok.publish, seq
+
+
+def test_an_unknown_alias_asks_for_a_rebirth() -> None:
+    host = HostApplication("plant-host")
+    born(host)
+    answer = host.on_message(
+        topic("DDATA", "m1013"), payload(metric(alias=4242, value=1), seq=2), 101
+    )
+    assert rebirth_of(answer.publish) == [topic("NCMD")]
+    assert host.rebirths["unknown alias"] == 1
+
+
+def test_data_before_a_birth_asks_for_a_rebirth() -> None:
+    host = HostApplication("plant-host")
+    answer = host.on_message(
+        topic("DDATA", "m1013", node="cell-9"), payload(metric(alias=1, value=1), seq=7), 50
+    )
+    assert rebirth_of(answer.publish) == [topic("NCMD", node="cell-9")]
+    assert not host.nodes[(GROUP, "cell-9")].online
+    # A node born, a device not: its DDATA asks too.
+    other = HostApplication("plant-host")
+    other.on_message(topic("NBIRTH"), nbirth(), 60)
+    answer = other.on_message(
+        topic("DDATA", "m0609"), payload(metric(alias=2001, value=1), seq=1), 60
+    )
+    assert rebirth_of(answer.publish) == [topic("NCMD")]
+    assert other.rebirths["before birth"] == 1
+
+
+def test_ndeath_needs_the_births_bdseq_and_marks_offline_since() -> None:
+    host = HostApplication("plant-host")
+    born(host)
+    stale = payload(metric("bdSeq", datatype=INT64, value=2), seq=None, timestamp=T0 + 500)
+    host.on_message(topic("NDEATH"), stale, 110)
+    node = host.nodes[(GROUP, NODE)]
+    assert node.online and host.stale_deaths == 1
+    death = payload(metric("bdSeq", datatype=INT64, value=3), seq=None, timestamp=T0 + 900)
+    host.on_message(topic("NDEATH"), death, 111)
+    assert not node.online and node.since_ms == T0 + 900
+    device = node.devices["m1013"]
+    assert not device.online and device.since_ms == T0 + 900
+    assert device.state() == "COLLABORATIVE_RUNNING"  # the last values kept (greyed)
+    # After a death, data is data before a birth.
+    answer = host.on_message(
+        topic("DDATA", "m1013"), payload(metric(alias=1001, value=1), seq=2), 200
+    )
+    assert rebirth_of(answer.publish) == [topic("NCMD")]
+
+
+def test_ddeath_marks_the_device_offline_since() -> None:
+    host = HostApplication("plant-host")
+    born(host)
+    host.on_message(topic("DDEATH", "m1013"), payload(seq=2, timestamp=T0 + 70), 101)
+    device = host.nodes[(GROUP, NODE)].devices["m1013"]
+    assert not device.online and device.since_ms == T0 + 70
+    assert device.state() == "COLLABORATIVE_RUNNING"
+    assert host.nodes[(GROUP, NODE)].online
+
+
+def test_historical_metrics_are_recorded_in_time_order_never_live() -> None:
+    host = HostApplication("plant-host")
+    born(host)
+    live = host.on_message(
+        topic("DDATA", "m1013"),
+        payload(metric(alias=1003, value=True, timestamp=T0 + 9000), seq=2),
+        101,
+    )
+    assert [t.active for t in live.transitions] == [True]
+    replay = host.on_message(
+        topic("DDATA", "m1013"),
+        payload(
+            metric(alias=1001, value=2, timestamp=T0 + 1000, historical=True),
+            metric(alias=1003, value=True, timestamp=T0 + 2000, historical=True),
+            metric(alias=1003, value=False, timestamp=T0 + 3000, historical=True),
+            seq=3,
+        ),
+        102,
+    )
+    device = host.nodes[(GROUP, NODE)].devices["m1013"]
+    assert device.state() == "COLLABORATIVE_RUNNING"  # not the historical SAFE_OFF
+    assert [a.alarm for a in device.alarms_active()] == ["estop"]
+    assert all(s.historical for s in replay.samples)
+    log = host.alarms.between(T0, T0 + 10_000)
+    assert [(t.time_ms - T0, t.active, t.historical) for t in log] == [
+        (2000, True, True),
+        (3000, False, True),
+        (9000, True, False),
+    ]
+    assert log[0].priority == "critical" and log[0].text == "Emergency stop"
+
+
+def test_alarm_figures_flood_and_bad_actors() -> None:
+    host = HostApplication("plant-host")
+    born(host)
+    seq = 2
+    for i in range(12):  # 12 activations in 6 minutes: a flood
+        for active in (True, False):
+            stamp = T0 + i * 30_000 + (0 if active else 1000)
+            host.on_message(
+                topic("DDATA", "m1013"),
+                payload(metric(alias=1003, value=active, timestamp=stamp), seq=seq),
+                101,
+            )
+            seq += 1
+    figures = alarm_figures(host.alarms.between(T0, T0 + 600_000), T0, T0 + 600_000)
+    assert len(figures) == 1
+    cell = figures[0]
+    assert cell.flood and cell.peak_per_10_min == 12
+    assert abs(cell.alarms_per_10_min - 12.0) < 1e-9
+    assert cell.bad_actors == [("m1013", "estop", 12)]
+
+
+def test_state_payload_is_sparkplug_json() -> None:
+    assert json.loads(state_payload(True, 1234)) == {"online": True, "timestamp": 1234}
+    host = HostApplication("plant-a", frozenset({"line-2", "line-1"}))
+    assert host.subscriptions == [
+        "spBv1.0/STATE/plant-a",
+        "spBv1.0/line-1/#",
+        "spBv1.0/line-2/#",
+    ]
+    assert not host.on_message("spBv1.0/other/NBIRTH/x", nbirth(), 1.0).samples
+    assert host.on_message("spBv1.0/line-1/NBIRTH/x", b"\xff\xff not protobuf", 1.0).samples == []
+    assert host.bad_messages == 1
