@@ -5,7 +5,9 @@ accelerated arm against ``SimulatedRobot``'s own frames."""
 
 from __future__ import annotations
 
+import json
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -150,6 +152,7 @@ def test_the_state_document_restores_the_same_figures() -> None:
     assert document["format_version"] == 1
     restored = HealthEngine.from_document(document)
     assert restored.report() == sim.engine.report()
+    json.dumps(document, allow_nan=False)  # strict JSON: a file or a database row takes it
     newer = dict(document, format_version=2)
     with pytest.raises(FormatVersionError, match="robot health state version 2"):
         HealthEngine.from_document(newer)
@@ -173,3 +176,80 @@ def test_the_accelerated_arm_gives_simulated_robot_frames() -> None:
     # J3's friction from the cold gear differs only by the temperature the cycle starts at.
     assert np.allclose(torque[:, 2], frames.torque_nm[:, 2], atol=0.05)
     assert not math.isclose(float(np.abs(frames.torque_nm[:, 2] - arm.torque[:, 2]).max()), 0.0)
+
+
+def _cycle_frames(sim: HealthSimulation) -> FrameBlock:
+    frames = sim.arm.cycle(sim.now_s, sim.temperatures, sim.wear, sim.rng)
+    return FrameBlock(*frames)
+
+
+def _feed(sim: HealthSimulation, block: FrameBlock) -> None:
+    sim.engine.observe(block)
+    sim.engine.end_cycle(sim.now_s, sim.now_s + sim.arm.duration_s)
+    sim.now_s += sim.arm.duration_s
+
+
+def test_a_knock_is_counted_with_where_it_happened_and_the_joint_watched() -> None:
+    sim = _baselined()
+    block = _cycle_frames(sim)
+    external = block.external_torque_nm.copy()
+    external[300:305, 1] += 80.0  # J2 hits something: 80 N·m over its 44 N·m threshold
+    state = block.robot_state.copy()
+    state[305:] = 3  # the controller's protective stop (INTERRUPTED)
+    _feed(sim, replace(block, external_torque_nm=external, robot_state=state))
+    report = _report(sim)
+    assert report["knocks"]["collisions"] == [0, 1, 0, 0, 0, 0]
+    assert report["knocks"]["protective_stop"] == 1
+    event = report["knocks"]["events"][0]
+    assert event["kind"] == "collision"
+    assert event["joint"] == 2
+    assert event["joint_position_deg"] == pytest.approx(list(block.position_deg[300]), abs=0.01)
+    joint = report["joints"][1]
+    assert joint["verdict"] == "watch"
+    assert "1 external-torque peak(s) over 44 N·m this shift" in joint["reason"]
+
+
+def test_rebaselining_keeps_the_old_baseline_and_the_trend_spans_it() -> None:
+    sim = _baselined()
+    sim.add_wear(3, JointWear(friction_percent=12))
+    sim.run(50)
+    assert _verdicts(sim)[2] == "watch"
+    sim.engine.begin_baseline("reducer J3 changed", "maintenance", sim.now_s, cycles=30)
+    sim.run(30)
+    report = _report(sim)
+    assert [b["reason"] for b in report["baselines"]] == ["commissioning", "reducer J3 changed"]
+    assert report["baseline"]["id"] == 2
+    j3 = report["joints"][2]
+    assert j3["verdict"] == "ok"
+    assert abs(j3["friction_percent"]) < 2.0
+    assert j3["friction_percent_since_first_baseline"] == pytest.approx(12.0, abs=2.5)
+
+
+def test_a_ramp_of_wear_reads_as_friction_rising_a_week() -> None:
+    sim = _baselined()
+    sim.wear.set_time_factor(168.0, sim.now_s)  # a week of wear in each hour of frames
+    sim.add_wear(3, JointWear(friction_percent=20, ramp_s=7 * 86_400.0))
+    sim.run(600)  # 80 minutes of frames
+    j3 = _report(sim)["joints"][2]
+    assert j3["verdict"] in ("watch", "act")
+    # +20 % a week of wear, 168 weeks of wear a week of frames.
+    assert j3["friction_percent_per_week"] == pytest.approx(20.0 * 168.0, rel=0.2)
+    assert "rising" in j3["reason"]
+
+
+def test_bad_frames_are_dropped_and_counted_and_bad_shapes_refused() -> None:
+    sim = _baselined()
+    block = _cycle_frames(sim)
+    torque = block.torque_nm.copy()
+    torque[10, 2] = math.nan
+    times = block.time_s.copy()
+    times[20] = times[5]  # out of order
+    _feed(sim, replace(block, torque_nm=torque, time_s=times))
+    assert sim.engine.dropped_frames == 2
+    assert _report(sim)["dropped_frames"] == 2
+    with pytest.raises(ValueError, match="torque_nm: expected shape"):
+        sim.engine.observe(replace(block, torque_nm=block.torque_nm[:, :5]))
+    with pytest.raises(ValueError, match="a cycle must end after it starts"):
+        sim.engine.end_cycle(sim.now_s, sim.now_s - 1.0)
+    sim.run(5)
+    assert _verdicts(sim) == ["ok"] * 6

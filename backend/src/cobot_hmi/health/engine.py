@@ -9,6 +9,7 @@ the REST answer gives them); save and restore its state as a versioned document
 
 from __future__ import annotations
 
+import math
 from typing import Final
 
 import numpy as np
@@ -63,6 +64,9 @@ class HealthEngine:
         """[time, baseline id, friction % per joint (NaN: none)] every few cycles."""
         self.cycles = 0
         self.now_s = 0.0
+        self.dropped_frames = 0
+        self.last_time_s = -math.inf
+        """The last frame's time: a frame not later is out of order (dropped)."""
         self._pending: list[FrameBlock] = []
 
     # ------------------------------------------------------------------ input
@@ -99,9 +103,17 @@ class HealthEngine:
         return info
 
     def observe(self, block: FrameBlock) -> None:
-        """Frames in time order, any number at a time (a cycle's, a second's)."""
+        """Frames in time order, any number at a time (a cycle's, a second's). A frame with a
+        value that is not a number, or not later than the last one, is dropped and counted
+        (``dropped_frames``); arrays of the wrong shape are a ``ValueError`` and change
+        nothing."""
+        block, dropped = block.checked(self.last_time_s)
+        if block.position_deg.shape[1] != self.joints:
+            raise ValueError(f"expected {self.joints} joints, got {block.position_deg.shape[1]}")
+        self.dropped_frames += dropped
         if len(block) == 0:
             return
+        self.last_time_s = float(block.time_s[-1])
         self.now_s = float(block.time_s[-1])
         self.life.add(block)
         self.knocks.add(block)
@@ -115,6 +127,8 @@ class HealthEngine:
     def end_cycle(self, start_s: float, end_s: float, interrupted: bool = False) -> None:
         """A cycle ended (the cycle meter's ``Cycle``): its frames are those observed from
         ``start_s`` to ``end_s``."""
+        if not (math.isfinite(start_s) and math.isfinite(end_s) and end_s > start_s):
+            raise ValueError(f"a cycle must end after it starts (from {start_s} to {end_s})")
         pending = FrameBlock.concatenate(self._pending) if self._pending else None
         rest = pending.between(end_s, np.inf) if pending is not None else None
         self._pending = [rest] if rest is not None and len(rest) else []
@@ -138,6 +152,11 @@ class HealthEngine:
     def _adopt(self, baseline: Baseline, now_s: float) -> None:
         baseline.info["finished_s"] = now_s
         baseline.info["cycles"] = baseline.cycles
+        if self.baseline is not None:
+            # What the old baseline would have read at the change: the trend spans it.
+            baseline.info["friction_vs_previous_percent"] = friction_excess_percent(
+                baseline.cells, self.baseline.cells, self.joints, self.settings
+            )
         self.history.append(baseline.info)
         self.baseline, self.learning = baseline, None
         mean_s, sigma_s = baseline.cycle_time()
@@ -184,6 +203,24 @@ class HealthEngine:
         if self.baseline is None:
             return [None] * self.joints
         return friction_excess_percent(self.recent, self.baseline.cells, self.joints, self.settings)
+
+    def friction_since_first_percent(
+        self, friction: list[float | None] | None = None
+    ) -> list[float | None]:
+        """Friction against the first baseline, through every re-baselining since (each
+        baseline records its friction against the one before)."""
+        factors = [1.0] * self.joints
+        for info in self.history[1:]:
+            steps = info.get("friction_vs_previous_percent")
+            if not isinstance(steps, list):
+                return [None] * self.joints
+            for j, step in enumerate(steps):
+                factors[j] = math.nan if step is None else factors[j] * (1.0 + step / 100.0)
+        now = self.friction_percent() if friction is None else friction
+        return [
+            None if f is None or math.isnan(k) else 100.0 * (k * (1.0 + f / 100.0) - 1.0)
+            for f, k in zip(now, factors, strict=True)
+        ]
 
     def friction_per_week(self) -> list[float | None]:
         """The slope of each joint's friction over the last two weeks' trend points, in % a

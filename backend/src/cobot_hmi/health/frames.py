@@ -20,6 +20,16 @@ IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
 
 
+_JOINT_FIELDS = (
+    "position_deg",
+    "velocity_deg_s",
+    "torque_nm",
+    "current_a",
+    "external_torque_nm",
+    "temperature_c",
+)
+
+
 @dataclass(frozen=True, slots=True)
 class FrameBlock:
     """``n`` frames in time order: times (s, any epoch, the same for the whole run) and per
@@ -37,6 +47,31 @@ class FrameBlock:
 
     def __len__(self) -> int:
         return int(self.time_s.shape[0])
+
+    def checked(self, after_s: float) -> tuple[FrameBlock, int]:
+        """The frames fit to use: finite, and later than ``after_s`` and every frame before
+        them (a frame out of order or with a NaN is dropped, not guessed at); and how many
+        were dropped. ``ValueError`` naming the field for arrays of the wrong shape."""
+        n = len(self)
+        if self.time_s.ndim != 1:
+            raise ValueError(f"time_s: expected a vector, got shape {self.time_s.shape}")
+        joints: int | None = None
+        for name in _JOINT_FIELDS:
+            shape = getattr(self, name).shape
+            if len(shape) != 2 or shape[0] != n or (joints is not None and shape[1] != joints):
+                raise ValueError(f"{name}: expected shape ({n}, joints), got {shape}")
+            joints = shape[1]
+        for name in ("robot_state", "servo_on"):
+            if getattr(self, name).shape != (n,):
+                raise ValueError(f"{name}: expected shape ({n},), got {getattr(self, name).shape}")
+        finite = np.isfinite(self.time_s)
+        for name in _JOINT_FIELDS:
+            finite &= np.isfinite(getattr(self, name)).all(axis=1)
+        times = np.where(finite, self.time_s, -np.inf)
+        latest_before = np.maximum.accumulate(np.concatenate([[after_s], times]))[:-1]
+        keep = finite & (self.time_s > latest_before)
+        dropped = int(n - keep.sum())
+        return (self if dropped == 0 else self.take(keep)), dropped
 
     def between(self, start_s: float, end_s: float) -> FrameBlock:
         """The frames with ``start_s <= time < end_s``."""

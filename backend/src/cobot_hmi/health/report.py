@@ -72,6 +72,7 @@ def _joint(
         "reason": reason,
         "friction_percent": _round(friction),
         "friction_percent_per_week": _round(per_week),
+        "friction_percent_since_first_baseline": _round(figures["since_first"][j]),
         "signature_rms_percent": _round(float(engine.signature_rms[j])),
         "signature_distribution_percent": _round(float(engine.signature_distribution[j])),
         "heat_excess_c": _round(heat_c),
@@ -136,9 +137,11 @@ def _cycle_time(drift: CycleTimeDrift | None) -> dict[str, object]:
 
 def build_report(engine: HealthEngine, now_s: float) -> dict[str, object]:
     heat = engine.heat.relative_c()
+    friction = engine.friction_percent()
     figures: dict[str, list[Any]] = {
-        "friction": engine.friction_percent(),
+        "friction": friction,
         "per_week": engine.friction_per_week(),
+        "since_first": engine.friction_since_first_percent(friction),
         "heat": [float(h) for h in heat],
         "rate": [float(r) for r in engine.life.week_rate()],
     }
@@ -148,6 +151,7 @@ def build_report(engine: HealthEngine, now_s: float) -> dict[str, object]:
         "arm": engine.arm.name,
         "time": now_s,
         "cycles": engine.cycles,
+        "dropped_frames": engine.dropped_frames,
         "baseline": engine.history[-1] if engine.baseline is not None else None,
         "learning": engine.learning.info | {"cycles": engine.learning.cycles}
         if engine.learning is not None
@@ -169,6 +173,8 @@ def engine_state(engine: HealthEngine) -> dict[str, object]:
         "arm": engine.arm.name,
         "cycles": engine.cycles,
         "now_s": engine.now_s,
+        "last_time_s": engine.last_time_s if math.isfinite(engine.last_time_s) else None,
+        "dropped_frames": engine.dropped_frames,
         "history": engine.history,
         "baseline": engine.baseline.to_state() if engine.baseline is not None else None,
         "learning": engine.learning.to_state() if engine.learning is not None else None,
@@ -196,6 +202,9 @@ def restore_engine(engine: HealthEngine, body: dict[str, object]) -> None:
     s, joints = engine.settings, engine.joints
     engine.cycles = int(body["cycles"])  # type: ignore[call-overload]
     engine.now_s = float(body["now_s"])  # type: ignore[arg-type]
+    last = body["last_time_s"]
+    engine.last_time_s = -math.inf if last is None else float(last)  # type: ignore[arg-type]
+    engine.dropped_frames = int(body["dropped_frames"])  # type: ignore[call-overload]
     engine.history = list(body["history"])  # type: ignore[call-overload]
     for name in ("baseline", "learning"):
         state = body[name]

@@ -27,8 +27,15 @@ def resample(block: FrameBlock, start_s: float, end_s: float, points: int) -> Fl
 
 
 def quantiles(block: FrameBlock) -> FloatArray:
-    """``(101, joints)``: the torque's quantiles over the frames."""
-    return np.quantile(block.torque_nm, QUANTILES, axis=0)
+    """``(101, joints)``: the torque's quantiles over the frames (linear interpolation between
+    order statistics, as ``np.quantile``'s default, written out: it costs a fifth)."""
+    ordered = np.sort(block.torque_nm, axis=0)
+    position = QUANTILES * (ordered.shape[0] - 1)
+    low = np.floor(position).astype(np.int64)
+    high = np.minimum(low + 1, ordered.shape[0] - 1)
+    fraction = (position - low)[:, None]
+    result: FloatArray = ordered[low] + (ordered[high] - ordered[low]) * fraction
+    return result
 
 
 class SignatureDeviation(NamedTuple):
