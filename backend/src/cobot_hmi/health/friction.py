@@ -168,5 +168,6 @@ def friction_excess_percent(
 
 
 def _speed_of(keys: IntArray, settings: HealthSettings) -> FloatArray:
-    speeds: FloatArray = (keys % _SPEEDS + 0.5) * settings.speed_bin_deg_s
+    bins = (keys % _SPEEDS).astype(np.float64)
+    speeds: FloatArray = (bins + 0.5) * settings.speed_bin_deg_s
     return speeds
