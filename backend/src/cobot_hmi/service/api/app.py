@@ -9,7 +9,8 @@ app routes ``/kiosk`` and friends itself), precompressed and cached (``static_fi
 from __future__ import annotations
 
 from collections.abc import AsyncIterator, Callable
-from contextlib import asynccontextmanager
+from contextlib import AbstractAsyncContextManager, asynccontextmanager
+from typing import Final
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
@@ -36,6 +37,22 @@ from cobot_hmi.service.runtime import Service
 _API_PREFIXES = ("api/", "healthz", "readyz", "metrics", "docs", "openapi.json", "redoc")
 
 
+_ROUTES: Final = (
+    routes_read,
+    routes_auth,
+    routes_write,
+    routes_log,
+    routes_history,
+    routes_alarms,
+    routes_tags,
+    routes_cycles,
+    routes_stream,
+    routes_checkouts,
+    routes_presets,
+)
+"""Every route module of the API, in the order the OpenAPI document lists them."""
+
+
 def create_app(
     service: Service,
     *,
@@ -44,25 +61,12 @@ def create_app(
 ) -> FastAPI:
     """The ASGI app. With ``manage_lifecycle`` its lifespan starts and stops ``service``;
     ``on_started`` runs once the service has started (process-wide tuning)."""
-
-    @asynccontextmanager
-    async def lifespan(_: FastAPI) -> AsyncIterator[None]:
-        if manage_lifecycle:
-            await service.start()
-        if on_started is not None:
-            on_started()
-        try:
-            yield
-        finally:
-            if manage_lifecycle:
-                await service.stop()
-
     app = FastAPI(
         title="cobot-hmi",
         version=__version__,
         summary="Live frames, writes, control, login and audit for Doosan cobots over "
         "EtherNet/IP class 1. See docs/api.md.",
-        lifespan=lifespan,
+        lifespan=_lifespan(service, manage_lifecycle, on_started),
         # One component per model (no Foo-Input / Foo-Output pairs): the generated client's
         # names stay the models' names.
         separate_input_output_schemas=False,
@@ -85,6 +89,35 @@ def create_app(
             lambda: getattr(app.state, "tls", None),
         ),
     )
+    install_error_answers(app)
+    for module in _ROUTES:
+        app.include_router(module.router)
+    static_files.serve_frontend(app, service.settings.frontend_path, _API_PREFIXES)
+    app.openapi = lambda: openapi_document(app)  # type: ignore[method-assign]
+    return app
+
+
+def _lifespan(
+    service: Service, manage_lifecycle: bool, on_started: Callable[[], None] | None
+) -> Callable[[FastAPI], AbstractAsyncContextManager[None]]:
+    @asynccontextmanager
+    async def lifespan(_: FastAPI) -> AsyncIterator[None]:
+        if manage_lifecycle:
+            await service.start()
+        if on_started is not None:
+            on_started()
+        try:
+            yield
+        finally:
+            if manage_lifecycle:
+                await service.stop()
+
+    return lifespan
+
+
+def install_error_answers(app: FastAPI) -> None:
+    """The API's refusals as JSON ``{"detail": …}``: its own errors, an unknown robot (404),
+    and a request that does not validate (422 with the first reason and the field it names)."""
 
     @app.exception_handler(ApiError)
     async def api_error(_: Request, error: ApiError) -> Response:
@@ -108,21 +141,3 @@ def create_app(
             },
             422,
         )
-
-    for module in (
-        routes_read,
-        routes_auth,
-        routes_write,
-        routes_log,
-        routes_history,
-        routes_alarms,
-        routes_tags,
-        routes_cycles,
-        routes_stream,
-        routes_checkouts,
-        routes_presets,
-    ):
-        app.include_router(module.router)
-    static_files.serve_frontend(app, service.settings.frontend_path, _API_PREFIXES)
-    app.openapi = lambda: openapi_document(app)  # type: ignore[method-assign]
-    return app
