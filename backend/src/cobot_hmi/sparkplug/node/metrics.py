@@ -6,11 +6,18 @@ from collections import Counter
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from cobot_hmi.sparkplug.node.core import NodeCore
 from cobot_hmi.sparkplug.node.device import Device
 
 if TYPE_CHECKING:
+    from collections.abc import Mapping
+
     from cobot_hmi.service.extensions import MetricFamily
+    from cobot_hmi.sparkplug.buffer import DiskBuffer
+    from cobot_hmi.sparkplug.node.command_handling import CommandHandler
+    from cobot_hmi.sparkplug.node.connection import NodeConnection, PrimaryHost
+    from cobot_hmi.sparkplug.node.core import NodeStatus, Publisher
+    from cobot_hmi.sparkplug.node.replay import Replayer
+    from cobot_hmi.sparkplug.node.reports import DeviceReports
 
 
 def _single(name: str, kind: str, text: str, value: float) -> MetricFamily:
@@ -18,8 +25,37 @@ def _single(name: str, kind: str, text: str, value: float) -> MetricFamily:
     return (name, kind, text, [({}, float(value))])
 
 
-class NodeMetrics(NodeCore):
-    """``metric_families`` for the service's collector."""
+class NodeMetrics:
+    """``metric_families`` for the service's collector: a view of the parts' counters, read at
+    each scrape (it changes nothing)."""
+
+    def __init__(
+        self,
+        *,
+        status: NodeStatus,
+        connection: NodeConnection,
+        publisher: Publisher,
+        devices: Mapping[str, Device],
+        buffer: DiskBuffer,
+        replayer: Replayer,
+        reports: DeviceReports,
+        commands: CommandHandler,
+        host: PrimaryHost,
+    ) -> None:
+        self.status = status
+        self.connection = connection
+        self.publisher = publisher
+        self.devices = devices
+        self.buffer = buffer
+        self.replayer = replayer
+        self.reports = reports
+        self.commands = commands
+        self.host = host
+
+    @property
+    def malformed(self) -> int:
+        """Commands and primary host STATEs not understood."""
+        return self.commands.bad_commands + self.host.malformed
 
     def metric_families(self) -> list[MetricFamily]:
         # In this order since 58f13a2 (tests/test_metrics_exposition.py keeps it).
@@ -37,25 +73,25 @@ class NodeMetrics(NodeCore):
                 "sparkplug_broker_connected",
                 "gauge",
                 "1 while the edge node is connected to its MQTT broker",
-                self.online,
+                self.status.online,
             ),
             _single(
                 "sparkplug_born",
                 "gauge",
                 "1 while the node's births are out (connected, and its primary host online)",
-                self.active,
+                self.status.active,
             ),
             _single(
                 "sparkplug_reconnects_total",
                 "counter",
                 "MQTT connections after the first one (each one a new bdSeq)",
-                self.reconnects,
+                self.connection.reconnects,
             ),
             _single(
                 "sparkplug_connect_refusals_total",
                 "counter",
                 "CONNECTs the broker refused (credentials, ACL, protocol)",
-                self.connect_refusals,
+                self.connection.connect_refusals,
             ),
         ]
 
@@ -76,14 +112,20 @@ class NodeMetrics(NodeCore):
                 "counter",
                 "Sparkplug messages by type (node messages have no robot label; "
                 "DDATA_buffered went to the disk buffer)",
-                [({"type": kind}, float(n)) for kind, n in sorted(self.node_messages.items())]
+                [
+                    ({"type": kind}, float(n))
+                    for kind, n in sorted(self.publisher.node_messages.items())
+                ]
                 + per_device(lambda d: d.messages),
             ),
             (
                 "sparkplug_published_bytes_total",
                 "counter",
                 "payload bytes published, by message type",
-                [({"type": kind}, float(n)) for kind, n in sorted(self.node_bytes.items())]
+                [
+                    ({"type": kind}, float(n))
+                    for kind, n in sorted(self.publisher.node_bytes.items())
+                ]
                 + per_device(lambda d: d.bytes),
             ),
         ]
@@ -113,7 +155,7 @@ class NodeMetrics(NodeCore):
                 "sparkplug_replayed_total",
                 "counter",
                 "buffered DDATA published as historical after a reconnect",
-                self.replayed,
+                self.replayer.replayed,
             ),
         ]
 
@@ -130,13 +172,13 @@ class NodeMetrics(NodeCore):
                 "sparkplug_tick_seconds_total",
                 "counter",
                 "CPU time of the edge node's reports on the web event loop",
-                self.tick_seconds,
+                self.reports.tick_seconds,
             ),
             (
                 "sparkplug_commands_total",
                 "counter",
                 "DCMD outcomes",
-                [({"outcome": k}, float(v)) for k, v in sorted(self.commands.items())]
-                + [({"outcome": "malformed"}, float(self.bad_commands))],
+                [({"outcome": k}, float(v)) for k, v in sorted(self.commands.commands.items())]
+                + [({"outcome": "malformed"}, float(self.malformed))],
             ),
         ]

@@ -10,20 +10,70 @@ import asyncio
 import contextlib
 import logging
 import time
+from collections.abc import Mapping
 
 from cobot_hmi.layout import O2T_FIELDS
-from cobot_hmi.sparkplug.catalogue import state_name
-from cobot_hmi.sparkplug.node.births import Births
+from cobot_hmi.sparkplug.buffer import DiskBuffer
+from cobot_hmi.sparkplug.catalogue import Catalogue, state_name
+from cobot_hmi.sparkplug.node.births import BirthWriter
+from cobot_hmi.sparkplug.node.core import NodeStatus, Publisher
 from cobot_hmi.sparkplug.node.device import Device, now_ms
 from cobot_hmi.sparkplug.payload import DataType, Property, add_metric, make_payload
 from cobot_hmi.sparkplug.rbe import Change
-from cobot_hmi.sparkplug.topics import MessageType
+from cobot_hmi.sparkplug.topics import MessageType, Topics
 
 log = logging.getLogger(__name__)
 
 
-class DeviceReports(Births):
-    """The robots' ticks."""
+class DeviceReports:
+    """The robots' ticks: a task per robot (``start``, ``stop``), each tick (``tick``)
+    reporting through ``births`` and ``publisher``, or into ``buffer`` while not born."""
+
+    def __init__(
+        self,
+        *,
+        topics: Topics,
+        catalogue: Catalogue,
+        devices: Mapping[str, Device],
+        births: BirthWriter,
+        publisher: Publisher,
+        buffer: DiskBuffer,
+        status: NodeStatus,
+        period_s: float,
+    ) -> None:
+        self.topics = topics
+        self.catalogue = catalogue
+        self.devices = devices
+        self.births = births
+        self.publisher = publisher
+        self.buffer = buffer
+        self.status = status
+        self.period_s = period_s
+        self._command_offsets = {
+            f.name: next(m.offset for m in catalogue.command_metrics if m.field == f.name)
+            for f in O2T_FIELDS
+        }
+        self._tasks: list[asyncio.Task[None]] = []
+        self.tick_seconds = 0.0
+        """CPU time of the robots' ticks on the web loop (reports, encoding, publishing calls):
+        the thread's own, so a busy machine's preemptions do not count."""
+
+    def start(self) -> None:
+        """A task per robot on the running loop."""
+        for device in self.devices.values():
+            self._tasks.append(
+                asyncio.create_task(
+                    self._device_loop(device), name=f"sparkplug {device.device_name}"
+                )
+            )
+
+    async def stop(self) -> None:
+        for task in self._tasks:
+            task.cancel()
+        for task in self._tasks:
+            with contextlib.suppress(asyncio.CancelledError):
+                await task
+        self._tasks.clear()
 
     async def _device_loop(self, device: Device) -> None:
         """A tick at most every ``period_s``, each right after a frame arrived: the newest frame
@@ -42,19 +92,20 @@ class DeviceReports(Births):
             last = loop.time()
             started = time.thread_time()
             try:
-                self._tick(device)
+                self.tick(device)
             except Exception:  # a bug here must not end the robot's reports for good
                 log.exception("Sparkplug tick of %s failed", device.device_name)
             self.tick_seconds += time.thread_time() - started
 
-    def _tick(self, device: Device) -> None:
+    def tick(self, device: Device) -> None:
+        """What changed of ``device`` since its last tick, reported."""
         robot = device.robot
         items = device.take()
         connected = robot.down_since is None
         if device.alive and (not connected or robot.connects != device.connects_seen):
             device.alive = False
-            if device.born and self.active:
-                self._publish_device_death(device)
+            if device.born and self.status.active:
+                self.births.device_death(device)
             device.born = False
         if not connected:
             return
@@ -67,8 +118,8 @@ class DeviceReports(Births):
             device.alive = True
             device.reporter.baseline(items[-1][2])
             self._read_status(device)
-            if self.active:
-                self._publish_device_birth(device)
+            if self.status.active:
+                self.births.device_birth(device)
             return
         changes = device.reporter.discrete_changes(items)
         if items:
@@ -130,12 +181,12 @@ class DeviceReports(Births):
                 with_datatype=False,  # the DBIRTH gave it (Sparkplug 3.0: not in DATA)
             )
         topic = self.topics.device_topic(MessageType.DDATA, device.device_name)
-        if self.active and device.born:
-            if self._publish(topic, payload, device):
+        if self.status.active and device.born:
+            if self.publisher.publish(topic, payload, device):
                 return
             # paho knows the connection is gone and this loop is told next: keep it.
             payload.ClearField("seq")
-        elif self.active:
+        elif self.status.active:
             return  # not born on this connection yet: its DBIRTH will carry the values
         if self.buffer.append(topic, payload.SerializeToString()):
             device.messages["DDATA_buffered"] += 1
