@@ -11,12 +11,14 @@
 // receiving every frame at RPI 10 ms, each plot in view redraws >= 10 times/s (the monitoring
 // values' own rate), the heap at the end within 10 % of the heap at 10 s (run with --seconds 600
 // for the 10-minute figure), and (issue 24) the main thread busy at most 30 % of a 300 s run
-// (--seconds 300). Only loopback addresses are used.
+// (--seconds 300). Issue 38: the stream's bytes per second, on the wire and as JSON, of the desktop
+// panel and of a phone's (390x844, touch) from the same run (--phone-seconds, 30; target: the
+// phone <= 30 KiB/s). Only loopback addresses are used.
 import { spawn } from "node:child_process";
 import { mkdtempSync, readdirSync, readFileSync, rmSync, writeFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { join, resolve } from "node:path";
-import { CHROMIUM, CHROMIUM_ARGS, chromium, freePort, load, loopbackPair, commandLine, root, sleep } from "./ui_support.mjs";
+import { CHROMIUM, CHROMIUM_ARGS, bytesBetween, chromium, freePort, load, loopbackPair, commandLine, root, sleep, tcpBytesSent } from "./ui_support.mjs";
 
 const TARGET_FPS = 50;
 /** Redraws per second each plot in view must reach (monitoring values refresh every 100 ms). */
@@ -26,20 +28,24 @@ const HEAP_FIRST_S = 10;
 /** Share of wall time the renderer's main thread may be busy with the default panel (issue 24). */
 const TARGET_MAIN_BUSY = 0.3;
 
-const USAGE = `bench/ui [--seconds 60] [--baseline-seconds SECONDS] [--kiosk-seconds 60] [--robot3d-seconds 10]
+const USAGE = `bench/ui [--seconds 60] [--baseline-seconds SECONDS] [--kiosk-seconds 60] [--robot3d-seconds 10] [--phone-seconds 30]
          [--rpi-ms 10] [--width 1920] [--height 1080]
          [--heap-snapshots DIR] [--cpu-profile FILE] [--trace FILE] [--frontend-dir DIR]
 The panel in headless Chromium against its own emulator and service: frames/s, long tasks, JS heap,
-main-thread busy share beside a baseline (canvas picture off), then the kiosk and the 3D view.`;
+main-thread busy share beside a baseline (canvas picture off), then the kiosk and the 3D view, then
+the stream's bytes per second of the desktop panel and of a phone's (390x844).`;
 const args = commandLine(
   USAGE,
-  { seconds: 60, "baseline-seconds": -1, "rpi-ms": 10, "kiosk-seconds": 60, "robot3d-seconds": 10, width: 1920, height: 1080 },
+  { seconds: 60, "baseline-seconds": -1, "rpi-ms": 10, "kiosk-seconds": 60, "robot3d-seconds": 10, "phone-seconds": 30, width: 1920, height: 1080 },
   ["heap-snapshots", "cpu-profile", "trace", "frontend-dir"],
 );
 const seconds = args.seconds;
 const rpiMs = args["rpi-ms"];
 const kioskSeconds = args["kiosk-seconds"];
 const robot3dSeconds = args["robot3d-seconds"];
+const phoneSeconds = args["phone-seconds"];
+/** Issue 38: a phone's panel receives at most this much a second. */
+const TARGET_PHONE_KIB_S = 30;
 const width = args.width;
 const height = args.height;
 // The baseline phase first (issue 24): the same panel with the plots' canvas picture off
@@ -296,6 +302,44 @@ async function panelPhase(path, phaseSeconds) {
     };
   } finally {
     await page.close();
+  }
+}
+
+/**
+ * The stream's bytes per second to the panel in a `viewport` page (options: Playwright's, a
+ * phone's touch and scale) for `phaseSeconds` from 5 s after its first plot or joint value: on
+ * the wire (the service's TCP counters, ss: compressed, framing and the page's few REST answers
+ * included) and as the JSON the page parsed (DevTools' WebSocket frames), with the frames/s.
+ */
+async function streamPhase(viewport, phaseSeconds, options = {}) {
+  const context = await browser.newContext({ viewport, ...options });
+  const page = await context.newPage();
+  try {
+    const cdp = await context.newCDPSession(page);
+    await cdp.send("Network.enable");
+    let jsonBytes = 0;
+    cdp.on("Network.webSocketFrameReceived", (e) => {
+      jsonBytes += e.response.payloadData.length;
+    });
+    await page.goto(`${base}/`);
+    await page.waitForFunction(() => (window.__cobotHmi?.live.framesReceived ?? 0) > 0, null, { timeout: 30_000 });
+    await sleep(5000);
+    const received = () => page.evaluate(() => ({ now: performance.now(), frames: window.__cobotHmi?.live.framesReceived ?? 0 }));
+    const wire0 = tcpBytesSent(serviceHost, httpPort);
+    const json0 = jsonBytes;
+    const a = await received();
+    await sleep(phaseSeconds * 1000);
+    const b = await received();
+    const wire1 = tcpBytesSent(serviceHost, httpPort);
+    const span_s = (b.now - a.now) / 1000;
+    return {
+      seconds: span_s,
+      wire_kib_s: bytesBetween(wire0, wire1) / 1024 / span_s,
+      json_kib_s: (jsonBytes - json0) / 1024 / span_s,
+      frames_per_s: (b.frames - a.frames) / span_s,
+    };
+  } finally {
+    await context.close();
   }
 }
 
@@ -585,6 +629,21 @@ try {
         `every 10 s: ${kiosk.heap.map((h) => h.toFixed(1)).join(" ")} MB; main thread busy ${(kiosk.busy * 100).toFixed(1)} % ` +
         `(baseline, Plotly drawing its plots: ${(plotly.busy * 100).toFixed(1)} %, ${plotly.fps.toFixed(1)} frames/s); load average ${load()}`,
     );
+  }
+
+  // The stream's bytes (issue 38): the desktop panel's beside a phone's, the same run.
+  if (phoneSeconds > 0) {
+    if (!page.isClosed()) await page.close(); // its stream is not the one measured
+    const loadBefore = load();
+    const desktop = await streamPhase({ width, height }, phoneSeconds);
+    const phone = await streamPhase({ width: 390, height: 844 }, phoneSeconds, { isMobile: true, hasTouch: true, deviceScaleFactor: 3 });
+    const line = (name, r) =>
+      `${name} ${r.wire_kib_s.toFixed(1)} KiB/s on the wire (${r.json_kib_s.toFixed(1)} KiB/s of JSON, ${r.frames_per_s.toFixed(1)} frames/s)`;
+    console.log(
+      `  stream (${phone.seconds.toFixed(0)} s each): ${line(`panel ${width}x${height}`, desktop)}; ${line("phone 390x844", phone)}; ` +
+        `target phone <= ${TARGET_PHONE_KIB_S} KiB/s ${phone.wire_kib_s <= TARGET_PHONE_KIB_S ? "MET" : "MISSED"}; load average ${loadBefore} at the start, ${load()} at the end`,
+    );
+    console.log(JSON.stringify({ stream_desktop: desktop, stream_phone: phone, load_average_end: load() }));
   }
 } catch (error) {
   console.error("bench/ui failed:", error instanceof Error ? error.message : error);

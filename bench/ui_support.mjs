@@ -1,6 +1,7 @@
 // What the browser benchmarks share (bench/ui, bench/ui_latency): the repository's root,
 // Playwright's Chromium driver from the frontend's dependencies, Debian's Chromium and its
 // arguments, the checked command line, free ports, the load average printed with every figure.
+import { execFileSync } from "node:child_process";
 import { createRequire } from "node:module";
 import net from "node:net";
 import { loadavg } from "node:os";
@@ -76,4 +77,33 @@ export function loopbackPair(block) {
   const a = (process.pid % 200) + 20;
   const b = block + (process.pid % 50);
   return { serviceHost: `127.${a}.${b}.1`, robotHost: `127.${a}.${b}.2` };
+}
+
+/**
+ * Bytes the service at `host:port` has sent on each of its established TCP connections (Linux
+ * `ss -ti`: bytes_acked, what the peer acknowledged), by the peer's address: what a page
+ * received on the wire, compression and framing included, whatever the browser reports.
+ */
+export function tcpBytesSent(host, port) {
+  const out = execFileSync("ss", ["-tinH", "state", "established", "src", `${host}:${port}`], { encoding: "utf8" });
+  const sent = new Map();
+  let peer = null;
+  for (const line of out.split("\n")) {
+    const fields = line.trim().split(/\s+/);
+    // A connection's line: Recv-Q Send-Q Local Peer (the state is not printed with a filter).
+    if (fields.length >= 4 && /^\d+$/.test(fields[0] ?? "") && /:\d+$/.test(fields[3] ?? "")) {
+      peer = fields[3];
+      continue;
+    }
+    const acked = /bytes_acked:(\d+)/.exec(line);
+    if (acked !== null && peer !== null) sent.set(peer, Number(acked[1]));
+  }
+  return sent;
+}
+
+/** Bytes sent between two `tcpBytesSent` readings, on the connections of the second. */
+export function bytesBetween(before, after) {
+  let total = 0;
+  for (const [peer, bytes] of after) total += bytes - (before.get(peer) ?? 0);
+  return total;
 }

@@ -20,7 +20,7 @@ from cobot_hmi.service.events.bus import EventBus
 from cobot_hmi.service.events.text import FrameWatcher
 from cobot_hmi.service.robots.confirmation import FrameWaiters
 from cobot_hmi.service.robots.frames import FrameNotifier, FrameRecord, Runs
-from cobot_hmi.service.robots.hub import Hub, Kind, StreamClient
+from cobot_hmi.service.robots.hub import Hub, Kind, StreamClient, Subscription
 from cobot_hmi.service.robots.watch import FrameEventWatch
 from cobot_hmi.service.storage.store import (
     AUDIT_COLUMNS,
@@ -170,7 +170,7 @@ class _Sink:
 
 
 def test_stream_client_drops_oldest_frames_never_events() -> None:
-    client = StreamClient(lambda _: asyncio.sleep(0), _noop_abort, None, max_frames=10)
+    client = StreamClient(lambda _: asyncio.sleep(0), _noop_abort, Subscription(), max_frames=10)
     for i in range(5):
         client.offer(Kind.FRAMES, f"frames{i}", 4)
         client.offer(Kind.EVENT, f"event{i}")

@@ -10,10 +10,10 @@
  * coordinator). Everything held is bounded (ring, event list), so memory stays flat over days.
  * Must not import React or any component.
  */
-import { LAYOUT_VERSION, type Frame } from "../generated/layout";
 import { alarmsFromHello, applyAlarm, type Alarm } from "./alarms";
 import { setSiteTimeZone } from "./dates";
 import { connectionHealth, type Health, type SocketState } from "./health";
+import { LAYOUT, LAYOUT_VERSION, type FieldInfo, type Frame } from "../generated/layout";
 import { FLAG_FIELDS, isFlagField } from "./layoutInfo";
 import { ChannelMap, type PlotSpec } from "./plots";
 import type { CellAlarmSummary, ConnectionStatus, ControlStatus, ServerMessage, StreamEvent } from "./protocol";
@@ -49,6 +49,8 @@ export interface LiveSnapshot {
   readonly rate_hz: number | null;
   /** Why the service closed the stream last, if it said so. */
   readonly closeReason: string | null;
+  /** The fields the frames carry (the page's subscription; null: every field). */
+  readonly fields: readonly string[] | null;
   /** The robot's name as the stream's hello gave it (null: before the hello). */
   readonly robot: string | null;
   /** The robot's current alarms (hello, then `alarm` events), most urgent first (lib/alarms.ts). */
@@ -76,6 +78,20 @@ type Listener = () => void;
 
 const FLAG_NAMES = FLAG_FIELDS.map((f) => f.name).filter(isFlagField);
 
+/**
+ * A frame with every field unknown (arrays of nulls, null scalars): what a subscribed frame's
+ * absent fields read as, so a view of a field the page did not ask for shows "—", never its
+ * last value and never a missing array.
+ */
+const BLANK_FRAME: Readonly<Record<string, unknown>> = Object.fromEntries(
+  (LAYOUT.assemblies.find((a) => a.direction === "T2O")?.fields ?? []).map((f: FieldInfo) => [f.name, f.scalar || f.element_names !== undefined ? null : new Array<null>(f.count).fill(null)]),
+);
+
+/** `frame` as received, or, when it carries only some fields, with the others unknown. */
+export function completeFrame(frame: Frame, fields: readonly string[] | null): Frame {
+  return fields === null ? frame : ({ ...BLANK_FRAME, ...frame } as Frame);
+}
+
 /** Whether the robot state or any flag differs between two frames (null: no frame before). */
 export function signalsChanged(before: Frame | null, after: Frame): boolean {
   if (before === null) return true;
@@ -102,6 +118,8 @@ export class LiveData {
   private events: StreamEvent[] = [];
   private layoutMismatch: number | null = null;
   private rate_hz: number | null = null;
+  /** The fields the frames carry (a subscription's; null: every field). */
+  private fields: readonly string[] | null = null;
   private staleSince_ms: number | null = null;
   private closeReason: string | null = null;
   /** A confirmed write's frame (`seq`), published the moment it is here (`showFrame`). */
@@ -198,6 +216,7 @@ export class LiveData {
         this.connection = message.connection;
         this.control = message.control;
         this.rate_hz = message.rate_hz;
+        this.fields = null;
         this.robot = message.robot ?? null;
         // Every time on the page is the plant's (lib/dates.ts), as the service names it.
         setSiteTimeZone(message.time_zone);
@@ -210,7 +229,7 @@ export class LiveData {
         return;
       case "frames": {
         const before = this.frame;
-        for (const stamped of message.frames) this.addFrame(stamped.seq, stamped.t, stamped.frame);
+        for (const stamped of message.frames) this.addFrame(stamped.seq, stamped.t, completeFrame(stamped.frame, this.fields));
         if (this.awaitedSeq !== null && this.lastSeq !== null && this.lastSeq >= this.awaitedSeq) {
           // A confirmed write's frame came: shown at once (`showFrame`).
           this.awaitedSeq = null;
@@ -231,6 +250,14 @@ export class LiveData {
         return;
       case "event":
         this.addEvent(message.event);
+        this.publish();
+        return;
+      case "subscribed":
+        // The frames after it are at this rate (their sequence jumps by design) and carry these
+        // fields only; a field not asked for is not shown as its last value.
+        this.rate_hz = message.rate_hz;
+        this.fields = message.fields ?? null;
+        this.lastSeq = null;
         this.publish();
         return;
     }
@@ -312,6 +339,7 @@ export class LiveData {
       events: this.events,
       layoutMismatch: this.layoutMismatch,
       rate_hz: this.rate_hz,
+      fields: this.fields,
       closeReason: this.closeReason,
       robot: this.robot,
       alarms: this.alarms,

@@ -90,6 +90,10 @@ export function parseServerMessage(text: string): ServerMessage | null {
       return isObject(data.event) && typeof data.event.kind === "string"
         ? (data as unknown as ServerMessage)
         : null;
+    case "subscribed":
+      return (data.fields === null || Array.isArray(data.fields)) && (data.rate_hz === null || typeof data.rate_hz === "number")
+        ? (data as unknown as ServerMessage)
+        : null;
     default:
       return null;
   }

@@ -5,6 +5,8 @@
  * exponential backoff and jitter after any close. A watchdog closes a socket that has been
  * silent for too long (the backend sends a status about once a second), so a half-open TCP
  * connection of a kiosk left running for days does not freeze the display silently.
+ * A page may ask for part of the stream (`subscribe`: the fields it shows, at the rate it draws;
+ * docs/api.md): sent at once when the socket is open, and again on every new socket.
  * Must not import React or any component.
  */
 import { Backoff, DEFAULT_BACKOFF, type BackoffOptions } from "./backoff";
@@ -18,6 +20,24 @@ export interface SocketLike {
   onclose: ((ev: { code?: number; reason?: string }) => void) | null;
   onerror: ((ev: unknown) => void) | null;
   close(code?: number, reason?: string): void;
+  send?(data: string): void;
+}
+
+/** What a page asks of the stream (the `subscribe` message): null fields or rate, all of it. */
+export interface Subscription {
+  readonly fields: readonly string[] | null;
+  readonly rate_hz: number | null;
+}
+
+/** The `subscribe` message of a subscription (null: every field of every frame again). */
+export function subscribeMessage(subscription: Subscription | null): string {
+  return JSON.stringify({ type: "subscribe", fields: subscription?.fields ?? null, rate_hz: subscription?.rate_hz ?? null });
+}
+
+/** Whether two subscriptions ask the same (null: none). */
+export function sameSubscription(a: Subscription | null, b: Subscription | null): boolean {
+  if (a === null || b === null) return a === b;
+  return a.rate_hz === b.rate_hz && (a.fields === null || b.fields === null ? a.fields === b.fields : a.fields.join() === b.fields.join());
 }
 
 export type SocketFactory = (url: string) => SocketLike;
@@ -87,6 +107,9 @@ export class StreamClient {
   private retryTimer: ReturnType<typeof setTimeout> | null = null;
   private silenceTimer: ReturnType<typeof setTimeout> | null = null;
   private running = false;
+  private subscription: Subscription | null = null;
+  /** A socket has been asked for part of the stream: a return to all of it must be said. */
+  private subscribed = false;
   /** This page is ending its own session: the service's 1008 close that follows is expected. */
   private sessionEndExpected = false;
   /** Number of connection attempts after the first. */
@@ -126,6 +149,30 @@ export class StreamClient {
     this.sessionEndExpected = true;
   }
 
+  /**
+   * Ask for the fields a page shows at the rate it draws (null: every field of every frame): on
+   * the open socket now, and on each new one when it opens.
+   */
+  subscribe(subscription: Subscription | null): void {
+    if (sameSubscription(subscription, this.subscription)) return;
+    this.subscription = subscription;
+    this.sendSubscription();
+  }
+
+  private sendSubscription(): void {
+    const socket = this.socket;
+    if (socket === null || socket.send === undefined || !this.open) return;
+    if (this.subscription === null && !this.subscribed) return;
+    try {
+      socket.send(subscribeMessage(this.subscription));
+      this.subscribed = this.subscription !== null;
+    } catch {
+      // closing: the next socket sends it
+    }
+  }
+
+  private open = false;
+
   /** Reconnect now (e.g. after a login, so the new socket carries the session). */
   restart(): void {
     if (!this.running) return;
@@ -146,8 +193,12 @@ export class StreamClient {
       return;
     }
     this.socket = socket;
+    this.open = false;
+    this.subscribed = false;
     socket.onopen = () => {
       if (this.socket !== socket) return;
+      this.open = true;
+      this.sendSubscription();
       this.callbacks.onCloseReason?.(null);
       this.callbacks.onSocketState("open");
       this.armSilence();

@@ -37,6 +37,7 @@ import { CheckoutView } from "./CheckoutView";
 import { CycleView } from "./CycleView";
 import { AuditView, EventsView } from "./EventsView";
 import { IoSection } from "./IoSection";
+import { FoldedPlots, JOINT_LABEL_VARS, PhoneStream, useNarrow } from "./PhoneView";
 import { PresetsView } from "./PresetsView";
 import { RegistersSection } from "./RegistersSection";
 import { RobotSwitcher } from "./RobotSwitcher";
@@ -46,6 +47,7 @@ import { WriteProvider, useWrites } from "./writeContext";
 import "../styles/panel.css";
 import "../styles/print.css";
 import "../styles/readouts.css";
+import "../styles/phone.css";
 
 declare global {
   interface Window {
@@ -117,11 +119,16 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
   const robotNamesKey = robots.map((r) => r.name).join("\n");
   const robotNames = useMemo(() => (robotNamesKey === "" ? [] : robotNamesKey.split("\n")), [robotNamesKey]);
   const model = robots.find((r) => r.name === robot)?.model ?? null;
+  // A phone: plots folded until asked for, the stream only what is in view (PhoneView.tsx).
+  const narrow = useNarrow();
+  const [plotsOpen, setPlotsOpen] = useState(false);
+  const openPlots = useCallback(() => setPlotsOpen(true), []);
 
   return (
     <TagNamesContext.Provider value={tags}>
       <WriteProvider robot={robot} user={user} live={live}>
         <div className="panel" data-testid="panel" data-robot={robot} data-stale={stale ? "true" : "false"}>
+          <PhoneStream runtime={runtime} narrow={narrow} plotsOpen={plotsOpen} />
           <header
             id="panel-header"
             className={`panel-header${menuOpen ? " is-menu-open" : ""}`}
@@ -184,23 +191,27 @@ function Panel({ runtime, robot, robots, onSelect, user, onUser }: PanelProps & 
           <main className={`panel-main${stale ? " is-stale" : ""}`}>
             <section id="joints">
               <h2>Joints</h2>
-              <div className="readouts">
+              <div className="readouts" style={JOINT_LABEL_VARS}>
                 <JointTable stale={stale} />
                 <TcpReadout stale={stale} />
               </div>
-              <div className="plot-grid">
-                {JOINT_PLOTS.map((spec) => (
-                  <LivePlotView key={spec.id} spec={spec} theme={theme} />
-                ))}
-              </div>
+              <FoldedPlots narrow={narrow} open={plotsOpen} onOpen={openPlots} label="Show the plots">
+                <div className="plot-grid">
+                  {JOINT_PLOTS.map((spec) => (
+                    <LivePlotView key={spec.id} spec={spec} theme={theme} />
+                  ))}
+                </div>
+              </FoldedPlots>
             </section>
             <section id="tcp">
               <h2>TCP</h2>
-              <div className="plot-grid">
-                {TCP_PLOTS.map((spec) => (
-                  <LivePlotView key={spec.id} spec={spec} theme={theme} />
-                ))}
-              </div>
+              <FoldedPlots narrow={narrow} open={plotsOpen} onOpen={openPlots} label="Show the plots">
+                <div className="plot-grid">
+                  {TCP_PLOTS.map((spec) => (
+                    <LivePlotView key={spec.id} spec={spec} theme={theme} />
+                  ))}
+                </div>
+              </FoldedPlots>
             </section>
             <section id="custom">
               <h2>Custom plots</h2>

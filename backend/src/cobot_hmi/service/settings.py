@@ -4,7 +4,8 @@
 concern, each in its own room: the robots' connections (here and ``robots.settings``), the web
 service and its limits (``api.settings``, ``api.tls_settings``), directory login
 (``access.directory_settings``), alarms (``alarms.settings``), history
-(``recording.settings``) and cycle timing (``cycles.settings``). The doors above the service
+(``recording.settings``), cycle timing (``cycles.settings``) and the kiosk
+(``kiosk.settings``). The doors above the service
 (the Sparkplug B edge node, the OPC UA server) add theirs in ``cobot_hmi.settings.HmiSettings``,
 the settings of ``cobot-hmi serve``: the service imports neither. Keys stay flat: a field's
 name is its TOML key, ``COBOT_HMI_<NAME>`` its environment variable and ``--name`` its flag
@@ -47,6 +48,7 @@ from cobot_hmi.service.config.fields import (
     setting,
 )
 from cobot_hmi.service.cycles.settings import CycleSettings
+from cobot_hmi.service.kiosk.settings import KioskSettings
 from cobot_hmi.service.recording.settings import HistorySettings
 from cobot_hmi.service.robots.settings import RobotSettings
 
@@ -83,6 +85,7 @@ _INHERITED: Final = {
 
 
 class ServiceSettings(  # each concern's fields; flags and TOML keys list the last base's first
+    KioskSettings,
     CycleSettings,
     HistorySettings,
     AlarmLimitSettings,

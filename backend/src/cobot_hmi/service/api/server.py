@@ -38,8 +38,10 @@ def uvicorn_config(app: Any, settings: ServiceSettings, **overrides: Any) -> uvi
         "host": settings.host,
         "port": settings.port,
         "lifespan": "on",
-        # Compression would be paid per client per message: it defeats serializing once.
-        "ws_per_message_deflate": False,
+        # permessage-deflate (RFC 7692) when the client offers it, as browsers do: a phone's
+        # stream shrinks several times (docs/api.md). Paid per client per message (each has
+        # its own compressor), after the hub has serialized once per group.
+        "ws_per_message_deflate": True,
         "timeout_graceful_shutdown": 3,
         "access_log": False,
         "log_level": "info",

@@ -6,9 +6,11 @@ connection:
 
 - The notifier hands the hub the frames since its last turn (about ``batch_s`` of them: the
   cell's robots share one wake of the loop, ``frames.LoopWake``);
-  ``on_frames`` serializes each frame ONCE, then builds one message per rate group (clients
-  asking the same ``?rate=``) from those pieces and hands the same text to each client of the
-  group. A client's ``offer`` is a deque append: O(1) per client per tick.
+  ``on_frames`` serializes each frame ONCE per set of fields asked for, then builds one
+  message per group (clients asking the same rate and the same fields, by ``?rate=`` or a
+  ``subscribe`` message: ``Subscription``) from those pieces and hands the same text to each
+  client of the group. A client's ``offer`` is a deque append: O(1) per client per tick; a
+  subscription moves its client to another group, it never makes the hub encode per client.
 - ``on_events``: the robot's events (and the cell's), each serialized once, to every client;
   the events a frame caused arrive after it (``robots.watch`` is registered after the hub).
 - Each client has its own bounded queue (in frames) and its own sender task. A slow client's
@@ -43,6 +45,18 @@ QUEUE_FRAMES: Final = 4096
 """Frames the loop may fall behind by before the oldest are lost (~40 s at 10 ms)."""
 
 
+Fields = tuple[str, ...] | None
+"""The frame fields a client asked for, in the layout's order (None: every field)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Subscription:
+    """What a client is sent: the frame fields it shows, at the rate it draws (None: all)."""
+
+    fields: Fields = None
+    rate_hz: float | None = None
+
+
 class Kind(enum.Enum):
     FRAMES = 1
     EVENT = 2
@@ -55,7 +69,7 @@ class StreamClient:
 
     send_text: SendText
     abort: Abort
-    rate_hz: float | None
+    subscription: Subscription
     max_frames: int
     session_id: str | None = None
     client: str = ""
@@ -132,10 +146,12 @@ class StreamClient:
 
 
 class _RateGroup:
-    """Clients that asked for the same rate share one decimation and one message per tick."""
+    """Clients that asked for the same rate and fields share one decimation and one message
+    per tick."""
 
-    def __init__(self, rate_hz: float | None) -> None:
-        self.rate_hz = rate_hz
+    def __init__(self, subscription: Subscription) -> None:
+        self.fields = subscription.fields
+        rate_hz = subscription.rate_hz
         self.period_s = 1.0 / rate_hz if rate_hz else 0.0
         self.next_due: float | None = None
         self.clients: list[StreamClient] = []
@@ -184,7 +200,7 @@ class Hub:
         self.batch_s = batch_s
         self.client_queue_frames = client_queue_frames
         self.stall_timeout_s = stall_timeout_s
-        self._groups: dict[float | None, _RateGroup] = {}
+        self._groups: dict[Subscription, _RateGroup] = {}
         self.clients: set[StreamClient] = set()
         # Counters for /metrics.
         self.stalled_disconnects = 0
@@ -193,7 +209,8 @@ class Hub:
         self.tick_seconds = 0.0
         self._background: set[asyncio.Task[None]] = set()
         self._last_frame: Frame | None = None
-        self._last_frame_json = b""
+        self._last_frame_dict: dict[str, object] = {}
+        self._frame_json_by_fields: dict[Fields, bytes] = {}
 
     # ------------------------------------------------------------ clients
 
@@ -207,20 +224,18 @@ class Hub:
         session_id: str | None = None,
         client: str = "",
     ) -> StreamClient:
-        """Register a client, queue its hello first and start its sender."""
+        """Register a client (every field at ``rate_hz``, until it subscribes), queue its hello
+        first and start its sender."""
         stream_client = StreamClient(
             send_text,
             abort,
-            rate_hz,
+            Subscription(None, rate_hz),
             self.client_queue_frames,
             session_id=session_id,
             client=client,
         )
         stream_client.offer(Kind.EVENT, dumps(hello).decode())
-        group = self._groups.get(rate_hz)
-        if group is None:
-            group = self._groups[rate_hz] = _RateGroup(rate_hz)
-        group.clients.append(stream_client)
+        self._join(stream_client)
         self.clients.add(stream_client)
         stream_client.task = asyncio.create_task(stream_client.run(), name=f"ws-send {client}")
         return stream_client
@@ -232,16 +247,43 @@ class Hub:
         self.clients.discard(stream_client)
         self.dropped_frames_closed_clients += stream_client.dropped_total
         self.frames_sent_closed_clients += stream_client.frames_sent
-        group = self._groups.get(stream_client.rate_hz)
-        if group is not None:
-            group.clients.remove(stream_client)
-            if not group.clients:
-                del self._groups[stream_client.rate_hz]
+        self._leave(stream_client)
         task = stream_client.task
         if task is not None:
             task.cancel()
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await task
+
+    def subscribe(self, stream_client: StreamClient, subscription: Subscription) -> None:
+        """Send ``stream_client`` what ``subscription`` asks from the next tick on: it moves
+        to that group (made if no other client asked the same), after a ``subscribed`` message
+        saying so, so the frames it is sent after that message are the new ones."""
+        if stream_client not in self.clients:
+            return
+        self._leave(stream_client)
+        stream_client.subscription = subscription
+        self._join(stream_client)
+        fields = None if subscription.fields is None else list(subscription.fields)
+        ack = {"type": "subscribed", "fields": fields, "rate_hz": subscription.rate_hz}
+        stream_client.offer(Kind.EVENT, dumps(ack).decode())
+
+    def _join(self, stream_client: StreamClient) -> None:
+        group = self._groups.get(stream_client.subscription)
+        if group is None:
+            group = self._groups[stream_client.subscription] = _RateGroup(
+                stream_client.subscription
+            )
+        group.clients.append(stream_client)
+
+    def _leave(self, stream_client: StreamClient) -> None:
+        group = self._groups.get(stream_client.subscription)
+        if group is None:
+            return
+        group.clients.remove(stream_client)
+        if not group.clients:
+            del self._groups[stream_client.subscription]
+            if all(g.fields != group.fields for g in self._groups.values()):
+                self._frame_json_by_fields.pop(group.fields, None)
 
     async def close(self) -> None:
         """Stop every client's sender and finish pending disconnects."""
@@ -277,14 +319,18 @@ class Hub:
             stream_client.offer(Kind.STATUS, text)
 
     def on_frames(self, robot: str, records: Sequence[FrameRecord]) -> None:
-        """One broadcast: serialize each frame once, one message per rate group, stalls."""
+        """One broadcast: serialize each frame once per set of fields, one message per group,
+        stalls."""
         started = time.perf_counter()
         if self._groups:
-            pieces: list[bytes | None] = [None] * len(records)
+            pieces_by_fields: dict[Fields, list[bytes | None]] = {}
             for group in self._groups.values():
                 chosen = group.select(records)
                 if not chosen:
                     continue
+                pieces = pieces_by_fields.get(group.fields)
+                if pieces is None:
+                    pieces = pieces_by_fields[group.fields] = [None] * len(records)
                 for i in chosen:
                     if pieces[i] is None:
                         seq, t, frame, wire, _ = records[i]
@@ -297,7 +343,7 @@ class Hub:
                                 b',"t2o_sequence":',
                                 str(wire).encode(),
                                 b',"frame":',
-                                self._frame_json(frame),
+                                self._frame_json(frame, group.fields),
                                 b"}",
                             )
                         )
@@ -308,14 +354,28 @@ class Hub:
         self._check_stalls()
         self.tick_seconds += time.perf_counter() - started
 
-    def _frame_json(self, frame: Frame) -> bytes:
-        """The frame's JSON, once per frame object: the originator hands on the same immutable
-        ``Frame`` while the robot's bytes do not change (a robot refreshes its monitoring values
-        about every 100 ms, whatever the RPI), so most frames at short RPIs cost no encoding."""
+    def _frame_json(self, frame: Frame, fields: Fields) -> bytes:
+        """The frame's JSON (only ``fields`` of it), once per frame object and set of fields:
+        the originator hands on the same immutable ``Frame`` while the robot's bytes do not
+        change (a robot refreshes its monitoring values about every 100 ms, whatever the RPI),
+        so most frames at short RPIs cost no encoding."""
         if frame is not self._last_frame:
             self._last_frame = frame
-            self._last_frame_json = dumps(frame_to_json(frame))
-        return self._last_frame_json
+            self._last_frame_dict = frame_to_json(frame)
+            self._frame_json_by_fields.clear()
+        text = self._frame_json_by_fields.get(fields)
+        if text is None:
+            data = self._last_frame_dict
+            if fields is not None:
+                # A field's words go with it (robot_state_name with robot_state).
+                data = {
+                    key: data[key]
+                    for name in fields
+                    for key in (name, f"{name}_name")
+                    if key in data
+                }
+            text = self._frame_json_by_fields[fields] = dumps(data)
+        return text
 
     def _check_stalls(self) -> None:
         now = time.monotonic()

@@ -129,6 +129,9 @@ if TYPE_CHECKING:  # mypy sees plain models; at run time they are built from the
     class Frame(BaseModel):
         robot_state: int
 
+    class SubscribedFrame(BaseModel):
+        pass
+
     class CommandImage(BaseModel):
         pass
 
@@ -145,6 +148,16 @@ else:
             Annotated[str, StringConstraints(pattern="^(?:[0-9a-f]{2})*$")] | None,
             Field(default=None, description="bytes past the layout's size, hex (rare)"),
         ),
+    )
+    SubscribedFrame = create_model(
+        "SubscribedFrame",
+        __doc__="The fields of a frame a client's subscription asked for (WebSocket "
+        "`subscribe`): each as in Frame, the others absent.",
+        __config__=_STRICT,
+        **{
+            name: (annotation | None, Field(default=None, description=info.description))
+            for name, (annotation, info) in _assembly_fields(T2O_ASSEMBLY).items()
+        },
     )
     CommandImage = create_model(
         "CommandImage",

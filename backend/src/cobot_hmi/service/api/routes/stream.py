@@ -5,7 +5,12 @@ first robot's.
 The handshake may carry the session (cookie, bearer header, or ``?token=``); control of the
 robot held by that session ends when its last stream to that robot closes. A refusal after the
 handshake is a close with an application code: 4400 (bad ``rate``), 4401 (login required) or
-4404 (unknown robot, the known ones named), the reason in the close. When the session ends
+4404 (unknown robot, the known ones named), the reason in the close.
+
+A client may send ``subscribe`` messages (``service.api.models.SubscribeMessage``): the frame
+fields it shows and the rate it draws at; the frames after the service's ``subscribed`` answer
+carry only those fields at that rate (``robots.hub``). A bad one is a close with 4400 and the
+reason. When the session ends
 while the stream is open (logout, expiry, its user removed or given another role, its API
 token revoked), the stream is closed at once with 1008 (policy violation, RFC 6455 §7.4.1)
 and the reason: it must not go on showing what the session may no longer see.
@@ -21,10 +26,14 @@ from collections.abc import Callable
 from typing import Any, Final
 
 from fastapi import APIRouter, WebSocket
+from pydantic import ValidationError
 from starlette.types import ASGIApp, Receive, Scope, Send
 
+from cobot_hmi.layout import T2O_FIELDS
 from cobot_hmi.service.api.deps import client_address, get_service, session_token
+from cobot_hmi.service.api.models.stream import SUBSCRIBE_MESSAGE
 from cobot_hmi.service.errors import UnknownRobotError
+from cobot_hmi.service.robots.hub import Hub, StreamClient, Subscription
 
 router = APIRouter()
 
@@ -84,6 +93,32 @@ def close_reason(text: str) -> str:
     return text.encode()[:CLOSE_REASON_BYTES].decode(errors="ignore")
 
 
+FIELD_ORDER: Final = {f.name: i for i, f in enumerate(T2O_FIELDS)}
+
+
+class BadSubscriptionError(ValueError):
+    """A ``subscribe`` message that is no subscription: the client is told why in the close."""
+
+
+def parse_subscription(text: str | bytes) -> Subscription:
+    """A client's ``subscribe`` message as the hub's ``Subscription`` (its fields in the
+    layout's order, so two clients asking the same fields in another order share a group)."""
+    try:
+        message = SUBSCRIBE_MESSAGE.validate_json(text)
+    except ValidationError as error:
+        first = error.errors()[0]
+        where = ".".join(str(p) for p in first["loc"])
+        raise BadSubscriptionError(f"bad subscribe message: {where}: {first['msg']}") from None
+    if message.fields is None:
+        return Subscription(None, message.rate_hz)
+    unknown = sorted(set(message.fields) - FIELD_ORDER.keys())
+    if unknown:
+        raise BadSubscriptionError(f"bad subscribe message: unknown fields {', '.join(unknown)}")
+    return Subscription(
+        tuple(sorted(set(message.fields), key=FIELD_ORDER.__getitem__)), message.rate_hz
+    )
+
+
 def _parse_rate(text: str | None) -> float | None:
     if text is None or text == "":
         return None
@@ -139,6 +174,7 @@ async def _stream(websocket: WebSocket, name: str | None) -> None:
     hello["session"] = session.id if session is not None else None
     hello["alarms"] = robot.alarms.current()  # the banner from the first message on
     hello["cell_alarms"] = service.cell_alarms()  # the other robots' too (then each status)
+    hello["kiosk"] = service.settings.kiosk_hello()  # a kiosk's plot window and shifts
     client = robot.hub.add_client(
         websocket.send_text,
         abort,
@@ -155,7 +191,9 @@ async def _stream(websocket: WebSocket, name: str | None) -> None:
             ended.set_result(reason)
 
     unwatch = service.sessions.watch(session, session_ended) if session is not None else None
-    reading = asyncio.create_task(_read_until_disconnect(websocket), name="stream-read")
+    reading = asyncio.create_task(
+        _read_subscriptions(websocket, robot.hub, client), name="stream-read"
+    )
     waiting: list[asyncio.Future[Any]] = [reading, ended]
     try:
         await asyncio.wait(waiting, return_when=asyncio.FIRST_COMPLETED)
@@ -179,10 +217,20 @@ async def _stream(websocket: WebSocket, name: str | None) -> None:
         service.websocket_closed(session, robot)
 
 
-async def _read_until_disconnect(websocket: WebSocket) -> None:
-    """Client messages carry nothing yet; they are read (and dropped) so the connection's
-    receive side never backs up."""
+async def _read_subscriptions(websocket: WebSocket, hub: Hub, client: StreamClient) -> None:
+    """The client's ``subscribe`` messages until it disconnects; a bad one closes the stream
+    with 4400 and why (the client's frames stop before the close)."""
     while True:
         message = await websocket.receive()
         if message["type"] == "websocket.disconnect":
             return
+        data = message.get("text") or message.get("bytes") or b""
+        try:
+            subscription = parse_subscription(data)
+        except BadSubscriptionError as error:
+            await hub.remove_client(client)
+            with contextlib.suppress(Exception):
+                async with asyncio.timeout(1.0):
+                    await websocket.close(CLOSE_BAD_REQUEST, close_reason(str(error)))
+            return
+        hub.subscribe(client, subscription)
