@@ -114,6 +114,77 @@ class _Alarm:
     condition: Condition | None
 
 
+def _builtin_alarms(
+    motor_temperature_c: float, motor_temperature_deadband_c: float, gap_rate_per_min: float
+) -> list[_Alarm]:
+    """The built-in alarms, each with the condition the frames are checked against (none for
+    the connection's and the recording's, which other parts raise)."""
+    definitions = d.builtin_definitions(
+        motor_temperature_c=motor_temperature_c, gap_rate_per_min=gap_rate_per_min
+    )
+    conditions: dict[str, Condition] = {
+        d.EMERGENCY_STOP: StateCondition(
+            _STATE_VALUES["EMERGENCY_STOP"], "EMERGENCY_STOP", "emergency_stopped"
+        ),
+        d.PROTECTIVE_STOP: StateCondition(
+            _STATE_VALUES["INTERRUPTED"], "INTERRUPTED", "safety_stopped"
+        ),
+        d.SAFE_OFF: StateCondition(_STATE_VALUES["SAFE_OFF"], "SAFE_OFF"),
+    }
+    alarms = []
+    for definition in definitions:
+        condition = conditions.get(definition.key)
+        if condition is None and definition.kind == "limit" and definition.element:
+            field, _, index = definition.element.partition(".")
+            condition = LimitCondition(
+                definition.element,
+                field,
+                int(index),
+                high=definition.high,
+                low=None,
+                deadband=motor_temperature_deadband_c,
+            )
+        alarms.append(_Alarm(definition, AlarmStatus(), condition))
+    return alarms
+
+
+def _user_alarm(user: UserAlarm) -> _Alarm:
+    """A user's alarm on a bit (its state) or a value (its limits), with its delays."""
+    active_when = True if user.active_when is None else user.active_when
+    definition = d.user_definition(
+        user.name,
+        user.element,
+        priority=user.priority,
+        message=user.message,
+        high=user.high,
+        low=user.low,
+        bit=user.bit,
+        active_when=active_when,
+    )
+    condition: ElementCondition
+    if user.bit:
+        condition = BitCondition(
+            user.element,
+            user.field,
+            user.index,
+            active_when=active_when,
+            on_delay_s=user.on_delay_s,
+            off_delay_s=user.off_delay_s,
+        )
+    else:
+        condition = LimitCondition(
+            user.element,
+            user.field,
+            user.index,
+            high=user.high,
+            low=user.low,
+            deadband=user.deadband,
+            on_delay_s=user.on_delay_s,
+            off_delay_s=user.off_delay_s,
+        )
+    return _Alarm(definition, AlarmStatus(), condition)
+
+
 class AlarmEngine:
     """The alarms of the robot called ``robot`` (see the module docstring)."""
 
@@ -151,71 +222,12 @@ class AlarmEngine:
         self._tags = tags
         self._clock = clock
         self.alarms: dict[str, _Alarm] = {}
-        frame_checks: list[tuple[_Alarm, Condition]] = []
-        definitions = d.builtin_definitions(
-            motor_temperature_c=motor_temperature_c, gap_rate_per_min=gap_rate_per_min
+        alarms = _builtin_alarms(
+            motor_temperature_c, motor_temperature_deadband_c, gap_rate_per_min
         )
-        conditions: dict[str, Condition] = {
-            d.EMERGENCY_STOP: StateCondition(
-                _STATE_VALUES["EMERGENCY_STOP"], "EMERGENCY_STOP", "emergency_stopped"
-            ),
-            d.PROTECTIVE_STOP: StateCondition(
-                _STATE_VALUES["INTERRUPTED"], "INTERRUPTED", "safety_stopped"
-            ),
-            d.SAFE_OFF: StateCondition(_STATE_VALUES["SAFE_OFF"], "SAFE_OFF"),
-        }
-        for definition in definitions:
-            condition = conditions.get(definition.key)
-            if condition is None and definition.kind == "limit" and definition.element:
-                field, _, index = definition.element.partition(".")
-                condition = LimitCondition(
-                    definition.element,
-                    field,
-                    int(index),
-                    high=definition.high,
-                    low=None,
-                    deadband=motor_temperature_deadband_c,
-                )
-            alarm = _Alarm(definition, AlarmStatus(), condition)
-            self.alarms[definition.key] = alarm
-            if condition is not None:
-                frame_checks.append((alarm, condition))
-        for user in user_alarms:
-            bit = user.bit
-            definition = d.user_definition(
-                user.name,
-                user.element,
-                priority=user.priority,
-                message=user.message,
-                high=user.high,
-                low=user.low,
-                bit=bit,
-                active_when=True if user.active_when is None else user.active_when,
-            )
-            element_condition: ElementCondition
-            if bit:
-                element_condition = BitCondition(
-                    user.element,
-                    user.field,
-                    user.index,
-                    active_when=True if user.active_when is None else user.active_when,
-                    on_delay_s=user.on_delay_s,
-                    off_delay_s=user.off_delay_s,
-                )
-            else:
-                element_condition = LimitCondition(
-                    user.element,
-                    user.field,
-                    user.index,
-                    high=user.high,
-                    low=user.low,
-                    deadband=user.deadband,
-                    on_delay_s=user.on_delay_s,
-                    off_delay_s=user.off_delay_s,
-                )
-            alarm = _Alarm(definition, AlarmStatus(), element_condition)
-            self.alarms[definition.key] = alarm
-            frame_checks.append((alarm, element_condition))
+        alarms += [_user_alarm(user) for user in user_alarms]
+        self.alarms = {alarm.definition.key: alarm for alarm in alarms}
+        frame_checks = [(a, a.condition) for a in alarms if a.condition is not None]
         self._frame_checks: tuple[tuple[_Alarm, Condition], ...] = tuple(frame_checks)
         self._frame_conditions: tuple[Condition, ...] = tuple(c for _, c in frame_checks)
         self._failed = False
