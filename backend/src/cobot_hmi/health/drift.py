@@ -44,7 +44,7 @@ class CycleTimeDrift:
 
     @property
     def detected(self) -> bool:
-        return self.high >= self.h or self.low >= self.h
+        return bool(self.high >= self.h or self.low >= self.h)
 
     @property
     def change_percent(self) -> float | None:

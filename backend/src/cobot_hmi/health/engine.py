@@ -127,6 +127,7 @@ class HealthEngine:
     def end_cycle(self, start_s: float, end_s: float, interrupted: bool = False) -> None:
         """A cycle ended (the cycle meter's ``Cycle``): its frames are those observed from
         ``start_s`` to ``end_s``."""
+        start_s, end_s = float(start_s), float(end_s)  # a numpy scalar would leak into figures
         if not (math.isfinite(start_s) and math.isfinite(end_s) and end_s > start_s):
             raise ValueError(f"a cycle must end after it starts (from {start_s} to {end_s})")
         pending = FrameBlock.concatenate(self._pending) if self._pending else None

@@ -129,7 +129,7 @@ def _cycle_time(drift: CycleTimeDrift | None) -> dict[str, object]:
         "baseline_s": _round(drift.mean_s, 3),
         "recent_s": _round(drift.recent_s, 3),
         "change_percent": _round(change),
-        "drift_detected": drift.detected,
+        "drift_detected": bool(drift.detected),
         "detected_at": drift.detected_at_s,
         "cycles": drift.cycles,
     }
