@@ -16,7 +16,7 @@ import asyncio
 import contextlib
 import logging
 import time
-from collections.abc import Coroutine
+from collections.abc import Callable, Coroutine, Mapping
 from dataclasses import dataclass
 from typing import Any, Final
 
@@ -27,7 +27,7 @@ from cobot_hmi.scanner.originator import ConnectionState, ConnectionStats
 from cobot_hmi.scanner.session import EnipSession, SessionError
 from cobot_hmi.scanner.t2o_pace import SlowTarget
 from cobot_hmi.service.alarms.engine import TICK_S, AlarmEngine, UserAlarm
-from cobot_hmi.service.alarms.persistence import AlarmStore
+from cobot_hmi.service.alarms.persistence import AlarmChange, AlarmStore
 from cobot_hmi.service.api import models
 from cobot_hmi.service.config.plant_time import PLANT_ZONE
 from cobot_hmi.service.events.bus import EventBus
@@ -95,6 +95,40 @@ async def read_identity(
         await session.close()
 
 
+def _alarm_engine(
+    robot: str,
+    service_settings: ServiceSettings,
+    *,
+    publish: Callable[[Event], None],
+    persist: Callable[[AlarmChange], None],
+    tags: Callable[[], Mapping[str, str]],
+) -> AlarmEngine:
+    """The robot's alarm engine with the service's alarm settings and the user alarms of this
+    robot (or of every robot)."""
+    return AlarmEngine(
+        robot,
+        motor_temperature_c=service_settings.alarm_motor_temperature_c,
+        motor_temperature_deadband_c=service_settings.alarm_motor_temperature_deadband_c,
+        gap_rate_per_min=service_settings.alarm_gap_rate_per_min,
+        connection_delay_s=service_settings.alarm_connection_delay_s,
+        shelve_max_s=service_settings.alarm_shelve_max_s,
+        shelve_max_by_priority_s={
+            "high": service_settings.alarm_shelve_max_high_s,
+            "medium": service_settings.alarm_shelve_max_medium_s,
+            "low": service_settings.alarm_shelve_max_low_s,
+        },
+        consequence_window_s=service_settings.alarm_consequence_window_s,
+        user_alarms=tuple(
+            UserAlarm(**alarm.model_dump(exclude={"robot"}))
+            for alarm in service_settings.alarms
+            if alarm.robot in (None, robot)
+        ),
+        publish=publish,
+        persist=persist,
+        tags=tags,
+    )
+
+
 class RobotRuntime:
     """One robot: connection handle, hub, control, write counters, identity."""
 
@@ -144,24 +178,9 @@ class RobotRuntime:
         self.tags = TagBook(self.name)
         """The robot's tag names (``service.storage.tags``), loaded by ``open_state``."""
         self.alarm_store = AlarmStore(store)
-        self.alarms = AlarmEngine(
+        self.alarms = _alarm_engine(
             self.name,
-            motor_temperature_c=service_settings.alarm_motor_temperature_c,
-            motor_temperature_deadband_c=service_settings.alarm_motor_temperature_deadband_c,
-            gap_rate_per_min=service_settings.alarm_gap_rate_per_min,
-            connection_delay_s=service_settings.alarm_connection_delay_s,
-            shelve_max_s=service_settings.alarm_shelve_max_s,
-            shelve_max_by_priority_s={
-                "high": service_settings.alarm_shelve_max_high_s,
-                "medium": service_settings.alarm_shelve_max_medium_s,
-                "low": service_settings.alarm_shelve_max_low_s,
-            },
-            consequence_window_s=service_settings.alarm_consequence_window_s,
-            user_alarms=tuple(
-                UserAlarm(**alarm.model_dump(exclude={"robot"}))
-                for alarm in service_settings.alarms
-                if alarm.robot in (None, self.name)
-            ),
+            service_settings,
             publish=self.publish_event,
             persist=self.alarm_store.submit,
             tags=lambda: self.tags.names,
