@@ -25,6 +25,7 @@ VERB_MODULES = (
     "cobot_hmi.cli.health_verb",
     "cobot_hmi.cli.history_verbs",
     "cobot_hmi.cli.openapi_verb",
+    "cobot_hmi.cli.plant_verb",
     "cobot_hmi.cli.scanner_verbs",
     "cobot_hmi.cli.service_verbs",
 )

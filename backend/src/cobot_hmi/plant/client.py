@@ -1,0 +1,175 @@
+"""Layer: plant (a door above the service). The host application's MQTT connection: paho-mqtt on
+a thread of its own, over one or more broker URLs (a cluster's nodes, or a broker and its
+standby): the first that answers; when it goes away, the next, in turn.
+
+On each connection (Sparkplug 3.0, "Host Applications"): the will is the host's STATE
+``{"online": false, "timestamp": T}`` (retained, QoS 1); once connected it subscribes (QoS 1) to
+its own STATE topic and the Sparkplug namespace of its groups, then publishes STATE
+``{"online": true, "timestamp": T}`` (retained, QoS 1), T the same in both: a will left from an
+older connection never clears a newer birth. On a clean stop it publishes the offline STATE
+itself, then disconnects. MQTT 3.1.1, clean session.
+
+Imports ``sparkplug.mqtt_client`` (the client's making, addresses, backoff) and the host's STATE.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+from typing import Any, Final
+
+import paho.mqtt.client as mqtt
+
+from cobot_hmi.plant.host import state_payload, state_topic
+from cobot_hmi.sparkplug.mqtt_client import ClientOptions, ReconnectBackoff, make_client
+
+log = logging.getLogger(__name__)
+
+KEEPALIVE_S: Final = 10
+"""Short: a broker node that dies without closing its sockets is noticed in 1.5 × this."""
+CONNECT_TIMEOUT_S: Final = 3.0
+
+MessageHandler = Callable[[str, bytes], None]
+"""Called on the client's thread with each message's topic and payload."""
+ConnectedHandler = Callable[[str], None]
+"""Called on the client's thread with the broker's URL after each CONNACK."""
+
+
+class FailoverClient:
+    """One connection at a time to the first of ``options`` (one per broker URL) that answers."""
+
+    def __init__(
+        self,
+        options: Sequence[ClientOptions],
+        host_id: str,
+        subscriptions: Sequence[str],
+        on_message: MessageHandler,
+        on_connected: ConnectedHandler,
+    ) -> None:
+        if not options:
+            raise ValueError("the plant needs at least one broker URL")
+        self._options = list(options)
+        self._host_id = host_id
+        self._subscriptions = list(subscriptions)
+        self._on_message = on_message
+        self._on_connected = on_connected
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._client: mqtt.Client | None = None
+        self._lock = threading.Lock()
+        self._backoff = ReconnectBackoff()
+        self.connected_url: str | None = None
+        self.connections = 0
+        self.connections_lost = 0
+        self.state_timestamp_ms = 0
+
+    def start(self) -> None:
+        self._thread = threading.Thread(target=self._run, name="plant-mqtt", daemon=True)
+        self._thread.start()
+
+    def stop(self) -> None:
+        """The offline STATE published (QoS 1, waited for briefly), then disconnect."""
+        self._stop.set()
+        with self._lock:
+            client = self._client
+        if client is not None and self.connected_url is not None:
+            info = client.publish(
+                state_topic(self._host_id),
+                state_payload(False, self.state_timestamp_ms),
+                qos=1,
+                retain=True,
+            )
+            deadline = time.monotonic() + 2.0
+            while not info.is_published() and time.monotonic() < deadline:
+                time.sleep(0.02)
+            client.disconnect()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+
+    def publish(self, topic: str, payload: bytes, qos: int = 0, retain: bool = False) -> bool:
+        """Queue a message on the current connection; ``False`` when there is none."""
+        with self._lock:
+            client = self._client
+        if client is None or self.connected_url is None:
+            return False
+        return client.publish(topic, payload, qos=qos, retain=retain).rc == mqtt.MQTT_ERR_SUCCESS
+
+    # ------------------------------------------------------------ the thread
+
+    def _run(self) -> None:
+        """Each URL in turn: a connection that ends moves on to the next at once; after a round
+        in which none answered, the backoff's wait."""
+        index = failed_in_a_row = 0
+        count = len(self._options)
+        while not self._stop.is_set():
+            options = self._options[index % count]
+            index += 1
+            if self._session(options):
+                self.connections_lost += 0 if self._stop.is_set() else 1
+                self._backoff.connected()
+                failed_in_a_row = 0
+                continue
+            failed_in_a_row += 1
+            if failed_in_a_row % count == 0:
+                self._stop.wait(self._backoff.next_delay_s())
+
+    def _session(self, options: ClientOptions) -> bool:
+        """One connection to one broker until it ends; whether it was ever established."""
+        client_id = f"{options.client_id}-{int(time.time() * 1000) % 100000}"
+        client = make_client(replace(options, client_id=client_id))
+        self.state_timestamp_ms = int(time.time() * 1000)
+        client.will_set(
+            state_topic(self._host_id),
+            state_payload(False, self.state_timestamp_ms),
+            qos=1,
+            retain=True,
+        )
+        established = threading.Event()
+        client.on_connect = lambda c, _u, _f, reason, _p: self._connected(c, reason, established)
+        client.on_message = lambda _c, _u, message: self._on_message(
+            message.topic, bytes(message.payload)
+        )
+        address = options.address
+        try:
+            client.connect(address.host, address.port, keepalive=KEEPALIVE_S)
+        except (OSError, ValueError) as error:
+            log.info("plant: broker %s not reachable: %s", address, error)
+            return False
+        with self._lock:
+            self._client = client
+        deadline = time.monotonic() + CONNECT_TIMEOUT_S
+        try:
+            while not self._stop.is_set():
+                if client.loop(timeout=0.2) != mqtt.MQTT_ERR_SUCCESS:
+                    break
+                if not established.is_set() and time.monotonic() > deadline:
+                    break
+        finally:
+            with self._lock:
+                self._client = None
+            self.connected_url = None
+            if not self._stop.is_set():
+                client.disconnect()
+                log.warning("plant: connection to %s ended; trying the next broker", address)
+        return established.is_set()
+
+    def _connected(self, client: mqtt.Client, reason: Any, established: threading.Event) -> None:
+        if reason.is_failure:
+            log.warning("plant: broker refused the connection: %s", reason)
+            return
+        for topic_filter in self._subscriptions:
+            client.subscribe(topic_filter, qos=1)
+        client.publish(
+            state_topic(self._host_id),
+            state_payload(True, self.state_timestamp_ms),
+            qos=1,
+            retain=True,
+        )
+        self.connections += 1
+        url = str(client.host) + ":" + str(client.port)
+        self.connected_url = url
+        established.set()
+        self._on_connected(url)

@@ -1,0 +1,265 @@
+"""Layer: plant (a door above the service). The plant's REST API, ``/api/v1/plant/...``
+(docs/api.md "The plant"): every edge node and device at a glance, the plant's alarm list with
+ISA-18.2 figures per cell, a metric's trend from the history, the connection's status. Reading
+is open unless ``view_requires_login`` (the service's viewer gate); the answers' models are
+here, in the plant app's own OpenAPI document.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+from typing import Annotated, Final
+
+from fastapi import APIRouter, Query, Request
+from pydantic import BaseModel
+
+from cobot_hmi.plant.model import (
+    AREA_METRIC,
+    CYCLE_AVERAGE,
+    CYCLE_LAST,
+    HMI_URL_METRIC,
+    DeviceView,
+    NodeView,
+    alarm_figures,
+    state_group,
+)
+from cobot_hmi.plant.recorder import MetricKey
+from cobot_hmi.plant.runtime import PlantRuntime
+from cobot_hmi.service.api.deps import ViewerDep
+
+router = APIRouter(prefix="/api/v1/plant", tags=["plant"])
+
+MAX_ALARMS: Final = 5000
+DAY_MS: Final = 86_400_000
+
+
+class ActiveAlarmModel(BaseModel):
+    alarm: str
+    priority: str
+    text: str
+    since: float
+    """Epoch seconds."""
+
+
+class DeviceModel(BaseModel):
+    device: str
+    online: bool
+    since: float
+    state: str | None
+    state_group: str | None
+    """running, standby, stopped or error."""
+    alarms_active: list[ActiveAlarmModel]
+    cycle_last_s: float | None
+    cycle_average_s: float | None
+    health: dict[str, str]
+
+
+class NodeModel(BaseModel):
+    group: str
+    node: str
+    online: bool
+    since: float
+    bd_seq: int | None
+    hmi_url: str | None
+    area: str | None
+    devices: list[DeviceModel]
+
+
+class AlarmTransitionModel(BaseModel):
+    time: float
+    group: str
+    node: str
+    device: str
+    alarm: str
+    active: bool
+    priority: str
+    text: str
+    historical: bool
+
+
+class CellFiguresModel(BaseModel):
+    group: str
+    node: str
+    alarms_per_10_min: float
+    flood: bool
+    peak_per_10_min: int
+    bad_actors: list[tuple[str, str, int]]
+    """(device, alarm, activations), the ten most frequent."""
+
+
+class AlarmsAnswer(BaseModel):
+    transitions: list[AlarmTransitionModel]
+    """Newest first."""
+    figures: list[CellFiguresModel]
+
+
+class TrendPoint(BaseModel):
+    time: float
+    value: float | None
+    text: str | None
+    historical: bool
+
+
+class StatusAnswer(BaseModel):
+    host_id: str
+    broker: str | None
+    connections: int
+    connections_lost: int
+    messages: int
+    rebirths: dict[str, int]
+    rebirths_held: int
+    stale_deaths: int
+    bad_messages: int
+    history_rows: int
+
+
+def _runtime(request: Request) -> PlantRuntime:
+    runtime: PlantRuntime = request.app.state.service
+    return runtime
+
+
+def _number(value: object) -> float | None:
+    return float(value) if isinstance(value, int | float) and not isinstance(value, bool) else None
+
+
+def _device(view: DeviceView) -> DeviceModel:
+    state = view.state()
+    return DeviceModel(
+        device=view.name,
+        online=view.online,
+        since=view.since_ms / 1000,
+        state=state,
+        state_group=state_group(state),
+        alarms_active=[
+            ActiveAlarmModel(
+                alarm=a.alarm, priority=a.priority, text=a.text, since=a.since_ms / 1000
+            )
+            for a in view.alarms_active()
+        ],
+        cycle_last_s=_number(view.value(CYCLE_LAST)),
+        cycle_average_s=_number(view.value(CYCLE_AVERAGE)),
+        health=view.health(),
+    )
+
+
+def _node(view: NodeView, devices: list[DeviceModel]) -> NodeModel:
+    return NodeModel(
+        group=view.group,
+        node=view.node,
+        online=view.online,
+        since=view.since_ms / 1000,
+        bd_seq=view.bd_seq,
+        hmi_url=view.text(HMI_URL_METRIC),
+        area=view.text(AREA_METRIC),
+        devices=devices,
+    )
+
+
+@router.get("/nodes", summary="Every edge node seen, with its devices (robots)")
+async def nodes(
+    request: Request,
+    _viewer: ViewerDep,
+    area: Annotated[str | None, Query(description="only nodes of this area")] = None,
+    state: Annotated[
+        str | None, Query(description="only devices in this state group or state")
+    ] = None,
+    group: Annotated[str | None, Query(description="only this Sparkplug group")] = None,
+) -> list[NodeModel]:
+    answer = []
+    for (node_group, _), view in sorted(_runtime(request).host.nodes.items()):
+        if (group is not None and node_group != group) or (
+            area is not None and view.text(AREA_METRIC) != area
+        ):
+            continue
+        devices = [_device(d) for _, d in sorted(view.devices.items())]
+        if state is not None:
+            devices = [d for d in devices if state in (d.state, d.state_group)]
+            if not devices:
+                continue
+        answer.append(_node(view, devices))
+    return answer
+
+
+@router.get("/alarms", summary="The plant's alarm transitions and ISA-18.2 figures per cell")
+async def alarms(
+    request: Request,
+    _viewer: ViewerDep,
+    since: Annotated[float | None, Query(description="epoch s (default: a day ago)")] = None,
+    until: Annotated[float | None, Query(description="epoch s (default: now)")] = None,
+    limit: Annotated[int, Query(ge=1, le=MAX_ALARMS)] = 500,
+) -> AlarmsAnswer:
+    end_ms = int((until if until is not None else time.time()) * 1000)
+    start_ms = int(since * 1000) if since is not None else end_ms - DAY_MS
+    transitions = _runtime(request).host.alarms.between(start_ms, end_ms)
+    figures = alarm_figures(transitions, start_ms, end_ms)
+    return AlarmsAnswer(
+        transitions=[
+            AlarmTransitionModel(
+                time=t.time_ms / 1000,
+                group=t.group,
+                node=t.node,
+                device=t.device,
+                alarm=t.alarm,
+                active=t.active,
+                priority=t.priority,
+                text=t.text,
+                historical=t.historical,
+            )
+            for t in reversed(transitions[-limit:])
+        ],
+        figures=[
+            CellFiguresModel(
+                group=f.group,
+                node=f.node,
+                alarms_per_10_min=f.alarms_per_10_min,
+                flood=f.flood,
+                peak_per_10_min=f.peak_per_10_min,
+                bad_actors=f.bad_actors,
+            )
+            for f in figures
+        ],
+    )
+
+
+@router.get("/trend", summary="One metric of one device over a range, from the plant's history")
+async def trend(
+    request: Request,
+    _viewer: ViewerDep,
+    *,
+    group: str,
+    node: str,
+    metric: str,
+    since: Annotated[float, Query(description="epoch s")],
+    until: Annotated[float | None, Query(description="epoch s (default: now)")] = None,
+    device: Annotated[str, Query(description="empty: the node's own metric")] = "",
+) -> list[TrendPoint]:
+    end_ms = int((until if until is not None else time.time()) * 1000)
+    points = await asyncio.to_thread(
+        _runtime(request).recorder.trend,
+        MetricKey(group, node, device, metric),
+        int(since * 1000),
+        end_ms,
+    )
+    return [
+        TrendPoint(time=p.time_ms / 1000, value=p.value, text=p.text, historical=p.historical)
+        for p in points
+    ]
+
+
+@router.get("/status", summary="The plant's connection and host application counters")
+async def status(request: Request, _viewer: ViewerDep) -> StatusAnswer:
+    runtime = _runtime(request)
+    host = runtime.host
+    return StatusAnswer(
+        host_id=host.host_id,
+        broker=runtime.client.connected_url,
+        connections=runtime.client.connections,
+        connections_lost=runtime.client.connections_lost,
+        messages=runtime.messages,
+        rebirths=dict(host.rebirths),
+        rebirths_held=host.rebirths_held,
+        stale_deaths=host.stale_deaths,
+        bad_messages=host.bad_messages,
+        history_rows=runtime.recorder.rows_written,
+    )

@@ -1,0 +1,147 @@
+"""Layer: plant (a door above the service). The running plant: the host application fed by the
+MQTT client's thread on the web event loop (one message at a time, in arrival order), its
+rebirth requests published, what it receives handed to the recorder (flushed on a worker
+thread), and the service's login pieces (users file, sessions, login throttle, directory) that
+the plant's web API shares with ``serve``'s through the service's own auth routes.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import time
+from collections import Counter
+from typing import Final
+
+from cobot_hmi.plant.client import FailoverClient
+from cobot_hmi.plant.host import HostApplication
+from cobot_hmi.plant.recorder import FLUSH_S, PlantRecorder
+from cobot_hmi.plant.settings import PlantSettings
+from cobot_hmi.service.access.auth import LoginThrottle, Session, Sessions
+from cobot_hmi.service.access.directory import Directory
+from cobot_hmi.service.access.users import User, UsersFile
+from cobot_hmi.service.storage.store import Store
+from cobot_hmi.sparkplug.mqtt_client import BrokerAddress, ClientOptions
+
+log = logging.getLogger(__name__)
+
+_SWEEP_S: Final = 1.0
+
+
+class PlantRuntime:
+    """Build with the settings; ``start`` inside the event loop that serves HTTP; ``stop`` once.
+    Its login attributes (``users``, ``sessions``, ``throttle``, ``logins``, ``directory``,
+    ``store``, ``settings``) are the ones the service's auth routes read."""
+
+    def __init__(self, settings: PlantSettings) -> None:
+        self.settings = settings
+        self.users = UsersFile(settings.users_path)
+        self.store = Store(settings.database_path)
+        self.directory: Directory | None = (
+            Directory(settings) if settings.directory_enabled else None
+        )
+        self.sessions = Sessions(
+            settings.session_ttl_s, self._on_session_end, self.users.user_for_token, self._user_now
+        )
+        self.throttle = LoginThrottle(
+            settings.login_free_attempts,
+            settings.login_delay_max_s,
+            settings.login_user_delay_max_s,
+        )
+        self.logins: Counter[str] = Counter()
+        self.host = HostApplication(
+            settings.plant_host_id,
+            frozenset(settings.plant_groups),
+            settings.plant_rebirth_interval_s,
+        )
+        self.recorder = PlantRecorder(settings.plant_history_path)
+        options = [
+            ClientOptions(
+                BrokerAddress.parse(url),
+                f"{settings.plant_host_id}",
+                settings.mqtt_user,
+                settings.mqtt_password,
+                settings.mqtt_ca_file,
+            )
+            for url in settings.mqtt_urls
+        ]
+        self.client = FailoverClient(
+            options,
+            settings.plant_host_id,
+            self.host.subscriptions,
+            self._from_client,
+            self._connected,
+        )
+        self.started_at = time.time()
+        self.messages = 0
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._tasks: list[asyncio.Task[None]] = []
+
+    async def start(self) -> None:
+        self._loop = asyncio.get_running_loop()
+        await self.store.open()
+        self._tasks.append(asyncio.create_task(self._flush_loop(), name="plant history"))
+        self._tasks.append(asyncio.create_task(self._sweep_loop(), name="plant sessions"))
+        if self.directory is not None:
+            refresh = self.directory.refresh_loop(self.sessions.user_names)
+            self._tasks.append(asyncio.create_task(refresh, name="directory"))
+        self.client.start()
+
+    async def stop(self) -> None:
+        await asyncio.to_thread(self.client.stop)
+        for task in self._tasks:
+            task.cancel()
+        for task in self._tasks:
+            with contextlib.suppress(asyncio.CancelledError):
+                await task
+        self._tasks.clear()
+        await asyncio.to_thread(self.recorder.flush)  # the last values written
+        await self.store.close()
+
+    # ------------------------------------------------------------ messages
+
+    def _from_client(self, topic: str, data: bytes) -> None:
+        """On the client's thread: to the event loop, with the time it was received."""
+        loop = self._loop
+        if loop is not None and not loop.is_closed():
+            loop.call_soon_threadsafe(self._handle, topic, data, time.time())
+
+    def _handle(self, topic: str, data: bytes, received_s: float) -> None:
+        self.messages += 1
+        try:
+            answer = self.host.on_message(topic, data, received_s)
+        except Exception:  # one bad message never stops the plant
+            log.exception("plant: message on %s not handled", topic)
+            return
+        for out in answer.publish:
+            self.client.publish(out.topic, out.payload, out.qos, out.retain)
+        if answer.samples:
+            self.recorder.add(answer.samples)
+
+    def _connected(self, url: str) -> None:
+        log.info("plant: connected to %s as host %s", url, self.settings.plant_host_id)
+
+    async def _flush_loop(self) -> None:
+        while True:
+            await asyncio.sleep(FLUSH_S)
+            try:
+                await asyncio.to_thread(self.recorder.flush)
+            except Exception:
+                log.exception("plant history: flush failed")
+
+    # ------------------------------------------------------------ sessions
+
+    def _user_now(self, name: str) -> User | None:
+        user = self.users.user(name)
+        if user is None and self.directory is not None:
+            user = self.directory.user(name)
+        return user
+
+    def _on_session_end(self, session: Session, reason: str) -> None:
+        log.info("plant: session of %s ended (%s)", session.user.name, reason)
+
+    async def _sweep_loop(self) -> None:
+        while True:
+            await asyncio.sleep(_SWEEP_S)
+            self.sessions.sweep()

@@ -1,0 +1,54 @@
+"""Layer: plant (a door above the service). The settings of ``cobot-hmi plant``: the service's
+own (login, roles, TLS, directory, HTTP bounds, the state directory: what the plant's web API
+shares with ``serve``) and the plant's brokers, groups and host id. Keys are flat as everywhere
+(``service.config.fields``): ``--mqtt-url`` is repeatable, ``COBOT_HMI_MQTT_URLS`` a
+comma-separated list, ``mqtt_urls`` a TOML list.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from pydantic import Field
+
+from cobot_hmi.service.config.fields import (
+    SPARKPLUG_ID_PATTERN,
+    CommaList,
+    ReadableFile,
+    setting,
+)
+from cobot_hmi.service.settings import ServiceSettings
+
+
+class PlantSettings(ServiceSettings):
+    """Everything ``cobot-hmi plant`` can be told (the robot settings it inherits are unused)."""
+
+    mqtt_urls: CommaList = Field(
+        default_factory=list,
+        description="MQTT broker, mqtt://HOST:PORT or mqtts://HOST:PORT; several: the plant "
+        "moves to the next when one goes away",
+        json_schema_extra={"flag": "--mqtt-url", "repeatable": True},
+    )
+    mqtt_user: str = setting("", "MQTT user name (empty: none)")
+    mqtt_password: str = setting("", "MQTT password (prefer COBOT_HMI_MQTT_PASSWORD)")
+    mqtt_ca_file: ReadableFile | None = setting(
+        None, "CA certificates for mqtts:// (default: the system's)"
+    )
+    plant_groups: CommaList = Field(
+        default_factory=list,
+        description="Sparkplug groups this plant process follows (none: every group)",
+        json_schema_extra={"flag": "--group", "repeatable": True},
+    )
+    plant_host_id: str = setting(
+        "cobot-hmi-plant",
+        "Sparkplug host application id (its STATE topic spBv1.0/STATE/<id>)",
+        pattern=SPARKPLUG_ID_PATTERN,
+    )
+    plant_rebirth_interval_s: float = setting(
+        5.0, "at most one rebirth request per edge node this often, s", gt=0, le=3600
+    )
+
+    @property
+    def plant_history_path(self) -> Path:
+        """The plant's hourly Parquet segments."""
+        return self.state_dir / "plant-history"
