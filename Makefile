@@ -177,7 +177,26 @@ $(PEERS_STAMP): backend/tests/peers/package-lock.json backend/tests/peers/packag
 	cd backend/tests/peers && npm ci --no-audit --no-fund
 	touch $@
 
-peers: $(PEERS_STAMP)
+# The plant's tests' broker cluster (backend/tests/test_plant_nats_cluster.py): nats-server, whose
+# MQTT runs on JetStream, built from the Go module proxy at a pinned version into the venv, only
+# when missing (Go: the one on PATH, else /usr/local/go's).
+NATS_SERVER_VERSION := v2.15.3
+NATS_SERVER := $(VENV)/go-bin/nats-server
+GO ?= $(shell command -v go 2>/dev/null || echo /usr/local/go/bin/go)
+$(NATS_SERVER):
+	@test -x "$(GO)" || { echo "Go is needed to build nats-server $(NATS_SERVER_VERSION) (go.dev/dl)"; exit 1; }
+	GOBIN=$(abspath $(VENV))/go-bin GOFLAGS=-mod=mod $(GO) install github.com/nats-io/nats-server/v2@$(NATS_SERVER_VERSION)
+
+# An edge node we did not write, for the plant's tests: pysparkplug, in a venv of its own (it
+# needs paho-mqtt 1.x, the product 2.x).
+PYSPARKPLUG_VERSION := 0.6.1
+PYSPARKPLUG_PEER := $(VENV)/pysparkplug-peer/.installed-$(PYSPARKPLUG_VERSION)
+$(PYSPARKPLUG_PEER):
+	python3 -m venv $(VENV)/pysparkplug-peer
+	$(VENV)/pysparkplug-peer/bin/pip install -q --disable-pip-version-check pysparkplug==$(PYSPARKPLUG_VERSION)
+	touch $@
+
+peers: $(PEERS_STAMP) $(NATS_SERVER) $(PYSPARKPLUG_PEER)
 
 # Frontend: `npm ci` whenever package-lock.json is newer than the install.
 FRONTEND_STAMP := frontend/node_modules/.installed-stamp
