@@ -6,8 +6,8 @@ The target's class 1 I/O connections on UDP 2222 (CIP Vol 1 §3-4, Connection ob
 and handed to the cyclic pump, which sends each at its due time (as a periodic stream while the
 robot's data holds still); O→T consumed by connection ID under the receive rules of
 ``enip.sequence`` (read at our wake-ups while a connection produces at a short RPI), run/idle
-applied to the :class:`ProcessImage`, and a watchdog per connection. docs/protocol.md "Timing"
-says why the work is batched the way it is.
+applied to the :class:`ProcessImage`, and a watchdog per connection (``o2t_watchdog``).
+docs/protocol.md "Timing" says why the work is batched the way it is.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from collections.abc import Callable
 from cobot_hmi.emulator.connections import ConnectionInfo, ConnectionKind, IoConnection
 from cobot_hmi.emulator.counters import TargetCounters
 from cobot_hmi.emulator.faults import TargetFaults
+from cobot_hmi.emulator.o2t_watchdog import O2TWatchdogs
 from cobot_hmi.emulator.process_image import ProcessImage
 from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.enip import io
@@ -74,6 +75,14 @@ class IoConnections:
         self._tick_due = 0.0
         self._wake_period_s: float | None = None
         self.udp_port = settings.udp_port
+        self._watchdogs = O2TWatchdogs(
+            table,
+            counters,
+            udp=lambda: self._udp,
+            wake_period_s=lambda: self._wake_period_s,
+            read_due=self._read_due_o2t,
+            close=self.close,
+        )
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -85,7 +94,7 @@ class IoConnections:
             self._o2t_received,
             receive_size=io.MAX_DATAGRAM + 1,
             kernel_timestamps=True,
-            on_batch=self._o2t_woke_us,
+            on_batch=self._watchdogs.woke,
         )
         udp.watch(True)
         self._udp = udp
@@ -218,7 +227,7 @@ class IoConnections:
             # a watchdog verdict then comes at once, not at the next batch.
             timeouts = (c.timeout_s for c in self._by_o2t.values())
             udp.watch(per_packet, silence_s=0.0 if per_packet else min(timeouts))
-        self._arm_watchdogs()
+        self._watchdogs.arm()
         self._tick_due = asyncio.get_running_loop().time()
         self._ticker = asyncio.get_running_loop().call_soon(self._tick)
 
@@ -243,7 +252,7 @@ class IoConnections:
         self._read_due_o2t()
         loop = asyncio.get_running_loop()
         now = loop.time()
-        self._judge_batch_watched(now, now - self._tick_due)
+        self._watchdogs.judge_batch_watched(now, now - self._tick_due)
         horizon = now + period_s + HORIZON_MARGIN_S
         try:
             self._queue_t2o_until(horizon, now)
@@ -439,73 +448,6 @@ class IoConnections:
             count, _ = udp.cancel(conn.o2t_id, due + self.faults.t2o_delay_ms / 1e3)
             if count:
                 self._queue_t2o(conn, due, due + epoch_minus_loop, rebuild=True)
-
-    def _o2t_woke_us(self) -> None:
-        """The pump woke us for O→T (read now): per packet, the watchdog timers do the rest; in
-        batches this is its word that O→T fell silent, so judge the batch-watched connections."""
-        udp = self._udp
-        if udp is None or udp.watching:
-            return
-        self._judge_batch_watched(asyncio.get_running_loop().time(), 0.0)
-
-    def _judge_batch_watched(self, now: float, lag_s: float) -> None:
-        """The watchdog verdict of each connection our batch wake-ups watch."""
-        for conn in list(self._by_o2t.values()):
-            if conn.watchdog is None and self._tick_watches(conn):
-                self._watchdog_verdict(conn, now, lag_s)
-
-    def _tick_watches(self, conn: IoConnection) -> bool:
-        """Whether our batch wake-ups check this connection's watchdog (no timer of its own):
-        while O→T is read at them, if its timeout spans half of one or more. The pump wakes us
-        when O→T has been silent for the shortest such timeout, so the verdict is not left to
-        the next batch."""
-        period_s = self._wake_period_s
-        udp = self._udp
-        return (
-            udp is not None
-            and not udp.watching
-            and period_s is not None
-            and conn.timeout_s >= period_s / 2
-        )
-
-    def _arm_watchdogs(self) -> None:
-        """A timer for each connection the batch wake-ups do not watch."""
-        loop = asyncio.get_running_loop()
-        for conn in self._by_o2t.values():
-            if conn.watchdog is None and not self._tick_watches(conn):
-                deadline = conn.last_rx + conn.timeout_s
-                conn.watchdog = loop.call_at(deadline, self._watchdog, conn, deadline)
-
-    def _watchdog(self, conn: IoConnection, armed_for: float) -> None:
-        """Armed for the last O→T packet's time + the timeout; re-armed while packets come
-        (unless the batch wake-ups took the watch over meanwhile)."""
-        conn.watchdog = None
-        self._read_due_o2t()
-        if self._by_o2t.get(conn.o2t_id) is not conn or self._tick_watches(conn):
-            return
-        now = asyncio.get_running_loop().time()
-        deadline = self._watchdog_verdict(conn, now, now - armed_for)
-        if deadline is not None:
-            conn.watchdog = asyncio.get_running_loop().call_at(
-                deadline, self._watchdog, conn, deadline
-            )
-
-    def _watchdog_verdict(self, conn: IoConnection, now: float, lag_s: float) -> float | None:
-        """Close the connection if no O→T came for its timeout; else when to look again.
-
-        Looking more than an O→T RPI late, the loop itself stalled (a busy machine) and O→T
-        packets may be waiting, unread: the verdict waits one more RPI, after the loop has read
-        its sockets again."""
-        timeout_s = conn.timeout_s
-        deadline = conn.last_rx + timeout_s
-        rpi_s = conn.o2t_rpi_us / 1e6
-        if lag_s > rpi_s:
-            deadline = max(deadline, now + rpi_s)
-        if now < deadline:
-            return deadline
-        self.counters.watchdog_timeouts += 1
-        self.close(conn, f"watchdog: no O→T for {timeout_s * 1e3:.0f} ms (0x0203)")
-        return None
 
     def _o2t_received(self, data: bytes, addr: tuple[str, int], arrived: float) -> None:
         """One O→T datagram, ``arrived`` at that loop time (the kernel's receive time)."""
