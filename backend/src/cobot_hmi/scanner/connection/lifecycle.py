@@ -1,8 +1,10 @@
-"""Layer: scanner. A class 1 connection's lifecycle: the supervisor (connect, wait for
-the loss, teardown, again after a backoff: longer for a target that refuses), RegisterSession,
-the explicit read of the O→T assembly, Forward Open (its reply checked, the T→O connection ID
-routed on the port, the O→T stream started), the first frame awaited, and Forward Close +
-UnRegisterSession at the teardown.
+"""Layer: scanner. A class 1 connection's lifecycle (:class:`ConnectionLifecycle`): the
+supervisor (connect, wait for the loss, teardown, again after a backoff: longer for a target
+that refuses), the UDP port (shared, or one of its own), RegisterSession, the explicit read of
+the O→T assembly, Forward Open (its reply checked, the T→O connection ID routed on the port to
+the T→O receiver, the O→T sender's stream started), the first frame awaited, and Forward
+Close + UnRegisterSession at the teardown. The state it reaches goes to the connection's
+``ConnectionStatus``.
 """
 
 from __future__ import annotations
@@ -10,11 +12,11 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import random
 import socket
 import time
 from typing import Any
 
-from cobot_hmi.codec import CodecError, decode_command
 from cobot_hmi.enip import epath
 from cobot_hmi.enip.cip import MessageRouterResponse
 from cobot_hmi.enip.connection_manager import (
@@ -29,10 +31,10 @@ from cobot_hmi.enip.connection_manager import (
 from cobot_hmi.enip.cpf import CpfItem, ItemType, Sockaddr, decode_sockaddr, sockaddr_item
 from cobot_hmi.enip.encapsulation import ENIP_UDP_PORT
 from cobot_hmi.enip.errors import EnipError
-from cobot_hmi.scanner.connection.core import Link
+from cobot_hmi.scanner.connection.link import Link, t2o_batch_s, timeout_s
 from cobot_hmi.scanner.connection.o2t_send import O2TSender
 from cobot_hmi.scanner.connection.settings import OriginatorSettings, local_address_to
-from cobot_hmi.scanner.connection.state import ConnectionState
+from cobot_hmi.scanner.connection.state import ConnectionState, ConnectionStatus
 from cobot_hmi.scanner.connection.t2o_receive import T2OReceiver
 from cobot_hmi.scanner.io_port import IoPort
 from cobot_hmi.scanner.o2t_stream import O2TStream
@@ -84,50 +86,91 @@ class _RefusedError(Exception):
         """The target did open the connection (we refuse its reply): close it."""
 
 
-class ConnectionLifecycle(O2TSender, T2OReceiver):
-    """Connecting, supervising and closing the connection the send and receive paths use."""
+class ConnectionLifecycle:
+    """Connecting, supervising and closing the connection the O→T sender and the T→O receiver
+    work on, and the UDP port they use."""
 
-    def _set_state(self, state: ConnectionState, reason: str | None) -> None:
-        if state is self.state and reason == self.reason:
-            return
-        self.state = state
-        self.reason = reason
-        if state is ConnectionState.CONNECTED:
-            self._connected_event.set()
-        else:
-            self._connected_event.clear()
-        if reason:
-            log.info("originator %s: %s", state, reason)
-        if self.on_state is not None:
-            try:
-                self.on_state(state, reason)
-            except Exception:
-                log.exception("on_state callback failed")
+    def __init__(
+        self,
+        settings: OriginatorSettings,
+        status: ConnectionStatus,
+        sender: O2TSender,
+        receiver: T2OReceiver,
+        *,
+        io_port: IoPort | None = None,
+    ) -> None:
+        """``io_port``: the UDP port to share (None: one of our own, opened on start and closed
+        on stop)."""
+        self.settings = settings
+        self._status = status
+        self._sender = sender
+        self._receiver = receiver
+        self._port = io_port
+        self._owns_port = io_port is None
+        self._rng = random.Random()
+        self._session: EnipSession | None = None
+        self._supervisor: asyncio.Task[None] | None = None
+        self._lost: asyncio.Future[str] | None = None
+        self._stopping = False
+
+    @property
+    def port(self) -> IoPort | None:
+        """The UDP port the connection uses (None before a start without a shared port)."""
+        return self._port
+
+    @property
+    def owns_port(self) -> bool:
+        """The port is the connection's own: every stray datagram on it is ours to count."""
+        return self._owns_port
+
+    async def start(self) -> None:
+        if self._supervisor is None:
+            self._stopping = False
+            self._supervisor = asyncio.get_running_loop().create_task(
+                self._supervise(), name="originator"
+            )
+
+    async def stop(self) -> None:
+        self._stopping = True
+        task, self._supervisor = self._supervisor, None
+        # Cancel until the supervisor has really ended: on Python 3.11 ``asyncio.wait_for`` can
+        # swallow a cancellation that lands as its inner awaitable completes (fixed in 3.12),
+        # and a single cancel() would then leave stop() waiting for ever.
+        while task is not None and not task.done():
+            task.cancel()
+            await asyncio.wait({task}, timeout=0.5)
+        if task is not None and not task.cancelled() and task.exception() is not None:
+            log.warning("supervisor ended with %r", task.exception())
+        await self._teardown(forward_close=True)
+        if self._owns_port and self._port is not None:
+            self._port.close()
+        self._status.set(ConnectionState.IDLE, None)
 
     async def _supervise(self) -> None:
         s = self.settings
+        status = self._status
         backoff_s = s.backoff_initial_s
         while not self._stopping:
-            self._set_state(ConnectionState.CONNECTING, self.reason)
+            status.set(ConnectionState.CONNECTING, status.reason)
             try:
                 port = await self._open_port()
                 await self._connect_once(port)
             except _RefusedError as refused:
-                self._set_state(ConnectionState.REFUSED, refused.reason)
+                status.set(ConnectionState.REFUSED, refused.reason)
                 await self._teardown(forward_close=refused.opened)
             except (OSError, SessionError, EnipError, TimeoutError, QueueFullError) as error:
-                self._set_state(ConnectionState.LOST, str(error) or type(error).__name__)
+                status.set(ConnectionState.LOST, str(error) or type(error).__name__)
                 await self._teardown(forward_close=True)
             else:
                 backoff_s = s.backoff_initial_s
                 assert self._lost is not None
                 reason = await self._lost
-                self._set_state(ConnectionState.LOST, reason)
+                status.set(ConnectionState.LOST, reason)
                 await self._teardown(forward_close=True)
             await asyncio.sleep(backoff_s)
             cap_s = (
                 s.refused_backoff_max_s
-                if self.state is ConnectionState.REFUSED
+                if status.state is ConnectionState.REFUSED
                 else s.backoff_max_s
             )
             backoff_s = min(backoff_s * 2, cap_s)
@@ -161,7 +204,7 @@ class ConnectionLifecycle(O2TSender, T2OReceiver):
         session = EnipSession(s.robot_host, s.tcp_port, s.tcp_timeout_s, _source_host(port))
         self._session = session
         await session.open()
-        await self._read_o2t_assembly(session)
+        self._sender.adopt_assembly(await self._read_o2t_assembly(session))
         link = Link(
             t2o_id=port.new_connection_id(),
             connection_serial=self._rng.getrandbits(16),
@@ -179,13 +222,11 @@ class ConnectionLifecycle(O2TSender, T2OReceiver):
         extra: list[CpfItem] = []
         if s.request_t2o_port is not None:
             extra.append(sockaddr_item(ItemType.SOCKADDR_T2O, Sockaddr("0.0.0.0", port.udp_port)))
-        self.run = False
-        self._seeded = False
-        self._window.clear()
-        self._pace.restart(s.rpi_us)  # again with the API the reply grants
         lost: asyncio.Future[str] = loop.create_future()
         first_frame: asyncio.Future[None] = loop.create_future()
-        self._lost, self._first_frame, self._link = lost, first_frame, link
+        self._lost = lost
+        self._sender.attach(link, port)
+        self._receiver.attach(link, port, lost=lost, first_frame=first_frame)
         # A point-to-point T→O connection ID is ours (CIP Vol 1 §3-5.4.1): the target may
         # produce on it as soon as it has opened the connection, before we read its reply.
         self._route(port, link, silence_s=0.0)
@@ -194,8 +235,8 @@ class ConnectionLifecycle(O2TSender, T2OReceiver):
         link.o2t_addr = _o2t_address(link.target_host, items)
         self._start_o2t(port, link)
         await self._await_first_frame(port, link, first_frame, lost)
-        self._connected_since = time.time()
-        self._set_state(ConnectionState.CONNECTED, None)
+        self._status.connected_since = time.time()
+        self._status.set(ConnectionState.CONNECTED, None)
 
     def _accept_reply(self, port: IoPort, link: Link, response: MessageRouterResponse) -> None:
         """The Forward Open's reply: refused, or its connection IDs and granted APIs taken
@@ -223,25 +264,27 @@ class ConnectionLifecycle(O2TSender, T2OReceiver):
         link.o2t_id = reply.o2t_connection_id
         link.o2t_api_us = reply.o2t_api_us or s.rpi_us
         link.t2o_api_us = reply.t2o_api_us or s.rpi_us
-        self._pace.restart(link.t2o_api_us)
+        self._receiver.granted(link.t2o_api_us)
 
     def _start_o2t(self, port: IoPort, link: Link) -> None:
-        """O→T from now on, at the RPI, built ahead into the cyclic pump (o2t_stream)."""
+        """O→T from now on, at the RPI, built ahead into the cyclic pump (o2t_stream): packets
+        the sender builds, the fallback timer the receiver's watchdog."""
         s = self.settings
+        sender, receiver = self._sender, self._receiver
         link.o2t = O2TStream(
             port.udp,
             port.new_tag(),
             link.o2t_addr,
             link.o2t_api_us / 1e6,
-            lambda: self._o2t_packet(link),
+            lambda: sender.packet(link),
             has_cip_seq=not (s.input_only and s.heartbeat_o2t_size == 0),
-            wake_period_s=self._t2o_batch_s,
-            on_timer=lambda now, lag_s: self._check_t2o_silence(link, now, lag_s),
-            watchdog_s=self._timeout_s(link),
+            wake_period_s=t2o_batch_s(s),
+            on_timer=lambda now, lag_s: receiver.check_silence(link, now, lag_s),
+            watchdog_s=timeout_s(link, s),
         )
         link.o2t.start()
         # The pump wakes us once T→O has been silent for the timeout, whatever the batch.
-        self._route(port, link, silence_s=self._timeout_s(link))
+        self._route(port, link, silence_s=timeout_s(link, s))
 
     async def _await_first_frame(
         self,
@@ -250,7 +293,7 @@ class ConnectionLifecycle(O2TSender, T2OReceiver):
         first_frame: asyncio.Future[None],
         lost: asyncio.Future[str],
     ) -> None:
-        first_timeout_s = max(self.settings.first_frame_timeout_s, self._timeout_s(link))
+        first_timeout_s = max(self.settings.first_frame_timeout_s, timeout_s(link, self.settings))
         waits: list[asyncio.Future[Any]] = [first_frame, lost]
         done, _ = await asyncio.wait(
             waits, timeout=first_timeout_s, return_when=asyncio.FIRST_COMPLETED
@@ -262,11 +305,12 @@ class ConnectionLifecycle(O2TSender, T2OReceiver):
             )
 
     def _route(self, port: IoPort, link: Link, *, silence_s: float) -> None:
+        """T→O of ``link`` from its target goes to the receiver."""
         port.route(
             link.t2o_id,
             link.target_host,
-            self,
-            batch_s=self._t2o_batch_s,
+            self._receiver,
+            batch_s=t2o_batch_s(self.settings),
             silence_s=silence_s,
             packets_per_s=1e6 / link.t2o_api_us,
         )
@@ -286,42 +330,29 @@ class ConnectionLifecycle(O2TSender, T2OReceiver):
                     opened=True,
                 )
 
-    async def _read_o2t_assembly(self, session: EnipSession) -> None:
-        """Read the O→T assembly's data explicitly where the target allows it (most refuse
-        while another connection owns it): the first O→T packet carries it, and the command
-        image's bit input registers keep it (bumpless takeover). Nothing changes when the read
-        fails, or when ``o2t_data`` was given."""
+    async def _read_o2t_assembly(self, session: EnipSession) -> bytes | None:
+        """The O→T assembly's data, read explicitly where the target allows it (most refuse
+        while another connection owns it) and ``o2t_data`` was not given; None when there is
+        nothing to read or the read fails (the O→T sender adopts it)."""
         s = self.settings
-        self._explicit_bits = None
         if s.input_only or s.o2t_data is not None:
-            return
+            return None
         try:
             response = await session.get_attribute_single(epath.CLASS_ASSEMBLY, s.o2t_instance, 3)
         except EnipError:
-            return
+            return None
         if not response.ok or len(response.data) != s.o2t_size:
-            return
-        if s.o2t_is_command:
-            try:
-                image = decode_command(response.data)
-            except CodecError:
-                return
-            self.command = image
-            self._explicit_bits = image.bit_input_registers
-        self._o2t_bytes = bytes(response.data)
+            return None
+        return bytes(response.data)
 
     async def _teardown(self, *, forward_close: bool) -> None:
-        link, self._link = self._link, None
+        link = self._receiver.link
         port = self._port
-        if link is not None:
-            if link.o2t is not None:
-                self._packets_out_closed += link.o2t.stop()
-            if link.routed and port is not None:
-                port.unroute(link.t2o_id)
-                link.routed = False
-        for future in (self._lost, self._first_frame):
-            if future is not None and not future.done():
-                future.cancel()
+        self._receiver.detach()
+        self._sender.detach()
+        if link is not None and link.routed and port is not None:
+            port.unroute(link.t2o_id)
+            link.routed = False
         session, self._session = self._session, None
         try:
             if link is not None and forward_close:
@@ -335,10 +366,11 @@ class ConnectionLifecycle(O2TSender, T2OReceiver):
             # self._session) must not be left open.
             if session is not None:
                 session.abort()
-        if self.state is ConnectionState.CONNECTED and not self._stopping:
-            self._set_state(ConnectionState.LOST, "connection closed")
-        self.run = False
-        self._connected_since = None
+        status = self._status
+        if status.state is ConnectionState.CONNECTED and not self._stopping:
+            status.set(ConnectionState.LOST, "connection closed")
+        self._sender.run = False
+        status.connected_since = None
 
     async def _forward_close(self, session: EnipSession | None, link: Link) -> None:
         s = self.settings

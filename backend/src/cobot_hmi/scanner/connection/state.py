@@ -1,13 +1,21 @@
 """Layer: scanner. A class 1 connection's state, its errors and its figures, as the
-originator's users see them (``cobot_hmi.scanner.originator`` re-exports them).
+originator's users see them (``cobot_hmi.scanner.originator`` re-exports them), and
+:class:`ConnectionStatus`, the record of that state the originator's parts share: the lifecycle
+writes it, the O→T sender reads it (no run without a connection), the originator's users wait
+on it.
 """
 
 from __future__ import annotations
 
+import asyncio
+import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 from enum import StrEnum
 
 from cobot_hmi.scanner.t2o_pace import SlowTarget
+
+log = logging.getLogger(__name__)
 
 
 class ConnectionState(StrEnum):
@@ -60,3 +68,51 @@ class ConnectionStats:
     """The T→O actual packet interval of the connection (the target's reply)."""
     slow_target: SlowTarget | None = None
     """The target sends T→O less often than it granted (``scanner.t2o_pace``), while it does."""
+
+
+StateCallback = Callable[[ConnectionState, str | None], None]
+
+
+class ConnectionStatus:
+    """One connection's state and why, told to ``on_state`` once per change, and since when it
+    is connected."""
+
+    def __init__(self, on_state: StateCallback | None = None) -> None:
+        self.on_state = on_state
+        self.state = ConnectionState.IDLE
+        self.reason: str | None = None
+        self.connected_since: float | None = None
+        """Epoch seconds (set by the lifecycle as the first frame arrives, None after the
+        teardown)."""
+        self._connected = asyncio.Event()
+
+    def set(self, state: ConnectionState, reason: str | None) -> None:
+        """The state is now ``state`` for ``reason``: logged when there is a reason, told to
+        ``on_state`` (a callback that fails is logged, the connection goes on)."""
+        if state is self.state and reason == self.reason:
+            return
+        self.state = state
+        self.reason = reason
+        if state is ConnectionState.CONNECTED:
+            self._connected.set()
+        else:
+            self._connected.clear()
+        if reason:
+            log.info("originator %s: %s", state, reason)
+        if self.on_state is not None:
+            try:
+                self.on_state(state, reason)
+            except Exception:
+                log.exception("on_state callback failed")
+
+    async def wait_connected(self, timeout_s: float) -> bool:
+        """Whether the state is CONNECTED within ``timeout_s`` (and still is when the wait
+        ends)."""
+        if self.state is ConnectionState.CONNECTED:
+            return True
+        try:
+            await asyncio.wait_for(self._connected.wait(), timeout_s)
+        except TimeoutError:
+            return False
+        state: ConnectionState = self.state  # changed by the supervisor meanwhile
+        return state is ConnectionState.CONNECTED

@@ -1,7 +1,8 @@
-"""Layer: scanner. The T→O receive path of a class 1 connection: what the
-:class:`~cobot_hmi.scanner.io_port.IoPort` hands over (a ``T2OConsumer``), the sequence and
-size checks, the decode (once per new payload), the counters and interval window, the T→O pace,
-the bumpless takeover from the first frame, and the watchdog on T→O silence.
+"""Layer: scanner. The T→O receiver of a class 1 connection (:class:`T2OReceiver`): what the
+:class:`~cobot_hmi.scanner.io_port.IoPort` hands over (it is the port's ``T2OConsumer``), the
+sequence and size checks, the decode (once per new payload), the counters and interval window,
+the T→O pace, the first frame (the bumpless takeover is the O→T sender's ``seed``), and the
+watchdog on T→O silence.
 """
 
 from __future__ import annotations
@@ -9,19 +10,110 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
+from collections.abc import Callable
 
-from cobot_hmi.codec import CodecError, CommandImage, Frame, decode_frame, encode_command
+from cobot_hmi.codec import CodecError, Frame, decode_frame
 from cobot_hmi.enip import io
 from cobot_hmi.enip.sequence import DUPLICATE, STALE
-from cobot_hmi.scanner.connection.core import Link, OriginatorCore
+from cobot_hmi.scanner.connection.link import Link, timeout_s
+from cobot_hmi.scanner.connection.settings import OriginatorSettings
+from cobot_hmi.scanner.io_port import IoPort
+from cobot_hmi.scanner.stats import IntervalFigures, IntervalWindow
+from cobot_hmi.scanner.t2o_pace import PaceWatch, SlowTarget
 
 log = logging.getLogger(__name__)
 
+FrameCallback = Callable[[Frame, bytes, float, int], None]
+DataCallback = Callable[[bytes, float, int], None]
+SlowTargetCallback = Callable[[SlowTarget | None], None]
 
-class T2OReceiver(OriginatorCore):
-    """T→O packets in, frames or data out to the callbacks; the watchdog."""
 
-    # T2OConsumer: what the IoPort hands us.
+class T2OReceiver:
+    """T→O packets in, frames or data out to the callbacks; the figures they make; the
+    watchdog. The lifecycle attaches each open connection (:meth:`attach`: its link, port and
+    futures) and detaches it at its teardown."""
+
+    def __init__(
+        self,
+        settings: OriginatorSettings,
+        *,
+        seed: Callable[[Frame], None],
+        on_frame: FrameCallback | None = None,
+        on_data: DataCallback | None = None,
+        on_slow_target: SlowTargetCallback | None = None,
+    ) -> None:
+        """``seed(frame)``: the first frame of each connection (the O→T sender's takeover of
+        the robot's outputs). The callbacks: :class:`~cobot_hmi.scanner.originator.
+        Originator`'s."""
+        self.settings = settings
+        self.on_frame = on_frame
+        self.on_data = on_data
+        self.on_slow_target = on_slow_target
+        self._seed = seed
+        self.latest: tuple[Frame, float] | None = None
+        """The last frame and its epoch receive time (T→O of the robot's layout)."""
+        self.latest_data: tuple[bytes, float] | None = None
+        """The last T→O data and its epoch receive time (T→O of any other size, or raw)."""
+        self._link: Link | None = None
+        self._port: IoPort | None = None
+        self._lost: asyncio.Future[str] | None = None
+        self._first_frame: asyncio.Future[None] | None = None
+        self._seeded = False
+        self._window = IntervalWindow()
+        self._pace = PaceWatch()
+        self.packets_in = 0
+        self.gaps = 0
+        self.duplicates = 0
+        self.late = 0
+        self.malformed = 0
+        self.stale = 0
+        self.foreign = 0
+        self.frames = 0
+
+    # ------------------------------------------------------------------ the connection's
+
+    @property
+    def link(self) -> Link | None:
+        """The open connection's link (None between connections)."""
+        return self._link
+
+    def attach(
+        self,
+        link: Link,
+        port: IoPort,
+        *,
+        lost: asyncio.Future[str],
+        first_frame: asyncio.Future[None],
+    ) -> None:
+        """A Forward Open leaves for ``link``, whose T→O comes on ``port``: the watchdog's
+        verdict goes to ``lost``, the first frame (or data) resolves ``first_frame``."""
+        self._seeded = False
+        self._window.clear()
+        self._pace.restart(self.settings.rpi_us)  # again with the API the reply grants
+        self._lost, self._first_frame = lost, first_frame
+        self._link, self._port = link, port
+
+    def granted(self, t2o_api_us: int) -> None:
+        """The Forward Open's reply grants T→O every ``t2o_api_us``: the pace is judged by
+        it."""
+        self._pace.restart(t2o_api_us)
+
+    def detach(self) -> None:
+        """The connection is torn down: its futures are cancelled unless they are done."""
+        self._link = None
+        for future in (self._lost, self._first_frame):
+            if future is not None and not future.done():
+                future.cancel()
+
+    def interval_figures(self) -> IntervalFigures:
+        return self._window.figures()
+
+    @property
+    def slow_target(self) -> SlowTarget | None:
+        """The target sends T→O less often than it granted, while it does."""
+        return self._pace.slow
+
+    # ------------------------------------------------------------------ T2OConsumer
 
     def t2o_batch_read(self) -> None:
         """After each wake-up for T→O (a batch, or the pump's word that T→O fell silent for the
@@ -29,64 +121,13 @@ class T2OReceiver(OriginatorCore):
         link = self._link
         if link is not None and link.o2t is not None:
             link.o2t.t2o_read()
-            self._check_t2o_silence(link, asyncio.get_running_loop().time(), 0.0)
+            self.check_silence(link, asyncio.get_running_loop().time(), 0.0)
 
     def t2o_foreign(self) -> None:
         self.foreign += 1
 
     def t2o_malformed(self) -> None:
         self.malformed += 1
-
-    def _check_t2o_silence(self, link: Link, now: float, lag_s: float) -> None:
-        """The watchdog (docs/protocol.md, Forward Open: RPI × (4 << multiplier)). Checked after
-        each T→O wake-up, including the one the pump gives once T→O has been silent for the
-        timeout, and at the O→T stream's fallback timer: a steady T→O stream costs no wake-up of
-        its own for it.
-
-        A timer firing more than an RPI late means this loop itself stalled (a busy machine):
-        T→O packets may be waiting in the socket, unread. The verdict waits for a timer on time,
-        which comes after the loop has read its sockets again.
-
-        A silence past the timeout is judged on what has ARRIVED: the port hands over what the
-        pump holds first. And the verdict waits until the silence has gone on for one RPI more
-        while we watch (a look on time one RPI after the first): when the whole machine stops
-        for longer than the timeout (a VM's host taking its CPUs: bench/soak saw both emulators'
-        real-time pumps 33 ms late at once, the timeout at RPI 2 ms being 32 ms), the target
-        stopped with us and sends its next packet as soon as it runs again, which may be just
-        after our first look. A target really gone is declared one RPI later than the timeout."""
-        timeout_s = self._timeout_s(link)
-        if now - link.last_rx < timeout_s or lag_s > link.o2t_api_us / 1e6:
-            return
-        if self._port is not None:
-            self._port.read_now()
-            if now - link.last_rx < timeout_s:
-                return
-        rpi_s = link.t2o_api_us / 1e6
-        seen = link.silence_seen_at
-        if seen is None or seen < link.last_rx:  # a new silence: look again one RPI later
-            link.silence_seen_at = now
-            loop = asyncio.get_running_loop()
-            loop.call_at(now + rpi_s, self._look_again, link, now + rpi_s)
-            return
-        if now - seen < rpi_s:
-            return
-        if self._lost is not None and not self._lost.done():
-            self._lost.set_result(
-                f"no T→O for {timeout_s * 1e3:.0f} ms (RPI {link.t2o_api_us / 1e3:g} ms × "
-                f"{4 << self.settings.timeout_multiplier}): connection timed out"
-            )
-
-    def _look_again(self, link: Link, due: float) -> None:
-        """The watchdog's second look at a silence (its connection may be gone meanwhile)."""
-        if self._link is not link:
-            return
-        loop = asyncio.get_running_loop()
-        now = loop.time()
-        if now - due > link.o2t_api_us / 1e6:  # our loop stalled again: after it reads T→O
-            again = now + link.t2o_api_us / 1e6
-            loop.call_at(again, self._look_again, link, again)
-            return
-        self._check_t2o_silence(link, now, 0.0)
 
     def t2o_packet(self, packet: io.IoPacket, arrived: float) -> None:
         """One T→O packet of this connection from the target's address (``arrived``: the loop
@@ -139,12 +180,69 @@ class T2OReceiver(OriginatorCore):
         self._count_frame(link, arrived)
         self.latest = (frame, received_at)
         if not self._seeded:
+            self._seeded = True
             self._seed(frame)
+            self._first_data()
         if self.on_frame is not None:
             try:
                 self.on_frame(frame, payload, received_at, packet.encap_seq)
             except Exception:
                 log.exception("on_frame callback failed")
+
+    # ------------------------------------------------------------------ the watchdog
+
+    def check_silence(self, link: Link, now: float, lag_s: float) -> None:
+        """The watchdog (docs/protocol.md, Forward Open: RPI × (4 << multiplier)). Checked after
+        each T→O wake-up, including the one the pump gives once T→O has been silent for the
+        timeout, and at the O→T stream's fallback timer (``on_timer``): a steady T→O stream
+        costs no wake-up of its own for it.
+
+        A timer firing more than an RPI late means this loop itself stalled (a busy machine):
+        T→O packets may be waiting in the socket, unread. The verdict waits for a timer on time,
+        which comes after the loop has read its sockets again.
+
+        A silence past the timeout is judged on what has ARRIVED: the port hands over what the
+        pump holds first. And the verdict waits until the silence has gone on for one RPI more
+        while we watch (a look on time one RPI after the first): when the whole machine stops
+        for longer than the timeout (a VM's host taking its CPUs: bench/soak saw both emulators'
+        real-time pumps 33 ms late at once, the timeout at RPI 2 ms being 32 ms), the target
+        stopped with us and sends its next packet as soon as it runs again, which may be just
+        after our first look. A target really gone is declared one RPI later than the timeout."""
+        limit_s = timeout_s(link, self.settings)
+        if now - link.last_rx < limit_s or lag_s > link.o2t_api_us / 1e6:
+            return
+        if self._port is not None:
+            self._port.read_now()
+            if now - link.last_rx < limit_s:
+                return
+        rpi_s = link.t2o_api_us / 1e6
+        seen = link.silence_seen_at
+        if seen is None or seen < link.last_rx:  # a new silence: look again one RPI later
+            link.silence_seen_at = now
+            loop = asyncio.get_running_loop()
+            loop.call_at(now + rpi_s, self._look_again, link, now + rpi_s)
+            return
+        if now - seen < rpi_s:
+            return
+        if self._lost is not None and not self._lost.done():
+            self._lost.set_result(
+                f"no T→O for {limit_s * 1e3:.0f} ms (RPI {link.t2o_api_us / 1e3:g} ms × "
+                f"{4 << self.settings.timeout_multiplier}): connection timed out"
+            )
+
+    def _look_again(self, link: Link, due: float) -> None:
+        """The watchdog's second look at a silence (its connection may be gone meanwhile)."""
+        if self._link is not link:
+            return
+        loop = asyncio.get_running_loop()
+        now = loop.time()
+        if now - due > link.o2t_api_us / 1e6:  # our loop stalled again: after it reads T→O
+            again = now + link.t2o_api_us / 1e6
+            loop.call_at(again, self._look_again, link, again)
+            return
+        self.check_silence(link, now, 0.0)
+
+    # ------------------------------------------------------------------ figures
 
     def _count_frame(self, link: Link, arrived: float) -> None:
         previous = link.last_frame_at
@@ -171,20 +269,3 @@ class T2OReceiver(OriginatorCore):
     def _first_data(self) -> None:
         if self._first_frame is not None and not self._first_frame.done():
             self._first_frame.set_result(None)
-
-    def _seed(self, frame: Frame) -> None:
-        """Bumpless takeover: the command image becomes what the robot does now, unless the
-        O→T data was given (``o2t_data``: what is sent is what was asked for)."""
-        self._seeded = True
-        if self.settings.o2t_is_command and self.settings.o2t_data is None:
-            bits = self._explicit_bits or self.command.bit_input_registers
-            self.command = CommandImage(
-                controlbox_do=frame.controlbox_do,
-                tool_do=frame.tool_do,
-                analog_output_type=frame.analog_output_type,
-                analog_output=frame.analog_output,
-                bit_input_registers=bits,
-            )
-            self._o2t_bytes = encode_command(self.command)
-            self._rebuild_o2t()
-        self._first_data()
