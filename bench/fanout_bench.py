@@ -310,7 +310,7 @@ class Results:
     final: dict[tuple[str, str], float]
 
 
-def main() -> int:
+def _arguments() -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--robots", type=int, default=1, help="emulated robots (default 1)")
     parser.add_argument("--rpi-ms", type=float, default=10.0)
@@ -339,7 +339,11 @@ def main() -> int:
     args = parser.parse_args()
     if not 1 <= args.robots <= 100 or args.clients < args.robots:
         parser.error("--robots: 1 to 100, and at least one client per robot")
+    return args
 
+
+def main() -> int:
+    args = _arguments()
     service_args = ["--cyclic-niceness", str(args.cyclic_niceness)]
     with stack(
         args.rpi_ms,
@@ -351,19 +355,6 @@ def main() -> int:
         results = asyncio.run(run(args, running))
         names = list(running.robot_names)
         client_robot = [robot_of_client(running, i) for i in range(args.clients)]
-    baseline, load, final = results.baseline, results.load, results.final
-    every = [r for cycle in results.records for r in cycle]
-    per_client = [sum(cycle[i].frames for cycle in results.records) for i in range(args.clients)]
-    missing = sum(r.missing for r in every)
-    told = sum(r.dropped_told for r in every)
-    disorder = sum(r.seqs_out_of_order for r in every)
-    closed = [r.closed for r in every if r.closed]
-    latencies = sorted(x for r in every for x in r.latencies_s)
-
-    def total(name: str) -> float:
-        """A service total, summed over the robots' labels."""
-        return sum(value for (metric, _), value in final.items() if metric == "cobot_hmi_" + name)
-
     print(
         f"bench/fanout: {args.robots} robot(s) at RPI {args.rpi_ms:g} ms, {args.clients} clients "
         f"at full rate spread over them + 1 never reading; {args.cycles} alternations of "
@@ -371,6 +362,20 @@ def main() -> int:
         f"{args.seconds / args.cycles:g} s with clients; emulators at nice "
         f"{args.robot_niceness}, service cyclic thread at nice {args.cyclic_niceness}"
     )
+    ratios = _report_robots(args, results, names, client_robot)
+    lossless = _report_clients(args, results)
+    _report_service(args, results)
+    within = all(r <= 1.2 for r in ratios.values())
+    print(f"  targets: fast clients lose nothing: {lossless}; every ratio ≤ 1.2: {within}")
+    return 0 if lossless and within else 1
+
+
+def _report_robots(
+    args: argparse.Namespace, results: Results, names: list[str], client_robot: list[str]
+) -> dict[str, float]:
+    """Each robot's receive-interval p99 without and with clients (their ratio, returned)."""
+    baseline, load = results.baseline, results.load
+    per_client = [sum(cycle[i].frames for cycle in results.records) for i in range(args.clients)]
     ratios = {}
     for name in names:
         without, with_ = baseline.robots[name], load.robots[name]
@@ -400,13 +405,23 @@ def main() -> int:
             ", ".join(f"{p.robots[name].p99_s * 1e3:.2f}" for name in names) for p in results.loads
         )
     )
+    return ratios
+
+
+def _report_clients(args: argparse.Namespace, results: Results) -> bool:
+    """What the fast clients got (and whether they lost nothing), and the never-reading one."""
+    every = [r for cycle in results.records for r in cycle]
+    missing = sum(r.missing for r in every)
+    told = sum(r.dropped_told for r in every)
+    disorder = sum(r.seqs_out_of_order for r in every)
+    closed = [r.closed for r in every if r.closed]
+    latencies = sorted(x for r in every for x in r.latencies_s)
     print(
         f"  fast clients: frames missed {missing}, dropped notices {told}, out of order "
         f"{disorder}, closed by the server {len(closed)}"
     )
-    fast = [r for cycle in results.records for r in cycle]
-    if fast:
-        messages, frames = sum(r.messages for r in fast), sum(r.frames for r in fast)
+    if every:
+        messages, frames = sum(r.messages for r in every), sum(r.frames for r in every)
         print(
             "  messages per fast client per second "
             f"{messages / args.clients / results.load.seconds:.1f}"
@@ -418,13 +433,24 @@ def main() -> int:
             f"p50 {latencies[len(latencies) // 2] * 1e3:.1f} ms, "
             f"p99 {latencies[int(len(latencies) * 0.99)] * 1e3:.1f} ms"
         )
-    stalled = total("ws_stalled_disconnects_total")
+    stalled = _total(results, "ws_stalled_disconnects_total")
     after = results.stalled_after_s
     when = f" after {after:.0f} s" if after is not None else ""
     print(
         f"  never-reading client: disconnected by the service{when}: {bool(stalled)}; "
         f"its socket reset/closed: {results.staller_cut}"
     )
+    return missing == 0 and told == 0 and not closed
+
+
+def _total(results: Results, name: str) -> float:
+    """A service total, summed over the robots' labels."""
+    return sum(v for (metric, _), v in results.final.items() if metric == "cobot_hmi_" + name)
+
+
+def _report_service(args: argparse.Namespace, results: Results) -> None:
+    """The service's CPU per robot-frame and its totals."""
+    baseline, load = results.baseline, results.load
     print(
         f"  service CPU per robot-frame: with clients {load.service_us_per_frame():.0f} µs "
         f"({load.frames_produced} frames of {args.robots} robot(s)), without "
@@ -438,15 +464,11 @@ def main() -> int:
         f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f})"
     )
     print(
-        f"  service totals: ws frames sent {total('ws_frames_sent_total'):.0f}, "
-        f"ws dropped {total('ws_dropped_frames_total'):.0f} (the never-reading client's), "
-        f"hub frames lost {total('hub_frames_lost_total'):.0f}, "
-        f"T→O gaps {total('frame_gaps_total'):.0f}"
+        f"  service totals: ws frames sent {_total(results, 'ws_frames_sent_total'):.0f}, "
+        f"ws dropped {_total(results, 'ws_dropped_frames_total'):.0f} (the never-reading "
+        f"client's), hub frames lost {_total(results, 'hub_frames_lost_total'):.0f}, "
+        f"T→O gaps {_total(results, 'frame_gaps_total'):.0f}"
     )
-    lossless = missing == 0 and told == 0 and not closed
-    within = all(r <= 1.2 for r in ratios.values())
-    print(f"  targets: fast clients lose nothing: {lossless}; every ratio ≤ 1.2: {within}")
-    return 0 if lossless and within else 1
 
 
 if __name__ == "__main__":
