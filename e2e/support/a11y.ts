@@ -21,3 +21,14 @@ export async function seriousViolations(page: Page, include?: string): Promise<s
     .filter((v) => v.impact === "serious" || v.impact === "critical")
     .map((v) => `${v.id} (${v.impact}): ${v.nodes.map((n) => n.target.join(" ")).slice(0, 5).join(", ")}`);
 }
+
+/**
+ * The violations of the axe rules named (any impact; experimental ones such as
+ * label-content-name-mismatch run too, being named), in the page or inside `include`.
+ */
+export async function ruleViolations(page: Page, rules: string[], include?: string): Promise<string[]> {
+  const builder = new AxeBuilder({ page }).setLegacyMode(true).withRules(rules).options({ resultTypes: ["violations"] });
+  if (include !== undefined) builder.include(include);
+  const results = await builder.analyze();
+  return results.violations.map((v) => `${v.id} (${v.impact}): ${v.nodes.length} nodes, ${v.nodes.map((n) => n.target.join(" ")).slice(0, 3).join(", ")}`);
+}

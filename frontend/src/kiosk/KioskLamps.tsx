@@ -54,12 +54,13 @@ function LampGroup({ field, testPrefix, frame }: { field: LampField; testPrefix:
 
 export function KioskLamps({ frame }: { frame: Frame | null }) {
   return (
-    <div className="kiosk-lamps" data-testid="kiosk-lamps">
+    // A landmark of its own, beside the header and the main one: nothing on the kiosk outside one.
+    <section className="kiosk-lamps" data-testid="kiosk-lamps" aria-label="Inputs and outputs">
       {GROUPS.map((g) => [
         // Outputs start a line of their own.
         g.field === "controlbox_do" ? <span key="break" className="kiosk-lamps__break" aria-hidden="true" /> : null,
         <LampGroup key={g.field} field={g.field} testPrefix={g.testPrefix} frame={frame} />,
       ])}
-    </div>
+    </section>
   );
 }

@@ -8,7 +8,7 @@ import { memo, useCallback, useMemo, useState } from "react";
 import { FilterSelect, PagedTable, usePage } from "../components/PagedTable";
 import { alarmTitle } from "../lib/alarms";
 import { api, auditCsvUrl } from "../lib/api";
-import { formatTimestamp } from "../lib/dates";
+import { formatTimestamp, timeZoneLabel } from "../lib/dates";
 import { keyLabel } from "../lib/layoutInfo";
 import { EVENT_KINDS, roleAtLeast, type EventKind, type StreamEvent, type User } from "../lib/protocol";
 import { NO_SEARCH, isSearching, pageWords, searchEvents, searchEventsCsvUrl, type SearchFields } from "../lib/search";
@@ -118,7 +118,7 @@ export const EventsView = memo(function EventsView({
         to <input type="datetime-local" step={1} data-testid="events-to" value={fields.to} onChange={(e) => search({ to: e.target.value })} />
       </label>
       <span className="print-only">
-        {`Events of ${robot}${fields.text.trim() === "" ? "" : ` matching “${fields.text.trim()}”`}, from ${fields.from || "the first"} to ${fields.to || "now"}`}
+        {`Events of ${robot}${fields.text.trim() === "" ? "" : ` matching “${fields.text.trim()}”`}, from ${fields.from.replace("T", " ") || "the first"} to ${fields.to.replace("T", " ") || "now"}, times in ${timeZoneLabel(Date.now())}`}
       </span>
       {history !== null && (
         <span className="no-print">
