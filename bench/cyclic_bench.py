@@ -270,7 +270,7 @@ def combine_class1(rounds: list[dict[str, Any]]) -> dict[str, Any]:
     }
 
 
-def main() -> int:
+def _arguments() -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rpi-ms", type=float, default=2.0)
     parser.add_argument("--seconds", type=float, default=20.0)
@@ -303,7 +303,11 @@ def main() -> int:
         help="instead: one originator process holding N connections to N emulators on one UDP "
         "socket, for each N, with the C pump and the pure-Python one (bench/cyclic_robots.py)",
     )
-    args = parser.parse_args()
+    return parser.parse_args()
+
+
+def main() -> int:
+    args = _arguments()
     if args.robots is not None:
         from cyclic_robots import bench as robots_bench
 
@@ -333,48 +337,62 @@ def main() -> int:
     ]
     emulator = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
     try:
-        assert emulator.stdout is not None
-        banner = emulator.stdout.readline().decode().strip()
-        if "EtherNet/IP target" not in banner:
-            raise SystemExit(f"emulator did not start: {banner!r}")
-        rpi_us = round(args.rpi_ms * 1000)
-        load_before = load_average()
-        freeze_startup_heap()  # as the scan verb does: no full collection stalls the schedule
-        class1_rounds: list[dict[str, Any]] = []
-        polling_rounds: list[dict[str, Any]] = []
-        with asyncio.Runner(loop_factory=precise_event_loop) as runner:
-            for _ in range(args.rounds):
-                class1_rounds.append(
-                    runner.run(
-                        run_class1(
-                            robot_host,
-                            tcp_port,
-                            plc_host,
-                            rpi_us,
-                            args.seconds / args.rounds,
-                            emulator.pid,
-                            control_port,
-                        )
-                    )
-                )
-                polling_rounds.append(
-                    run_polling(robot_host, tcp_port, args.poll_seconds / args.rounds, emulator.pid)
-                )
-        class1 = combine_class1(class1_rounds)
-        polling = {**combine(polling_rounds), "rounds": polling_rounds}
-        paced = (
-            run_polling(robot_host, tcp_port, args.paced_seconds, emulator.pid, args.rpi_ms / 1e3)
-            if args.paced_seconds > 0
-            else None
-        )
-        load_after = load_average()
+        results = _measure(args, emulator, robot_host, tcp_port, plc_host, control_port)
     finally:
         emulator.terminate()
         emulator.wait(10)
         if emulator.stdout is not None:
             emulator.stdout.close()
-    report(args, class1, polling, paced, (load_before, load_after))
+    report(args, *results)
     return 0
+
+
+def _measure(  # noqa: PLR0917
+    args: argparse.Namespace,
+    emulator: subprocess.Popen[bytes],
+    robot_host: str,
+    tcp_port: int,
+    plc_host: str,
+    control_port: int,
+) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any] | None, tuple[str, str]]:
+    """The class 1 and polling rounds against the running emulator, then the paced reads:
+    their figures and the load averages before and after."""
+    assert emulator.stdout is not None
+    banner = emulator.stdout.readline().decode().strip()
+    if "EtherNet/IP target" not in banner:
+        raise SystemExit(f"emulator did not start: {banner!r}")
+    rpi_us = round(args.rpi_ms * 1000)
+    load_before = load_average()
+    freeze_startup_heap()  # as the scan verb does: no full collection stalls the schedule
+    class1_rounds: list[dict[str, Any]] = []
+    polling_rounds: list[dict[str, Any]] = []
+    with asyncio.Runner(loop_factory=precise_event_loop) as runner:
+        for _ in range(args.rounds):
+            class1_rounds.append(
+                runner.run(
+                    run_class1(
+                        robot_host,
+                        tcp_port,
+                        plc_host,
+                        rpi_us,
+                        args.seconds / args.rounds,
+                        emulator.pid,
+                        control_port,
+                    )
+                )
+            )
+            polling_rounds.append(
+                run_polling(robot_host, tcp_port, args.poll_seconds / args.rounds, emulator.pid)
+            )
+    class1 = combine_class1(class1_rounds)
+    polling = {**combine(polling_rounds), "rounds": polling_rounds}
+    paced = (
+        run_polling(robot_host, tcp_port, args.paced_seconds, emulator.pid, args.rpi_ms / 1e3)
+        if args.paced_seconds > 0
+        else None
+    )
+    load_after = load_average()
+    return class1, polling, paced, (load_before, load_after)
 
 
 def report(
@@ -413,6 +431,15 @@ def report(
         f"scanner {'yes' if pump['realtime'] else 'no'}, "
         f"emulator {'yes' if emulator_pump.get('realtime') else 'no'}"
     )
+    _report_cpu(class1, polling, paced)
+    _report_targets(rpi_ms, class1, polling)
+    print(json.dumps({"class1": class1, "polling": polling, "paced": paced, "load_average": loads}))
+
+
+def _report_cpu(
+    class1: dict[str, Any], polling: dict[str, Any], paced: dict[str, Any] | None
+) -> None:
+    """The losses and the CPU and wake-ups per frame of class 1, polling and paced polling."""
     losses = class1["losses"]
     print(f"  connection losses {len(losses)}" + (f": {'; '.join(losses)}" if losses else ""))
     print(
@@ -433,6 +460,11 @@ def report(
         "  (polling: the scanner column is the pycomm3 poller, reading back to back as the issue"
         " compares; paced: the same reads once per RPI, for context, not a target)"
     )
+
+
+def _report_targets(rpi_ms: float, class1: dict[str, Any], polling: dict[str, Any]) -> None:
+    """Gaps, jitter and CPU against polling, round by round, and the three targets."""
+    losses = class1["losses"]
     gaps_ok = class1["t2o"]["gaps"] == 0 and class1["o2t"]["gaps"] == 0 and not losses
     p99s = [class1[n]["p99_ms"] for n in ("t2o", "o2t")]
     jitter_ok = all(p is not None and abs(p - rpi_ms) <= 0.5 for p in p99s)
@@ -459,7 +491,6 @@ def report(
         + "; less CPU per frame than polling (median of the rounds' ratios < 1) "
         + ("MET" if cpu_ok else "MISSED")
     )
-    print(json.dumps({"class1": class1, "polling": polling, "paced": paced, "load_average": loads}))
 
 
 if __name__ == "__main__":
