@@ -66,3 +66,36 @@ async def test_a_csv_export_of_nothing_recorded_says_so(
     assert " to " in lines[1] and lines[1].endswith("Z")
     rows = list(csv.reader(io.StringIO(during)))
     assert len(rows) > 2 and not any(r and r[0].startswith("#") for r in rows)
+
+
+async def test_an_export_reaching_the_present_holds_every_frame_received(
+    robot_host: str, plc_host: str, tmp_path: Path
+) -> None:
+    """The recorder writes once per flush period (here its longest, 1.5 s); an export whose
+    range reaches the present has the frames it still held written first, so the file ends
+    with the newest frame the service had received when it was asked (the page's view ends
+    there too), not up to 1.5 s before it. Three exports in a row: each holds the newest."""
+    robot = SimulatedRobot(SimulationSettings(timings=FAST_TIMINGS))
+    async with emulator(robot_host, robot) as target:
+        settings = service_settings(
+            robot_host, target.tcp_port, plc_host, tmp_path, history_flush_s=1.5
+        )
+        async with running_service(settings) as hmi, hmi.client() as client:
+            frames = hmi.service.default_robot.frames
+
+            async def recorded() -> bool:
+                now_s = datetime.now(UTC).timestamp()
+                return len((await export_csv(client, now_s - 30, now_s + 5)).splitlines()) > 2
+
+            await eventually_async(recorded, timeout_s=60)
+            for _ in range(3):
+                latest = frames.latest
+                assert latest is not None
+                newest_before_s = latest.received_at_s
+                now_s = datetime.now(UTC).timestamp()
+                text = await export_csv(client, now_s - 30, now_s + 5)
+                last = next(csv.reader(io.StringIO(text.splitlines()[-1])))
+                last_s = datetime.fromisoformat(last[0]).timestamp()
+                # RPI 10 ms: the newest frame before the request is in the file (a frame's
+                # time is written to the microsecond).
+                assert last_s >= newest_before_s - 1e-3, (last_s, newest_before_s)

@@ -114,6 +114,11 @@ class Recorder:
         """CPU time of the recorder's thread."""
         self._loop: asyncio.AbstractEventLoop | None = None
         self._stopping = threading.Event()
+        self._wake = threading.Event()
+        """Set to run a cycle now (``flush``) or to stop."""
+        self._cycles = threading.Condition()
+        self._cycles_started = 0
+        self._cycles_done = 0
         self._thread: threading.Thread | None = None
         self._next_retry = 0.0
         self._next_retention = 0.0
@@ -138,6 +143,7 @@ class Recorder:
 
     async def stop(self) -> None:
         self._stopping.set()
+        self._wake.set()
         thread = self._thread
         if thread is not None:
             await asyncio.to_thread(thread.join)
@@ -153,13 +159,41 @@ class Recorder:
     def _run(self) -> None:
         started = time.thread_time()
         try:
-            while not self._stopping.wait(self.settings.history_flush_s):
-                self._guarded_cycle()
+            while not self._stopping.is_set():
+                self._wake.wait(self.settings.history_flush_s)
+                self._wake.clear()
+                if self._stopping.is_set():
+                    break
+                self._counted_cycle()
                 self.cpu_seconds = time.thread_time() - started
-            self._guarded_cycle()
+            self._counted_cycle()
             self._close_all()
         finally:
             self.cpu_seconds = time.thread_time() - started
+
+    def _counted_cycle(self) -> None:
+        with self._cycles:
+            self._cycles_started += 1
+        try:
+            self._guarded_cycle()
+        finally:
+            with self._cycles:
+                self._cycles_done += 1
+                self._cycles.notify_all()
+
+    def flush(self, timeout_s: float) -> bool:
+        """Write every frame received so far to the journals now, not at the next flush (an
+        export reaching the present holds what the page showed); wait for it, at most
+        ``timeout_s``. ``False``: not done in time, or the recorder is not running. Called off
+        the event loop: it blocks."""
+        thread = self._thread
+        if thread is None or not thread.is_alive():
+            return False
+        with self._cycles:
+            # A cycle started before this call may have taken its frames already: the next one.
+            wanted = self._cycles_started + 1
+            self._wake.set()
+            return self._cycles.wait_for(lambda: self._cycles_done >= wanted, timeout_s)
 
     def _guarded_cycle(self) -> None:
         """A cycle; an unexpected error pauses recording (retried like a full disk) instead of

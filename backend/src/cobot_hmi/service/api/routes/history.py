@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import time
 from collections.abc import Iterator
 from datetime import UTC, datetime
 from pathlib import Path
@@ -250,6 +251,20 @@ async def get_history_status(service: ServiceDep, robot: RobotDep, _: ViewerDep)
     return Response(orjson.dumps(status), media_type="application/json")
 
 
+EXPORT_FLUSH_TIMEOUT_S: Final = 2.0
+"""How long an export reaching the present waits for the recorder's flush (``_recorded_until``)."""
+
+
+async def _recorded_until(service: Service, to_s: float) -> None:
+    """An export whose range reaches the frames the recorder may still hold (the last
+    ``history_flush_s``) has them written first, so it holds everything the page showed up to
+    the request; a recorder that does not answer in time leaves it as recorded so far."""
+    recorder = service.recorder
+    if recorder is None or to_s < time.time() - 2 * service.settings.history_flush_s:
+        return
+    await asyncio.to_thread(recorder.flush, EXPORT_FLUSH_TIMEOUT_S)
+
+
 def export_chunks(
     root: Path,
     database: Path,
@@ -311,6 +326,7 @@ async def get_export(
 ) -> Response:
     from_s, to_s = _times(from_, to, 1)
     elements = _elements(fields)
+    await _recorded_until(service, to_s)
     filename = history_export.export_filename(robot.name, from_s, to_s, format)
     chunks = export_chunks(
         service.settings.history_path,
