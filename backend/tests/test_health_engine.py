@@ -18,8 +18,11 @@ from cobot_hmi.cli.health_verb import HealthSimulation
 from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot
 from cobot_hmi.emulator.robot.accelerated import AcceleratedArm
 from cobot_hmi.emulator.robot.wear import JointWear, Wear
-from cobot_hmi.health import FrameBlock, HealthEngine
+from cobot_hmi.generated.frames import Frame
+from cobot_hmi.health import FrameBlock, HealthEngine, HealthSettings
 from cobot_hmi.health.life import LIFE_EXPONENT
+from cobot_hmi.service.cycles.meter import CycleMeter
+from cobot_hmi.service.cycles.trigger import parse_trigger
 from cobot_hmi.stored_format import FormatVersionError
 
 
@@ -255,3 +258,56 @@ def test_bad_frames_are_dropped_and_counted_and_bad_shapes_refused() -> None:
         sim.engine.end_cycle(sim.now_s, sim.now_s - 1.0)
     sim.run(5)
     assert _verdicts(sim) == ["ok"] * 6
+
+
+def test_the_engine_fed_as_the_service_will_feed_it_finds_worn_j3() -> None:
+    """SimulatedRobot's own frames (stepped at 100 Hz without sockets, monitoring values
+    refreshed every 100 ms as the real controller's), a second at a time, cut into cycles by
+    the service's cycle meter on the program's marker register."""
+    settings = RobotSettings(
+        cycle_marker_register=63,
+        kinematic_refresh_ms=100.0,
+        thermal_time_constant_s=5.0,  # the motors settle in seconds: no long warm-up to step
+    )
+    robot = SimulatedRobot(settings, start_s=0.0)
+    engine = HealthEngine(M1013_ARM, HealthSettings(thermal_time_constant_s=5.0))
+    trigger = parse_trigger("bit_output_registers.63:rising")
+    assert trigger is not None
+    meter = CycleMeter("robot", trigger)
+    times: list[float] = []
+    frames: list[Frame] = []
+
+    def flush() -> None:
+        if frames:
+            engine.observe(FrameBlock.from_frames(times, frames))
+            times.clear()
+            frames.clear()
+
+    step = 0
+    for cycles, before in ((4, None), (50, "baseline"), (25, "wear")):
+        if before == "baseline":
+            engine.begin_baseline("commissioning", "test", step / 100, cycles=50)
+        elif before == "wear":
+            robot.wear.set(2, JointWear(friction_percent=25.0), step / 100)
+        done = 0
+        while done < cycles:
+            now_s = step / 100
+            frame = robot.produce_frame(now_s)
+            times.append(now_s)
+            frames.append(frame)
+            cycle = meter.observe(frame, now_s)
+            if cycle is not None:
+                flush()  # the frames up to the cycle's end first
+                engine.end_cycle(cycle.start, cycle.end, cycle.interrupted)
+                done += 1
+            elif len(frames) >= 100:
+                flush()
+            step += 1
+    report: Any = engine.report()
+    assert [j["verdict"] for j in report["joints"]] in (
+        ["ok", "ok", "watch", "ok", "ok", "ok"],
+        ["ok", "ok", "act", "ok", "ok", "ok"],
+    ), [j["reason"] for j in report["joints"]]
+    # At the controller's 100 ms refresh this program gives a rough reference for J3's healthy
+    # friction (docs/health.md, "Friction"): the wear is found, its size only roughly.
+    assert report["joints"][2]["friction_percent"] > 10.0

@@ -8,7 +8,8 @@ robot's own healthy baseline, with a verdict per joint (ok / watch / act) and it
 sentence. ``HealthEngine`` is the one object a consumer holds per robot: frames in
 (``FrameBlock``), cycle boundaries in (``end_cycle``), figures out (``report``), and its whole
 state as a versioned JSON document (``to_document`` / ``from_document``). One concern per
-module: ``frames`` (the arrays), ``settings`` (thresholds), ``friction``, ``signature``,
+module: ``frames`` (the arrays), ``samples`` (the distinct measurements among them),
+``settings`` (thresholds), ``friction``, ``signature``,
 ``heat``, ``life``, ``knocks``, ``drift``, ``baseline``, ``verdict``, ``report`` (the
 figures and the state's body), ``document``, ``engine``.
 """

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from cobot_hmi.health.frames import FloatArray, FrameBlock
-from cobot_hmi.health.friction import CellTable
+from cobot_hmi.health.friction import CellTable, friction_per_speed
 from cobot_hmi.health.heat import HeatFit, cycle_heat
 from cobot_hmi.health.settings import HealthSettings
 from cobot_hmi.health.signature import quantiles, resample
@@ -25,6 +25,8 @@ class Baseline:
         self.info = info
         """id, reason, by, arm, layout_version, started_s, finished_s, target_cycles, until_s."""
         self.cells = CellTable(settings)
+        self.steady_cells = CellTable(settings)
+        """Steady-speed samples only: where the friction per °/s is measured."""
         self.signature_sum: FloatArray = np.zeros((settings.signature_points, joints))
         self.distribution_sum: FloatArray = np.zeros((101, joints))
         self.heat = HeatFit(joints)
@@ -38,8 +40,10 @@ class Baseline:
     def finished(self) -> bool:
         return self.info.get("finished_s") is not None
 
-    def add_frames(self, block: FrameBlock) -> None:
-        self.cells.add(block)
+    def add_frames(self, block: FrameBlock, acceleration_deg_s2: FloatArray) -> None:
+        """Distinct samples and their accelerations (``health.samples``)."""
+        self.cells.add(block, acceleration_deg_s2)
+        self.steady_cells.add(block, acceleration_deg_s2, steady_only=True)
 
     def add_cycle(self, block: FrameBlock, start_s: float, end_s: float) -> None:
         points = self.settings.signature_points
@@ -48,6 +52,14 @@ class Baseline:
         self.heat.add(*cycle_heat(block, self.settings.thermal_time_constant_s))
         d = end_s - start_s
         self.durations += (1.0, d, d * d)
+
+    def friction_per_speed(self, joints: int) -> FloatArray:
+        """Per joint: its friction per °/s (N·m s/°) as this baseline measured it: at steady
+        speeds where it saw enough of them both ways (inertia plays no part), else from every
+        sample's fit."""
+        steady = friction_per_speed(self.steady_cells, joints, self.settings)
+        fitted = friction_per_speed(self.cells, joints, self.settings)
+        return np.where(np.isfinite(steady), steady, fitted)
 
     def due(self, now_s: float) -> bool:
         """Learned enough: the cycles asked for, or the period's end passed."""
@@ -75,6 +87,7 @@ class Baseline:
         return {
             "info": self.info,
             "cells": self.cells.to_state(),
+            "steady_cells": self.steady_cells.to_state(),
             "signature_sum": self.signature_sum.tolist(),
             "distribution_sum": self.distribution_sum.tolist(),
             "heat_sums": self.heat.sums.tolist(),
@@ -91,6 +104,9 @@ class Baseline:
         cells = state["cells"]
         assert isinstance(cells, dict)
         baseline.cells = CellTable.from_state(settings, cells)
+        steady = state["steady_cells"]
+        assert isinstance(steady, dict)
+        baseline.steady_cells = CellTable.from_state(settings, steady)
         baseline.signature_sum = np.array(state["signature_sum"], dtype=np.float64)
         baseline.distribution_sum = np.array(state["distribution_sum"], dtype=np.float64)
         baseline.heat.sums = np.array(state["heat_sums"], dtype=np.float64)

@@ -23,6 +23,7 @@ from cobot_hmi.health.friction import CellTable, friction_excess_percent
 from cobot_hmi.health.heat import HeatMonitor, cycle_heat
 from cobot_hmi.health.knocks import KnockCounter
 from cobot_hmi.health.life import LifeMeter
+from cobot_hmi.health.samples import DistinctSamples
 from cobot_hmi.health.settings import HealthSettings
 from cobot_hmi.health.signature import compare, quantiles, resample
 from cobot_hmi.layout import LAYOUT_VERSION
@@ -52,6 +53,7 @@ class HealthEngine:
             rated_torque * s.knock_fraction_of_rated, s.shift_hours, s.shift_origin_s
         )
         self.recent = CellTable(s)
+        self.samples = DistinctSamples()
         self.heat = HeatMonitor(self.joints)
         self.baseline: Baseline | None = None
         self.learning: Baseline | None = None
@@ -117,9 +119,10 @@ class HealthEngine:
         self.now_s = float(block.time_s[-1])
         self.life.add(block)
         self.knocks.add(block)
-        self.recent.add(block)
+        distinct, acceleration = self.samples.take(block, self.settings.jerk_tolerance_deg_s2)
+        self.recent.add(distinct, acceleration)
         if self.learning is not None:
-            self.learning.add_frames(block)
+            self.learning.add_frames(distinct, acceleration)
         self._pending.append(block)
         while self._pending and self._pending[0].time_s[-1] < self.now_s - MAX_PENDING_S:
             self._pending.pop(0)
@@ -156,7 +159,10 @@ class HealthEngine:
         if self.baseline is not None:
             # What the old baseline would have read at the change: the trend spans it.
             baseline.info["friction_vs_previous_percent"] = friction_excess_percent(
-                baseline.cells, self.baseline.cells, self.joints, self.settings
+                baseline.cells,
+                self.baseline.cells,
+                self.baseline.friction_per_speed(self.joints),
+                self.settings,
             )
         self.history.append(baseline.info)
         self.baseline, self.learning = baseline, None
@@ -203,7 +209,12 @@ class HealthEngine:
     def friction_percent(self) -> list[float | None]:
         if self.baseline is None:
             return [None] * self.joints
-        return friction_excess_percent(self.recent, self.baseline.cells, self.joints, self.settings)
+        return friction_excess_percent(
+            self.recent,
+            self.baseline.cells,
+            self.baseline.friction_per_speed(self.joints),
+            self.settings,
+        )
 
     def friction_since_first_percent(
         self, friction: list[float | None] | None = None

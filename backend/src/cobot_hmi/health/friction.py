@@ -1,11 +1,19 @@
 """Layer: health (pure). Imports ``health.frames`` and ``health.settings``.
 
 Friction: what a joint needs at the same position and speed beyond its baseline, in the same
-band of motor temperature. Gravity and inertia are even in the direction of motion at a given
-position and acceleration, friction is odd: in each cell (joint, temperature band, position bin,
-speed bin) the mean torque moving forward minus the mean torque moving back is twice the
-friction there. A joint's figure is the cells it shares with its baseline, weighted by how many
-frames each holds: ``Σ w·(F_now − F_base) / Σ w·F_base``.
+band of motor temperature. Samples (``health.samples``: distinct measurements, each with its
+joint acceleration; one straddling a change of acceleration left out) are put in cells (joint,
+temperature band, position bin, speed bin, direction). In each the torque is fitted by least
+squares as ``τ = α + β·x + γ·y`` (``x`` the position within the bin, ``y`` the acceleration),
+so which samples of the motion fall in the cell (the frames' phase against the motion, the
+controller's 100 ms refresh) does not move ``α``, the torque at the cell's centre. Gravity and
+inertia at a cell are what they were in the baseline (the same program, the same payload);
+friction acts against the motion: ``sign(v)·(α_now − α_base)`` is how much more friction the
+joint has there. The reference the change is a percentage of is the baseline's friction per
+°/s (``k``, the median over the cells it saw both ways, where friction is
+``(α_forward − α_back)/2``, gravity being even in the direction and friction odd) times each
+cell's speed: a joint's figure is ``Σ w·sign·Δα / Σ w·k·v`` over the cells it shares with its
+baseline, ``w`` the fewer samples of the two.
 
 Cells are sparse (a program visits a few hundred of the millions possible): a key per cell, a
 slot per key, sums in numpy arrays indexed by slot.
@@ -21,8 +29,16 @@ from cobot_hmi.health.settings import HealthSettings
 _BANDS = 100  # temperature bands from −40 °C
 _POSITIONS = 100  # position bins from −500°
 _SPEEDS = 100
-_COLUMNS = 4  # torque sum forward, frames forward, torque sum back, frames back
 _PER_JOINT = _BANDS * _POSITIONS * _SPEEDS
+_TERMS = 9
+"""Per direction: n, Σx, Σy, Σx², Σy², Σxy, Στ, Στx, Στy (x the position in the bin, −½ to ½;
+y the acceleration in hundreds of °/s²)."""
+_ACCELERATION_SCALE = 100.0
+_COLUMNS = 2 * _TERMS  # forward, then back
+_RIDGE = 1e-3
+"""Keeps a fit whose samples do not spread in position or acceleration to its mean there."""
+MIN_SHARED_SAMPLES = 20.0
+"""Fewer samples shared with the baseline than this give no figure."""
 
 
 def _bin(values: FloatArray, width: float, count: int) -> IntArray:
@@ -33,7 +49,7 @@ def _bin(values: FloatArray, width: float, count: int) -> IntArray:
 
 
 class CellTable:
-    """Per cell: forward and backward torque sums and frame counts (see the module docstring)."""
+    """Per cell and direction: the sums of its torque fit (see the module docstring)."""
 
     def __init__(self, settings: HealthSettings) -> None:
         self._settings = settings
@@ -44,31 +60,37 @@ class CellTable:
             np.zeros(0, dtype=np.int64),
         )
 
-    def keys(self, block: FrameBlock) -> tuple[IntArray, IntArray, FloatArray]:
-        """Each moving frame's cell key, direction column (0 forward, 2 back) and torque."""
+    def add(
+        self, block: FrameBlock, acceleration_deg_s2: FloatArray, *, steady_only: bool = False
+    ) -> None:
+        """Distinct samples (``DistinctSamples``) and their joint accelerations (NaN: a sample
+        to leave out)."""
         s = self._settings
         velocity = block.velocity_deg_s
         speed = np.abs(velocity)
         moving = (speed >= s.min_speed_deg_s) & block.servo_on[:, None]
+        moving &= np.isfinite(acceleration_deg_s2)
+        if steady_only:
+            moving &= np.abs(acceleration_deg_s2) <= s.jerk_tolerance_deg_s2
         rows, joint = np.nonzero(moving)
-        # Only the moving frames' values, as flat vectors: a third of the work on a cycle.
-        band = _bin(block.temperature_c[rows, joint] + 40.0, s.temperature_band_c, _BANDS)
-        position = _bin(block.position_deg[rows, joint] + 500.0, s.position_bin_deg, _POSITIONS)
-        speed_bin = _bin(speed[rows, joint], s.speed_bin_deg_s, _SPEEDS)
-        key = ((joint * _BANDS + band) * _POSITIONS + position) * _SPEEDS + speed_bin
-        column = np.where(velocity[rows, joint] > 0.0, 0, 2)
-        return key, column, block.torque_nm[rows, joint]
-
-    def add(self, block: FrameBlock) -> None:
-        keys, columns, torques = self.keys(block)
-        if keys.size == 0:
+        if rows.size == 0:
             return
-        slots = self._slots_of(keys)
-        index = slots * _COLUMNS + columns
-        size = self.sums.size
+        # Only the moving samples' values, as flat vectors.
+        band = _bin(block.temperature_c[rows, joint] + 40.0, s.temperature_band_c, _BANDS)
+        scaled = (block.position_deg[rows, joint] + 500.0) / s.position_bin_deg
+        position = np.clip(np.floor(scaled).astype(np.int64), 0, _POSITIONS - 1)
+        speed_bin = _bin(speed[rows, joint], s.speed_bin_deg_s, _SPEEDS)
+        keys = ((joint * _BANDS + band) * _POSITIONS + position) * _SPEEDS + speed_bin
+        x = scaled - position - 0.5
+        y = acceleration_deg_s2[rows, joint] / _ACCELERATION_SCALE
+        torque = block.torque_nm[rows, joint]
+        terms = np.stack(
+            [np.ones_like(x), x, y, x * x, y * y, x * y, torque, torque * x, torque * y], axis=1
+        )
+        base = self._slots_of(keys) * _COLUMNS + np.where(velocity[rows, joint] > 0.0, 0, _TERMS)
+        index = (base[:, None] + np.arange(_TERMS)).ravel()
         flat = self.sums.reshape(-1)
-        flat += np.bincount(index, weights=torques, minlength=size)
-        flat[1:] += np.bincount(index, minlength=size)[:-1]  # the frame counts, one column on
+        flat += np.bincount(index, weights=terms.ravel(), minlength=flat.size)
 
     def _slots_of(self, keys: IntArray) -> IntArray:
         """Each key's slot: found in the sorted known keys at numpy speed; a key never seen
@@ -103,16 +125,19 @@ class CellTable:
     def decay(self, factor: float) -> None:
         self.sums *= factor
 
-    def friction(self, min_frames: float) -> tuple[IntArray, FloatArray, FloatArray]:
-        """The cells with enough frames both ways: their keys (sorted), friction (N·m) and
-        weight (the fewer frames of the two directions)."""
+    def fits(self, min_samples: float) -> tuple[IntArray, FloatArray, FloatArray]:
+        """Every cell's key (sorted), and per direction (forward, back) its torque at the
+        centre ``α`` (N·m; NaN with fewer than ``min_samples``) and its samples."""
         keys, slots = self._sorted
         sums = self.sums[slots]
-        forward_n, back_n = sums[:, 1], sums[:, 3]
-        ok = (forward_n >= min_frames) & (back_n >= min_frames)
-        sums, forward_n, back_n = sums[ok], forward_n[ok], back_n[ok]
-        friction = (sums[:, 0] / forward_n - sums[:, 2] / back_n) / 2.0
-        return keys[ok], friction, np.minimum(forward_n, back_n)
+        alphas, counts = [], []
+        for terms in (sums[:, :_TERMS], sums[:, _TERMS:]):
+            enough = terms[:, 0] >= min_samples
+            alpha = np.full(terms.shape[0], np.nan)
+            alpha[enough] = _intercepts(terms[enough])
+            alphas.append(alpha)
+            counts.append(terms[:, 0])
+        return keys, np.stack(alphas, axis=1), np.stack(counts, axis=1)
 
     def to_state(self) -> dict[str, object]:
         keys = list(self.slots)
@@ -131,39 +156,76 @@ class CellTable:
         return table
 
 
-def friction_excess_percent(
-    recent: CellTable, baseline: CellTable, joints: int, settings: HealthSettings
-) -> list[float | None]:
-    """Each joint's friction against its baseline in %, over the cells both share; ``None``
-    where they share none (a joint that does not move, a temperature never seen in the
-    baseline).
-
-    The change ``Σ w·(F_now − F_base)`` is exact wherever the two directions of a cell are the
-    same motion mirrored (and cancels what is not friction wherever the frames are the same);
-    the reference it is a percentage of is the baseline's friction per °/s (the median over
-    its cells, robust to the cells whose two directions come from different moves) times each
-    shared cell's speed."""
-    now_keys, now_friction, weight = recent.friction(settings.min_cell_frames)
-    base_keys, base_friction, _ = baseline.friction(settings.min_cell_frames)
-    base_joint = base_keys // _PER_JOINT
-    per_speed = base_friction / _speed_of(base_keys, settings)
-    slope = np.array(
+def _intercepts(terms: FloatArray) -> FloatArray:
+    """Each row's least-squares ``α`` of ``τ = α + β·x + γ·y`` from its sums (ridge on β, γ)."""
+    n, sx, sy, sxx, syy, sxy, st, stx, sty = terms.T
+    ridge = _RIDGE * n
+    matrix = np.stack(
         [
-            np.median(per_speed[base_joint == j]) if np.any(base_joint == j) else 0.0
+            np.stack([n, sx, sy], axis=1),
+            np.stack([sx, sxx + ridge, sxy], axis=1),
+            np.stack([sy, sxy, syy + ridge], axis=1),
+        ],
+        axis=1,
+    )
+    solution = np.linalg.solve(matrix, np.stack([st, stx, sty], axis=1)[:, :, None])
+    intercepts: FloatArray = solution[:, 0, 0]
+    return intercepts
+
+
+MIN_REFERENCE_CELLS = 3
+"""A friction per °/s needs at least this many cells seen both ways."""
+
+
+def friction_per_speed(cells: CellTable, joints: int, settings: HealthSettings) -> FloatArray:
+    """Per joint: the friction per °/s, the median over the cells seen both ways (NaN for a
+    joint seen so in fewer than ``MIN_REFERENCE_CELLS``)."""
+    keys, alpha, _ = cells.fits(settings.min_cell_frames)
+    both = np.all(np.isfinite(alpha), axis=1)
+    per_speed = (alpha[both, 0] - alpha[both, 1]) / 2.0 / _speed_of(keys[both], settings)
+    joint = keys[both] // _PER_JOINT
+    return np.array(
+        [
+            np.median(per_speed[joint == j])
+            if np.count_nonzero(joint == j) >= MIN_REFERENCE_CELLS
+            else np.nan
             for j in range(joints)
         ]
     )
+
+
+def friction_excess_percent(
+    recent: CellTable,
+    baseline: CellTable,
+    slope: FloatArray,
+    settings: HealthSettings,
+) -> list[float | None]:
+    """Each joint's friction against its baseline in % (see the module docstring); ``None``
+    where they share too few samples (a joint that hardly moves, a temperature never seen in
+    the baseline) or the baseline never saw the joint move both ways at one place."""
+    joints = slope.size
+    now_keys, now_alpha, now_n = recent.fits(settings.min_cell_frames)
+    base_keys, base_alpha, base_n = baseline.fits(settings.min_cell_frames)
     shared = np.isin(now_keys, base_keys, assume_unique=True)
-    keys, friction, weight = now_keys[shared], now_friction[shared], weight[shared]
-    base_at = base_friction[np.searchsorted(base_keys, keys)]
-    joint = keys // _PER_JOINT
-    excess = np.bincount(joint, weights=weight * (friction - base_at), minlength=joints)
-    reference = np.bincount(
-        joint, weights=weight * slope[joint] * _speed_of(keys, settings), minlength=joints
+    at = np.searchsorted(base_keys, now_keys[shared])
+    keys = now_keys[shared]
+    delta = (now_alpha[shared] - base_alpha[at]) * np.array([1.0, -1.0])
+    weight = np.minimum(now_n[shared], base_n[at])
+    usable = np.isfinite(delta)
+    weight = np.where(usable, weight, 0.0)
+    delta = np.where(usable, delta, 0.0)
+    joint = np.repeat((keys // _PER_JOINT)[:, None], 2, axis=1)
+    speed = np.repeat(_speed_of(keys, settings)[:, None], 2, axis=1)
+    excess = np.bincount(joint.ravel(), weights=(weight * delta).ravel(), minlength=joints)
+    samples = np.bincount(joint.ravel(), weights=weight.ravel(), minlength=joints)
+    reference = slope * np.bincount(
+        joint.ravel(), weights=(weight * speed).ravel(), minlength=joints
     )
     return [
-        100.0 * float(e) / float(r) if r > 1e-9 else None
-        for e, r in zip(excess, reference, strict=True)
+        100.0 * float(e) / float(r)
+        if np.isfinite(r) and r > 1e-9 and n >= MIN_SHARED_SAMPLES
+        else None
+        for e, r, n in zip(excess, reference, samples, strict=True)
     ]
 
 

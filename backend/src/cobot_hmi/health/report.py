@@ -179,6 +179,7 @@ def engine_state(engine: HealthEngine) -> dict[str, object]:
         "baseline": engine.baseline.to_state() if engine.baseline is not None else None,
         "learning": engine.learning.to_state() if engine.learning is not None else None,
         "recent": engine.recent.to_state(),
+        "last_sample": engine.samples.to_state(),
         "heat_excess_c": _list(engine.heat.excess_c),
         "signature_rms": _list(engine.signature_rms),
         "signature_distribution": _list(engine.signature_distribution),
@@ -210,6 +211,7 @@ def restore_engine(engine: HealthEngine, body: dict[str, object]) -> None:
         state = body[name]
         setattr(engine, name, None if state is None else Baseline.from_state(s, joints, state))  # type: ignore[arg-type]
     engine.recent = CellTable.from_state(s, body["recent"])  # type: ignore[arg-type]
+    engine.samples.restore(body["last_sample"])
     engine.heat.excess_c = _array(body["heat_excess_c"])
     engine.signature_rms = _array(body["signature_rms"])
     engine.signature_distribution = _array(body["signature_distribution"])

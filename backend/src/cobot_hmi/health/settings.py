@@ -23,6 +23,9 @@ class HealthSettings:
     as a gear warms, so a cold morning is compared with nothing rather than read as wear."""
     min_speed_deg_s: float = 2.0
     """Slower frames (stiction, a reversal) tell nothing of friction."""
+    jerk_tolerance_deg_s2: float = 10.0
+    """A sample whose acceleration before and after differ by more than this (and 10 %) straddles
+    a change of acceleration: left out of the friction fit."""
     min_cell_frames: float = 3.0
     heat_watch_c: float = 5.0
     heat_act_c: float = 10.0

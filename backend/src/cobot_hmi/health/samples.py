@@ -1,0 +1,84 @@
+"""Layer: health (pure). Imports ``health.frames``.
+
+The distinct measurements among the frames, and each joint's acceleration at them. The
+controller refreshes its monitoring values about every 100 ms whatever the RPI
+(docs/emulator.md), so at a 10 ms RPI nine frames in ten repeat the one before: a frame whose
+joint positions, velocities and torques all equal the previous frame's is the same measurement
+again, and is left out where samples are counted and fitted (friction). Accelerations are the
+central differences of the velocities of successive distinct samples, across blocks (the last
+sample of a block is kept), and not across a gap of more than ``MAX_GAP_S``; a sample whose
+slopes before and after disagree straddles a change of acceleration and gets none.
+"""
+
+from __future__ import annotations
+
+from typing import Final
+
+import numpy as np
+
+from cobot_hmi.health.frames import FloatArray, FrameBlock
+
+MAX_GAP_S: Final = 1.0
+
+
+class DistinctSamples:
+    """Keeps the last distinct sample between blocks (see the module docstring)."""
+
+    def __init__(self) -> None:
+        self.last: tuple[float, FloatArray, FloatArray, FloatArray] | None = None
+        """Time, positions, velocities, torques of the last distinct sample."""
+
+    def take(
+        self, block: FrameBlock, jerk_tolerance_deg_s2: float
+    ) -> tuple[FrameBlock, FloatArray]:
+        """The block's distinct samples and the joints' accelerations at them (°/s²): the mean
+        of the velocity's slopes before and after each sample, NaN where the two differ by more
+        than the tolerance (and 10 %: the sample straddles a change of acceleration) or one is
+        missing (the first sample after a gap, the block's last)."""
+        values = np.concatenate([block.position_deg, block.velocity_deg_s, block.torque_nm], axis=1)
+        if self.last is not None:
+            before = np.concatenate(self.last[1:])[None, :]
+        else:
+            before = np.full((1, values.shape[1]), np.nan)
+        previous = np.concatenate([before, values[:-1]], axis=0)
+        distinct = block.take(np.any(values != previous, axis=1))
+        if len(distinct) == 0:
+            return distinct, np.zeros_like(distinct.velocity_deg_s)
+        times, velocity = distinct.time_s, distinct.velocity_deg_s
+        if self.last is not None and times[0] - self.last[0] <= MAX_GAP_S:
+            times = np.concatenate([[self.last[0]], times])
+            velocity = np.concatenate([self.last[2][None, :], velocity])
+        else:  # no sample before the first: its slope before is unknown
+            times = np.concatenate([[times[0] - 1.0], times])
+            velocity = np.concatenate([np.full((1, velocity.shape[1]), np.nan), velocity])
+        slopes = np.diff(velocity, axis=0) / np.diff(times)[:, None]
+        after = np.concatenate([slopes[1:], np.full((1, slopes.shape[1]), np.nan)])
+        spread = np.abs(after - slopes)
+        limit = jerk_tolerance_deg_s2 + 0.1 * np.maximum(np.abs(after), np.abs(slopes))
+        acceleration: FloatArray = np.where(spread <= limit, (after + slopes) / 2.0, np.nan)
+        self.last = (
+            float(distinct.time_s[-1]),
+            distinct.position_deg[-1].copy(),
+            distinct.velocity_deg_s[-1].copy(),
+            distinct.torque_nm[-1].copy(),
+        )
+        return distinct, acceleration
+
+    def to_state(self) -> list[object] | None:
+        if self.last is None:
+            return None
+        time_s, *rows = self.last
+        return [time_s, *(row.tolist() for row in rows)]
+
+    def restore(self, state: object) -> None:
+        if state is None:
+            self.last = None
+            return
+        assert isinstance(state, list)
+        time_s, position, velocity, torque = state
+        self.last = (
+            float(time_s),
+            np.array(position, dtype=np.float64),
+            np.array(velocity, dtype=np.float64),
+            np.array(torque, dtype=np.float64),
+        )
