@@ -82,11 +82,7 @@ async def main_async(args: argparse.Namespace, cell: Cell) -> int:
     kinds = tuple(SHORT_NAMES[name] for name in args.faults.split(","))
     duration_s = args.minutes * 60
     period = args.fault_every_s
-    fault_times = []
-    k = 0
-    while period * 0.75 + k * period + period <= duration_s:
-        fault_times.append(period * 0.75 + k * period)
-        k += 1
+    fault_times = _fault_times(duration_s, period)
     print(
         f"bench/soak: {args.minutes:g} min; robots "
         + ", ".join(f"{r.name} ({r.model}) at {r.host}, RPI {r.rpi_ms:g} ms" for r in cell.robots)
@@ -109,27 +105,7 @@ async def main_async(args: argparse.Namespace, cell: Cell) -> int:
             await _warm_up(clients, monitors)
             run.started = time.time()
             tasks.append(asyncio.create_task(run.minutes(stop)))
-            for number, at in enumerate(fault_times):
-                await asyncio.sleep(max(0.0, run.started + at - time.time()))
-                if not _service_alive(run):
-                    break
-                record = await inject(soak, number, kinds)
-                soak.faults.append(record)
-                recovery = record.recovery_s
-                print(
-                    f"[{run.at(record.started)}] fault {number + 1}: {record.kind} "
-                    f"({record.target}): ended after {record.ended - record.started:.2f} s; "
-                    "recovered "
-                    + (
-                        "from the recording at the end"
-                        if record.pending
-                        else ("never" if recovery is None else f"in {recovery:.2f} s")
-                        + f" (≤ {record.bound_s:.1f} s: {verdict(record.passed)})"
-                    )
-                    + "; "
-                    + "; ".join(record.notes),
-                    flush=True,
-                )
+            await _inject_faults(run, soak, fault_times, kinds)
             while time.time() < run.started + duration_s and _service_alive(run):
                 left = run.started + duration_s - time.time()
                 with contextlib.suppress(TimeoutError):
@@ -147,6 +123,44 @@ async def main_async(args: argparse.Namespace, cell: Cell) -> int:
             await asyncio.gather(*tasks, *watch, return_exceptions=True)
             watcher.stop()
     return 1 if run.failures else 0
+
+
+def _fault_times(duration_s: float, period: float) -> list[float]:
+    """When each fault starts, s from the run's start: the first at three quarters of a period,
+    then one a period, each with a whole period left after it."""
+    times = []
+    k = 0
+    while period * 0.75 + k * period + period <= duration_s:
+        times.append(period * 0.75 + k * period)
+        k += 1
+    return times
+
+
+async def _inject_faults(
+    run: Run, soak: Soak, fault_times: list[float], kinds: tuple[str, ...]
+) -> None:
+    """Each fault at its time (while the service lives), and its recovery in a line."""
+    for number, at in enumerate(fault_times):
+        await asyncio.sleep(max(0.0, run.started + at - time.time()))
+        if not _service_alive(run):
+            return
+        record = await inject(soak, number, kinds)
+        soak.faults.append(record)
+        recovery = record.recovery_s
+        print(
+            f"[{run.at(record.started)}] fault {number + 1}: {record.kind} "
+            f"({record.target}): ended after {record.ended - record.started:.2f} s; "
+            "recovered "
+            + (
+                "from the recording at the end"
+                if record.pending
+                else ("never" if recovery is None else f"in {recovery:.2f} s")
+                + f" (≤ {record.bound_s:.1f} s: {verdict(record.passed)})"
+            )
+            + "; "
+            + "; ".join(record.notes),
+            flush=True,
+        )
 
 
 async def _warm_up(
