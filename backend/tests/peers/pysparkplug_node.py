@@ -6,13 +6,16 @@ plant's tests in a venv of its own (pysparkplug 0.6.1 needs paho-mqtt 1.x, the p
 - ``gap``: the next seq is skipped (a message the plant never sees);
 - ``death``: NDEATH (pysparkplug's clean disconnect publishes it), then exit.
 
-It prints ``ready`` once born and ``ncmd NAME=VALUE,...`` for each NCMD it receives.
+It prints ``ready`` once born and ``ncmd NAME=VALUE,...`` for each NCMD it receives; on a
+``Node Control/Rebirth`` it is born again (pysparkplug has no rebirth of its own: it disconnects
+and connects, which sends NBIRTH and DBIRTH with every metric's current value and time).
 """
 
 from __future__ import annotations
 
 import json
 import sys
+import threading
 import time
 
 import pysparkplug as sp
@@ -24,9 +27,13 @@ def main() -> int:
     host, port, group, node_id, device_id = sys.argv[1], int(sys.argv[2]), *sys.argv[3:6]
     now = sp.get_current_timestamp
 
+    rebirth = threading.Event()
+
     def on_command(_node: sp.EdgeNode, message: sp.Message) -> None:
         names = ",".join(f"{m.name}={m.value}" for m in message.payload.metrics)
         print(f"ncmd {names}", flush=True)
+        if any(m.name == "Node Control/Rebirth" and m.value for m in message.payload.metrics):
+            rebirth.set()
 
     node = sp.EdgeNode(
         group,
@@ -55,6 +62,16 @@ def main() -> int:
         )
     )
     node.connect(host, port=port, blocking=False)
+
+    def rebirths() -> None:  # off paho's thread: disconnect stops its loop
+        while True:
+            rebirth.wait()
+            rebirth.clear()
+            node.disconnect()
+            node.connect(host, port=port, blocking=False)
+            print("reborn", flush=True)
+
+    threading.Thread(target=rebirths, daemon=True).start()
     time.sleep(0.5)
     print("ready", flush=True)
     for line in sys.stdin:

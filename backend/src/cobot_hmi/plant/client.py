@@ -3,7 +3,7 @@ a thread of its own, over one or more broker URLs (a cluster's nodes, or a broke
 standby): the first that answers; when it goes away, the next, in turn.
 
 On each connection (Sparkplug 3.0, "Host Applications"): the will is the host's STATE
-``{"online": false, "timestamp": T}`` (retained, QoS 1); once connected it subscribes (QoS 1) to
+``{"online": false, "timestamp": T}`` (retained, QoS 1); once connected it subscribes (QoS 0) to
 its own STATE topic and the Sparkplug namespace of its groups, then publishes STATE
 ``{"online": true, "timestamp": T}`` (retained, QoS 1), T the same in both: a will left from an
 older connection never clears a newer birth. On a clean stop it publishes the offline STATE
@@ -64,6 +64,7 @@ class FailoverClient:
         self.connected_url: str | None = None
         self.connections = 0
         self.connections_lost = 0
+        self.subscriptions_refused = 0
         self.state_timestamp_ms = 0
 
     def start(self) -> None:
@@ -129,6 +130,7 @@ class FailoverClient:
         )
         established = threading.Event()
         client.on_connect = lambda c, _u, _f, reason, _p: self._connected(c, reason, established)
+        client.on_subscribe = lambda c, _u, _m, reasons, _p: self._subscribed(c, reasons)
         client.on_message = lambda _c, _u, message: self._on_message(
             message.topic, bytes(message.payload)
         )
@@ -156,12 +158,25 @@ class FailoverClient:
                 log.warning("plant: connection to %s ended; trying the next broker", address)
         return established.is_set()
 
+    def _subscribed(self, client: mqtt.Client, reasons: list[Any]) -> None:
+        """A subscription the broker refused (NATS's MQTT refuses one while its JetStream is
+        electing a leader after a node's loss): this connection would hear nothing, so it
+        ends, and the next broker is tried."""
+        refused = [str(r) for r in reasons if r.is_failure]
+        if refused:
+            log.warning("plant: the broker refused a subscription (%s): reconnecting", refused)
+            self.subscriptions_refused += 1
+            client.disconnect()
+
     def _connected(self, client: mqtt.Client, reason: Any, established: threading.Event) -> None:
         if reason.is_failure:
             log.warning("plant: broker refused the connection: %s", reason)
             return
+        # QoS 0: what edge nodes publish is QoS 0 (births, data; their wills QoS 1 arrive as
+        # 0), and a QoS 0 subscription needs no durable consumer of the broker's own (NATS's MQTT
+        # keeps each QoS 1 subscription in JetStream, which a failover must first re-elect).
         for topic_filter in self._subscriptions:
-            client.subscribe(topic_filter, qos=1)
+            client.subscribe(topic_filter, qos=0)
         client.publish(
             state_topic(self._host_id),
             state_payload(True, self.state_timestamp_ms),

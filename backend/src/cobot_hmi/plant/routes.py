@@ -106,6 +106,7 @@ class StatusAnswer(BaseModel):
     broker: str | None
     connections: int
     connections_lost: int
+    subscriptions_refused: int
     messages: int
     rebirths: dict[str, int]
     rebirths_held: int
@@ -256,6 +257,7 @@ async def status(request: Request, _viewer: ViewerDep) -> StatusAnswer:
         broker=runtime.client.connected_url,
         connections=runtime.client.connections,
         connections_lost=runtime.client.connections_lost,
+        subscriptions_refused=runtime.client.subscriptions_refused,
         messages=runtime.messages,
         rebirths=dict(host.rebirths),
         rebirths_held=host.rebirths_held,

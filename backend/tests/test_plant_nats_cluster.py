@@ -1,0 +1,216 @@
+"""The plant on a broker cluster: three ``nats-server`` nodes (v2.15.3, MQTT on JetStream,
+clustered; ``make peers`` builds it), our cell's edge node on one node, an edge node we did not
+write (pysparkplug) on the same node, the plant on the other two (``--mqtt-url`` twice). The
+node the plant is connected to is killed (SIGKILL): the plant moves to the other, asks for the
+rebirths its seq checks call for, and shows the cell as it is now.
+
+NATS's MQTT: QoS 0 and 1 (no 2), retained messages and wills kept in JetStream, a server name
+and JetStream on every node (docs/operations.md "The plant")."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import functools
+import signal
+import socket
+import time
+from collections.abc import AsyncIterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from cobot_hmi.emulator.settings import TargetSettings
+from cobot_hmi.emulator.target import Target
+from conftest import _next_host, free_tcp_port
+from plant_support import needs_pysparkplug, plant_process, pysparkplug_node
+from service_support import cell_settings, running_service
+from sparkplug_support import Panel
+from waiting import eventually, eventually_async
+
+REPO = Path(__file__).resolve().parents[2]
+NATS_SERVER = REPO / ".venv" / "go-bin" / "nats-server"
+HOST_ID = "cobot-hmi-plant"
+GROUP, NODE = "plant", "cell-7"
+
+pytestmark = [
+    pytest.mark.skipif(not NATS_SERVER.exists(), reason="nats-server (make peers)"),
+    needs_pysparkplug,
+    pytest.mark.timeout(180),
+]
+
+
+@dataclass
+class NatsNode:
+    name: str
+    host: str
+    mqtt_port: int
+    config: Path
+    process: asyncio.subprocess.Process | None = None
+
+    @property
+    def url(self) -> str:
+        return f"mqtt://{self.host}:{self.mqtt_port}"
+
+    async def start(self) -> None:
+        self.process = await asyncio.create_subprocess_exec(
+            str(NATS_SERVER),
+            "-c",
+            str(self.config),
+            stdout=asyncio.subprocess.DEVNULL,
+            stderr=asyncio.subprocess.DEVNULL,
+        )
+
+    def kill(self) -> None:
+        if self.process is not None and self.process.returncode is None:
+            self.process.send_signal(signal.SIGKILL)
+
+
+def _mqtt_accepts(node: NatsNode) -> bool:
+    """A CONNECT answered with a CONNACK accepting it (NATS's MQTT refuses clients until its
+    JetStream is up)."""
+    connect = bytes.fromhex("101000044d5154540402003c0004") + b"wait"
+    try:
+        with socket.create_connection((node.host, node.mqtt_port), timeout=2) as sock:
+            sock.sendall(connect)
+            sock.settimeout(5)
+            answer = sock.recv(4)
+    except OSError:
+        return False
+    return answer[:1] == b"\x20" and answer[3:4] == b"\x00"
+
+
+@contextlib.asynccontextmanager
+async def nats_cluster(directory: Path) -> AsyncIterator[list[NatsNode]]:
+    hosts = [_next_host() for _ in range(3)]
+    cluster_ports = [free_tcp_port(h) for h in hosts]
+    routes = ", ".join(f"nats-route://{h}:{p}" for h, p in zip(hosts, cluster_ports, strict=True))
+    nodes = []
+    await asyncio.to_thread(directory.mkdir, parents=True, exist_ok=True)
+    for index, host in enumerate(hosts):
+        name = f"n{index + 1}"
+        config = directory / f"{name}.conf"
+        mqtt_port = free_tcp_port(host)
+        config.write_text(
+            f"server_name: {name}\n"
+            f"listen: {host}:{free_tcp_port(host)}\n"
+            f'jetstream {{ store_dir: "{directory / name}" }}\n'
+            f"cluster {{ name: plant, listen: {host}:{cluster_ports[index]}, "
+            f"routes: [{routes}] }}\n"
+            f"mqtt {{ listen: {host}:{mqtt_port} }}\n"
+        )
+        nodes.append(NatsNode(name, host, mqtt_port, config))
+    try:
+        for node in nodes:
+            await node.start()
+        for node in nodes:
+            await eventually(functools.partial(_mqtt_accepts, node), timeout_s=60)
+        yield nodes
+    finally:
+        for node in nodes:
+            node.kill()
+            if node.process is not None:
+                await node.process.wait()
+
+
+@contextlib.asynccontextmanager
+async def our_cell(plc_host: str, directory: Path, url: str) -> AsyncIterator[dict[str, Panel]]:
+    """Two emulated robots and the service, its edge node on ``url``, the plant its primary
+    host application."""
+    panels = {"m1013": Panel(), "m0609": Panel()}
+    targets = []
+    robots = []
+    try:
+        for name, panel in panels.items():
+            host = _next_host()
+            port = free_tcp_port(host)
+            target = Target(TargetSettings(host=host, tcp_port=port), panel)
+            await target.start()
+            targets.append(target)
+            robots.append((name, host, port))
+        settings = cell_settings(
+            robots,
+            plc_host,
+            directory,
+            mqtt_url=url,
+            sparkplug_group=GROUP,
+            sparkplug_node=NODE,
+            sparkplug_primary_host=HOST_ID,
+        )
+        async with running_service(settings):
+            yield panels
+    finally:
+        for target in targets:
+            await target.stop()
+
+
+def _devices(node: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    return {d["device"]: d for d in node["devices"]}
+
+
+async def test_killing_the_plants_broker_node(plc_host: str, tmp_path: Path) -> None:
+    async with (
+        nats_cluster(tmp_path / "nats") as (a, b, c),
+        our_cell(plc_host, tmp_path / "cell", a.url) as panels,
+        plant_process(plc_host, tmp_path / "plant", [b.url, c.url]) as plant,
+        pysparkplug_node(a.host, a.mqtt_port, "line-3", "foreign", "r1") as peer,
+    ):
+        node = await plant.until(
+            GROUP, NODE, lambda n: n["online"] and all(d["online"] for d in n["devices"])
+        )
+        assert len(node["devices"]) == 2
+        await plant.until("line-3", "foreign", lambda n: n["online"])
+        status = await plant.get("/api/v1/plant/status")
+        assert status["broker"] == f"{b.host}:{b.mqtt_port}"
+
+        await peer.send("data r1 Alarm/overheat/Active true")
+        await plant.until("line-3", "foreign", lambda n: n["devices"][0]["alarms_active"])
+
+        killed_at = time.time()
+        b.kill()
+        # Meanwhile the cell and the foreign node go on: what they publish while the plant has
+        # no connection is lost to it, and its seq check notices.
+        panels["m1013"].set(robot_state=3)
+        await peer.send("data r1 Alarm/overheat/Active false")
+
+        async def on_c() -> bool:
+            answer = await plant.get("/api/v1/plant/status")
+            return bool(answer["broker"] == f"{c.host}:{c.mqtt_port}")
+
+        await eventually_async(on_c, timeout_s=60)
+        panels["m1013"].set(robot_state=2)  # after the move: seen live
+        await peer.send('data r1 robot_state "STANDALONE_STANDBY"')
+        try:
+            await plant.until(
+                GROUP, NODE, lambda n: _devices(n)["m1013"]["state"] == "SAFE_OFF", timeout_s=40
+            )
+        except AssertionError as error:
+            status = await plant.get("/api/v1/plant/status")
+            raise AssertionError(f"{error}\npeer: {peer.lines}\nplant: {status}") from None
+        try:
+            await plant.until(
+                "line-3",
+                "foreign",
+                lambda n: n["devices"][0]["state"] == "STANDALONE_STANDBY",
+                timeout_s=60,
+            )
+        except AssertionError as error:
+            status = await plant.get("/api/v1/plant/status")
+            raise AssertionError(f"{error}\npeer: {peer.lines}\nplant: {status}") from None
+        status = await plant.get("/api/v1/plant/status")
+        assert status["connections_lost"] >= 1
+        assert status["rebirths"].get("seq gap", 0) >= 1
+        # The foreign node was asked for a rebirth (it received the NCMD) and was born again:
+        # its alarm, cleared while the plant had no connection, is cleared at the plant too,
+        # and the clearing is in the plant's alarm list at the time the node says it happened.
+        await peer.wait_for("reborn")
+        await plant.until("line-3", "foreign", lambda n: n["devices"][0]["alarms_active"] == [])
+        alarms = await plant.get("/api/v1/plant/alarms", since=killed_at - 60)
+        foreign_transitions = [
+            (t["alarm"], t["active"])
+            for t in reversed(alarms["transitions"])
+            if t["node"] == "foreign"
+        ]
+        assert foreign_transitions == [("overheat", True), ("overheat", False)]
