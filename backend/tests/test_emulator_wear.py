@@ -63,6 +63,8 @@ async def test_wear_is_set_shown_and_cleared(emulator: Emulator) -> None:
         ({"joint": 3, "grease": 1}, "grease"),
         ({"joint": 3, "hot_c": 1e9}, "hot_c"),
         ({"time_factor": 0.5}, "time_factor"),
+        ({"collision_nm": 60}, "collision_nm"),
+        ({"joint": 2, "collision_nm": 60, "hot_c": 5}, "collision_nm"),
     ],
 )
 async def test_bad_wear_is_refused_and_changes_nothing(

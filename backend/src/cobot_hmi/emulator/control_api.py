@@ -50,7 +50,7 @@ from cobot_hmi.emulator.robot import (
     RobotStateConflictError,
     SimulatedRobot,
 )
-from cobot_hmi.emulator.robot.wear import WearError, parse_entry
+from cobot_hmi.emulator.robot.wear import MAX_TIME_FACTOR, WearError, parse_entry
 
 log = logging.getLogger(__name__)
 
@@ -236,6 +236,39 @@ def guard_request(
     return None
 
 
+def _wear_command(robot: SimulatedRobot) -> Callable[[dict[str, object], float], None]:
+    """``POST /wear``'s change of the robot's wear (docs/emulator.md, "Wear")."""
+
+    def set_wear(data: dict[str, object], now_s: float) -> None:
+        """``{"joint": 3, "friction_percent": 25, ...}`` and/or ``{"time_factor": 1000}``;
+        ``{"joint": 2, "collision_nm": 60}``: a collision (docs/emulator.md, "Wear")."""
+        joints = len(robot.model.joints)
+        entry = {k: v for k, v in data.items() if k not in ("time_factor", "collision_nm")}
+        factor = (
+            _number(data, "time_factor", 1.0, MAX_TIME_FACTOR) if "time_factor" in data else None
+        )
+        collision = _number(data, "collision_nm", 1.0, 1000.0) if "collision_nm" in data else None
+        try:
+            parsed = parse_entry(entry, joints) if entry else None
+        except WearError as error:
+            raise ControlError(422, str(error), error.field) from None
+        if collision is not None and set(entry) != {"joint"}:
+            raise ControlError(
+                422, "collision_nm: expected the joint it hits and nothing else", "collision_nm"
+            )
+        if parsed is None and factor is None:
+            raise ControlError(422, "expected a joint's wear, a collision or a time_factor")
+        if parsed is not None and collision is not None:
+            robot.protective_stop(now_s)  # first: a robot that refuses it (409) changes nothing
+            robot.wear.collide(parsed[0], collision, now_s)
+        elif parsed is not None:
+            robot.wear.set(parsed[0], parsed[1], now_s)
+        if factor is not None:
+            robot.wear.set_time_factor(factor, now_s)
+
+    return set_wear
+
+
 def create_control_app(
     robot: SimulatedRobot,
     target: EmulatorTarget,
@@ -376,30 +409,7 @@ def create_control_app(
     command("/inputs", set_inputs, needs_body=True)
     command("/tool-offset", set_tool_offset, needs_body=True)
 
-    def set_wear(data: dict[str, object], now_s: float) -> None:
-        """``{"joint": 3, "friction_percent": 25, ...}`` and/or ``{"time_factor": 1000}``;
-        ``{"joint": 2, "collision_nm": 60}``: a collision (docs/emulator.md, "Wear")."""
-        joints = len(robot.model.joints)
-        entry = {k: v for k, v in data.items() if k not in ("time_factor", "collision_nm")}
-        factor = _number(data, "time_factor", 1.0, 1e6) if "time_factor" in data else None
-        collision = _number(data, "collision_nm", 1.0, 1000.0) if "collision_nm" in data else None
-        try:
-            parsed = parse_entry(entry, joints) if entry else None
-        except WearError as error:
-            raise ControlError(422, str(error), error.field) from None
-        if parsed is None and factor is None:
-            raise ControlError(422, "expected a joint's wear, a collision or a time_factor")
-        if collision is not None and parsed is None:
-            raise ControlError(422, "collision_nm: expected the joint it hits", "joint")
-        if parsed is not None and collision is not None:
-            robot.protective_stop(now_s)  # first: a robot that refuses it (409) changes nothing
-            robot.wear.collide(parsed[0], collision, now_s)
-        elif parsed is not None:
-            robot.wear.set(parsed[0], parsed[1], now_s)
-        if factor is not None:
-            robot.wear.set_time_factor(factor, now_s)
-
-    command("/wear", set_wear, needs_body=True)
+    command("/wear", _wear_command(robot), needs_body=True)
     command("/wear/clear", no_body(robot.wear.clear), needs_body=False)
 
     fault_fields: Final = (
