@@ -25,6 +25,7 @@ from cobot_hmi.service.access.auth import LoginThrottle, Session, Sessions
 from cobot_hmi.service.access.directory import Directory
 from cobot_hmi.service.access.users import User, UsersFile
 from cobot_hmi.service.alarms.summary import cell_summary
+from cobot_hmi.service.commissioning.service import Commissioning
 from cobot_hmi.service.config.plant_time import PLANT_ZONE
 from cobot_hmi.service.cycles.service import Cycles
 from cobot_hmi.service.errors import UnknownRobotError
@@ -79,6 +80,8 @@ class Service:
         """Every robot, in the settings' order."""
         self.cycles = Cycles(self.robots, self.store)
         """Each robot's cycle timing (``service.cycles``), where it has a trigger."""
+        self.commissioning = Commissioning(self.robots, self.store)
+        """Each robot's I/O checkouts and their frame watchers (``service.commissioning``)."""
         self.default_robot: RobotRuntime = next(iter(self.robots.values()))
         """The first robot: the one the deprecated single-robot paths answer for."""
         self.directory: Directory | None = (
@@ -148,6 +151,7 @@ class Service:
         if self.recorder is not None:  # subscribed before the first frame can come
             await self.recorder.start()
         self.cycles.start()  # subscribed before the first frame can come
+        await self.commissioning.start()  # the open checkouts watched before the first frame
         await self.cyclic.start()
         for extension in self.extensions:  # after the links: they report what the links see
             await extension.start()
@@ -168,6 +172,7 @@ class Service:
         if self.recorder is not None:  # the last frames written, the open segments closed
             await self.recorder.stop()
         await self.cycles.stop()  # the last frames measured, every cycle written
+        await self.commissioning.stop()
         for task in self._tasks:
             task.cancel()
         for task in self._tasks:

@@ -1,25 +1,27 @@
 """Layer: service. The commissioning tools of every robot of the service: each robot's checkouts
-(``CheckoutBook``), the frame watcher that marks their inputs seen (``CheckoutWatcher``) and
-its presets (``PresetBook``). Started after the service (its store open, its robots started):
-the open checkouts are read back from the database and watched again, so a checkout goes on
-after a restart."""
+(``CheckoutBook``) and the frame watcher that marks their inputs seen (``CheckoutWatcher``). The
+service (``runtime``) makes it and starts it with itself, once its store is open and before the
+first frame: the open checkouts are read back from the database and watched again, so a
+checkout goes on after a restart. (A robot's presets need no state of their own: each request
+reads them from the store, ``presets.PresetBook``.)"""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 from cobot_hmi.service.commissioning.checkout import CheckoutBook
-from cobot_hmi.service.commissioning.presets import PresetBook
 from cobot_hmi.service.commissioning.watcher import CheckoutWatcher
-from cobot_hmi.service.runtime import Service
+from cobot_hmi.service.robots.robot import RobotRuntime
+from cobot_hmi.service.storage.store import Store
 
 
 class Commissioning:
-    def __init__(self, service: Service) -> None:
-        self.checkouts = {name: CheckoutBook(name, service.store) for name in service.robots}
+    def __init__(self, robots: Mapping[str, RobotRuntime], store: Store) -> None:
+        self.checkouts = {name: CheckoutBook(name, store) for name in robots}
         self.watchers = {
             name: CheckoutWatcher(self.checkouts[name], robot.frames)
-            for name, robot in service.robots.items()
+            for name, robot in robots.items()
         }
-        self.presets = {name: PresetBook(name, service.store) for name in service.robots}
 
     async def start(self) -> None:
         for name, book in self.checkouts.items():

@@ -30,6 +30,7 @@ from cobot_hmi.service.api.bounds import OptionalOffset
 from cobot_hmi.service.api.deps import RobotFilterDep, ServiceDep, ViewerDep, WriterDep
 from cobot_hmi.service.api.downloads import download
 from cobot_hmi.service.api.openapi_extras import CSV_RESPONSE, errors
+from cobot_hmi.service.api.origin import request_origin
 from cobot_hmi.service.api.routes.read import OrjsonResponse
 from cobot_hmi.service.api.search import From, Text, To, epoch_s
 from cobot_hmi.service.errors import ApiError, conflict, not_found
@@ -284,7 +285,7 @@ async def _authorize(
     robot, engine = _engine(service, alarm_id)
     _find(engine, alarm_id)
     key = alarm_id.partition(":")[2]
-    origin = f"{request.method} {request.url.path}"
+    origin = request_origin(request)
     user = await authorize_audited(
         robot.store,
         writer,
@@ -441,7 +442,7 @@ async def acknowledge_many(
             action="alarm.ack",
             what="acknowledging alarms",
             robot=robot.name,
-            origin=f"{request.method} {request.url.path}",
+            origin=request_origin(request),
             requested={"comment": comment},
         )
     if refusal is not None:

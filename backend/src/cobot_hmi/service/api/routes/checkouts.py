@@ -4,46 +4,34 @@ record pass or fail, close it (read-only after), and its report as CSV. Reading 
 whoever may view; every change needs an operator and is audited (``checkout.*`` actions; a
 switched output is the pipeline's own ``write`` row).
 
-The commissioning state starts with the app (this router's lifespan, after the service's):
-the open checkouts are read back and watched again.
+The commissioning state is the service's (``Service.commissioning``, started with it): the open
+checkouts are read back and watched again.
 """
 
 from __future__ import annotations
 
 import csv
 import io
-from collections.abc import AsyncIterator, Mapping
-from contextlib import asynccontextmanager
+from collections.abc import Mapping
 from typing import Annotated, Final
 
-from fastapi import APIRouter, FastAPI, Path, Request, Response
+from fastapi import APIRouter, Path, Request, Response
 
 from cobot_hmi.service.api.bounds import row_id
 from cobot_hmi.service.api.deps import RobotDep, ViewerDep, WriterDep
 from cobot_hmi.service.api.downloads import download
 from cobot_hmi.service.api.openapi_extras import WRITE, errors
+from cobot_hmi.service.api.origin import audited_action
 from cobot_hmi.service.api.routes.read import OrjsonResponse
 from cobot_hmi.service.commissioning import models
-from cobot_hmi.service.commissioning.audit import AuditedAction
 from cobot_hmi.service.commissioning.checkout import Checkout, CheckoutBook, CheckoutError
 from cobot_hmi.service.commissioning.service import Commissioning
 from cobot_hmi.service.robots.robot import RobotRuntime
+from cobot_hmi.service.runtime import Service
 from cobot_hmi.service.storage.store import iso8601
-from cobot_hmi.service.writes.pipeline import Writer, submit_write
+from cobot_hmi.service.writes.pipeline import submit_write
 
-
-@asynccontextmanager
-async def _lifespan(app: FastAPI) -> AsyncIterator[None]:
-    commissioning = Commissioning(app.state.service)
-    await commissioning.start()
-    app.state.commissioning = commissioning
-    try:
-        yield
-    finally:
-        await commissioning.stop()
-
-
-router = APIRouter(prefix="/api/v1", tags=["checkouts"], lifespan=_lifespan)
+router = APIRouter(prefix="/api/v1", tags=["checkouts"])
 
 _READ: Final = errors(401, 404)
 _CHANGE: Final = errors(401, 403, 404, 409, 413, 415, 422, 429, 503)
@@ -75,20 +63,18 @@ CSV_COLUMNS: Final = (
 )
 
 
+def _commissioning(request: Request) -> Commissioning:
+    service: Service = request.app.state.service
+    return service.commissioning
+
+
 def _book(request: Request, robot: RobotRuntime) -> CheckoutBook:
-    commissioning: Commissioning = request.app.state.commissioning
-    return commissioning.checkouts[robot.name]
+    return _commissioning(request).checkouts[robot.name]
 
 
 def _watch(request: Request, robot: RobotRuntime) -> None:
     """Watch the robot's frames while it has an open checkout (after a start or a close)."""
-    commissioning: Commissioning = request.app.state.commissioning
-    commissioning.watchers[robot.name].update()
-
-
-def _action(robot: RobotRuntime, writer: Writer, request: Request, action: str) -> AuditedAction:
-    origin = f"{request.method} {request.url.path}"
-    return AuditedAction(robot.store, writer, robot.name, action, origin)
+    _commissioning(request).watchers[robot.name].update()
 
 
 @router.get(
@@ -110,7 +96,7 @@ async def list_checkouts(robot: RobotDep, _: ViewerDep, request: Request) -> Orj
     responses=_CHANGE,
 )
 async def start_checkout(robot: RobotDep, writer: WriterDep, request: Request) -> OrjsonResponse:
-    action = _action(robot, writer, request, "checkout.start")
+    action = audited_action(robot, writer, request, "checkout.start")
     user = await action.authorize("starting a checkout")
     identity = robot.identity.to_json() if robot.identity is not None else None
     try:
@@ -155,7 +141,7 @@ async def record_result(
     writer: WriterDep,
     request: Request,
 ) -> OrjsonResponse:
-    action = _action(robot, writer, request, "checkout.result")
+    action = audited_action(robot, writer, request, "checkout.result")
     requested = {"checkout": checkout_id, **verdict.model_dump()}
     user = await action.authorize("recording a result", requested)
     book = _book(request, robot)
@@ -190,7 +176,7 @@ async def switch_output(
     writer: WriterDep,
     request: Request,
 ) -> OrjsonResponse:
-    action = _action(robot, writer, request, "write")  # the pipeline's own action
+    action = audited_action(robot, writer, request, "write")  # the pipeline's own action
     book = _book(request, robot)
     checkout = await book.get(checkout_id)
     try:
@@ -230,7 +216,7 @@ async def capture_input(
     writer: WriterDep,
     request: Request,
 ) -> OrjsonResponse:
-    action = _action(robot, writer, request, "checkout.capture")
+    action = audited_action(robot, writer, request, "checkout.capture")
     requested: dict[str, object] = {"checkout": checkout_id}
     user = await action.authorize("capturing a value", requested)
     book = _book(request, robot)
@@ -264,7 +250,7 @@ async def capture_input(
 async def close_checkout(
     robot: RobotDep, checkout_id: CheckoutId, writer: WriterDep, request: Request
 ) -> OrjsonResponse:
-    action = _action(robot, writer, request, "checkout.close")
+    action = audited_action(robot, writer, request, "checkout.close")
     requested: dict[str, object] = {"checkout": checkout_id}
     user = await action.authorize("closing a checkout", requested)
     book = _book(request, robot)

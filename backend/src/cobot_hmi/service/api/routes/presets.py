@@ -14,6 +14,7 @@ from fastapi import APIRouter, Path, Request, Response
 from cobot_hmi.service.api.deps import RobotDep, ViewerDep, WriterDep
 from cobot_hmi.service.api.downloads import download
 from cobot_hmi.service.api.openapi_extras import WRITE, errors
+from cobot_hmi.service.api.origin import audited_action, request_origin
 from cobot_hmi.service.api.routes.read import OrjsonResponse
 from cobot_hmi.service.commissioning import models
 from cobot_hmi.service.commissioning.audit import AuditedAction
@@ -29,7 +30,7 @@ from cobot_hmi.service.commissioning.presets import (
     to_csv,
 )
 from cobot_hmi.service.robots.robot import RobotRuntime
-from cobot_hmi.service.writes.pipeline import Writer, submit_write
+from cobot_hmi.service.writes.pipeline import submit_write
 
 router = APIRouter(prefix="/api/v1", tags=["presets"])
 
@@ -72,11 +73,6 @@ async def presets_csv(robot: RobotDep, _: ViewerDep) -> Response:
     return download(to_csv(await _book(robot).all()), f"{robot.name}-presets.csv")
 
 
-def _action(robot: RobotRuntime, writer: Writer, request: Request, action: str) -> AuditedAction:
-    origin = f"{request.method} {request.url.path}"
-    return AuditedAction(robot.store, writer, robot.name, action, origin)
-
-
 async def _save(
     action: AuditedAction, robot: RobotRuntime, presets: list[Preset], how: str
 ) -> None:
@@ -112,7 +108,7 @@ def _preset(body: models.PresetCreate, robot: RobotRuntime) -> Preset:
 async def save_preset(
     robot: RobotDep, body: models.PresetCreate, writer: WriterDep, request: Request
 ) -> OrjsonResponse:
-    action = _action(robot, writer, request, "preset.save")
+    action = audited_action(robot, writer, request, "preset.save")
     requested = body.model_dump(exclude_none=True)
     await action.authorize("saving a preset", requested)
     try:
@@ -148,7 +144,7 @@ def _imported(body: models.PresetImport, robot: RobotRuntime) -> list[Preset]:
 async def import_presets(
     robot: RobotDep, body: models.PresetImport, writer: WriterDep, request: Request
 ) -> OrjsonResponse:
-    action = _action(robot, writer, request, "preset.save")
+    action = audited_action(robot, writer, request, "preset.save")
     await action.authorize("importing presets")
     try:
         presets = _imported(body, robot)
@@ -167,7 +163,7 @@ async def import_presets(
 async def delete_preset(
     robot: RobotDep, preset: PresetName, writer: WriterDep, request: Request
 ) -> OrjsonResponse:
-    action = _action(robot, writer, request, "preset.delete")
+    action = audited_action(robot, writer, request, "preset.delete")
     requested = {"preset": preset}
     await action.authorize("deleting a preset", requested)
     try:
@@ -202,8 +198,7 @@ async def apply_preset(
 ) -> OrjsonResponse:
     found = await _book(robot).get(preset)
     before = changes(found, robot.link.command)
-    origin = f"{request.method} {request.url.path}"
-    outcome = await submit_write(robot, writer, found.body(), origin=origin)
+    outcome = await submit_write(robot, writer, found.body(), origin=request_origin(request))
     if not outcome.ok:
         raise outcome.error()
     return OrjsonResponse({"preset": found.name, "changes": before, "seq": outcome.seq})

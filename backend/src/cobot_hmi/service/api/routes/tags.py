@@ -20,6 +20,7 @@ from cobot_hmi.service.api import models
 from cobot_hmi.service.api.deps import RobotDep, ViewerDep, WriterDep
 from cobot_hmi.service.api.downloads import download
 from cobot_hmi.service.api.openapi_extras import errors
+from cobot_hmi.service.api.origin import request_origin
 from cobot_hmi.service.api.routes.read import OrjsonResponse
 from cobot_hmi.service.errors import ApiError
 from cobot_hmi.service.robots.robot import RobotRuntime
@@ -95,7 +96,7 @@ def _summary(before: Mapping[str, str], after: Mapping[str, str], keys: list[str
 async def _replace(
     robot: RobotRuntime, writer: Writer, request: Request, tags: Mapping[str, object], how: str
 ) -> OrjsonResponse:
-    origin = f"{request.method} {request.url.path}"
+    origin = request_origin(request)
     user = await authorize_audited(
         robot.store,
         writer,
@@ -174,7 +175,7 @@ async def import_tags(
         tags = from_csv(body.csv)
     except TagError as error:
         # Authorization first: a viewer learns nothing from a refusal of the sheet.
-        origin = f"{request.method} {request.url.path}"
+        origin = request_origin(request)
         user = await authorize_audited(
             robot.store,
             writer,

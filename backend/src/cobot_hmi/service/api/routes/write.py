@@ -11,6 +11,7 @@ from fastapi import APIRouter, Request
 from cobot_hmi.service.api import models
 from cobot_hmi.service.api.deps import DefaultRobotDep, RobotDep, WriterDep
 from cobot_hmi.service.api.openapi_extras import CONTROL, WRITE, errors
+from cobot_hmi.service.api.origin import request_origin
 from cobot_hmi.service.api.routes.read import OrjsonResponse
 from cobot_hmi.service.robots.robot import RobotRuntime
 from cobot_hmi.service.writes.pipeline import (
@@ -40,7 +41,7 @@ _DEPRECATED = "Deprecated: acts on the first robot; use /api/v1/robots/{name}/"
 
 async def _write(robot: RobotRuntime, writer: Writer, request: Request) -> OrjsonResponse:
     outcome = await submit_write(
-        robot, writer, await request.body(), origin=f"{request.method} {request.url.path}"
+        robot, writer, await request.body(), origin=request_origin(request)
     )
     if not outcome.ok:
         raise outcome.error()
@@ -70,16 +71,12 @@ async def patch_command(robot: RobotDep, writer: WriterDep, request: Request) ->
 
 @router.post("/robots/{name}/control/take", **_TAKE, responses=errors(*CONTROL))
 async def take(robot: RobotDep, writer: WriterDep, request: Request) -> OrjsonResponse:
-    return OrjsonResponse(await take_control(robot, writer, origin=_origin(request)))
+    return OrjsonResponse(await take_control(robot, writer, origin=request_origin(request)))
 
 
 @router.post("/robots/{name}/control/release", **_RELEASE, responses=errors(*CONTROL))
 async def release(robot: RobotDep, writer: WriterDep, request: Request) -> OrjsonResponse:
-    return OrjsonResponse(await release_control(robot, writer, origin=_origin(request)))
-
-
-def _origin(request: Request) -> str:
-    return f"{request.method} {request.url.path}"
+    return OrjsonResponse(await release_control(robot, writer, origin=request_origin(request)))
 
 
 _DEFAULT_WRITE = tuple(s for s in WRITE if s != 404)
@@ -108,7 +105,7 @@ async def patch_command_default(
 async def take_default(
     robot: DefaultRobotDep, writer: WriterDep, request: Request
 ) -> OrjsonResponse:
-    return OrjsonResponse(await take_control(robot, writer, origin=_origin(request)))
+    return OrjsonResponse(await take_control(robot, writer, origin=request_origin(request)))
 
 
 @router.post(
@@ -121,4 +118,4 @@ async def take_default(
 async def release_default(
     robot: DefaultRobotDep, writer: WriterDep, request: Request
 ) -> OrjsonResponse:
-    return OrjsonResponse(await release_control(robot, writer, origin=_origin(request)))
+    return OrjsonResponse(await release_control(robot, writer, origin=request_origin(request)))
