@@ -4,8 +4,10 @@ generated frames, the codec and the other ``robot`` modules; never the target or
 ``SimulatedRobot`` is the robot behind the emulator's EtherNet/IP target: it implements the
 target's ``ProcessImage`` protocol (``produce_frame``, ``consume_command``, ``outputs_idle``,
 ``command_image``) and offers the commands the control API exposes (stops, reset, buttons, forced
-state, program, joints, inputs, tool offset, collaborative mode). It is deterministic: the same
-settings (seed included) and the same sequence of calls with the same times give the same frames.
+state, program, joints, inputs, tool offset, collaborative mode); its wear is ``wear``
+(``robot.wear``: friction, heat, backlash, collisions, set through it). It is deterministic:
+the same settings (seed included) and the same sequence of calls with the same times give the
+same frames.
 Every method takes the current time in seconds (any monotonic clock) and first brings the
 simulation up to it.
 """
