@@ -50,6 +50,8 @@ interface Props {
   /** Kiosk: no controls, a static picture. */
   readonly readOnly?: boolean;
   readonly height_px?: number;
+  /** The window it opens with (ms; the kiosk's setting), else DEFAULT_WINDOW_MS. */
+  readonly initialWindow_ms?: number;
 }
 
 /** A `datetime-local` input's value (the plant's time, seconds) for epoch seconds. */
@@ -91,7 +93,7 @@ function pictureWanted(): boolean {
   return typeof window === "undefined" || new URLSearchParams(window.location.search).get("plotPicture") !== "off";
 }
 
-export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly = false, height_px }: Props) {
+export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly = false, height_px, initialWindow_ms }: Props) {
   const runtime = useRuntime();
   const { live, coordinator } = runtime;
   const access = usePlotHistory();
@@ -110,7 +112,7 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
   const linkedRef = useRef(linked);
   const [paused, setPaused] = useState(false);
   const [zoomed, setZoomed] = useState(false);
-  const [window_ms, setWindow] = useState(DEFAULT_WINDOW_MS);
+  const [window_ms, setWindow] = useState(initialWindow_ms ?? DEFAULT_WINDOW_MS);
   // The plot is rebuilt with the window picked so far (a theme change recreates it).
   const windowRef = useRef(window_ms);
   const [shown, setShown] = useState<HistoryShown | null>(null);
@@ -298,6 +300,7 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
       className={`plot plot--${theme}`}
       data-testid={`${spec.id}-figure`}
       data-view={shown?.view ?? "ring"}
+      data-window-ms={window_ms}
       data-linked={readOnly ? undefined : String(linked)}
       onPointerEnter={readOnly ? undefined : () => plotRef.current?.setPointerInside(true)}
       onPointerLeave={

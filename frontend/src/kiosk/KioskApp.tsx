@@ -36,6 +36,7 @@ import { KioskLamps } from "./KioskLamps";
 import { KioskOtherAlarms } from "./KioskOtherAlarms";
 import { kioskOtherAlarms } from "../lib/kioskOtherAlarms";
 import { CYCLE_TILE, withCycleTimes } from "../lib/cyclesTile";
+import { kioskPlotWindow_ms } from "../lib/kioskLayout";
 import { KioskClock, KioskStateWords, KioskTiles } from "./KioskTiles";
 import { usePlotHeight, useKioskLayout } from "./useKioskLayout";
 import { useKioskCycleTimes } from "./useKioskCycleTimes";
@@ -91,12 +92,12 @@ function kioskOptions(search: string) {
 }
 
 /** One live plot in a slot of the body: its plotting area as high as the slot leaves it. */
-function KioskPlot({ spec, theme, slotHeight_px, u }: { spec: PlotSpec; theme: "light" | "dark"; slotHeight_px: number; u: number }) {
+function KioskPlot({ spec, theme, slotHeight_px, u, window_ms }: { spec: PlotSpec; theme: "light" | "dark"; slotHeight_px: number; u: number; window_ms: number }) {
   const slot = useRef<HTMLDivElement | null>(null);
   const height_px = usePlotHeight(slot, slotHeight_px, u);
   return (
     <div className="kiosk__plot" ref={slot}>
-      <LivePlotView spec={spec} theme={theme} readOnly height_px={height_px} />
+      <LivePlotView spec={spec} theme={theme} readOnly height_px={height_px} initialWindow_ms={window_ms} />
     </div>
   );
 }
@@ -106,12 +107,13 @@ function Kiosk() {
   const live = useLive();
   const offset = useBurnInOffset();
   const tags = useKioskTagNames(live.robot, options.token);
-  const cycleTimes = useKioskCycleTimes(live.robot, options.token, options.tiles.fields.includes(CYCLE_TILE));
+  const cycleTimes = useKioskCycleTimes(live.robot, options.token, options.tiles.fields.includes(CYCLE_TILE), live.kiosk?.shift_starts);
   // The 3D view's arm: `arm=` in the URL, else the model the service reports for the robot.
   const model = useRobotModel(options.robot3d && options.arm === null ? live.robot : null, options.token);
   const stale = live.health !== "connected";
   const frame = live.frame;
   const estop = frame?.emergency_stopped === true;
+  const plotWindow_ms = kioskPlotWindow_ms(live.kiosk);
   const otherAlarms = kioskOtherAlarms(live.cellAlarms, live.robot);
   const theme = useTheme();
   const content = useMemo(
@@ -196,7 +198,8 @@ function Kiosk() {
               {/* Drawn once the body's room is known (a plot is built for its height). */}
               {layout.body !== null &&
                 KIOSK_PLOTS.map((spec) => (
-                  <KioskPlot key={spec.id} spec={spec} theme={theme} slotHeight_px={layout.body?.plot.height_px ?? 0} u={layout.u} />
+                  // Rebuilt with the window the service sets (its hello: at least a cycle).
+                  <KioskPlot key={`${spec.id}|${plotWindow_ms}`} spec={spec} theme={theme} slotHeight_px={layout.body?.plot.height_px ?? 0} u={layout.u} window_ms={plotWindow_ms} />
                 ))}
             </div>
             {options.robot3d && (

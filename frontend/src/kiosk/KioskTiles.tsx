@@ -23,8 +23,19 @@ export const KioskTile = memo(function KioskTile({ field, frame, cellColumns }: 
       <dl className="tile__cells" style={style}>
         {cells.map((cell, i) => (
           <div key={cell.label} className="tile__cell">
-            <dt>{cell.label}</dt>
-            <dd data-testid={`tile-${kebab(field.name)}-${i}`}>{cell.text}</dd>
+            <dt>
+              {cell.label}
+              {/* On the label's line: the value keeps the width the layout gave it. */}
+              {cell.slow === true && (
+                <span className="tile__slow" data-testid="tile-cycle-slow" title="over a tenth slower than the mean of the last ten">
+                  {" "}
+                  ▲ slow
+                </span>
+              )}
+            </dt>
+            <dd data-testid={`tile-${kebab(field.name)}-${i}`} data-slow={cell.slow === true ? "true" : undefined}>
+              {cell.text}
+            </dd>
           </div>
         ))}
       </dl>

@@ -128,3 +128,17 @@ describe("bodyLayout", () => {
     expect(layout.rows).toMatch(/^\d+px \d+px minmax\(0, 1fr\)$/);
   });
 });
+
+describe("tiles in every state (issue 38)", () => {
+  it("put every label above its value, with an alarm's smaller body as without", () => {
+    const content: BodyContent = { tiles: [joints, tcp], unknownLine: false, robot3d: false, plots: 2 };
+    const quiet = bodyLayout({ width_px: 1892, height_px: 760 }, content, { u: 1, landscape: true });
+    const alarm = bodyLayout(BODY_ALARM_1080, content, { u: 1, landscape: true });
+    const small = bodyLayout({ width_px: 1252, height_px: 380 }, content, { u: 2 / 3, landscape: true });
+    for (const layout of [quiet, alarm, small]) expect(layout.tileGrid?.stacked).toBe(true);
+    for (const width of [300, 600, 1200, 2400]) for (const height of [120, 300, 900]) {
+      const grid = tileGrid([joints, temperatures, tcp], width, height, width / 1920);
+      if (grid !== null) expect(grid.stacked).toBe(true);
+    }
+  });
+});

@@ -53,9 +53,9 @@ const TITLE_EM_PER_CHAR = 0.64;
 /** The tiles' box model in design pixels (scaled by u), as kioskTiles.css draws them. */
 export const TILE_BOX = {
   gap: 12,
-  padX: 16,
+  padX: 12,
   padY: 10,
-  cellGapX: 20,
+  cellGapX: 12,
   cellGapY: 4,
   /** Between a label and its value when side by side. */
   labelGap: 10,
@@ -83,7 +83,7 @@ export interface TileGrid {
   readonly columns: number;
   /** Cells per row inside a tile (a tile with fewer cells uses its own count). */
   readonly cellColumns: number;
-  /** Labels above their values (else beside them). */
+  /** Labels above their values: always (issue 38; kept for the page's class). */
   readonly stacked: boolean;
   readonly value_px: number;
   readonly label_px: number;
@@ -141,7 +141,8 @@ function arrangements(tiles: readonly TileShape[]): Arrangement[] {
   const out: Arrangement[] = [];
   for (let columns = 1; columns <= Math.max(1, tiles.length); columns++) {
     for (let cellColumns = 1; cellColumns <= most; cellColumns++) {
-      out.push({ columns, cellColumns, stacked: false }, { columns, cellColumns, stacked: true });
+      // Labels above their values only: beside them a value sat nearer the next label than its own.
+      out.push({ columns, cellColumns, stacked: true });
     }
   }
   return out;
@@ -172,7 +173,7 @@ export const TILE_VALUE_CAP_PX = 120;
  * Among arrangements that reach the cap, the one with the fewest rows of tiles.
  */
 export function tileGrid(tiles: readonly TileShape[], width_px: number, height_px: number, u: number): TileGrid | null {
-  if (tiles.length === 0) return { columns: 1, cellColumns: 1, stacked: false, value_px: KIOSK_TEXT.tileTarget_px * u, label_px: KIOSK_TEXT.small_px * u, title_px: KIOSK_TEXT.small_px * u, height_px: 0 };
+  if (tiles.length === 0) return { columns: 1, cellColumns: 1, stacked: true, value_px: KIOSK_TEXT.tileTarget_px * u, label_px: KIOSK_TEXT.small_px * u, title_px: KIOSK_TEXT.small_px * u, height_px: 0 };
   let best: { a: Arrangement; value_px: number } | null = null;
   const cap = TILE_VALUE_CAP_PX * u;
   for (const a of arrangements(tiles)) {
@@ -337,4 +338,16 @@ export function bodyLayout(body: Box, content: BodyContent, scale: KioskScale): 
     robot3d: content.robot3d ? { width_px: W, height_px: view3dH } : null,
     fits: (content.tiles.length === 0 || grid !== null) && plotsH + 0.5 >= plotsMin,
   };
+}
+
+/** The kiosk's plots' window without a word from the service (an older one): 30 s, a cycle. */
+export const DEFAULT_KIOSK_PLOT_WINDOW_MS = 30_000;
+
+/**
+ * The kiosk's plots' window (ms) from the service's `kiosk_plot_window_s` setting (the stream's
+ * hello): long enough for at least one of the robot's cycles, not the panel's 10 s.
+ */
+export function kioskPlotWindow_ms(config: { readonly plot_window_s: number } | null): number {
+  const window_s = config?.plot_window_s;
+  return window_s !== undefined && Number.isFinite(window_s) && window_s > 0 ? window_s * 1000 : DEFAULT_KIOSK_PLOT_WINDOW_MS;
 }

@@ -8,7 +8,7 @@
  * reads in plain words (a few, for the person at the cell: not the manual's sentence).
  */
 import { LAYOUT, type FieldInfo, type Frame, type FrameFieldName, type RobotStateName } from "../generated/layout";
-import { CYCLE_TILE } from "./cyclesTile";
+import { CYCLE_TILE, CYCLE_TILE_DECIMALS, CYCLE_TILE_NAME } from "./cyclesTile";
 import type { TileShape } from "./kioskLayout";
 import { stateBadge } from "./stateBadge";
 
@@ -58,9 +58,9 @@ export function tileDecimals(field: FieldInfo): number {
 }
 
 /** One number as a tile shows it: fixed decimals, a real minus sign, no "-0.0", "—" for none. */
-export function formatTileValue(value: unknown, field: FieldInfo): string {
+export function formatTileValue(value: unknown, field: FieldInfo, decimals = tileDecimals(field)): string {
   if (typeof value !== "number" || !Number.isFinite(value)) return "—";
-  const text = value.toFixed(tileDecimals(field));
+  const text = value.toFixed(decimals);
   if (/^-0(\.0+)?$/.test(text)) return text.slice(1);
   return text.startsWith("-") ? `\u2212${text.slice(1)}` : text;
 }
@@ -91,6 +91,8 @@ export function tileShape(field: FieldInfo): TileShape {
 export interface TileCell {
   readonly label: string;
   readonly text: string;
+  /** The cycle tile's last cycle when it was slow (lib/cyclesTile.ts): marked beside it. */
+  readonly slow?: true;
 }
 
 /** Each channel of `field` in `frame` with its layout label ("J1", "X", …). */
@@ -98,6 +100,14 @@ export function tileCells(field: FieldInfo, frame: Frame | null): TileCell[] {
   const raw: unknown = frame === null ? undefined : (frame as unknown as Record<string, unknown>)[field.name];
   const values: readonly unknown[] = Array.isArray(raw) ? raw : [raw];
   const labels = field.channels.length > 0 ? field.channels : [field.description];
+  if (field.name === CYCLE_TILE_NAME) {
+    const slow = frame !== null && (frame as unknown as Record<string, unknown>).cycle_time_slow === true;
+    return labels.map((label, i) => ({
+      label,
+      text: formatTileValue(values[i], field, CYCLE_TILE_DECIMALS[i]),
+      ...(i === 0 && slow ? { slow: true as const } : {}),
+    }));
+  }
   return labels.map((label, i) => ({ label, text: formatTileValue(values[i], field) }));
 }
 

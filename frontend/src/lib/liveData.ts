@@ -16,7 +16,7 @@ import { connectionHealth, type Health, type SocketState } from "./health";
 import { LAYOUT, LAYOUT_VERSION, type FieldInfo, type Frame } from "../generated/layout";
 import { FLAG_FIELDS, isFlagField } from "./layoutInfo";
 import { ChannelMap, type PlotSpec } from "./plots";
-import type { CellAlarmSummary, ConnectionStatus, ControlStatus, ServerMessage, StreamEvent } from "./protocol";
+import type { CellAlarmSummary, ConnectionStatus, ControlStatus, KioskConfig, ServerMessage, StreamEvent } from "./protocol";
 import { SampleRing } from "./ringBuffer";
 
 /** 32768 samples: over 5 minutes at RPI 10 ms, so a 2-minute window is always full. */
@@ -51,6 +51,8 @@ export interface LiveSnapshot {
   readonly closeReason: string | null;
   /** The fields the frames carry (the page's subscription; null: every field). */
   readonly fields: readonly string[] | null;
+  /** The kiosk's settings as the hello gave them (null: before the hello, or an older service). */
+  readonly kiosk: KioskConfig | null;
   /** The robot's name as the stream's hello gave it (null: before the hello). */
   readonly robot: string | null;
   /** The robot's current alarms (hello, then `alarm` events), most urgent first (lib/alarms.ts). */
@@ -120,6 +122,7 @@ export class LiveData {
   private rate_hz: number | null = null;
   /** The fields the frames carry (a subscription's; null: every field). */
   private fields: readonly string[] | null = null;
+  private kiosk: KioskConfig | null = null;
   private staleSince_ms: number | null = null;
   private closeReason: string | null = null;
   /** A confirmed write's frame (`seq`), published the moment it is here (`showFrame`). */
@@ -217,6 +220,7 @@ export class LiveData {
         this.control = message.control;
         this.rate_hz = message.rate_hz;
         this.fields = null;
+        this.kiosk = message.kiosk ?? null;
         this.robot = message.robot ?? null;
         // Every time on the page is the plant's (lib/dates.ts), as the service names it.
         setSiteTimeZone(message.time_zone);
@@ -340,6 +344,7 @@ export class LiveData {
       layoutMismatch: this.layoutMismatch,
       rate_hz: this.rate_hz,
       fields: this.fields,
+      kiosk: this.kiosk,
       closeReason: this.closeReason,
       robot: this.robot,
       alarms: this.alarms,

@@ -19,6 +19,8 @@ export type ControlStatus = Schemas["ControlStatus"];
 export type RobotSummary = Schemas["RobotSummary"];
 export type AlarmSummary = Schemas["AlarmSummary"];
 export type CellAlarmSummary = Schemas["CellAlarmSummary"];
+/** The kiosk's settings (plot window, shifts), from the stream's hello. */
+export type KioskConfig = Schemas["KioskConfig"];
 export type RobotStatus = Schemas["RobotStatus"];
 export type CommandState = Schemas["CommandState"];
 export type ApiErrorBody = Schemas["ApiErrorBody"];
