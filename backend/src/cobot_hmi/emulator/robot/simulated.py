@@ -158,7 +158,13 @@ class SimulatedRobot:
         self._frame_at_s: float | None = None
         self._state_and_flags = self._states.state_and_flags()
         """Worked out at every ``_advance``: what the frame reports."""
-        self.wear = Wear(len(self.model.joints), self._wear_changed)
+
+        def wear_changed(now_s: float) -> None:
+            """The wear is about to change: up to now without it, then fresh values with it."""
+            self._command(now_s)
+            self._monitoring = None
+
+        self.wear = Wear(len(self.model.joints), wear_changed)
         """The robot's wear (``robot.wear``): set through it; the robot hears of each change."""
 
     # ------------------------------------------------------------------ simulation
@@ -459,11 +465,6 @@ class SimulatedRobot:
         self.settings.tool_offset_position_mm = position
         self.settings.tool_offset_orientation_deg = angles
         self._tool = _tool_transform(position, angles)
-        self._monitoring = None
-
-    def _wear_changed(self, now_s: float) -> None:
-        """The wear is about to change: up to now without it, then fresh values with it."""
-        self._command(now_s)
         self._monitoring = None
 
     # ------------------------------------------------------------------ introspection
