@@ -21,8 +21,6 @@ from cobot_hmi.emulator.robot.wear import JointWear, Wear
 from cobot_hmi.generated.frames import Frame
 from cobot_hmi.health import FrameBlock, HealthEngine, HealthSettings
 from cobot_hmi.health.life import LIFE_EXPONENT
-from cobot_hmi.service.cycles.meter import CycleMeter
-from cobot_hmi.service.cycles.trigger import parse_trigger
 from cobot_hmi.stored_format import FormatVersionError
 
 
@@ -262,8 +260,9 @@ def test_bad_frames_are_dropped_and_counted_and_bad_shapes_refused() -> None:
 
 def test_the_engine_fed_as_the_service_will_feed_it_finds_worn_j3() -> None:
     """SimulatedRobot's own frames (stepped at 100 Hz without sockets, monitoring values
-    refreshed every 100 ms as the real controller's), a second at a time, cut into cycles by
-    the service's cycle meter on the program's marker register."""
+    refreshed every 100 ms as the real controller's), a second at a time, cut into cycles at
+    the rising edges of the program's cycle marker register, as the service's cycle meter
+    does with the trigger ``bit_output_registers.63:rising``."""
     settings = RobotSettings(
         cycle_marker_register=63,
         kinematic_refresh_ms=100.0,
@@ -271,9 +270,6 @@ def test_the_engine_fed_as_the_service_will_feed_it_finds_worn_j3() -> None:
     )
     robot = SimulatedRobot(settings, start_s=0.0)
     engine = HealthEngine(M1013_ARM, HealthSettings(thermal_time_constant_s=5.0))
-    trigger = parse_trigger("bit_output_registers.63:rising")
-    assert trigger is not None
-    meter = CycleMeter("robot", trigger)
     times: list[float] = []
     frames: list[Frame] = []
 
@@ -284,6 +280,8 @@ def test_the_engine_fed_as_the_service_will_feed_it_finds_worn_j3() -> None:
             frames.clear()
 
     step = 0
+    marker = True  # no edge at the first frame: a cycle starts at the first rising edge
+    started: float | None = None
     for cycles, before in ((4, None), (50, "baseline"), (25, "wear")):
         if before == "baseline":
             engine.begin_baseline("commissioning", "test", step / 100, cycles=50)
@@ -295,11 +293,14 @@ def test_the_engine_fed_as_the_service_will_feed_it_finds_worn_j3() -> None:
             frame = robot.produce_frame(now_s)
             times.append(now_s)
             frames.append(frame)
-            cycle = meter.observe(frame, now_s)
-            if cycle is not None:
+            rising = frame.bit_output_registers[63] and not marker
+            marker = frame.bit_output_registers[63]
+            if rising:
                 flush()  # the frames up to the cycle's end first
-                engine.end_cycle(cycle.start, cycle.end, cycle.interrupted)
-                done += 1
+                if started is not None:
+                    engine.end_cycle(started, now_s)
+                    done += 1
+                started = now_s
             elif len(frames) >= 100:
                 flush()
             step += 1
