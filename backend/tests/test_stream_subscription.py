@@ -179,3 +179,31 @@ async def test_permessage_deflate_is_negotiated(hmi: Running) -> None:
         extensions = connection.response.headers.get("Sec-WebSocket-Extensions", "")
         assert "permessage-deflate" in extensions
         assert any(type(e).__name__ == "PerMessageDeflate" for e in connection.protocol.extensions)
+
+
+def test_the_kiosk_settings_are_checked_and_sorted() -> None:
+    from pydantic import ValidationError
+
+    from cobot_hmi.service.kiosk.settings import KioskSettings
+
+    settings = KioskSettings(shift_starts="22:00,06:00,14:00", kiosk_plot_window_s=45)  # type: ignore[arg-type]
+    assert settings.kiosk_hello() == {
+        "plot_window_s": 45.0,
+        "shift_starts": ["06:00", "14:00", "22:00"],
+    }
+    for bad, why in (
+        ("25:00", "HH:MM"),
+        ("6:00", "HH:MM"),
+        ("06:00,06:00", "twice"),
+        ("", "at least one"),
+    ):
+        with pytest.raises(ValidationError, match=why):
+            KioskSettings(shift_starts=bad)  # type: ignore[arg-type]
+    with pytest.raises(ValidationError):
+        KioskSettings(kiosk_plot_window_s=1)
+
+
+async def test_the_hello_carries_the_kiosk_settings(hmi: Running) -> None:
+    async with connect(hmi.robot_ws_url("robot")) as connection:
+        hello = orjson.loads(await connection.recv())
+    assert hello["kiosk"] == {"plot_window_s": 30.0, "shift_starts": ["06:00", "14:00", "22:00"]}
