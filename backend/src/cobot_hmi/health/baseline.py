@@ -61,6 +61,17 @@ class Baseline:
         fitted = friction_per_speed(self.cells, joints, self.settings)
         return np.where(np.isfinite(steady), steady, fitted)
 
+    def friction_reference(self, joints: int) -> list[str | None]:
+        """Per joint, where its friction per °/s comes from: ``"steady"`` (cells seen both
+        ways at steady speed), ``"fitted"`` (every cell seen both ways, accelerating too: rougher,
+        docs/health.md), ``None`` (no reference: no friction figure)."""
+        steady = friction_per_speed(self.steady_cells, joints, self.settings)
+        fitted = friction_per_speed(self.cells, joints, self.settings)
+        return [
+            "steady" if np.isfinite(a) else "fitted" if np.isfinite(b) else None
+            for a, b in zip(steady, fitted, strict=True)
+        ]
+
     def due(self, now_s: float) -> bool:
         """Learned enough: the cycles asked for, or the period's end passed."""
         target = self.info.get("target_cycles")

@@ -73,6 +73,7 @@ def _joint(
         "friction_percent": _round(friction),
         "friction_percent_per_week": _round(per_week),
         "friction_percent_since_first_baseline": _round(figures["since_first"][j]),
+        "friction_reference": figures["reference"][j],
         "signature_rms_percent": _round(float(engine.signature_rms[j])),
         "signature_distribution_percent": _round(float(engine.signature_distribution[j])),
         "heat_excess_c": _round(heat_c),
@@ -142,6 +143,9 @@ def build_report(engine: HealthEngine, now_s: float) -> dict[str, object]:
         "friction": friction,
         "per_week": engine.friction_per_week(),
         "since_first": engine.friction_since_first_percent(friction),
+        "reference": engine.baseline.friction_reference(engine.joints)
+        if engine.baseline is not None
+        else [None] * engine.joints,
         "heat": [float(h) for h in heat],
         "rate": [float(r) for r in engine.life.week_rate()],
     }
