@@ -312,3 +312,20 @@ def test_the_engine_fed_as_the_service_will_feed_it_finds_worn_j3() -> None:
     # At the controller's 100 ms refresh this program gives a rough reference for J3's healthy
     # friction (docs/health.md, "Friction"): the wear is found, its size only roughly.
     assert report["joints"][2]["friction_percent"] > 10.0
+
+
+def test_a_baseline_over_a_period_and_one_without_a_reason_refused() -> None:
+    sim = HealthSimulation()
+    with pytest.raises(ValueError, match="a baseline needs a reason"):
+        sim.engine.begin_baseline("  ", "test", sim.now_s, cycles=10)
+    period_s = 20 * sim.arm.duration_s + 1.0
+    sim.engine.begin_baseline("new program", "test", sim.now_s, until_s=sim.now_s + period_s)
+    sim.run(19)
+    assert sim.engine.baseline is None
+    assert _report(sim)["learning"]["cycles"] == 19
+    sim.run(2)  # the period ends within the 21st cycle: learned at its end
+    report = _report(sim)
+    assert report["baseline"]["reason"] == "new program"
+    assert report["baseline"]["cycles"] == 21
+    assert report["baseline"]["arm"] == "M1013"
+    assert report["baseline"]["layout_version"] == 1
