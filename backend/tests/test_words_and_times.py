@@ -14,10 +14,13 @@ from pathlib import Path
 from typing import Any
 
 import orjson
+import pyarrow as pa
 import pytest
 from websockets.asyncio.client import connect
 
 from cobot_hmi.codec import Frame, zero_frame
+from cobot_hmi.history import export as history_export
+from cobot_hmi.history.schema import SEQ, T2O_SEQUENCE, TIME
 from cobot_hmi.service.alarms.engine import AlarmEngine
 from cobot_hmi.service.alarms.persistence import AlarmChange
 from cobot_hmi.service.config.plant_time import PLANT_ZONE, host_zone_name
@@ -176,3 +179,23 @@ def test_an_active_cause_is_named_before_one_that_cleared() -> None:
     events = alarms.observe(frame(SAFE_OFF, emergency_stopped=True), 3.5) or []
     safe_off = next(e for e in events if e["alarm"]["key"] == "safe_off")  # type: ignore[index]
     assert safe_off["alarm"]["suppressed_by"] == "left:emergency_stop"  # type: ignore[index]
+
+
+def test_the_history_export_s_csv_writes_its_times_in_the_plant_s_zone() -> None:
+    """The recording's CSV export (``history/export.py``): in the plant's zone with its offset
+    at each moment, summer and winter; in UTC as before (``Z``)."""
+    micros = [int(WINTER_S * 1e6) + 123_456, int(SUMMER_S * 1e6)]
+    table = pa.table(
+        {
+            TIME: pa.array(micros, pa.timestamp("us", tz="UTC")),
+            SEQ: pa.array([1, 2], pa.int64()),
+            T2O_SEQUENCE: pa.array([10, 11], pa.uint32()),
+        }
+    )
+
+    def times(zone: str) -> list[str]:
+        text = b"".join(history_export.export([table], "robot", [], "csv", zone=zone)).decode()
+        return [row["time"] for row in csv.DictReader(io.StringIO(text))]
+
+    assert times(BERLIN) == ["2026-11-18T12:06:40.123456+01:00", "2026-07-02T15:46:40.000000+02:00"]
+    assert times("UTC") == ["2026-11-18T11:06:40.123456Z", "2026-07-02T13:46:40.000000Z"]

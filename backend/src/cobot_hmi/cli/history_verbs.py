@@ -54,6 +54,7 @@ def _export(args: argparse.Namespace) -> int:
     from cobot_hmi.history.segments import list_robots
     from cobot_hmi.history.times import TimeFormatError, parse_time
     from cobot_hmi.service.api.routes.history import export_chunks
+    from cobot_hmi.service.config.plant_time import host_zone_name
     from cobot_hmi.service.settings import SettingsError
 
     try:
@@ -80,7 +81,14 @@ def _export(args: argparse.Namespace) -> int:
         return _fail("--to must be after --from")
     output = args.output or export.export_filename(robot, from_s, to_s, args.format)
     chunks = export_chunks(
-        root, settings.database_path, robot, elements, from_s=from_s, to_s=to_s, fmt=args.format
+        root,
+        settings.database_path,
+        robot,
+        elements,
+        from_s=from_s,
+        to_s=to_s,
+        fmt=args.format,
+        zone=settings.time_zone or host_zone_name(),  # the plant's, as the service writes it
     )
     try:
         with contextlib.ExitStack() as stack:

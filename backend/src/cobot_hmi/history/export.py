@@ -7,7 +7,9 @@ byte chunks (one segment at a time: memory does not grow with the range):
 Every format names an element as the screen labels it (``schema.Element.export_name``:
 ``joint_position.J1`` is J 1's position, ``controlbox_do.DO3`` is DO 3):
 
-- ``csv``: the receive time in ISO 8601 UTC (``2026-11-24T06:00:00.123456Z``), ``seq``,
+- ``csv``: the receive time in ISO 8601 (``2026-11-24T06:00:00.123456Z`` in UTC; in another zone,
+  the plant's as the service's ``time_zone`` names it, with its offset:
+  ``2026-11-24T07:00:00.123456+01:00``), ``seq``,
   ``t2o_sequence`` (empty in rows recorded before it existed), then one column per element, its
   unit in the header (``joint_position.J1 [degree]``); pyarrow's writer quotes the header's
   names and the times (strings), not the numbers and bits; opens in Excel and pandas.
@@ -110,11 +112,14 @@ def export(
     elements: Sequence[Element],
     fmt: str,
     events: Iterable[Mapping[str, object]] = (),
+    *,
+    zone: str = "UTC",
 ) -> Iterator[bytes]:
     """The export's bytes, chunk by chunk, from ``tables_`` as ``tables`` gives them; MCAP
-    also ``events``, in time order (read as the frames pass them, one at a time)."""
+    also ``events``, in time order (read as the frames pass them, one at a time). ``zone``
+    (an IANA name): the CSV's times are written in it."""
     if fmt == "csv":
-        return _csv(tables_, elements)
+        return _csv(tables_, elements, zone)
     if fmt == "parquet":
         return _parquet(tables_, robot, elements)
     if fmt == "mcap":
@@ -147,7 +152,19 @@ def csv_header(element: Element) -> str:
     return f"{name} [{element.unit}]" if element.unit else name
 
 
-def _csv(tables_: Iterable[pa.Table], elements: Sequence[Element]) -> Iterator[bytes]:
+_UTC_NAMES: Final = frozenset({"UTC", "Etc/UTC", "Etc/UCT", "UCT", "Zulu", "Etc/Zulu"})
+
+
+def iso_times(times: pa.ChunkedArray | pa.Array, zone: str) -> pa.ChunkedArray | pa.Array:
+    """Receive times as ISO 8601 text in ``zone``: ``…Z`` in UTC, else with the zone's offset
+    at each moment (``+01:00`` in winter, ``+02:00`` in summer for Europe/Berlin)."""
+    if zone in _UTC_NAMES:
+        return pc.strftime(times, format="%Y-%m-%dT%H:%M:%SZ")
+    local = pc.strftime(times.cast(pa.timestamp("us", tz=zone)), format="%Y-%m-%dT%H:%M:%S%z")
+    return pc.replace_substring_regex(local, pattern=r"([+-]\d\d)(\d\d)$", replacement=r"\1:\2")
+
+
+def _csv(tables_: Iterable[pa.Table], elements: Sequence[Element], zone: str) -> Iterator[bytes]:
     names = ["time", SEQ, T2O_SEQUENCE, *(csv_header(e) for e in elements)]
     types = [pa.string(), pa.int64(), pa.uint32(), *(e.arrow_type for e in elements)]
     schema = pa.schema(list(zip(names, types, strict=True)))
@@ -158,7 +175,7 @@ def _csv(tables_: Iterable[pa.Table], elements: Sequence[Element]) -> Iterator[b
         writer.write_table(schema.empty_table())
         yield sink.take()
         for table in _chunks(tables_):
-            times = pc.strftime(table.column(TIME), format="%Y-%m-%dT%H:%M:%SZ")
+            times = iso_times(table.column(TIME), zone)
             arrays = [
                 times,
                 table.column(SEQ),

@@ -25,6 +25,7 @@ from cobot_hmi.service.api import models
 from cobot_hmi.service.api.deps import RobotDep, ServiceDep, ViewerDep
 from cobot_hmi.service.api.downloads import download
 from cobot_hmi.service.api.openapi_extras import READ, errors
+from cobot_hmi.service.config.plant_time import PLANT_ZONE
 from cobot_hmi.service.errors import ApiError
 from cobot_hmi.service.events.text import with_text
 from cobot_hmi.service.recording.recorder import Recorder
@@ -274,8 +275,10 @@ def export_chunks(
     from_s: float,
     to_s: float,
     fmt: str,
+    zone: str = "UTC",
 ) -> Iterator[bytes]:
-    """The export's bytes (also ``cobot-hmi export``): frames and, for MCAP, the events."""
+    """The export's bytes (also ``cobot-hmi export``): frames and, for MCAP, the events; the
+    CSV's times in ``zone`` (the plant's, ``config.plant_time``)."""
     events = (
         (with_text(event) for event in iter_events(database, robot, from_s, to_s))
         if fmt == "mcap"
@@ -283,7 +286,7 @@ def export_chunks(
     )
     tables = history_export.tables(root, robot, elements, from_s=from_s, to_s=to_s, fmt=fmt)
     lines = 0
-    for chunk in history_export.export(tables, robot, elements, fmt, events):
+    for chunk in history_export.export(tables, robot, elements, fmt, events, zone=zone):
         if chunk:
             lines += chunk.count(b"\n")
             yield chunk
@@ -336,5 +339,6 @@ async def get_export(
         from_s=from_s,
         to_s=to_s,
         fmt=format,
+        zone=PLANT_ZONE.name,
     )
     return download(chunks, filename, media_type=history_export.MEDIA_TYPES[format])
