@@ -16,6 +16,7 @@ import orjson
 import pytest
 
 from cobot_hmi.codec import Frame, command_to_json, zero_command, zero_frame
+from cobot_hmi.layout import FRAME_ECHOED
 from cobot_hmi.service.events.bus import EventBus
 from cobot_hmi.service.events.text import FrameWatcher
 from cobot_hmi.service.robots.confirmation import FrameWaiters
@@ -31,7 +32,6 @@ from cobot_hmi.service.storage.store import (
     to_csv,
 )
 from cobot_hmi.service.writes.validation import (
-    FRAME_ECHOED,
     WriteValidationError,
     frame_shows,
     plan_write,

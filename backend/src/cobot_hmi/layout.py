@@ -256,6 +256,10 @@ O2T_ASSEMBLY: Final = Assembly(
     O2T_FIELDS,
 )
 ASSEMBLIES: Final = (T2O_ASSEMBLY, O2T_ASSEMBLY)
+FRAME_ECHOED: Final = frozenset(f.name for f in O2T_FIELDS) & {f.name for f in T2O_FIELDS}
+"""O→T fields the robot reports back in its T→O frame (actual outputs): a write of one is
+confirmed by a frame. The rest (bit input registers) is confirmed when the O→T packet carrying
+it has gone out."""
 
 
 @dataclass(frozen=True, slots=True)

@@ -4,7 +4,7 @@
 concern, each in its own room: the robots' connections (here and ``robots.settings``), the web
 service and its limits (``api.settings``, ``api.tls_settings``), directory login
 (``access.directory_settings``), alarms (``alarms.settings``), history
-(``recording.settings``), cycle timing (``cycles.settings``) and the kiosk
+(``recording.settings``), cycle timing (``robots.cycle_settings``) and the kiosk
 (``kiosk.settings``). The doors above the service
 (the Sparkplug B edge node, the OPC UA server) add theirs in ``cobot_hmi.settings.HmiSettings``,
 the settings of ``cobot-hmi serve``: the service imports neither. Keys stay flat: a field's
@@ -47,9 +47,9 @@ from cobot_hmi.service.config.fields import (
     rpi_ms_setting,
     setting,
 )
-from cobot_hmi.service.cycles.settings import CycleSettings
 from cobot_hmi.service.kiosk.settings import KioskSettings
 from cobot_hmi.service.recording.settings import HistorySettings
+from cobot_hmi.service.robots.cycle_settings import CycleSettings
 from cobot_hmi.service.robots.settings import RobotSettings
 
 if TYPE_CHECKING:

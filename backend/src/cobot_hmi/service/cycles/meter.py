@@ -1,9 +1,9 @@
 """Layer: service (pure). One robot's cycles measured from its frames.
 
-A cycle runs from one start (the trigger's level rising, ``trigger.CycleTrigger``) to the next;
-both times are the receive times of the frames that showed the edge, so a cycle's duration is
-exact to one frame (the RPI), never to a polling period. The first start after the service
-starts only opens a cycle.
+A cycle runs from one start (the trigger's level rising, ``robots.cycle_trigger.CycleTrigger``)
+to the next; both times are the receive times of the frames that showed the edge, so a cycle's
+duration is exact to one frame (the RPI), never to a polling period. The first start after the
+service starts only opens a cycle.
 
 A cycle in which the robot stopped (an emergency or safety stop, a protective stop, safe off),
 its frames stopped for longer than ``max_gap_s`` (a lost link), or it left its running states
@@ -24,7 +24,7 @@ from typing import Final
 
 from cobot_hmi.codec import Frame
 from cobot_hmi.layout import ROBOT_STATES
-from cobot_hmi.service.cycles.trigger import CycleTrigger
+from cobot_hmi.service.robots.cycle_trigger import CycleTrigger
 
 MAX_GAP_S: Final = 1.0
 """Frames further apart than this interrupt the cycle in progress (a lost link)."""

@@ -21,6 +21,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from cobot_hmi.layout import FRAME_ECHOED
 from cobot_hmi.scanner.originator import ConnectionState, NotConnectedError, ReadOnlyError
 from cobot_hmi.service.access.auth import Session
 from cobot_hmi.service.access.users import Role
@@ -29,7 +30,6 @@ from cobot_hmi.service.events.text import Event
 from cobot_hmi.service.robots.frames import FrameNotifier
 from cobot_hmi.service.robots.link import RobotLink
 from cobot_hmi.service.storage.store import AuditEntry, Store
-from cobot_hmi.service.writes.validation import FRAME_ECHOED
 
 
 @dataclass(frozen=True, slots=True)

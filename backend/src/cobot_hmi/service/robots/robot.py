@@ -16,8 +16,9 @@ import asyncio
 import contextlib
 import logging
 import time
+from collections import Counter
 from collections.abc import Callable, Coroutine, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Final
 
 from cobot_hmi.enip.errors import EnipError
@@ -28,7 +29,6 @@ from cobot_hmi.scanner.session import EnipSession, SessionError
 from cobot_hmi.scanner.t2o_pace import SlowTarget
 from cobot_hmi.service.alarms.engine import TICK_S, AlarmEngine, UserAlarm
 from cobot_hmi.service.alarms.persistence import AlarmChange, AlarmStore
-from cobot_hmi.service.api import models
 from cobot_hmi.service.config.plant_time import PLANT_ZONE
 from cobot_hmi.service.events.bus import EventBus
 from cobot_hmi.service.events.text import Event
@@ -42,11 +42,20 @@ from cobot_hmi.service.robots.watch import FrameEventWatch
 from cobot_hmi.service.settings import RobotSettings, ServiceSettings
 from cobot_hmi.service.storage.store import Store
 from cobot_hmi.service.storage.tags import TagBook
-from cobot_hmi.service.writes.pipeline import WriteCounters
 
 log = logging.getLogger(__name__)
 
 IDENTITY_TIMEOUT_S: Final = 3.0
+
+
+@dataclass
+class WriteCounters:
+    """A robot's writes: how long a write waits for the robot's confirmation, and how many
+    ended in each outcome (``confirmed``, ``refused``, ``timeout``, …) for /metrics; the write
+    pipeline (``service.writes.pipeline``) counts into them."""
+
+    timeout_s: float
+    outcomes: Counter[str] = field(default_factory=Counter)
 
 
 @dataclass(frozen=True, slots=True)
@@ -345,7 +354,7 @@ class RobotRuntime:
     # ------------------------------------------------------------ answers
 
     async def connection_status(self, stats: ConnectionStats | None = None) -> dict[str, object]:
-        """``models.ConnectionStatus`` of this robot as JSON-ready data (from ``stats`` when
+        """The ``ConnectionStatus`` answer of this robot as JSON-ready data (from ``stats`` when
         the caller fetched the cell's at once: ``link.stats_of``)."""
         if stats is None:
             stats = await self.link.stats()
@@ -376,10 +385,10 @@ class RobotRuntime:
             "slow_target": stats.slow_target.words("robot") if stats.slow_target else None,
         }
 
-    async def status(self) -> models.RobotStatus:
-        return models.RobotStatus.model_validate(
-            {"connection": await self.connection_status(), "control": self.control.status()}
-        )
+    async def status(self) -> dict[str, object]:
+        """The robot's connection and control as JSON-ready data (the route builds its
+        ``RobotStatus`` answer from it)."""
+        return {"connection": await self.connection_status(), "control": self.control.status()}
 
     async def hello(self, rate_hz: float | None) -> dict[str, object]:
         """The first WebSocket message of a client of this robot's stream."""

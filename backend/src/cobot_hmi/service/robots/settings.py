@@ -15,7 +15,7 @@ from cobot_hmi.service.config.fields import (
     rpi_ms_setting,
     setting,
 )
-from cobot_hmi.service.cycles.settings import CycleSettings
+from cobot_hmi.service.robots.cycle_settings import CycleSettings
 
 if TYPE_CHECKING:
     from cobot_hmi.scanner.originator import OriginatorSettings

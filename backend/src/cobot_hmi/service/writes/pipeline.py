@@ -28,9 +28,8 @@ from __future__ import annotations
 
 import asyncio
 import time
-from collections import Counter
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Final, Protocol
 
 import orjson
@@ -42,6 +41,7 @@ from cobot_hmi.service.access.users import Role
 from cobot_hmi.service.errors import ApiError, AuditUnavailableError
 from cobot_hmi.service.labels import labels_of, write_summary
 from cobot_hmi.service.robots.frames import FrameRecord
+from cobot_hmi.service.robots.robot import WriteCounters
 from cobot_hmi.service.storage.store import AuditEntry, Store
 from cobot_hmi.service.writes.validation import (
     PlannedWrite,
@@ -115,15 +115,6 @@ class _Control(Protocol):
     async def take(self, session: Session, client: str | None) -> dict[str, object]: ...
 
     async def release(self, session: Session, client: str | None) -> dict[str, object]: ...
-
-
-@dataclass
-class WriteCounters:
-    """A robot's writes: how long a write waits for the robot's confirmation, and how many
-    ended in each outcome (``confirmed``, ``refused``, ``timeout``, …) for /metrics."""
-
-    timeout_s: float
-    outcomes: Counter[str] = field(default_factory=Counter)
 
 
 class _Tags(Protocol):

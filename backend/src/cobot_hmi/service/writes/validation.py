@@ -20,8 +20,8 @@ from typing import Final
 from cobot_hmi.codec import CodecError, CommandImage, Frame, command_from_json
 from cobot_hmi.layout import (
     ANALOG_OUTPUT_RANGES,
+    FRAME_ECHOED,
     O2T_ASSEMBLY,
-    T2O_ASSEMBLY,
     Direction,
     field_by_name,
 )
@@ -31,9 +31,6 @@ Path = tuple[str, int]
 
 _TYPE_NAMES: Final = field_by_name(Direction.O_TO_T, "analog_output_type").value_names
 _O2T_NAMES: Final = tuple(f.name for f in O2T_ASSEMBLY.fields)
-FRAME_ECHOED: Final = frozenset(_O2T_NAMES) & {f.name for f in T2O_ASSEMBLY.fields}
-"""O→T fields the robot reports back in its T→O frame (actual outputs): confirmed by a frame.
-The rest (bit input registers) is confirmed when the O→T packet carrying it has gone out."""
 
 _INDEX_IN_MESSAGE: Final = re.compile(r"^(\w+)\[(\d+)\]")
 

@@ -155,8 +155,7 @@ def _frame(service: Service, robot: RobotRuntime) -> dict[str, object]:
 
 
 async def _status(robot: RobotRuntime, session: Session | None) -> Any:
-    status = await robot.status()
-    answer = status.model_dump(mode="json") if isinstance(status, models.RobotStatus) else status
+    answer = models.RobotStatus.model_validate(await robot.status()).model_dump(mode="json")
     answer["control"] = robot.control.status_for(session)  # holder.session_is_yours
     return answer
 

@@ -4,14 +4,14 @@
 (a ``[[robots]]`` table's ``cycle_trigger``) and the service's settings inherit it: at the top
 level it is every robot's default and the one-robot shortcut's trigger (TOML key
 ``cycle_trigger``, ``COBOT_HMI_CYCLE_TRIGGER``, ``--cycle-trigger``). The text is checked
-against the layout when the settings load (``trigger.parse_trigger``).
+against the layout when the settings load (``cycle_trigger.parse_trigger``).
 """
 
 from __future__ import annotations
 
 from pydantic import BaseModel, Field, field_validator
 
-from cobot_hmi.service.cycles.trigger import CycleTrigger, parse_trigger
+from cobot_hmi.service.robots.cycle_trigger import CycleTrigger, parse_trigger
 
 
 class CycleSettings(BaseModel):
