@@ -44,7 +44,9 @@ MIN_SHARED_SAMPLES = 20.0
 def _bin(values: FloatArray, width: float, count: int) -> IntArray:
     """``floor(values / width)`` as integers within 0 … count − 1."""
     bins = np.floor(values * (1.0 / width)).astype(np.int64)
-    np.clip(bins, 0, count - 1, out=bins)
+    # minimum/maximum rather than clip: the same result, without clip's per-call overhead.
+    np.maximum(bins, 0, out=bins)
+    np.minimum(bins, count - 1, out=bins)
     return bins
 
 
@@ -78,15 +80,26 @@ class CellTable:
         # Only the moving samples' values, as flat vectors.
         band = _bin(block.temperature_c[rows, joint] + 40.0, s.temperature_band_c, _BANDS)
         scaled = (block.position_deg[rows, joint] + 500.0) / s.position_bin_deg
-        position = np.clip(np.floor(scaled).astype(np.int64), 0, _POSITIONS - 1)
+        position = _bin(scaled, 1.0, _POSITIONS)
         speed_bin = _bin(speed[rows, joint], s.speed_bin_deg_s, _SPEEDS)
         keys = ((joint * _BANDS + band) * _POSITIONS + position) * _SPEEDS + speed_bin
         x = scaled - position - 0.5
         y = acceleration_deg_s2[rows, joint] / _ACCELERATION_SCALE
         torque = block.torque_nm[rows, joint]
-        terms = np.stack(
-            [np.ones_like(x), x, y, x * x, y * y, x * y, torque, torque * x, torque * y], axis=1
+        terms = np.empty((x.size, _TERMS))
+        terms[:, 0] = 1.0
+        columns: tuple[FloatArray, ...] = (
+            x,
+            y,
+            x * x,
+            y * y,
+            x * y,
+            torque,
+            torque * x,
+            torque * y,
         )
+        for column, value in enumerate(columns, start=1):
+            terms[:, column] = value
         base = self._slots_of(keys) * _COLUMNS + np.where(velocity[rows, joint] > 0.0, 0, _TERMS)
         index = (base[:, None] + np.arange(_TERMS)).ravel()
         flat = self.sums.reshape(-1)
