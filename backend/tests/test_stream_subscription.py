@@ -207,3 +207,59 @@ async def test_the_hello_carries_the_kiosk_settings(hmi: Running) -> None:
     async with connect(hmi.robot_ws_url("robot")) as connection:
         hello = orjson.loads(await connection.recv())
     assert hello["kiosk"] == {"plot_window_s": 30.0, "shift_starts": ["06:00", "14:00", "22:00"]}
+
+
+async def test_the_hub_encodes_once_per_group_not_per_client(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Five clients in two groups (every field; two fields at 50 Hz): every client of a group is
+    handed the same text, and each distinct frame is turned into JSON once per group's fields."""
+    from cobot_hmi.codec import zero_frame
+    from cobot_hmi.service.robots import hub as hub_module
+    from cobot_hmi.service.robots.frames import FrameNotifier
+    from cobot_hmi.service.robots.hub import Hub, Subscription
+
+    encoded: list[object] = []
+    from cobot_hmi.codec import dumps as real_dumps
+
+    def counting_dumps(data: object) -> bytes:
+        if isinstance(data, dict) and "robot_state" in data:
+            encoded.append(data)
+        return real_dumps(data)
+
+    monkeypatch.setattr(hub_module, "dumps", counting_dumps)
+    hub = Hub(robot="r", batch_s=0.05, client_queue_frames=1000, stall_timeout_s=5)
+    notifier = FrameNotifier("r", frames_per_wake=5)
+    notifier.add(hub)
+    texts: dict[int, list[str]] = {}
+
+    def sink(n: int) -> Any:
+        async def send(text: str) -> None:
+            texts.setdefault(n, []).append(text)
+
+        return send
+
+    async def no_abort(_: str) -> None:
+        return None
+
+    clients = [hub.add_client(sink(n), no_abort, None, {"type": "hello"}) for n in range(5)]
+    narrow = Subscription(("robot_state", "servo_on"), 50.0)
+    for client in clients[2:]:
+        hub.subscribe(client, narrow)
+    frames = [zero_frame()._replace(robot_state=i) for i in range(10)]
+    for i, frame in enumerate(frames):  # ten distinct frames, 10 ms apart
+        notifier.publish(frame, b"", 1000.0 + i * 0.01, i)
+        if i % 5 == 4:
+            notifier.dispatch_now()
+    for _ in range(50):
+        await asyncio.sleep(0)
+    await hub.close()
+    wide = [t for t in texts[0] if '"frames"' in t]
+    assert wide == [t for t in texts[1] if '"frames"' in t] and len(wide) == 2
+    narrow_texts = [[t for t in texts[n] if '"frames"' in t] for n in (2, 3, 4)]
+    assert narrow_texts[0] == narrow_texts[1] == narrow_texts[2]
+    sent = [f for t in narrow_texts[0] for f in orjson.loads(t)["frames"]]
+    assert 4 <= len(sent) <= 6  # 50 Hz of 100
+    assert all(set(f["frame"]) == {"robot_state", "robot_state_name", "servo_on"} for f in sent)
+    # Ten frames for the wide group, the decimated ones for the narrow: never once per client.
+    assert len(encoded) == 10 + len(sent)

@@ -210,7 +210,7 @@ class Hub:
         self._background: set[asyncio.Task[None]] = set()
         self._last_frame: Frame | None = None
         self._last_frame_dict: dict[str, object] = {}
-        self._frame_json_by_fields: dict[Fields, bytes] = {}
+        self._frame_json_by_fields: dict[Fields, tuple[Frame, bytes]] = {}
 
     # ------------------------------------------------------------ clients
 
@@ -358,23 +358,22 @@ class Hub:
         """The frame's JSON (only ``fields`` of it), once per frame object and set of fields:
         the originator hands on the same immutable ``Frame`` while the robot's bytes do not
         change (a robot refreshes its monitoring values about every 100 ms, whatever the RPI),
-        so most frames at short RPIs cost no encoding."""
+        so most frames at short RPIs cost no encoding. Each set of fields keeps its own last
+        frame, so groups asking different fields do not undo each other's."""
+        cached = self._frame_json_by_fields.get(fields)
+        if cached is not None and cached[0] is frame:
+            return cached[1]
         if frame is not self._last_frame:
             self._last_frame = frame
             self._last_frame_dict = frame_to_json(frame)
-            self._frame_json_by_fields.clear()
-        text = self._frame_json_by_fields.get(fields)
-        if text is None:
-            data = self._last_frame_dict
-            if fields is not None:
-                # A field's words go with it (robot_state_name with robot_state).
-                data = {
-                    key: data[key]
-                    for name in fields
-                    for key in (name, f"{name}_name")
-                    if key in data
-                }
-            text = self._frame_json_by_fields[fields] = dumps(data)
+        data = self._last_frame_dict
+        if fields is not None:
+            # A field's words go with it (robot_state_name with robot_state).
+            data = {
+                key: data[key] for name in fields for key in (name, f"{name}_name") if key in data
+            }
+        text = dumps(data)
+        self._frame_json_by_fields[fields] = (frame, text)
         return text
 
     def _check_stalls(self) -> None:
