@@ -26,8 +26,8 @@ import pytest
 import yaml
 
 from cobot_hmi.cli import build_parser
-from cobot_hmi.service.config.fields import CONFIG_ENV
 from cobot_hmi.service.config.loading import env_name, load_settings
+from cobot_hmi.service.setting_fields import CONFIG_ENV
 from cobot_hmi.settings import HmiSettings
 
 ROOT = Path(__file__).resolve().parents[2]

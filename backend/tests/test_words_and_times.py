@@ -23,7 +23,7 @@ from cobot_hmi.history import export as history_export
 from cobot_hmi.history.schema import SEQ, T2O_SEQUENCE, TIME
 from cobot_hmi.service.alarms.engine import AlarmEngine
 from cobot_hmi.service.alarms.persistence import AlarmChange
-from cobot_hmi.service.config.plant_time import PLANT_ZONE, host_zone_name
+from cobot_hmi.service.plant_time import PLANT_ZONE, host_zone_name
 from cobot_hmi.service.settings import ServiceSettings, SettingsError
 from service_support import running_service, service_settings
 

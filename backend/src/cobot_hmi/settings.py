@@ -1,7 +1,7 @@
 """Layer: composition. The settings of ``cobot-hmi serve``: the service's own
 (``service.settings.ServiceSettings``) and those of the doors above it, the Sparkplug B edge
 node (``sparkplug.settings``) and the OPC UA server (``opcua.settings``), which the service does
-not know. Keys stay flat as everywhere (``service.config.fields``): a field's name is its TOML
+not know. Keys stay flat as everywhere (``service.setting_fields``): a field's name is its TOML
 key, ``COBOT_HMI_<NAME>`` its environment variable and ``--name`` its flag. Imports only
 settings modules, so that a command reading settings loads neither paho-mqtt nor asyncua.
 """

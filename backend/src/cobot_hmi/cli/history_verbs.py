@@ -54,7 +54,7 @@ def _export(args: argparse.Namespace) -> int:
     from cobot_hmi.history.segments import list_robots
     from cobot_hmi.history.times import TimeFormatError, parse_time
     from cobot_hmi.service.api.routes.history import export_chunks
-    from cobot_hmi.service.config.plant_time import host_zone_name
+    from cobot_hmi.service.plant_time import host_zone_name
     from cobot_hmi.service.settings import SettingsError
 
     try:

@@ -1,7 +1,7 @@
 """Layer: plant (a door above the service). The settings of ``cobot-hmi plant``: the service's
 own (login, roles, TLS, directory, HTTP bounds, the state directory: what the plant's web API
 shares with ``serve``) and the plant's brokers, groups and host id. Keys are flat as everywhere
-(``service.config.fields``): ``--mqtt-url`` is repeatable, ``COBOT_HMI_MQTT_URLS`` a
+(``service.setting_fields``): ``--mqtt-url`` is repeatable, ``COBOT_HMI_MQTT_URLS`` a
 comma-separated list, ``mqtt_urls`` a TOML list.
 """
 
@@ -11,7 +11,7 @@ from pathlib import Path
 
 from pydantic import Field
 
-from cobot_hmi.service.config.fields import (
+from cobot_hmi.service.setting_fields import (
     SPARKPLUG_ID_PATTERN,
     CommaList,
     ReadableFile,

@@ -26,11 +26,11 @@ from cobot_hmi.service.access.directory import Directory
 from cobot_hmi.service.access.users import User, UsersFile
 from cobot_hmi.service.alarms.summary import cell_summary
 from cobot_hmi.service.commissioning.service import Commissioning
-from cobot_hmi.service.config.plant_time import PLANT_ZONE
 from cobot_hmi.service.cycles.service import Cycles
 from cobot_hmi.service.errors import UnknownRobotError
 from cobot_hmi.service.events.bus import EventBus
 from cobot_hmi.service.extensions import ServiceExtension
+from cobot_hmi.service.plant_time import PLANT_ZONE
 from cobot_hmi.service.recording.recorder import Recorder
 from cobot_hmi.service.robots.control import Control
 from cobot_hmi.service.robots.hub import Hub
@@ -61,7 +61,7 @@ class Service:
     ) -> None:
         self.settings = settings
         robot_settings = settings.require_robots()
-        PLANT_ZONE.use(settings.time_zone)  # one plant, one zone (config.plant_time)
+        PLANT_ZONE.use(settings.time_zone)  # one plant, one zone (plant_time)
         self.users = UsersFile(settings.users_path)
         self.store = Store(settings.database_path)
         self.cyclic = CyclicLoop(

@@ -9,7 +9,7 @@ service and its limits (``api.settings``, ``api.tls_settings``), directory login
 (the Sparkplug B edge node, the OPC UA server) add theirs in ``cobot_hmi.settings.HmiSettings``,
 the settings of ``cobot-hmi serve``: the service imports neither. Keys stay flat: a field's
 name is its TOML key, ``COBOT_HMI_<NAME>`` its environment variable and ``--name`` its flag
-(``config.fields`` declares them; ``config.loading`` layers defaults < TOML < environment <
+(``setting_fields`` declares them; ``config.loading`` layers defaults < TOML < environment <
 flags; ``config.arguments`` derives the command line). Constructing ``ServiceSettings(...)``
 directly reads nothing but its arguments (tests, the demo).
 
@@ -34,7 +34,11 @@ from cobot_hmi.service.access.directory_settings import DirectorySettings
 from cobot_hmi.service.alarms.settings import AlarmLimitSettings, AlarmSettings
 from cobot_hmi.service.api.settings import WebSettings
 from cobot_hmi.service.api.tls_settings import TlsSettings
-from cobot_hmi.service.config.fields import (
+from cobot_hmi.service.kiosk.settings import KioskSettings
+from cobot_hmi.service.recording.settings import HistorySettings
+from cobot_hmi.service.robots.cycle_settings import CycleSettings
+from cobot_hmi.service.robots.settings import RobotSettings
+from cobot_hmi.service.setting_fields import (
     DEFAULT_DEADBANDS,
     DEFAULT_ROBOT_NAME,
     ENV_PREFIX,
@@ -47,10 +51,6 @@ from cobot_hmi.service.config.fields import (
     rpi_ms_setting,
     setting,
 )
-from cobot_hmi.service.kiosk.settings import KioskSettings
-from cobot_hmi.service.recording.settings import HistorySettings
-from cobot_hmi.service.robots.cycle_settings import CycleSettings
-from cobot_hmi.service.robots.settings import RobotSettings
 
 if TYPE_CHECKING:
     from cobot_hmi.scanner.originator import OriginatorSettings

@@ -8,7 +8,7 @@ import socket
 
 from pydantic import BaseModel
 
-from cobot_hmi.service.config.fields import (
+from cobot_hmi.service.setting_fields import (
     DEFAULT_DEADBANDS,
     SPARKPLUG_ID_PATTERN,
     Deadbands,

@@ -7,7 +7,7 @@ from typing import Final, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from cobot_hmi.service.config.fields import RobotName, Seconds, setting
+from cobot_hmi.service.setting_fields import RobotName, Seconds, setting
 
 # --------------------------------------------------------------------------- alarms
 

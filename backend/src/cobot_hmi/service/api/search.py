@@ -3,7 +3,7 @@ time range (``from``, ``to``), in the same words on every route (the events, the
 the alarm history, the cycles).
 
 A time is seconds since the epoch or ISO 8601 with its offset (``2026-11-27T12:00:00+01:00``;
-without an offset it is the plant's time zone, ``config.plant_time``). The text matches,
+without an offset it is the plant's time zone, ``plant_time``). The text matches,
 case-insensitively, any part of a row's words (``storage.search``).
 """
 
@@ -16,7 +16,7 @@ from typing import Annotated, Final
 from fastapi import Query
 from pydantic import AfterValidator
 
-from cobot_hmi.service.config.plant_time import PLANT_ZONE
+from cobot_hmi.service.plant_time import PLANT_ZONE
 
 _TIME_HELP: Final = (
     "seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without "

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pydantic import BaseModel, Field
 
-from cobot_hmi.service.config.fields import (
+from cobot_hmi.service.setting_fields import (
     CommaList,
     ExpandedPath,
     Milliseconds,

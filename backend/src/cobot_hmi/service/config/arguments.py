@@ -11,8 +11,8 @@ from pathlib import Path
 from typing import Any, overload
 
 from cobot_hmi import connection_params as cp
-from cobot_hmi.service.config.fields import O2T_SIZE, T2O_SIZE, SettingsError
 from cobot_hmi.service.config.loading import SettingsT, env_name, load_settings
+from cobot_hmi.service.setting_fields import O2T_SIZE, T2O_SIZE, SettingsError
 from cobot_hmi.service.settings import ServiceSettings
 
 # --------------------------------------------------------------------------- command line

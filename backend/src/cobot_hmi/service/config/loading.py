@@ -15,7 +15,7 @@ from pydantic_settings import EnvSettingsSource, TomlConfigSettingsSource
 from pydantic_settings import SettingsError as PydanticSettingsError
 from pydantic_settings.sources.utils import parse_env_vars
 
-from cobot_hmi.service.config.fields import CONFIG_ENV, ENV_PREFIX, SettingsError
+from cobot_hmi.service.setting_fields import CONFIG_ENV, ENV_PREFIX, SettingsError
 from cobot_hmi.service.settings import ServiceSettings
 
 # --------------------------------------------------------------------------- loading

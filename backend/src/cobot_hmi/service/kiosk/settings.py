@@ -1,4 +1,4 @@
-"""Layer: service (pure). The kiosk's settings, declared once (``config.fields``): how long its
+"""Layer: service (pure). The kiosk's settings, declared once (``setting_fields``): how long its
 plots look back and when the plant's shifts start (its cycle tile counts the cycles of the
 shift in progress). The page is told them in its stream's hello (``kiosk``), as it learns the
 robot's name and the plant's time zone, so every kiosk of a site shows the same without a word
@@ -11,7 +11,7 @@ from typing import Annotated, Final
 
 from pydantic import AfterValidator, BaseModel
 
-from cobot_hmi.service.config.fields import CommaList, setting
+from cobot_hmi.service.setting_fields import CommaList, setting
 
 SHIFT_START_PATTERN: Final = re.compile(r"^([01]\d|2[0-3]):([0-5]\d)$")
 

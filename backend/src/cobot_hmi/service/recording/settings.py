@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pydantic import BaseModel
 
-from cobot_hmi.service.config.fields import ExpandedPath, Seconds, setting
+from cobot_hmi.service.setting_fields import ExpandedPath, Seconds, setting
 
 
 class HistorySettings(BaseModel):

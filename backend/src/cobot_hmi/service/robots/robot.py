@@ -29,9 +29,9 @@ from cobot_hmi.scanner.session import EnipSession, SessionError
 from cobot_hmi.scanner.t2o_pace import SlowTarget
 from cobot_hmi.service.alarms.engine import TICK_S, AlarmEngine, UserAlarm
 from cobot_hmi.service.alarms.persistence import AlarmChange, AlarmStore
-from cobot_hmi.service.config.plant_time import PLANT_ZONE
 from cobot_hmi.service.events.bus import EventBus
 from cobot_hmi.service.events.text import Event
+from cobot_hmi.service.plant_time import PLANT_ZONE
 from cobot_hmi.service.robots.confirmation import FrameWaiters
 from cobot_hmi.service.robots.control import Control
 from cobot_hmi.service.robots.frames import FrameNotifier

@@ -7,7 +7,8 @@ from typing import TYPE_CHECKING
 from pydantic import BaseModel, ConfigDict, Field
 
 from cobot_hmi import connection_params as cp
-from cobot_hmi.service.config.fields import (
+from cobot_hmi.service.robots.cycle_settings import CycleSettings
+from cobot_hmi.service.setting_fields import (
     Port,
     RobotMode,
     RobotName,
@@ -15,7 +16,6 @@ from cobot_hmi.service.config.fields import (
     rpi_ms_setting,
     setting,
 )
-from cobot_hmi.service.robots.cycle_settings import CycleSettings
 
 if TYPE_CHECKING:
     from cobot_hmi.scanner.originator import OriginatorSettings

@@ -46,8 +46,8 @@ from typing import Any, Final, TypeVar
 
 import orjson
 
-from cobot_hmi.service.config.plant_time import PLANT_ZONE
 from cobot_hmi.service.errors import AuditUnavailableError
+from cobot_hmi.service.plant_time import PLANT_ZONE
 from cobot_hmi.service.storage import audit_chain, migrations
 from cobot_hmi.service.storage.audit_backlog import AuditBacklog, Deferred
 from cobot_hmi.service.storage.queued_writer import QueuedWriter
@@ -517,7 +517,7 @@ def event_csv_rows(items: Sequence[dict[str, object]]) -> list[dict[str, object]
 
 def iso8601(time_s: float) -> str:
     """Seconds since the epoch as ISO 8601 in the plant's time zone (the ``time_zone``
-    setting, ``config.plant_time``) with its UTC offset (``2026-11-24T07:05:12.345678+01:00``,
+    setting, ``plant_time``) with its UTC offset (``2026-11-24T07:05:12.345678+01:00``,
     24 h, always six decimals: every row the same width): what a spreadsheet and a person both
     read, in the zone the pages show."""
     return datetime.fromtimestamp(time_s, PLANT_ZONE.zone).isoformat(timespec="microseconds")

@@ -25,9 +25,9 @@ from cobot_hmi.service.api import models
 from cobot_hmi.service.api.deps import RobotDep, ServiceDep, ViewerDep
 from cobot_hmi.service.api.downloads import download
 from cobot_hmi.service.api.openapi_extras import READ, errors
-from cobot_hmi.service.config.plant_time import PLANT_ZONE
 from cobot_hmi.service.errors import ApiError
 from cobot_hmi.service.events.text import with_text
+from cobot_hmi.service.plant_time import PLANT_ZONE
 from cobot_hmi.service.recording.recorder import Recorder
 from cobot_hmi.service.runtime import Service
 from cobot_hmi.service.settings import ServiceSettings
@@ -278,7 +278,7 @@ def export_chunks(
     zone: str = "UTC",
 ) -> Iterator[bytes]:
     """The export's bytes (also ``cobot-hmi export``): frames and, for MCAP, the events; the
-    CSV's times in ``zone`` (the plant's, ``config.plant_time``)."""
+    CSV's times in ``zone`` (the plant's, ``plant_time``)."""
     events = (
         (with_text(event) for event in iter_events(database, robot, from_s, to_s))
         if fmt == "mcap"

@@ -19,7 +19,7 @@ from pydantic import AfterValidator, BeforeValidator, Field
 from pydantic_settings import NoDecode
 
 from cobot_hmi import connection_params as cp
-from cobot_hmi.service.config.plant_time import check_zone_name
+from cobot_hmi.service.plant_time import check_zone_name
 
 O2T_SIZE: Final = cp.O2T_SIZE.default
 T2O_SIZE: Final = cp.T2O_SIZE.default
