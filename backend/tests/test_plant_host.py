@@ -9,8 +9,10 @@ import json
 import struct
 from typing import Any
 
+import pytest
+
 from cobot_hmi.plant.host import HostApplication, state_payload
-from cobot_hmi.plant.model import alarm_figures
+from cobot_hmi.plant.model import alarm_figures, shift_figures
 from mosquitto_support import decode_payload
 
 BOOLEAN, INT8, INT32, INT64, UINT8, FLOAT, STRING = 11, 1, 3, 4, 5, 9, 12
@@ -285,3 +287,26 @@ def test_state_payload_is_sparkplug_json() -> None:
     assert not host.on_message("spBv1.0/other/NBIRTH/x", nbirth(), 1.0).samples
     assert host.on_message("spBv1.0/line-1/NBIRTH/x", b"\xff\xff not protobuf", 1.0).samples == []
     assert host.bad_messages == 1
+
+
+def test_shift_figures_time_in_each_state_group_and_cycles() -> None:
+    start, end = 1_000_000, 1_000_000 + 3_600_000
+    states = [
+        (start - 60_000, "STANDALONE_STANDBY"),  # what the shift started in
+        (start + 600_000, "STANDALONE_RUNNING"),
+        (start + 3_000_000, "SAFE_OFF"),
+        (start + 3_300_000, "INTERRUPTED"),
+        (end + 5_000, "STANDALONE_RUNNING"),  # after the shift: not counted
+    ]
+    figures = shift_figures(states, [30.0, 31.0, 32.0], start, end)
+    assert figures.seconds == {
+        "standby": 600.0,
+        "running": 2400.0,
+        "error": 300.0,
+        "stopped": 300.0,
+        "unknown": 0.0,
+    }
+    assert figures.cycles == 3 and figures.mean_cycle_s == pytest.approx(31.0)
+    unknown_start = shift_figures([(start + 1000, "STANDALONE_RUNNING")], [], start, end)
+    assert unknown_start.seconds["unknown"] == pytest.approx(1.0)
+    assert unknown_start.mean_cycle_s is None

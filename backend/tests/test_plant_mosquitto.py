@@ -88,6 +88,12 @@ async def test_an_independent_edge_node_is_shown_rebirthed_and_buried(
             return "STANDALONE_RUNNING" in texts and "STANDALONE_STANDBY" in texts
 
         await eventually_async(recorded)
+        shift = await plant.get(
+            "/api/v1/plant/shift", group="line-3", node="tahu-like", device="r1", since=started
+        )
+        assert shift["seconds"]["running"] > 0 and shift["seconds"]["standby"] > 0
+        assert shift["seconds"]["unknown"] == 0
+        assert sum(shift["seconds"].values()) == pytest.approx(time.time() - started, abs=5)
         assert list((tmp_path / "plant" / "plant-history").glob("*/*.parquet"))
 
 

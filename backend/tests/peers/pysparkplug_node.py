@@ -14,6 +14,7 @@ and connects, which sends NBIRTH and DBIRTH with every metric's current value an
 from __future__ import annotations
 
 import json
+import queue
 import sys
 import threading
 import time
@@ -27,19 +28,25 @@ def main() -> int:
     host, port, group, node_id, device_id = sys.argv[1], int(sys.argv[2]), *sys.argv[3:6]
     now = sp.get_current_timestamp
 
-    rebirth = threading.Event()
+    # One thread does everything to the node, in order: the commands read from stdin and the
+    # rebirths asked for (paho 1.x's publish and disconnect on two threads at once can lock up).
+    work: queue.Queue[str] = queue.Queue()
 
     def on_command(_node: sp.EdgeNode, message: sp.Message) -> None:
         names = ",".join(f"{m.name}={m.value}" for m in message.payload.metrics)
         print(f"ncmd {names}", flush=True)
         if any(m.name == "Node Control/Rebirth" and m.value for m in message.payload.metrics):
-            rebirth.set()
+            work.put("rebirth")
 
     node = sp.EdgeNode(
         group,
         node_id,
         [sp.Metric(now(), "Node Info/Area", sp.DataType.STRING, value="paint shop")],
-        client=sp.Client(client_id=f"pysparkplug-{node_id}"),
+        # Back within 2 s when its broker drops it (pysparkplug's default waits up to 120 s).
+        client=sp.Client(
+            client_id=f"pysparkplug-{node_id}",
+            client_options=sp.ClientOptions(reconnection_delay_max=2),
+        ),
         cmd_callback=on_command,
     )
     datatypes = {
@@ -63,20 +70,23 @@ def main() -> int:
     )
     node.connect(host, port=port, blocking=False)
 
-    def rebirths() -> None:  # off paho's thread: disconnect stops its loop
-        while True:
-            rebirth.wait()
-            rebirth.clear()
+    def read_stdin() -> None:
+        for line in sys.stdin:
+            work.put(line)
+        work.put("death")
+
+    threading.Thread(target=read_stdin, daemon=True).start()
+    time.sleep(0.5)
+    print("ready", flush=True)
+    while True:
+        line = work.get()
+        words = line.split(maxsplit=3)
+        if not words:
+            continue
+        if words[0] == "rebirth":  # off paho's thread: disconnect stops its loop
             node.disconnect()
             node.connect(host, port=port, blocking=False)
             print("reborn", flush=True)
-
-    threading.Thread(target=rebirths, daemon=True).start()
-    time.sleep(0.5)
-    print("ready", flush=True)
-    for line in sys.stdin:
-        words = line.split(maxsplit=3)
-        if not words:
             continue
         if words[0] == "data":
             device, name, value = words[1], words[2], json.loads(words[3])
@@ -87,7 +97,6 @@ def main() -> int:
             node.disconnect()
             return 0
         print(f"done {words[0]}", flush=True)
-    return 0
 
 
 if __name__ == "__main__":

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import bisect
 from collections import Counter, deque
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Final
 
@@ -232,3 +233,43 @@ def alarm_figures(
             )
         )
     return figures
+
+
+STATE_GROUPS: Final = ("running", "standby", "stopped", "error")
+
+
+@dataclass(frozen=True, slots=True)
+class ShiftFigures:
+    """One robot over a shift: seconds in each state group (and with no state known), cycles
+    counted (each ``Cycle/Last`` value received) and their mean."""
+
+    seconds: dict[str, float]
+    cycles: int
+    mean_cycle_s: float | None
+
+
+def shift_figures(
+    states: Sequence[tuple[int, str | None]],
+    cycle_times_s: Sequence[float],
+    start_ms: int,
+    end_ms: int,
+) -> ShiftFigures:
+    """``states``: (time, state name) in time order, the last one before the shift included
+    (it says what the shift started in); a state holds until the next, the last until
+    ``end_ms``. Time before the first known state is ``unknown``."""
+    seconds = dict.fromkeys((*STATE_GROUPS, "unknown"), 0.0)
+    current: str | None = None
+    since_ms = start_ms
+    for time_ms, name in states:
+        if time_ms > start_ms:
+            stop_ms = min(time_ms, end_ms)
+            if stop_ms > since_ms:
+                seconds[state_group(current) or "unknown"] += (stop_ms - since_ms) / 1000
+            since_ms = max(since_ms, stop_ms)
+        current = name
+        if time_ms >= end_ms:
+            break
+    if end_ms > since_ms:
+        seconds[state_group(current) or "unknown"] += (end_ms - since_ms) / 1000
+    mean = sum(cycle_times_s) / len(cycle_times_s) if cycle_times_s else None
+    return ShiftFigures(seconds, len(cycle_times_s), mean)

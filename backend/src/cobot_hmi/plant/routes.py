@@ -14,17 +14,20 @@ from typing import Annotated, Final
 from fastapi import APIRouter, Query, Request
 from pydantic import BaseModel
 
+from cobot_hmi.layout import robot_state_name
 from cobot_hmi.plant.model import (
     AREA_METRIC,
     CYCLE_AVERAGE,
     CYCLE_LAST,
     HMI_URL_METRIC,
+    STATE_METRIC,
     DeviceView,
     NodeView,
     alarm_figures,
+    shift_figures,
     state_group,
 )
-from cobot_hmi.plant.recorder import MetricKey
+from cobot_hmi.plant.recorder import MetricKey, PlantRecorder, Point
 from cobot_hmi.plant.runtime import PlantRuntime
 from cobot_hmi.service.api.deps import ViewerDep
 
@@ -99,6 +102,13 @@ class TrendPoint(BaseModel):
     value: float | None
     text: str | None
     historical: bool
+
+
+class ShiftAnswer(BaseModel):
+    seconds: dict[str, float]
+    """Seconds in each state group (running, standby, stopped, error) and ``unknown``."""
+    cycles: int
+    mean_cycle_s: float | None
 
 
 class StatusAnswer(BaseModel):
@@ -246,6 +256,47 @@ async def trend(
         TrendPoint(time=p.time_ms / 1000, value=p.value, text=p.text, historical=p.historical)
         for p in points
     ]
+
+
+def _state_name(point: Point) -> str | None:
+    if point.text is not None:
+        return point.text
+    return robot_state_name(int(point.value)) if point.value is not None else None
+
+
+def _shift(recorder: PlantRecorder, device: MetricKey, start_ms: int, end_ms: int) -> ShiftAnswer:
+    """From the history: the robot state (a day before the shift for the state it began in)
+    and every ``Cycle/Last`` of the shift."""
+    state_key = MetricKey(device.group, device.node, device.device, STATE_METRIC)
+    points = recorder.trend(state_key, start_ms - DAY_MS, end_ms)
+    before = [p for p in points if p.time_ms <= start_ms][-1:]
+    states = [
+        (p.time_ms, _state_name(p)) for p in before + [p for p in points if p.time_ms > start_ms]
+    ]
+    cycle_key = MetricKey(device.group, device.node, device.device, CYCLE_LAST)
+    cycles = [p.value for p in recorder.trend(cycle_key, start_ms, end_ms) if p.value is not None]
+    figures = shift_figures(states, cycles, start_ms, end_ms)
+    return ShiftAnswer(
+        seconds=figures.seconds, cycles=figures.cycles, mean_cycle_s=figures.mean_cycle_s
+    )
+
+
+@router.get("/shift", summary="One robot over a shift: time in each state group, cycles")
+async def shift(
+    request: Request,
+    _viewer: ViewerDep,
+    *,
+    group: str,
+    node: str,
+    device: str,
+    since: Annotated[float, Query(description="the shift's start, epoch s")],
+    until: Annotated[float | None, Query(description="its end, epoch s (default: now)")] = None,
+) -> ShiftAnswer:
+    end_ms = int((until if until is not None else time.time()) * 1000)
+    key = MetricKey(group, node, device, STATE_METRIC)
+    return await asyncio.to_thread(
+        _shift, _runtime(request).recorder, key, int(since * 1000), end_ms
+    )
 
 
 @router.get("/status", summary="The plant's connection and host application counters")
