@@ -13,7 +13,7 @@ import { seriousViolations } from "../support/a11y";
 import { expect, screenshot, test } from "../support/fixtures";
 import { settings } from "../support/settings";
 
-/** One press of a camera button or key turns the view by this much (lib/orbitCamera.ts). */
+/** One press of a camera button or key turns the view by this much (lib/robot3d/orbitCamera.ts). */
 const ROTATE_STEP_DEG = 15;
 const ZOOM_STEP_FACTOR = 1.25;
 

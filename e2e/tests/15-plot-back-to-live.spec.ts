@@ -13,7 +13,7 @@ const PLOT = "plot-joint-position";
 
 /**
  * Requests of the recording's ranges for this plot's field, counted from the page. The first is
- * the live window's start, asked once as the page opens (the ring is empty then: lib/plotBackfill.ts).
+ * the live window's start, asked once as the page opens (the ring is empty then: lib/plots/plotBackfill.ts).
  */
 function historyRequests(page: Page): string[] {
   const seen: string[] = [];

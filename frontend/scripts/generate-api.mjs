@@ -1,12 +1,12 @@
 // Writes src/generated/api.ts, the frontend's types of the service's REST and WebSocket messages,
 // from the service's OpenAPI document as committed in docs/openapi.json (the backend writes
 // that copy; docs/architecture.md, "Frontend"). openapi-typescript does the translation;
-// openapi-fetch (src/lib/api.ts) is the typed client over these types.
+// openapi-fetch (src/lib/api/api.ts) is the typed client over these types.
 //
 //   node scripts/generate-api.mjs           write src/generated/api.ts
 //   node scripts/generate-api.mjs --check   exit 1 when it differs from what the document gives
 //
-// `generateApiTs` is also what the staleness test (src/lib/generatedApi.test.ts) compares with.
+// `generateApiTs` is also what the staleness test (src/lib/api/generatedApi.test.ts) compares with.
 import { readFileSync, writeFileSync } from "node:fs";
 import path from "node:path";
 import { fileURLToPath, pathToFileURL } from "node:url";

@@ -6,7 +6,7 @@
 import { StrictMode, type ComponentType } from "react";
 import { createRoot } from "react-dom/client";
 import { themeStore } from "./components/theme";
-import { faceOf } from "./lib/route";
+import { faceOf } from "./lib/common/route";
 import "./styles/common.css";
 import "./styles/theme.css";
 import "./styles/responsive.css";

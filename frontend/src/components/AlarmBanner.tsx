@@ -7,11 +7,11 @@
  * line each beside the robot's own, naming the robot and linking to its panel.
  */
 import type { ReactNode } from "react";
-import { alarmPaint, alarmStateWords, alarmTitle, bannerView, countWords, isUnacknowledged, type Alarm, type BannerView } from "../lib/alarms";
-import { otherRobotLine, topUnacknowledged } from "../lib/alarmsCell";
-import { formatMoment } from "../lib/dates";
-import type { AlarmSummary } from "../lib/protocol";
-import { panelHref } from "../lib/route";
+import { alarmPaint, alarmStateWords, alarmTitle, bannerView, countWords, isUnacknowledged, type Alarm, type BannerView } from "../lib/alarms/alarms";
+import { otherRobotLine, topUnacknowledged } from "../lib/alarms/alarmsCell";
+import { formatMoment } from "../lib/common/dates";
+import type { AlarmSummary } from "../lib/api/protocol";
+import { panelHref } from "../lib/common/route";
 import "../styles/alarms.css";
 
 interface Props {

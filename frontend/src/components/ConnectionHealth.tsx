@@ -1,6 +1,6 @@
 /** Connection health: connected / stale / disconnected, frame age, measured interval, gaps. */
-import { formatDuration_ms, packetLossOf } from "../lib/health";
-import type { LiveSnapshot } from "../lib/liveData";
+import { formatDuration_ms, packetLossOf } from "../lib/stream/health";
+import type { LiveSnapshot } from "../lib/stream/liveData";
 
 interface Props {
   readonly live: LiveSnapshot;

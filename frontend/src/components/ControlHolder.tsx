@@ -1,10 +1,10 @@
 /** Who holds control of the outputs (read-only view). */
-import type { Ownership } from "../lib/controlSession";
-import { formatMoment } from "../lib/dates";
-import type { ControlStatus } from "../lib/protocol";
+import type { Ownership } from "../lib/writes/controlSession";
+import { formatMoment } from "../lib/common/dates";
+import type { ControlStatus } from "../lib/api/protocol";
 
 /**
- * `ownership` (the panel's, lib/controlSession.ts) says whether it is this window's control or
+ * `ownership` (the panel's, lib/writes/controlSession.ts) says whether it is this window's control or
  * the same user's in another window; the kiosk, which has no user, leaves it out.
  */
 export function ControlHolder({ control, ownership }: { readonly control: ControlStatus; readonly ownership?: Ownership }) {

@@ -5,9 +5,9 @@
  * and shares the page's plot coordinator. Nothing here writes.
  */
 import { memo, useEffect, useMemo, useState } from "react";
-import { CUSTOM_PLOT_RATE_HZ, customPlot, PICKABLE_FIELDS, refuseNewPlot, type CustomPlot } from "../lib/customPlots";
-import type { PlotCoordinator } from "../lib/plotCoordinator";
-import { createLiveRuntime } from "../lib/runtime";
+import { CUSTOM_PLOT_RATE_HZ, customPlot, PICKABLE_FIELDS, refuseNewPlot, type CustomPlot } from "../lib/plots/customPlots";
+import type { PlotCoordinator } from "../lib/plots/plotCoordinator";
+import { createLiveRuntime } from "../lib/stream/runtime";
 import { LivePlotView } from "./LivePlotView";
 import { RuntimeContext } from "./runtimeContext";
 import { useTheme } from "./theme";

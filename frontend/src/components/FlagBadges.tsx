@@ -3,7 +3,7 @@
  * flag (SERVO_ON_ROBOT, SO) in the tooltip.
  */
 import type { Frame } from "../generated/layout";
-import { FLAG_FIELDS, flagEnumName, isFlagField, kebab } from "../lib/layoutInfo";
+import { FLAG_FIELDS, flagEnumName, isFlagField, kebab } from "../lib/layout/layoutInfo";
 
 interface Props {
   readonly frame: Frame | null;

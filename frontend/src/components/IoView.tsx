@@ -1,7 +1,7 @@
 /** Read-only I/O views shared by the panel and the kiosk: input lamps and analog inputs. */
 import type { Frame } from "../generated/layout";
-import { analogTypeName, analogUnit, channelNumber, frameField } from "../lib/layoutInfo";
-import { tagLabel } from "../lib/alarms";
+import { analogTypeName, analogUnit, channelNumber, frameField } from "../lib/layout/layoutInfo";
+import { tagLabel } from "../lib/alarms/alarms";
 import { Lamp } from "./Lamp";
 import { useTagNames } from "./tagNames";
 

@@ -4,7 +4,7 @@
  * cells are written by `useLiveCells`, not by React renders).
  */
 import { memo } from "react";
-import { JOINT_COLUMNS, NO_VALUE, headerWithUnit, type ReadoutCell } from "../lib/readouts";
+import { JOINT_COLUMNS, NO_VALUE, headerWithUnit, type ReadoutCell } from "../lib/layout/readouts";
 import { CELL_ATTRIBUTE, useLiveCells } from "./LiveCells";
 
 const CAPTION = "Joint values of the newest frame";

@@ -8,7 +8,7 @@
  * page's picture changes ten times a second, not in every frame). Read-only.
  */
 import { useEffect, useRef, type RefObject } from "react";
-import { updateTexts, type ReadoutCell } from "../lib/readouts";
+import { updateTexts, type ReadoutCell } from "../lib/layout/readouts";
 import { useRuntime } from "./runtimeContext";
 
 /** The attribute naming a cell's position in `cells`; put it on every value element. */

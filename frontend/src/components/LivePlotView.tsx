@@ -27,15 +27,15 @@ import {
   rangeOfMarker,
   type ExportFormat,
   type TimeRange,
-} from "../lib/historyView";
-import { formatDateTime_ms, formatInputDateTime, parseInputDateTime } from "../lib/dates";
-import { nothingRecordedWords } from "../lib/plotExport";
-import { plotlyBackend } from "../lib/plotlyAdapter";
-import { DEFAULT_PLOT_HEIGHT_PX, plotMargin, type PlotTheme } from "../lib/plotAppearance";
-import type { HistoryShown } from "../lib/plotRecordingView";
-import { LivePlot } from "../lib/plotting";
-import { DEFAULT_WINDOW_MS, HISTORY_WINDOWS_MS, WINDOWS_MS, axisTitles, traceColour, tracesOf, type PlotSpec } from "../lib/plots";
-import type { PlotStep } from "../lib/plotSteps";
+} from "../lib/plots/historyView";
+import { formatDateTime_ms, formatInputDateTime, parseInputDateTime } from "../lib/common/dates";
+import { nothingRecordedWords } from "../lib/plots/plotExport";
+import { plotlyBackend } from "../lib/plots/plotlyAdapter";
+import { DEFAULT_PLOT_HEIGHT_PX, plotMargin, type PlotTheme } from "../lib/plots/plotAppearance";
+import type { HistoryShown } from "../lib/plots/plotRecordingView";
+import { LivePlot } from "../lib/plots/plotting";
+import { DEFAULT_WINDOW_MS, HISTORY_WINDOWS_MS, WINDOWS_MS, axisTitles, traceColour, tracesOf, type PlotSpec } from "../lib/plots/plots";
+import type { PlotStep } from "../lib/plots/plotSteps";
 import { CanvasPlot, followAreaSize } from "../plots/canvasPlot";
 import { STEP_BUTTONS, plotKeyAction } from "../plots/plotKeys";
 import { PlotWiring } from "../plots/plotWiring";
@@ -59,7 +59,7 @@ function localInput(time_s: number): string {
   return formatInputDateTime(time_s * 1000);
 }
 
-/** The pages' one date format, in the plant's zone (lib/dates.ts). */
+/** The pages' one date format, in the plant's zone (lib/common/dates.ts). */
 function localText(time_s: number): string {
   return formatDateTime_ms(time_s * 1000);
 }
@@ -127,7 +127,7 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
   const margin = plotMargin(titles.y2 !== null);
   const height = height_px ?? DEFAULT_PLOT_HEIGHT_PX;
   // The axis titles (with the layout's units) sit in the plot's margins, centred on the plotting
-  // area; drawn here rather than by Plotly (see the layout in lib/plotting.ts).
+  // area; drawn here rather than by Plotly (see the layout in lib/plots/plotting.ts).
   const titleTop = `${margin.t + (height - margin.t - margin.b) / 2}px`;
   const [visible, setVisible] = useState<boolean[]>(() => traces.map(() => true));
   const historyAccess = history?.access ?? null;
@@ -156,7 +156,7 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
     });
     // Whether it is zoomed away from the moving window is configuration (the button shown).
     plot.onZoomedChange = setZoomed;
-    // A window picked here or on a linked plot (lib/timeRange.ts): the picker shows it.
+    // A window picked here or on a linked plot (lib/plots/timeRange.ts): the picker shows it.
     plot.onWindowChange = (ms) => {
       windowRef.current = ms;
       setWindow(ms);
@@ -227,7 +227,7 @@ export const LivePlotView = memo(function LivePlotView({ spec, theme, readOnly =
     refocusPause.current = e !== undefined && document.activeElement === e.currentTarget;
     setPaused(false);
     setCustom(null);
-    // Every linked plot of the panel follows (lib/timeRange.ts).
+    // Every linked plot of the panel follows (lib/plots/timeRange.ts).
     plotRef.current?.backToLive();
   };
   const link = (on: boolean) => {

@@ -1,11 +1,11 @@
 /**
  * The panel's paged tables (events, audit, alarm history) share their parts: a filter
  * (`FilterSelect`), a page asked for again when its request or a refresh changes (`usePage`,
- * the logic in `lib/paging.ts`), and the table itself with its bar (`PagedTable`: filters,
+ * the logic in `lib/history/paging.ts`), and the table itself with its bar (`PagedTable`: filters,
  * where the rows come from, the CSV export, the last error; an empty row when there is none).
  */
 import { useEffect, useState, type ReactNode } from "react";
-import { chosenOption, EMPTY_PAGE, optionValue, optionWords, pageAnswered, pageFailed, requestPageLater, type FilterOption, type PageAnswerLike, type PageOf, type PageState } from "../lib/paging";
+import { chosenOption, EMPTY_PAGE, optionValue, optionWords, pageAnswered, pageFailed, requestPageLater, type FilterOption, type PageAnswerLike, type PageOf, type PageState } from "../lib/history/paging";
 
 /**
  * A table filter: one of `options`, or (unless `all` is null) the "all" entry, whose value is

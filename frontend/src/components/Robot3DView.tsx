@@ -1,12 +1,12 @@
 /**
  * The robot in 3D, drawn from its joint angles with its model's kinematics and following the
  * frames live, with the flange's path over the last seconds. three.js is loaded when the view
- * first comes near the screen (its own chunk, lib/robotScene3d.ts: a panel opened at its top
+ * first comes near the screen (its own chunk, lib/robot3d/robotScene3d.ts: a panel opened at its top
  * never fetches it until a person scrolls down to the view); samples go from the ring to the
  * scene in an animation-frame loop of its own, never through React state. On the panel the view turns by dragging,
  * by the arrow keys while it has the focus, or by its buttons (touch screens too); it zooms with
  * the wheel, + and −, or its buttons; "Reset view" (or 0) returns to the home view
- * (lib/orbitCamera.ts: the steps and limits). The kiosk shows it without controls.
+ * (lib/robot3d/orbitCamera.ts: the steps and limits). The kiosk shows it without controls.
  *
  * For tests and the benchmark the view reports, as attributes of its figure (never React
  * state): `data-renders` (how often it drew), the camera (`data-camera-azimuth-deg`,
@@ -16,9 +16,9 @@
  */
 import { memo, useEffect, useId, useRef, useState, type KeyboardEvent } from "react";
 import { ARMS } from "../generated/arms";
-import { ArmChain, armNameOf } from "../lib/armKinematics";
-import { actionOfKey, cameraReadout, type CameraAction } from "../lib/orbitCamera";
-import { DEFAULT_TRAIL_MS, pathLength, RobotPoseFeed } from "../lib/robotPose";
+import { ArmChain, armNameOf } from "../lib/robot3d/armKinematics";
+import { actionOfKey, cameraReadout, type CameraAction } from "../lib/robot3d/orbitCamera";
+import { DEFAULT_TRAIL_MS, pathLength, RobotPoseFeed } from "../lib/robot3d/robotPose";
 import { useRuntime } from "./runtimeContext";
 import "../styles/robot3d.css";
 
@@ -90,7 +90,7 @@ export const Robot3DView = memo(function Robot3DView({ model, theme, interactive
     if (el === null || !near) return;
     let cancelled = false;
     let stop = () => undefined as void;
-    import("../lib/robotScene3d")
+    import("../lib/robot3d/robotScene3d")
       .then(({ RobotScene }) => {
         if (cancelled) return;
         const chain = new ArmChain(ARMS[arm.name]);

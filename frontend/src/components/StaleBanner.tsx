@@ -1,6 +1,6 @@
 /** "Stale since …": stale data is never shown as live. */
-import { formatMoment } from "../lib/dates";
-import type { LiveSnapshot } from "../lib/liveData";
+import { formatMoment } from "../lib/common/dates";
+import type { LiveSnapshot } from "../lib/stream/liveData";
 
 export function StaleBanner({ live }: { readonly live: LiveSnapshot }) {
   if (live.health === "connected") return null;

@@ -4,7 +4,7 @@
  * tooltip and in `data-state-name`.
  */
 import type { CSSProperties } from "react";
-import { stateBadge, stateTooltip } from "../lib/stateBadge";
+import { stateBadge, stateTooltip } from "../lib/layout/stateBadge";
 
 interface Props {
   readonly value: number | null | undefined;

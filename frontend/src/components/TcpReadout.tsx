@@ -4,7 +4,7 @@
  * at the stream's own rate.
  */
 import { memo } from "react";
-import { NO_VALUE, TCP_ROWS, type ReadoutCell } from "../lib/readouts";
+import { NO_VALUE, TCP_ROWS, type ReadoutCell } from "../lib/layout/readouts";
 import { CELL_ATTRIBUTE, useLiveCells } from "./LiveCells";
 
 const CAPTION = "TCP values of the newest frame (base frame)";

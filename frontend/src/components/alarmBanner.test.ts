@@ -3,7 +3,7 @@
 import { createElement } from "react";
 import { renderToStaticMarkup } from "react-dom/server";
 import { describe, expect, it } from "vitest";
-import type { Alarm } from "../lib/alarms";
+import type { Alarm } from "../lib/alarms/alarms";
 import { AlarmBanner } from "./AlarmBanner";
 
 function alarm(key: string, over: Partial<Alarm>): Alarm {

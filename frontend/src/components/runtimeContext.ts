@@ -3,8 +3,8 @@
  * Shared by the panel and the kiosk.
  */
 import { createContext, useContext, useSyncExternalStore } from "react";
-import type { LiveSnapshot } from "../lib/liveData";
-import type { LiveRuntime } from "../lib/runtime";
+import type { LiveSnapshot } from "../lib/stream/liveData";
+import type { LiveRuntime } from "../lib/stream/runtime";
 
 export const RuntimeContext = createContext<LiveRuntime | null>(null);
 

@@ -1,10 +1,10 @@
 /**
- * Layer: the page's theme in the browser (DOM glue for `lib/theme`): one store per page, its
+ * Layer: the page's theme in the browser (DOM glue for `lib/common/theme`): one store per page, its
  * theme written to `<html data-theme>` and `color-scheme` (the stylesheets key on them), a hook
  * for views that draw themselves (plots, 3D view), and the switch shown on the panel.
  */
 import { useSyncExternalStore } from "react";
-import { THEME_CHOICES, THEME_STORAGE_KEY, ThemeStore, parseChoice, type Theme, type ThemeEnvironment } from "../lib/theme";
+import { THEME_CHOICES, THEME_STORAGE_KEY, ThemeStore, parseChoice, type Theme, type ThemeEnvironment } from "../lib/common/theme";
 
 function browserEnvironment(): ThemeEnvironment {
   const query = typeof window.matchMedia === "function" ? window.matchMedia("(prefers-color-scheme: dark)") : null;

@@ -3,13 +3,13 @@
  * (its newest frame's age, stale or not, the frames lost), who holds its control, its alarms
  * (the most urgent in words, the counts), and links to its panel and its kiosk. The tiles share
  * the screen's width (styles/fleet.css). Read only: it polls `GET /api/v1/robots` once a second
- * (lib/fleet.ts) and writes nothing.
+ * (lib/fleet/fleet.ts) and writes nothing.
  */
 import { useEffect, useMemo, useSyncExternalStore } from "react";
 import { StateBadge } from "../components/StateBadge";
-import { api } from "../lib/api";
-import { alarmPaint } from "../lib/alarms";
-import { FleetPoller, type FleetTile } from "../lib/fleet";
+import { api } from "../lib/api/api";
+import { alarmPaint } from "../lib/alarms/alarms";
+import { FleetPoller, type FleetTile } from "../lib/fleet/fleet";
 import "../styles/fleet.css";
 
 function Tile({ tile, stale }: { tile: FleetTile; stale: boolean }) {

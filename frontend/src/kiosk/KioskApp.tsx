@@ -8,7 +8,7 @@
  * few pixels now and then against burn-in without ever hiding the state or an emergency stop.
  *
  * Everything it shows fits its screen without scrolling, whatever the screen: sizes are
- * multiples of the scale `--u` (lib/kioskLayout.ts: design pixels of a 1920 × 1080 screen), the
+ * multiples of the scale `--u` (lib/kiosk/kioskLayout.ts: design pixels of a 1920 × 1080 screen), the
  * header, the banners and the lamps take the room their text needs, and the body (tiles, plots,
  * the 3D view) is laid out in what they leave (useKioskLayout.ts).
  */
@@ -24,19 +24,19 @@ import { Robot3DView } from "../components/Robot3DView";
 import { StateBadge } from "../components/StateBadge";
 import { TagNamesContext } from "../components/tagNames";
 import { useTheme } from "../components/theme";
-import { burnInOffset, BURN_IN_PERIOD_MS } from "../lib/burnIn";
-import { timeZoneLabel } from "../lib/dates";
-import { tileShape, tilesFromSearch } from "../lib/kioskTiles";
-import { JOINT_PLOTS, TCP_PLOTS, type PlotSpec } from "../lib/plots";
-import { robotFromSearch } from "../lib/route";
-import { createLiveRuntime } from "../lib/runtime";
-import { fetchTagNames } from "../lib/tagNames";
-import type { TagNames } from "../lib/tags";
+import { burnInOffset, BURN_IN_PERIOD_MS } from "../lib/kiosk/burnIn";
+import { timeZoneLabel } from "../lib/common/dates";
+import { tileShape, tilesFromSearch } from "../lib/kiosk/kioskTiles";
+import { JOINT_PLOTS, TCP_PLOTS, type PlotSpec } from "../lib/plots/plots";
+import { robotFromSearch } from "../lib/common/route";
+import { createLiveRuntime } from "../lib/stream/runtime";
+import { fetchTagNames } from "../lib/layout/tagNames";
+import type { TagNames } from "../lib/layout/tags";
 import { KioskLamps } from "./KioskLamps";
 import { KioskOtherAlarms } from "./KioskOtherAlarms";
-import { kioskOtherAlarms } from "../lib/kioskOtherAlarms";
-import { CYCLE_TILE, withCycleTimes } from "../lib/cyclesTile";
-import { kioskPlotWindow_ms } from "../lib/kioskLayout";
+import { kioskOtherAlarms } from "../lib/kiosk/kioskOtherAlarms";
+import { CYCLE_TILE, withCycleTimes } from "../lib/kiosk/cyclesTile";
+import { kioskPlotWindow_ms } from "../lib/kiosk/kioskLayout";
 import { KioskClock, KioskStateWords, KioskTiles } from "./KioskTiles";
 import { usePlotHeight, useKioskLayout } from "./useKioskLayout";
 import { useKioskCycleTimes } from "./useKioskCycleTimes";

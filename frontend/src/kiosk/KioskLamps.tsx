@@ -7,8 +7,8 @@
 import type { Frame } from "../generated/layout";
 import { Lamp } from "../components/Lamp";
 import { useTagNames } from "../components/tagNames";
-import { tagLabel } from "../lib/alarms";
-import { channelNumber, frameField } from "../lib/layoutInfo";
+import { tagLabel } from "../lib/alarms/alarms";
+import { channelNumber, frameField } from "../lib/layout/layoutInfo";
 
 type LampField = "controlbox_di" | "controlbox_do" | "tool_di" | "tool_do";
 

@@ -1,10 +1,10 @@
 /**
  * The kiosk's line for each other robot with a critical or unacknowledged alarm
- * (lib/kioskOtherAlarms.ts), under its own banner: read-only, large enough to read from three
+ * (lib/kiosk/kioskOtherAlarms.ts), under its own banner: read-only, large enough to read from three
  * metres (never under 32 px on a 1080-line screen), in the alarm's pendant colour.
  */
-import { alarmPaint } from "../lib/alarms";
-import type { KioskOtherLine } from "../lib/kioskOtherAlarms";
+import { alarmPaint } from "../lib/alarms/alarms";
+import type { KioskOtherLine } from "../lib/kiosk/kioskOtherAlarms";
 import "../styles/kioskOtherAlarms.css";
 
 export function KioskOtherAlarms({ lines }: { readonly lines: readonly KioskOtherLine[] }) {

@@ -1,14 +1,14 @@
 /**
- * The kiosk's large numeric tiles (chosen in the URL, lib/kioskTiles.ts), its clock and the
+ * The kiosk's large numeric tiles (chosen in the URL, lib/kiosk/kioskTiles.ts), its clock and the
  * state in plain words. Read-only: numbers and words, nothing to press. The tiles' arrangement
- * and text sizes come from lib/kioskLayout.ts's `tileGrid` for the room the kiosk gives them.
+ * and text sizes come from lib/kiosk/kioskLayout.ts's `tileGrid` for the room the kiosk gives them.
  */
 import { memo, useEffect, useState, type CSSProperties } from "react";
 import type { FieldInfo, Frame } from "../generated/layout";
-import { formatClock } from "../lib/dates";
-import type { TileGrid } from "../lib/kioskLayout";
-import { kebab } from "../lib/layoutInfo";
-import { stateWords, tileCells } from "../lib/kioskTiles";
+import { formatClock } from "../lib/common/dates";
+import type { TileGrid } from "../lib/kiosk/kioskLayout";
+import { kebab } from "../lib/layout/layoutInfo";
+import { stateWords, tileCells } from "../lib/kiosk/kioskTiles";
 import "../styles/kioskTiles.css";
 
 export const KioskTile = memo(function KioskTile({ field, frame, cellColumns }: { field: FieldInfo; frame: Frame | null; cellColumns: number }) {

@@ -1,12 +1,12 @@
 /**
- * The kiosk's layout in the page: the scale from the window's size (lib/kioskLayout.ts), the
+ * The kiosk's layout in the page: the scale from the window's size (lib/kiosk/kioskLayout.ts), the
  * body's room measured as the header and banners leave it, and the body's areas computed from
  * that room. Should even the least sizes not fit (a dozen tiles on a small screen), everything is
  * scaled down a step at a time until they do; a new window size or a change of what the header
  * shows (an alarm, an emergency stop) starts again from the full scale.
  */
 import { useEffect, useLayoutEffect, useMemo, useState, type RefObject } from "react";
-import { bodyLayout, kioskScale, type BodyContent, type BodyLayout, type Box } from "../lib/kioskLayout";
+import { bodyLayout, kioskScale, type BodyContent, type BodyLayout, type Box } from "../lib/kiosk/kioskLayout";
 
 /** The least share of the full scale the kiosk is ever shrunk to. */
 const MIN_FIT = 0.4;

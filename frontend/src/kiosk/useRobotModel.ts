@@ -3,7 +3,7 @@
  * again every 10 s until the service knows it (it reads the identity after connecting).
  */
 import { useEffect, useState } from "react";
-import { fetchRobotModel } from "../lib/robotModel";
+import { fetchRobotModel } from "../lib/robot3d/robotModel";
 
 const RETRY_MS = 10_000;
 

@@ -1,12 +1,12 @@
 /**
  * The panel's audible alarm cue and its mute button. It beeps (Web Audio, no sound files) while
  * an alarm that needs a person is unacknowledged — faster and higher for a more urgent priority
- * (lib/alarms.ts `cueTone`) — until the operator mutes it; an alarm that comes after the mute
+ * (lib/alarms/alarms.ts `cueTone`) — until the operator mutes it; an alarm that comes after the mute
  * sounds again. Browsers start sound only after a click on the page: until then the button says
  * that sound is blocked. Muting is this window's own business: nothing is sent to the service.
  */
 import { useEffect, useRef, useState } from "react";
-import { cueTone, mute, NO_MUTE, sounding, type Alarm, type Mute } from "../lib/alarms";
+import { cueTone, mute, NO_MUTE, sounding, type Alarm, type Mute } from "../lib/alarms/alarms";
 
 const BEEP_S = 0.18;
 const BEEP_GAP_S = 0.12;

@@ -8,7 +8,7 @@
  */
 import { memo, useCallback, useState, type FormEvent } from "react";
 import { FilterSelect, PagedTable, usePage } from "../components/PagedTable";
-import { alarmHistoryCsvUrl, alarmsApi, type HistoryFilter } from "../lib/alarmsApi";
+import { alarmHistoryCsvUrl, alarmsApi, type HistoryFilter } from "../lib/alarms/alarmsApi";
 import {
   ALARM_PRIORITIES,
   alarmPaint,
@@ -21,11 +21,11 @@ import {
   tagLabel,
   type Alarm,
   type AlarmPriority,
-} from "../lib/alarms";
-import { acknowledgeable, suppressionWords } from "../lib/alarmsCell";
-import { formatMoment, formatTimestamp } from "../lib/dates";
-import { roleAtLeast, type User } from "../lib/protocol";
-import { printSection } from "../lib/searchPrint";
+} from "../lib/alarms/alarms";
+import { acknowledgeable, suppressionWords } from "../lib/alarms/alarmsCell";
+import { formatMoment, formatTimestamp } from "../lib/common/dates";
+import { roleAtLeast, type User } from "../lib/api/protocol";
+import { printSection } from "../lib/history/searchPrint";
 
 const PERIODS = [
   ["hour", "last hour", 3600],

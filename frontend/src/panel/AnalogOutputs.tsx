@@ -6,9 +6,9 @@
  */
 import { useState } from "react";
 import type { Frame } from "../generated/layout";
-import { analogRange, analogTypeName, analogUnit, channelNumber, commandField, frameField } from "../lib/layoutInfo";
-import { checkSetpoint } from "../lib/writeChecks";
-import { writeKey, type WriteValue } from "../lib/writes";
+import { analogRange, analogTypeName, analogUnit, channelNumber, commandField, frameField } from "../lib/layout/layoutInfo";
+import { checkSetpoint } from "../lib/writes/writeChecks";
+import { writeKey, type WriteValue } from "../lib/writes/writes";
 import { formatAnalog } from "../components/IoView";
 import { useWrites, useWriteView } from "./writeContext";
 
@@ -26,7 +26,7 @@ function AnalogOutput({ index, label, frame }: { index: number; label: string; f
   const [setpoint, setSetpoint] = useState("");
   const [chosenType, setChosenType] = useState<number | null>(null);
   const [localReason, setLocalReason] = useState<string | null>(null);
-  // What is shown: the written value and type from their confirmation on (lib/writes.ts), the
+  // What is shown: the written value and type from their confirmation on (lib/writes/writes.ts), the
   // robot's frame otherwise; the type's name and the unit follow the type shown.
   const shownValue = typeof valueView.shown === "number" ? valueView.shown : null;
   const shownType = typeof typeView.shown === "number" ? typeView.shown : actualType;

@@ -5,8 +5,8 @@
  * the print stylesheet (styles/print.css) hides every button and input.
  */
 import { memo, useState } from "react";
-import { evidenceWords, pointTime_s, pointWho, verdictRefusal, type CheckoutPoint } from "../lib/checkout";
-import { formatTimestamp } from "../lib/dates";
+import { evidenceWords, pointTime_s, pointWho, verdictRefusal, type CheckoutPoint } from "../lib/commissioning/checkout";
+import { formatTimestamp } from "../lib/common/dates";
 
 export interface PointActions {
   readonly switchOutput: (p: CheckoutPoint, value: boolean | number) => void;

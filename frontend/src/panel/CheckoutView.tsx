@@ -22,9 +22,9 @@ import {
   type CheckoutPoint,
   type CheckoutSummary,
   type PointFilter,
-} from "../lib/checkout";
-import { formatTimestamp } from "../lib/dates";
-import { roleAtLeast, type User } from "../lib/protocol";
+} from "../lib/commissioning/checkout";
+import { formatTimestamp } from "../lib/common/dates";
+import { roleAtLeast, type User } from "../lib/api/protocol";
 import { CheckoutTable, type PointActions } from "./CheckoutTable";
 
 const POLL_MS = 1000;

@@ -1,14 +1,14 @@
 /**
  * Cycle timing of the robot shown (docs/operations.md "Cycle timing"): what starts a cycle, the
  * last one, the mean, minimum and maximum of the newest N, a trend of the durations and their
- * histogram (Plotly, through lib/plotlyAdapter), the newest cycles as a table, the CSV export and
+ * histogram (Plotly, through lib/plots/plotlyAdapter), the newest cycles as a table, the CSV export and
  * a printed page of the statistics. Asked again every few seconds: a cycle lasts seconds.
  * Interrupted cycles (the robot stopped, lost its link or left its running states) are listed
  * apart with what interrupted them and left out of the statistics, the trend and the histogram,
  * unless "include interrupted cycles" is ticked.
  */
 import { memo, useEffect, useMemo, useRef, useState } from "react";
-import { api } from "../lib/api";
+import { api } from "../lib/api/api";
 import {
   CYCLE_WINDOW,
   CYCLES_SHOWN,
@@ -20,12 +20,12 @@ import {
   splitCycles,
   type CyclePage,
   type CycleRow,
-} from "../lib/cycles";
-import { formatTimestamp } from "../lib/dates";
-import type { PlotTheme } from "../lib/plotAppearance";
-import { plotlyBackend } from "../lib/plotlyAdapter";
-import { PlotlyOnDemand } from "../lib/plotlyOnDemand";
-import { printSection } from "../lib/searchPrint";
+} from "../lib/history/cycles";
+import { formatTimestamp } from "../lib/common/dates";
+import type { PlotTheme } from "../lib/plots/plotAppearance";
+import { plotlyBackend } from "../lib/plots/plotlyAdapter";
+import { PlotlyOnDemand } from "../lib/plots/plotlyOnDemand";
+import { printSection } from "../lib/history/searchPrint";
 import "../styles/cycles.css";
 
 const POLL_MS = 2000;
@@ -63,10 +63,10 @@ function CyclePlots({ cycles, theme }: { readonly cycles: readonly CycleRow[]; r
   // Plotly redraws (and measures) both plots whole, about 100 ms of the main thread here.
   const drawn = useRef("");
   // The plots are drawn when they come near the screen (or the page is printed) with cycles
-  // they have not drawn: below the fold nothing, not even Plotly's chunk (lib/plotlyAdapter.ts),
+  // they have not drawn: below the fold nothing, not even Plotly's chunk (lib/plots/plotlyAdapter.ts),
   // which is asked for the first time they come near.
   const [near, setNear] = useState(() => typeof IntersectionObserver === "undefined");
-  // Plotly asked for as the live plots ask (lib/plotlyOnDemand.ts): once, and again at the next
+  // Plotly asked for as the live plots ask (lib/plots/plotlyOnDemand.ts): once, and again at the next
   // drawing after a failed load; `plotlyCame` draws what waited for it.
   const [plotlyCame, setPlotlyCame] = useState(false);
   const plotly = useMemo(() => new PlotlyOnDemand(plotlyBackend, () => setPlotlyCame(true)), []);

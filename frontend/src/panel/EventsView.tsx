@@ -6,14 +6,14 @@
  */
 import { memo, useCallback, useMemo, useState } from "react";
 import { FilterSelect, PagedTable, usePage } from "../components/PagedTable";
-import { alarmTitle } from "../lib/alarms";
-import { api, auditCsvUrl } from "../lib/api";
-import { formatTimestamp, timeZoneLabel } from "../lib/dates";
-import { keyLabel } from "../lib/layoutInfo";
-import { EVENT_KINDS, roleAtLeast, type EventKind, type StreamEvent, type User } from "../lib/protocol";
-import { NO_SEARCH, isSearching, pageWords, searchEvents, searchEventsCsvUrl, type SearchFields } from "../lib/search";
-import { printSection } from "../lib/searchPrint";
-import { pointsWords } from "../lib/tags";
+import { alarmTitle } from "../lib/alarms/alarms";
+import { api, auditCsvUrl } from "../lib/api/api";
+import { formatTimestamp, timeZoneLabel } from "../lib/common/dates";
+import { keyLabel } from "../lib/layout/layoutInfo";
+import { EVENT_KINDS, roleAtLeast, type EventKind, type StreamEvent, type User } from "../lib/api/protocol";
+import { NO_SEARCH, isSearching, pageWords, searchEvents, searchEventsCsvUrl, type SearchFields } from "../lib/history/search";
+import { printSection } from "../lib/history/searchPrint";
+import { pointsWords } from "../lib/layout/tags";
 
 const PAGE = 100;
 

@@ -1,7 +1,7 @@
 /** I/O: input lamps, output toggles (command and actual), analog inputs and outputs. */
 import type { Frame } from "../generated/layout";
 import { AnalogInputs, LampRow } from "../components/IoView";
-import { channelNumber, commandField } from "../lib/layoutInfo";
+import { channelNumber, commandField } from "../lib/layout/layoutInfo";
 import { AnalogOutputs } from "./AnalogOutputs";
 import { OutputToggle } from "./OutputToggle";
 import { useWrites } from "./writeContext";

@@ -6,9 +6,9 @@
 import { memo } from "react";
 import type { CommandFieldName } from "../generated/layout";
 import { useTagNames } from "../components/tagNames";
-import { tagLabel } from "../lib/alarms";
-import { bitClickRequest, bitWriteQuestion } from "../lib/tags";
-import { writeKey } from "../lib/writes";
+import { tagLabel } from "../lib/alarms/alarms";
+import { bitClickRequest, bitWriteQuestion } from "../lib/layout/tags";
+import { writeKey } from "../lib/writes/writes";
 import { useWrites, useWriteView } from "./writeContext";
 
 type BitField = Extract<CommandFieldName, "controlbox_do" | "tool_do" | "bit_input_registers">;

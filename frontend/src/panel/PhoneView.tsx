@@ -1,12 +1,12 @@
 /**
  * The panel on a phone (issue 38): its plots stay folded until asked for (a button in their
  * place), and its stream carries only the fields of the sections in view, at the rate a phone
- * draws (lib/phoneStream.ts). Wide screens are untouched: every plot drawn, every frame streamed.
+ * draws (lib/stream/phoneStream.ts). Wide screens are untouched: every plot drawn, every frame streamed.
  */
 import { useEffect, useState, useSyncExternalStore, type CSSProperties, type ReactNode } from "react";
-import { PHONE_MAX_WIDTH_PX, panelSubscription } from "../lib/phoneStream";
-import { JOINT_COLUMNS, headerWithUnit } from "../lib/readouts";
-import type { LiveRuntime } from "../lib/runtime";
+import { PHONE_MAX_WIDTH_PX, panelSubscription } from "../lib/stream/phoneStream";
+import { JOINT_COLUMNS, headerWithUnit } from "../lib/layout/readouts";
+import type { LiveRuntime } from "../lib/stream/runtime";
 
 const NARROW_QUERY = `(max-width: ${PHONE_MAX_WIDTH_PX}px)`;
 
@@ -16,7 +16,7 @@ function subscribeNarrow(onChange: () => void): () => void {
   return () => query.removeEventListener("change", onChange);
 }
 
-/** Whether the window is a phone's (as wide as lib/phoneStream.ts's `PHONE_MAX_WIDTH_PX` or less). */
+/** Whether the window is a phone's (as wide as lib/stream/phoneStream.ts's `PHONE_MAX_WIDTH_PX` or less). */
 export function useNarrow(): boolean {
   return useSyncExternalStore(subscribeNarrow, () => window.matchMedia(NARROW_QUERY).matches);
 }

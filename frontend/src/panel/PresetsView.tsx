@@ -9,8 +9,8 @@
 import { memo, useCallback, useContext, useEffect, useState, type ChangeEvent } from "react";
 import { ConfirmDialog } from "../components/ConfirmDialog";
 import { RuntimeContext } from "../components/runtimeContext";
-import { roleAtLeast, type User } from "../lib/protocol";
-import { changeLines, parsePresetItems, presetWords, presetsApi, presetsCsvUrl, presetsJsonUrl, type Preset } from "../lib/presets";
+import { roleAtLeast, type User } from "../lib/api/protocol";
+import { changeLines, parsePresetItems, presetWords, presetsApi, presetsCsvUrl, presetsJsonUrl, type Preset } from "../lib/commissioning/presets";
 
 interface Pending {
   readonly preset: string;
@@ -78,7 +78,7 @@ export const PresetsView = memo(function PresetsView({ robot, user }: { readonly
     void run(async () => {
       const applied = await presetsApi.apply(robot, asked.preset);
       if (!applied.ok) return applied.reason;
-      // The outputs show the frame that confirmed it the moment it is here (lib/liveData.ts).
+      // The outputs show the frame that confirmed it the moment it is here (lib/stream/liveData.ts).
       const seq = applied.page.seq;
       if (seq !== null && seq !== undefined) runtime?.live.showFrame(seq);
       setNote(`“${asked.preset}” applied: ${applied.page.changes.length} value(s) changed, confirmed by the robot`);

@@ -1,7 +1,7 @@
 /** 64 bit input registers as toggles (the image sent), 64 bit output registers as lamps. */
 import type { Frame } from "../generated/layout";
 import { LampRow } from "../components/IoView";
-import { channelNumber, commandField } from "../lib/layoutInfo";
+import { channelNumber, commandField } from "../lib/layout/layoutInfo";
 import { OutputToggle } from "./OutputToggle";
 import { useWrites } from "./writeContext";
 

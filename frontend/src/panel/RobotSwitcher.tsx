@@ -5,18 +5,18 @@
  * an annunciated alarm is marked (in its option and by a mark beside the choice that opens its
  * panel), from the stream's `cell_alarms`.
  */
-import { alarmPaint } from "../lib/alarms";
-import { briefWords, summaryCountWords } from "../lib/alarmsCell";
-import type { FleetTile } from "../lib/fleet";
-import type { AlarmSummary } from "../lib/protocol";
-import { FLEET_HREF, kioskHref } from "../lib/route";
+import { alarmPaint } from "../lib/alarms/alarms";
+import { briefWords, summaryCountWords } from "../lib/alarms/alarmsCell";
+import type { FleetTile } from "../lib/fleet/fleet";
+import type { AlarmSummary } from "../lib/api/protocol";
+import { FLEET_HREF, kioskHref } from "../lib/common/route";
 
 interface Props {
   readonly robot: string;
   /** The service's robots (polled); empty until it has said. */
   readonly robots: readonly FleetTile[];
   readonly onSelect: (robot: string) => void;
-  /** The robots with annunciated alarms (lib/alarmsCell.ts alarmsByRobot). */
+  /** The robots with annunciated alarms (lib/alarms/alarmsCell.ts alarmsByRobot). */
   readonly alarms?: ReadonlyMap<string, AlarmSummary>;
 }
 

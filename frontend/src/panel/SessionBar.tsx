@@ -4,12 +4,12 @@
  * logged out at once, with "Session expired: log in again" (the service has released control).
  */
 import { useCallback, useState, type FormEvent } from "react";
-import { api, controlOf, errorReason } from "../lib/api";
-import { SESSION_EXPIRED_WORDS } from "../lib/sessionIdle";
+import { api, controlOf, errorReason } from "../lib/api/api";
+import { SESSION_EXPIRED_WORDS } from "../lib/writes/sessionIdle";
 import { useSessionIdle } from "./useSessionIdle";
-import type { Ownership } from "../lib/controlSession";
-import { roleAtLeast, userOf, type ControlStatus, type User } from "../lib/protocol";
-import type { HttpAnswer } from "../lib/writes";
+import type { Ownership } from "../lib/writes/controlSession";
+import { roleAtLeast, userOf, type ControlStatus, type User } from "../lib/api/protocol";
+import type { HttpAnswer } from "../lib/writes/writes";
 
 interface Props {
   /** The robot whose control the buttons take and release. */

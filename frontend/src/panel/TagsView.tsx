@@ -5,10 +5,10 @@
  * (docs/api.md "Tag names") and shown beside the label in events, audit rows and alarms.
  */
 import { memo, useEffect, useMemo, useState, type ChangeEvent } from "react";
-import { tagLabel } from "../lib/alarms";
-import { alarmsApi, tagsCsvUrl, type TagList } from "../lib/alarmsApi";
-import { roleAtLeast, type User } from "../lib/protocol";
-import { tagChanges, type TagNames } from "../lib/tags";
+import { tagLabel } from "../lib/alarms/alarms";
+import { alarmsApi, tagsCsvUrl, type TagList } from "../lib/alarms/alarmsApi";
+import { roleAtLeast, type User } from "../lib/api/protocol";
+import { tagChanges, type TagNames } from "../lib/layout/tags";
 
 export const TagsView = memo(function TagsView({
   robot,

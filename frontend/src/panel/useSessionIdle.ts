@@ -1,12 +1,12 @@
 /**
- * The panel's session idle clock (lib/sessionIdle.ts) while someone is logged in: the person's
+ * The panel's session idle clock (lib/writes/sessionIdle.ts) while someone is logged in: the person's
  * clicks, keys and wheel turns anywhere on the page are reported to the service (which alone
  * renews the session), and when the session has idled out the page is told at once.
  */
 import { useEffect, useRef } from "react";
-import { api } from "../lib/api";
-import { SessionIdleWatch } from "../lib/sessionIdle";
-import type { User } from "../lib/protocol";
+import { api } from "../lib/api/api";
+import { SessionIdleWatch } from "../lib/writes/sessionIdle";
+import type { User } from "../lib/api/protocol";
 
 /** What a person does; the page's own timers and requests are none of these. */
 const PERSON_EVENTS = ["pointerdown", "keydown", "wheel"] as const;

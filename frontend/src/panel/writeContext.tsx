@@ -8,13 +8,13 @@
  */
 import { createContext, useCallback, useContext, useEffect, useMemo, useRef, useState, useSyncExternalStore, type ReactNode } from "react";
 import type { CommandPatch } from "../generated/layout";
-import { api as rest } from "../lib/api";
-import type { LiveSnapshot } from "../lib/liveData";
+import { api as rest } from "../lib/api/api";
+import type { LiveSnapshot } from "../lib/stream/liveData";
 import { RuntimeContext } from "../components/runtimeContext";
-import { controlOwnership } from "../lib/controlSession";
-import { roleAtLeast, type CommandState, type User } from "../lib/protocol";
-import { stopWarning } from "../lib/writeChecks";
-import { WriteTracker, performWrite, type WriteValue, type WriteView } from "../lib/writes";
+import { controlOwnership } from "../lib/writes/controlSession";
+import { roleAtLeast, type CommandState, type User } from "../lib/api/protocol";
+import { stopWarning } from "../lib/writes/writeChecks";
+import { WriteTracker, performWrite, type WriteValue, type WriteView } from "../lib/writes/writes";
 import { ConfirmDialog } from "../components/ConfirmDialog";
 
 const CONFIRM_REGISTERS_KEY = "cobot-hmi.confirm-register-writes";
@@ -141,7 +141,7 @@ export function WriteProvider({
     async (keys: readonly string[], values: readonly WriteValue[], patch: CommandPatch, confirmMessage: string | null) => {
       if (confirmMessage !== null && !(await ask(confirmMessage))) return;
       const outcome = await performWrite(tracker, keys, values, () => rest.patchCommand(robot, patch));
-      // Everything the page shows comes from the confirming frame at once (lib/liveData.ts).
+      // Everything the page shows comes from the confirming frame at once (lib/stream/liveData.ts).
       if (outcome.kind === "confirmed" && outcome.seq !== null) runtime?.live.showFrame(outcome.seq);
       refreshCommand();
     },

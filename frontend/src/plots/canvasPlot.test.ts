@@ -3,7 +3,7 @@
 // bridge), a trace picked off is not drawn, extend keeps the newest points, and nothing is drawn
 // before the canvas has a size.
 import { describe, expect, it } from "vitest";
-import { JOINT_PLOTS, tracesOf } from "../lib/plots";
+import { JOINT_PLOTS, tracesOf } from "../lib/plots/plots";
 import { CanvasPlot, type PictureCanvas, type PictureContext } from "./canvasPlot";
 
 const spec = JOINT_PLOTS[0]!;

@@ -8,7 +8,7 @@
  * our own time ticks, Plotly's autorange and round value ticks) as a few canvas paths in well
  * under a millisecond, and nothing of it enters the DOM. Under the pointer or the keyboard's
  * focus the plot turns into Plotly's interactive plot (zoom, pan) on the same axes.
- * lib/plotting.ts drives it through `StaticPicture` (lib/plotBackend.ts).
+ * lib/plots/plotting.ts drives it through `StaticPicture` (lib/plots/plotBackend.ts).
  */
 import {
   PLOT_FONT_FAMILY,
@@ -19,9 +19,9 @@ import {
   ticksOver,
   type PlotLook,
   type PlotMargin,
-} from "../lib/plotAppearance";
-import type { PictureDrawing, StaticPicture } from "../lib/plotBackend";
-import { traceColour, type PlotSpec, type TraceInfo } from "../lib/plots";
+} from "../lib/plots/plotAppearance";
+import type { PictureDrawing, StaticPicture } from "../lib/plots/plotBackend";
+import { traceColour, type PlotSpec, type TraceInfo } from "../lib/plots/plots";
 import { paddedRange, valueTicks } from "./valueTicks";
 
 type Datum = number | null;

@@ -1,20 +1,20 @@
 /**
  * Layer: the DOM of a plot's cursor readout (no React, no Plotly).
  *
- * The panel's one cursor (lib/timeRange.ts): the time a person points at on any plot, by the
+ * The panel's one cursor (lib/plots/timeRange.ts): the time a person points at on any plot, by the
  * pointer or by Shift + ← / →. Each plot shows, under its plotting area, that time and the value
  * of each of its signals then with its unit, and a line across the plot at that time. The values
  * are read from the ring (or the recording's answer the plot drew) where they are
- * (lib/plotValues.ts) and written into the DOM here: samples never pass through React state.
+ * (lib/plots/plotValues.ts) and written into the DOM here: samples never pass through React state.
  */
-import { formatClock } from "../lib/dates";
-import { valueText, type TraceValue } from "../lib/plotValues";
-import type { PlotMargin } from "../lib/plotAppearance";
-import type { SpanMs } from "../lib/plotSteps";
-import type { TraceInfo } from "../lib/plots";
+import { formatClock } from "../lib/common/dates";
+import { valueText, type TraceValue } from "../lib/plots/plotValues";
+import type { PlotMargin } from "../lib/plots/plotAppearance";
+import type { SpanMs } from "../lib/plots/plotSteps";
+import type { TraceInfo } from "../lib/plots/plots";
 import { shareOfRange } from "./plotPointer";
 
-/** What the readout reads (a live plot: lib/plotting.ts `LivePlot`). */
+/** What the readout reads (a live plot: lib/plots/plotting.ts `LivePlot`). */
 export interface CursorSource {
   valuesAt(time_ms: number): readonly (TraceValue | null)[];
   shownRange(): SpanMs | null;

@@ -1,12 +1,12 @@
 /**
  * Layer: pure (no DOM, no React). A live plot's time-axis buttons and keys
- * (components/LivePlotView.tsx): the steps of lib/plotSteps.ts, the cursor's keys.
+ * (components/LivePlotView.tsx): the steps of lib/plots/plotSteps.ts, the cursor's keys.
  */
-import type { PlotStep } from "../lib/plotSteps";
+import type { PlotStep } from "../lib/plots/plotSteps";
 
 /**
  * The time-axis buttons (keyboard and touch: the same steps as a person's zoom and pan with the
- * mouse, lib/plotSteps.ts), each with its key on the focused plotting area.
+ * mouse, lib/plots/plotSteps.ts), each with its key on the focused plotting area.
  */
 export const STEP_BUTTONS: readonly { step: PlotStep; text: string; label: string; title: string }[] = [
   { step: "zoomIn", text: "+", label: "Zoom in", title: "Zoom in: half the time range (key +; Ctrl + mouse wheel)" },

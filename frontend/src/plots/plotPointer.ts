@@ -3,8 +3,8 @@
  * axis (docs/architecture.md "Plots: one time axis for the panel"): the time under a pixel of
  * the plotting area, the zoom factor of a turn of the mouse wheel, and the cursor's step by key.
  */
-import type { PlotMargin } from "../lib/plotAppearance";
-import type { SpanMs } from "../lib/plotSteps";
+import type { PlotMargin } from "../lib/plots/plotAppearance";
+import type { SpanMs } from "../lib/plots/plotSteps";
 
 /**
  * The time (ms since the epoch) under `x_px` (from the element's left edge) of a plot

@@ -2,17 +2,17 @@
  * Layer: DOM glue of one live plot of the panel (no React, no Plotly): what
  * components/LivePlotView.tsx attaches to a `LivePlot` once it is mounted.
  *
- * - The panel's one time axis (lib/timeRange.ts): the plot linked (its moves reach every linked
+ * - The panel's one time axis (lib/plots/timeRange.ts): the plot linked (its moves reach every linked
  *   plot, it follows theirs) or unlinked, at the person's choice.
  * - The one cursor: the time under the pointer (or moved by Shift + ← / →) on any linked plot,
  *   shown with every linked plot's values (plots/cursorReadout.ts); an unlinked plot has its own.
  * - The mouse wheel with Ctrl (or ⌘) held zooms the time axis around the time under the pointer
- *   (lib/plotSteps.ts `zoomAround`); the wheel alone scrolls the page as ever (a panel of plots
+ *   (lib/plots/plotSteps.ts `zoomAround`); the wheel alone scrolls the page as ever (a panel of plots
  *   under a wheel would otherwise never scroll).
  */
-import { hasSecondAxis, plotMargin, type PlotMargin } from "../lib/plotAppearance";
-import type { LivePlot } from "../lib/plotting";
-import { linkPlot, type PlotTimeRange } from "../lib/timeRange";
+import { hasSecondAxis, plotMargin, type PlotMargin } from "../lib/plots/plotAppearance";
+import type { LivePlot } from "../lib/plots/plotting";
+import { linkPlot, type PlotTimeRange } from "../lib/plots/timeRange";
 import { CursorReadout } from "./cursorReadout";
 import { cursorAfterKey, timeAtPixel, wheelFactor } from "./plotPointer";
 

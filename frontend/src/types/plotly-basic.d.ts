@@ -1,5 +1,5 @@
 // Minimal types for the parts of Plotly's partial "basic" bundle this app uses (through
-// src/lib/plotlyAdapter.ts only). The bundle ships no types of its own.
+// src/lib/plots/plotlyAdapter.ts only). The bundle ships no types of its own.
 declare module "plotly.js-basic-dist-min" {
   type Datum = number | string | null;
   type PlotData = Record<string, unknown>;

@@ -1,0 +1,199 @@
+import { describe, expect, it } from "vitest";
+import {
+  alarmsFromHello,
+  alarmStateWords,
+  alarmTitle,
+  applyAlarm,
+  bannerView,
+  compareAlarms,
+  countWords,
+  cueTone,
+  mute,
+  NO_MUTE,
+  sounding,
+  tagLabel,
+  type Alarm,
+} from "./alarms";
+import { LiveData } from "../stream/liveData";
+import type { ConnectionStatus, ServerMessage } from "../api/protocol";
+
+const PRIORITY_RANK = { critical: 0, high: 1, medium: 2, low: 3 } as const;
+
+/** An alarm record as the service sends it (docs/api.md "Alarms"). */
+function alarm(key: string, over: Partial<Alarm> = {}): Alarm {
+  const priority = over.priority ?? "medium";
+  const state = over.state ?? "active_unacknowledged";
+  return {
+    id: `left:${key}`,
+    robot: "left",
+    key,
+    name: key,
+    description: "",
+    priority,
+    priority_rank: PRIORITY_RANK[priority],
+    colour: "yellow",
+    kind: "state",
+    element: null,
+    label: null,
+    tag: null,
+    unit: "",
+    high: null,
+    low: null,
+    state,
+    active: state === "active_unacknowledged" || state === "active_acknowledged",
+    acknowledged: state === "normal" || state === "active_acknowledged",
+    shelved: false,
+    changed_at: 100,
+    activated_at: 100,
+    cleared_at: null,
+    acknowledged_at: null,
+    acknowledged_by: null,
+    ack_comment: null,
+    shelved_until: null,
+    shelved_by: null,
+    shelve_reason: null,
+    value: null,
+    message: null,
+    ...over,
+  };
+}
+
+const estop = alarm("emergency_stop", { name: "Emergency stop", priority: "critical", colour: "red", changed_at: 90 });
+const loss = alarm("packet_loss", { name: "Packet loss", priority: "medium", changed_at: 120 });
+const temp = alarm("motor_temperature.2", {
+  name: "Motor temperature J 3 high",
+  priority: "medium",
+  label: "J 3",
+  tag: "wrist",
+  changed_at: 130,
+});
+
+describe("alarm order and the banner's choice", () => {
+  it("orders by priority, then the newest change, active before returned, shelved last", () => {
+    const returnedCritical = alarm("safe_off", { priority: "critical", state: "returned_unacknowledged", changed_at: 200 });
+    const shelvedCritical = alarm("x", { priority: "critical", shelved: true, changed_at: 300 });
+    const sorted = [loss, shelvedCritical, temp, returnedCritical, estop].sort(compareAlarms).map((a) => a.key);
+    expect(sorted).toEqual(["emergency_stop", "motor_temperature.2", "packet_loss", "safe_off", "x"]);
+  });
+
+  it("shows the most urgent active alarm and counts the others, shelved ones left out", () => {
+    const shelved = alarm("user.door", { priority: "critical", shelved: true });
+    const view = bannerView([loss, temp, shelved, estop]);
+    expect(view.top?.key).toBe("emergency_stop");
+    expect(view).toMatchObject({ count: 3, active: 3, unacknowledged: 3, shelved: 1 });
+    expect(countWords(view)).toBe("3 alarms (3 unacknowledged)");
+  });
+
+  it("prefers an active alarm of lower priority to a returned one of higher priority", () => {
+    const returned = alarm("emergency_stop", { priority: "critical", state: "returned_unacknowledged" });
+    expect(bannerView([returned, loss]).top?.key).toBe("packet_loss");
+    // Only returned, unacknowledged ones left: the banner still asks for an acknowledgement.
+    const view = bannerView([returned]);
+    expect(view.top?.key).toBe("emergency_stop");
+    expect(view.active).toBe(0);
+  });
+
+  it("hides the banner when nothing needs a person", () => {
+    const acked = alarm("emergency_stop", { state: "active_acknowledged" });
+    expect(bannerView([]).top).toBeNull();
+    expect(bannerView([alarm("a", { shelved: true })]).top).toBeNull();
+    const view = bannerView([acked]);
+    expect(view.top?.key).toBe("emergency_stop");
+    expect(view.unacknowledged).toBe(0);
+    expect(countWords(view)).toBe("1 alarm");
+  });
+});
+
+describe("alarm list from the stream", () => {
+  it("starts from the hello's list, sorted, without normal alarms", () => {
+    const list = alarmsFromHello([loss, alarm("gone", { state: "normal" }), estop]);
+    expect(list.map((a) => a.key)).toEqual(["emergency_stop", "packet_loss"]);
+    expect(alarmsFromHello(undefined)).toEqual([]);
+  });
+
+  it("follows transitions: activated, acknowledged, cleared; a repeated event changes nothing", () => {
+    let list = alarmsFromHello([loss]);
+    list = applyAlarm(list, estop);
+    expect(list.map((a) => a.key)).toEqual(["emergency_stop", "packet_loss"]);
+    const acked = { ...estop, state: "active_acknowledged" as const, acknowledged: true, changed_at: 150 };
+    list = applyAlarm(list, acked);
+    expect(list[0]?.state).toBe("active_acknowledged");
+    expect(applyAlarm(list, acked)).toBe(list);
+    list = applyAlarm(list, { ...acked, state: "normal", active: false, changed_at: 160 });
+    expect(list.map((a) => a.key)).toEqual(["packet_loss"]);
+    // A normal alarm that was not in the list: nothing to do.
+    expect(applyAlarm(list, alarm("other", { state: "normal" }))).toBe(list);
+    // A shelved alarm stays listed (to unshelve it) even when its condition went.
+    list = applyAlarm(list, alarm("door", { state: "normal", active: false, shelved: true }));
+    expect(list.map((a) => a.key)).toEqual(["packet_loss", "door"]);
+  });
+
+  it("is kept by the live store: the hello's alarms, then alarm events, and the session", () => {
+    const live = new LiveData([], { now: () => 0 });
+    const connection = { state: "connected", reason: null, stale: false, rpi_ms: 10 } as unknown as ConnectionStatus;
+    const hello = {
+      type: "hello",
+      robot: "left",
+      layout_version: 1,
+      connection,
+      control: { holder: null },
+      rate_hz: null,
+      session: "s-1",
+      alarms: [loss],
+    } as ServerMessage;
+    live.handle(hello);
+    expect(live.getSnapshot().alarms.map((a) => a.key)).toEqual(["packet_loss"]);
+    expect(live.getSnapshot().session).toBe("s-1");
+    live.handle({ type: "event", event: { kind: "alarm", time: 1, robot: "left", transition: "activated", alarm: estop } } as ServerMessage);
+    expect(live.getSnapshot().alarms.map((a) => a.key)).toEqual(["emergency_stop", "packet_loss"]);
+    expect(bannerView(live.getSnapshot().alarms).top?.id).toBe("left:emergency_stop");
+    // A new socket's hello replaces the list (what changed while away is in it).
+    live.handle({ ...hello, alarms: [] } as ServerMessage);
+    expect(live.getSnapshot().alarms).toEqual([]);
+  });
+});
+
+describe("the audible cue", () => {
+  it("sounds for unacknowledged alarms until muted, and again for a new one", () => {
+    const list = [estop, loss];
+    expect(sounding(list, NO_MUTE).map((a) => a.key)).toEqual(["emergency_stop", "packet_loss"]);
+    const muted = mute(list);
+    expect(sounding(list, muted)).toEqual([]);
+    // A new alarm sounds through the mute; the muted ones stay silent.
+    expect(sounding([...list, temp], muted).map((a) => a.key)).toEqual(["motor_temperature.2"]);
+    // The same alarm activated again (a new activation time) sounds again.
+    expect(sounding([{ ...estop, activated_at: 500 }], muted).map((a) => a.key)).toEqual(["emergency_stop"]);
+  });
+
+  it("is silent for acknowledged and shelved alarms", () => {
+    const acked = alarm("a", { state: "active_acknowledged" });
+    const shelved = alarm("b", { shelved: true });
+    expect(sounding([acked, shelved], NO_MUTE)).toEqual([]);
+  });
+
+  it("is more urgent for a higher priority", () => {
+    expect(cueTone("critical").period_ms).toBeLessThan(cueTone("high").period_ms);
+    expect(cueTone("high").period_ms).toBeLessThan(cueTone("medium").period_ms);
+    expect(cueTone("critical").beeps).toBeGreaterThan(cueTone("low").beeps);
+  });
+});
+
+describe("alarm words", () => {
+  it("joins a label and a tag name", () => {
+    expect(tagLabel("DO 3", "gripper close")).toBe("DO 3 — gripper close");
+    expect(tagLabel("DO 3", null)).toBe("DO 3");
+    expect(tagLabel(null, "gripper")).toBe("gripper");
+    expect(tagLabel(null, "")).toBe("");
+  });
+
+  it("names the point once: the tag beside a name that has the label already", () => {
+    expect(alarmTitle(temp)).toBe("Motor temperature J 3 high (wrist)");
+    expect(alarmTitle(estop)).toBe("Emergency stop");
+    expect(alarmTitle({ name: "Door open", label: "DI 4", tag: "door" })).toBe("Door open · DI 4 — door");
+  });
+
+  it("says the ISA-18.2 state in words", () => {
+    expect(alarmStateWords({ state: "returned_unacknowledged", shelved: false })).toBe("returned to normal, unacknowledged");
+    expect(alarmStateWords({ state: "active_acknowledged", shelved: true })).toBe("active, acknowledged, shelved");
+  });
+});
