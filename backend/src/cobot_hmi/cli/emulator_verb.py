@@ -6,12 +6,15 @@ from __future__ import annotations
 import argparse
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 from cobot_hmi.layout import CONNECTION_POINTS, O2T_ASSEMBLY, T2O_ASSEMBLY
 
 if TYPE_CHECKING:
+    from cobot_hmi.emulator.process_image import ProcessImage
+    from cobot_hmi.emulator.replay_robot import ReplayRobot
     from cobot_hmi.emulator.robot import SimulatedRobot
+    from cobot_hmi.emulator.settings import TargetSettings
 
 
 def _rpi_range(text: str) -> tuple[int, int]:
@@ -61,6 +64,23 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
             "cyclic I/O. Runs until SIGINT or SIGTERM."
         ),
     )
+    _add_target_arguments(parser)
+    _add_hardening_arguments(parser)
+    parser.add_argument(
+        "--idle",
+        choices=("hold", "clear"),
+        default="hold",
+        help="outputs when the owner goes idle or times out (default hold)",
+    )
+    robot = parser.add_argument_group("the simulated robot (docs/emulator.md)")
+    _add_robot_arguments(robot)
+    _add_control_arguments(robot)
+    parser.add_argument("-v", "--verbose", action="store_true", help="log connections")
+    parser.set_defaults(handler=_run)
+
+
+def _add_target_arguments(parser: argparse.ArgumentParser) -> None:
+    """Where the target listens, its assemblies and their sizes, the RPIs it accepts."""
     parser.add_argument("--host", default="127.0.0.2", help="address to bind (default 127.0.0.2)")
     parser.add_argument("--tcp-port", type=int, default=44818)
     parser.add_argument("--udp-port", type=int, default=2222)
@@ -85,6 +105,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="accepted RPI range in ms (default 1,10000)",
     )
     parser.add_argument("--max-connections", type=int, default=8)
+
+
+def _add_hardening_arguments(parser: argparse.ArgumentParser) -> None:
+    """Its bounds (sessions, stalled messages, silent sessions) and discovery."""
     hardening = parser.add_argument_group("bounds and discovery (docs/operations.md)")
     hardening.add_argument(
         "--max-tcp-sessions",
@@ -118,13 +142,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="also answer discovery broadcast to ADDR (repeatable; default: 127.255.255.255 "
         "for a loopback --host, 255.255.255.255 otherwise, none for 0.0.0.0)",
     )
-    parser.add_argument(
-        "--idle",
-        choices=("hold", "clear"),
-        default="hold",
-        help="outputs when the owner goes idle or times out (default hold)",
-    )
-    robot = parser.add_argument_group("the simulated robot (docs/emulator.md)")
+
+
+def _add_robot_arguments(robot: argparse._ArgumentGroup) -> None:
+    """The robot behind the target: the simulation (its model, program, wear), a replay."""
     robot.add_argument("--model", choices=("M1013", "M0609"), default="M1013")
     robot.add_argument(
         "--vendor-id",
@@ -191,6 +212,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="the demo program sets bit output register N from the start of each cycle through "
         "its first steps (the cycle-start marker; cobot-hmi demo uses 63); default: no marker",
     )
+
+
+def _add_control_arguments(robot: argparse._ArgumentGroup) -> None:
+    """The test hooks' HTTP API (docs/emulator.md, Control API)."""
     robot.add_argument(
         "--control-port",
         type=int,
@@ -213,8 +238,6 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help="a host name the control API answers to besides IP addresses, localhost and "
         "this machine's names (repeatable)",
     )
-    parser.add_argument("-v", "--verbose", action="store_true", help="log connections")
-    parser.set_defaults(handler=_run)
 
 
 def _apply_wear_scenario(path: Path, robot: SimulatedRobot) -> bool:
@@ -238,23 +261,31 @@ def _apply_wear_scenario(path: Path, robot: SimulatedRobot) -> bool:
 def _run(args: argparse.Namespace) -> int:
     import asyncio
     import logging
-    import signal
 
-    from cobot_hmi.emulator.control_api import ControlApiServer, create_control_app
-    from cobot_hmi.emulator.discovery import DiscoveryServer
-    from cobot_hmi.emulator.process_image import IdleBehaviour, ProcessImage
-    from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot
-    from cobot_hmi.emulator.settings import DOOSAN_VENDOR_ID, TargetSettings, default_identity
-    from cobot_hmi.emulator.static_robot import StaticRobot
-    from cobot_hmi.emulator.target import Target
-    from cobot_hmi.eventloop import freeze_startup_heap, precise_event_loop
+    from cobot_hmi.eventloop import precise_event_loop
 
     logging.basicConfig(
         level=logging.INFO if args.verbose else logging.WARNING,
         format="%(asctime)s %(name)s %(message)s",
     )
-    idle = IdleBehaviour(args.idle)
-    settings = TargetSettings(
+    settings = _target_settings(args)
+    robot = _robot(args)
+    if isinstance(robot, int):
+        return robot
+    try:
+        with asyncio.Runner(loop_factory=precise_event_loop) as runner:
+            runner.run(_serve(args, settings, robot))
+    except OSError as error:
+        print(f"cobot-hmi emulator: {error}", flush=True)
+        return 1
+    return 0
+
+
+def _target_settings(args: argparse.Namespace) -> TargetSettings:
+    from cobot_hmi.emulator.process_image import IdleBehaviour
+    from cobot_hmi.emulator.settings import DOOSAN_VENDOR_ID, TargetSettings, default_identity
+
+    return TargetSettings(
         host=args.host,
         tcp_port=args.tcp_port,
         udp_port=args.udp_port,
@@ -268,7 +299,7 @@ def _run(args: argparse.Namespace) -> int:
         rpi_min_us=args.rpi_range_ms[0],
         rpi_max_us=args.rpi_range_ms[1],
         max_connections=args.max_connections,
-        idle_behaviour=idle,
+        idle_behaviour=IdleBehaviour(args.idle),
         max_tcp_sessions=args.max_tcp_sessions,
         incomplete_message_timeout_s=args.incomplete_message_timeout_s,
         session_inactivity_timeout_s=args.session_inactivity_timeout_s or None,
@@ -282,96 +313,106 @@ def _run(args: argparse.Namespace) -> int:
         ),
     )
 
-    simulated: SimulatedRobot | None = None
-    replay = None
-    robot: ProcessImage
+
+def _robot(args: argparse.Namespace) -> ProcessImage | int:
+    """The robot behind the target: a replay, a robot standing still or the simulation; an exit
+    status (2, said why) when the arguments cannot make one."""
+    from cobot_hmi.emulator.process_image import IdleBehaviour
+    from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot
+    from cobot_hmi.emulator.static_robot import StaticRobot
+
+    idle = IdleBehaviour(args.idle)
     if args.replay is not None:
-        from cobot_hmi.emulator.replay_robot import ReplayRobot
-        from cobot_hmi.history.recording import RecordingError, read_recording
-
-        if not args.speed > 0:
-            print("cobot-hmi emulator: --speed must be above 0", flush=True)
-            return 2
-        if not args.max_lag_s >= 0:
-            print("cobot-hmi emulator: --max-lag-s must be 0 or more", flush=True)
-            return 2
-        try:
-            recording = read_recording(args.replay)
-        except RecordingError as error:
-            print(f"cobot-hmi emulator: {error}", flush=True)
-            return 2
-        robot = replay = ReplayRobot(
-            recording, speed=args.speed, loop=args.loop, max_lag_s=args.max_lag_s
+        return _replay_robot(args)
+    if args.static:
+        return StaticRobot(idle)
+    simulated = SimulatedRobot(
+        RobotSettings(
+            model=args.model,
+            seed=args.seed,
+            autostart_program=not args.no_program,
+            collaborative=args.collaborative,
+            idle_behaviour=idle,
+            kinematic_refresh_ms=args.kinematic_refresh_ms,
+            register_map=args.register_map,
+            cycle_marker_register=args.cycle_marker_register,
         )
-    elif args.static:
-        robot = StaticRobot(idle)
-    else:
-        simulated = SimulatedRobot(
-            RobotSettings(
-                model=args.model,
-                seed=args.seed,
-                autostart_program=not args.no_program,
-                collaborative=args.collaborative,
-                idle_behaviour=idle,
-                kinematic_refresh_ms=args.kinematic_refresh_ms,
-                register_map=args.register_map,
-                cycle_marker_register=args.cycle_marker_register,
-            )
-        )
-        robot = simulated
-        if args.wear is not None and not _apply_wear_scenario(args.wear, simulated):
-            return 2
+    )
+    if args.wear is not None and not _apply_wear_scenario(args.wear, simulated):
+        return 2
+    return simulated
 
-    async def serve() -> None:
-        target = Target(settings, robot)
-        stop = asyncio.Event()
-        loop = asyncio.get_running_loop()
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            loop.add_signal_handler(sig, stop.set)
-        await target.start()
-        control = None
-        discovery = None
-        try:
-            if settings.discovery:
-                discovery = DiscoveryServer(
-                    target, args.host, settings.discovery_port, settings.discovery_broadcast_hosts
-                )
-                await discovery.start()
-            if simulated is not None and not args.no_control_api:
-                control = ControlApiServer(
-                    create_control_app(
-                        simulated,
-                        target,
-                        token=settings.control_token,
-                        allowed_hosts=args.control_allowed_host,
-                        discovery=discovery,
-                    ),
-                    args.host,
-                    args.control_port,
-                )
-                await control.start()
-            print(
-                f"cobot-hmi emulator: EtherNet/IP target on {args.host} "
-                f"TCP {target.tcp_port} UDP {target.udp_port}"
-                + (f", discovery UDP {discovery.port}" if discovery else "")
-                + (f", control API http://{args.host}:{control.port}" if control else ""),
-                flush=True,
-            )
-            freeze_startup_heap()
-            await stop.wait()
-        finally:
-            if control is not None:
-                await control.stop()
-            if discovery is not None:
-                discovery.stop()
-            await target.stop()
-            if replay is not None:  # how the re-run went: frames sent, any skipped to catch up
-                print(f"cobot-hmi emulator: {replay.summary()}", flush=True)
 
+def _replay_robot(args: argparse.Namespace) -> ProcessImage | int:
+    from cobot_hmi.emulator.replay_robot import ReplayRobot
+    from cobot_hmi.history.recording import RecordingError, read_recording
+
+    if not args.speed > 0:
+        print("cobot-hmi emulator: --speed must be above 0", flush=True)
+        return 2
+    if not args.max_lag_s >= 0:
+        print("cobot-hmi emulator: --max-lag-s must be 0 or more", flush=True)
+        return 2
     try:
-        with asyncio.Runner(loop_factory=precise_event_loop) as runner:
-            runner.run(serve())
-    except OSError as error:
+        recording = read_recording(args.replay)
+    except RecordingError as error:
         print(f"cobot-hmi emulator: {error}", flush=True)
-        return 1
-    return 0
+        return 2
+    return ReplayRobot(recording, speed=args.speed, loop=args.loop, max_lag_s=args.max_lag_s)
+
+
+async def _serve(args: argparse.Namespace, settings: TargetSettings, robot: ProcessImage) -> None:
+    """The target (and its discovery and control API) until SIGINT or SIGTERM."""
+    import asyncio
+    import signal
+
+    from cobot_hmi.emulator.control_api import ControlApiServer, create_control_app
+    from cobot_hmi.emulator.discovery import DiscoveryServer
+    from cobot_hmi.emulator.robot import SimulatedRobot
+    from cobot_hmi.emulator.target import Target
+    from cobot_hmi.eventloop import freeze_startup_heap
+
+    target = Target(settings, robot)
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        loop.add_signal_handler(sig, stop.set)
+    await target.start()
+    control = None
+    discovery = None
+    try:
+        if settings.discovery:
+            discovery = DiscoveryServer(
+                target, args.host, settings.discovery_port, settings.discovery_broadcast_hosts
+            )
+            await discovery.start()
+        if isinstance(robot, SimulatedRobot) and not args.no_control_api:
+            control = ControlApiServer(
+                create_control_app(
+                    robot,
+                    target,
+                    token=settings.control_token,
+                    allowed_hosts=args.control_allowed_host,
+                    discovery=discovery,
+                ),
+                args.host,
+                args.control_port,
+            )
+            await control.start()
+        print(
+            f"cobot-hmi emulator: EtherNet/IP target on {args.host} "
+            f"TCP {target.tcp_port} UDP {target.udp_port}"
+            + (f", discovery UDP {discovery.port}" if discovery else "")
+            + (f", control API http://{args.host}:{control.port}" if control else ""),
+            flush=True,
+        )
+        freeze_startup_heap()
+        await stop.wait()
+    finally:
+        if control is not None:
+            await control.stop()
+        if discovery is not None:
+            discovery.stop()
+        await target.stop()
+        if args.replay is not None:  # how the re-run went: frames sent, any skipped
+            print(f"cobot-hmi emulator: {cast('ReplayRobot', robot).summary()}", flush=True)
