@@ -291,6 +291,17 @@ def create_control_app(
         title="cobot-hmi emulator control API",
         description="Scenarios and faults for the emulated robot (docs/emulator.md).",
     )
+    _install_guard_and_errors(app, token, allowed_names)
+    _add_status(app, robot, target, clock, discovery)
+    _RobotCommands(app, robot, target, clock).add_all()
+    _add_faults(app, target)
+    return app
+
+
+def _install_guard_and_errors(
+    app: FastAPI, token: str | None, allowed_names: frozenset[str]
+) -> None:
+    """Every request's token and Host checked first; refusals answered as JSON."""
 
     @app.middleware("http")
     async def _guard(
@@ -313,16 +324,14 @@ def create_control_app(
         status = 409 if isinstance(error, RobotStateConflictError) else 422
         return JSONResponse({"detail": {"reason": str(error)}}, status_code=status)
 
-    def robot_view() -> dict[str, object]:
-        now_s = clock()
-        frame = robot.produce_frame(now_s)
-        return {
-            "robot_state": frame.robot_state,
-            "robot_state_name": frame_to_json(frame)["robot_state_name"],
-            **robot.status(),
-            "wear": robot.wear.view(now_s),
-        }
 
+def _add_status(
+    app: FastAPI,
+    robot: SimulatedRobot,
+    target: EmulatorTarget,
+    clock: Callable[[], float],
+    discovery: StatusSource | None,
+) -> None:
     @app.get("/status")
     async def status() -> Response:
         now_s = clock()
@@ -343,108 +352,144 @@ def create_control_app(
             }
         )
 
-    def command(
-        path: str, apply: Callable[[dict[str, object], float], None], *, needs_body: bool
+
+_Apply = Callable[[dict[str, object], float], None]
+"""A command's action on its request body at the target's time."""
+
+
+def _no_body(action: Callable[[float], None]) -> _Apply:
+    def apply(data: dict[str, object], now_s: float) -> None:
+        if data:
+            raise ControlError(422, f"no fields expected, got {', '.join(sorted(data))}")
+        action(now_s)
+
+    return apply
+
+
+def _flag(name: str, action: Callable[[bool, float], None]) -> _Apply:
+    def apply(data: dict[str, object], now_s: float) -> None:
+        _only(data, (name,), all_required=True)
+        action(_bool(data, name), now_s)
+
+    return apply
+
+
+class _RobotCommands:
+    """The robot's commands (``POST /estop``, ``/state``, ``/wear`` …): each applied at the
+    target's time, in the very next T→O packet, answered with the robot's view."""
+
+    def __init__(
+        self,
+        app: FastAPI,
+        robot: SimulatedRobot,
+        target: EmulatorTarget,
+        clock: Callable[[], float],
     ) -> None:
+        self.app, self.robot, self.target, self.clock = app, robot, target, clock
+
+    def add_all(self) -> None:
+        robot = self.robot
+        self.route("/estop", _no_body(robot.estop), needs_body=False)
+        self.route("/reset", _no_body(robot.reset), needs_body=False)
+        self.route("/protective-stop", _no_body(robot.protective_stop), needs_body=False)
+        self.route("/teach-button", _flag("pressed", robot.set_teach_button), needs_body=True)
+        self.route("/power-button", _flag("pressed", robot.set_power_button), needs_body=True)
+        self.route("/program", _flag("running", robot.set_program_running), needs_body=True)
+        self.route("/collaborative", _flag("enabled", robot.set_collaborative), needs_body=True)
+        self.route("/state", self.set_state, needs_body=True)
+        self.route("/joints", self.set_joints, needs_body=True)
+        self.route("/inputs", self.set_inputs, needs_body=True)
+        self.route("/tool-offset", self.set_tool_offset, needs_body=True)
+        self.route("/wear", _wear_command(robot), needs_body=True)
+        self.route("/wear/clear", _no_body(robot.wear.clear), needs_body=False)
+
+    def route(self, path: str, apply: _Apply, *, needs_body: bool) -> None:
         async def handler(request: Request) -> Response:
             data = await _body(request, required=needs_body)
-            apply(data, clock())
-            target.process_image_changed()  # in the very next T→O packet, not one built before
-            return _json_response({"robot": robot_view()})
+            apply(data, self.clock())
+            self.target.process_image_changed()  # in the very next T→O packet
+            return _json_response({"robot": self.robot_view()})
 
         handler.__name__ = "post_" + path.strip("/").replace("-", "_")
-        app.post(path)(handler)
+        self.app.post(path)(handler)
 
-    def no_body(action: Callable[[float], None]) -> Callable[[dict[str, object], float], None]:
-        def apply(data: dict[str, object], now_s: float) -> None:
-            if data:
-                raise ControlError(422, f"no fields expected, got {', '.join(sorted(data))}")
-            action(now_s)
+    def robot_view(self) -> dict[str, object]:
+        now_s = self.clock()
+        frame = self.robot.produce_frame(now_s)
+        return {
+            "robot_state": frame.robot_state,
+            "robot_state_name": frame_to_json(frame)["robot_state_name"],
+            **self.robot.status(),
+            "wear": self.robot.wear.view(now_s),
+        }
 
-        return apply
-
-    def flag(
-        name: str, action: Callable[[bool, float], None]
-    ) -> Callable[[dict[str, object], float], None]:
-        def apply(data: dict[str, object], now_s: float) -> None:
-            _only(data, (name,), all_required=True)
-            action(_bool(data, name), now_s)
-
-        return apply
-
-    def set_state(data: dict[str, object], now_s: float) -> None:
+    def set_state(self, data: dict[str, object], now_s: float) -> None:
         _only(data, ("robot_state",), all_required=True)
-        robot.force_state(_int(data, "robot_state", 0, 255), now_s)
+        self.robot.force_state(_int(data, "robot_state", 0, 255), now_s)
 
-    def set_joints(data: dict[str, object], now_s: float) -> None:
+    def set_joints(self, data: dict[str, object], now_s: float) -> None:
         _only(data, ("joint_position",), all_required=True)
         values = data["joint_position"]
         if not isinstance(values, list):
             raise ControlError(
                 422, "joint_position: expected an array of 6 numbers", "joint_position"
             )
-        robot.hold_joints(values, now_s)
+        self.robot.hold_joints(values, now_s)
 
-    def set_inputs(data: dict[str, object], now_s: float) -> None:
+    def set_inputs(self, data: dict[str, object], now_s: float) -> None:
         if not data:
             raise ControlError(422, "expected at least one input map")
-        robot.set_inputs(data, now_s)  # type: ignore[arg-type]  # checked by RobotIO
+        self.robot.set_inputs(data, now_s)  # type: ignore[arg-type]  # checked by RobotIO
 
-    def set_tool_offset(data: dict[str, object], now_s: float) -> None:
+    def set_tool_offset(self, data: dict[str, object], now_s: float) -> None:
         _only(data, ("position", "orientation"), all_required=True)
         position, orientation = data["position"], data["orientation"]
         if not isinstance(position, list) or not isinstance(orientation, list):
             raise ControlError(422, "position and orientation: expected arrays of 3 numbers")
-        robot.set_tool_offset(position, orientation, now_s)
+        self.robot.set_tool_offset(position, orientation, now_s)
 
-    command("/estop", no_body(robot.estop), needs_body=False)
-    command("/reset", no_body(robot.reset), needs_body=False)
-    command("/protective-stop", no_body(robot.protective_stop), needs_body=False)
-    command("/teach-button", flag("pressed", robot.set_teach_button), needs_body=True)
-    command("/power-button", flag("pressed", robot.set_power_button), needs_body=True)
-    command("/program", flag("running", robot.set_program_running), needs_body=True)
-    command("/collaborative", flag("enabled", robot.set_collaborative), needs_body=True)
-    command("/state", set_state, needs_body=True)
-    command("/joints", set_joints, needs_body=True)
-    command("/inputs", set_inputs, needs_body=True)
-    command("/tool-offset", set_tool_offset, needs_body=True)
 
-    command("/wear", _wear_command(robot), needs_body=True)
-    command("/wear/clear", no_body(robot.wear.clear), needs_body=False)
+_FAULT_FIELDS: Final = (
+    "t2o_drop_percent",
+    "t2o_delay_ms",
+    "t2o_interval_factor",
+    "t2o_silent",
+    "t2o_corrupt_count",
+    "refuse_next_forward_open",
+    "drop_sessions",
+)
 
-    fault_fields: Final = (
-        "t2o_drop_percent",
-        "t2o_delay_ms",
-        "t2o_interval_factor",
-        "t2o_silent",
-        "t2o_corrupt_count",
-        "refuse_next_forward_open",
-        "drop_sessions",
-    )
 
+def _fault_changes(data: dict[str, object]) -> dict[str, object]:
+    """The faults a body sets, each checked (``ControlError`` naming the first bad one)."""
+    _only(data, _FAULT_FIELDS, all_required=False)
+    changes: dict[str, object] = {}
+    if "t2o_drop_percent" in data:
+        changes["t2o_drop_percent"] = _number(data, "t2o_drop_percent", 0.0, 100.0)
+    if "t2o_delay_ms" in data:
+        changes["t2o_delay_ms"] = _number(data, "t2o_delay_ms", 0.0, MAX_DELAY_MS)
+    if "t2o_interval_factor" in data:
+        changes["t2o_interval_factor"] = _number(
+            data, "t2o_interval_factor", 1.0, MAX_INTERVAL_FACTOR
+        )
+    if "t2o_silent" in data:
+        changes["t2o_silent"] = _bool(data, "t2o_silent")
+    if "t2o_corrupt_count" in data:
+        changes["t2o_corrupt_count"] = _int(data, "t2o_corrupt_count", 0, MAX_CORRUPT_COUNT)
+    if "refuse_next_forward_open" in data:
+        changes["refuse_next_forward_open"] = (
+            None
+            if data["refuse_next_forward_open"] is None
+            else _int(data, "refuse_next_forward_open", 1, MAX_EXTENDED_STATUS)
+        )
+    return changes
+
+
+def _add_faults(app: FastAPI, target: EmulatorTarget) -> None:
     @app.post("/faults")
     async def set_faults(request: Request) -> Response:
         data = await _body(request)
-        _only(data, fault_fields, all_required=False)
-        changes: dict[str, object] = {}
-        if "t2o_drop_percent" in data:
-            changes["t2o_drop_percent"] = _number(data, "t2o_drop_percent", 0.0, 100.0)
-        if "t2o_delay_ms" in data:
-            changes["t2o_delay_ms"] = _number(data, "t2o_delay_ms", 0.0, MAX_DELAY_MS)
-        if "t2o_interval_factor" in data:
-            changes["t2o_interval_factor"] = _number(
-                data, "t2o_interval_factor", 1.0, MAX_INTERVAL_FACTOR
-            )
-        if "t2o_silent" in data:
-            changes["t2o_silent"] = _bool(data, "t2o_silent")
-        if "t2o_corrupt_count" in data:
-            changes["t2o_corrupt_count"] = _int(data, "t2o_corrupt_count", 0, MAX_CORRUPT_COUNT)
-        if "refuse_next_forward_open" in data:
-            changes["refuse_next_forward_open"] = (
-                None
-                if data["refuse_next_forward_open"] is None
-                else _int(data, "refuse_next_forward_open", 1, MAX_EXTENDED_STATUS)
-            )
+        changes = _fault_changes(data)
         drop = _bool(data, "drop_sessions") if "drop_sessions" in data else False
         for name, value in changes.items():  # everything valid: now apply
             setattr(target.faults, name, value)
@@ -458,8 +503,6 @@ def create_control_app(
     async def clear_faults() -> Response:
         target.faults.reset()
         return _json_response({"faults": dataclasses.asdict(target.faults)})
-
-    return app
 
 
 class _EmbeddedServer(uvicorn.Server):
