@@ -12,51 +12,8 @@ import {
   NO_MUTE,
   sounding,
   tagLabel,
-  type Alarm,
 } from "./alarms";
-import { LiveData } from "../stream/liveData";
-import type { ConnectionStatus, ServerMessage } from "../api/protocol";
-
-const PRIORITY_RANK = { critical: 0, high: 1, medium: 2, low: 3 } as const;
-
-/** An alarm record as the service sends it (docs/api.md "Alarms"). */
-function alarm(key: string, over: Partial<Alarm> = {}): Alarm {
-  const priority = over.priority ?? "medium";
-  const state = over.state ?? "active_unacknowledged";
-  return {
-    id: `left:${key}`,
-    robot: "left",
-    key,
-    name: key,
-    description: "",
-    priority,
-    priority_rank: PRIORITY_RANK[priority],
-    colour: "yellow",
-    kind: "state",
-    element: null,
-    label: null,
-    tag: null,
-    unit: "",
-    high: null,
-    low: null,
-    state,
-    active: state === "active_unacknowledged" || state === "active_acknowledged",
-    acknowledged: state === "normal" || state === "active_acknowledged",
-    shelved: false,
-    changed_at: 100,
-    activated_at: 100,
-    cleared_at: null,
-    acknowledged_at: null,
-    acknowledged_by: null,
-    ack_comment: null,
-    shelved_until: null,
-    shelved_by: null,
-    shelve_reason: null,
-    value: null,
-    message: null,
-    ...over,
-  };
-}
+import { alarm } from "./alarmTestSupport";
 
 const estop = alarm("emergency_stop", { name: "Emergency stop", priority: "critical", colour: "red", changed_at: 90 });
 const loss = alarm("packet_loss", { name: "Packet loss", priority: "medium", changed_at: 120 });
@@ -126,30 +83,6 @@ describe("alarm list from the stream", () => {
     // A shelved alarm stays listed (to unshelve it) even when its condition went.
     list = applyAlarm(list, alarm("door", { state: "normal", active: false, shelved: true }));
     expect(list.map((a) => a.key)).toEqual(["packet_loss", "door"]);
-  });
-
-  it("is kept by the live store: the hello's alarms, then alarm events, and the session", () => {
-    const live = new LiveData([], { now: () => 0 });
-    const connection = { state: "connected", reason: null, stale: false, rpi_ms: 10 } as unknown as ConnectionStatus;
-    const hello = {
-      type: "hello",
-      robot: "left",
-      layout_version: 1,
-      connection,
-      control: { holder: null },
-      rate_hz: null,
-      session: "s-1",
-      alarms: [loss],
-    } as ServerMessage;
-    live.handle(hello);
-    expect(live.getSnapshot().alarms.map((a) => a.key)).toEqual(["packet_loss"]);
-    expect(live.getSnapshot().session).toBe("s-1");
-    live.handle({ type: "event", event: { kind: "alarm", time: 1, robot: "left", transition: "activated", alarm: estop } } as ServerMessage);
-    expect(live.getSnapshot().alarms.map((a) => a.key)).toEqual(["emergency_stop", "packet_loss"]);
-    expect(bannerView(live.getSnapshot().alarms).top?.id).toBe("left:emergency_stop");
-    // A new socket's hello replaces the list (what changed while away is in it).
-    live.handle({ ...hello, alarms: [] } as ServerMessage);
-    expect(live.getSnapshot().alarms).toEqual([]);
   });
 });
 

@@ -1,42 +1,11 @@
 import { describe, expect, it } from "vitest";
 import type { Alarm } from "./alarms";
 import { acknowledgeable, alarmsByRobot, hasAnnunciated, otherRobotAlarms, otherRobotLine, summaryCountWords, suppressionWords, topUnacknowledged } from "./alarmsCell";
-import { LiveData } from "../stream/liveData";
-import type { AlarmSummary, CellAlarmSummary, ConnectionStatus, ServerMessage } from "../api/protocol";
+import { brief, cell, stopped, summary } from "./alarmTestSupport";
 
-type Brief = NonNullable<AlarmSummary["top"]>;
-
-function brief(robot: string, over: Partial<Brief> = {}): Brief {
-  return {
-    id: `${robot}:emergency_stop`,
-    key: "emergency_stop",
-    robot,
-    name: "Emergency stop",
-    label: null,
-    tag: null,
-    message: null,
-    priority: "critical",
-    priority_rank: 0,
-    colour: "red",
-    state: "active_unacknowledged",
-    active: true,
-    activated_at: 1,
-    changed_at: 1,
-    ...over,
-  };
-}
-
-function summary(robot: string, over: Partial<AlarmSummary> = {}): AlarmSummary {
-  return { robot, active: 0, annunciated: 0, unacknowledged: 0, shelved: 0, suppressed: 0, highest_priority: null, top: null, ...over };
-}
-
-const stopped = (robot: string) => summary(robot, { active: 1, annunciated: 1, unacknowledged: 1, highest_priority: "critical", top: brief(robot) });
 const warm = (robot: string) =>
   summary(robot, { active: 1, annunciated: 1, highest_priority: "medium", top: brief(robot, { name: "Motor temperature J 3 high", priority: "medium", priority_rank: 2, colour: "yellow", state: "active_acknowledged" }) });
 
-function cell(...robots: AlarmSummary[]): CellAlarmSummary {
-  return { annunciated: robots.reduce((n, r) => n + (r.annunciated ?? 0), 0), highest_priority: null, robots, top: null };
-}
 
 describe("the other robots' alarms", () => {
   it("lists the other robots with an annunciated alarm, most urgent first, never the robot shown", () => {
@@ -86,19 +55,5 @@ describe("acknowledging what the list shows", () => {
     );
     expect(suppressionWords(alarm("safe_off", "suppressed", { suppressed_by: "a:emergency_stop" }))).toBe("suppressed by design: a consequence of a:emergency_stop");
     expect(suppressionWords(alarm("safe_off", "active_unacknowledged"))).toBeNull();
-  });
-});
-
-describe("the live store", () => {
-  it("keeps the cell's alarms from the hello and each status, and keeps the last when a status has none", () => {
-    const live = new LiveData([], { now: () => 0 });
-    const connection = { state: "connected", reason: null, stale: false, rpi_ms: 10 } as unknown as ConnectionStatus;
-    expect(live.getSnapshot().cellAlarms).toBeNull();
-    live.handle({ type: "hello", robot: "a", layout_version: 1, connection, control: { holder: null }, rate_hz: null, alarms: [], cell_alarms: cell(summary("a"), summary("b")) } as ServerMessage);
-    expect(otherRobotAlarms(live.getSnapshot().cellAlarms, "a")).toEqual([]);
-    live.handle({ type: "status", connection, cell_alarms: cell(summary("a"), stopped("b")) } as ServerMessage);
-    expect(otherRobotAlarms(live.getSnapshot().cellAlarms, "a").map((s) => s.robot)).toEqual(["b"]);
-    live.handle({ type: "status", connection } as ServerMessage);
-    expect(otherRobotAlarms(live.getSnapshot().cellAlarms, "a").map((s) => s.robot)).toEqual(["b"]);
   });
 });
