@@ -23,7 +23,9 @@ from typing import Final
 
 from cobot_hmi.service.access.auth import LoginThrottle, Session, Sessions
 from cobot_hmi.service.access.directory import Directory
+from cobot_hmi.service.access.directory_settings import DirectorySettings
 from cobot_hmi.service.access.users import User, UsersFile
+from cobot_hmi.service.alarms.settings import AlarmLimitSettings
 from cobot_hmi.service.alarms.summary import cell_summary
 from cobot_hmi.service.commissioning.service import Commissioning
 from cobot_hmi.service.cycles.service import Cycles
@@ -32,13 +34,16 @@ from cobot_hmi.service.events.bus import EventBus
 from cobot_hmi.service.extensions import ServiceExtension
 from cobot_hmi.service.plant_time import PLANT_ZONE
 from cobot_hmi.service.recording.recorder import Recorder
+from cobot_hmi.service.recording.settings import HistorySettings
 from cobot_hmi.service.robots.control import Control
 from cobot_hmi.service.robots.hub import Hub
 from cobot_hmi.service.robots.link import CyclicLoop, RobotLink, stats_of
 from cobot_hmi.service.robots.robot import RobotRuntime
+from cobot_hmi.service.setting_fields import part_of
 from cobot_hmi.service.settings import ServiceSettings
 from cobot_hmi.service.storage.event_log import EventLog
 from cobot_hmi.service.storage.store import Store
+from cobot_hmi.service.web.settings import WebSettings
 
 log = logging.getLogger(__name__)
 
@@ -74,7 +79,15 @@ class Service:
         """Every event of every robot, to the log, the streams and every other consumer."""
         self.events.add(EventLog(self.store))
         self.robots: dict[str, RobotRuntime] = {
-            robot.name: RobotRuntime(robot, settings, self.cyclic, self.store, self.events)
+            robot.name: RobotRuntime(
+                robot,
+                self.cyclic,
+                self.store,
+                self.events,
+                originator=settings.originator_settings(robot),
+                web=part_of(settings, WebSettings),
+                alarms=part_of(settings, AlarmLimitSettings),
+            )
             for robot in robot_settings
         }
         """Every robot, in the settings' order."""
@@ -85,7 +98,7 @@ class Service:
         self.default_robot: RobotRuntime = next(iter(self.robots.values()))
         """The first robot: the one the deprecated single-robot paths answer for."""
         self.directory: Directory | None = (
-            Directory(settings) if settings.directory_enabled else None
+            Directory(part_of(settings, DirectorySettings)) if settings.directory_enabled else None
         )
         """Directory login (LDAP / Active Directory), when ``ldap_url`` is set."""
         self.sessions = Sessions(
@@ -104,7 +117,9 @@ class Service:
         self._tasks: list[asyncio.Task[None]] = []
         self._ws_by_session: Counter[tuple[str, str]] = Counter()
         self.recorder: Recorder | None = (
-            Recorder(settings, self.robots) if settings.history else None
+            Recorder(part_of(settings, HistorySettings), settings.history_path, self.robots)
+            if settings.history
+            else None
         )
         """Every frame of every robot into its recording (``service.recording.recorder``),
         unless off."""

@@ -2,7 +2,7 @@
 
 ``ServiceSettings`` is a pydantic-settings model whose fields come from the settings of each
 concern, each in its own room: the robots' connections (here and ``robots.settings``), the web
-service and its limits (``api.settings``, ``api.tls_settings``), directory login
+service and its limits (``web.settings``, ``web.tls_settings``), directory login
 (``access.directory_settings``), alarms (``alarms.settings``), history
 (``recording.settings``), cycle timing (``robots.cycle_settings``) and the kiosk
 (``kiosk.settings``). The doors above the service
@@ -32,8 +32,6 @@ from pydantic_settings import BaseSettings, PydanticBaseSettingsSource, Settings
 from cobot_hmi import connection_params as cp
 from cobot_hmi.service.access.directory_settings import DirectorySettings
 from cobot_hmi.service.alarms.settings import AlarmLimitSettings, AlarmSettings
-from cobot_hmi.service.api.settings import WebSettings
-from cobot_hmi.service.api.tls_settings import TlsSettings
 from cobot_hmi.service.kiosk.settings import KioskSettings
 from cobot_hmi.service.recording.settings import HistorySettings
 from cobot_hmi.service.robots.cycle_settings import CycleSettings
@@ -51,6 +49,8 @@ from cobot_hmi.service.setting_fields import (
     rpi_ms_setting,
     setting,
 )
+from cobot_hmi.service.web.settings import WebSettings
+from cobot_hmi.service.web.tls_settings import TlsSettings
 
 if TYPE_CHECKING:
     from cobot_hmi.scanner.originator import OriginatorSettings

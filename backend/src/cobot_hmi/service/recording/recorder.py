@@ -41,6 +41,7 @@ import threading
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, Final
 
 import pyarrow as pa
@@ -53,8 +54,8 @@ from cobot_hmi.service.extensions import MetricFamily
 from cobot_hmi.service.robots.frames import FrameRecord, Registration, Runs
 
 if TYPE_CHECKING:
+    from cobot_hmi.service.recording.settings import HistorySettings
     from cobot_hmi.service.robots.robot import RobotRuntime
-    from cobot_hmi.service.settings import ServiceSettings
 
 log = logging.getLogger(__name__)
 
@@ -85,9 +86,10 @@ class _Track:
 
 
 class Recorder:
-    """Build with the settings and the robots; ``start`` on the web loop before the cyclic
-    thread starts (so no frame is missed), ``stop`` after it stopped (the last frames are
-    written and every open segment closed).
+    """Build with the recording's own settings, the directory it records into (``root``) and
+    the robots; ``start`` on the web loop before the cyclic thread starts (so no frame is
+    missed), ``stop`` after it stopped (the last frames are written and every open segment
+    closed).
 
     A frame consumer (``robots.frames``) of every robot that runs on its own thread: each
     ``history_flush_s`` the thread takes every robot's queued frames (``on_frames``) and
@@ -96,8 +98,10 @@ class Recorder:
     name: Final = "history"
     runs: Final = Runs.THREAD
 
-    def __init__(self, settings: ServiceSettings, robots: Mapping[str, RobotRuntime]) -> None:
-        self.root = settings.history_path
+    def __init__(
+        self, settings: HistorySettings, root: Path, robots: Mapping[str, RobotRuntime]
+    ) -> None:
+        self.root = root
         self.settings = settings
         self.tracks = {
             name: _Track(robot, SegmentWriter(self.root, name, settings.history_segment_s))

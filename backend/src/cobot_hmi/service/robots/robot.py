@@ -24,11 +24,12 @@ from typing import Any, Final
 from cobot_hmi.enip.errors import EnipError
 from cobot_hmi.enip.identity import IdentityInfo
 from cobot_hmi.layout import LAYOUT_VERSION
-from cobot_hmi.scanner.originator import ConnectionState, ConnectionStats
+from cobot_hmi.scanner.originator import ConnectionState, ConnectionStats, OriginatorSettings
 from cobot_hmi.scanner.session import EnipSession, SessionError
 from cobot_hmi.scanner.t2o_pace import SlowTarget
 from cobot_hmi.service.alarms.engine import TICK_S, AlarmEngine, UserAlarm
 from cobot_hmi.service.alarms.persistence import AlarmChange, AlarmStore
+from cobot_hmi.service.alarms.settings import AlarmLimitSettings
 from cobot_hmi.service.events.bus import EventBus
 from cobot_hmi.service.events.text import Event
 from cobot_hmi.service.plant_time import PLANT_ZONE
@@ -38,10 +39,11 @@ from cobot_hmi.service.robots.frames import FrameNotifier
 from cobot_hmi.service.robots.hub import Hub
 from cobot_hmi.service.robots.intervals import ReceiveIntervals
 from cobot_hmi.service.robots.link import CyclicLoop, RobotLink
+from cobot_hmi.service.robots.settings import RobotSettings
 from cobot_hmi.service.robots.watch import FrameEventWatch
-from cobot_hmi.service.settings import RobotSettings, ServiceSettings
 from cobot_hmi.service.storage.store import Store
 from cobot_hmi.service.storage.tags import TagBook
+from cobot_hmi.service.web.settings import WebSettings
 
 log = logging.getLogger(__name__)
 
@@ -106,30 +108,30 @@ async def read_identity(
 
 def _alarm_engine(
     robot: str,
-    service_settings: ServiceSettings,
+    settings: AlarmLimitSettings,
     *,
     publish: Callable[[Event], None],
     persist: Callable[[AlarmChange], None],
     tags: Callable[[], Mapping[str, str]],
 ) -> AlarmEngine:
-    """The robot's alarm engine with the service's alarm settings and the user alarms of this
-    robot (or of every robot)."""
+    """The robot's alarm engine with the alarm settings and the user alarms of this robot (or of
+    every robot)."""
     return AlarmEngine(
         robot,
-        motor_temperature_c=service_settings.alarm_motor_temperature_c,
-        motor_temperature_deadband_c=service_settings.alarm_motor_temperature_deadband_c,
-        gap_rate_per_min=service_settings.alarm_gap_rate_per_min,
-        connection_delay_s=service_settings.alarm_connection_delay_s,
-        shelve_max_s=service_settings.alarm_shelve_max_s,
+        motor_temperature_c=settings.alarm_motor_temperature_c,
+        motor_temperature_deadband_c=settings.alarm_motor_temperature_deadband_c,
+        gap_rate_per_min=settings.alarm_gap_rate_per_min,
+        connection_delay_s=settings.alarm_connection_delay_s,
+        shelve_max_s=settings.alarm_shelve_max_s,
         shelve_max_by_priority_s={
-            "high": service_settings.alarm_shelve_max_high_s,
-            "medium": service_settings.alarm_shelve_max_medium_s,
-            "low": service_settings.alarm_shelve_max_low_s,
+            "high": settings.alarm_shelve_max_high_s,
+            "medium": settings.alarm_shelve_max_medium_s,
+            "low": settings.alarm_shelve_max_low_s,
         },
-        consequence_window_s=service_settings.alarm_consequence_window_s,
+        consequence_window_s=settings.alarm_consequence_window_s,
         user_alarms=tuple(
             UserAlarm(**alarm.model_dump(exclude={"robot"}))
-            for alarm in service_settings.alarms
+            for alarm in settings.alarms
             if alarm.robot in (None, robot)
         ),
         publish=publish,
@@ -139,31 +141,37 @@ def _alarm_engine(
 
 
 class RobotRuntime:
-    """One robot: connection handle, hub, control, write counters, identity."""
+    """One robot: connection handle, hub, control, write counters, identity.
+
+    Given what it uses and no more: its own settings, its connection's (``originator``), the
+    web service's stream and write limits (``web``) and the alarm settings (``alarms``)."""
 
     def __init__(
         self,
         settings: RobotSettings,
-        service_settings: ServiceSettings,
         cyclic: CyclicLoop,
         store: Store,
         events: EventBus,
+        *,
+        originator: OriginatorSettings,
+        web: WebSettings,
+        alarms: AlarmLimitSettings,
     ) -> None:
         self.name = settings.name
         self.settings = settings
         self.store = store
-        self._stale_after_s = service_settings.stale_after_ms / 1000
+        self._stale_after_s = web.stale_after_ms / 1000
         self._events = events
         self.frames = FrameNotifier(
             self.name,
-            frames_per_wake=max(1, round(service_settings.ws_batch_ms / settings.rpi_ms)),
+            frames_per_wake=max(1, round(web.ws_batch_ms / settings.rpi_ms)),
         )
         """Every frame of the robot, published once, to every consumer (``robots.frames``)."""
         self.hub = Hub(
             robot=self.name,
-            batch_s=service_settings.ws_batch_ms / 1000,
-            client_queue_frames=service_settings.ws_queue_frames,
-            stall_timeout_s=service_settings.ws_stall_timeout_s,
+            batch_s=web.ws_batch_ms / 1000,
+            client_queue_frames=web.ws_queue_frames,
+            stall_timeout_s=web.ws_stall_timeout_s,
         )
         """The WebSocket fan-out: the first consumer, so clients get frames before events."""
         self.frames.add(self.hub)
@@ -173,7 +181,7 @@ class RobotRuntime:
         self.confirmation = FrameWaiters(self.frames)
         self.link = RobotLink(
             self.name,
-            service_settings.originator_settings(settings),
+            originator,
             cyclic,
             on_frame=self.frames.publish,
             on_state=self._on_state,
@@ -182,14 +190,14 @@ class RobotRuntime:
         self.control = Control(
             self.link, store, self.frames, self.publish_event, input_only=settings.input_only
         )
-        self.writes = WriteCounters(timeout_s=service_settings.write_timeout_ms / 1000)
+        self.writes = WriteCounters(timeout_s=web.write_timeout_ms / 1000)
         self.identity: RobotIdentity | None = None
         self.tags = TagBook(self.name)
         """The robot's tag names (``service.storage.tags``), loaded by ``open_state``."""
         self.alarm_store = AlarmStore(store)
         self.alarms = _alarm_engine(
             self.name,
-            service_settings,
+            alarms,
             publish=self.publish_event,
             persist=self.alarm_store.submit,
             tags=lambda: self.tags.names,
