@@ -102,7 +102,7 @@ async def test_alarm_history_values_and_times_in_words_and_the_plant_zone(
     assert times["robot:emergency_stop"] == "2026-11-18T12:06:40.000000+01:00"
     assert times["robot:packet_loss"] == "2026-07-02T15:46:41.000000+02:00"
     assert datetime.fromisoformat(times["robot:packet_loss"]).timestamp() == SUMMER_S + 1
-    # The pages are told the zone: they write every time in it (frontend lib/dates.ts).
+    # The pages are told the zone: they write every time in it (frontend lib/common/dates.ts).
     assert hello["type"] == "hello" and hello["time_zone"] == BERLIN
 
 

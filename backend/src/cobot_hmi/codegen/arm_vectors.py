@@ -3,10 +3,10 @@ forward-kinematics vectors, joint angles → TCP pose, for every arm in ``cobot_
 
 Imports ``cobot_hmi.arms`` and the emulator's pure robot model (``emulator.robot.models``,
 ``emulator.robot.kinematics``): the vectors are what that model computes, so the emulator and the
-panel's 3D view (``frontend/src/lib/armKinematics.ts``, which composes the same chain by hand in
-TypeScript) are checked against one table. pytest checks that the Python model reproduces the
-file (``tests/test_arm_kinematics_vectors.py``), Vitest that the TypeScript does
-(``src/lib/armKinematicsVectors.test.ts``), both within ``TOLERANCE``.
+panel's 3D view (``frontend/src/lib/robot3d/armKinematics.ts``, which composes the same chain by
+hand in TypeScript) are checked against one table. pytest checks that the Python model
+reproduces the file (``tests/test_arm_kinematics_vectors.py``), Vitest that the TypeScript does
+(``src/lib/robot3d/armKinematicsVectors.test.ts``), both within ``TOLERANCE``.
 
 The spread, per arm: the zero pose; the home pose and the controller's published check; each
 joint alone at ±30°, ±90° and its limits; poses on and 0.001° from the three singularities (a

@@ -1,7 +1,7 @@
 """Layer: service. The plant's time zone: the one zone every time a person reads is written in
 (the CSV exports and reports here; the pages take its name from the stream's hello and write
-their times in it, ``frontend/src/lib/dates.ts``), so the panel, the kiosk, the exports and the
-prints agree whatever zone the browser or the server's own clock is set to.
+their times in it, ``frontend/src/lib/common/dates.ts``), so the panel, the kiosk, the exports and
+the prints agree whatever zone the browser or the server's own clock is set to.
 
 The ``time_zone`` setting names it (an IANA name, "Europe/Berlin"); empty: the service host's
 own zone (``TZ``, else ``/etc/localtime``), UTC when that names none. One zone per process:

@@ -5,8 +5,8 @@ naming another robot. Pure: reads alarm records, never changes them.
 
 "Annunciated" is what a banner shows: an alarm that is not normal, not shelved and not
 suppressed by design (``consequences``). The most urgent of them is chosen as the panel's
-banner chooses (``frontend/src/lib/alarms.ts`` ``compareAlarms``): active before returned, then
-by priority, then the newest change.
+banner chooses (``frontend/src/lib/alarms/alarms.ts`` ``compareAlarms``): active before returned,
+then by priority, then the newest change.
 """
 
 from __future__ import annotations

@@ -297,7 +297,7 @@ def export_chunks(
 def nothing_recorded_line(from_s: float, to_s: float) -> bytes:
     """The last line of a CSV export of a range without a recorded frame: "# nothing recorded
     from 2026-12-07T04:00:00.000000Z to 2026-12-07T04:02:00.000000Z" (the plot says the same,
-    frontend lib/plotExport.ts); pandas skips it with ``comment="#"``."""
+    frontend lib/plots/plotExport.ts); pandas skips it with ``comment="#"``."""
 
     def utc(time_s: float) -> str:
         return datetime.fromtimestamp(time_s, UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
