@@ -201,12 +201,15 @@ async def test_killing_the_plants_broker_node(plc_host: str, tmp_path: Path) -> 
             raise AssertionError(f"{error}\npeer: {peer.lines}\nplant: {status}") from None
         status = await plant.get("/api/v1/plant/status")
         assert status["connections_lost"] >= 1
-        assert status["rebirths"].get("seq gap", 0) >= 1
-        # The foreign node was asked for a rebirth (it received the NCMD) and was born again:
-        # its alarm, cleared while the plant had no connection, is cleared at the plant too,
-        # and the clearing is in the plant's alarm list at the time the node says it happened.
-        await peer.wait_for("reborn")
-        await plant.until("line-3", "foreign", lambda n: n["devices"][0]["alarms_active"] == [])
+        # Whether a node's messages were lost to the plant depends on how fast it moved (it
+        # sees the node's socket close at once) and on whether the cluster dropped the edge
+        # nodes too: a gap is answered with a rebirth (the planted gap of test_plant_mosquitto
+        # shows it every time), a node's own reconnection brings its births. Either way the
+        # foreign node's alarm, cleared while the plant had no connection, is cleared at the
+        # plant too, and the clearing is in the plant's alarm list at the node's own time.
+        await plant.until(
+            "line-3", "foreign", lambda n: n["devices"][0]["alarms_active"] == [], timeout_s=60
+        )
         alarms = await plant.get("/api/v1/plant/alarms", since=killed_at - 60)
         foreign_transitions = [
             (t["alarm"], t["active"])

@@ -4,7 +4,8 @@ standby): the first that answers; when it goes away, the next, in turn.
 
 On each connection (Sparkplug 3.0, "Host Applications"): the will is the host's STATE
 ``{"online": false, "timestamp": T}`` (retained, QoS 1); once connected it subscribes (QoS 0) to
-its own STATE topic and the Sparkplug namespace of its groups, then publishes STATE
+its own STATE topic and the Sparkplug namespace of its groups and, every subscription granted
+within ``SUBSCRIBE_TIMEOUT_S`` (else the next broker), publishes STATE
 ``{"online": true, "timestamp": T}`` (retained, QoS 1), T the same in both: a will left from an
 older connection never clears a newer birth. On a clean stop it publishes the offline STATE
 itself, then disconnects. MQTT 3.1.1, clean session.
@@ -31,6 +32,7 @@ log = logging.getLogger(__name__)
 KEEPALIVE_S: Final = 10
 """Short: a broker node that dies without closing its sockets is noticed in 1.5 × this."""
 CONNECT_TIMEOUT_S: Final = 3.0
+SUBSCRIBE_TIMEOUT_S: Final = 5.0
 
 MessageHandler = Callable[[str, bytes], None]
 """Called on the client's thread with each message's topic and payload."""
@@ -118,7 +120,10 @@ class FailoverClient:
                 self._stop.wait(self._backoff.next_delay_s())
 
     def _session(self, options: ClientOptions) -> bool:
-        """One connection to one broker until it ends; whether it was ever established."""
+        """One connection to one broker until it ends; whether it was ever established (its
+        CONNACK and every SUBACK in time: a broker that accepts the connection but leaves a
+        subscription unanswered, as NATS can while its JetStream re-elects after a node's loss,
+        would let the plant hear nothing)."""
         client_id = f"{options.client_id}-{int(time.time() * 1000) % 100000}"
         client = make_client(replace(options, client_id=client_id))
         self.state_timestamp_ms = int(time.time() * 1000)
@@ -128,9 +133,11 @@ class FailoverClient:
             qos=1,
             retain=True,
         )
-        established = threading.Event()
-        client.on_connect = lambda c, _u, _f, reason, _p: self._connected(c, reason, established)
-        client.on_subscribe = lambda c, _u, _m, reasons, _p: self._subscribed(c, reasons)
+        attempt = _Attempt()
+        client.on_connect = lambda c, _u, _f, reason, _p: self._connected(c, reason, attempt)
+        client.on_subscribe = lambda c, _u, mid, reasons, _p: self._subscribed(
+            c, mid, reasons, attempt
+        )
         client.on_message = lambda _c, _u, message: self._on_message(
             message.topic, bytes(message.payload)
         )
@@ -142,12 +149,16 @@ class FailoverClient:
             return False
         with self._lock:
             self._client = client
-        deadline = time.monotonic() + CONNECT_TIMEOUT_S
+        started = time.monotonic()
         try:
             while not self._stop.is_set():
                 if client.loop(timeout=0.2) != mqtt.MQTT_ERR_SUCCESS:
                     break
-                if not established.is_set() and time.monotonic() > deadline:
+                if not attempt.established.is_set() and attempt.overdue(started):
+                    log.warning(
+                        "plant: %s did not answer its CONNECT or SUBSCRIBE in time", address
+                    )
+                    self.subscriptions_refused += attempt.connack_at is not None
                     break
         finally:
             with self._lock:
@@ -156,27 +167,22 @@ class FailoverClient:
             if not self._stop.is_set():
                 client.disconnect()
                 log.warning("plant: connection to %s ended; trying the next broker", address)
-        return established.is_set()
+        return attempt.established.is_set()
 
-    def _subscribed(self, client: mqtt.Client, reasons: list[Any]) -> None:
-        """A subscription the broker refused (NATS's MQTT refuses one while its JetStream is
-        electing a leader after a node's loss): this connection would hear nothing, so it
-        ends, and the next broker is tried."""
+    def _subscribed(
+        self, client: mqtt.Client, mid: int, reasons: list[Any], attempt: _Attempt
+    ) -> None:
+        """A subscription the broker refused: this connection would hear nothing, so it ends,
+        and the next broker is tried. Once every one is granted: the STATE birth."""
         refused = [str(r) for r in reasons if r.is_failure]
         if refused:
             log.warning("plant: the broker refused a subscription (%s): reconnecting", refused)
             self.subscriptions_refused += 1
             client.disconnect()
-
-    def _connected(self, client: mqtt.Client, reason: Any, established: threading.Event) -> None:
-        if reason.is_failure:
-            log.warning("plant: broker refused the connection: %s", reason)
             return
-        # QoS 0: what edge nodes publish is QoS 0 (births, data; their wills QoS 1 arrive as
-        # 0), and a QoS 0 subscription needs no durable consumer of the broker's own (NATS's MQTT
-        # keeps each QoS 1 subscription in JetStream, which a failover must first re-elect).
-        for topic_filter in self._subscriptions:
-            client.subscribe(topic_filter, qos=0)
+        attempt.pending.discard(mid)
+        if attempt.pending or attempt.established.is_set():
+            return
         client.publish(
             state_topic(self._host_id),
             state_payload(True, self.state_timestamp_ms),
@@ -184,7 +190,35 @@ class FailoverClient:
             retain=True,
         )
         self.connections += 1
-        url = str(client.host) + ":" + str(client.port)
+        url = f"{client.host}:{client.port}"
         self.connected_url = url
-        established.set()
+        attempt.established.set()
         self._on_connected(url)
+
+    def _connected(self, client: mqtt.Client, reason: Any, attempt: _Attempt) -> None:
+        if reason.is_failure:
+            log.warning("plant: broker refused the connection: %s", reason)
+            return
+        attempt.connack_at = time.monotonic()
+        # QoS 0: what edge nodes publish is QoS 0 (births, data; their wills QoS 1 arrive as
+        # 0), and a QoS 0 subscription needs no durable consumer of the broker's own (NATS's MQTT
+        # keeps each QoS 1 subscription in JetStream, which a failover must first re-elect).
+        for topic_filter in self._subscriptions:
+            _, mid = client.subscribe(topic_filter, qos=0)
+            if mid is not None:
+                attempt.pending.add(mid)
+
+
+class _Attempt:
+    """One connection attempt's progress, on the client's thread."""
+
+    def __init__(self) -> None:
+        self.established = threading.Event()
+        self.connack_at: float | None = None
+        self.pending: set[int] = set()
+
+    def overdue(self, started: float) -> bool:
+        now = time.monotonic()
+        if self.connack_at is None:
+            return now - started > CONNECT_TIMEOUT_S
+        return now - self.connack_at > SUBSCRIBE_TIMEOUT_S
