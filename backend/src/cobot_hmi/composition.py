@@ -16,6 +16,8 @@ from cobot_hmi.opcua.feed import ServiceFeed
 from cobot_hmi.opcua.server import OpcUaServer
 from cobot_hmi.service.extensions import MetricFamily, ServiceExtension
 from cobot_hmi.service.runtime import Service
+from cobot_hmi.service.setting_fields import part_of
+from cobot_hmi.service.web.settings import WebSettings
 from cobot_hmi.settings import HmiSettings
 from cobot_hmi.sparkplug.edge_node import EdgeNode
 
@@ -31,7 +33,8 @@ class OpcUaExtension:
 
     async def start(self) -> None:
         service, settings = self._service, self._settings
-        feed = ServiceFeed(service.robots, service.users, settings, asyncio.get_running_loop())
+        web = part_of(settings, WebSettings)  # the feed's login and read rules are the API's
+        feed = ServiceFeed(service.robots, service.users, web, asyncio.get_running_loop())
         self.server = OpcUaServer(settings, settings.state_dir, feed)
         await self.server.start()
 

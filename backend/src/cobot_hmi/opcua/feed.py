@@ -42,7 +42,7 @@ from cobot_hmi.service.writes.pipeline import (
 
 if TYPE_CHECKING:
     from cobot_hmi.service.robots.robot import RobotRuntime
-    from cobot_hmi.service.settings import ServiceSettings
+    from cobot_hmi.service.web.settings import WebSettings
 
 QUEUE_FRAMES: Final = 256
 """Frames a robot's queue holds between two ticks (2.56 s at RPI 10 ms: a tick takes them all,
@@ -68,7 +68,7 @@ class ServiceFeed:
         self,
         robots: Mapping[str, RobotRuntime],
         users: UsersFile,
-        settings: ServiceSettings,
+        settings: WebSettings,
         web_loop: asyncio.AbstractEventLoop,
     ) -> None:
         self._robots = robots

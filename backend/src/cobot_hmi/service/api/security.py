@@ -58,7 +58,7 @@ from cobot_hmi.service.api.tls import HSTS_HEADER
 if TYPE_CHECKING:
     from fastapi import FastAPI
 
-    from cobot_hmi.service.settings import ServiceSettings
+    from cobot_hmi.service.web.settings import WebSettings
 
 SAFE_METHODS: Final = frozenset({"GET", "HEAD", "OPTIONS"})
 
@@ -580,7 +580,7 @@ class SecurityPolicy:
     anonymous_write_burst: int = 20
 
 
-def policy_from_settings(settings: ServiceSettings) -> SecurityPolicy:
+def policy_from_settings(settings: WebSettings) -> SecurityPolicy:
     return SecurityPolicy(
         max_body_bytes=settings.max_body_bytes,
         body_timeout_s=settings.http_idle_timeout_s,

@@ -22,7 +22,9 @@ from cobot_hmi.service.api.security import policy_from_settings
 from cobot_hmi.service.api.tls import ReloadingContext
 from cobot_hmi.service.api.tls_redirect import redirect_listener
 from cobot_hmi.service.runtime import Service
+from cobot_hmi.service.setting_fields import part_of
 from cobot_hmi.service.settings import ServiceSettings
+from cobot_hmi.service.web.settings import WebSettings
 
 SWITCH_INTERVAL_S: Final = 0.0005
 """The GIL hand-over deadline. CPython's default, 5 ms, would let a busy web thread hold off
@@ -95,7 +97,7 @@ async def serve(
     async with contextlib.AsyncExitStack() as stack:
         if settings.http_redirect_port is not None:  # plain HTTP that only redirects to HTTPS
             https_port = sockets[0].getsockname()[1] if sockets else settings.port
-            allowed = policy_from_settings(settings).allowed_hosts
+            allowed = policy_from_settings(part_of(settings, WebSettings)).allowed_hosts
             await stack.enter_async_context(
                 redirect_listener(settings.host, settings.http_redirect_port, https_port, allowed)
             )
