@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import json
 import time
 from collections.abc import AsyncIterator
 from datetime import UTC, datetime, timedelta
@@ -86,6 +87,34 @@ def test_a_finished_hour_is_compacted_and_a_newer_format_left_out(
     table = pq.read_table(folder / "segment.parquet").replace_schema_metadata(newer.metadata)
     pq.write_table(table, folder / "part-newer.parquet")
     assert len(recorder.trend(key, old_ms - 1, old_ms + 10)) == 3
+    # ... nor removed nor overwritten by the next compaction, which takes the part it can read.
+    recorder.add([_sample(old_ms + 5, 5)])
+    recorder.flush()
+    assert sorted(p.name for p in folder.iterdir()) == ["part-newer.parquet", "segment.parquet"]
+    assert [p.value for p in recorder.trend(key, old_ms - 1, old_ms + 10)] == [0.0, 1.0, 2.0, 5.0]
+    # A part the segment has absorbed but that is still on disk (a compaction between its
+    # write and its removals) is not counted twice.
+    absorbed = folder / "segment.parquet"
+    survivor = folder / "part-0-0.parquet"
+    survivor.write_bytes(absorbed.read_bytes())
+    names = json.loads(pq.read_schema(absorbed).metadata[b"cobot_hmi.absorbed_parts"])
+    table = pq.read_table(absorbed)
+    metadata = {
+        **table.schema.metadata,
+        b"cobot_hmi.absorbed_parts": json.dumps([*names, survivor.name]).encode(),
+    }
+    pq.write_table(table.replace_schema_metadata(metadata), absorbed)
+    assert len(recorder.trend(key, old_ms - 1, old_ms + 10)) == 4
+    recorder.add([_sample(old_ms + 6, 6)])
+    recorder.flush()  # the next compaction removes it rather than taking its rows again
+    assert not survivor.exists()
+    assert [p.value for p in recorder.trend(key, old_ms - 1, old_ms + 10)] == [
+        0.0,
+        1.0,
+        2.0,
+        5.0,
+        6.0,
+    ]
 
 
 @contextlib.asynccontextmanager

@@ -15,6 +15,7 @@ Imports ``stored_format`` and the plant's host (its ``Sample``).
 from __future__ import annotations
 
 import contextlib
+import json
 import logging
 import os
 import threading
@@ -36,6 +37,7 @@ log = logging.getLogger(__name__)
 
 PLANT_SEGMENT = StoredFormat("plant history segment", 1)
 VERSION_KEY: Final = b"cobot_hmi.format_version"
+ABSORBED_KEY: Final = b"cobot_hmi.absorbed_parts"
 FLUSH_S: Final = 1.0
 COMPACT_AFTER_S: Final = 600.0
 SEGMENT: Final = "segment.parquet"
@@ -157,17 +159,44 @@ class PlantRecorder:
             parts = sorted(folder.glob("part-*.parquet"))
             if started > cutoff or not parts:
                 continue
-            files = [*parts, *([folder / SEGMENT] if (folder / SEGMENT).exists() else [])]
-            tables = [t for t in (_read(f) for f in files) if t is not None]
-            if not tables:
-                continue
-            merged = pa.concat_tables(tables).sort_by("time_ms")
-            temporary = folder / (SEGMENT + ".tmp")
-            pq.write_table(merged.replace_schema_metadata(SCHEMA.metadata), temporary)
-            os.replace(temporary, folder / SEGMENT)
-            for part in parts:
+            self._compact(folder, parts)
+
+    @staticmethod
+    def _compact(folder: Path, parts: list[Path]) -> None:
+        """The parts read (and the segment, if any) into one segment that names the parts it
+        absorbed, so a reader in between never counts a row twice; then those parts removed. A
+        segment or part this build cannot read (a newer format, damage) is never overwritten
+        nor removed."""
+        segment = folder / SEGMENT
+        tables = []
+        absorbed: list[str] = []
+        if segment.exists():
+            table = _read(segment)
+            if table is None:
+                return
+            tables.append(table)
+            absorbed = _absorbed(segment)
+        read = []
+        for part in parts:
+            if part.name in absorbed:  # a removal the last compaction did not finish
                 with contextlib.suppress(OSError):
                     part.unlink()
+                continue
+            table = _read(part)
+            if table is not None:
+                tables.append(table)
+                read.append(part)
+        if not read:
+            return
+        merged = pa.concat_tables(tables).sort_by("time_ms")
+        names = json.dumps(absorbed + [p.name for p in read]).encode()
+        metadata = {**(SCHEMA.metadata or {}), ABSORBED_KEY: names}
+        temporary = folder / (SEGMENT + ".tmp")
+        pq.write_table(merged.replace_schema_metadata(metadata), temporary)
+        os.replace(temporary, segment)
+        for part in read:
+            with contextlib.suppress(OSError):
+                part.unlink()
 
     def trend(self, key: MetricKey, start_ms: int, end_ms: int) -> list[Point]:
         """Every recorded value of one metric in ``[start_ms, end_ms]``, in time order."""
@@ -182,7 +211,11 @@ class PlantRecorder:
         for folder in hours:
             if not folder.is_dir():
                 continue
+            segment = folder / SEGMENT
+            absorbed = set(_absorbed(segment)) if segment.exists() else set()
             for path in sorted(folder.glob("*.parquet")):
+                if path.name in absorbed:  # already in the segment, not yet removed
+                    continue
                 table = _read(path, (key, start_ms, end_ms))
                 if table is not None and table.num_rows:
                     tables.append(table)
@@ -199,6 +232,16 @@ class PlantRecorder:
                 strict=True,
             )
         ]
+
+
+def _absorbed(segment: Path) -> list[str]:
+    """The names of the parts a segment holds (its metadata), empty when it cannot say."""
+    try:
+        found = (pq.read_schema(segment).metadata or {}).get(ABSORBED_KEY)
+        names = json.loads(found) if found else []
+    except (OSError, ValueError, pa.ArrowException):
+        return []
+    return [str(n) for n in names] if isinstance(names, list) else []
 
 
 def _read(path: Path, where: tuple[MetricKey, int, int] | None = None) -> pa.Table | None:
