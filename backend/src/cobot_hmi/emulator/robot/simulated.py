@@ -38,7 +38,7 @@ from cobot_hmi.emulator.robot.kinematics import (
     position_mm,
     tcp_velocity,
 )
-from cobot_hmi.emulator.robot.models import Vector3, model_by_name
+from cobot_hmi.emulator.robot.models import RobotModel, Vector3, model_by_name
 from cobot_hmi.emulator.robot.noise import GaussianNoise
 from cobot_hmi.emulator.robot.robot_io import RobotIO
 from cobot_hmi.emulator.robot.states import (
@@ -110,6 +110,59 @@ Monitoring = tuple[tuple[float, ...], ...]
 than the rest of ``produce_frame``."""
 
 
+class _KinematicsCache:
+    """The arm's kinematics and joint torques for the last motion sample, tool and payload: an
+    arm at rest (a dwell, a stop, standby) needs them computed once, not every frame."""
+
+    __slots__ = ("_last", "model")
+
+    def __init__(self, model: RobotModel) -> None:
+        self.model = model
+        self._last: tuple[JointSample, Transform, float, Kinematics, tuple[float, ...]] | None = (
+            None
+        )
+
+    def at(
+        self, motion: JointSample, tool: Transform, payload_kg: float
+    ) -> tuple[Kinematics, tuple[float, ...]]:
+        last = self._last
+        if last is not None and last[1] is tool and last[2] == payload_kg and last[0] == motion:
+            return last[3], last[4]
+        position, velocity, acceleration = motion
+        kin = forward(self.model, position, tool)
+        torques = joint_torques(self.model, kin, velocity, acceleration, payload_kg)
+        self._last = (motion, tool, payload_kg, kin, torques)
+        return kin, torques
+
+
+class _AnalogInputs:
+    """The analog inputs with their noise: drawn each frame when monitoring values are, and
+    with them when those refresh on a period (``kinematic_refresh_ms``), as the controller
+    reports its monitoring data."""
+
+    __slots__ = ("_at_s", "_io", "_noise", "_refresh_ms", "_values")
+
+    def __init__(self, io: RobotIO, noise: GaussianNoise, refresh_ms: float) -> None:
+        self._io, self._noise, self._refresh_ms = io, noise, refresh_ms
+        self._values: tuple[float, ...] = ()
+        self._at_s = -math.inf
+
+    def now(self, monitoring_at_s: float) -> tuple[float, ...]:
+        """The inputs now, their noise drawn again when the monitoring values were refreshed
+        (at ``monitoring_at_s``)."""
+        io = self._io
+        if self._refresh_ms <= 0 or monitoring_at_s != self._at_s:
+            self._values = self._noise.take(io.analog_input_count, io.analog_noise)
+            self._at_s = monitoring_at_s
+        return io.analog_input(self._values)
+
+
+def _cycle_marker(runner: ProgramRunner) -> bool:
+    """The cycle-start marker: on through the first steps of each program cycle, rising as the
+    cycle starts (it holds while the program pauses: no edge but a cycle's start)."""
+    return runner.step_index < CYCLE_MARKER_STEPS
+
+
 class SimulatedRobot:
     """A Doosan arm in a cell: motion, monitoring values, states, I/O. See the module docstring."""
 
@@ -144,17 +197,12 @@ class SimulatedRobot:
         self._started = start_s is not None
         self._now_s = start_s or 0.0
         self._monitoring: Monitoring | None = None
-        self._kinematics: (
-            tuple[JointSample, Transform, float, Kinematics, tuple[float, ...]] | None
-        ) = None
-        """The last motion sample, tool and payload with their kinematics and torques: an arm at
-        rest (a dwell, a stop, standby) needs them computed once, not every frame."""
+        self._kinematics = _KinematicsCache(self.model)
         self._monitoring_at_s = -math.inf
         self._frame: Frame | None = None
         self._frame_sent: Frame | None = None
         """The last frame produced, kept across changes: an equal new one is replaced by it."""
-        self._analog_noise: tuple[float, ...] = ()
-        self._analog_at_s = -math.inf
+        self._analog = _AnalogInputs(self._io, self._noise, s.kinematic_refresh_ms)
         self._frame_at_s: float | None = None
         self._state_and_flags = self._states.state_and_flags()
         """Worked out at every ``_advance``: what the frame reports."""
@@ -204,26 +252,10 @@ class SimulatedRobot:
             self._moving = False
             self._monitoring = None
 
-    def _kinematics_now(self) -> tuple[Kinematics, tuple[float, ...]]:
-        motion, tool, payload_kg = self._motion, self._tool, self.settings.payload_kg
-        cached = self._kinematics
-        if (
-            cached is not None
-            and cached[1] is tool
-            and cached[2] == payload_kg
-            and cached[0] == motion
-        ):
-            return cached[3], cached[4]
-        position, velocity, acceleration = motion
-        kin = forward(self.model, position, tool)
-        torques = joint_torques(self.model, kin, velocity, acceleration, payload_kg)
-        self._kinematics = (motion, tool, payload_kg, kin, torques)
-        return kin, torques
-
     def _refresh_monitoring(self, flags: Flags) -> Monitoring:
         s = self.settings
         position, velocity, _ = self._motion
-        kin, torques = self._kinematics_now()
+        kin, torques = self._kinematics.at(self._motion, self._tool, s.payload_kg)
         if self.wear.active:
             temperatures = self._thermal.temperatures_c
             torques = worn_torques(
@@ -298,7 +330,7 @@ class SimulatedRobot:
         io = self._io
         applied = io.applied
         s = self.settings
-        analog_input = self._analog_input_now()
+        analog_input = self._analog.now(self._monitoring_at_s)
         # Positional, in the layout's field order (the comment names each field): a call with
         # thirty keywords costs about 2 µs more, and this runs for every produced frame. A test
         # (test_robot_motion) checks that values of the same shape stay in their own fields.
@@ -332,7 +364,7 @@ class SimulatedRobot:
             s.tool_offset_orientation_deg,  # tool_offset_orientation
             external_force,  # external_force
             external_moment,  # external_moment
-            io.bit_output_registers(self._cycle_marker()),  # bit_output_registers
+            io.bit_output_registers(_cycle_marker(self._runner)),  # bit_output_registers
         )
         previous = self._frame_sent
         if previous is not None and frame == previous:
@@ -340,21 +372,6 @@ class SimulatedRobot:
         self._frame = self._frame_sent = frame
         self._frame_at_s = self._now_s
         return frame
-
-    def _cycle_marker(self) -> bool:
-        """The cycle-start marker: on through the first steps of each program cycle, rising as
-        the cycle starts (it holds while the program pauses: no edge but a cycle's start)."""
-        return self._runner.step_index < CYCLE_MARKER_STEPS
-
-    def _analog_input_now(self) -> tuple[float, ...]:
-        """The analog inputs with their noise: drawn each frame when monitoring values are, and
-        with them when those refresh on a period (``kinematic_refresh_ms``), as the controller
-        reports its monitoring data."""
-        io = self._io
-        if self.settings.kinematic_refresh_ms <= 0 or self._monitoring_at_s != self._analog_at_s:
-            self._analog_noise = self._noise.take(io.analog_input_count, io.analog_noise)
-            self._analog_at_s = self._monitoring_at_s
-        return io.analog_input(self._analog_noise)
 
     def consume_command(self, image: CommandImage, now_s: float) -> None:
         """A connection owner in run (or an explicit Set_Attribute_Single) commands the outputs."""
