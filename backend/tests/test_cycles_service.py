@@ -147,7 +147,10 @@ async def test_cycles_equal_those_computed_from_the_recorded_frames(
         (pytest.approx(c["start"], abs=1e-5), pytest.approx(c["end"], abs=1e-5))
         for c in measured_cycles
     ]
-    assert cycle_events[-1]["text"] == f"Cycle of {measured_cycles[-1]['duration_s']:.2f} s"
+    said = f"Cycle of {measured_cycles[-1]['duration_s']:.2f} s"
+    if measured_cycles[-1]["interrupted"]:  # a loaded machine's silence (see cycles_in)
+        said += f", interrupted: {measured_cycles[-1]['interruption']}"
+    assert cycle_events[-1]["text"] == said
     expected = cycles_in(table)
     assert len(expected) == len(measured_cycles)
     for (start, end, silent), cycle in zip(expected, measured_cycles, strict=True):
@@ -264,18 +267,22 @@ async def test_a_cycle_across_an_emergency_stop_is_interrupted_and_left_out(
     assert any(t.endswith("s, interrupted: Emergency stop") for t in texts), texts
     interrupted = [c for c in rows if c["interrupted"]]
     whole = [c for c in rows if not c["interrupted"]]
-    assert [c["interruption"] for c in interrupted] == ["Emergency stop"]
+    # The e-stop's cycle, and on a loaded machine perhaps a cycle across a silence of the
+    # frames (the meter's MAX_GAP_S: "no frames for 1.2 s (link lost)"), never anything else.
+    (stopped,) = [c for c in interrupted if c["interruption"] == "Emergency stop"]
+    silences = [c for c in interrupted if c is not stopped]
+    assert all(c["interruption"].endswith("(link lost)") for c in silences), silences
     assert all(c["interruption"] is None for c in whole)
-    long_one = interrupted[0]["duration_s"]
+    long_one = stopped["duration_s"]
     assert long_one > max(c["duration_s"] for c in whole)
     stats = body["statistics"]
-    assert stats["count"] == len(whole) and stats["interrupted"] == 1
+    assert stats["count"] == len(whole) and stats["interrupted"] == len(interrupted)
     assert stats["include_interrupted"] is False
     assert stats["max_s"] == pytest.approx(max(c["duration_s"] for c in whole))
     assert stats["last_s"] == pytest.approx(whole[-1]["duration_s"])
     every = included["statistics"]
     assert every["count"] == len(rows) and every["include_interrupted"] is True
-    assert every["max_s"] == pytest.approx(long_one)
+    assert every["max_s"] == pytest.approx(max(c["duration_s"] for c in interrupted))
     assert body["trigger"]["label"] == f"rising edge of Register out {MARKER}"
     csv_rows = list(csv.DictReader(io.StringIO(csv_answer.text)))
     assert [r["interrupted"] for r in csv_rows] == [str(c["interrupted"]) for c in rows]

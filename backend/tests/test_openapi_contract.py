@@ -179,8 +179,16 @@ def test_websocket_messages_and_events_are_components() -> None:
         "dropped",
         "status",
         "event",
+        "subscribed",  # the answer to a client's subscribe message (docs/api.md)
     }
-    for name in ("HelloMessage", "FramesMessage", "FrameItem", "Frame", "EventMessage"):
+    for name in (
+        "HelloMessage",
+        "FramesMessage",
+        "FrameItem",
+        "Frame",
+        "EventMessage",
+        "SubscribedMessage",
+    ):
         assert name in schemas
     event = schemas["EventMessage"]["properties"]["event"]
     assert event["discriminator"]["propertyName"] == "kind"

@@ -26,8 +26,10 @@ from service_support import (
 
 pytestmark = pytest.mark.timeout(180)
 
-TTL_S = 4.0
-"""The sessions' idle lifetime here: short, but long enough for a busy machine's first steps."""
+TTL_S = 10.0
+"""The sessions' idle lifetime here: short, but long enough that a busy machine's slow request
+(several seconds at load 12, beside a fresh clone's suite) never ends a session the test keeps
+alive, nor keeps one the test lets idle out."""
 READS = ("/api/v1/status", "/api/v1/auth/me", "/api/v1/alarms", "/api/v1/robots")
 """What a panel polls (about 48 of these per 30 s renewed a session before)."""
 
@@ -54,7 +56,9 @@ async def test_reads_never_renew_a_session_and_expiry_releases_control(
         headers = {"Authorization": f"Bearer {token}"}
         async with (
             hmi.client(token) as client,
-            connect(hmi.robot_ws_url("robot"), additional_headers=headers) as stream,
+            connect(
+                hmi.robot_ws_url("robot"), additional_headers=headers, open_timeout=60
+            ) as stream,
         ):
             reading = asyncio.create_task(_read_until_closed(stream))
             took = await client.post("/api/v1/control/take")
@@ -112,7 +116,8 @@ async def test_a_persons_actions_keep_a_session_and_reads_do_not(
                 me = acted.json()
                 assert me["user"]["name"] == OPERATOR[0]
                 assert me["idle_timeout_s"] == TTL_S
-                assert me["idle_expires_in_s"] == pytest.approx(TTL_S, abs=1.0)
+                # Renewed by this report: a whole lifetime left, less the answer's own time.
+                assert TTL_S - 3.0 <= me["idle_expires_in_s"] <= TTL_S
                 await client.get("/api/v1/status")
                 await asyncio.sleep(0.25)
             # So does a write.
