@@ -92,7 +92,7 @@ def main() -> int:
             device, name, value = words[1], words[2], json.loads(words[3])
             node.update_device(device, [sp.Metric(now(), name, datatypes[name], value=value)])
         elif words[0] == "gap":
-            next(node._EdgeNode__seq_cycler)  # type: ignore[attr-defined]
+            next(node._EdgeNode__seq_cycler)  # its private seq counter: a planted gap
         elif words[0] == "death":
             node.disconnect()
             return 0
