@@ -40,7 +40,8 @@ numbering, not lost packets."""
 EVENT_KINDS = ("recording", "alarm", "connection")
 FRAMES_START = b'{"type":"frames"'
 FRAME_NUMBERS = re.compile(rb'"seq":(\d+),"t":([-0-9.e+]+),"t2o_sequence":(\d+|null),"frame"')
-"""Each frame's numbers in a ``frames`` message, as the service writes them (hub.py)."""
+"""Each frame's numbers in a ``frames`` message, as the service writes them
+(``service.robots.websocket_fanout``)."""
 OUTPUTS = 16
 
 

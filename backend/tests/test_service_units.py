@@ -21,8 +21,13 @@ from cobot_hmi.service.events.bus import EventBus
 from cobot_hmi.service.events.text import FrameWatcher
 from cobot_hmi.service.robots.confirmation import FrameWaiters
 from cobot_hmi.service.robots.frames import FrameNotifier, FrameRecord, Runs
-from cobot_hmi.service.robots.hub import Hub, Kind, StreamClient, Subscription
 from cobot_hmi.service.robots.watch import FrameEventWatch
+from cobot_hmi.service.robots.websocket_fanout import (
+    Kind,
+    StreamClient,
+    Subscription,
+    WebSocketFanOut,
+)
 from cobot_hmi.service.storage.store import (
     AUDIT_COLUMNS,
     EVENT_COLUMNS,
@@ -191,12 +196,14 @@ class _NoAlarms:
         return None
 
 
-def _fan_out(client_queue_frames: int) -> tuple[FrameNotifier, Hub]:
+def _fan_out(client_queue_frames: int) -> tuple[FrameNotifier, WebSocketFanOut]:
     """A robot's frames to its WebSocket fan-out, and its state events through an event bus,
     registered as the robot registers them; the test dispatches (``dispatch_now``) as the
     notifier would every five frames."""
     notifier = FrameNotifier("r", frames_per_wake=5)
-    hub = Hub(robot="r", batch_s=0.05, client_queue_frames=client_queue_frames, stall_timeout_s=5)
+    hub = WebSocketFanOut(
+        robot="r", batch_s=0.05, client_queue_frames=client_queue_frames, stall_timeout_s=5
+    )
     bus = EventBus()
     bus.add(hub)
     notifier.add(hub)
@@ -435,7 +442,7 @@ async def test_store_migrates_a_database_without_robot_columns(tmp_path: Path) -
 async def test_each_frame_is_serialized_once_whatever_the_clients(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    import cobot_hmi.service.robots.hub as hub_module
+    import cobot_hmi.service.robots.websocket_fanout as hub_module
     from cobot_hmi.codec import frame_to_json as real
 
     calls = 0

@@ -209,15 +209,15 @@ async def test_the_hello_carries_the_kiosk_settings(hmi: Running) -> None:
     assert hello["kiosk"] == {"plot_window_s": 30.0, "shift_starts": ["06:00", "14:00", "22:00"]}
 
 
-async def test_the_hub_encodes_once_per_group_not_per_client(
+async def test_the_fan_out_encodes_once_per_group_not_per_client(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """Five clients in two groups (every field; two fields at 50 Hz): every client of a group is
     handed the same text, and each distinct frame is turned into JSON once per group's fields."""
     from cobot_hmi.codec import zero_frame
-    from cobot_hmi.service.robots import hub as hub_module
+    from cobot_hmi.service.robots import websocket_fanout as hub_module
     from cobot_hmi.service.robots.frames import FrameNotifier
-    from cobot_hmi.service.robots.hub import Hub, Subscription
+    from cobot_hmi.service.robots.websocket_fanout import Subscription, WebSocketFanOut
 
     encoded: list[object] = []
     from cobot_hmi.codec import dumps as real_dumps
@@ -228,7 +228,7 @@ async def test_the_hub_encodes_once_per_group_not_per_client(
         return real_dumps(data)
 
     monkeypatch.setattr(hub_module, "dumps", counting_dumps)
-    hub = Hub(robot="r", batch_s=0.05, client_queue_frames=1000, stall_timeout_s=5)
+    hub = WebSocketFanOut(robot="r", batch_s=0.05, client_queue_frames=1000, stall_timeout_s=5)
     notifier = FrameNotifier("r", frames_per_wake=5)
     notifier.add(hub)
     texts: dict[int, list[str]] = {}

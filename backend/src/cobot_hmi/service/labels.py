@@ -45,11 +45,6 @@ def split_key(key: str) -> tuple[str, int | None]:
     return name, int(index)
 
 
-def layout_field(name: str) -> Field | None:
-    """The layout field called ``name`` (either direction), or ``None``."""
-    return _BY_NAME.get(name)
-
-
 def element_label(key: str) -> str | None:
     """The label of an element key as the robot prints it, or ``None`` for a key that names
     no element of the layout (an alarm's own key, a malformed body's key).

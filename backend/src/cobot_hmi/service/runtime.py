@@ -36,9 +36,9 @@ from cobot_hmi.service.plant_time import PLANT_ZONE
 from cobot_hmi.service.recording.recorder import Recorder
 from cobot_hmi.service.recording.settings import HistorySettings
 from cobot_hmi.service.robots.control import Control
-from cobot_hmi.service.robots.hub import Hub
 from cobot_hmi.service.robots.link import CyclicLoop, RobotLink, stats_of
 from cobot_hmi.service.robots.robot import RobotRuntime
+from cobot_hmi.service.robots.websocket_fanout import WebSocketFanOut
 from cobot_hmi.service.setting_fields import part_of
 from cobot_hmi.service.settings import ServiceSettings
 from cobot_hmi.service.storage.event_log import EventLog
@@ -141,7 +141,7 @@ class Service:
         return self.default_robot.link
 
     @property
-    def hub(self) -> Hub:
+    def hub(self) -> WebSocketFanOut:
         return self.default_robot.hub
 
     @property

@@ -1,8 +1,9 @@
 """Layer: service (Sparkplug). The service as a Sparkplug B edge node: every robot a device.
 
 Threads: the cyclic thread only appends each frame to this node's bounded queue per robot
-(``Hub.subscribe``: O(1), drops counted, it never waits); paho's network thread does the MQTT
-socket, keep-alive and reconnects and hands every event to the web event loop; everything else
+(each robot's device is a consumer of its frames, ``robots.frames``: O(1), drops counted, it
+never waits); paho's network thread does the MQTT socket, keep-alive and reconnects and hands
+every event to the web event loop; everything else
 (reports by exception, births, deaths, the buffer, commands) runs on the web event loop, one
 task per robot waking at the robot's maximum rate, so all state here has one thread.
 

@@ -1,13 +1,12 @@
 """Layer: service. One robot's alarms: evaluated on every frame, on the connection's changes and
 on a slow tick; acknowledged and shelved by operators; announced as ``alarm`` events; persisted.
 
-``observe`` is called by the robot's hub for every frame it drains (``Hub.tick``, on the web
-loop, never on the cyclic thread), in order, before the frames are sent to clients: an alarm
-comes with the first frame that shows its condition. A frame that changes nothing allocates
-nothing (``conditions``); only a change builds an event and queues its row
-(``persistence.AlarmStore.submit``, no wait). The same ``Frame`` object again (the originator
-hands it on while the robot's bytes do not change) is not evaluated again unless a condition's
-delay runs.
+``observe`` is called for every frame the robot's frame watch takes (``robots.watch``, a consumer of
+the robot's frames on the web loop, never on the cyclic thread), in order, before the frames are
+sent to clients: an alarm comes with the first frame that shows its condition. A frame that changes
+nothing allocates nothing (``conditions``); only a change builds an event and queues its row
+(``persistence.AlarmStore.submit``, no wait). The same ``Frame`` object again (the originator hands
+it on while the robot's bytes do not change) is not evaluated again unless a condition's delay runs.
 
 The connection's alarms (lost or stale, Forward Open refused) and the packet loss rate are
 evaluated by ``tick`` (``TICK_S``) and on each connection state change; shelving expiries too.

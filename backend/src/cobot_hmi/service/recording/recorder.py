@@ -1,20 +1,20 @@
 """Layer: service. The recorder: every frame of every robot into its recording
 (``cobot_hmi.history``), off the hot path.
 
-Each robot's hub hands every frame to the recorder's subscription (``Hub.subscribe``: an O(1)
-append on the cyclic thread into a bounded queue of ``history_queue_frames``, the oldest dropped
-and counted when full: the cyclic connection never waits). One thread of the recorder's own
-drains the queues every ``history_flush_s``, turns the frames into one record batch per robot
-(numpy over the wire bytes, ``history.schema``) and appends it to the robot's open segment;
-every ``history_segment_s`` it closes the segment's journal and records on in a new one at
-once, while the closed journal is turned into Parquet in a short-lived process of its own
-(``history.closer``: seconds of work for ten minutes at RPI 2 ms, which on this thread held every
-robot's frames in their queues; in a process, the memory it takes leaves with it), and retention
-(``history.retention``) runs. The work holds the GIL in short
-stretches (a second of frames is converted in a few milliseconds; pyarrow's encoding and
-writing release it); the cyclic connection does not depend on it for its timing (its receive
-times are the kernel's, its O→T packets are sent by the C pump thread, which needs no GIL;
-bench/history compares the receive interval with and without recording).
+Each robot's frames reach the recorder as one of its frame consumers (``robots.frames``,
+``FrameNotifier``: an O(1) append on the cyclic thread into a bounded queue of
+``history_queue_frames``, the oldest dropped and counted when full: the cyclic connection never
+waits). One thread of the recorder's own drains the queues every ``history_flush_s``, turns the
+frames into one record batch per robot (numpy over the wire bytes, ``history.schema``) and appends
+it to the robot's open segment; every ``history_segment_s`` it closes the segment's journal and
+records on in a new one at once, while the closed journal is turned into Parquet in a short-lived
+process of its own (``history.closer``: seconds of work for ten minutes at RPI 2 ms, which on this
+thread held every robot's frames in their queues; in a process, the memory it takes leaves with it),
+and retention (``history.retention``) runs. The work holds the GIL in short stretches (a second of
+frames is converted in a few milliseconds; pyarrow's encoding and writing release it); the cyclic
+connection does not depend on it for its timing (its receive times are the kernel's, its O→T packets
+are sent by the C pump thread, which needs no GIL; bench/history compares the receive interval with
+and without recording).
 
 A disk that fills (or any write error: read-only, removed directory) pauses recording for every
 robot with a ``recording`` event (state ``paused`` and the reason) on each robot's stream and

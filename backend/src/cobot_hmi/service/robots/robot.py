@@ -36,11 +36,11 @@ from cobot_hmi.service.plant_time import PLANT_ZONE
 from cobot_hmi.service.robots.confirmation import FrameWaiters
 from cobot_hmi.service.robots.control import Control
 from cobot_hmi.service.robots.frames import FrameNotifier
-from cobot_hmi.service.robots.hub import Hub
 from cobot_hmi.service.robots.intervals import ReceiveIntervals
 from cobot_hmi.service.robots.link import CyclicLoop, RobotLink
 from cobot_hmi.service.robots.settings import RobotSettings
 from cobot_hmi.service.robots.watch import FrameEventWatch
+from cobot_hmi.service.robots.websocket_fanout import WebSocketFanOut
 from cobot_hmi.service.storage.store import Store
 from cobot_hmi.service.storage.tags import TagBook
 from cobot_hmi.service.web.settings import WebSettings
@@ -167,7 +167,7 @@ class RobotRuntime:
             frames_per_wake=max(1, round(web.ws_batch_ms / settings.rpi_ms)),
         )
         """Every frame of the robot, published once, to every consumer (``robots.frames``)."""
-        self.hub = Hub(
+        self.hub = WebSocketFanOut(
             robot=self.name,
             batch_s=web.ws_batch_ms / 1000,
             client_queue_frames=web.ws_queue_frames,

@@ -2,12 +2,11 @@
 WebSocket message, so ``/openapi.json`` describes all of it (no empty schema) and clients can be
 generated from it.
 
-The frame and command-image models are built from ``cobot_hmi.layout`` at import (one place:
-a field added to the layout appears here, with its count, element type and index pattern).
-The models document and check shapes; the hot path does not go through them: the WebSocket
-fan-out serializes each frame once with orjson (``service.robots.hub``), and the tests validate real
-messages against these models. Imports the layout, the codec's constants and pydantic only.
-"""
+The frame and command-image models are built from ``cobot_hmi.layout`` at import (one place: a field
+added to the layout appears here, with its count, element type and index pattern). The models
+document and check shapes; the hot path does not go through them: the WebSocket fan-out serializes
+each frame once with orjson (``service.robots.websocket_fanout``), and the tests validate real
+messages against these models. Imports the layout, the codec's constants and pydantic only."""
 
 from __future__ import annotations
 

@@ -7,14 +7,12 @@ robot held by that session ends when its last stream to that robot closes. A ref
 handshake is a close with an application code: 4400 (bad ``rate``), 4401 (login required) or
 4404 (unknown robot, the known ones named), the reason in the close.
 
-A client may send ``subscribe`` messages (``service.api.models.SubscribeMessage``): the frame
-fields it shows and the rate it draws at; the frames after the service's ``subscribed`` answer
-carry only those fields at that rate (``robots.hub``). A bad one is a close with 4400 and the
-reason. When the session ends
-while the stream is open (logout, expiry, its user removed or given another role, its API
-token revoked), the stream is closed at once with 1008 (policy violation, RFC 6455 §7.4.1)
-and the reason: it must not go on showing what the session may no longer see.
-"""
+A client may send ``subscribe`` messages (``service.api.models.SubscribeMessage``): the frame fields
+it shows and the rate it draws at; the frames after the service's ``subscribed`` answer carry only
+those fields at that rate (``robots.websocket_fanout``). A bad one is a close with 4400 and the
+reason. When the session ends while the stream is open (logout, expiry, its user removed or given
+another role, its API token revoked), the stream is closed at once with 1008 (policy violation, RFC
+6455 §7.4.1) and the reason: it must not go on showing what the session may no longer see."""
 
 from __future__ import annotations
 
@@ -33,7 +31,7 @@ from cobot_hmi.layout import T2O_FIELDS
 from cobot_hmi.service.api.deps import client_address, get_service, session_token
 from cobot_hmi.service.api.models.stream import SUBSCRIBE_MESSAGE
 from cobot_hmi.service.errors import UnknownRobotError
-from cobot_hmi.service.robots.hub import Hub, StreamClient, Subscription
+from cobot_hmi.service.robots.websocket_fanout import StreamClient, Subscription, WebSocketFanOut
 
 router = APIRouter()
 
@@ -217,7 +215,9 @@ async def _stream(websocket: WebSocket, name: str | None) -> None:
         service.websocket_closed(session, robot)
 
 
-async def _read_subscriptions(websocket: WebSocket, hub: Hub, client: StreamClient) -> None:
+async def _read_subscriptions(
+    websocket: WebSocket, hub: WebSocketFanOut, client: StreamClient
+) -> None:
     """The client's ``subscribe`` messages until it disconnects; a bad one closes the stream
     with 4400 and why (the client's frames stop before the close)."""
     while True:

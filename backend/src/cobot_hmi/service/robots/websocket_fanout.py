@@ -179,7 +179,7 @@ class _RateGroup:
         return chosen
 
 
-class Hub:
+class WebSocketFanOut:
     """Fan-out of one robot's frames and events to WebSocket clients (see the module
     docstring)."""
 
