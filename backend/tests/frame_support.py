@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from cobot_hmi.service.robots.frames import FrameNotifier, FrameRecord, Runs
+from cobot_hmi.service.robots.frame_notifier import FrameNotifier, FrameRecord, Runs
 
 
 class CollectedFrames:

@@ -17,7 +17,7 @@ from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
 from cobot_hmi.layout import O2T_FIELDS, T2O_FIELDS, Field
-from cobot_hmi.service.robots.frames import FrameRecord
+from cobot_hmi.service.robots.frame_notifier import FrameRecord
 from cobot_hmi.service.runtime import Service
 from cobot_hmi.sparkplug.edge_node import EdgeNode
 from conftest import _next_host, free_tcp_port

@@ -19,7 +19,7 @@ import pytest
 
 from cobot_hmi.service.commissioning.models import Checkout
 from cobot_hmi.service.commissioning.points import CHECK_POINTS
-from cobot_hmi.service.robots.frames import FrameRecord, Runs
+from cobot_hmi.service.robots.frame_notifier import FrameRecord, Runs
 from cobot_hmi.settings import HmiSettings
 from emulator_harness import Emulator, running_emulator
 from service_support import (

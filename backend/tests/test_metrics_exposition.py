@@ -26,7 +26,7 @@ from sparkplug_support import cell
 LEGACY = Path(__file__).parent / "legacy"
 
 # Families added after 58f13a2: the history closer's (a journal becoming its segment in a process
-# of its own), every frame consumer's drops (robots.frames), the audit's on a full disk
+# of its own), every frame consumer's drops (robots.frame_notifier), the audit's on a full disk
 # (outcomes kept in memory until the disk takes them), the rows of the events, alarms and
 # cycles waiting for the disk likewise, and the cyclic pump's.
 ADDED_SINCE_58F13A2: dict[str, Any] = {

@@ -22,7 +22,7 @@ from cobot_hmi.emulator.target import Target
 from cobot_hmi.enip import io
 from cobot_hmi.layout import ROBOT_STATES
 from cobot_hmi.scanner.originator import Originator, OriginatorSettings
-from cobot_hmi.service.robots.frames import FrameNotifier
+from cobot_hmi.service.robots.frame_notifier import FrameNotifier
 from frame_support import CollectedFrames
 from waiting import eventually
 

@@ -20,7 +20,7 @@ from cobot_hmi.layout import FRAME_ECHOED
 from cobot_hmi.service.events.bus import EventBus
 from cobot_hmi.service.events.text import FrameWatcher
 from cobot_hmi.service.robots.confirmation import FrameWaiters
-from cobot_hmi.service.robots.frames import FrameNotifier, FrameRecord, Runs
+from cobot_hmi.service.robots.frame_notifier import FrameNotifier, FrameRecord, Runs
 from cobot_hmi.service.robots.watch import FrameEventWatch
 from cobot_hmi.service.robots.websocket_fanout import (
     Kind,

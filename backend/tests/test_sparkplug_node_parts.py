@@ -21,7 +21,7 @@ import pytest
 
 from cobot_hmi.codec import Frame
 from cobot_hmi.emulator.static_robot import standing_frame
-from cobot_hmi.service.robots.frames import FrameNotifier, FrameRecord
+from cobot_hmi.service.robots.frame_notifier import FrameNotifier, FrameRecord
 from cobot_hmi.sparkplug.buffer import DiskBuffer
 from cobot_hmi.sparkplug.catalogue import ALIAS_STRIDE, BD_SEQ, Catalogue
 from cobot_hmi.sparkplug.mqtt_client import BrokerAddress, ClientOptions, make_client

@@ -216,7 +216,7 @@ async def test_the_fan_out_encodes_once_per_group_not_per_client(
     handed the same text, and each distinct frame is turned into JSON once per group's fields."""
     from cobot_hmi.codec import zero_frame
     from cobot_hmi.service.robots import websocket_fanout as hub_module
-    from cobot_hmi.service.robots.frames import FrameNotifier
+    from cobot_hmi.service.robots.frame_notifier import FrameNotifier
     from cobot_hmi.service.robots.websocket_fanout import Subscription, WebSocketFanOut
 
     encoded: list[object] = []

@@ -1,10 +1,10 @@
 """Layer: composition. The one place that builds a running service from its parts.
 
-``service`` knows nothing of the doors above it: the Sparkplug B edge node (``sparkplug``) and
-the OPC UA server (``opcua``) each consume the robots' frames and events through the same
-interfaces as the service's own parts (``service.robots.frames``, ``service.events.bus``), and
-are plugged in here, when their settings turn them on, as ``service.extensions``. Every command
-that runs a service (``serve``, ``demo``, ``openapi``) builds it through ``build_service``.
+``service`` knows nothing of the doors above it: the Sparkplug B edge node (``sparkplug``) and the
+OPC UA server (``opcua``) each consume the robots' frames and events through the same interfaces as
+the service's own parts (``service.robots.frame_notifier``, ``service.events.bus``), and are plugged
+in here, when their settings turn them on, as ``service.extensions``. Every command that runs a
+service (``serve``, ``demo``, ``openapi``) builds it through ``build_service``.
 """
 
 from __future__ import annotations

@@ -3,13 +3,13 @@
 Everything the server takes from the service, and every request it makes of it, goes through
 ``ServiceFeed``; no other module of ``cobot_hmi.opcua`` imports ``cobot_hmi.service``.
 
-- **Frames**: a consumer of every robot's frames (``robots.frames``) that runs on the server's
-  own thread: the cyclic thread's O(1) append into a bounded queue per robot (the oldest dropped
-  and counted when full), drained at each monitoring tick (``sample``): only the period's newest
-  frame is used, at most one RPI old (a consumer on the web loop would see it only at the
-  loop's next wake, up to a WebSocket batch later). With it the link state, the command
-  image, the control holder and the identity, read as they are (attribute reads; the web loop
-  and the cyclic thread never wait for this thread).
+- **Frames**: a consumer of every robot's frames (``robots.frame_notifier``) that runs on the
+  server's own thread: the cyclic thread's O(1) append into a bounded queue per robot (the oldest
+  dropped and counted when full), drained at each monitoring tick (``sample``): only the period's
+  newest frame is used, at most one RPI old (a consumer on the web loop would see it only at the
+  loop's next wake, up to a WebSocket batch later). With it the link state, the command image, the
+  control holder and the identity, read as they are (attribute reads; the web loop and the cyclic
+  thread never wait for this thread).
 - **Users**: ``authenticate`` checks a user name and password against the service's users file
   (scrypt, on the server's thread), behind a login throttle of its own (``service.access.auth``'s
   two budgets: per client address and per user name); a refusal during a wait is immediate.
@@ -31,7 +31,7 @@ from cobot_hmi.scanner.originator import ConnectionState
 from cobot_hmi.service.access.auth import LoginThrottle, Session
 from cobot_hmi.service.access.users import User, UsersFile
 from cobot_hmi.service.errors import ApiError
-from cobot_hmi.service.robots.frames import FrameRecord, Registration, Runs
+from cobot_hmi.service.robots.frame_notifier import FrameRecord, Registration, Runs
 from cobot_hmi.service.writes.pipeline import (
     WriteOutcome,
     Writer,
@@ -57,7 +57,7 @@ __all__ = ["ApiError", "ServiceFeed", "Session", "User", "WriteOutcome", "Writer
 class ServiceFeed:
     """See the module docstring. Built on the web loop; used from the server's thread.
 
-    A consumer of every robot's frames (``robots.frames``) on the server's thread: each tick
+    A consumer of every robot's frames (``robots.frame_notifier``) on the server's thread: each tick
     (``sample``) takes the frames queued since the last one and keeps only the newest."""
 
     name: Final = "opcua"
@@ -106,7 +106,7 @@ class ServiceFeed:
         self._newest[robot] = records[-1]
 
     def dropped(self, name: str) -> int:
-        """Frames the robot's queue lost while the web loop was late (``robots.frames``)."""
+        """Frames the robot's queue lost while the web loop was late (``robots.frame_notifier``)."""
         registration = self._registrations.get(name)
         return 0 if registration is None else registration.dropped
 

@@ -2,7 +2,7 @@
 
 The service itself knows its robots, their frames and events, the store, the recorder and the
 HTTP API. The doors to other systems (the Sparkplug B edge node, the OPC UA server) live in
-packages above it and consume the same frame and event interfaces (``robots.frames``,
+packages above it and consume the same frame and event interfaces (``robots.frame_notifier``,
 ``events.bus``); ``cobot_hmi.composition`` builds them and hands them to ``Service`` as
 ``ServiceExtension`` s, which the service starts after its robots' connections, stops before
 them, and whose counters ``/metrics`` includes. The service never imports them.

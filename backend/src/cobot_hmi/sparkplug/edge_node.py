@@ -1,7 +1,7 @@
 """Layer: service (Sparkplug). The service as a Sparkplug B edge node: every robot a device.
 
 Threads: the cyclic thread only appends each frame to this node's bounded queue per robot
-(each robot's device is a consumer of its frames, ``robots.frames``: O(1), drops counted, it
+(each robot's device is a consumer of its frames, ``robots.frame_notifier``: O(1), drops counted, it
 never waits); paho's network thread does the MQTT socket, keep-alive and reconnects and hands
 every event to the web event loop; everything else
 (reports by exception, births, deaths, the buffer, commands) runs on the web event loop, one

@@ -19,7 +19,7 @@ from operator import attrgetter
 from typing import Any
 
 from cobot_hmi.codec import Frame
-from cobot_hmi.service.robots.frames import FrameRecord
+from cobot_hmi.service.robots.frame_notifier import FrameRecord
 from cobot_hmi.sparkplug.catalogue import Catalogue
 from cobot_hmi.sparkplug.payload import MetricValue
 

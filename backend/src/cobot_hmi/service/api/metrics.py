@@ -304,7 +304,7 @@ def _timing_families(robots: _Robots) -> Iterator[Metric]:
     # Every consumer of every robot's frames, by name: what its bounded queue dropped.
     dropped = _counter(
         "consumer_dropped_frames_total",
-        "frames a consumer's queue dropped because it fell behind (robots.frames)",
+        "frames a consumer's queue dropped because it fell behind (robots.frame_notifier)",
         ["robot", "consumer"],
     )
     for name, robot, _ in robots:

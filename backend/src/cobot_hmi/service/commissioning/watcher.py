@@ -1,5 +1,5 @@
-"""Layer: service. The checkout's consumer of a robot's frames (``robots.frames``), on the web
-event loop: while a checkout of the robot is open, every frame goes through
+"""Layer: service. The checkout's consumer of a robot's frames (``robots.frame_notifier``), on
+the web event loop: while a checkout of the robot is open, every frame goes through
 ``CheckoutWatcher.on_frames``, and a digital input (DI, Tool DI, bit output register) whose
 value changes from one frame to the next is marked ``seen`` in every open checkout where it has
 not been seen yet, with that frame's receive time, its number and both values; nobody needs to
@@ -20,7 +20,7 @@ from typing import Final
 from cobot_hmi.codec import Frame
 from cobot_hmi.service.commissioning.checkout import Checkout, CheckoutBook, PointState
 from cobot_hmi.service.commissioning.points import DIGITAL_INPUT_FIELDS
-from cobot_hmi.service.robots.frames import FrameNotifier, FrameRecord, Registration, Runs
+from cobot_hmi.service.robots.frame_notifier import FrameNotifier, FrameRecord, Registration, Runs
 
 log = logging.getLogger(__name__)
 

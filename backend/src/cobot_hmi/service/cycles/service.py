@@ -1,7 +1,7 @@
 """Layer: service. Every robot's cycle meter on its frames, and the measured cycles to the store.
 
 Each robot with a ``cycle_trigger`` gets a ``CycleMeter``, registered with the robot's frame
-notifier as a consumer on the web loop (``robots.frames``: every frame, O(1) on the cyclic
+notifier as a consumer on the web loop (``robots.frame_notifier``: every frame, O(1) on the cyclic
 thread, drops counted). The meter reads each frame's own receive time, so when the loop runs it
 changes when a cycle is written, never what it measures.
 """
@@ -14,7 +14,7 @@ from typing import Final
 from cobot_hmi.service.cycles.meter import Cycle, CycleMeter
 from cobot_hmi.service.cycles.store import CycleStore
 from cobot_hmi.service.events.text import Event
-from cobot_hmi.service.robots.frames import FrameRecord, Runs
+from cobot_hmi.service.robots.frame_notifier import FrameRecord, Runs
 from cobot_hmi.service.robots.robot import RobotRuntime
 from cobot_hmi.service.storage.store import Store
 
@@ -23,8 +23,9 @@ QUEUE_FRAMES: Final = 8192
 
 
 class CycleConsumer:
-    """One robot's meter as a frame consumer (``robots.frames.FrameConsumer``); each measured
-    cycle is stored and announced on the event bus (a ``cycle`` event: the plots' markers)."""
+    """One robot's meter as a frame consumer (``robots.frame_notifier.FrameConsumer``); each
+    measured cycle is stored and announced on the event bus (a ``cycle`` event: the plots'
+    markers)."""
 
     name = "cycles"
     runs = Runs.LOOP

@@ -4,7 +4,7 @@ Events (``docs/api.md`` "Events": robot states, flags, connection, writes, contr
 sessions, recording) are published here, once, by whoever sees them happen; the consumers
 (the event log in the database, each robot's WebSocket fan-out, the Sparkplug B edge node, the
 OPC UA server) implement ``EventConsumer`` and are registered the same way, as frame consumers
-are with ``robots.frames.FrameNotifier``.
+are with ``robots.frame_notifier.FrameNotifier``.
 
 ``publish`` runs on the web event loop and hands the event to each consumer in registration
 order, at once: events are few (a handful a second at most) and never dropped. Each gets its

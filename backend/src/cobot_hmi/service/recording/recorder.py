@@ -1,7 +1,7 @@
 """Layer: service. The recorder: every frame of every robot into its recording
 (``cobot_hmi.history``), off the hot path.
 
-Each robot's frames reach the recorder as one of its frame consumers (``robots.frames``,
+Each robot's frames reach the recorder as one of its frame consumers (``robots.frame_notifier``,
 ``FrameNotifier``: an O(1) append on the cyclic thread into a bounded queue of
 ``history_queue_frames``, the oldest dropped and counted when full: the cyclic connection never
 waits). One thread of the recorder's own drains the queues every ``history_flush_s``, turns the
@@ -51,7 +51,7 @@ from cobot_hmi.history.closer import JournalCloser
 from cobot_hmi.history.journal_form import records_to_journal_batch
 from cobot_hmi.history.segments import Segment, SegmentWriter
 from cobot_hmi.service.extensions import MetricFamily
-from cobot_hmi.service.robots.frames import FrameRecord, Registration, Runs
+from cobot_hmi.service.robots.frame_notifier import FrameRecord, Registration, Runs
 
 if TYPE_CHECKING:
     from cobot_hmi.service.recording.settings import HistorySettings
@@ -91,7 +91,7 @@ class Recorder:
     missed), ``stop`` after it stopped (the last frames are written and every open segment
     closed).
 
-    A frame consumer (``robots.frames``) of every robot that runs on its own thread: each
+    A frame consumer (``robots.frame_notifier``) of every robot that runs on its own thread: each
     ``history_flush_s`` the thread takes every robot's queued frames (``on_frames``) and
     appends them to the robot's journal as one record batch sliced from the T→O payloads."""
 

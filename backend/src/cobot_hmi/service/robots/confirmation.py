@@ -1,6 +1,6 @@
 """Layer: service. Write confirmation: the first frame after a write that shows what it asked.
 
-``FrameWaiters`` is one robot's frame consumer (``robots.frames``) on the web loop. A write
+``FrameWaiters`` is one robot's frame consumer (``robots.frame_notifier``) on the web loop. A write
 (``writes.pipeline``) waits in ``wait_for_frame`` for the first frame newer than the one before
 its O→T image changed for which its predicate holds. While anyone waits the consumer is
 ``urgent``: the notifier wakes the loop on every frame instead of every ``frames_per_wake``, so
@@ -16,7 +16,7 @@ from collections.abc import Callable, Sequence
 from typing import Final
 
 from cobot_hmi.codec import Frame
-from cobot_hmi.service.robots.frames import FrameNotifier, FrameRecord, Registration, Runs
+from cobot_hmi.service.robots.frame_notifier import FrameNotifier, FrameRecord, Registration, Runs
 
 QUEUE_FRAMES: Final = 64
 """Frames kept between two turns (a confirmation needs the newest few)."""

@@ -27,7 +27,7 @@ from cobot_hmi.service.access.auth import Session
 from cobot_hmi.service.access.users import Role
 from cobot_hmi.service.errors import AuditUnavailableError, conflict
 from cobot_hmi.service.events.text import Event
-from cobot_hmi.service.robots.frames import FrameNotifier
+from cobot_hmi.service.robots.frame_notifier import FrameNotifier
 from cobot_hmi.service.robots.link import RobotLink
 from cobot_hmi.service.storage.store import AuditEntry, Store
 

@@ -1,6 +1,6 @@
 """Layer: service. One robot's T→O receive intervals and frame counts, for ``/metrics``.
 
-A frame consumer (``robots.frames``) on the web loop: it counts the frames it was handed and
+A frame consumer (``robots.frame_notifier``) on the web loop: it counts the frames it was handed and
 the ones its queue lost, and sorts every receive interval (kernel receive time to kernel
 receive time) into a histogram whose buckets are fine near the RPI (0.25 ms up to 30 ms).
 After a reconnect the first interval means nothing: ``reset_baseline`` forgets the last time.
@@ -12,7 +12,7 @@ import bisect
 from collections.abc import Sequence
 from typing import Final
 
-from cobot_hmi.service.robots.frames import FrameRecord, Runs
+from cobot_hmi.service.robots.frame_notifier import FrameRecord, Runs
 
 QUEUE_FRAMES: Final = 4096
 """Frames the loop may fall behind by before the oldest are lost (~40 s at 10 ms)."""

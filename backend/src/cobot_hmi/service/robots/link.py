@@ -12,7 +12,7 @@ watch.
 Each robot has a ``RobotLink``, its handle on its originator: everything the web side asks of
 it goes through ``run_coroutine_threadsafe``; plain attribute reads (``state``, ``run``,
 ``command``) are single loads under the GIL. The frame callback goes straight to
-``FrameNotifier.publish`` (``robots.frames``) on the cyclic thread (it is O(1) and
+``FrameNotifier.publish`` (``robots.frame_notifier``) on the cyclic thread (it is O(1) and
 thread-safe); state changes are handed to the web loop. One robot lost or refused is one
 originator's business: the others run on.
 

@@ -35,7 +35,7 @@ from cobot_hmi.service.events.text import Event
 from cobot_hmi.service.plant_time import PLANT_ZONE
 from cobot_hmi.service.robots.confirmation import FrameWaiters
 from cobot_hmi.service.robots.control import Control
-from cobot_hmi.service.robots.frames import FrameNotifier
+from cobot_hmi.service.robots.frame_notifier import FrameNotifier
 from cobot_hmi.service.robots.intervals import ReceiveIntervals
 from cobot_hmi.service.robots.link import CyclicLoop, RobotLink
 from cobot_hmi.service.robots.settings import RobotSettings
@@ -166,7 +166,8 @@ class RobotRuntime:
             self.name,
             frames_per_wake=max(1, round(web.ws_batch_ms / settings.rpi_ms)),
         )
-        """Every frame of the robot, published once, to every consumer (``robots.frames``)."""
+        """Every frame of the robot, published once, to every consumer
+        (``robots.frame_notifier``)."""
         self.hub = WebSocketFanOut(
             robot=self.name,
             batch_s=web.ws_batch_ms / 1000,

@@ -1,6 +1,6 @@
 """Layer: service. Events seen in one robot's frames: state and flag changes, and its alarms.
 
-A frame consumer (``robots.frames``) on the web loop: every frame in order goes through the
+A frame consumer (``robots.frame_notifier``) on the web loop: every frame in order goes through the
 state and flag watcher (``events.text.FrameWatcher``) and the robot's alarm engine
 (``service.alarms``: nothing allocated unless an alarm changes; the same ``Frame`` object
 again, which the originator hands on while the robot's bytes do not change, is looked at by
@@ -16,7 +16,7 @@ from typing import Final, Protocol
 
 from cobot_hmi.codec import Frame
 from cobot_hmi.service.events.text import Event, FrameWatcher
-from cobot_hmi.service.robots.frames import FrameRecord, Runs
+from cobot_hmi.service.robots.frame_notifier import FrameRecord, Runs
 
 QUEUE_FRAMES: Final = 4096
 """Frames the loop may fall behind by before the oldest are lost (~40 s at 10 ms)."""

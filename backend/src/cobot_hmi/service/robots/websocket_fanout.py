@@ -1,7 +1,7 @@
 """Layer: service. The WebSocket fan-out: one robot's frames and events to every client.
 
-The hub is one of the robot's frame consumers (``robots.frames``), on the web loop, and one of
-the event bus's consumers (``events.bus``). Nothing a client does can reach the cyclic
+The fan-out is one of the robot's frame consumers (``robots.frame_notifier``), on the web loop,
+and one of the event bus's consumers (``events.bus``). Nothing a client does can reach the cyclic
 connection:
 
 - The notifier hands the hub the frames since its last turn (about ``batch_s`` of them: the
@@ -34,7 +34,7 @@ from typing import Any, Final
 
 from cobot_hmi.codec import Frame, dumps, frame_to_json
 from cobot_hmi.service.events.text import Event
-from cobot_hmi.service.robots.frames import FrameRecord, Runs
+from cobot_hmi.service.robots.frame_notifier import FrameRecord, Runs
 
 log = logging.getLogger(__name__)
 

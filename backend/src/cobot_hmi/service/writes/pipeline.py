@@ -40,7 +40,7 @@ from cobot_hmi.service.access.auth import Session
 from cobot_hmi.service.access.users import Role
 from cobot_hmi.service.errors import ApiError, AuditUnavailableError
 from cobot_hmi.service.labels import labels_of, write_summary
-from cobot_hmi.service.robots.frames import FrameRecord
+from cobot_hmi.service.robots.frame_notifier import FrameRecord
 from cobot_hmi.service.robots.robot import WriteCounters
 from cobot_hmi.service.storage.store import AuditEntry, Store
 from cobot_hmi.service.writes.validation import (
@@ -75,7 +75,7 @@ class _Link(Protocol):
 
 
 class _Frames(Protocol):
-    """The robot's frames (``robots.frames.FrameNotifier``)."""
+    """The robot's frames (``robots.frame_notifier.FrameNotifier``)."""
 
     @property
     def seq(self) -> int: ...

@@ -1,5 +1,5 @@
 """Layer: service (Sparkplug). One robot as a Sparkplug device: a consumer of its frames
-(``robots.frames``) and what was last reported of it.
+(``robots.frame_notifier``) and what was last reported of it.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Final
 
 from cobot_hmi.codec import CommandImage, Frame
-from cobot_hmi.service.robots.frames import FrameRecord, Runs
+from cobot_hmi.service.robots.frame_notifier import FrameRecord, Runs
 from cobot_hmi.sparkplug.catalogue import ALIAS_STRIDE, Catalogue
 from cobot_hmi.sparkplug.rbe import Reporter
 
@@ -31,8 +31,8 @@ def now_ms() -> int:
 class Device:
     """One robot as a Sparkplug device: its frames, reporter and what was last reported.
 
-    A consumer of the robot's frames (``robots.frames``) on the web loop: ``on_frames`` keeps
-    them (bounded: the oldest dropped and counted) and wakes the device's loop, which reports
+    A consumer of the robot's frames (``robots.frame_notifier``) on the web loop: ``on_frames``
+    keeps them (bounded: the oldest dropped and counted) and wakes the device's loop, which reports
     at most every ``period_s``, right after frames arrived."""
 
     name: Final = "sparkplug"
