@@ -78,8 +78,8 @@ native-tsan: $(TSAN_HARNESS)
 
 lint: $(STAMP)
 	cd backend && ../$(BIN)/ruff check . ../bench && ../$(BIN)/ruff format --check . ../bench
-	@# The declared import order (backend/pyproject.toml's [tool.importlinter]): a back arrow fails.
-	cd backend && ../$(BIN)/lint-imports
+	@# The declared import order (.importlinter, read from the repository's root): a back arrow fails.
+	$(BIN)/lint-imports
 
 typecheck: $(STAMP)
 	cd backend && ../$(BIN)/mypy

@@ -1,15 +1,14 @@
-"""The declared import order (``backend/pyproject.toml``'s ``[tool.importlinter]``, checked by
-``make lint``): docs/architecture.md draws exactly the floors it enforces, the tree keeps them,
-and a planted back arrow fails the check (run on a copy of the package: the tree is not
-touched)."""
+"""The declared import order (the repository's ``.importlinter``, checked by ``make lint``):
+docs/architecture.md draws exactly the floors it enforces, the tree keeps them, and a planted back
+arrow fails the check (run on a copy of the package: the tree is not touched)."""
 
 from __future__ import annotations
 
+import configparser
 import os
 import shutil
 import subprocess
 import sys
-import tomllib
 from pathlib import Path
 from typing import Any
 
@@ -23,9 +22,25 @@ PACKAGE = Path(cobot_hmi.__file__).parent
 LINT_IMPORTS = Path(sys.executable).with_name("lint-imports")
 
 
+CONFIG = BACKEND.parent / ".importlinter"
+
+
 def _contracts() -> list[dict[str, Any]]:
-    config = tomllib.loads((BACKEND / "pyproject.toml").read_text(encoding="utf-8"))
-    contracts: list[dict[str, Any]] = config["tool"]["importlinter"]["contracts"]
+    """The contracts as import-linter reads them: each option's lines a list."""
+    parser = configparser.ConfigParser()
+    parser.read(CONFIG, encoding="utf-8")
+    contracts: list[dict[str, Any]] = []
+    for section in parser.sections():
+        if not section.startswith("importlinter:contract:"):
+            continue
+        options = parser[section]
+        contract: dict[str, Any] = {
+            key: [line.strip() for line in value.splitlines() if line.strip()]
+            for key, value in options.items()
+        }
+        contract["type"] = options["type"]
+        contract["exhaustive"] = options.getboolean("exhaustive")
+        contracts.append(contract)
     return contracts
 
 
@@ -55,7 +70,7 @@ def _lint_imports(root: Path) -> subprocess.CompletedProcess[str]:
     """lint-imports with the project's contracts over the package found first under ``root``."""
     environ = {**os.environ, "PYTHONPATH": str(root)}
     return subprocess.run(
-        [str(LINT_IMPORTS), "--no-cache", "--no-logo", str(BACKEND / "pyproject.toml")],
+        [str(LINT_IMPORTS), "--no-cache", "--no-logo", "--config", str(CONFIG)],
         cwd=root,
         env=environ,
         capture_output=True,
