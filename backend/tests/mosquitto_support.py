@@ -182,11 +182,13 @@ def decode_payload(topic: str, data: bytes, received_at: float) -> Message:
     return Message(topic, timestamp, seq, metrics, received_at, len(data))
 
 
-def _key(number: int, wire: int) -> bytes:
-    return _encode_varint(number << 3 | wire)
+def field_key(number: int, wire: int) -> bytes:
+    """A protobuf field's key: its number and wire type, as a varint."""
+    return encode_varint(number << 3 | wire)
 
 
-def _encode_varint(value: int) -> bytes:
+def encode_varint(value: int) -> bytes:
+    """A protobuf varint: seven bits a byte, the low ones first."""
     out = bytearray()
     while True:
         byte = value & 0x7F
@@ -200,22 +202,22 @@ def _encode_varint(value: int) -> bytes:
 
 def encode_command(metrics: list[tuple[str | None, int | None, int, Any]]) -> bytes:
     """A command payload: ``(name, alias, datatype, value)`` per metric (bool, float or int)."""
-    body = _key(1, 0) + _encode_varint(int(time.time() * 1000))
+    body = field_key(1, 0) + encode_varint(int(time.time() * 1000))
     for name, alias, datatype, value in metrics:
         metric = b""
         if name is not None:
             raw = name.encode()
-            metric += _key(1, 2) + _encode_varint(len(raw)) + raw
+            metric += field_key(1, 2) + encode_varint(len(raw)) + raw
         if alias is not None:
-            metric += _key(2, 0) + _encode_varint(alias)
-        metric += _key(4, 0) + _encode_varint(datatype)
+            metric += field_key(2, 0) + encode_varint(alias)
+        metric += field_key(4, 0) + encode_varint(datatype)
         if isinstance(value, bool):
-            metric += _key(14, 0) + _encode_varint(int(value))
+            metric += field_key(14, 0) + encode_varint(int(value))
         elif isinstance(value, float):
-            metric += _key(12, 5) + struct.pack("<f", value)
+            metric += field_key(12, 5) + struct.pack("<f", value)
         else:
-            metric += _key(10, 0) + _encode_varint(value)
-        body += _key(2, 2) + _encode_varint(len(metric)) + metric
+            metric += field_key(10, 0) + encode_varint(value)
+        body += field_key(2, 2) + encode_varint(len(metric)) + metric
     return body
 
 

@@ -13,31 +13,15 @@ import pytest
 
 from cobot_hmi.plant.host import HostApplication, state_payload
 from cobot_hmi.plant.model import alarm_figures, shift_figures
-from mosquitto_support import decode_payload
+from mosquitto_support import decode_payload, encode_varint, field_key
 
 BOOLEAN, INT8, INT32, INT64, UINT8, FLOAT, STRING = 11, 1, 3, 4, 5, 9, 12
 T0 = 1_800_000_000_000
 GROUP, NODE = "plant", "cell-1"
 
 
-def _varint(value: int) -> bytes:
-    out = bytearray()
-    while True:
-        byte = value & 0x7F
-        value >>= 7
-        if value:
-            out.append(byte | 0x80)
-        else:
-            out.append(byte)
-            return bytes(out)
-
-
-def _key(number: int, wire: int) -> bytes:
-    return _varint(number << 3 | wire)
-
-
 def _bytes(number: int, raw: bytes) -> bytes:
-    return _key(number, 2) + _varint(len(raw)) + raw
+    return field_key(number, 2) + encode_varint(len(raw)) + raw
 
 
 def metric(
@@ -53,31 +37,32 @@ def metric(
     if name is not None:
         out += _bytes(1, name.encode())
     if alias is not None:
-        out += _key(2, 0) + _varint(alias)
+        out += field_key(2, 0) + encode_varint(alias)
     if timestamp is not None:
-        out += _key(3, 0) + _varint(timestamp)
+        out += field_key(3, 0) + encode_varint(timestamp)
     if datatype is not None:
-        out += _key(4, 0) + _varint(datatype)
+        out += field_key(4, 0) + encode_varint(datatype)
     if historical:
-        out += _key(5, 0) + _varint(1)
+        out += field_key(5, 0) + encode_varint(1)
     if isinstance(value, bool):
-        out += _key(14, 0) + _varint(int(value))
+        out += field_key(14, 0) + encode_varint(int(value))
     elif isinstance(value, float):
-        out += _key(12, 5) + struct.pack("<f", value)
+        out += field_key(12, 5) + struct.pack("<f", value)
     elif isinstance(value, str):
         out += _bytes(15, value.encode())
     elif isinstance(value, int):
         field = 11 if datatype == INT64 else 10
-        out += _key(field, 0) + _varint(value & (0xFFFFFFFF if field == 10 else 2**64 - 1))
+        mask = 0xFFFFFFFF if field == 10 else 2**64 - 1
+        out += field_key(field, 0) + encode_varint(value & mask)
     return out
 
 
 def payload(*metrics: bytes, seq: int | None, timestamp: int = T0) -> bytes:
-    out = _key(1, 0) + _varint(timestamp)
+    out = field_key(1, 0) + encode_varint(timestamp)
     for m in metrics:
         out += _bytes(2, m)
     if seq is not None:
-        out += _key(3, 0) + _varint(seq)
+        out += field_key(3, 0) + encode_varint(seq)
     return out
 
 
