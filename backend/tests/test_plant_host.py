@@ -11,11 +11,11 @@ from typing import Any
 
 import pytest
 
-from cobot_hmi.plant.host import HostApplication, state_payload
+from cobot_hmi.plant.host import HISTORY_MARGIN_MS, HostApplication, state_payload
 from cobot_hmi.plant.model import alarm_figures, shift_figures
 from mosquitto_support import decode_payload, encode_varint, field_key
 
-BOOLEAN, INT8, INT32, INT64, UINT8, FLOAT, STRING = 11, 1, 3, 4, 5, 9, 12
+BOOLEAN, INT8, INT32, INT64, UINT8, FLOAT, DOUBLE, STRING = 11, 1, 3, 4, 5, 9, 10, 12
 T0 = 1_800_000_000_000
 GROUP, NODE = "plant", "cell-1"
 
@@ -97,13 +97,21 @@ def born(host: HostApplication, now_s: float = 100.0) -> None:
 
 def rebirth_of(answer_publish: list[Any]) -> list[str]:
     """The nodes each outgoing message asks to rebirth (read with the tests' own decoder)."""
-    nodes = []
+    return [topic for topic, _ in rebirths_since(answer_publish)]
+
+
+def rebirths_since(answer_publish: list[Any]) -> list[tuple[str, int | None]]:
+    """Each rebirth request's node and the time its alarm transitions are asked again from."""
+    found = []
     for out in answer_publish:
         message = decode_payload(out.topic, out.payload, 0.0)
         assert message.kind == "NCMD"
-        assert [(m.name, m.value) for m in message.metrics] == [("Node Control/Rebirth", True)]
-        nodes.append(out.topic)
-    return nodes
+        metrics = [(m.name, m.value) for m in message.metrics]
+        assert metrics[0] == ("Node Control/Rebirth", True)
+        since = dict(metrics[1:]).get("Node Control/Alarm History Since")
+        assert len(metrics) == 1 + (since is not None)
+        found.append((out.topic, since))
+    return found
 
 
 def test_a_birth_then_data_in_order_is_live_and_asks_nothing() -> None:
@@ -295,3 +303,97 @@ def test_shift_figures_time_in_each_state_group_and_cycles() -> None:
     unknown_start = shift_figures([(start + 1000, "STANDALONE_RUNNING")], [], start, end)
     assert unknown_start.seconds["unknown"] == pytest.approx(1.0)
     assert unknown_start.mean_cycle_s is None
+
+
+def test_a_gap_asks_for_the_alarm_transitions_since_the_last_message_in_order() -> None:
+    host = HostApplication("plant-host")
+    born(host)
+    host.on_message(
+        topic("DDATA", "m1013"),
+        payload(metric(alias=1001, value=14), seq=2, timestamp=T0 + 5000),
+        101,
+    )
+    gap = host.on_message(
+        topic("DDATA", "m1013"),
+        payload(metric(alias=1001, value=13), seq=7, timestamp=T0 + 9000),
+        102,
+    )
+    assert rebirths_since(gap.publish) == [(topic("NCMD"), T0 + 5000 - HISTORY_MARGIN_MS)]
+    # The cell answers with its births (left out here) and the transitions since, as
+    # historical: one the plant had heard live is kept once, the ones it missed go where they
+    # happened.
+    host.on_message(
+        topic("DDATA", "m1013"),
+        payload(metric(alias=1003, value=True, timestamp=T0 + 4000), seq=8, timestamp=T0 + 9500),
+        103,
+    )
+    replay = host.on_message(
+        topic("DDATA", "m1013"),
+        payload(
+            metric(alias=1003, value=True, timestamp=T0 + 4000, historical=True),
+            metric(alias=1003, value=False, timestamp=T0 + 6000, historical=True),
+            metric(alias=1003, value=True, timestamp=T0 + 7000, historical=True),
+            metric(alias=1003, value=False, timestamp=T0 + 8000, historical=True),
+            seq=9,
+        ),
+        105,
+    )
+    log = host.alarms.between(T0, T0 + 60_000)
+    assert [(t.time_ms - T0, t.active) for t in log] == [
+        (4000, True),
+        (6000, False),
+        (7000, True),
+        (8000, False),
+    ]
+    assert [s.time_ms - T0 for s in replay.samples] == [6000, 7000, 8000]
+    assert [t.time_ms - T0 for t in replay.transitions] == [6000, 7000, 8000]
+    # Sent again a second time (another rebirth): nothing new.
+    again = host.on_message(
+        topic("DDATA", "m1013"),
+        payload(metric(alias=1003, value=False, timestamp=T0 + 6000, historical=True), seq=10),
+        106,
+    )
+    assert not again.transitions and not again.samples and len(host.alarms) == 4
+
+
+def test_a_reconnected_host_asks_every_node_it_knew_for_a_rebirth() -> None:
+    host = HostApplication("plant-host")
+    assert host.on_reconnect(50.0) == []  # the first connection: nobody known yet
+    born(host)
+    host.on_message(topic("NBIRTH", node="cell-2"), nbirth(), 100.0)
+    host.on_message(
+        topic("NDEATH", node="cell-2"),
+        payload(metric("bdSeq", datatype=INT64, value=3), seq=None),
+        100.5,
+    )
+    asked = rebirths_since(host.on_reconnect(101.0))
+    assert asked == [(topic("NCMD"), T0 - HISTORY_MARGIN_MS)]  # cell-2 is dead: not asked
+    assert host.rebirths["reconnect"] == 1
+
+
+def test_an_alarm_born_with_its_priority_and_text_after_it_is_told_with_them() -> None:
+    host = HostApplication("plant-host")
+    host.on_message(topic("NBIRTH"), nbirth(), 1.0)
+    answer = host.on_message(
+        topic("DBIRTH", "m1013"),
+        payload(
+            metric(
+                "Alarm/protective_stop/Active",
+                alias=1010,
+                datatype=BOOLEAN,
+                value=True,
+                timestamp=T0,
+            ),
+            metric("Alarm/protective_stop/Priority", alias=1011, datatype=STRING, value="high"),
+            metric(
+                "Alarm/protective_stop/Text", alias=1012, datatype=STRING, value="Protective stop"
+            ),
+            metric("Health/J3/Life Used", alias=1013, datatype=DOUBLE, value=None),
+            seq=1,
+        ),
+        1.0,
+    )
+    [transition] = answer.transitions
+    assert (transition.priority, transition.text) == ("high", "Protective stop")
+    device = host.nodes[(GROUP, NODE)].devices["m1013"]
+    assert device.health() == {}  # Null: not known yet

@@ -12,6 +12,12 @@ is ignored); NDEATH and DDEATH mark the node or device offline since then, its l
 kept. A metric marked ``is_historical`` (a cell's store-and-forward after an outage) is
 recorded where it belongs in time, never taken as the live value.
 
+No alarm transition is lost to a lost message: a rebirth request after a gap (and one to every
+node the host knew after its own connection was lost: ``on_reconnect``) carries ``Node
+Control/Alarm History Since``, the time of the node's last message received in order less
+``HISTORY_MARGIN_MS``; our edge node answers with the births and then every alarm transition
+since, as historical, which the alarm log keeps once each (``AlarmLog``).
+
 Imports ``sparkplug.payload`` and ``sparkplug.topics`` (the wire) and the plant's model.
 """
 
@@ -42,9 +48,15 @@ from cobot_hmi.sparkplug.payload import (
 from cobot_hmi.sparkplug.topics import NAMESPACE, MessageType
 
 SEQ_MODULO: Final = 256
+ACTIVE: Final = "/Active"
 BD_SEQ: Final = "bdSeq"
 REBIRTH: Final = "Node Control/Rebirth"
+ALARM_HISTORY_SINCE: Final = "Node Control/Alarm History Since"
 REBIRTH_INTERVAL_S: Final = 5.0
+HISTORY_MARGIN_MS: Final = 60_000
+"""Transitions asked for again from this long before the last message received in order: a
+transition is published a little after it happened (the node's next report), so one stamped
+before that message may have come after it."""
 _SIGNED_BITS: Final[dict[int, int]] = {
     DataType.INT8: 8,
     DataType.INT16: 16,
@@ -94,6 +106,8 @@ class _Session:
     datatypes: dict[tuple[str | None, str], int] = field(default_factory=dict)
     born_devices: set[str] = field(default_factory=set)
     last_rebirth_s: float = -1e18
+    in_order_ms: int | None = None
+    """The payload time of the node's last message received in order (``None``: none yet)."""
 
 
 def state_payload(online: bool, timestamp_ms: int) -> bytes:
@@ -217,6 +231,8 @@ class HostApplication:
         if payload.HasField("seq"):
             if payload.seq != (session.seq + 1) % SEQ_MODULO:
                 self._request_rebirth(received, "seq gap")
+            else:
+                session.in_order_ms = received.stamp_ms
             session.seq = payload.seq
         if message_type is MessageType.NDATA:
             self._data(received)
@@ -229,6 +245,7 @@ class HostApplication:
         session, view, payload = received.session, received.view, received.payload
         session.born = True
         session.seq = payload.seq if payload.HasField("seq") else 0
+        session.in_order_ms = received.stamp_ms
         session.aliases.clear()
         session.datatypes.clear()
         session.born_devices.clear()
@@ -309,25 +326,38 @@ class HostApplication:
         session, view, device = received.session, received.view, received.device
         metrics = received.metrics
         device_view = view.devices.get(device) if device is not None else None
-        for metric in received.payload.metrics:
-            name = metric.name
-            if not name and metric.HasField("alias"):
-                name = session.aliases.get(metric.alias, (None, ""))[1]
+        named = [(self._name(session, metric), metric) for metric in received.payload.metrics]
+        # An alarm's priority and text before its Active: a transition is told with the ones
+        # the same message gives (a birth lists them after it).
+        named.sort(key=lambda item: item[0].startswith(ALARM_PREFIX) and item[0].endswith(ACTIVE))
+        for name, metric in named:
             if not name:
                 continue
             datatype = metric.datatype or session.datatypes.get((device, name), 0)
             value = decode_value(metric, datatype)
             time_ms = metric.timestamp if metric.HasField("timestamp") else received.stamp_ms
             historical = metric.is_historical
+            if (
+                device_view is not None
+                and name.startswith(ALARM_PREFIX)
+                and not self._alarm(
+                    received, device_view, name, value, time_ms, historical=historical
+                )
+            ):
+                continue  # a historical transition the log already has: recorded once
             received.answer.samples.append(
                 Sample(time_ms, view.group, view.node, device or "", name, value, historical)
             )
-            if device_view is not None and name.startswith(ALARM_PREFIX):
-                self._alarm(received, device_view, name, value, time_ms, historical=historical)
             if not historical:
                 current = metrics.get(name)
                 if current is None or time_ms >= current.timestamp_ms:
                     metrics[name] = MetricState(value, time_ms)
+
+    @staticmethod
+    def _name(session: _Session, metric: Payload.Metric) -> str:
+        if not metric.name and metric.HasField("alias"):
+            return session.aliases.get(metric.alias, (None, ""))[1]
+        return metric.name
 
     def _alarm(
         self,
@@ -338,15 +368,16 @@ class HostApplication:
         time_ms: int,
         *,
         historical: bool,
-    ) -> None:
+    ) -> bool:
         """An ``Alarm/<id>/Active`` value that changes what the host knew is a transition;
-        a historical one is one the cell kept while it could not publish."""
-        if not name.endswith("/Active") or not isinstance(value, bool):
-            return
-        alarm = name[len(ALARM_PREFIX) : -len("/Active")]
+        a historical one is one the cell kept while it could not publish, or sent again when
+        asked. ``False``: a historical transition the log already had."""
+        if not name.endswith(ACTIVE) or not isinstance(value, bool):
+            return True
+        alarm = name[len(ALARM_PREFIX) : -len(ACTIVE)]
         if not historical:
             if (device_view.value(name) is True) == value:
-                return
+                return True
             if value:
                 device_view.alarm_since_ms[alarm] = time_ms
             else:
@@ -363,8 +394,10 @@ class HostApplication:
             device_view.alarm_text(alarm),
             historical,
         )
-        self.alarms.add(transition)
+        if not self.alarms.add(transition):
+            return not historical
         received.answer.transitions.append(transition)
+        return True
 
     # ------------------------------------------------------------ rebirth
 
@@ -373,16 +406,29 @@ class HostApplication:
         if received.now_s - session.last_rebirth_s < self.rebirth_interval_s:
             self.rebirths_held += 1
             return
-        session.last_rebirth_s = received.now_s
-        self.rebirths[reason] += 1
         view = received.view
-        received.answer.publish.append(
-            rebirth_request(view.group, view.node, int(received.now_s * 1000))
-        )
+        received.answer.publish.append(self._rebirth(session, view, reason, received.now_s))
+
+    def _rebirth(self, session: _Session, view: NodeView, reason: str, now_s: float) -> Outgoing:
+        session.last_rebirth_s = now_s
+        self.rebirths[reason] += 1
+        since = None if session.in_order_ms is None else session.in_order_ms - HISTORY_MARGIN_MS
+        return rebirth_request(view.group, view.node, int(now_s * 1000), since)
+
+    def on_reconnect(self, now_s: float) -> list[Outgoing]:
+        """The host's connection came back after it was lost: whatever the nodes published
+        meanwhile is lost to it, so every node it knew alive is asked for a rebirth (with its
+        alarm transitions since), at once rather than at its next message."""
+        return [
+            self._rebirth(self._sessions[key], view, "reconnect", now_s)
+            for key, view in sorted(self.nodes.items())
+            if key in self._sessions and self._sessions[key].born
+        ]
 
 
-def rebirth_request(group: str, node: str, now_ms: int) -> Outgoing:
-    """NCMD ``Node Control/Rebirth`` = true to one edge node."""
+def rebirth_request(group: str, node: str, now_ms: int, since_ms: int | None = None) -> Outgoing:
+    """NCMD ``Node Control/Rebirth`` = true to one edge node; with ``since_ms``, its alarm
+    transitions since then asked for again (``Node Control/Alarm History Since``)."""
     payload = make_payload(now_ms, None)
     add_metric(
         payload,
@@ -392,5 +438,14 @@ def rebirth_request(group: str, node: str, now_ms: int) -> Outgoing:
         datatype=DataType.BOOLEAN,
         value=True,
     )
+    if since_ms is not None:
+        add_metric(
+            payload,
+            alias=None,
+            name=ALARM_HISTORY_SINCE,
+            timestamp_ms=now_ms,
+            datatype=DataType.DATETIME,
+            value=max(since_ms, 0),
+        )
     topic = f"{NAMESPACE}/{group}/{MessageType.NCMD}/{node}"
     return Outgoing(topic, payload.SerializeToString())

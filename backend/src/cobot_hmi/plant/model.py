@@ -6,8 +6,10 @@ minutes, floods, bad actors).
 A device's state in words is its ``robot_state`` metric (our cells: the layout's code, named
 here from ``layout.py``; another edge node may publish the words as a string). Its alarms are
 the metrics ``Alarm/<id>/Active`` (Boolean), ``Alarm/<id>/Priority`` (String: critical, high,
-medium, low) and ``Alarm/<id>/Text`` (String); its cycle times ``Cycle/Last`` and
-``Cycle/Average`` (seconds); health verdicts ``Health/<name>`` (String). docs/api.md "The plant".
+medium, low, advisory) and ``Alarm/<id>/Text`` (String); its cycle times ``Cycle/Last`` and
+``Cycle/Average`` (seconds); its health ``Health/<name>`` (our cells: ``Health/Verdict``, and per
+joint ``Health/J<n>/Verdict``, ``…/Reason``, ``…/Life Used`` in %), each in words.
+docs/api.md "The plant".
 
 Imports only ``layout`` of the project.
 """
@@ -31,7 +33,8 @@ AREA_METRIC: Final = "Node Info/Area"
 CYCLE_LAST: Final = "Cycle/Last"
 CYCLE_AVERAGE: Final = "Cycle/Average"
 HEALTH_PREFIX: Final = "Health/"
-PRIORITIES: Final = ("critical", "high", "medium", "low")
+PRIORITIES: Final = ("critical", "high", "medium", "low", "advisory")
+"""Most urgent first; advisory: a cell's maintenance advice (robot health), below them all."""
 FLOOD_WINDOW_MS: Final = 10 * 60 * 1000
 FLOOD_ALARMS: Final = 10
 """ISA-18.2: more than 10 alarms in 10 minutes is a flood."""
@@ -165,20 +168,34 @@ class NodeView:
 
 class AlarmLog:
     """Every alarm transition heard, in the time order of the cells' own timestamps (a replayed
-    one goes where it happened, not at the end), bounded."""
+    one goes where it happened, not at the end), each once, bounded."""
 
     def __init__(self, limit: int = ALARM_LOG_LIMIT) -> None:
         self._times: deque[int] = deque()
         self._entries: deque[AlarmTransition] = deque()
+        self._keys: set[tuple[int, str, str, str, str, bool]] = set()
+        """Every kept transition's identity: a cell sends one again when asked (a rebirth after
+        lost messages), and it is kept once."""
         self._limit = limit
 
-    def add(self, transition: AlarmTransition) -> None:
+    @staticmethod
+    def _key(t: AlarmTransition) -> tuple[int, str, str, str, str, bool]:
+        return (t.time_ms, t.group, t.node, t.device, t.alarm, t.active)
+
+    def add(self, transition: AlarmTransition) -> bool:
+        """Keep ``transition`` in time order; ``False`` (not kept) when it is one already kept:
+        the same alarm of the same device changing the same way at the same time."""
+        key = self._key(transition)
+        if key in self._keys:
+            return False
+        self._keys.add(key)
         index = bisect.bisect_right(self._times, transition.time_ms)
         self._times.insert(index, transition.time_ms)
         self._entries.insert(index, transition)
         while len(self._entries) > self._limit:
             self._times.popleft()
-            self._entries.popleft()
+            self._keys.discard(self._key(self._entries.popleft()))
+        return True
 
     def between(self, start_ms: int, end_ms: int) -> list[AlarmTransition]:
         first = bisect.bisect_left(self._times, start_ms)

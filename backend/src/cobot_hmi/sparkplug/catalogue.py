@@ -28,6 +28,8 @@ from cobot_hmi.sparkplug.payload import DataType
 ALIAS_STRIDE: Final = 1000
 BD_SEQ: Final = "bdSeq"
 REBIRTH: Final = "Node Control/Rebirth"
+ALARM_HISTORY_SINCE: Final = "Node Control/Alarm History Since"
+"""With a rebirth request: the alarm transitions since then again (``commands``)."""
 CONTROL_HOLDER: Final = "Control/Holder"
 CONTROL_TAKE: Final = "Control/Take"
 CONTROL_RELEASE: Final = "Control/Release"
@@ -45,6 +47,8 @@ class Role(Enum):
     """An element of the O→T image (DCMD-writable)."""
     STATUS = "status"
     """Control and write-outcome metrics of the edge node itself."""
+    EVENT = "event"
+    """From the service's events: alarms, cycle times, health (``event_metrics``)."""
 
 
 @dataclass(frozen=True, slots=True)

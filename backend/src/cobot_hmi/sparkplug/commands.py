@@ -1,5 +1,9 @@
 """Layer: service (Sparkplug). Commands from host applications: NCMD rebirth, DCMD writes.
 
+An NCMD ``Node Control/Rebirth`` may carry ``Node Control/Alarm History Since`` (DateTime, ms
+since the epoch): the host lost messages and asks, beside the births, for every alarm
+transition since then again (as historical, after each DBIRTH; our plant does this).
+
 A DCMD names metrics (by name or alias) of one robot: ``command/<field>/<channel>`` elements
 become one write body (``{field: {index: value}}``, as ``PATCH …/command`` takes it) that goes
 through the service's one write pipeline (``service.writes.pipeline.submit_write``): validated
@@ -30,7 +34,7 @@ from cobot_hmi.service.writes.pipeline import (
     submit_write,
     take_control,
 )
-from cobot_hmi.sparkplug.catalogue import REBIRTH, Catalogue, MetricDef, Role
+from cobot_hmi.sparkplug.catalogue import ALARM_HISTORY_SINCE, REBIRTH, Catalogue, MetricDef, Role
 from cobot_hmi.sparkplug.payload import Payload, metric_value
 
 log = logging.getLogger(__name__)
@@ -62,6 +66,16 @@ class CommandOutcome:
 def wants_rebirth(payload: Payload) -> bool:
     """An NCMD whose ``Node Control/Rebirth`` metric is true."""
     return any(m.name == REBIRTH and metric_value(m) is True for m in payload.metrics)
+
+
+def alarm_history_since(payload: Payload) -> int | None:
+    """An NCMD's ``Node Control/Alarm History Since`` (ms), if it has one."""
+    for metric in payload.metrics:
+        if metric.name == ALARM_HISTORY_SINCE:
+            value = metric_value(metric)
+            if isinstance(value, int) and not isinstance(value, bool):
+                return value
+    return None
 
 
 def parse_device_command(payload: Payload, catalogue: Catalogue, alias_base: int) -> DeviceCommand:

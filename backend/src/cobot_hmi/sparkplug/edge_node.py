@@ -5,7 +5,9 @@ Threads: the cyclic thread only appends each frame to this node's bounded queue 
 never waits); paho's network thread does the MQTT socket, keep-alive and reconnects and hands
 every event to the web event loop; everything else
 (reports by exception, births, deaths, the buffer, commands) runs on the web event loop, one
-task per robot waking at the robot's maximum rate, so all state here has one thread.
+task per robot waking at the robot's maximum rate, so all state here has one thread. The
+service's alarm, cycle and health events come from its event bus (``node.events``, on the web
+loop too) and are reported with the robot's next tick (``event_metrics``).
 
 Per robot and tick: not connected → DDEATH (once); connected again (or a new connection) →
 DBIRTH from its newest frame; otherwise a DDATA with what changed (``rbe``), the O→T image,
@@ -39,6 +41,7 @@ from cobot_hmi.sparkplug.node.command_handling import CommandHandler, door_write
 from cobot_hmi.sparkplug.node.connection import NodeConnection, PrimaryHost
 from cobot_hmi.sparkplug.node.core import Background, NodeStatus, Publisher
 from cobot_hmi.sparkplug.node.device import Device
+from cobot_hmi.sparkplug.node.events import EventFeed
 from cobot_hmi.sparkplug.node.metrics import NodeMetrics
 from cobot_hmi.sparkplug.node.replay import Replayer
 from cobot_hmi.sparkplug.node.reports import DeviceReports
@@ -46,6 +49,7 @@ from cobot_hmi.sparkplug.session import NodeSession
 from cobot_hmi.sparkplug.topics import Topics
 
 if TYPE_CHECKING:
+    from cobot_hmi.service.events.bus import EventBus
     from cobot_hmi.service.extensions import MetricFamily
     from cobot_hmi.service.robots.robot import RobotRuntime
     from cobot_hmi.sparkplug.settings import SparkplugSettings
@@ -74,7 +78,11 @@ class EdgeNode:
         settings: SparkplugSettings,
         state_dir: Path,
         robots: Mapping[str, RobotRuntime],
+        events: EventBus | None = None,
+        hmi_url: str = "",
     ) -> None:
+        """``events``: the service's bus, whose alarm, cycle and health events become each
+        robot's event metrics; ``hmi_url``: the cell's HMI address for the NBIRTH."""
         self.topics = Topics(settings.sparkplug_group, settings.sparkplug_node_id)
         self.catalogue = Catalogue(settings.sparkplug_deadbands)
         self.client_id = f"cobot-hmi-{self.topics.group}-{self.topics.node}"
@@ -93,6 +101,9 @@ class EdgeNode:
         self.status = NodeStatus()
         self.background = Background()
         self.publisher = Publisher(NodeSession(state / "bdseq"))
+        self.events = events
+        self.event_feed = EventFeed(self.devices)
+        self.hmi_url = hmi_url
         self._compose(settings, options)
 
     def _compose(self, settings: SparkplugSettings, options: ClientOptions) -> None:
@@ -111,6 +122,7 @@ class EdgeNode:
             devices=self.devices,
             publisher=self.publisher,
             replayer=self.replayer,
+            hmi_url=self.hmi_url,
         )
         self.reports = DeviceReports(
             topics=self.topics,
@@ -159,6 +171,9 @@ class EdgeNode:
         )
 
     async def start(self) -> None:
+        if self.events is not None:
+            self.event_feed.declare_alarms()
+            self.events.add(self.event_feed)
         self.connection.start()
         log.info(
             "Sparkplug B edge node %s/%s on %s (%d robots)",
@@ -175,6 +190,8 @@ class EdgeNode:
         await self.reports.stop()
         await self.background.cancel()
         await self.connection.stop()
+        if self.events is not None:
+            self.events.remove(self.event_feed)
         for device in self.devices.values():
             device.robot.frames.remove(device.registration)
 

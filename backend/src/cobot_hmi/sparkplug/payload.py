@@ -88,12 +88,13 @@ def add_metric(
     alias: int | None,
     timestamp_ms: int,
     datatype: DataType,
-    value: MetricValue,
+    value: MetricValue | None,
     name: str | None = None,
     properties: Sequence[Property] = (),
     with_datatype: bool = True,
 ) -> Payload.Metric:
-    """Append one metric: name on births (and by-name metrics), alias from then on."""
+    """Append one metric: name on births (and by-name metrics), alias from then on; a value of
+    ``None`` is Null (``is_null``, Sparkplug 3.0: the value is not known)."""
     metric = payload.metrics.add()
     if name is not None:
         metric.name = name
@@ -102,7 +103,10 @@ def add_metric(
     metric.timestamp = timestamp_ms
     if with_datatype:
         metric.datatype = datatype
-    _set_value(metric, datatype, value)
+    if value is None:
+        metric.is_null = True
+    else:
+        _set_value(metric, datatype, value)
     if properties:
         props = metric.properties
         for prop in properties:

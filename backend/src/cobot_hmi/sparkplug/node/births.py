@@ -1,6 +1,8 @@
 """Layer: service (Sparkplug). Births and deaths: NBIRTH (bdSeq, Rebirth, the layout
-version), each robot's DBIRTH (every metric with its properties) and DDEATH, the NDEATH payload
-(the MQTT will, and the clean leave); after each DBIRTH the replayer sends the robot's history.
+version, the cell's HMI address), each robot's DBIRTH (every metric with its properties, its
+event metrics last) and DDEATH, the NDEATH payload (the MQTT will, and the clean leave); after
+each DBIRTH the replayer sends the robot's history, and the alarm transitions a host asked for
+again (or that came while the robot was offline) follow as historical.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from cobot_hmi.sparkplug.payload import (
 from cobot_hmi.sparkplug.topics import MessageType, Topics
 
 LAYOUT_VERSION_METRIC: Final = "Node Info/Layout Version"
+HMI_URL_METRIC: Final = "Node Info/HMI URL"
 DEATH_WAIT_S: Final = 2.0
 """How long a clean leave waits for the broker to take its NDEATH."""
 
@@ -56,15 +59,20 @@ class BirthWriter:
         devices: Mapping[str, Device],
         publisher: Publisher,
         replayer: Replayer,
+        *,
+        hmi_url: str = "",
     ) -> None:
         self.topics = topics
         self.catalogue = catalogue
         self.devices = devices
         self.publisher = publisher
         self.replayer = replayer
+        self.hmi_url = hmi_url
+        """The cell's HMI address, named in the NBIRTH (empty: not named)."""
 
-    def birth_all(self) -> None:
-        """NBIRTH (seq 0), then a DBIRTH for every robot that is up."""
+    def birth_all(self, history_since_ms: int | None = None) -> None:
+        """NBIRTH (seq 0), then a DBIRTH for every robot that is up; ``history_since_ms``: a
+        host asked for the alarm transitions since then again (after each DBIRTH)."""
         payload = make_payload(now_ms(), self.publisher.session.birth_seq())
         now = now_ms()
         add_metric(
@@ -91,13 +99,23 @@ class BirthWriter:
             datatype=DataType.UINT32,
             value=LAYOUT_VERSION,
         )
+        if self.hmi_url:
+            add_metric(
+                payload,
+                alias=None,
+                name=HMI_URL_METRIC,
+                timestamp_ms=now,
+                datatype=DataType.STRING,
+                value=self.hmi_url,
+                properties=(Property("description", DataType.STRING, "the cell's HMI"),),
+            )
         self.publisher.publish(self.topics.node_topic(MessageType.NBIRTH), payload, None)
         for device in self.devices.values():
             device.born = False
             if device.alive:
-                self.device_birth(device)
+                self.device_birth(device, history_since_ms)
 
-    def device_birth(self, device: Device) -> None:
+    def device_birth(self, device: Device, history_since_ms: int | None = None) -> None:
         frame_item = device.frame
         if frame_item is None:
             return
@@ -116,11 +134,52 @@ class BirthWriter:
                 value=value,
                 properties=self._birth_properties(metric, value),
             )
+        events = device.events
+        device.event_changes.clear()  # the birth carries their values
+        for metric, event_value, event_stamp in zip(
+            events.metrics, events.values, events.stamps, strict=True
+        ):
+            add_metric(
+                payload,
+                alias=device.alias_base + metric.offset,
+                name=metric.name,
+                timestamp_ms=event_stamp,
+                datatype=metric.datatype,
+                value=event_value,
+                properties=self._birth_properties(metric, event_value),
+            )
         self.publisher.publish(
             self.topics.device_topic(MessageType.DBIRTH, device.device_name), payload, device
         )
         device.born = True
+        since = device.history_from_ms
+        if history_since_ms is not None:
+            since = history_since_ms if since is None else min(since, history_since_ms)
+        device.history_from_ms = None
+        if since is not None:
+            self._alarm_history(device, since)
         self.replayer.after_birth()  # its history, if it has some, after its birth
+
+    def _alarm_history(self, device: Device, since_ms: int) -> None:
+        """The robot's alarm transitions since ``since_ms``, as historical (a host keeps each
+        once: a transition it already had is not counted twice)."""
+        transitions = device.events.transitions_since(since_ms)
+        if not transitions:
+            return
+        payload = make_payload(now_ms(), None)
+        for offset, value, stamp in transitions:
+            metric = add_metric(
+                payload,
+                alias=device.alias_base + offset,
+                timestamp_ms=stamp,
+                datatype=DataType.BOOLEAN,
+                value=value,
+                with_datatype=False,
+            )
+            metric.is_historical = True
+        self.publisher.publish(
+            self.topics.device_topic(MessageType.DDATA, device.device_name), payload, device
+        )
 
     def device_death(self, device: Device) -> None:
         payload = make_payload(now_ms(), None)
@@ -142,7 +201,7 @@ class BirthWriter:
             await asyncio.to_thread(info.wait_for_publish, DEATH_WAIT_S)
 
     @staticmethod
-    def _birth_properties(metric: MetricDef, value: MetricValue) -> list[Property]:
+    def _birth_properties(metric: MetricDef, value: MetricValue | None) -> list[Property]:
         properties = []
         if metric.unit:
             properties.append(Property("engUnit", DataType.STRING, metric.unit))

@@ -16,7 +16,13 @@ from cobot_hmi.service.access.auth import Session
 from cobot_hmi.service.access.users import Role, User
 from cobot_hmi.service.writes.pipeline import Writer
 from cobot_hmi.sparkplug.catalogue import Catalogue
-from cobot_hmi.sparkplug.commands import DeviceCommand, execute, parse_device_command, wants_rebirth
+from cobot_hmi.sparkplug.commands import (
+    DeviceCommand,
+    alarm_history_since,
+    execute,
+    parse_device_command,
+    wants_rebirth,
+)
 from cobot_hmi.sparkplug.node.births import BirthWriter
 from cobot_hmi.sparkplug.node.core import Background, NodeStatus
 from cobot_hmi.sparkplug.node.device import Device
@@ -77,7 +83,7 @@ class CommandHandler:
         if parsed.message_type is MessageType.NCMD:
             if wants_rebirth(payload) and self.status.active:
                 log.info("Sparkplug: rebirth asked (NCMD)")
-                self.births.birth_all()
+                self.births.birth_all(alarm_history_since(payload))
             return
         if parsed.message_type is not MessageType.DCMD:
             return

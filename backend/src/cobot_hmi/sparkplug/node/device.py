@@ -13,7 +13,12 @@ from typing import TYPE_CHECKING, Final
 
 from cobot_hmi.codec import CommandImage, Frame
 from cobot_hmi.service.robots.frame_notifier import FrameRecord, Runs
-from cobot_hmi.sparkplug.catalogue import ALIAS_STRIDE, Catalogue
+from cobot_hmi.sparkplug.catalogue import ALIAS_STRIDE, Catalogue, MetricDef
+from cobot_hmi.sparkplug.event_metrics import (
+    AlarmDeclaration,
+    EventChange,
+    EventMetrics,
+)
 from cobot_hmi.sparkplug.rbe import Reporter
 
 if TYPE_CHECKING:
@@ -39,8 +44,15 @@ class Device:
     runs: Final = Runs.LOOP
     queue_frames: Final = QUEUE_FRAMES
 
-    def __init__(self, robot: RobotRuntime, number: int, catalogue: Catalogue) -> None:
+    def __init__(
+        self,
+        robot: RobotRuntime,
+        number: int,
+        catalogue: Catalogue,
+        alarms: Sequence[AlarmDeclaration] = (),
+    ) -> None:
         self.robot = robot
+        self.catalogue = catalogue
         self.device_name = robot.name
         self.alias_base = number * ALIAS_STRIDE
         self.pending: deque[FrameRecord] = deque(maxlen=QUEUE_FRAMES)
@@ -65,6 +77,36 @@ class Device:
         ``period_s`` after it (the maximum rate)."""
         self.messages: Counter[str] = Counter()
         self.bytes: Counter[str] = Counter()
+        self.events = self.event_metrics(alarms)
+        """Its alarms, cycle times and health (``event_metrics``), after the catalogue's."""
+        self.event_changes: list[EventChange] = []
+        """Event metrics changed since the last report."""
+        self.history_from_ms: int | None = None
+        """Set when the robot's DDEATH went out: its next DBIRTH is followed by the alarm
+        transitions since, as historical (they happened while it was offline)."""
+
+    def event_metrics(self, alarms: Sequence[AlarmDeclaration]) -> EventMetrics:
+        """Its event metrics with the alarms ``alarms`` (their state as declared)."""
+        events = EventMetrics(len(self.catalogue.metrics), alarms, now_ms())
+        if len(self.catalogue.metrics) + len(events.metrics) >= ALIAS_STRIDE:
+            raise ValueError(f"{self.device_name}: too many alarms for its Sparkplug aliases")
+        return events
+
+    def metric(self, offset: int) -> MetricDef:
+        """The metric at ``offset``: the catalogue's, then the event metrics."""
+        metrics = self.catalogue.metrics
+        return metrics[offset] if offset < len(metrics) else self.events.metric(offset)
+
+    def on_event(self, event: dict[str, object]) -> None:
+        """One event of the robot (on the web loop): what it changes, for the next report."""
+        changes = self.events.on_event(event)
+        if changes:
+            self.event_changes.extend(changes)
+            self.arrived.set()
+
+    def take_event_changes(self) -> list[EventChange]:
+        changes, self.event_changes = self.event_changes, []
+        return changes
 
     def on_frames(self, robot: str, records: Sequence[FrameRecord]) -> None:
         pending = self.pending

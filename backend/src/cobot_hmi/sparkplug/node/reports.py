@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from cobot_hmi.layout import O2T_FIELDS
 from cobot_hmi.sparkplug.buffer import DiskBuffer
 from cobot_hmi.sparkplug.catalogue import Catalogue, state_name
+from cobot_hmi.sparkplug.event_metrics import EventChange
 from cobot_hmi.sparkplug.node.births import BirthWriter
 from cobot_hmi.sparkplug.node.core import NodeStatus, Publisher
 from cobot_hmi.sparkplug.node.device import Device, now_ms
@@ -106,6 +107,8 @@ class DeviceReports:
             device.alive = False
             if device.born and self.status.active:
                 self.births.device_death(device)
+                # What its alarms do while it is offline follows its next DBIRTH.
+                device.history_from_ms = now_ms()
             device.born = False
         if not connected:
             return
@@ -121,11 +124,12 @@ class DeviceReports:
             if self.status.active:
                 self.births.device_birth(device)
             return
-        changes = device.reporter.discrete_changes(items)
+        changes: list[EventChange] = list(device.reporter.discrete_changes(items))
         if items:
             newest = items[-1]
             changes.extend(device.reporter.analog_changes(newest[2], newest[1]))
         changes.extend(self._status_changes(device))
+        changes.extend(device.take_event_changes())
         if changes:
             self._report(device, changes)
 
@@ -162,14 +166,13 @@ class DeviceReports:
             changes.append((self.catalogue.write_reason.offset, reason, now))
         return changes
 
-    def _report(self, device: Device, changes: list[Change]) -> None:
+    def _report(self, device: Device, changes: list[EventChange]) -> None:
         """A DDATA: published when born, buffered on disk while the broker is away."""
         # The payload's time and the rate's reference are one instant.
         device.reported_at = asyncio.get_running_loop().time()
         payload = make_payload(now_ms(), None)
-        metrics = self.catalogue.metrics
         for offset, value, stamp in changes:
-            metric = metrics[offset]
+            metric = device.metric(offset)
             name = state_name(metric, value)
             add_metric(
                 payload,
