@@ -49,7 +49,8 @@ class OpcUaExtension:
 def extensions_of(service: Service, settings: HmiSettings) -> Iterable[ServiceExtension]:
     """The doors the settings turn on, in the order they start."""
     if settings.mqtt_url:
-        yield EdgeNode(settings, settings.state_dir, service.robots)
+        hmi_url = settings.hmi_url(settings.host, settings.port, tls=settings.tls_cert is not None)
+        yield EdgeNode(settings, settings.state_dir, service.robots, service.events, hmi_url)
     if settings.opcua_enabled:
         yield OpcUaExtension(service, settings)
 

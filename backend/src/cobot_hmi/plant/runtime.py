@@ -120,7 +120,17 @@ class PlantRuntime:
             self.recorder.add(answer.samples)
 
     def _connected(self, url: str) -> None:
+        """On the client's thread: connected and subscribed (the STATE birth went out)."""
         log.info("plant: connected to %s as host %s", url, self.settings.plant_host_id)
+        loop = self._loop
+        if loop is not None and not loop.is_closed():
+            loop.call_soon_threadsafe(self._reconnected, time.time())
+
+    def _reconnected(self, now_s: float) -> None:
+        """Every node the host knew alive asked for a rebirth (none on the first connection):
+        what they published while the plant had no connection is lost to it."""
+        for out in self.host.on_reconnect(now_s):
+            self.client.publish(out.topic, out.payload, out.qos, out.retain)
 
     async def _flush_loop(self) -> None:
         while True:

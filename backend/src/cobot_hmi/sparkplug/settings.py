@@ -59,6 +59,12 @@ class SparkplugSettings(BaseModel):
     sparkplug_buffer_bytes: int = setting(
         64 * 1024 * 1024, "data kept on disk while the broker is away, bytes (0: none)", ge=0
     )
+    sparkplug_hmi_url: str = setting(
+        "",
+        "the cell's HMI address the NBIRTH names (the plant's page links to it); default: "
+        "http(s)://HOST:PORT/ of this service (this machine's name when HOST binds every address)",
+        pattern=r"^$|^https?://[^\s]+$",
+    )
 
     @property
     def sparkplug_node_id(self) -> str:
@@ -67,3 +73,14 @@ class SparkplugSettings(BaseModel):
             return self.sparkplug_node
         name = socket.gethostname() or "cobot-hmi"
         return name.replace("+", "_").replace("#", "_").replace("/", "_")
+
+    def hmi_url(self, host: str, port: int, *, tls: bool) -> str:
+        """``sparkplug_hmi_url``, else the service's own address: ``host`` (this machine's name
+        when it binds every address, which no browser can open) and ``port``."""
+        if self.sparkplug_hmi_url:
+            return self.sparkplug_hmi_url
+        if host in ("", "0.0.0.0", "::"):
+            host = socket.gethostname() or "localhost"
+        elif ":" in host:
+            host = f"[{host}]"  # an IPv6 literal in a URL
+        return f"{'https' if tls else 'http'}://{host}:{port}/"
