@@ -202,6 +202,7 @@ def test_websocket_messages_and_events_are_components() -> None:
         "alarm",
         "session",
         "cycle",
+        "health",  # robot health's verdicts (service.health)
     }
 
 

@@ -613,6 +613,75 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/v1/robots/{name}/health": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /** The robot's health now: each joint's verdict (ok, watch, act), its reason in a sentence and its figures (friction, reducer life, heat, knocks), the cycle time against the baseline's, the knocks of this shift with where in joint space, the baseline in use */
+        get: operations["get_health_api_v1_robots__name__health_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/robots/{name}/health/baselines": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /** The robot's baselines, oldest first: who set each, why, when, from which cycles, which is active and which is being learned */
+        get: operations["list_baselines_api_v1_robots__name__health_baselines_get"];
+        put?: never;
+        /** Learn a new baseline from the next N whole cycles (after a reducer change, a new program): the verdicts restart from it once learned; the one in use stays until then. Operator or above; audited with its reason */
+        post: operations["create_baseline_api_v1_robots__name__health_baselines_post"];
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/robots/{name}/health/report.csv": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /** The weekly health report as CSV: per day of the plant's time zone, each joint's verdict and figures at the day's last snapshot (default: the last 7 days) */
+        get: operations["get_health_report_api_v1_robots__name__health_report_csv_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
+    "/api/v1/robots/{name}/health/trend": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /** The robot's health over days: the figures of each snapshot (every health_snapshot_s) in the range, oldest first (default: the last 7 days) */
+        get: operations["get_health_trend_api_v1_robots__name__health_trend_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/robots/{name}/history": {
         parameters: {
             query?: never;
@@ -961,7 +1030,7 @@ export interface components {
             cleared_at: number | null;
             /**
              * Colour
-             * @description the pendant's colour: a robot state's own, else the priority's (critical red, high orange, medium yellow, low blue)
+             * @description the pendant's colour: a robot state's own, else the priority's (critical red, high orange, medium yellow, low blue, advisory grey)
              */
             colour: string;
             /** Description */
@@ -980,14 +1049,14 @@ export interface components {
             id: string;
             /**
              * Key
-             * @description emergency_stop, protective_stop, safe_off, connection_lost, forward_open_refused, packet_loss, recording_paused, motor_temperature.0–5 (0-based: motor_temperature.2 is J 3), user.NAME
+             * @description emergency_stop, protective_stop, safe_off, connection_lost, forward_open_refused, packet_loss, recording_paused, motor_temperature.0–5 (0-based: motor_temperature.2 is J 3), health.1–6 (robot health's advice on J 1–6), user.NAME
              */
             key: string;
             /**
              * Kind
              * @enum {string}
              */
-            kind: "state" | "connection" | "rate" | "limit" | "bit" | "recording";
+            kind: "state" | "connection" | "rate" | "limit" | "bit" | "recording" | "health";
             /**
              * Label
              * @description its label as the robot prints it (J 3, DO 3)
@@ -1009,10 +1078,10 @@ export interface components {
              * Priority
              * @enum {string}
              */
-            priority: "critical" | "high" | "medium" | "low";
+            priority: "critical" | "high" | "medium" | "low" | "advisory";
             /**
              * Priority Rank
-             * @description 0 critical … 3 low: sort by it
+             * @description 0 critical … 3 low, 4 advisory: sort by it
              */
             priority_rank: number;
             /** Robot */
@@ -1176,7 +1245,7 @@ export interface components {
              * Priority
              * @enum {string}
              */
-            priority: "critical" | "high" | "medium" | "low";
+            priority: "critical" | "high" | "medium" | "low" | "advisory";
             /** Priority Rank */
             priority_rank: number;
             /** Robot */
@@ -1266,7 +1335,7 @@ export interface components {
              * Priority
              * @enum {string}
              */
-            priority: "critical" | "high" | "medium" | "low";
+            priority: "critical" | "high" | "medium" | "low" | "advisory";
             /** Robot */
             robot: string;
             /** Shelved */
@@ -1358,7 +1427,7 @@ export interface components {
              * Highest Priority
              * @description the most urgent priority of the annunciated alarms
              */
-            highest_priority: ("critical" | "high" | "medium" | "low") | null;
+            highest_priority: ("critical" | "high" | "medium" | "low" | "advisory") | null;
             /**
              * Robot
              * @description the robot's name
@@ -1446,7 +1515,7 @@ export interface components {
              * Action
              * @enum {string}
              */
-            action: "write" | "control.take" | "control.release" | "alarm.ack" | "alarm.shelve" | "alarm.unshelve" | "tags.update" | "checkout.start" | "checkout.result" | "checkout.capture" | "checkout.close" | "preset.save" | "preset.delete";
+            action: "write" | "control.take" | "control.release" | "alarm.ack" | "alarm.shelve" | "alarm.unshelve" | "tags.update" | "checkout.start" | "checkout.result" | "checkout.capture" | "checkout.close" | "preset.save" | "preset.delete" | "health.baseline";
             /** Before */
             before: {
                 [key: string]: boolean | number | null;
@@ -1528,7 +1597,7 @@ export interface components {
              */
             annunciated: number;
             /** Highest Priority */
-            highest_priority: ("critical" | "high" | "medium" | "low") | null;
+            highest_priority: ("critical" | "high" | "medium" | "low" | "advisory") | null;
             /**
              * Robots
              * @description every robot, in the settings' order
@@ -2186,7 +2255,7 @@ export interface components {
         /** EventMessage */
         EventMessage: {
             /** Event */
-            event: components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"] | components["schemas"]["AlarmEvent"] | components["schemas"]["SessionEvent"] | components["schemas"]["CycleEvent"];
+            event: components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"] | components["schemas"]["AlarmEvent"] | components["schemas"]["SessionEvent"] | components["schemas"]["CycleEvent"] | components["schemas"]["HealthEvent"];
             /**
              * @description discriminator enum property added by openapi-typescript
              * @enum {string}
@@ -2199,7 +2268,7 @@ export interface components {
          */
         EventPage: {
             /** Items */
-            items: (components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"] | components["schemas"]["AlarmEvent"] | components["schemas"]["SessionEvent"] | components["schemas"]["CycleEvent"])[];
+            items: (components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"] | components["schemas"]["AlarmEvent"] | components["schemas"]["SessionEvent"] | components["schemas"]["CycleEvent"] | components["schemas"]["HealthEvent"])[];
             /** Total */
             total: number;
         };
@@ -2473,6 +2542,455 @@ export interface components {
              */
             problems?: string[];
         };
+        /**
+         * HealthBaseline
+         * @description A baseline: the robot's healthy reference, who set it, why, from which cycles.
+         */
+        HealthBaseline: {
+            /**
+             * Active
+             * @description the verdicts are against this one
+             */
+            active: boolean;
+            /**
+             * Arm
+             * @description the arm model it was learned on (M1013)
+             */
+            arm: string;
+            /**
+             * Created At
+             * @description when it was asked for, s since the epoch
+             */
+            created_at: number;
+            /**
+             * Created By
+             * @description the user who asked for it
+             */
+            created_by: string;
+            /**
+             * Cycles
+             * @description the cycles it learned from (so far, while learning)
+             */
+            cycles: number | null;
+            /**
+             * Id
+             * @description 1 for the robot's first, counting up
+             */
+            id: number;
+            /**
+             * Layout Version
+             * @description the I/O layout's version it was learned on
+             */
+            layout_version: number;
+            /**
+             * Learned From
+             * @description learning started, s since the epoch
+             */
+            learned_from: number;
+            /**
+             * Learned To
+             * @description learning finished; null: still learning
+             */
+            learned_to: number | null;
+            /**
+             * Learning
+             * @description being learned now
+             */
+            learning: boolean;
+            /** Reason */
+            reason: string;
+            /**
+             * Target Cycles
+             * @description the whole cycles it learns from
+             */
+            target_cycles: number | null;
+        };
+        /**
+         * HealthBaselineCreate
+         * @description Learn a new baseline from the next whole cycles: after a reducer change, a new program.
+         */
+        HealthBaselineCreate: {
+            /**
+             * Cycles
+             * @description learn from the next N whole cycles of the cycle meter
+             * @default 50
+             */
+            cycles?: number;
+            /**
+             * Reason
+             * @description why, in words
+             */
+            reason: string;
+        };
+        /** HealthBaselineList */
+        HealthBaselineList: {
+            /**
+             * Items
+             * @description oldest first, the one learning last
+             */
+            items: components["schemas"]["HealthBaseline"][];
+        };
+        /**
+         * HealthCycleTime
+         * @description The cycle time against the baseline's (a CUSUM detects a drift as it happens).
+         */
+        HealthCycleTime: {
+            /**
+             * Baseline S
+             * @description the baseline's mean cycle time, s
+             */
+            baseline_s: number | null;
+            /** Change Percent */
+            change_percent?: number | null;
+            /** Cycles */
+            cycles?: number | null;
+            /**
+             * Detected At
+             * @description s since the epoch
+             */
+            detected_at?: number | null;
+            /**
+             * Drift Detected
+             * @default false
+             */
+            drift_detected?: boolean;
+            /** Reason */
+            reason: string;
+            /** Recent S */
+            recent_s?: number | null;
+            /**
+             * Verdict
+             * @enum {string}
+             */
+            verdict: "ok" | "watch";
+        };
+        /**
+         * HealthEvent
+         * @description The robot's health changed (``service.health``): a joint's verdict, or a joint's life
+         *     used by 0.1 %; also the first verdicts after the service started
+         *     (``GET /api/v1/robots/{name}/health`` has every figure).
+         */
+        HealthEvent: {
+            /**
+             * Id
+             * @description row id in the event log (log pages only)
+             */
+            id?: number | null;
+            /**
+             * Joints
+             * @description J1 first
+             */
+            joints: components["schemas"]["HealthEventJoint"][];
+            /**
+             * @description discriminator enum property added by openapi-typescript
+             * @enum {string}
+             */
+            kind: "health";
+            /**
+             * Maintenance Due
+             * @description a joint reads watch or act
+             */
+            maintenance_due: boolean;
+            /**
+             * Robot
+             * @description the robot's name
+             */
+            robot?: string | null;
+            /**
+             * Text
+             * @description the event in words, as the service says it everywhere (the event log, its CSV, exports): "Servo on flag cleared", "Emergency stop activated: robot state Emergency stop, Emergency stopped flag set"
+             */
+            text: string;
+            /**
+             * Time
+             * @description s since the epoch
+             */
+            time: number;
+            /**
+             * Verdict
+             * @description the worst of the joints'
+             * @enum {string}
+             */
+            verdict: "ok" | "watch" | "act";
+        };
+        /** HealthEventJoint */
+        HealthEventJoint: {
+            /** Joint */
+            joint: number;
+            /**
+             * Life Used Percent
+             * @description reducer life used, %
+             */
+            life_used_percent: number;
+            /** Reason */
+            reason: string;
+            /**
+             * Verdict
+             * @enum {string}
+             */
+            verdict: "ok" | "watch" | "act";
+        };
+        /**
+         * HealthJoint
+         * @description One joint's verdict, its reason in a sentence and its figures (null: not measured yet).
+         */
+        HealthJoint: {
+            /**
+             * Collisions This Shift
+             * @description external-torque peaks over the joint's threshold this shift
+             */
+            collisions_this_shift: number;
+            /**
+             * Friction Percent
+             * @description friction against the baseline at the same position, speed and temperature band, %
+             */
+            friction_percent: number | null;
+            /**
+             * Friction Percent Per Week
+             * @description its slope, % a week
+             */
+            friction_percent_per_week: number | null;
+            /**
+             * Friction Percent Since First Baseline
+             * @description the same chained through every re-baselining since the first, %
+             */
+            friction_percent_since_first_baseline: number | null;
+            /**
+             * Friction Reference
+             * @description where the healthy friction the % is of comes from
+             */
+            friction_reference: ("steady" | "fitted") | null;
+            /**
+             * Heat Excess C
+             * @description the motor's temperature beyond what its current explains, °C
+             */
+            heat_excess_c: number | null;
+            /**
+             * Joint
+             * @description 1–6, as the robot labels its joints
+             */
+            joint: number;
+            /**
+             * Life End Date
+             * @description the date it runs out at that duty, YYYY-MM-DD
+             */
+            life_end_date: string | null;
+            /**
+             * Life Remaining H
+             * @description remaining life at this week's duty, h
+             */
+            life_remaining_h: number | null;
+            /**
+             * Life Used Percent
+             * @description reducer life used, %
+             */
+            life_used_percent: number;
+            rated: components["schemas"]["HealthRated"];
+            /**
+             * Reason
+             * @description in a sentence: "J3: friction 14 % above its baseline of 1 Dec at the same speed and temperature, rising 2.0 % a week"
+             */
+            reason: string;
+            /**
+             * Signature Distribution Percent
+             * @description the torque distribution's distance from the baseline's, %
+             */
+            signature_distribution_percent: number | null;
+            /**
+             * Signature Rms Percent
+             * @description the cycle's torque against the baseline's, RMS, % of the joint's RMS torque
+             */
+            signature_rms_percent: number | null;
+            /**
+             * Verdict
+             * @enum {string}
+             */
+            verdict: "ok" | "watch" | "act";
+        };
+        /**
+         * HealthKnock
+         * @description One knock: where in joint space it happened.
+         */
+        HealthKnock: {
+            /**
+             * External Torque Nm
+             * @description a collision's peak external torque
+             */
+            external_torque_nm: number | null;
+            /**
+             * Joint
+             * @description the joint of a collision (1–6); null for the others
+             */
+            joint: number | null;
+            /**
+             * Joint Position Deg
+             * @description every joint's position then, J1 first
+             */
+            joint_position_deg: number[];
+            /**
+             * Kind
+             * @enum {string}
+             */
+            kind: "collision" | "protective_stop" | "emergency_stop" | "servo_off";
+            /**
+             * Time
+             * @description s since the epoch
+             */
+            time: number;
+        };
+        /**
+         * HealthKnocks
+         * @description This shift's knocks.
+         */
+        HealthKnocks: {
+            /**
+             * Collisions
+             * @description per joint, J1 first
+             */
+            collisions: number[];
+            /** Emergency Stop */
+            emergency_stop: number;
+            /**
+             * Events
+             * @description the latest (at most 20), oldest first
+             */
+            events: components["schemas"]["HealthKnock"][];
+            /** Protective Stop */
+            protective_stop: number;
+            /** Servo Off */
+            servo_off: number;
+            /**
+             * Shift Start
+             * @description when this shift started, s since the epoch
+             */
+            shift_start: number | null;
+        };
+        /**
+         * HealthRated
+         * @description The joint's rated values (``arms.py``), the reducer life law's references.
+         */
+        HealthRated: {
+            /**
+             * Assumed
+             * @description true: not published by the maker, an assumption
+             */
+            assumed: boolean;
+            /** Life H */
+            life_h: number;
+            /** Speed Deg S */
+            speed_deg_s: number;
+            /** Torque Nm */
+            torque_nm: number;
+        };
+        /**
+         * HealthReport
+         * @description A robot's health now: each joint's verdict and figures.
+         */
+        HealthReport: {
+            /** Arm */
+            arm: string;
+            /** @description the one in use; null: none yet */
+            baseline: components["schemas"]["HealthBaseline"] | null;
+            cycle_time: components["schemas"]["HealthCycleTime"];
+            /**
+             * Cycles
+             * @description whole cycles the engine measured
+             */
+            cycles: number;
+            /**
+             * Dropped Frames
+             * @description frames health left out: unusable ones (not a number, out of order) and those its queue dropped when it fell behind
+             */
+            dropped_frames: number;
+            /**
+             * Joints
+             * @description J1 first
+             */
+            joints: components["schemas"]["HealthJoint"][];
+            knocks: components["schemas"]["HealthKnocks"];
+            /** @description one being learned; null: none */
+            learning: components["schemas"]["HealthBaseline"] | null;
+            /**
+             * Maintenance Due
+             * @description a joint reads watch or act
+             */
+            maintenance_due: boolean;
+            /** Robot */
+            robot: string;
+            /**
+             * Time
+             * @description s since the epoch
+             */
+            time: number;
+            /**
+             * Verdict
+             * @description the worst of the joints'
+             * @enum {string}
+             */
+            verdict: "ok" | "watch" | "act";
+        };
+        /** HealthTrend */
+        HealthTrend: {
+            /**
+             * Points
+             * @description oldest first
+             */
+            points: components["schemas"]["HealthTrendPoint"][];
+            /** Robot */
+            robot: string;
+        };
+        /**
+         * HealthTrendJoint
+         * @description One joint's figures in a snapshot.
+         */
+        HealthTrendJoint: {
+            /** Collisions This Shift */
+            collisions_this_shift: number | null;
+            /** Friction Percent */
+            friction_percent: number | null;
+            /** Friction Percent Since First Baseline */
+            friction_percent_since_first_baseline: number | null;
+            /** Heat Excess C */
+            heat_excess_c: number | null;
+            /** Joint */
+            joint: number;
+            /** Life Remaining H */
+            life_remaining_h: number | null;
+            /** Life Used Percent */
+            life_used_percent: number | null;
+            /** Signature Rms Percent */
+            signature_rms_percent: number | null;
+            /**
+             * Verdict
+             * @enum {string}
+             */
+            verdict: "ok" | "watch" | "act";
+        };
+        /**
+         * HealthTrendPoint
+         * @description The figures at one snapshot (every ``health_snapshot_s``).
+         */
+        HealthTrendPoint: {
+            /**
+             * Baseline Id
+             * @description the baseline the figures are against
+             */
+            baseline_id: number | null;
+            /** Cycles */
+            cycles: number;
+            /** Joints */
+            joints: components["schemas"]["HealthTrendJoint"][];
+            /**
+             * Time
+             * @description s since the epoch
+             */
+            time: number;
+            /**
+             * Verdict
+             * @enum {string}
+             */
+            verdict: "ok" | "watch" | "act";
+        };
         /** HelloMessage */
         HelloMessage: {
             /**
@@ -2604,7 +3122,7 @@ export interface components {
          */
         HistoryEvents: {
             /** Items */
-            items: (components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"] | components["schemas"]["AlarmEvent"] | components["schemas"]["SessionEvent"] | components["schemas"]["CycleEvent"])[];
+            items: (components["schemas"]["ConnectionEvent"] | components["schemas"]["RobotStateEvent"] | components["schemas"]["FlagEvent"] | components["schemas"]["WriteEvent"] | components["schemas"]["ControlEvent"] | components["schemas"]["RecordingEvent"] | components["schemas"]["AlarmEvent"] | components["schemas"]["SessionEvent"] | components["schemas"]["CycleEvent"] | components["schemas"]["HealthEvent"])[];
             /**
              * Truncated
              * @description the range holds more than `limit` events: these are its oldest `limit`
@@ -3785,7 +4303,7 @@ export interface operations {
         parameters: {
             query?: {
                 /** @description only this priority */
-                priority?: ("critical" | "high" | "medium" | "low") | null;
+                priority?: ("critical" | "high" | "medium" | "low" | "advisory") | null;
                 /** @description from this time on, s since the epoch */
                 since?: number | null;
                 /** @description before this time, s since the epoch */
@@ -4941,7 +5459,7 @@ export interface operations {
                 /** @description only rows whose words contain this text (case-insensitive) */
                 q?: string | null;
                 /** @description only events of this kind */
-                kind?: ("connection" | "robot_state" | "flag" | "write" | "control" | "recording" | "alarm" | "session" | "cycle") | null;
+                kind?: ("connection" | "robot_state" | "flag" | "write" | "control" | "recording" | "alarm" | "session" | "cycle" | "health") | null;
                 /** @description at most this many rows */
                 limit?: number;
                 /** @description skip this many rows (newest first), 0 to 2^53 − 1 */
@@ -6524,6 +7042,362 @@ export interface operations {
             };
         };
     };
+    get_health_api_v1_robots__name__health_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HealthReport"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description not now: not connected, input-only mode, or control is someone else's */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    list_baselines_api_v1_robots__name__health_baselines_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HealthBaselineList"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description not now: not connected, input-only mode, or control is someone else's */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    create_baseline_api_v1_robots__name__health_baselines_post: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path: {
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody: {
+            content: {
+                "application/json": components["schemas"]["HealthBaselineCreate"];
+            };
+        };
+        responses: {
+            /** @description Successful Response */
+            201: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HealthBaseline"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description the role is too low, or the request is not same-origin */
+            403: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description not now: not connected, input-only mode, or control is someone else's */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description invalid request: the answer names the field; nothing was applied */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description unavailable: not ready or not healthy, the users file unreadable, or (a write, a control change) the audit trail cannot be written (a full disk): nothing was done */
+            503: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    get_health_report_api_v1_robots__name__health_report_csv_get: {
+        parameters: {
+            query?: {
+                /** @description from this time on (inclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the plant's time zone, the time_zone setting) */
+                from?: string | null;
+                /** @description before this time (exclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the plant's time zone, the time_zone setting) */
+                to?: string | null;
+            };
+            header?: never;
+            path: {
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description a header row (robot, period_from, period_to, day, time, baseline_id, joint, the figures), then one row per joint per day; times in ISO 8601 */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "text/csv": string;
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description not now: not connected, input-only mode, or control is someone else's */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description invalid request: the answer names the field; nothing was applied */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
+    get_health_trend_api_v1_robots__name__health_trend_get: {
+        parameters: {
+            query?: {
+                /** @description from this time on (inclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the plant's time zone, the time_zone setting) */
+                from?: string | null;
+                /** @description before this time (exclusive): seconds since the epoch (1764244800.5), or ISO 8601 (2026-11-27T12:00:00+01:00; without an offset: the plant's time zone, the time_zone setting) */
+                to?: string | null;
+                /** @description at most this many (the newest) points */
+                limit?: number;
+            };
+            header?: never;
+            path: {
+                /** @description the robot's name from the settings */
+                name: string;
+            };
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HealthTrend"];
+                };
+            };
+            /** @description the request cannot be read */
+            400: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description login required (or the session expired) */
+            401: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description no robot of that name (the answer names the known ones) */
+            404: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description not now: not connected, input-only mode, or control is someone else's */
+            409: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+            /** @description invalid request: the answer names the field; nothing was applied */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["ApiErrorResponse"];
+                };
+            };
+        };
+    };
     get_history_api_v1_robots__name__history_get: {
         parameters: {
             query: {
@@ -6600,7 +7474,7 @@ export interface operations {
                 /** @description end of the range (excluded): ISO 8601 (2026-11-24T06:00:00Z; without an offset: UTC) or seconds since the epoch */
                 to: string;
                 /** @description only events of these kinds (repeatable) */
-                kind?: ("connection" | "robot_state" | "flag" | "write" | "control" | "recording" | "alarm" | "session" | "cycle")[] | null;
+                kind?: ("connection" | "robot_state" | "flag" | "write" | "control" | "recording" | "alarm" | "session" | "cycle" | "health")[] | null;
                 /** @description at most this many events */
                 limit?: number;
             };

@@ -32,6 +32,8 @@ from cobot_hmi.service.cycles.service import Cycles
 from cobot_hmi.service.errors import UnknownRobotError
 from cobot_hmi.service.events.bus import EventBus
 from cobot_hmi.service.extensions import ServiceExtension
+from cobot_hmi.service.health.service import Health
+from cobot_hmi.service.health.settings import HealthServiceSettings
 from cobot_hmi.service.plant_time import PLANT_ZONE
 from cobot_hmi.service.recording.recorder import Recorder
 from cobot_hmi.service.recording.settings import HistorySettings
@@ -95,6 +97,9 @@ class Service:
         """Each robot's cycle timing (``service.cycles``), where it has a trigger."""
         self.commissioning = Commissioning(self.robots, self.store)
         """Each robot's I/O checkouts and their frame watchers (``service.commissioning``)."""
+        self.health = Health(part_of(settings, HealthServiceSettings), self.robots, self.store)
+        """Each robot's health from its frames and cycles (``service.health``)."""
+        self.events.add(self.health)  # the cycle meter's cycles reach it as events
         self.default_robot: RobotRuntime = next(iter(self.robots.values()))
         """The first robot: the one the deprecated single-robot paths answer for."""
         self.directory: Directory | None = (
@@ -161,12 +166,14 @@ class Service:
         await self.store.open()
         for robot in self.robots.values():
             await robot.open_state()  # tag names, persisted alarms
+        await self.health.open()  # each robot's saved health state
         for robot in self.robots.values():
             robot.start()
         if self.recorder is not None:  # subscribed before the first frame can come
             await self.recorder.start()
         self.cycles.start()  # subscribed before the first frame can come
         await self.commissioning.start()  # the open checkouts watched before the first frame
+        self.health.start()  # subscribed before the first frame can come
         await self.cyclic.start()
         for extension in self.extensions:  # after the links: they report what the links see
             await extension.start()
@@ -187,6 +194,7 @@ class Service:
         if self.recorder is not None:  # the last frames written, the open segments closed
             await self.recorder.stop()
         await self.cycles.stop()  # the last frames measured, every cycle written
+        await self.health.stop()  # the last frames and cycles fed, every robot's state saved
         await self.commissioning.stop()
         for task in self._tasks:
             task.cancel()

@@ -4,8 +4,8 @@
 concern, each in its own room: the robots' connections (here and ``robots.settings``), the web
 service and its limits (``web.settings``, ``web.tls_settings``), directory login
 (``access.directory_settings``), alarms (``alarms.settings``), history
-(``recording.settings``), cycle timing (``robots.cycle_settings``) and the kiosk
-(``kiosk.settings``). The doors above the service
+(``recording.settings``), cycle timing (``robots.cycle_settings``), the kiosk
+(``kiosk.settings``) and robot health (``health.settings``). The doors above the service
 (the Sparkplug B edge node, the OPC UA server) add theirs in ``cobot_hmi.settings.HmiSettings``,
 the settings of ``cobot-hmi serve``: the service imports neither. Keys stay flat: a field's
 name is its TOML key, ``COBOT_HMI_<NAME>`` its environment variable and ``--name`` its flag
@@ -32,6 +32,7 @@ from pydantic_settings import BaseSettings, PydanticBaseSettingsSource, Settings
 from cobot_hmi import connection_params as cp
 from cobot_hmi.service.access.directory_settings import DirectorySettings
 from cobot_hmi.service.alarms.settings import AlarmLimitSettings, AlarmSettings
+from cobot_hmi.service.health.settings import HealthServiceSettings
 from cobot_hmi.service.kiosk.settings import KioskSettings
 from cobot_hmi.service.recording.settings import HistorySettings
 from cobot_hmi.service.robots.cycle_settings import CycleSettings
@@ -85,6 +86,7 @@ _INHERITED: Final = {
 
 
 class ServiceSettings(  # each concern's fields; flags and TOML keys list the last base's first
+    HealthServiceSettings,
     KioskSettings,
     CycleSettings,
     HistorySettings,

@@ -2,7 +2,7 @@
 import type { AlarmSummary, CellAlarmSummary } from "../api/protocol";
 import type { Alarm } from "./alarms";
 
-const PRIORITY_RANK = { critical: 0, high: 1, medium: 2, low: 3 } as const;
+const PRIORITY_RANK = { critical: 0, high: 1, medium: 2, low: 3, advisory: 4 } as const;
 
 /** An alarm record of robot "left" as the service sends it. */
 export function alarm(key: string, over: Partial<Alarm> = {}): Alarm {

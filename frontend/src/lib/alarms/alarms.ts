@@ -17,7 +17,7 @@ export type AlarmPriority = Alarm["priority"];
 export type AlarmHistoryRow = Schemas["AlarmHistoryRow"];
 
 /** Every priority, most urgent first (the history filter offers them in this order). */
-export const ALARM_PRIORITIES = ["critical", "high", "medium", "low"] as const satisfies readonly AlarmPriority[];
+export const ALARM_PRIORITIES = ["critical", "high", "medium", "low", "advisory"] as const satisfies readonly AlarmPriority[];
 
 /** The priority's colour (teach-pendant semantics, as the service gives `Alarm.colour`). */
 export const PRIORITY_COLOUR: Readonly<Record<AlarmPriority, string>> = {
@@ -25,6 +25,7 @@ export const PRIORITY_COLOUR: Readonly<Record<AlarmPriority, string>> = {
   high: "orange",
   medium: "yellow",
   low: "blue",
+  advisory: "grey",
 };
 
 const ORANGE: Paint = { background: "#e8710a", text: "#111111" };
@@ -188,6 +189,7 @@ export function mute(alarms: readonly Alarm[]): Mute {
 export function sounding(alarms: readonly Alarm[], muted: Mute): readonly Alarm[] {
   return alarms
     .filter((a) => isAnnunciated(a) && isUnacknowledged(a))
+    .filter((a) => a.priority !== "advisory") // robot health's maintenance advice: seen, not heard
     .filter((a) => !muted.silenced.has(a.id) || muted.silenced.get(a.id) !== a.activated_at)
     .sort(compareAlarms);
 }
@@ -209,6 +211,8 @@ export function cueTone(priority: AlarmPriority): CueTone {
       return { frequency_hz: 660, beeps: 1, period_ms: 4000 };
     case "low":
       return { frequency_hz: 520, beeps: 1, period_ms: 8000 };
+    case "advisory": // never sounding (see sounding); a tone for completeness
+      return { frequency_hz: 440, beeps: 1, period_ms: 16000 };
   }
 }
 

@@ -18,10 +18,10 @@ export function hasAnnunciated(summary: AlarmSummary | null | undefined): boolea
   return (summary.annunciated ?? 0) > 0 || summary.top != null;
 }
 
-const RANK = { critical: 0, high: 1, medium: 2, low: 3 } as const;
+const RANK = { critical: 0, high: 1, medium: 2, low: 3, advisory: 4 } as const;
 
 function rankOf(summary: AlarmSummary): number {
-  return summary.highest_priority !== null ? RANK[summary.highest_priority] : 4;
+  return summary.highest_priority !== null ? RANK[summary.highest_priority] : 5;
 }
 
 /**

@@ -52,6 +52,7 @@ const EVENT_KIND_SET = {
   recording: true,
   session: true,
   cycle: true,
+  health: true,
 } as const satisfies Record<EventKind, true>;
 
 export const EVENT_KINDS = Object.keys(EVENT_KIND_SET) as (keyof typeof EVENT_KIND_SET)[];

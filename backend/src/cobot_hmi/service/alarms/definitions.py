@@ -3,11 +3,14 @@ alarms of every robot and the user's (``[[alarms]]`` in the settings file). Pure
 layout, the labels and the settings' types.
 
 Priorities (ISA-18.2 §10: a few, by the consequence and the time to respond) are critical,
-high, medium and low. Their colours follow the teach pendant's semantics, taken from the
+high, medium and low, and below them advisory: robot health's maintenance advice
+(``service.health``: a joint's verdict watch or act), never above any alarm that needs an
+answer now. Their colours follow the teach pendant's semantics, taken from the
 layout's robot-state colours where a state gives one: critical is the emergency stop's red,
 medium the protective stop's yellow, low the informational blue of the manual states; high is
 orange, between red and yellow, as ISA-101 displays use it (the pendant has no state for it).
-An alarm that is a robot state shows that state's own pendant colour.
+An alarm that is a robot state shows that state's own pendant colour. Advisory is grey: a
+planner's note, not a call to the cell.
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ from typing import Final, Literal
 from cobot_hmi.layout import ROBOT_STATES, Direction, field_by_name
 from cobot_hmi.service.labels import element_label, unit_of
 
-PriorityName = Literal["critical", "high", "medium", "low"]
+PriorityName = Literal["critical", "high", "medium", "low", "advisory"]
 
 
 class Priority(StrEnum):
@@ -27,10 +30,12 @@ class Priority(StrEnum):
     HIGH = "high"
     MEDIUM = "medium"
     LOW = "low"
+    ADVISORY = "advisory"
+    """Robot health's maintenance advice (``service.health``): below every other priority."""
 
     @property
     def rank(self) -> int:
-        """0 for critical … 3 for low: sorts the most urgent first."""
+        """0 for critical … 3 for low, 4 for advisory: sorts the most urgent first."""
         return _RANK[self]
 
     @property
@@ -38,16 +43,23 @@ class Priority(StrEnum):
         return PRIORITY_COLOURS[self]
 
 
-_RANK: Final = {Priority.CRITICAL: 0, Priority.HIGH: 1, Priority.MEDIUM: 2, Priority.LOW: 3}
+_RANK: Final = {
+    Priority.CRITICAL: 0,
+    Priority.HIGH: 1,
+    Priority.MEDIUM: 2,
+    Priority.LOW: 3,
+    Priority.ADVISORY: 4,
+}
 _STATE_COLOUR: Final = {s.name: s.pendant_colours[0] for s in ROBOT_STATES}
 PRIORITY_COLOURS: Final = {
     Priority.CRITICAL: _STATE_COLOUR["EMERGENCY_STOP"],
     Priority.HIGH: "orange",
     Priority.MEDIUM: _STATE_COLOUR["INTERRUPTED"],
     Priority.LOW: _STATE_COLOUR["MANUAL_STANDBY"],
+    Priority.ADVISORY: "grey",
 }
 
-AlarmKind = Literal["state", "connection", "rate", "limit", "bit", "recording"]
+AlarmKind = Literal["state", "connection", "rate", "limit", "bit", "recording", "health"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -82,6 +94,8 @@ FORWARD_OPEN_REFUSED: Final = "forward_open_refused"
 PACKET_LOSS: Final = "packet_loss"
 RECORDING_PAUSED: Final = "recording_paused"
 MOTOR_TEMPERATURE: Final = "motor_temperature"
+HEALTH: Final = "health"
+"""``health.1`` … ``health.6``: each joint's maintenance advice (``service.health``)."""
 USER_PREFIX: Final = "user."
 
 
@@ -152,6 +166,19 @@ def builtin_definitions(
                 element=f"joint_motor_temperature.{index}",
                 high=motor_temperature_c,
                 unit=temperature.unit,
+            )
+            for index, channel in enumerate(temperature.channels)
+        ),
+        *(
+            AlarmDefinition(
+                f"{HEALTH}.{index + 1}",
+                f"Maintenance advised: {channel}",
+                Priority.ADVISORY,
+                "health",
+                f"robot health reads joint {channel} as watch or act (wear, heat, reducer life or "
+                "knocks against its baseline): the message says why; it clears once the joint "
+                "reads ok again",
+                PRIORITY_COLOURS[Priority.ADVISORY],
             )
             for index, channel in enumerate(temperature.channels)
         ),

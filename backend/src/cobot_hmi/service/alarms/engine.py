@@ -210,7 +210,8 @@ class AlarmEngine:
         longest = (
             DEFAULT_MAX_S
             if shelve_max_by_priority_s is None
-            else {d.Priority(p): s for p, s in shelve_max_by_priority_s.items()}
+            # A priority the settings leave out keeps its default (advisory has no setting).
+            else DEFAULT_MAX_S | {d.Priority(p): s for p, s in shelve_max_by_priority_s.items()}
         )
         self.shelving = ShelvingRules(shelve_max_s, longest)
         """Which alarms may be shelved, and for how long (``shelving``)."""
@@ -380,12 +381,20 @@ class AlarmEngine:
         event = self._process(alarm, active, now_s, self.gaps_per_min, words)
         return [] if event is None else [event]
 
-    def recording(self, *, paused: bool, reason: str, now_s: float) -> list[Event]:
-        """The history recorder paused (``reason`` says why) or resumed: its alarm."""
-        alarm = self.alarms[d.RECORDING_PAUSED]
-        if paused == alarm.status.state.active:
+    def raised(
+        self, key: str, *, active: bool, message: str, now_s: float, value: float | None = None
+    ) -> list[Event]:
+        """An alarm another part raises and clears: ``recording_paused`` (the history recorder
+        paused, ``message`` says why, or resumed), ``health.N`` (robot health's advice on a
+        joint, ``service.health``: active while its verdict is watch or act, ``message`` its
+        reason, kept up to date while active)."""
+        alarm = self.alarms[key]
+        if active == alarm.status.state.active:
+            if active:
+                alarm.status.message = message
+                alarm.status.value = value
             return []
-        event = self._process(alarm, paused, now_s, None, reason)
+        event = self._process(alarm, active, now_s, value, message)
         return [] if event is None else [event]
 
     def expire_shelving(self, now_s: float) -> list[Event]:

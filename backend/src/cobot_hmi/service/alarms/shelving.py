@@ -24,6 +24,7 @@ DEFAULT_MAX_S: Final = {
     Priority.HIGH: 3600.0,
     Priority.MEDIUM: 4 * 3600.0,
     Priority.LOW: 8 * 3600.0,
+    Priority.ADVISORY: 7 * 86_400.0,
 }
 """Each priority's longest shelving unless the settings say otherwise, s."""
 

@@ -24,6 +24,7 @@ from cobot_hmi.service.api.routes import alarms as routes_alarms
 from cobot_hmi.service.api.routes import auth as routes_auth
 from cobot_hmi.service.api.routes import checkouts as routes_checkouts
 from cobot_hmi.service.api.routes import cycles as routes_cycles
+from cobot_hmi.service.api.routes import health as routes_health
 from cobot_hmi.service.api.routes import history as routes_history
 from cobot_hmi.service.api.routes import log as routes_log
 from cobot_hmi.service.api.routes import presets as routes_presets
@@ -51,6 +52,7 @@ _ROUTES: Final = (
     routes_stream,
     routes_checkouts,
     routes_presets,
+    routes_health,
 )
 """Every route module of the API, in the order the OpenAPI document lists them."""
 

@@ -156,6 +156,19 @@ def _recording_text(event: Mapping[str, object]) -> str:
     return "Recording fell behind" if state == "overflow" else "Recording resumed"
 
 
+def _health_text(event: Mapping[str, object]) -> str:
+    """The joints that need a look, with their reasons; or that every joint reads ok."""
+    joints = event.get("joints")
+    flagged = [
+        j
+        for j in (joints if isinstance(joints, list) else [])
+        if isinstance(j, Mapping) and j.get("verdict") in ("watch", "act")
+    ]
+    if not flagged:
+        return "Health: every joint ok"
+    return "Health: " + "; ".join(f"{j.get('verdict')}: {j.get('reason')}" for j in flagged)
+
+
 def event_text(event: Mapping[str, object]) -> str:
     """The event in words, one line, as every view and file shows it (``text``)."""
     kind = event.get("kind")
@@ -177,6 +190,8 @@ def event_text(event: Mapping[str, object]) -> str:
         return _session_text(event)
     if kind == "recording":
         return _recording_text(event)
+    if kind == "health":
+        return _health_text(event)
     if kind == "cycle":
         duration_s = event.get("duration_s")
         if isinstance(duration_s, int | float):

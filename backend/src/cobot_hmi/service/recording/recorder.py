@@ -50,6 +50,7 @@ from cobot_hmi.history import retention, segments
 from cobot_hmi.history.closer import JournalCloser
 from cobot_hmi.history.journal_form import records_to_journal_batch
 from cobot_hmi.history.segments import Segment, SegmentWriter
+from cobot_hmi.service.alarms.definitions import RECORDING_PAUSED
 from cobot_hmi.service.extensions import MetricFamily
 from cobot_hmi.service.robots.frame_notifier import FrameRecord, Registration, Runs
 
@@ -409,8 +410,9 @@ class Recorder:
 
     @staticmethod
     def _alarm_now(robot: RobotRuntime, *, paused: bool, reason: str) -> None:
+        now_s = time.time()
         robot.publish_events(
-            robot.alarms.recording(paused=paused, reason=reason, now_s=time.time())
+            robot.alarms.raised(RECORDING_PAUSED, active=paused, message=reason, now_s=now_s)
         )
 
     # ------------------------------------------------------------ /metrics

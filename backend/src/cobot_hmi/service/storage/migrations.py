@@ -204,6 +204,44 @@ MIGRATIONS: Final = (
         "running states); NULL for a whole cycle, as every cycle measured before",
         ("ALTER TABLE cycles ADD COLUMN interruption TEXT",),
     ),
+    Migration(
+        9,
+        "robot health (service.health): each robot's engine state (a versioned JSON document: "
+        "life used, knocks, baselines), its baselines with who set them and why, and the "
+        "periodic snapshots of its figures that the trends and the weekly report read",
+        (
+            """CREATE TABLE health_state (
+    robot TEXT PRIMARY KEY,
+    saved_at REAL NOT NULL,
+    document TEXT NOT NULL
+)""",
+            """CREATE TABLE health_baselines (
+    robot TEXT NOT NULL,
+    id INTEGER NOT NULL,
+    created_at REAL NOT NULL,
+    created_by TEXT NOT NULL,
+    reason TEXT NOT NULL,
+    arm TEXT NOT NULL,
+    layout_version INTEGER NOT NULL,
+    target_cycles INTEGER,
+    cycles INTEGER,
+    learned_from REAL,
+    learned_to REAL,
+    record TEXT NOT NULL,
+    PRIMARY KEY (robot, id)
+)""",
+            """CREATE TABLE health_snapshots (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    robot TEXT NOT NULL,
+    time REAL NOT NULL,
+    baseline_id INTEGER,
+    verdict TEXT NOT NULL,
+    cycles INTEGER NOT NULL,
+    joints TEXT NOT NULL
+)""",
+            "CREATE INDEX health_snapshots_robot_time ON health_snapshots (robot, time)",
+        ),
+    ),
 )
 SCHEMA_VERSION: Final = MIGRATIONS[-1].version
 """The version this code writes and reads."""

@@ -24,6 +24,7 @@ AuditAction = Literal[
     "checkout.close",
     "preset.save",
     "preset.delete",
+    "health.baseline",
 ]
 AuditOutcome = Literal[
     "confirmed",

@@ -106,17 +106,17 @@ class Alarm(BaseModel):
     key: str = Field(
         description="emergency_stop, protective_stop, safe_off, connection_lost, "
         "forward_open_refused, packet_loss, recording_paused, motor_temperature.0–5 (0-based: "
-        "motor_temperature.2 is J 3), user.NAME"
+        "motor_temperature.2 is J 3), health.1–6 (robot health's advice on J 1–6), user.NAME"
     )
     name: str = Field(description="in words")
     description: str
     priority: AlarmPriority
-    priority_rank: int = Field(ge=0, le=3, description="0 critical … 3 low: sort by it")
+    priority_rank: int = Field(ge=0, le=4, description="0 critical … 3 low, 4 advisory: sort by it")
     colour: str = Field(
         description="the pendant's colour: a robot state's own, else the priority's (critical "
-        "red, high orange, medium yellow, low blue)"
+        "red, high orange, medium yellow, low blue, advisory grey)"
     )
-    kind: Literal["state", "connection", "rate", "limit", "bit", "recording"]
+    kind: Literal["state", "connection", "rate", "limit", "bit", "recording", "health"]
     element: str | None = Field(description="the watched frame element, ``name.index``")
     label: str | None = Field(description="its label as the robot prints it (J 3, DO 3)")
     tag: str | None = Field(description="its tag name, when an admin gave one")
@@ -319,6 +319,24 @@ class CycleEvent(_EventBase):
     duration_s: float = Field(ge=0, description="s")
 
 
+class HealthEventJoint(BaseModel):
+    joint: int = Field(ge=1, le=6)
+    verdict: Literal["ok", "watch", "act"]
+    reason: str
+    life_used_percent: float = Field(description="reducer life used, %")
+
+
+class HealthEvent(_EventBase):
+    """The robot's health changed (``service.health``): a joint's verdict, or a joint's life
+    used by 0.1 %; also the first verdicts after the service started
+    (``GET /api/v1/robots/{name}/health`` has every figure)."""
+
+    kind: Literal["health"]
+    verdict: Literal["ok", "watch", "act"] = Field(description="the worst of the joints'")
+    maintenance_due: bool = Field(description="a joint reads watch or act")
+    joints: list[HealthEventJoint] = Field(description="J1 first")
+
+
 Event = Annotated[
     ConnectionEvent
     | RobotStateEvent
@@ -328,7 +346,8 @@ Event = Annotated[
     | RecordingEvent
     | AlarmEvent
     | SessionEvent
-    | CycleEvent,
+    | CycleEvent
+    | HealthEvent,
     Field(discriminator="kind"),
 ]
 EventKind = Literal[
@@ -341,6 +360,7 @@ EventKind = Literal[
     "alarm",
     "session",
     "cycle",
+    "health",
 ]
 
 

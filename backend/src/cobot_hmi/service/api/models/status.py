@@ -142,7 +142,7 @@ class Identity(BaseModel):
     product_name: str
 
 
-AlarmPriority = Literal["critical", "high", "medium", "low"]
+AlarmPriority = Literal["critical", "high", "medium", "low", "advisory"]
 
 
 class AlarmBrief(BaseModel):
@@ -154,7 +154,7 @@ class AlarmBrief(BaseModel):
     key: str
     name: str = Field(description='in words: "Emergency stop"')
     priority: AlarmPriority
-    priority_rank: int = Field(ge=0, le=3)
+    priority_rank: int = Field(ge=0, le=4)
     colour: str
     state: AlarmStateName
     active: bool

@@ -1,0 +1,62 @@
+"""Layer: service (pure). The service's health settings, declared once (``setting_fields``):
+whether every robot's health is read from its frames, how often, how often its state is saved
+and a snapshot kept for the trends (docs/health.md "In the service"). The engine's own
+thresholds are ``cobot_hmi.health.settings.HealthSettings``."""
+
+from __future__ import annotations
+
+from pydantic import BaseModel, ConfigDict
+
+from cobot_hmi.service.setting_fields import setting
+
+
+class HealthServiceSettings(BaseModel):
+    """Robot health in the service (one part of the settings, given to ``service.health``
+    alone)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    health_enabled: bool = setting(
+        True, "read every robot's health from its frames (--no-health-enabled: off)"
+    )
+    health_refresh_s: float = setting(
+        1.0,
+        "frames reach the health engine in blocks this often, s (the engine wants at least a "
+        "second's frames a block)",
+        gt=0,
+        le=10.0,
+        allow_inf_nan=False,
+    )
+    health_report_s: float = setting(
+        5.0,
+        "the verdicts are judged again this often (advisory alarms, health events), s",
+        gt=0,
+        le=600.0,
+        allow_inf_nan=False,
+    )
+    health_save_s: float = setting(
+        60.0,
+        "each robot's health state (life used, knocks, baselines) is saved this often, s, and "
+        "when the service stops",
+        gt=0,
+        le=3600.0,
+        allow_inf_nan=False,
+    )
+    health_snapshot_s: float = setting(
+        600.0,
+        "a snapshot of each robot's figures is kept this often for the trends and the "
+        "weekly report, s",
+        gt=0,
+        le=86_400.0,
+        allow_inf_nan=False,
+    )
+    health_queue_frames: int = setting(
+        6000,
+        "frames per robot health may fall behind by before the oldest are dropped (counted)",
+        ge=100,
+    )
+    health_arm: str = setting(
+        "",
+        "the arm model of every robot whose identity names none (M1013, M0609; empty: from "
+        "the identity's product name, else M1013)",
+    )
