@@ -77,7 +77,7 @@ async def emulator(
 def service_settings(
     robot_host: str, robot_tcp_port: int, plc_host: str, state_dir: Path, **overrides: Any
 ) -> HmiSettings:
-    settings = HmiSettings(
+    settings = HmiSettings.from_keys(
         robot_host=robot_host,
         robot_tcp_port=robot_tcp_port,
         local_host=plc_host,
@@ -126,7 +126,7 @@ def _test_users() -> dict[str, Any]:
 def add_users(settings: HmiSettings) -> None:
     """The four test users in ``settings``' users file (beside any it holds), written as
     ``UsersFile`` writes it: whole, private, then renamed into place."""
-    path = settings.users_path
+    path = settings.web.users_path
     document = json.loads(path.read_text()) if path.exists() else {}
     document.setdefault("users", {}).update(_test_users())
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -144,14 +144,14 @@ class Running:
 
     @property
     def base_url(self) -> str:
-        return f"http://{self.settings.host}:{self.settings.port}"
+        return f"http://{self.settings.web.host}:{self.settings.web.port}"
 
     @property
     def ws_url(self) -> str:
-        return f"ws://{self.settings.host}:{self.settings.port}/api/v1/stream"
+        return f"ws://{self.settings.web.host}:{self.settings.web.port}/api/v1/stream"
 
     def robot_ws_url(self, name: str) -> str:
-        return f"ws://{self.settings.host}:{self.settings.port}/api/v1/robots/{name}/stream"
+        return f"ws://{self.settings.web.host}:{self.settings.web.port}/api/v1/robots/{name}/stream"
 
     def client(self, token: str | None = None) -> httpx.AsyncClient:
         headers = {"Authorization": f"Bearer {token}"} if token else {}

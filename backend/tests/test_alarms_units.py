@@ -511,8 +511,11 @@ active_when = true
         encoding="utf-8",
     )
     loaded = load_settings({}, {}, config)
-    assert [a.name for a in loaded.alarms] == ["gripper-pressure", "door"]
-    assert loaded.alarms[0].deadband == 0.2 and loaded.alarms[1].robot == "left"
+    assert [a.name for a in loaded.alarm_limits.alarms] == ["gripper-pressure", "door"]
+    assert (
+        loaded.alarm_limits.alarms[0].deadband == 0.2
+        and loaded.alarm_limits.alarms[1].robot == "left"
+    )
 
 
 @pytest.mark.parametrize(

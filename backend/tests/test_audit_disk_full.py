@@ -113,7 +113,7 @@ class Cell:
 
     @property
     def database(self) -> Path:
-        return self.hmi.settings.database_path
+        return self.hmi.settings.web.database_path
 
     async def write(self, index: int) -> httpx.Response:
         return await self.client.patch(
@@ -151,7 +151,7 @@ async def test_a_full_disk_refuses_what_it_cannot_audit_and_loses_no_confirmed_w
                 assert "audit_pending" not in first.json()
                 await _nothing_applied_while_full(cell)
                 confirmed = await _confirmed_while_the_disk_fills(cell)
-            rows = audit_rows(settings.database_path)
+            rows = audit_rows(settings.web.database_path)
     # Every write answered as confirmed is in the audit as confirmed; none is left pending.
     writes = [r for r in rows if r["action"] == "write"]
     answered = [{"controlbox_do.0": True}, {"controlbox_do.2": True}]

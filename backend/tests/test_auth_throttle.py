@@ -106,14 +106,14 @@ def _cli(*args: str) -> subprocess.CompletedProcess[str]:
 
 
 async def test_users_token_verb_issues_lists_and_revokes(hmi: Running) -> None:
-    state = ["--users-file", str(hmi.settings.users_path)]
+    state = ["--users-file", str(hmi.settings.web.users_path)]
     issued = await asyncio.to_thread(
         _cli, "users", "token", "kiosk-1", "--expires-days", "30", *state
     )
     assert issued.returncode == 0, issued.stderr
     token = issued.stdout.strip()
     assert token.startswith("chmi_") and len(token) > 40
-    assert token not in hmi.settings.users_path.read_text()  # only its digest is kept
+    assert token not in hmi.settings.web.users_path.read_text()  # only its digest is kept
     listed = await asyncio.to_thread(_cli, "users", "list", *state)
     assert "token:kiosk-1\tviewer\texpires 20" in listed.stdout
     async with hmi.client(token) as kiosk:

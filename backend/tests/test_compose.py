@@ -187,10 +187,10 @@ def test_the_service_is_configured_for_both_robots(config: dict[str, Any]) -> No
     addresses = {
         name: config["services"][name]["networks"]["cell"]["ipv4_address"] for name in EMULATORS
     }
-    assert [(r.name, r.host, r.tcp_port) for r in settings.robots] == [
+    assert [(r.name, r.host, r.tcp_port) for r in settings.cell.robots] == [
         (name, addresses[name], 44818) for name in EMULATORS
     ]
-    assert all(r.mode == "exclusive-owner" for r in settings.robots)
+    assert all(r.mode == "exclusive-owner" for r in settings.cell.robots)
     # Each robot's arm is the one its emulator simulates.
     assert {n: _emulator_args(config["services"][n]).model for n in EMULATORS} == EMULATORS
     # The service waits for both robots to be up.
@@ -206,7 +206,7 @@ def test_one_real_robot_instead_of_the_cell() -> None:
     settings = load_settings(
         {}, {k: v for k, v in environment.items() if k != "COBOT_HMI_CONFIG"}, cell
     )
-    assert [(r.name, r.host) for r in settings.robots] == [("robot", "192.0.2.10")]
+    assert [(r.name, r.host) for r in settings.cell.robots] == [("robot", "192.0.2.10")]
 
 
 def test_the_panel_is_published_on_port_8000(config: dict[str, Any]) -> None:
@@ -234,7 +234,7 @@ def test_healthchecks(config: dict[str, Any]) -> None:
 
 
 def test_settings_are_real_service_settings(config: dict[str, Any]) -> None:
-    known = {env_name(name) for name in HmiSettings.model_fields} | {CONFIG_ENV}
+    known = {env_name(name) for name in HmiSettings.setting_keys()} | {CONFIG_ENV}
     environment = _environment(config["services"]["backend"])
     settings = {key for key in environment if key.startswith("COBOT_HMI_")}
     assert settings, "the backend is configured through COBOT_HMI_* variables"

@@ -129,16 +129,19 @@ def test_the_trigger_is_a_setting_per_robot_and_of_the_shortcut(tmp_path: Path) 
         '[[robots]]\nname = "b"\nhost = "127.0.0.5"\n'
     )
     cell = load_settings({}, environ={}, config_file=config)
-    assert [r.cycle_trigger for r in cell.robots] == [
+    assert [r.cycle_trigger for r in cell.cell.robots] == [
         "tool_di.0:rising",
         "state:STANDALONE_RUNNING",
     ]
     parser = argparse.ArgumentParser()
     add_arguments(parser)
     args = parser.parse_args(["--robot", "127.0.0.2", "--cycle-trigger", "controlbox_do.2:rising"])
-    assert settings_from_args(args, environ={}).robots[0].cycle_trigger == "controlbox_do.2:rising"
+    assert (
+        settings_from_args(args, environ={}).cell.robots[0].cycle_trigger
+        == "controlbox_do.2:rising"
+    )
     environ = {"COBOT_HMI_ROBOT_HOST": "127.0.0.2", "COBOT_HMI_CYCLE_TRIGGER": "servo_on:falling"}
-    assert load_settings({}, environ=environ).robots[0].cycle_trigger == "servo_on:falling"
+    assert load_settings({}, environ=environ).cell.robots[0].cycle_trigger == "servo_on:falling"
     with pytest.raises(SettingsError, match="bits 0–63"):
         load_settings(
             {"robot_host": "127.0.0.2", "cycle_trigger": "bit_output_registers.99:rising"},

@@ -53,13 +53,20 @@ async def target(robot_host: str, robot: StaticRobot) -> AsyncIterator[Target]:
 hmi = hmi_fixture(max_body_bytes=4096, anonymous_write_burst=5, anonymous_writes_per_s=0.01)
 
 
+def _host(hmi: Running) -> str:
+    """The service's HOST:PORT (the Host header a browser sends)."""
+    return f"{hmi.settings.web.host}:{hmi.settings.web.port}"
+
+
 def _origin(hmi: Running, port: int | None = None) -> Origin:
-    return Origin(f"http://{hmi.settings.host}:{hmi.settings.port if port is None else port}")
+    return Origin(
+        f"http://{hmi.settings.web.host}:{hmi.settings.web.port if port is None else port}"
+    )
 
 
 async def _raw_http(hmi: Running, head: bytes, body: bytes = b"") -> tuple[int, bytes]:
     """Send ``head`` (and ``body``) on a fresh TCP connection; the status and the answer."""
-    reader, writer = await asyncio.open_connection(hmi.settings.host, hmi.settings.port)
+    reader, writer = await asyncio.open_connection(hmi.settings.web.host, hmi.settings.web.port)
     try:
         writer.write(head + body)
         await writer.drain()
@@ -77,7 +84,7 @@ async def _raw_http(hmi: Running, head: bytes, body: bytes = b"") -> tuple[int, 
 async def test_a_body_announced_too_large_is_refused_before_it_is_sent(hmi: Running) -> None:
     # 1 GiB announced, nothing sent: without the bound the route waits to read it all.
     head = (
-        f"PATCH /api/v1/command HTTP/1.1\r\nHost: {hmi.settings.host}:{hmi.settings.port}\r\n"
+        f"PATCH /api/v1/command HTTP/1.1\r\nHost: {_host(hmi)}\r\n"
         "Content-Type: application/json\r\nContent-Length: 1073741824\r\n\r\n"
     ).encode()
     status, answer = await _raw_http(hmi, head, b'{"tool_do": ')
@@ -91,7 +98,7 @@ async def test_a_chunked_body_is_cut_off_at_the_limit(hmi: Running) -> None:
     # 8 KiB in 1 KiB chunks and no last chunk: the body never ends. Without the bound the
     # route would wait for the rest; with it, the service answers once the limit is passed.
     head = (
-        f"PATCH /api/v1/command HTTP/1.1\r\nHost: {hmi.settings.host}:{hmi.settings.port}\r\n"
+        f"PATCH /api/v1/command HTTP/1.1\r\nHost: {_host(hmi)}\r\n"
         f"Authorization: Bearer {token}\r\nContent-Type: application/json\r\n"
         "Transfer-Encoding: chunked\r\n\r\n"
     ).encode()
@@ -115,7 +122,7 @@ async def test_a_body_sent_too_slowly_is_refused(
         token = await hmi.login(OPERATOR)
         # 100 bytes announced, 10 sent, then silence: the connection would stay busy for ever.
         head = (
-            f"PATCH /api/v1/command HTTP/1.1\r\nHost: {settings.host}:{settings.port}\r\n"
+            f"PATCH /api/v1/command HTTP/1.1\r\nHost: {settings.web.host}:{settings.web.port}\r\n"
             f"Authorization: Bearer {token}\r\nContent-Type: application/json\r\n"
             "Content-Length: 100\r\n\r\n"
         ).encode()
@@ -137,7 +144,7 @@ async def test_answers_carry_the_security_headers(hmi: Running) -> None:
             assert "frame-ancestors 'none'" in csp
             assert "default-src 'self'" in csp
             assert "script-src 'self'" in csp and "unsafe-eval" not in csp
-            own = f"{hmi.settings.host}:{hmi.settings.port}"
+            own = f"{hmi.settings.web.host}:{hmi.settings.web.port}"
             assert f"connect-src 'self' ws://{own} wss://{own};" in csp  # the stream
             assert answer.headers["x-frame-options"] == "DENY"
             assert answer.headers["x-content-type-options"] == "nosniff"
@@ -148,14 +155,14 @@ async def test_answers_carry_the_security_headers(hmi: Running) -> None:
 
 
 async def test_other_host_headers_are_refused(hmi: Running) -> None:
-    port = hmi.settings.port
+    port = hmi.settings.web.port
     async with hmi.client() as client:
         # DNS rebinding: a name the attacker controls, resolved to the HMI's address.
         for host in ("evil.example", f"evil.example:{port}", "127.0.0.1.nip.io"):
             answer = await client.get("/api/v1/status", headers={"host": host})
             assert answer.status_code == 400, host
             assert "allowed_hosts" in answer.json()["detail"]["reason"]
-        for host in (f"localhost:{port}", f"{hmi.settings.host}:{port}", f"[::1]:{port}"):
+        for host in (f"localhost:{port}", f"{hmi.settings.web.host}:{port}", f"[::1]:{port}"):
             assert (await client.get("/api/v1/status", headers={"host": host})).status_code == 200
     # The stream's handshake too.
     handshake = (
@@ -191,7 +198,7 @@ async def _cookie_login(client: httpx.AsyncClient, user: tuple[str, str]) -> Non
 
 
 async def test_a_page_on_another_port_cannot_take_control(hmi: Running) -> None:
-    other = _origin(hmi, hmi.settings.port + 1)
+    other = _origin(hmi, hmi.settings.web.port + 1)
     async with hmi.client() as browser:
         await _cookie_login(browser, OPERATOR)
         # The attack: an auto-submitted form on http://same-host:other-port, with the cookie.
@@ -253,7 +260,7 @@ async def test_allowed_origins_setting(
     target: Target, robot_host: str, plc_host: str, tmp_path: Path
 ) -> None:
     settings = service_settings(robot_host, target.tcp_port, plc_host, tmp_path)
-    extra = f"http://{settings.host}:{settings.port + 1}"
+    extra = f"http://{settings.web.host}:{settings.web.port + 1}"
     settings = settings.replace(allowed_origins=[extra])
     async with running_service(settings) as hmi, hmi.client(await hmi.login(OPERATOR)) as client:
         assert (
@@ -261,7 +268,7 @@ async def test_allowed_origins_setting(
         ).status_code == 200
         assert (
             await client.post(
-                "/api/v1/control/release", headers={"origin": _origin(hmi, settings.port + 2)}
+                "/api/v1/control/release", headers={"origin": _origin(hmi, settings.web.port + 2)}
             )
         ).status_code == 403
 
@@ -269,7 +276,7 @@ async def test_allowed_origins_setting(
 async def test_the_stream_checks_the_origin(hmi: Running) -> None:
     url = hmi.ws_url
     with pytest.raises(websockets.InvalidStatus) as refused:
-        async with websockets.connect(url, origin=_origin(hmi, hmi.settings.port + 1)):
+        async with websockets.connect(url, origin=_origin(hmi, hmi.settings.web.port + 1)):
             pass
     assert refused.value.response.status_code == 403
     async with websockets.connect(url, origin=_origin(hmi)) as own:
@@ -371,7 +378,7 @@ async def test_the_database_file_is_private(
     target: Target, robot_host: str, plc_host: str, tmp_path: Path
 ) -> None:
     settings = service_settings(robot_host, target.tcp_port, plc_host, tmp_path)
-    database = settings.database_path
+    database = settings.web.database_path
     database.parent.mkdir(parents=True, exist_ok=True)
     database.touch(mode=0o644)  # left readable by an older version
     os.chmod(database, 0o644)
@@ -383,7 +390,7 @@ async def test_the_database_file_is_private(
     fresh = tmp_path / "fresh"
     settings = service_settings(robot_host, target.tcp_port, plc_host, fresh)
     async with running_service(settings):
-        assert stat.S_IMODE(settings.database_path.stat().st_mode) == 0o600
+        assert stat.S_IMODE(settings.web.database_path.stat().st_mode) == 0o600
 
 
 # --------------------------------------------------------------------------- index keys
@@ -409,12 +416,12 @@ async def test_viewer_tokens_for_kiosks_when_viewing_needs_a_login(
         robot_host, target.tcp_port, plc_host, tmp_path, view_requires_login=True
     )
     async with running_service(settings) as hmi:
-        users = UsersFile(settings.users_path)
+        users = UsersFile(settings.web.users_path)
         token = users.add_token("kiosk-hall", Role.VIEWER, expires_in_s=30 * 86400.0)
         expired = users.add_token(
             "old-kiosk", Role.VIEWER, expires_in_s=60.0, now=time.time() - 3600.0
         )
-        assert json.dumps(json.loads(settings.users_path.read_text())).count(token) == 0
+        assert json.dumps(json.loads(settings.web.users_path.read_text())).count(token) == 0
         async with hmi.client() as anonymous:
             assert (await anonymous.get("/api/v1/frame")).status_code == 401
         async with hmi.client(token) as kiosk:

@@ -171,8 +171,8 @@ def test_group_roles_from_repeated_flags_split_at_the_last_equals_sign() -> None
         ]
     )
     settings = from_args(args, environ={})
-    assert settings.ldap_group_role == {OPS: "operator", VIEW: "viewer"}
-    assert settings.ldap_user_dn == TEMPLATE
+    assert settings.directory.ldap_group_role == {OPS: "operator", VIEW: "viewer"}
+    assert settings.directory.ldap_user_dn == TEMPLATE
 
 
 def test_the_same_settings_from_the_environment_and_toml(tmp_path: Path) -> None:
@@ -184,13 +184,13 @@ def test_the_same_settings_from_the_environment_and_toml(tmp_path: Path) -> None
         "COBOT_HMI_LDAP_GROUP_ROLE": f"{OPS}=operator; {VIEW}=viewer",
     }
     settings = load_settings({"robot_host": "127.0.0.2"}, environ)
-    assert settings.ldap_group_role == {OPS: "operator", VIEW: "viewer"}
-    assert settings.ldap_bind_password.get_secret_value() == "s3cret"
+    assert settings.directory.ldap_group_role == {OPS: "operator", VIEW: "viewer"}
+    assert settings.directory.ldap_bind_password.get_secret_value() == "s3cret"
     assert "s3cret" not in repr(settings)
     as_json = load_settings(
         {"robot_host": "127.0.0.2"}, environ | {"COBOT_HMI_LDAP_GROUP_ROLE": f'["{OPS}=admin"]'}
     )
-    assert as_json.ldap_group_role == {OPS: "admin"}
+    assert as_json.directory.ldap_group_role == {OPS: "admin"}
     config = tmp_path / "hmi.toml"
     config.write_text(
         'ldap_url = "ldap://127.0.0.1:3389"\n'
@@ -200,14 +200,19 @@ def test_the_same_settings_from_the_environment_and_toml(tmp_path: Path) -> None
         f'ldap_group_role = ["{OPS}=operator"]\n'
     )
     from_toml = load_settings({"robot_host": "127.0.0.2"}, {}, config)
-    assert from_toml.ldap_start_tls and from_toml.ldap_user_filter == "(sAMAccountName={user})"
-    assert from_toml.ldap_group_role == {OPS: "operator"}
+    assert (
+        from_toml.directory.ldap_start_tls
+        and from_toml.directory.ldap_user_filter == "(sAMAccountName={user})"
+    )
+    assert from_toml.directory.ldap_group_role == {OPS: "operator"}
     table = tmp_path / "table.toml"
     table.write_text(
         f'ldap_url = "ldap://h"\nldap_user_dn = "{TEMPLATE}"\n'
         f'[ldap_group_role]\n"{VIEW}" = "viewer"\n'
     )
-    assert load_settings({"robot_host": "x"}, {}, table).ldap_group_role == {VIEW: "viewer"}
+    assert load_settings({"robot_host": "x"}, {}, table).directory.ldap_group_role == {
+        VIEW: "viewer"
+    }
 
 
 @pytest.mark.parametrize(

@@ -103,8 +103,8 @@ class StreamReader:
 
 @contextlib.asynccontextmanager
 async def stream_of(hmi: Running, name: str) -> AsyncIterator[StreamReader]:
-    url = f"ws://{hmi.settings.host}:{hmi.settings.port}/api/v1/robots/{name}/stream"
-    async with connect(url, origin=f"http://{hmi.settings.host}:{hmi.settings.port}") as ws:  # type: ignore[arg-type]
+    url = f"ws://{hmi.settings.web.host}:{hmi.settings.web.port}/api/v1/robots/{name}/stream"
+    async with connect(url, origin=f"http://{hmi.settings.web.host}:{hmi.settings.web.port}") as ws:  # type: ignore[arg-type]
         reader = StreamReader(ws)
         try:
             yield reader
@@ -131,7 +131,7 @@ async def test_two_robots_stream_with_independent_control_and_writes(
             tmp_path,
             [_robot("alpha", host_a, target_a.tcp_port), _robot("beta", host_b, target_b.tcp_port)],
         )
-        assert [r.name for r in settings.robots] == ["alpha", "beta"]
+        assert [r.name for r in settings.cell.robots] == ["alpha", "beta"]
         async with running_service(settings) as hmi:
             service = hmi.service
             await _wait_all_connected(service)

@@ -103,7 +103,7 @@ async def _cell(state_dir: Path) -> AsyncIterator[Cell]:
         write_timeout_ms=10_000.0,
     )
     certificate = client_certificate(state_dir / "client")
-    trust(certificate[0], settings.opcua_trusted_dir(state_dir))
+    trust(certificate[0], settings.opcua.opcua_trusted_dir(state_dir))
     peer = await OpcUaPeer.start(state_dir / "node-pki")
     targets = [still_target, moving_target]
     try:
@@ -466,11 +466,11 @@ async def test_none_refused_on_a_non_loopback_bind(cell: Cell, tmp_path: Path) -
         opcua_url=f"opc.tcp://0.0.0.0:{port}", view_requires_login=True
     )
     state_dir = tmp_path / "state"
-    trust(cell.certificate[0], settings.opcua_trusted_dir(state_dir))
-    feed = ServiceFeed(service.robots, service.users, settings, asyncio.get_running_loop())
-    server = OpcUaServer(settings, state_dir, feed)
+    trust(cell.certificate[0], settings.opcua.opcua_trusted_dir(state_dir))
+    feed = ServiceFeed(service.robots, service.users, settings.web, asyncio.get_running_loop())
+    server = OpcUaServer(settings.opcua, state_dir, feed)
     await server.start()
-    endpoint = f"opc.tcp://{cell.running.settings.host}:{port}"
+    endpoint = f"opc.tcp://{cell.running.settings.web.host}:{port}"
     try:
         with pytest.raises(PeerError):
             await cell.peer.connect("open", endpoint, user=OPERATOR)

@@ -136,7 +136,7 @@ async def _cell(state_dir: Path) -> AsyncIterator[Cell]:
         opcua_writes=False,
     )
     cert_path, key_path = client_certificate(state_dir / "client")
-    trust(cert_path, settings.opcua_trusted_dir(state_dir))
+    trust(cert_path, settings.opcua.opcua_trusted_dir(state_dir))
     # asyncua's client reads a key as PEM only when its file is named so.
     certificate = (cert_path, key_path.rename(key_path.with_suffix(".key.pem")))
     cell: Cell | None = None

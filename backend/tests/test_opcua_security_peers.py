@@ -295,16 +295,16 @@ async def _cell(state_dir: Path) -> AsyncIterator[Cell]:
         opcua_writes=True,
     )
     certificate = client_certificate(state_dir / "client")
-    trust(certificate[0], settings.opcua_trusted_dir(state_dir))
+    trust(certificate[0], settings.opcua.opcua_trusted_dir(state_dir))
     open_port = listening_port("0.0.0.0")
     open_settings = settings.replace(opcua_url=f"opc.tcp://0.0.0.0:{open_port}")
     try:
         async with running_service(settings) as running:
             service = running.service
             feed = ServiceFeed(
-                service.robots, service.users, open_settings, asyncio.get_running_loop()
+                service.robots, service.users, open_settings.web, asyncio.get_running_loop()
             )
-            second = OpcUaServer(open_settings, state_dir, feed)  # the same PKI directory
+            second = OpcUaServer(open_settings.opcua, state_dir, feed)  # the same PKI directory
             await second.start()
             try:
                 own = state_dir / "opcua" / "pki" / "own" / "cert.der"
@@ -465,7 +465,7 @@ async def test_an_untrusted_certificate_is_refused_when_the_channel_opens(
     thumbprint = stranger.certificate.fingerprint(hashes.SHA1()).hex()
     rejected = cell.state_dir / "opcua" / "pki" / "rejected" / f"{thumbprint}.der"
     assert rejected.is_file(), "the refused certificate is kept for an administrator"
-    trusted = cell.running.settings.opcua_trusted_dir(cell.state_dir) / rejected.name
+    trusted = cell.running.settings.opcua.opcua_trusted_dir(cell.state_dir) / rejected.name
     rejected.rename(trusted)
     try:
         async with RawChannel.connect(*cell.open_bind, cell.secure(stranger, ENCRYPT)) as channel:

@@ -38,16 +38,16 @@ UA_NS = "{http://opcfoundation.org/UA/2011/03/UANodeSet.xsd}"
     ],
 )
 def test_the_url_names_the_bind(url: str, bind: tuple[str, int], loopback: bool) -> None:
-    settings = HmiSettings(robot_host="127.0.0.2", opcua_url=url)
-    assert settings.opcua_enabled
-    assert settings.opcua_bind == bind
-    assert settings.opcua_loopback is loopback
+    settings = HmiSettings.from_keys(robot_host="127.0.0.2", opcua_url=url)
+    assert settings.opcua.opcua_enabled
+    assert settings.opcua.opcua_bind == bind
+    assert settings.opcua.opcua_loopback is loopback
 
 
 def test_off_by_default_and_a_bad_url_is_refused_naming_it() -> None:
-    settings = HmiSettings(robot_host="127.0.0.2")
-    assert not settings.opcua_enabled and not settings.opcua_writes
-    assert settings.opcua_monitoring_hz == 10.0
+    settings = HmiSettings.from_keys(robot_host="127.0.0.2")
+    assert not settings.opcua.opcua_enabled and not settings.opcua.opcua_writes
+    assert settings.opcua.opcua_monitoring_hz == 10.0
     with pytest.raises(SettingsError, match="opcua_url"):
         load_settings(
             {"robot_host": "127.0.0.2", "opcua_url": "http://example.org"}, None, None, HmiSettings

@@ -122,8 +122,8 @@ async def _plant_app(settings: PlantSettings) -> AsyncIterator[str]:
     runtime = PlantRuntime(settings)
     config = uvicorn.Config(
         create_plant_app(runtime),
-        host=settings.host,
-        port=settings.port,
+        host=settings.web.host,
+        port=settings.web.port,
         log_level="warning",
         lifespan="on",
     )
@@ -132,7 +132,7 @@ async def _plant_app(settings: PlantSettings) -> AsyncIterator[str]:
     try:
         await eventually(lambda: server.started or task.done())
         assert not task.done()
-        yield f"http://{settings.host}:{settings.port}"
+        yield f"http://{settings.web.host}:{settings.web.port}"
     finally:
         server.should_exit = True
         await task
@@ -141,14 +141,16 @@ async def _plant_app(settings: PlantSettings) -> AsyncIterator[str]:
 async def test_the_plant_api_is_the_services_login_and_checks(
     plc_host: str, tmp_path: Path
 ) -> None:
-    settings = PlantSettings(
+    settings = PlantSettings.from_keys(
         host=plc_host,
         port=free_tcp_port(plc_host),
         state_dir=tmp_path,
         mqtt_urls=[f"mqtt://{plc_host}:{free_tcp_port(plc_host)}"],  # no broker: it retries
         view_requires_login=True,
     )
-    await asyncio.to_thread(UsersFile(settings.users_path).add, "ann", Role.VIEWER, "pw-ann-123")
+    await asyncio.to_thread(
+        UsersFile(settings.web.users_path).add, "ann", Role.VIEWER, "pw-ann-123"
+    )
     async with _plant_app(settings) as base, httpx.AsyncClient(base_url=base) as client:
         refused = await client.get("/api/v1/plant/nodes")
         assert refused.status_code == 401

@@ -155,10 +155,10 @@ async def test_a_2mb_body_over_https_is_answered_413_every_time(
         robot_host, target.tcp_port, plc_host, tmp_path, tls_cert=cert, tls_key=key
     )
     async with running_service(settings) as running:
-        url = f"https://{plc_host}:{settings.port}/api/v1/command"
+        url = f"https://{plc_host}:{settings.web.port}/api/v1/command"
         token = await _https_login(url.replace("/command", "/auth/login"), str(ca.ca_file))
         seen = await asyncio.to_thread(_post_large_bodies, url, token, str(ca.ca_file))
-        assert running.service.settings.max_body_bytes < BODY_BYTES
+        assert running.service.settings.web.max_body_bytes < BODY_BYTES
     assert seen == ["413"] * TIMES, Counter(seen)
 
 

@@ -38,10 +38,10 @@ def _parse(argv: list[str]) -> argparse.Namespace:
 
 def test_defaults() -> None:
     settings = load_settings({}, environ={})
-    assert settings.rpi_ms == 10.0
-    assert settings.rpi_us == 10_000
-    assert settings.robots == []  # none until --robot, COBOT_HMI_ROBOT_HOST or [[robots]]
-    assert settings.users_path == settings.state_dir / "users.json"
+    assert settings.cell.rpi_ms == 10.0
+    assert settings.cell.rpi_us == 10_000
+    assert settings.cell.robots == []  # none until --robot, COBOT_HMI_ROBOT_HOST or [[robots]]
+    assert settings.web.users_path == settings.web.state_dir / "users.json"
 
 
 def test_precedence_flags_over_environment_over_toml(tmp_path: Path) -> None:
@@ -50,32 +50,36 @@ def test_precedence_flags_over_environment_over_toml(tmp_path: Path) -> None:
     environ = {"COBOT_HMI_PORT": "9100", "COBOT_HMI_INPUT_ONLY": "false"}
     args = _parse(["--config", str(config), "--port", "9200", "--robot", "127.0.0.9"])
     settings = settings_from_args(args, environ)
-    assert settings.rpi_ms == 4.0  # TOML only
-    assert settings.port == 9200  # flag beats environment beats TOML
-    assert settings.robot_host == "127.0.0.9"
-    assert settings.input_only is False  # environment beats TOML
+    assert settings.cell.rpi_ms == 4.0  # TOML only
+    assert settings.web.port == 9200  # flag beats environment beats TOML
+    assert settings.cell.robot_host == "127.0.0.9"
+    assert settings.cell.input_only is False  # environment beats TOML
     without_flag = settings_from_args(_parse(["--config", str(config)]), environ)
-    assert without_flag.port == 9100
+    assert without_flag.web.port == 9100
 
 
 def test_config_file_from_environment(tmp_path: Path) -> None:
     config = tmp_path / "hmi.toml"
     config.write_text("ws_batch_ms = 20\n")
     settings = load_settings({}, environ={"COBOT_HMI_CONFIG": str(config)})
-    assert settings.ws_batch_ms == 20.0
+    assert settings.web.ws_batch_ms == 20.0
 
 
 def test_composite_flags_and_booleans() -> None:
     args = _parse(["--instances", "1,2,3", "--sizes", "24,300", "--input-only", "--rpi-ms", "2"])
     settings = settings_from_args(args, {})
-    assert (settings.config_instance, settings.o2t_instance, settings.t2o_instance) == (1, 2, 3)
-    assert (settings.o2t_size, settings.t2o_size) == (24, 300)
-    assert settings.input_only
-    assert settings.robots == []
-    assert settings.rpi_us == 2000
+    assert (
+        settings.cell.config_instance,
+        settings.cell.o2t_instance,
+        settings.cell.t2o_instance,
+    ) == (1, 2, 3)
+    assert (settings.cell.o2t_size, settings.cell.t2o_size) == (24, 300)
+    assert settings.cell.input_only
+    assert settings.cell.robots == []
+    assert settings.cell.rpi_us == 2000
     assert not settings_from_args(
         _parse(["--no-input-only"]), {"COBOT_HMI_INPUT_ONLY": "1"}
-    ).input_only
+    ).cell.input_only
 
 
 @pytest.mark.parametrize(
@@ -106,7 +110,7 @@ def test_unknown_toml_key_and_bad_toml(tmp_path: Path) -> None:
 
 def test_originator_settings_need_a_robot() -> None:
     with pytest.raises(SettingsError, match="no robot"):
-        ServiceSettings().originator_settings()
+        ServiceSettings().cell.originator_settings()
 
 
 # --------------------------------------------------------------------------- users

@@ -281,7 +281,7 @@ class SlowReader:
 
 async def test_slow_and_stalled_clients_do_not_hurt_a_fast_one(hmi: Running) -> None:
     service = hmi.service
-    host, port = hmi.settings.host, hmi.settings.port
+    host, port = hmi.settings.web.host, hmi.settings.web.port
     # Full rate is ~270 kB/s of JSON (100 frames/s). The stalled client never reads after its
     # handshake; the slow one reads 100 kB/s, steadily.
     stalled = await raw_stream(host, port, 4096)

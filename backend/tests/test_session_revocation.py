@@ -112,7 +112,7 @@ async def test_logout_closes_the_sessions_streams_and_says_so(hmi: Running) -> N
 
 
 def _users(running: Running) -> UsersFile:
-    return UsersFile(running.settings.users_path)
+    return UsersFile(running.settings.web.users_path)
 
 
 async def test_a_role_change_or_a_removed_user_closes_the_streams(hmi: Running) -> None:
@@ -130,7 +130,7 @@ async def test_a_role_change_or_a_removed_user_closes_the_streams(hmi: Running) 
             assert (await client.get("/api/v1/auth/me")).json() == {"user": None}
 
         # The viewer is removed from the users file (by hand: no verb removes a user).
-        path = hmi.settings.users_path
+        path = hmi.settings.web.users_path
         document = json.loads(path.read_text(encoding="utf-8"))
         del document["users"][VIEWER[0]]
         path.write_text(json.dumps(document), encoding="utf-8")

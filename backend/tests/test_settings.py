@@ -48,7 +48,7 @@ def _config(tmp_path: Path, text: str) -> Path:
 
 def test_robots_from_toml_inherit_the_top_level_connection_settings(tmp_path: Path) -> None:
     settings = load_settings({}, environ={}, config_file=_config(tmp_path, CELL))
-    left, right = settings.robots
+    left, right = settings.cell.robots
     assert (left.name, left.host, left.tcp_port, left.mode) == (
         "left",
         "10.0.0.11",
@@ -63,8 +63,8 @@ def test_robots_from_toml_inherit_the_top_level_connection_settings(tmp_path: Pa
         4,
         300,
     )
-    assert settings.default_robot is left
-    originator = settings.originator_settings(right)
+    assert settings.cell.default_robot is left
+    originator = settings.cell.originator_settings(right)
     assert (originator.robot_host, originator.tcp_port, originator.input_only) == (
         "10.0.0.12",
         44819,
@@ -78,33 +78,35 @@ def test_precedence_flags_over_environment_over_toml(tmp_path: Path) -> None:
     environ = {"COBOT_HMI_PORT": "9100", "COBOT_HMI_RPI_MS": "30"}
     # Environment beats TOML, also for the robots' inherited defaults (right keeps its own).
     settings = settings_from_args(_parse(["--config", str(config)]), environ)
-    assert settings.port == 9100
-    assert [r.rpi_ms for r in settings.robots] == [30.0, 8.0]
+    assert settings.web.port == 9100
+    assert [r.rpi_ms for r in settings.cell.robots] == [30.0, 8.0]
     # A flag beats both.
     settings = settings_from_args(
         _parse(["--config", str(config), "--port", "9200", "--rpi-ms", "40"]), environ
     )
-    assert settings.port == 9200
-    assert [r.rpi_ms for r in settings.robots] == [40.0, 8.0]
+    assert settings.web.port == 9200
+    assert [r.rpi_ms for r in settings.cell.robots] == [40.0, 8.0]
 
 
 def test_the_robot_list_comes_whole_from_the_highest_source(tmp_path: Path) -> None:
     config = _config(tmp_path, CELL)
     robots_json = '[{"name": "solo", "host": "10.0.0.21", "rpi_ms": 4}]'
     from_env = load_settings({}, {"COBOT_HMI_ROBOTS": robots_json}, config)
-    assert [(r.name, r.host, r.rpi_ms) for r in from_env.robots] == [("solo", "10.0.0.21", 4.0)]
+    assert [(r.name, r.host, r.rpi_ms) for r in from_env.cell.robots] == [
+        ("solo", "10.0.0.21", 4.0)
+    ]
     shortcut_env = load_settings({}, {"COBOT_HMI_ROBOT_HOST": "10.0.0.31"}, config)
-    assert [(r.name, r.host) for r in shortcut_env.robots] == [("robot", "10.0.0.31")]
+    assert [(r.name, r.host) for r in shortcut_env.cell.robots] == [("robot", "10.0.0.31")]
     flags = settings_from_args(
         _parse(["--config", str(config), "--robot", "10.0.0.41", "--robot-name", "bench"]),
         {"COBOT_HMI_ROBOTS": robots_json},
     )
-    assert [(r.name, r.host, r.rpi_ms) for r in flags.robots] == [("bench", "10.0.0.41", 20.0)]
+    assert [(r.name, r.host, r.rpi_ms) for r in flags.cell.robots] == [("bench", "10.0.0.41", 20.0)]
 
 
 def test_the_one_robot_shortcut() -> None:
     args = _parse(["--robot", "127.0.0.9", "--input-only", "--instances", "1,2,3", "--rpi-ms", "2"])
-    (robot,) = settings_from_args(args, {}).robots
+    (robot,) = settings_from_args(args, {}).cell.robots
     assert (robot.name, robot.host, robot.mode, robot.rpi_us) == (
         "robot",
         "127.0.0.9",
@@ -112,15 +114,15 @@ def test_the_one_robot_shortcut() -> None:
         2000,
     )
     assert (robot.config_instance, robot.o2t_instance, robot.t2o_instance) == (1, 2, 3)
-    assert load_settings({}, environ={}).robots == []
+    assert load_settings({}, environ={}).cell.robots == []
     with pytest.raises(SettingsError, match="no robot given"):
-        load_settings({}, environ={}).require_robots()
+        load_settings({}, environ={}).cell.require_robots()
 
 
 def test_replace_checks_again_and_robots_inherit_anew(tmp_path: Path) -> None:
     settings = load_settings({}, environ={}, config_file=_config(tmp_path, CELL))
     changed = settings.replace(rpi_ms=50.0)
-    assert [r.rpi_ms for r in changed.robots] == [50.0, 8.0]
+    assert [r.rpi_ms for r in changed.cell.robots] == [50.0, 8.0]
     with pytest.raises(ValueError, match="greater than or equal to 1"):
         settings.replace(rpi_ms=0.1)
 
@@ -201,7 +203,7 @@ def test_connection_settings_are_declared_once() -> None:
         with pytest.raises(ValueError, match=re.escape(param.range_text())):
             param.check(name, param.maximum + 1)
     assert fields["rpi_ms"].default * 1000 == cp.RPI_US.default
-    assert ServiceSettings.model_fields["local_udp_port"].default == cp.CLASS1_UDP_PORT.default
+    assert ServiceSettings.flat_fields()["local_udp_port"].default == cp.CLASS1_UDP_PORT.default
 
 
 def test_every_flag_names_its_environment_variable(capsys: pytest.CaptureFixture[str]) -> None:
@@ -259,7 +261,7 @@ def test_trusted_proxies_accepts_addresses_and_networks_in_canonical_form() -> N
             "COBOT_HMI_TRUSTED_PROXIES": "127.0.0.1, 10.1.0.0/16,0:0::1, fd00::/8",
         },
     )
-    assert settings.trusted_proxies == ["127.0.0.1", "10.1.0.0/16", "::1", "fd00::/8"]
+    assert settings.web.trusted_proxies == ["127.0.0.1", "10.1.0.0/16", "::1", "fd00::/8"]
 
 
 def test_serve_with_a_malformed_trusted_proxy_does_not_start(

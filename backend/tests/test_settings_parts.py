@@ -1,7 +1,7 @@
 """Each part of the service is given its own settings, never the whole: the recorder its
 ``HistorySettings``, a robot its ``RobotSettings``, its connection's, the ``WebSettings`` and the
-``AlarmLimitSettings``, the directory its ``DirectorySettings`` (``setting_fields.part_of``
-takes them out of the composed settings, values as loaded)."""
+``AlarmLimitSettings``, the directory its ``DirectorySettings`` (the composed settings hold each
+as a part of their own, values as loaded)."""
 
 from __future__ import annotations
 
@@ -9,11 +9,9 @@ from pathlib import Path
 
 from cobot_hmi.scanner.originator import OriginatorSettings
 from cobot_hmi.service.access.directory_settings import DirectorySettings
-from cobot_hmi.service.alarms.settings import AlarmLimitSettings
 from cobot_hmi.service.config.loading import load_settings
 from cobot_hmi.service.recording.settings import HistorySettings
 from cobot_hmi.service.runtime import Service
-from cobot_hmi.service.setting_fields import part_of
 from cobot_hmi.service.settings import ServiceSettings
 from cobot_hmi.service.web.settings import WebSettings
 
@@ -28,12 +26,12 @@ def _settings(tmp_path: Path) -> ServiceSettings:
 
 def test_a_part_is_its_own_object_with_the_loaded_values(tmp_path: Path) -> None:
     settings = _settings(tmp_path)
-    history = part_of(settings, HistorySettings)
+    history = settings.recording
     assert type(history) is HistorySettings
     assert set(history.model_dump()) == set(HistorySettings.model_fields)
     assert history.history_flush_s == 0.25
     assert history.model_fields_set == {"history_flush_s"}
-    alarms = part_of(settings, AlarmLimitSettings)
+    alarms = settings.alarm_limits
     assert alarms.alarm_shelve_max_high_s == 120
     assert not hasattr(alarms, "history_flush_s")
 

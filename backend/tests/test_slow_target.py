@@ -264,8 +264,8 @@ async def test_service_reports_a_slow_robot_once_and_clears(
         async with running_service(settings) as hmi:
             robot = hmi.service.default_robot
             store = hmi.service.store
-            slow_words = f"the robot grants {settings.rpi_ms:g} ms but sends every "
-            kept_words = f"the robot keeps its {settings.rpi_ms:g} ms grant again"
+            slow_words = f"the robot grants {settings.cell.rpi_ms:g} ms but sends every "
+            kept_words = f"the robot keeps its {settings.cell.rpi_ms:g} ms grant again"
             token = await hmi.login(VIEWER)
 
             async def connection() -> dict[str, object]:

@@ -91,9 +91,9 @@ def test_deadbands_from_a_flag_and_the_defaults() -> None:
     settings = load_settings(
         {"sparkplug_deadbands": "degree=0.5, joint_torque=2"}, None, None, HmiSettings
     )
-    assert settings.sparkplug_deadbands["degree"] == 0.5
-    assert settings.sparkplug_deadbands["joint_torque"] == 2.0
-    assert settings.sparkplug_deadbands["mm"] == DEFAULT_DEADBANDS["mm"]
+    assert settings.sparkplug.sparkplug_deadbands["degree"] == 0.5
+    assert settings.sparkplug.sparkplug_deadbands["joint_torque"] == 2.0
+    assert settings.sparkplug.sparkplug_deadbands["mm"] == DEFAULT_DEADBANDS["mm"]
     units = {f.unit for f in T2O_FIELDS if f.unit}
     assert units == set(DEFAULT_DEADBANDS)  # every unit of the layout has a default
 
@@ -122,8 +122,8 @@ def test_deadbands_from_a_toml_table(tmp_path: Path) -> None:
     config = tmp_path / "cell.toml"
     config.write_text('[sparkplug_deadbands]\n"N·m" = 0.2\njoint_position = 0.05\n')
     settings = load_settings({}, {}, config, HmiSettings)
-    assert settings.sparkplug_deadbands["N·m"] == 0.2
-    assert settings.sparkplug_deadbands["joint_position"] == 0.05
+    assert settings.sparkplug.sparkplug_deadbands["N·m"] == 0.2
+    assert settings.sparkplug.sparkplug_deadbands["joint_position"] == 0.05
 
 
 def test_broker_urls() -> None:

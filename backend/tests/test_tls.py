@@ -45,7 +45,7 @@ class Https:
 
     @property
     def base_url(self) -> str:
-        return f"https://{self.settings.host}:{self.settings.port}"
+        return f"https://{self.settings.web.host}:{self.settings.web.port}"
 
     def client(self, token: str | None = None) -> httpx.AsyncClient:
         headers = {"Authorization": f"Bearer {token}"} if token else {}
@@ -88,7 +88,7 @@ def handshake(host: str, port: int, context: ssl.SSLContext) -> tuple[str | None
 
 
 async def test_a_handshake_with_the_plants_ca(https: Https) -> None:
-    host, port = https.settings.host, https.settings.port
+    host, port = https.settings.web.host, https.settings.web.port
     version, der = await asyncio.to_thread(handshake, host, port, https.ca.client_context())
     assert version in ("TLSv1.2", "TLSv1.3")
     assert der == https.der
@@ -103,7 +103,7 @@ async def test_a_handshake_with_the_plants_ca(https: Https) -> None:
 
 
 async def test_tls_1_1_is_refused(https: Https) -> None:
-    host, port = https.settings.host, https.settings.port
+    host, port = https.settings.web.host, https.settings.web.port
 
     def old_client(maximum: ssl.TLSVersion) -> ssl.SSLContext:
         context = https.ca.client_context()
@@ -134,8 +134,8 @@ async def test_the_session_cookie_is_secure(https: Https) -> None:
 
 async def test_the_stream_over_wss_and_its_origin_check(https: Https) -> None:
     token = (await https.login()).json()["token"]
-    url = f"wss://{https.settings.host}:{https.settings.port}/api/v1/stream"
-    own = f"https://{https.settings.host}:{https.settings.port}"
+    url = f"wss://{https.settings.web.host}:{https.settings.web.port}/api/v1/stream"
+    own = f"https://{https.settings.web.host}:{https.settings.web.port}"
     headers = {"Authorization": f"Bearer {token}"}
     async with connect(
         url, ssl=https.ca.client_context(), additional_headers=headers, origin=Origin(own)
@@ -145,7 +145,7 @@ async def test_the_stream_over_wss_and_its_origin_check(https: Https) -> None:
         frames = orjson.loads(await asyncio.wait_for(stream.recv(), DEADLINE_S))
         assert frames["type"] in ("frames", "status", "event")
     # The page's origin is https://…: the same host and port over http:// is another origin.
-    plain = f"http://{https.settings.host}:{https.settings.port}"
+    plain = f"http://{https.settings.web.host}:{https.settings.web.port}"
     with pytest.raises(InvalidStatus) as refused:
         async with connect(
             url, ssl=https.ca.client_context(), additional_headers=headers, origin=Origin(plain)
@@ -155,7 +155,7 @@ async def test_the_stream_over_wss_and_its_origin_check(https: Https) -> None:
 
 
 async def test_a_replaced_certificate_is_served_without_a_restart(https: Https) -> None:
-    host, port = https.settings.host, https.settings.port
+    host, port = https.settings.web.host, https.settings.web.port
     client = https.ca.client_context()
     _, first = await asyncio.to_thread(handshake, host, port, client)
     assert first == https.der
@@ -186,7 +186,7 @@ async def test_a_replaced_certificate_is_served_without_a_restart(https: Https) 
 
 
 async def test_the_plain_http_listener_only_redirects(https: Https) -> None:
-    host, https_port = https.settings.host, https.settings.port
+    host, https_port = https.settings.web.host, https.settings.web.port
     port = free_tcp_port(host)
     allowed = ("localhost", "ip")
     async with (
@@ -222,7 +222,7 @@ def test_settings_want_both_files_and_tls_for_the_redirect(tmp_path: Path) -> No
     ca.issue(cert, key, "127.0.0.1")
     robot = {"robot_host": "127.0.0.2", "state_dir": tmp_path}
     settings = load_settings({**robot, "tls_cert": cert, "tls_key": key, "http_redirect_port": 80})
-    assert settings.tls_enabled and settings.http_redirect_port == 80
+    assert settings.tls.tls_enabled and settings.tls.http_redirect_port == 80
     with pytest.raises(SettingsError, match="tls_cert and tls_key go together"):
         load_settings({**robot, "tls_cert": cert})
     with pytest.raises(SettingsError, match="http_redirect_port redirects to HTTPS"):

@@ -14,9 +14,9 @@ from collections.abc import Iterable, Sequence
 
 from cobot_hmi.opcua.feed import ServiceFeed
 from cobot_hmi.opcua.server import OpcUaServer
+from cobot_hmi.opcua.settings import OpcUaSettings
 from cobot_hmi.service.extensions import MetricFamily, ServiceExtension
 from cobot_hmi.service.runtime import Service
-from cobot_hmi.service.setting_fields import part_of
 from cobot_hmi.service.web.settings import WebSettings
 from cobot_hmi.settings import HmiSettings
 from cobot_hmi.sparkplug.edge_node import EdgeNode
@@ -24,18 +24,19 @@ from cobot_hmi.sparkplug.edge_node import EdgeNode
 
 class OpcUaExtension:
     """The OPC UA server on its own thread, fed by its adapter to the service
-    (``opcua.feed``), started once the robots' connections are."""
+    (``opcua.feed``), started once the robots' connections are. Given its own settings and the
+    web service's (the feed's login and read rules are the API's)."""
 
-    def __init__(self, service: Service, settings: HmiSettings) -> None:
+    def __init__(self, service: Service, settings: OpcUaSettings, web: WebSettings) -> None:
         self._service = service
         self._settings = settings
+        self._web = web
         self.server: OpcUaServer | None = None
 
     async def start(self) -> None:
-        service, settings = self._service, self._settings
-        web = part_of(settings, WebSettings)  # the feed's login and read rules are the API's
+        service, web = self._service, self._web
         feed = ServiceFeed(service.robots, service.users, web, asyncio.get_running_loop())
-        self.server = OpcUaServer(settings, settings.state_dir, feed)
+        self.server = OpcUaServer(self._settings, web.state_dir, feed)
         await self.server.start()
 
     async def stop(self) -> None:
@@ -48,11 +49,12 @@ class OpcUaExtension:
 
 def extensions_of(service: Service, settings: HmiSettings) -> Iterable[ServiceExtension]:
     """The doors the settings turn on, in the order they start."""
-    if settings.mqtt_url:
-        hmi_url = settings.hmi_url(settings.host, settings.port, tls=settings.tls_cert is not None)
-        yield EdgeNode(settings, settings.state_dir, service.robots, service.events, hmi_url)
-    if settings.opcua_enabled:
-        yield OpcUaExtension(service, settings)
+    if settings.sparkplug.mqtt_url:
+        web = settings.web
+        hmi_url = settings.sparkplug.hmi_url(web.host, web.port, tls=settings.tls.tls_enabled)
+        yield EdgeNode(settings.sparkplug, web.state_dir, service.robots, service.events, hmi_url)
+    if settings.opcua.opcua_enabled:
+        yield OpcUaExtension(service, settings.opcua, settings.web)
 
 
 def build_service(settings: HmiSettings) -> Service:

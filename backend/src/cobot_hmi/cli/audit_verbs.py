@@ -49,7 +49,7 @@ def _verify(args: argparse.Namespace) -> int:
         settings = hmi_settings(args)
     except SettingsError as error:
         return _fail(str(error))
-    path = settings.database_path
+    path = settings.web.database_path
     if not path.is_file():
         return _fail(f"{path}: no such database")
     try:

@@ -385,9 +385,9 @@ def _run_demo(
 
     # Every address first: nothing starts, and no password is shown, while one is taken.
     http_socket = stack.enter_context(_bind_http(args.host, args.port))
-    if settings.http_redirect_port is not None:
+    if settings.tls.http_redirect_port is not None:
         _check_free(
-            args.host, settings.http_redirect_port, socket.SOCK_STREAM, "the HMI's redirect"
+            args.host, settings.tls.http_redirect_port, socket.SOCK_STREAM, "the HMI's redirect"
         )
     _check_free(args.local_host, args.local_udp_port, socket.SOCK_DGRAM, "the HMI's T→O port")
     for name, host, _, _ in robots:
@@ -404,43 +404,43 @@ def _run_demo(
         _wait_ready(process, host, timeout_s=30)
     try:
         password = generate_password()
-        UsersFile(settings.users_path).add(DEMO_USER, Role.OPERATOR, password)
+        UsersFile(settings.web.users_path).add(DEMO_USER, Role.OPERATOR, password)
     except UsersError as error:
         raise _DemoError(str(error)) from None
-    scheme = "https" if settings.tls_cert is not None else "http"
+    scheme = "https" if settings.tls.tls_cert is not None else "http"
     url = f"{scheme}://{args.host}:{http_socket.getsockname()[1]}/"
     cell = ", ".join(f"{name} ({model}) at {host}" for name, host, model, _ in robots)
     # From the printout on, Ctrl-C stops the demo cleanly (exit 0), also when it comes before
     # the server has taken SIGINT over (uvicorn's handler, asyncio.run's before it): a user
     # who has just read the password may press it at once.
+    tls, edge = settings.tls, settings.sparkplug  # HTTPS, the Sparkplug B edge node
     with contextlib.suppress(KeyboardInterrupt):
         print(
             f"cobot-hmi demo: {cell}; HMI at {url}\n"
             f"  log in as {DEMO_USER!r} with password {password!r} (shown only now)\n"
-            f"  state in {settings.state_dir}"
+            f"  state in {settings.web.state_dir}"
             + (" (removed at the end)" if args.state_dir is None else "")
             + (
-                f"\n  TLS certificate {settings.tls_cert} (self-signed), SHA-256 fingerprint\n"
-                f"    {fingerprint_of(settings.tls_cert)}"
-                if settings.tls_cert is not None
+                f"\n  TLS certificate {tls.tls_cert} (self-signed), SHA-256 fingerprint\n"
+                f"    {fingerprint_of(tls.tls_cert)}"
+                if tls.tls_cert is not None
                 else ""
             )
             + (
-                f"\n  plain HTTP on http://{args.host}:{settings.http_redirect_port}/ redirects "
-                "to it"
-                if settings.http_redirect_port is not None
+                f"\n  plain HTTP on http://{args.host}:{tls.http_redirect_port}/ redirects to it"
+                if tls.http_redirect_port is not None
                 else ""
             )
             + (
-                f"\n  Sparkplug B to {settings.mqtt_url}: spBv1.0/{settings.sparkplug_group}/+/"
-                f"{settings.sparkplug_node_id}/# (writes {'on' if settings.mqtt_writes else 'off'})"
-                if settings.mqtt_url
+                f"\n  Sparkplug B to {edge.mqtt_url}: spBv1.0/{edge.sparkplug_group}/+/"
+                f"{edge.sparkplug_node_id}/# (writes {'on' if edge.mqtt_writes else 'off'})"
+                if edge.mqtt_url
                 else ""
             )
             + (
-                f"\n  OPC UA at {settings.opcua_url} (writes "
-                f"{'on' if settings.opcua_writes else 'off'})"
-                if settings.opcua_url
+                f"\n  OPC UA at {settings.opcua.opcua_url} (writes "
+                f"{'on' if settings.opcua.opcua_writes else 'off'})"
+                if settings.opcua.opcua_url
                 else ""
             )
             + "\n  Ctrl-C stops all.",

@@ -82,13 +82,13 @@ def _export(args: argparse.Namespace) -> int:
     output = args.output or export.export_filename(robot, from_s, to_s, args.format)
     chunks = export_chunks(
         root,
-        settings.database_path,
+        settings.web.database_path,
         robot,
         elements,
         from_s=from_s,
         to_s=to_s,
         fmt=args.format,
-        zone=settings.time_zone or host_zone_name(),  # the plant's, as the service writes it
+        zone=settings.site.time_zone or host_zone_name(),  # the plant's, as the service writes it
     )
     try:
         with contextlib.ExitStack() as stack:

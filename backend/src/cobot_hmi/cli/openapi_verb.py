@@ -48,7 +48,7 @@ def openapi_document() -> dict[str, Any]:
 
     # Nothing is opened or started: the service object only gives the routes their types.
     with tempfile.TemporaryDirectory(prefix="cobot-hmi-openapi-") as state:
-        settings = HmiSettings(robot_host="127.0.0.1", state_dir=Path(state))
+        settings = HmiSettings.from_keys(robot_host="127.0.0.1", state_dir=Path(state))
         app = create_app(build_service(settings), manage_lifecycle=False)
         return app.openapi()
 

@@ -39,7 +39,7 @@ HTTP bounds): the robots' are not the plant's flags."""
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    from cobot_hmi.plant.settings import PlantSettings
+    from cobot_hmi.plant.settings import PlantHostSettings, PlantSettings
     from cobot_hmi.service.config.arguments import add_arguments
 
     plant = subparsers.add_parser(
@@ -54,10 +54,10 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     )
     from cobot_hmi.service.settings import ServiceSettings
 
-    own = [name for name in PlantSettings.model_fields if name not in ServiceSettings.model_fields]
+    own = list(PlantHostSettings.model_fields)
     shared = [
         name
-        for name in ServiceSettings.model_fields
+        for name in ServiceSettings.setting_keys()
         if name in _SHARED or name.startswith(("ldap_", "tls_", "http_", "login_", "anonymous_"))
     ]
     add_arguments(plant, only=(*own, *shared), settings_class=PlantSettings)
@@ -83,19 +83,19 @@ def _plant(args: argparse.Namespace) -> int:
 
     try:
         settings = settings_from_args(args, None, PlantSettings)
-        if not settings.mqtt_urls:
+        if not settings.plant.mqtt_urls:
             raise SettingsError("the plant needs a broker: --mqtt-url mqtt://HOST:PORT")
         runtime = PlantRuntime(settings)
     except (SettingsError, ValueError) as error:
         return _fail(str(error))
     try:
-        users = UsersFile(settings.users_path)
+        users = UsersFile(settings.web.users_path)
         if users.user(PLANT_USER) is None:
             password = generate_password()
             users.add(PLANT_USER, Role.OPERATOR, password)
             print(
                 f"cobot-hmi plant: log in as {PLANT_USER!r} with password {password!r} "
-                f"(shown only now; users file {settings.users_path})",
+                f"(shown only now; users file {settings.web.users_path})",
                 flush=True,
             )
     except UsersError as error:
@@ -103,9 +103,10 @@ def _plant(args: argparse.Namespace) -> int:
     prepare_process()
     try:
         server = uvicorn.Server(uvicorn_config(create_plant_app(runtime), settings))
+        plant, web = settings.plant, settings.web
         print(
-            f"cobot-hmi plant: host {settings.plant_host_id} on {', '.join(settings.mqtt_urls)}; "
-            f"API at http{'s' if settings.tls_cert else ''}://{settings.host}:{settings.port}/",
+            f"cobot-hmi plant: host {plant.plant_host_id} on {', '.join(plant.mqtt_urls)}; "
+            f"API at http{'s' if settings.tls.tls_enabled else ''}://{web.host}:{web.port}/",
             flush=True,
         )
         with contextlib.suppress(KeyboardInterrupt):

@@ -81,7 +81,7 @@ def _serve(args: argparse.Namespace) -> int:
 
     try:
         settings = hmi_settings(args)
-        settings.require_robots()
+        settings.cell.require_robots()
     except SettingsError as error:
         return _fail(str(error))
     prepare_process()
@@ -107,10 +107,10 @@ def _users_add(args: argparse.Namespace) -> int:
             password = getpass.getpass(f"password for {args.name}: ")
             if getpass.getpass("again: ") != password:
                 return _fail("the passwords differ")
-        user = UsersFile(settings.users_path).add(args.name, role, password)
+        user = UsersFile(settings.web.users_path).add(args.name, role, password)
     except (SettingsError, UsersError) as error:
         return _fail(str(error))
-    print(f"{user.name}: {user.role.label} in {settings.users_path}")
+    print(f"{user.name}: {user.role.label} in {settings.web.users_path}")
     return 0
 
 
@@ -121,7 +121,7 @@ def _users_list(args: argparse.Namespace) -> int:
 
     try:
         settings = hmi_settings(args)
-        users_file = UsersFile(settings.users_path)
+        users_file = UsersFile(settings.web.users_path)
         users = users_file.users()
         tokens = users_file.tokens()
     except (SettingsError, UsersError) as error:
@@ -149,13 +149,15 @@ def _users_token(args: argparse.Namespace) -> int:
         days = args.expires_days
         if days is not None and not (math.isfinite(days) and days > 0):
             return _fail(f"--expires-days: a positive number of days, got {days}")
-        secret = UsersFile(settings.users_path).add_token(
+        secret = UsersFile(settings.web.users_path).add_token(
             args.name, role, expires_in_s=None if days is None else days * 86400.0
         )
     except (SettingsError, UsersError) as error:
         return _fail(str(error))
     lifetime = "until revoked" if days is None else f"for {days:g} days"
-    print(f"token:{args.name}: {role.label} {lifetime}, in {settings.users_path}", file=sys.stderr)
+    print(
+        f"token:{args.name}: {role.label} {lifetime}, in {settings.web.users_path}", file=sys.stderr
+    )
     print(secret)  # alone on stdout, for scripts
     return 0
 
@@ -167,7 +169,7 @@ def _users_revoke(args: argparse.Namespace) -> int:
 
     try:
         settings = hmi_settings(args)
-        UsersFile(settings.users_path).revoke_token(args.name)
+        UsersFile(settings.web.users_path).revoke_token(args.name)
     except (SettingsError, UsersError) as error:
         return _fail(str(error))
     print(f"token:{args.name}: revoked", file=sys.stderr)

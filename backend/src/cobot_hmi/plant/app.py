@@ -45,7 +45,7 @@ def create_plant_app(runtime: PlantRuntime) -> FastAPI:
     # The auth routes and the viewer gate read ``app.state.service``: the runtime has the login
     # parts they use (users, sessions, throttle, logins, directory, store, settings).
     app.state.service = runtime
-    security.install(app, security.policy_from_settings(runtime.settings))
+    security.install(app, security.policy_from_settings(runtime.settings.web))
 
     @app.exception_handler(ApiError)
     async def api_error(_: Request, error: ApiError) -> Response:
@@ -69,5 +69,5 @@ def create_plant_app(runtime: PlantRuntime) -> FastAPI:
 
     app.include_router(routes_auth.router)
     app.include_router(plant_routes.router)
-    static_files.serve_frontend(app, runtime.settings.frontend_path, _API_PREFIXES)
+    static_files.serve_frontend(app, runtime.settings.web.frontend_path, _API_PREFIXES)
     return app

@@ -36,39 +36,42 @@ class PlantRuntime:
 
     def __init__(self, settings: PlantSettings) -> None:
         self.settings = settings
-        self.users = UsersFile(settings.users_path)
-        self.store = Store(settings.database_path)
+        self.users = UsersFile(settings.web.users_path)
+        self.store = Store(settings.web.database_path)
         self.directory: Directory | None = (
-            Directory(settings) if settings.directory_enabled else None
+            Directory(settings.directory) if settings.directory.directory_enabled else None
         )
         self.sessions = Sessions(
-            settings.session_ttl_s, self._on_session_end, self.users.user_for_token, self._user_now
+            settings.web.session_ttl_s,
+            self._on_session_end,
+            self.users.user_for_token,
+            self._user_now,
         )
         self.throttle = LoginThrottle(
-            settings.login_free_attempts,
-            settings.login_delay_max_s,
-            settings.login_user_delay_max_s,
+            settings.web.login_free_attempts,
+            settings.web.login_delay_max_s,
+            settings.web.login_user_delay_max_s,
         )
         self.logins: Counter[str] = Counter()
         self.host = HostApplication(
-            settings.plant_host_id,
-            frozenset(settings.plant_groups),
-            settings.plant_rebirth_interval_s,
+            settings.plant.plant_host_id,
+            frozenset(settings.plant.plant_groups),
+            settings.plant.plant_rebirth_interval_s,
         )
         self.recorder = PlantRecorder(settings.plant_history_path)
         options = [
             ClientOptions(
                 BrokerAddress.parse(url),
-                f"{settings.plant_host_id}",
-                settings.mqtt_user,
-                settings.mqtt_password,
-                settings.mqtt_ca_file,
+                f"{settings.plant.plant_host_id}",
+                settings.plant.mqtt_user,
+                settings.plant.mqtt_password,
+                settings.plant.mqtt_ca_file,
             )
-            for url in settings.mqtt_urls
+            for url in settings.plant.mqtt_urls
         ]
         self.client = FailoverClient(
             options,
-            settings.plant_host_id,
+            settings.plant.plant_host_id,
             self.host.subscriptions,
             self._from_client,
             self._connected,
@@ -121,7 +124,7 @@ class PlantRuntime:
 
     def _connected(self, url: str) -> None:
         """On the client's thread: connected and subscribed (the STATE birth went out)."""
-        log.info("plant: connected to %s as host %s", url, self.settings.plant_host_id)
+        log.info("plant: connected to %s as host %s", url, self.settings.plant.plant_host_id)
         loop = self._loop
         if loop is not None and not loop.is_closed():
             loop.call_soon_threadsafe(self._reconnected, time.time())

@@ -1,15 +1,15 @@
 """Layer: plant (a door above the service). The settings of ``cobot-hmi plant``: the service's
 own (login, roles, TLS, directory, HTTP bounds, the state directory: what the plant's web API
-shares with ``serve``) and the plant's brokers, groups and host id. Keys are flat as everywhere
-(``service.setting_fields``): ``--mqtt-url`` is repeatable, ``COBOT_HMI_MQTT_URLS`` a
-comma-separated list, ``mqtt_urls`` a TOML list.
+shares with ``serve``) and the plant's own part (``plant``: ``PlantHostSettings``): its brokers,
+groups and host id. Keys are flat as everywhere (``ServiceSettings.flat_fields``): ``--mqtt-url``
+is repeatable, ``COBOT_HMI_MQTT_URLS`` a comma-separated list, ``mqtt_urls`` a TOML list.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from pydantic import Field
+from pydantic import BaseModel, ConfigDict, Field
 
 from cobot_hmi.service.setting_fields import (
     SPARKPLUG_ID_PATTERN,
@@ -17,11 +17,13 @@ from cobot_hmi.service.setting_fields import (
     ReadableFile,
     setting,
 )
-from cobot_hmi.service.settings import ServiceSettings
+from cobot_hmi.service.settings import ServiceSettings, settings_part
 
 
-class PlantSettings(ServiceSettings):
-    """Everything ``cobot-hmi plant`` can be told (the robot settings it inherits are unused)."""
+class PlantHostSettings(BaseModel):
+    """The plant's Sparkplug host application: its brokers, the groups it follows, its id."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
 
     mqtt_urls: CommaList = Field(
         default_factory=list,
@@ -48,7 +50,13 @@ class PlantSettings(ServiceSettings):
         5.0, "at most one rebirth request per edge node this often, s", gt=0, le=3600
     )
 
+
+class PlantSettings(ServiceSettings):
+    """Everything ``cobot-hmi plant`` can be told (the robot settings it inherits are unused)."""
+
+    plant: PlantHostSettings = settings_part(PlantHostSettings, "the plant's host application")
+
     @property
     def plant_history_path(self) -> Path:
         """The plant's hourly Parquet segments."""
-        return self.state_dir / "plant-history"
+        return self.web.state_dir / "plant-history"

@@ -23,9 +23,7 @@ from typing import Final
 
 from cobot_hmi.service.access.auth import LoginThrottle, Session, Sessions
 from cobot_hmi.service.access.directory import Directory
-from cobot_hmi.service.access.directory_settings import DirectorySettings
 from cobot_hmi.service.access.users import User, UsersFile
-from cobot_hmi.service.alarms.settings import AlarmLimitSettings
 from cobot_hmi.service.alarms.summary import cell_summary
 from cobot_hmi.service.commissioning.service import Commissioning
 from cobot_hmi.service.cycles.service import Cycles
@@ -33,19 +31,15 @@ from cobot_hmi.service.errors import UnknownRobotError
 from cobot_hmi.service.events.bus import EventBus
 from cobot_hmi.service.extensions import ServiceExtension
 from cobot_hmi.service.health.service import Health
-from cobot_hmi.service.health.settings import HealthServiceSettings
 from cobot_hmi.service.plant_time import PLANT_ZONE
 from cobot_hmi.service.recording.recorder import Recorder
-from cobot_hmi.service.recording.settings import HistorySettings
 from cobot_hmi.service.robots.control import Control
 from cobot_hmi.service.robots.link import CyclicLoop, RobotLink, stats_of
 from cobot_hmi.service.robots.robot import RobotRuntime
 from cobot_hmi.service.robots.websocket_fanout import WebSocketFanOut
-from cobot_hmi.service.setting_fields import part_of
 from cobot_hmi.service.settings import ServiceSettings
 from cobot_hmi.service.storage.event_log import EventLog
 from cobot_hmi.service.storage.store import Store
-from cobot_hmi.service.web.settings import WebSettings
 
 log = logging.getLogger(__name__)
 
@@ -67,14 +61,14 @@ class Service:
         self, settings: ServiceSettings, extensions: ExtensionFactory = no_extensions
     ) -> None:
         self.settings = settings
-        robot_settings = settings.require_robots()
-        PLANT_ZONE.use(settings.time_zone)  # one plant, one zone (plant_time)
-        self.users = UsersFile(settings.users_path)
-        self.store = Store(settings.database_path)
+        robot_settings = settings.cell.require_robots()
+        PLANT_ZONE.use(settings.site.time_zone)  # one plant, one zone (plant_time)
+        self.users = UsersFile(settings.web.users_path)
+        self.store = Store(settings.web.database_path)
         self.cyclic = CyclicLoop(
-            settings.local_host,
-            settings.t2o_udp_port,
-            niceness=settings.cyclic_niceness,
+            settings.cell.local_host,
+            settings.cell.t2o_udp_port,
+            niceness=settings.cell.cyclic_niceness,
             on_restart=self._on_cyclic_restart,
         )
         self.events = EventBus()
@@ -86,9 +80,9 @@ class Service:
                 self.cyclic,
                 self.store,
                 self.events,
-                originator=settings.originator_settings(robot),
-                web=part_of(settings, WebSettings),
-                alarms=part_of(settings, AlarmLimitSettings),
+                originator=settings.cell.originator_settings(robot),
+                web=settings.web,
+                alarms=settings.alarm_limits,
             )
             for robot in robot_settings
         }
@@ -97,33 +91,33 @@ class Service:
         """Each robot's cycle timing (``service.cycles``), where it has a trigger."""
         self.commissioning = Commissioning(self.robots, self.store)
         """Each robot's I/O checkouts and their frame watchers (``service.commissioning``)."""
-        self.health = Health(part_of(settings, HealthServiceSettings), self.robots, self.store)
+        self.health = Health(settings.health, self.robots, self.store)
         """Each robot's health from its frames and cycles (``service.health``)."""
         self.events.add(self.health)  # the cycle meter's cycles reach it as events
         self.default_robot: RobotRuntime = next(iter(self.robots.values()))
         """The first robot: the one the deprecated single-robot paths answer for."""
         self.directory: Directory | None = (
-            Directory(part_of(settings, DirectorySettings)) if settings.directory_enabled else None
+            Directory(settings.directory) if settings.directory.directory_enabled else None
         )
         """Directory login (LDAP / Active Directory), when ``ldap_url`` is set."""
         self.sessions = Sessions(
-            settings.session_ttl_s,
+            settings.web.session_ttl_s,
             self._on_session_end,
             self.users.user_for_token,
             self._user_now,
         )
         self.throttle = LoginThrottle(
-            settings.login_free_attempts,
-            settings.login_delay_max_s,
-            settings.login_user_delay_max_s,
+            settings.web.login_free_attempts,
+            settings.web.login_delay_max_s,
+            settings.web.login_user_delay_max_s,
         )
         self.logins: Counter[str] = Counter()
         self.started_at = time.time()
         self._tasks: list[asyncio.Task[None]] = []
         self._ws_by_session: Counter[tuple[str, str]] = Counter()
         self.recorder: Recorder | None = (
-            Recorder(part_of(settings, HistorySettings), settings.history_path, self.robots)
-            if settings.history
+            Recorder(settings.recording, settings.history_path, self.robots)
+            if settings.recording.history
             else None
         )
         """Every frame of every robot into its recording (``service.recording.recorder``),
@@ -227,7 +221,7 @@ class Service:
         longer than ``link_down_unhealthy_s`` (lost for good, refused, unreachable).
         """
         problems = []
-        bound_s = self.settings.link_down_unhealthy_s
+        bound_s = self.settings.cell.link_down_unhealthy_s
         if not self.cyclic.alive:
             down = self.cyclic.down_since
             since = f" for {time.monotonic() - down:.0f} s" if down is not None else ""
@@ -250,7 +244,7 @@ class Service:
 
     async def _status_loop(self) -> None:
         while True:
-            await asyncio.sleep(self.settings.status_interval_s)
+            await asyncio.sleep(self.settings.web.status_interval_s)
             if not any(robot.hub.clients for robot in self.robots.values()):
                 continue
             # Once per period for every stream: a panel of one robot sees the others' alarms.

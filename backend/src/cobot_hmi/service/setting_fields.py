@@ -13,9 +13,9 @@ from __future__ import annotations
 import ipaddress
 import os
 from pathlib import Path
-from typing import Annotated, Any, Final, Literal, TypeVar
+from typing import Annotated, Any, Final, Literal
 
-from pydantic import AfterValidator, BaseModel, BeforeValidator, Field
+from pydantic import AfterValidator, BeforeValidator, Field
 from pydantic_settings import NoDecode
 
 from cobot_hmi import connection_params as cp
@@ -180,15 +180,3 @@ Deadbands = Annotated[
 def default_state_dir() -> Path:
     base = os.environ.get("XDG_STATE_HOME") or str(Path.home() / ".local" / "state")
     return Path(base) / "cobot-hmi"
-
-
-PartT = TypeVar("PartT", bound=BaseModel)
-
-
-def part_of(settings: BaseModel, part: type[PartT]) -> PartT:
-    """One concern's own settings (``part``: ``HistorySettings``, ``WebSettings``, …) taken out
-    of the composed settings that declare them, as an object of its own: the part that is given
-    it sees its fields and no other. The values were checked when the whole was."""
-    given = settings.model_fields_set & part.model_fields.keys()
-    values = {name: getattr(settings, name) for name in part.model_fields}
-    return part.model_construct(_fields_set=given, **values)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import socket
 
-from pydantic import BaseModel
+from pydantic import BaseModel, ConfigDict
 
 from cobot_hmi.service.setting_fields import (
     DEFAULT_DEADBANDS,
@@ -20,6 +20,8 @@ from cobot_hmi.service.setting_fields import (
 
 class SparkplugSettings(BaseModel):
     """The edge node's settings (off unless ``mqtt_url`` is set)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
 
     # --- Sparkplug B edge node over MQTT (cobot_hmi.sparkplug; docs/operations.md "Sparkplug")
     mqtt_url: str = setting(

@@ -73,7 +73,10 @@ class AlarmSettings(BaseModel):
 
 
 class AlarmLimitSettings(BaseModel):
-    """The built-in alarms' limits and timing (``service.alarms``; docs/operations.md "Alarms")."""
+    """The built-in alarms' limits and timing and the user's own alarms (``service.alarms``;
+    docs/operations.md "Alarms")."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
 
     # --- alarms (service/alarms; docs/operations.md "Alarms")
     alarms: list[AlarmSettings] = Field(
@@ -113,3 +116,12 @@ class AlarmLimitSettings(BaseModel):
         le=600,
         allow_inf_nan=False,
     )
+
+    @model_validator(mode="after")
+    def _distinct_names(self) -> AlarmLimitSettings:
+        names: set[str] = set()
+        for alarm in self.alarms:
+            if alarm.name in names:
+                raise ValueError(f"alarms: the name {alarm.name!r} is given twice")
+            names.add(alarm.name)
+        return self

@@ -34,8 +34,6 @@ from cobot_hmi.service.api.routes import tags as routes_tags
 from cobot_hmi.service.api.routes import write as routes_write
 from cobot_hmi.service.errors import ApiError, UnknownRobotError
 from cobot_hmi.service.runtime import Service
-from cobot_hmi.service.setting_fields import part_of
-from cobot_hmi.service.web.settings import WebSettings
 
 _API_PREFIXES = ("api/", "healthz", "readyz", "metrics", "docs", "openapi.json", "redoc")
 
@@ -82,7 +80,7 @@ def create_app(
     app.add_middleware(compression.ApiGZipMiddleware, prefixes=_API_PREFIXES)
     # Body limit, Host/Origin/content-type checks, anonymous write gate, security headers:
     # outside everything else (service/api/security.py).
-    policy = security.policy_from_settings(part_of(service.settings, WebSettings))
+    policy = security.policy_from_settings(service.settings.web)
     refusals = security.install(app, policy)
     # One Prometheus registry per service (``GET /metrics``); the connection bounds' counters
     # and the TLS context come with the server (``server.uvicorn_config``), after the app.
@@ -97,7 +95,7 @@ def create_app(
     install_error_answers(app)
     for module in _ROUTES:
         app.include_router(module.router)
-    static_files.serve_frontend(app, service.settings.frontend_path, _API_PREFIXES)
+    static_files.serve_frontend(app, service.settings.web.frontend_path, _API_PREFIXES)
     app.openapi = lambda: openapi_document(app)  # type: ignore[method-assign]
     return app
 

@@ -119,7 +119,7 @@ def require(role: Role, session: Session | None) -> Session:
 
 async def viewer_gate(service: ServiceDep, session: SessionDep) -> Session | None:
     """Reading is open unless ``view_requires_login`` is set."""
-    if service.settings.view_requires_login:
+    if service.settings.web.view_requires_login:
         return require(Role.VIEWER, session)
     return session
 

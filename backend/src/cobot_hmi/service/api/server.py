@@ -22,9 +22,7 @@ from cobot_hmi.service.api.security import policy_from_settings
 from cobot_hmi.service.api.tls import ReloadingContext
 from cobot_hmi.service.api.tls_redirect import redirect_listener
 from cobot_hmi.service.runtime import Service
-from cobot_hmi.service.setting_fields import part_of
 from cobot_hmi.service.settings import ServiceSettings
-from cobot_hmi.service.web.settings import WebSettings
 
 SWITCH_INTERVAL_S: Final = 0.0005
 """The GIL hand-over deadline. CPython's default, 5 ms, would let a busy web thread hold off
@@ -37,8 +35,8 @@ def uvicorn_config(app: Any, settings: ServiceSettings, **overrides: Any) -> uvi
     if state is not None:  # for /metrics
         state.connection_counters = connection_counters
     options: dict[str, Any] = {
-        "host": settings.host,
-        "port": settings.port,
+        "host": settings.web.host,
+        "port": settings.web.port,
         "lifespan": "on",
         # permessage-deflate (RFC 7692) when the client offers it, as browsers do: a phone's
         # stream shrinks several times (docs/api.md). Paid per client per message (each has
@@ -50,22 +48,22 @@ def uvicorn_config(app: Any, settings: ServiceSettings, **overrides: Any) -> uvi
         # Bounds (service/api/http_limits.py, docs/operations.md "Security"). X-Forwarded-For and
         # -Proto only from the configured proxies: uvicorn's default trusts 127.0.0.1, which
         # let any local client forge its address.
-        "proxy_headers": bool(settings.trusted_proxies),
-        "forwarded_allow_ips": list(settings.trusted_proxies),
+        "proxy_headers": bool(settings.web.trusted_proxies),
+        "forwarded_allow_ips": list(settings.web.trusted_proxies),
         "http": http_limits.bounded_h11_protocol(
-            max_connections=http_limits.connection_cap(settings.http_max_connections),
-            idle_timeout_s=settings.http_idle_timeout_s,
+            max_connections=http_limits.connection_cap(settings.web.http_max_connections),
+            idle_timeout_s=settings.web.http_idle_timeout_s,
             counters=connection_counters,
         ),
-        "backlog": settings.http_backlog,
-        "timeout_keep_alive": settings.http_keep_alive_s,
-        "h11_max_incomplete_event_size": settings.http_max_header_bytes,
-        "ws_max_size": settings.max_body_bytes,
+        "backlog": settings.web.http_backlog,
+        "timeout_keep_alive": settings.web.http_keep_alive_s,
+        "h11_max_incomplete_event_size": settings.web.http_max_header_bytes,
+        "ws_max_size": settings.web.max_body_bytes,
     }
-    if settings.tls_cert is not None and settings.tls_key is not None:
+    if settings.tls.tls_cert is not None and settings.tls.tls_key is not None:
         # HTTPS and WSS (service/api/tls.py): TLS 1.2 at least, the certificate re-read when
         # its files change; TlsError here when they cannot be used.
-        tls = ReloadingContext(settings.tls_cert, settings.tls_key)
+        tls = ReloadingContext(settings.tls.tls_cert, settings.tls.tls_key)
         options["ssl_context_factory"] = lambda _config, _default: tls.listener
         if state is not None:
             state.tls = tls
@@ -95,10 +93,12 @@ async def serve(
     app = create_app(service, on_started=freeze_startup_heap)
     server = uvicorn.Server(uvicorn_config(app, settings))
     async with contextlib.AsyncExitStack() as stack:
-        if settings.http_redirect_port is not None:  # plain HTTP that only redirects to HTTPS
-            https_port = sockets[0].getsockname()[1] if sockets else settings.port
-            allowed = policy_from_settings(part_of(settings, WebSettings)).allowed_hosts
+        if settings.tls.http_redirect_port is not None:  # plain HTTP that only redirects to HTTPS
+            https_port = sockets[0].getsockname()[1] if sockets else settings.web.port
+            allowed = policy_from_settings(settings.web).allowed_hosts
             await stack.enter_async_context(
-                redirect_listener(settings.host, settings.http_redirect_port, https_port, allowed)
+                redirect_listener(
+                    settings.web.host, settings.tls.http_redirect_port, https_port, allowed
+                )
             )
         await server.serve(sockets=sockets)

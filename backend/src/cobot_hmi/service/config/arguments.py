@@ -1,5 +1,5 @@
-"""Layer: service. The command line of the settings: one flag per setting, derived from the
-fields, and the settings from parsed flags."""
+"""Layer: service. The command line of the settings: one flag per flat key, derived from the
+parts' fields (``ServiceSettings.flat_fields``), and the settings from parsed flags."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ from cobot_hmi.service.settings import ServiceSettings
 
 def _flag_type(name: str, settings_class: type[ServiceSettings]) -> type:
     """The value type of a setting's flag (``Optional`` and ``Annotated`` stripped)."""
-    hint: Any = settings_class.model_fields[name].annotation
+    hint: Any = settings_class.flat_fields()[name].annotation
     if isinstance(hint, types.UnionType) or typing.get_origin(hint) is typing.Union:
         hint = next(a for a in typing.get_args(hint) if a is not type(None))
     if typing.get_origin(hint) is list:
@@ -42,7 +42,7 @@ def add_arguments(
     The robot list (``robots``) is for the TOML file or ``COBOT_HMI_ROBOTS``.
     """
     parser.add_argument("--config", type=Path, default=argparse.SUPPRESS, help="TOML file")
-    for name, info in settings_class.model_fields.items():
+    for name, info in settings_class.flat_fields().items():
         if name in ("robots", "alarms") or (only is not None and name not in only):
             continue
         extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
@@ -121,7 +121,7 @@ def settings_from_args(
 ) -> ServiceSettings:
     """``load_settings`` with the flags that ``add_arguments`` parsed into ``args``."""
     given = vars(args)
-    flags = {name: given[name] for name in settings_class.model_fields if name in given}
+    flags = {name: given[name] for name in settings_class.setting_keys() if name in given}
     if "instances" in given:
         cfg, o2t, t2o = _ints(given["instances"], 3, "--instances")
         flags |= {"config_instance": cfg, "o2t_instance": o2t, "t2o_instance": t2o}

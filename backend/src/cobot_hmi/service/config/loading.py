@@ -1,6 +1,10 @@
 """Layer: service. Loading the settings: defaults < TOML file < environment < flags, one
 checked settings object (``ServiceSettings`` or a class composed above the service with more
-fields, ``cobot_hmi.settings.HmiSettings``: ``settings_class``); errors name their source."""
+parts, ``cobot_hmi.settings.HmiSettings``: ``settings_class``); errors name their source.
+
+Every source speaks the flat keys (``ServiceSettings.flat_fields``); a TOML file may also give
+a part as a table (``[recording]``), read as its flat keys. The layers are merged key by key,
+and the settings class routes each key to its part."""
 
 from __future__ import annotations
 
@@ -10,8 +14,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Final, TypeVar, overload
 
-from pydantic import ValidationError
-from pydantic_settings import EnvSettingsSource, TomlConfigSettingsSource
+from pydantic import ValidationError, create_model
+from pydantic_settings import BaseSettings, EnvSettingsSource, SettingsConfigDict
 from pydantic_settings import SettingsError as PydanticSettingsError
 from pydantic_settings.sources.utils import parse_env_vars
 
@@ -30,35 +34,65 @@ def env_name(name: str) -> str:
     return ENV_PREFIX + name.upper()
 
 
+class _FlatKeys(BaseSettings):
+    model_config = SettingsConfigDict(env_prefix=ENV_PREFIX, case_sensitive=False)
+
+
+_FLAT_VIEWS: dict[type[ServiceSettings], type[BaseSettings]] = {}
+
+
+def _flat_view(settings_class: type[ServiceSettings]) -> type[BaseSettings]:
+    """A settings class of the flat keys alone (each key's declaration, no parts): what
+    pydantic-settings' environment source reads ``COBOT_HMI_<NAME>`` into, decoding a list or
+    a table from JSON as the key's type asks."""
+    view = _FLAT_VIEWS.get(settings_class)
+    if view is None:
+        fields: dict[str, Any] = {
+            name: (info.annotation, info) for name, info in settings_class.flat_fields().items()
+        }
+        view = create_model(f"{settings_class.__name__}Keys", __base__=_FlatKeys, **fields)
+        _FLAT_VIEWS[settings_class] = view
+    return view
+
+
 class _EnvironSource(EnvSettingsSource):
     """pydantic-settings' environment source, over a given mapping instead of ``os.environ``."""
 
     def __init__(self, environ: Mapping[str, str], settings_class: type[ServiceSettings]) -> None:
         self._environ = environ
-        super().__init__(settings_class)
+        super().__init__(_flat_view(settings_class))
 
     def _load_env_vars(self) -> Mapping[str, str | None]:
         return parse_env_vars(dict(self._environ), self.case_sensitive, self.env_ignore_empty, None)
 
 
 def _toml_layer(path: Path, settings_class: type[ServiceSettings]) -> dict[str, Any]:
+    """The file's flat keys: top-level keys, and the keys of a part's table (``[recording]``)."""
     where = f"config file {path}"
     try:
         document = tomllib.loads(path.read_text(encoding="utf-8"))
-        data = TomlConfigSettingsSource(settings_class, toml_file=path)()
     except OSError as error:
         raise SettingsError(f"{where}: {error.strerror}") from None
     except tomllib.TOMLDecodeError as error:
         raise SettingsError(f"{where}: {error}") from None
-    for key in document:
-        if key not in settings_class.model_fields:
+    keys, parts = settings_class.setting_keys(), settings_class.parts()
+    data: dict[str, Any] = {}
+    for key, value in document.items():
+        if key in parts and isinstance(value, dict):
+            for name, inner in value.items():
+                if keys.get(name) != key:
+                    raise SettingsError(f"{where}: unknown setting {key}.{name!r}")
+                data[name] = inner
+        elif key in keys:
+            data[key] = value
+        else:
             raise SettingsError(f"{where}: unknown setting {key!r}")
-    robots = document.get("robots")
+    robots = data.get("robots")
     if robots is not None and not (
         isinstance(robots, list) and all(isinstance(r, dict) for r in robots)
     ):
         raise SettingsError(f"{where}: robots must be [[robots]] tables")
-    return dict(data)
+    return data
 
 
 def _environment_layer(
@@ -111,7 +145,7 @@ def load_settings(
     layers.append(("environment", _environment_layer(environ, settings_class)))
     flag_values = dict(flags or {})
     for name in flag_values:
-        if name not in settings_class.model_fields:
+        if name not in settings_class.setting_keys():
             raise SettingsError(f"unknown setting {name!r}")
     layers.append(("flags", flag_values))
 
@@ -141,7 +175,7 @@ def _source_of(source: str, name: str, settings_class: type[ServiceSettings]) ->
     if source == "environment":
         return env_name(name)
     if source == "flags":
-        info = settings_class.model_fields.get(name)
+        info = settings_class.flat_fields().get(name)
         extra = info.json_schema_extra if info is not None else None
         flag = extra.get("flag") if isinstance(extra, dict) else None
         return str(flag or "--" + name.replace("_", "-"))
@@ -156,8 +190,11 @@ def _describe(
 ) -> str:
     """Each problem as ``field (from SOURCE): what, got VALUE``; robots by index and name."""
     lines = []
+    parts = settings_class.parts()
     for problem in error.errors(include_url=False):
         location = problem["loc"]
+        if location and location[0] in parts:  # a part's key is said as its flat key
+            location = location[1:]
         message = str(problem["msg"]).removeprefix("Value error, ")
         if not location:
             if message.startswith("robots:"):

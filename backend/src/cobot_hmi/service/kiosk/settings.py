@@ -9,7 +9,7 @@ from __future__ import annotations
 import re
 from typing import Annotated, Final
 
-from pydantic import AfterValidator, BaseModel
+from pydantic import AfterValidator, BaseModel, ConfigDict
 
 from cobot_hmi.service.setting_fields import CommaList, setting
 
@@ -33,6 +33,8 @@ ShiftStarts = Annotated[CommaList, AfterValidator(_check_shift_starts)]
 
 class KioskSettings(BaseModel):
     """The kiosk's plots' window and the plant's shifts."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
 
     kiosk_plot_window_s: float = setting(
         30.0,

@@ -3,13 +3,15 @@
 
 from __future__ import annotations
 
-from pydantic import BaseModel
+from pydantic import BaseModel, ConfigDict
 
 from cobot_hmi.service.setting_fields import ExpandedPath, Seconds, setting
 
 
 class HistorySettings(BaseModel):
     """Where and how long every frame is recorded."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
 
     # --- history: every frame recorded (cobot_hmi.history; docs/operations.md "History")
     history: bool = setting(True, "record every frame of every robot (--no-history: off)")

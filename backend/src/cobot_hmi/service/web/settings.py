@@ -4,7 +4,9 @@ the security limits (service/api/security.py and http_limits.py; docs/operations
 
 from __future__ import annotations
 
-from pydantic import BaseModel, Field
+from pathlib import Path
+
+from pydantic import BaseModel, ConfigDict, Field
 
 from cobot_hmi.service.setting_fields import (
     CommaList,
@@ -20,6 +22,8 @@ from cobot_hmi.service.setting_fields import (
 
 class WebSettings(BaseModel):
     """The HTTP door and its limits."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
 
     # --- the web service
     host: str = setting("127.0.0.1", "HTTP bind address")
@@ -92,3 +96,18 @@ class WebSettings(BaseModel):
     http_max_header_bytes: int = setting(
         16 * 1024, "largest request line and headers, bytes", ge=1024
     )
+
+    @property
+    def users_path(self) -> Path:
+        return self.users_file if self.users_file is not None else self.state_dir / "users.json"
+
+    @property
+    def database_path(self) -> Path:
+        return self.database if self.database is not None else self.state_dir / "hmi.db"
+
+    @property
+    def frontend_path(self) -> Path:
+        if self.frontend_dir is not None:
+            return self.frontend_dir
+        # backend/src/cobot_hmi/service/web/settings.py → the repository's frontend/dist
+        return Path(__file__).resolve().parents[5] / "frontend" / "dist"

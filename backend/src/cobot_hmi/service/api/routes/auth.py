@@ -110,7 +110,7 @@ async def login(
         session.token,
         httponly=True,
         samesite="strict",
-        secure=service.settings.cookie_secure or request.url.scheme == "https",
+        secure=service.settings.web.cookie_secure or request.url.scheme == "https",
         path="/",
     )
     return LoginAnswer(user=_user_model(user), token=session.token)

@@ -29,8 +29,8 @@ from cobot_hmi.service.errors import ApiError
 from cobot_hmi.service.events.text import with_text
 from cobot_hmi.service.plant_time import PLANT_ZONE
 from cobot_hmi.service.recording.recorder import Recorder
+from cobot_hmi.service.recording.settings import HistorySettings
 from cobot_hmi.service.runtime import Service
-from cobot_hmi.service.settings import ServiceSettings
 from cobot_hmi.service.storage.history_events import events_between, iter_events
 
 router = APIRouter(prefix="/api/v1/robots/{name}", tags=["history"])
@@ -194,7 +194,7 @@ async def get_history_events(
 
     def work() -> bytes:
         events = events_between(
-            service.settings.database_path,
+            service.settings.web.database_path,
             robot.name,
             from_s,
             to_s,
@@ -208,7 +208,7 @@ async def get_history_events(
 
 
 def history_status(
-    root: Path, robot: str, recorder: Recorder | None, settings: ServiceSettings
+    root: Path, robot: str, recorder: Recorder | None, settings: HistorySettings
 ) -> dict[str, object]:
     """What is recorded of ``robot`` (``HistoryStatus``)."""
     closed = segments.list_segments(root, robot)
@@ -247,7 +247,7 @@ async def get_history_status(service: ServiceDep, robot: RobotDep, _: ViewerDep)
         service.settings.history_path,
         robot.name,
         service.recorder,
-        service.settings,
+        service.settings.recording,
     )
     return Response(orjson.dumps(status), media_type="application/json")
 
@@ -261,7 +261,7 @@ async def _recorded_until(service: Service, to_s: float) -> None:
     ``history_flush_s``) has them written first, so it holds everything the page showed up to
     the request; a recorder that does not answer in time leaves it as recorded so far."""
     recorder = service.recorder
-    if recorder is None or to_s < time.time() - 2 * service.settings.history_flush_s:
+    if recorder is None or to_s < time.time() - 2 * service.settings.recording.history_flush_s:
         return
     await asyncio.to_thread(recorder.flush, EXPORT_FLUSH_TIMEOUT_S)
 
@@ -333,7 +333,7 @@ async def get_export(
     filename = history_export.export_filename(robot.name, from_s, to_s, format)
     chunks = export_chunks(
         service.settings.history_path,
-        service.settings.database_path,
+        service.settings.web.database_path,
         robot.name,
         elements,
         from_s=from_s,

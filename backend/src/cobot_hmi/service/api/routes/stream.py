@@ -146,7 +146,7 @@ async def _stream(websocket: WebSocket, name: str | None) -> None:
     except UnknownRobotError as error:
         await websocket.close(CLOSE_UNKNOWN_ROBOT, str(error)[:120])
         return
-    if service.settings.view_requires_login and session is None:
+    if service.settings.web.view_requires_login and session is None:
         await websocket.close(CLOSE_LOGIN_REQUIRED, "login required")
         return
     try:
@@ -172,7 +172,7 @@ async def _stream(websocket: WebSocket, name: str | None) -> None:
     hello["session"] = session.id if session is not None else None
     hello["alarms"] = robot.alarms.current()  # the banner from the first message on
     hello["cell_alarms"] = service.cell_alarms()  # the other robots' too (then each status)
-    hello["kiosk"] = service.settings.kiosk_hello()  # a kiosk's plot window and shifts
+    hello["kiosk"] = service.settings.kiosk.kiosk_hello()  # a kiosk's plot window and shifts
     client = robot.hub.add_client(
         websocket.send_text,
         abort,
