@@ -1,6 +1,6 @@
 /**
- * Entry: `/kiosk` loads the kiosk, `/fleet` the fleet overview, anything else the commissioning
- * panel. Each face is its own chunk, loaded on demand, so the kiosk's bundle does not even
+ * Entry: `/kiosk` loads the kiosk, `/fleet` the fleet overview, `/health` a robot's health page,
+ * anything else the commissioning panel. Each face is its own chunk, loaded on demand, so the kiosk's bundle does not even
  * contain the panel's write code.
  */
 import { StrictMode, type ComponentType } from "react";
@@ -21,6 +21,8 @@ async function load(): Promise<ComponentType> {
       return (await import("./kiosk/KioskApp")).KioskApp;
     case "fleet":
       return (await import("./fleet/FleetApp")).FleetApp;
+    case "health":
+      return (await import("./health/HealthApp")).HealthApp;
     case "panel":
       return (await import("./panel/PanelApp")).PanelApp;
   }

@@ -1,18 +1,47 @@
 /**
  * The fleet overview (`/fleet`): one tile per robot of the service with its state, its link
  * (its newest frame's age, stale or not, the frames lost), who holds its control, its alarms
- * (the most urgent in words, the counts), and links to its panel and its kiosk. The tiles share
- * the screen's width (styles/fleet.css). Read only: it polls `GET /api/v1/robots` once a second
- * (lib/fleet/fleet.ts) and writes nothing.
+ * (the most urgent in words, the counts), its health (the worst verdict of its joints, linked to
+ * its health page) and links to its panel and its kiosk. The tiles share the screen's width
+ * (styles/fleet.css). Read only: it polls `GET /api/v1/robots` once a second (lib/fleet/fleet.ts)
+ * and each robot's health every few seconds (lib/health/fleetHealth.ts), and writes nothing.
  */
 import { useEffect, useMemo, useSyncExternalStore } from "react";
 import { StateBadge } from "../components/StateBadge";
 import { api } from "../lib/api/api";
 import { alarmPaint } from "../lib/alarms/alarms";
+import { healthHref } from "../lib/common/route";
 import { FleetPoller, type FleetTile } from "../lib/fleet/fleet";
+import { healthApi } from "../lib/health/healthApi";
+import { FleetHealthPoller, type RobotHealthCell } from "../lib/health/fleetHealth";
+import { verdictPaint } from "../lib/health/verdicts";
 import "../styles/fleet.css";
 
-function Tile({ tile, stale }: { tile: FleetTile; stale: boolean }) {
+/** The tile's health: the worst verdict in words on its colour, linked to the robot's health page. */
+function HealthFact({ cell }: { cell: RobotHealthCell | undefined }) {
+  const paint = cell?.verdict != null ? verdictPaint(cell.verdict) : null;
+  return (
+    <div>
+      <dt>health</dt>
+      <dd data-testid="fleet-health" data-verdict={cell?.verdict ?? ""} data-maintenance-due={cell?.maintenanceDue === true ? "true" : "false"}>
+        {cell === undefined ? (
+          "asking…"
+        ) : (
+          <a
+            href={cell.href}
+            data-testid="fleet-health-link"
+            className={paint !== null ? "fleet-tile__verdict" : undefined}
+            style={paint !== null ? { background: paint.background, color: paint.text } : undefined}
+          >
+            {cell.words}
+          </a>
+        )}
+      </dd>
+    </div>
+  );
+}
+
+function Tile({ tile, stale, health }: { tile: FleetTile; stale: boolean; health: RobotHealthCell | undefined }) {
   const live = tile.link === "connected" && !stale;
   return (
     <article className={`fleet-tile${live ? "" : " is-stale"}`} data-testid="fleet-tile" data-robot={tile.name} data-link={tile.link}>
@@ -58,6 +87,7 @@ function Tile({ tile, stale }: { tile: FleetTile; stale: boolean }) {
             {tile.gapsWords}
           </dd>
         </div>
+        <HealthFact cell={health} />
         {tile.alarms !== null && (
           <div className="fleet-tile__alarms">
             <dt>alarms</dt>
@@ -88,6 +118,7 @@ function Tile({ tile, stale }: { tile: FleetTile; stale: boolean }) {
         <a href={tile.kioskHref} data-testid="fleet-kiosk-link">
           Kiosk
         </a>
+        <a href={healthHref(tile.name)}>Health</a>
       </nav>
     </article>
   );
@@ -100,6 +131,14 @@ export function FleetApp() {
     return () => poller.stop();
   }, [poller]);
   const fleet = useSyncExternalStore(poller.subscribe, poller.getSnapshot);
+  const healthPoller = useMemo(() => new FleetHealthPoller((robot) => healthApi.report(robot)), []);
+  useEffect(() => {
+    healthPoller.start();
+    return () => healthPoller.stop();
+  }, [healthPoller]);
+  const names = fleet.tiles.map((t) => t.name).join("\n");
+  useEffect(() => healthPoller.setRobots(names === "" ? [] : names.split("\n")), [healthPoller, names]);
+  const health = useSyncExternalStore(healthPoller.subscribe, healthPoller.getSnapshot);
   return (
     <div className="fleet" data-testid="fleet">
       <header className="fleet__header">
@@ -115,7 +154,7 @@ export function FleetApp() {
       )}
       <main className="fleet__tiles">
         {fleet.tiles.map((tile) => (
-          <Tile key={tile.name} tile={tile} stale={fleet.stale} />
+          <Tile key={tile.name} tile={tile} stale={fleet.stale} health={health.get(tile.name)} />
         ))}
       </main>
     </div>

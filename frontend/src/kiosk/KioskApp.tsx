@@ -40,8 +40,10 @@ import { kioskPlotWindow_ms } from "../lib/kiosk/kioskLayout";
 import { KioskClock, KioskStateWords, KioskTiles } from "./KioskTiles";
 import { usePlotHeight, useKioskLayout } from "./useKioskLayout";
 import { useKioskCycleTimes } from "./useKioskCycleTimes";
+import { useKioskMaintenance } from "./useKioskMaintenance";
 import { useRobotModel } from "./useRobotModel";
 import "../styles/kiosk.css";
+import "../styles/kioskMaintenance.css";
 
 const KIOSK_PLOTS: readonly PlotSpec[] = [JOINT_PLOTS[0], TCP_PLOTS[0]].filter((p): p is PlotSpec => p !== undefined);
 /** A kiosk does not need every frame: 25 per second keeps a small PC cool for days. */
@@ -107,6 +109,7 @@ function Kiosk() {
   const live = useLive();
   const offset = useBurnInOffset();
   const tags = useKioskTagNames(live.robot, options.token);
+  const maintenance = useKioskMaintenance(live.robot, options.token);
   const cycleTimes = useKioskCycleTimes(live.robot, options.token, options.tiles.fields.includes(CYCLE_TILE), live.kiosk?.shift_starts);
   // The 3D view's arm: `arm=` in the URL, else the model the service reports for the robot.
   const model = useRobotModel(options.robot3d && options.arm === null ? live.robot : null, options.token);
@@ -130,7 +133,7 @@ function Kiosk() {
     body,
     content,
     // What changes the room the header and banners leave: a relayout from the full scale.
-    [estop, stale, live.alarms.length > 0, otherAlarms.length, live.robot, live.control.holder?.user ?? null].join("|"),
+    [estop, stale, live.alarms.length > 0, otherAlarms.length, live.robot, live.control.holder?.user ?? null, maintenance.words ?? ""].join("|"),
   );
   const style = {
     gridTemplateColumns: layout.body?.columns,
@@ -169,6 +172,12 @@ function Kiosk() {
                 </div>
               </div>
               <StateBadge value={frame?.robot_state} stale={stale} size="kiosk" />
+              {/* Robot health asks for a look (issue 40): seen from the cell, never above a stop. */}
+              {maintenance.due && (
+                <div className="kiosk__maintenance" data-testid="kiosk-maintenance-due" data-verdict={maintenance.verdict ?? ""} role="status">
+                  <span aria-hidden="true">🔧</span> {maintenance.words}
+                </div>
+              )}
               {estop && (
                 <div className="kiosk__estop" data-testid="kiosk-estop" role="alert">
                   EMERGENCY STOP

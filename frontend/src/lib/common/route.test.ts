@@ -1,5 +1,5 @@
 import { describe, expect, it } from "vitest";
-import { chooseRobot, faceOf, kioskHref, panelHref, robotFromSearch, searchWithRobot } from "./route";
+import { chooseRobot, faceOf, healthHref, kioskHref, panelHref, robotFromSearch, searchWithRobot } from "./route";
 
 describe("faceOf", () => {
   it("routes /kiosk, /fleet and everything else to the panel", () => {
@@ -10,6 +10,13 @@ describe("faceOf", () => {
     expect(faceOf("/")).toBe("panel");
     expect(faceOf("/fleety")).toBe("panel");
     expect(faceOf("/kiosk/fleet")).toBe("panel");
+  });
+
+  it("routes /health to a robot's health page, linked by its name", () => {
+    expect(faceOf("/health")).toBe("health");
+    expect(faceOf("/health/")).toBe("health");
+    expect(faceOf("/healthz")).toBe("panel");
+    expect(healthHref("m1013")).toBe("/health?robot=m1013");
   });
 });
 

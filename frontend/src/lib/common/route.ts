@@ -4,12 +4,13 @@
  * so that a link opens the same robot (docs/getting-started.md).
  */
 
-export type Face = "panel" | "kiosk" | "fleet";
+export type Face = "panel" | "kiosk" | "fleet" | "health";
 
-/** `/kiosk` is the kiosk, `/fleet` the fleet overview, anything else the panel. */
+/** `/kiosk` is the kiosk, `/fleet` the fleet overview, `/health` a robot's health, anything else the panel. */
 export function faceOf(pathname: string): Face {
   if (/^\/kiosk\/?$/.test(pathname)) return "kiosk";
   if (/^\/fleet\/?$/.test(pathname)) return "fleet";
+  if (/^\/health\/?$/.test(pathname)) return "health";
   return "panel";
 }
 
@@ -55,6 +56,11 @@ export function panelHref(robot: string): string {
 
 export function kioskHref(robot: string): string {
   return `/kiosk${searchWithRobot("", robot)}`;
+}
+
+/** A robot's health page (issue 40): its joints' verdicts, figures, trends, knocks and baselines. */
+export function healthHref(robot: string): string {
+  return `/health${searchWithRobot("", robot)}`;
 }
 
 export const FLEET_HREF = "/fleet";
