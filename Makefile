@@ -235,6 +235,7 @@ e2e: $(STAMP) system-deps $(FRONTEND_DIST) $(E2E_STAMP) | node
 codegen: $(STAMP) $(FRONTEND_STAMP) | node
 	$(BIN)/cobot-hmi codegen
 	$(BIN)/cobot-hmi openapi --output docs/openapi.json
+	$(BIN)/cobot-hmi openapi --plant --output docs/plant-openapi.json
 	cd frontend && npm run --silent codegen
 
 # The emulator at 127.0.0.2 and the service on http://127.0.0.1:8000 serving the built frontend

@@ -16,6 +16,8 @@ from typing import Any, Final
 
 DEFAULT_OUTPUT: Final = Path(__file__).resolve().parents[4] / "docs" / "openapi.json"
 """``docs/openapi.json`` of the repository this package is installed from (editable install)."""
+PLANT_OUTPUT: Final = DEFAULT_OUTPUT.with_name("plant-openapi.json")
+"""``docs/plant-openapi.json``: the plant's document (``--plant``), the plant page's types."""
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -37,6 +39,11 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
         help=f"fail (exit 1) if the file (--output, default {DEFAULT_OUTPUT.name} in docs/) "
         "differs",
     )
+    parser.add_argument(
+        "--plant",
+        action="store_true",
+        help=f"the plant's document (cobot-hmi plant; default file {PLANT_OUTPUT.name} in docs/)",
+    )
     parser.set_defaults(handler=_openapi)
 
 
@@ -53,15 +60,21 @@ def openapi_document() -> dict[str, Any]:
         return app.openapi()
 
 
-def render() -> str:
+def render(plant: bool = False) -> str:
     """The document as committed: sorted keys, two-space indent, one trailing newline."""
-    return json.dumps(openapi_document(), indent=2, sort_keys=True, ensure_ascii=False) + "\n"
+    if plant:
+        from cobot_hmi.plant.app import plant_openapi_document
+
+        document = plant_openapi_document()
+    else:
+        document = openapi_document()
+    return json.dumps(document, indent=2, sort_keys=True, ensure_ascii=False) + "\n"
 
 
 def _openapi(args: argparse.Namespace) -> int:
-    text = render()
+    text = render(args.plant)
     if args.check:
-        path: Path = args.output or DEFAULT_OUTPUT
+        path: Path = args.output or (PLANT_OUTPUT if args.plant else DEFAULT_OUTPUT)
         current = path.read_text(encoding="utf-8") if path.is_file() else None
         if current != text:
             print(

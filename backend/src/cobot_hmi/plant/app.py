@@ -10,10 +10,13 @@ from __future__ import annotations
 
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
+from pathlib import Path
+from tempfile import TemporaryDirectory
+from typing import Any, Final
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse, Response
+from fastapi.responses import JSONResponse, RedirectResponse, Response
 
 from cobot_hmi import __version__
 from cobot_hmi.plant import routes as plant_routes
@@ -23,6 +26,8 @@ from cobot_hmi.service.api.routes import auth as routes_auth
 from cobot_hmi.service.errors import ApiError
 
 _API_PREFIXES = ("api/", "healthz", "docs", "openapi.json", "redoc")
+PLANT_PAGE: Final = "/plant"
+"""Where ``/`` leads: the frontend's plant face (``frontend/src/plant``)."""
 
 
 def create_plant_app(runtime: PlantRuntime) -> FastAPI:
@@ -67,7 +72,24 @@ def create_plant_app(runtime: PlantRuntime) -> FastAPI:
             return JSONResponse({"status": "unhealthy", "problems": ["no broker connection"]}, 503)
         return JSONResponse({"status": "ok", "broker": broker})
 
+    @app.get("/", include_in_schema=False)
+    async def plant_page() -> Response:
+        # The built frontend is the cell's too: its plant page is the face at /plant.
+        return RedirectResponse(PLANT_PAGE, 307)
+
     app.include_router(routes_auth.router)
     app.include_router(plant_routes.router)
     static_files.serve_frontend(app, runtime.settings.web.frontend_path, _API_PREFIXES)
     return app
+
+
+def plant_openapi_document() -> dict[str, Any]:
+    """The plant app's document as ``/openapi.json`` serves it, built without starting anything
+    (``cobot-hmi openapi --plant``; the frontend's ``generated/plantApi.ts`` is made from it)."""
+    from cobot_hmi.plant.settings import PlantSettings
+
+    with TemporaryDirectory(prefix="cobot-hmi-plant-openapi-") as state:
+        settings = PlantSettings.from_keys(
+            state_dir=Path(state), mqtt_urls=["mqtt://127.0.0.1:1883"]
+        )
+        return create_plant_app(PlantRuntime(settings)).openapi()

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import asyncio
 import time
+from datetime import datetime, timedelta
 from typing import Annotated, Final
+from zoneinfo import ZoneInfo
 
 from fastapi import APIRouter, Query, Request
 from pydantic import BaseModel
@@ -30,6 +32,7 @@ from cobot_hmi.plant.model import (
 from cobot_hmi.plant.recorder import MetricKey, PlantRecorder, Point
 from cobot_hmi.plant.runtime import PlantRuntime
 from cobot_hmi.service.api.deps import ViewerDep
+from cobot_hmi.service.plant_time import host_zone_name
 
 router = APIRouter(prefix="/api/v1/plant", tags=["plant"])
 
@@ -315,4 +318,68 @@ async def status(request: Request, _viewer: ViewerDep) -> StatusAnswer:
         stale_deaths=host.stale_deaths,
         bad_messages=host.bad_messages,
         history_rows=runtime.recorder.rows_written,
+    )
+
+
+class RobotShiftModel(BaseModel):
+    group: str
+    node: str
+    device: str
+    seconds: dict[str, float]
+    """Seconds in each state group (running, standby, stopped, error) and ``unknown``."""
+    cycles: int
+    mean_cycle_s: float | None
+
+
+class ShiftsAnswer(BaseModel):
+    since: float
+    """The shift's start, epoch s (the last of ``shift_starts`` passed, in ``time_zone``)."""
+    until: float
+    time_zone: str
+    robots: list[RobotShiftModel]
+
+
+def shift_start(now: datetime, starts: list[str]) -> datetime:
+    """The start of the shift in progress at ``now`` (an aware time in the plant's zone):
+    the latest of today's (or, before the first, yesterday's) ``HH:MM`` not after it."""
+    days = (now.date() - timedelta(days=1), now.date())
+    candidates = [
+        datetime(d.year, d.month, d.day, int(s[:2]), int(s[3:5]), tzinfo=now.tzinfo)
+        for d in days
+        for s in starts
+    ]
+    return max(c for c in candidates if c <= now)
+
+
+@router.get("/shifts", summary="Every robot over the shift in progress: state groups, cycles")
+async def shifts(request: Request, _viewer: ViewerDep) -> ShiftsAnswer:
+    """What the plant page's shift table shows: ``/shift`` for every device the plant knows,
+    over the shift in progress (``shift_starts`` in ``time_zone``, as the kiosk counts)."""
+    runtime = _runtime(request)
+    zone_name = runtime.settings.site.time_zone or host_zone_name()
+    now = datetime.now(ZoneInfo(zone_name))
+    start = shift_start(now, list(runtime.settings.kiosk.shift_starts))
+    start_ms, end_ms = int(start.timestamp() * 1000), int(now.timestamp() * 1000)
+    keys = [
+        MetricKey(group, node, device, STATE_METRIC)
+        for (group, node), view in sorted(runtime.host.nodes.items())
+        for device in sorted(view.devices)
+    ]
+
+    def read() -> list[RobotShiftModel]:
+        return [
+            RobotShiftModel(
+                group=key.group,
+                node=key.node,
+                device=key.device,
+                **_shift(runtime.recorder, key, start_ms, end_ms).model_dump(),
+            )
+            for key in keys
+        ]
+
+    return ShiftsAnswer(
+        since=start_ms / 1000,
+        until=end_ms / 1000,
+        time_zone=zone_name,
+        robots=await asyncio.to_thread(read),
     )
