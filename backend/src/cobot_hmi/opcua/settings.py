@@ -1,7 +1,7 @@
 """Layer: service (OPC UA). The OPC UA server's settings, declared once.
 
-``OpcUaSettings`` is a pydantic model of the ``opcua_*`` settings. The service's settings
-(``service.settings.ServiceSettings``) inherit it, so each field is a TOML key, a
+``OpcUaSettings`` is a pydantic model of the ``opcua_*`` settings, the ``opcua`` part of the
+settings of ``serve`` (``cobot_hmi.settings.HmiSettings``): each field is a TOML key, a
 ``COBOT_HMI_OPCUA_*`` variable and a ``--opcua-*`` flag of ``serve`` like every other setting
 (the help text below is the flag's). Pure: imports nothing of the project.
 """

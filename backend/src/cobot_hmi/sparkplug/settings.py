@@ -1,6 +1,7 @@
 """Layer: sparkplug. The Sparkplug B edge node's settings (MQTT broker, ids, report-by-exception
 deadbands, rate, buffer; docs/operations.md "Sparkplug"): its flat ``mqtt_*`` and
-``sparkplug_*`` fields, a part of the service's settings."""
+``sparkplug_*`` fields, the ``sparkplug`` part of the settings of ``serve``
+(``cobot_hmi.settings.HmiSettings``), handed to the edge node alone."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """Layer: service. The directory login's settings (LDAP / Active Directory), declared once.
 
-``DirectorySettings`` is a pydantic model of the ``ldap_*`` settings. The service's settings
-(``service.settings.ServiceSettings``) inherit it, so each field is a TOML key, a
+``DirectorySettings`` is a pydantic model of the ``ldap_*`` settings, the ``directory`` part of
+the service's settings (``service.settings.ServiceSettings``): each field is a TOML key, a
 ``COBOT_HMI_LDAP_*`` variable and a ``--ldap-*`` flag of ``serve`` like every other setting
 (the help text below is the flag's; docs/operations.md "Directory (LDAP)").
 

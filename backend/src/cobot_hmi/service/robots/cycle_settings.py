@@ -1,8 +1,8 @@
 """Layer: service (pure). The cycle trigger as a setting, declared once.
 
 ``CycleSettings`` is a pydantic model of one field, ``cycle_trigger``. Both a robot's settings
-(a ``[[robots]]`` table's ``cycle_trigger``) and the service's settings inherit it: at the top
-level it is every robot's default and the one-robot shortcut's trigger (TOML key
+(a ``[[robots]]`` table's ``cycle_trigger``) and the cell's (``robots.cell_settings``) inherit
+it: at the top level it is every robot's default and the one-robot shortcut's trigger (TOML key
 ``cycle_trigger``, ``COBOT_HMI_CYCLE_TRIGGER``, ``--cycle-trigger``). The text is checked
 against the layout when the settings load (``cycle_trigger.parse_trigger``).
 """

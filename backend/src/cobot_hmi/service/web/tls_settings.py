@@ -1,8 +1,8 @@
 """Layer: service. HTTPS without a proxy: its settings, declared once.
 
-``TlsSettings`` is a pydantic model of the ``tls_*`` settings and ``http_redirect_port``. The
-service's settings (``service.settings.ServiceSettings``) inherit it, so each field is a TOML
-key, a ``COBOT_HMI_*`` variable and a flag of ``serve`` like every other setting (the help text
+``TlsSettings`` is a pydantic model of the ``tls_*`` settings and ``http_redirect_port``, the
+``tls`` part of the service's settings (``service.settings.ServiceSettings``): each field is a
+TOML key, a ``COBOT_HMI_*`` variable and a flag of ``serve`` like every other setting (the help text
 below is the flag's; docs/operations.md "Certificates"). The files are read when the service
 starts and again whenever they change (``service.api.tls``). Imports nothing of the project.
 """
