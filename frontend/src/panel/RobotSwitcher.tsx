@@ -1,6 +1,6 @@
 /**
  * Which robot the panel shows: a choice of the service's robots (each with its link state), and
- * links to the fleet overview and to this robot's kiosk. Choosing changes the URL (`?robot=`),
+ * links to the fleet overview, to this robot's kiosk and to its health page. Choosing changes the URL (`?robot=`),
  * so the browser's back button and a copied link return to the same robot. Another robot with
  * an annunciated alarm is marked (in its option and by a mark beside the choice that opens its
  * panel), from the stream's `cell_alarms`.
@@ -9,7 +9,7 @@ import { alarmPaint } from "../lib/alarms/alarms";
 import { briefWords, summaryCountWords } from "../lib/alarms/alarmsCell";
 import type { FleetTile } from "../lib/fleet/fleet";
 import type { AlarmSummary } from "../lib/api/protocol";
-import { FLEET_HREF, kioskHref } from "../lib/common/route";
+import { FLEET_HREF, healthHref, kioskHref } from "../lib/common/route";
 
 interface Props {
   readonly robot: string;
@@ -74,6 +74,9 @@ export function RobotSwitcher({ robot, robots, onSelect, alarms }: Props) {
         </a>
         <a href={kioskHref(robot)} data-testid="kiosk-link">
           Kiosk
+        </a>
+        <a href={healthHref(robot)} data-testid="health-link">
+          Health
         </a>
       </div>
     </div>

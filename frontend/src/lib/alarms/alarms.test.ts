@@ -1,5 +1,6 @@
 import { describe, expect, it } from "vitest";
 import {
+  alarmPaint,
   alarmsFromHello,
   alarmStateWords,
   alarmTitle,
@@ -11,6 +12,7 @@ import {
   mute,
   NO_MUTE,
   sounding,
+  PRIORITY_COLOUR,
   tagLabel,
 } from "./alarms";
 import { alarm } from "./alarmTestSupport";
@@ -128,5 +130,27 @@ describe("alarm words", () => {
   it("says the ISA-18.2 state in words", () => {
     expect(alarmStateWords({ state: "returned_unacknowledged", shelved: false })).toBe("returned to normal, unacknowledged");
     expect(alarmStateWords({ state: "active_acknowledged", shelved: true })).toBe("active, acknowledged, shelved");
+  });
+});
+
+describe("advisory alarms (robot health's maintenance advice)", () => {
+  const advice = alarm("health.3", { name: "Maintenance advised: J 3", priority: "advisory", priority_rank: 4, colour: "grey", kind: "health", changed_at: 300 });
+
+  it("come after every other priority, newer or not, and are chosen by the banner only when alone", () => {
+    const low = alarm("user.door", { priority: "low", priority_rank: 3, changed_at: 10 });
+    expect(alarmsFromHello([advice, low, estop]).map((a) => a.key)).toEqual(["emergency_stop", "user.door", "health.3"]);
+    expect(bannerView([advice, low]).top?.key).toBe("user.door");
+    expect(bannerView([advice]).top?.key).toBe("health.3");
+  });
+
+  it("are seen, never heard", () => {
+    expect(sounding([advice], NO_MUTE)).toEqual([]);
+    expect(sounding([advice, loss], NO_MUTE).map((a) => a.key)).toEqual(["packet_loss"]);
+  });
+
+  it("are painted in a grey of their own, with white text on it", () => {
+    expect(PRIORITY_COLOUR.advisory).toBe("grey");
+    expect(alarmPaint("grey")).toEqual({ background: "#4a5561", text: "#ffffff" });
+    expect(alarmPaint("grey")).not.toEqual(alarmPaint("no such colour"));
   });
 });

@@ -29,10 +29,17 @@ export const PRIORITY_COLOUR: Readonly<Record<AlarmPriority, string>> = {
 };
 
 const ORANGE: Paint = { background: "#e8710a", text: "#111111" };
+/**
+ * Advisory (robot health's maintenance advice): a slate grey of its own, apart from the
+ * neutral grey of an unknown state (which says "no data"), white text on it at 6:1.
+ */
+const GREY: Paint = { background: "#4a5561", text: "#ffffff" };
 
-/** How an alarm colour is painted: the pendant's paints, plus the orange of a high priority. */
+/** How an alarm colour is painted: the pendant's paints, plus the orange of a high priority and the grey of an advisory. */
 export function alarmPaint(colour: string): Paint {
-  return colour === "orange" ? ORANGE : paintOf(colour);
+  if (colour === "orange") return ORANGE;
+  if (colour === "grey") return GREY;
+  return paintOf(colour);
 }
 
 /**
