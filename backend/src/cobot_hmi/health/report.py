@@ -29,8 +29,13 @@ def _round(value: float | None, digits: int = 2) -> float | None:
     return round(float(value), digits)
 
 
-def _date(epoch_s: float) -> str:
-    return time.strftime("%Y-%m-%d", time.gmtime(epoch_s))
+def _date(epoch_s: float) -> str | None:
+    """The UTC date of ``epoch_s``; ``None`` past what the platform's calendar holds (a joint
+    that hardly moves has a remaining life of millennia)."""
+    try:
+        return time.strftime("%Y-%m-%d", time.gmtime(epoch_s))
+    except (OverflowError, OSError, ValueError):
+        return None
 
 
 def _joint(

@@ -27,6 +27,7 @@ from collections.abc import Coroutine, Mapping, Sequence
 from typing import Any, Final
 
 from cobot_hmi.health import HealthEngine
+from cobot_hmi.service.alarms.engine import AlarmEngine
 from cobot_hmi.service.errors import ApiError
 from cobot_hmi.service.events.text import Event
 from cobot_hmi.service.health.answers import baseline_answer, baselines_answer, report_answer
@@ -64,6 +65,22 @@ def health_event(report: Mapping[str, object], now_s: float) -> Event:
             for j in joints
         ],
     }
+
+
+def advise(alarms: AlarmEngine, report: Mapping[str, object], now_s: float) -> list[Event]:
+    """Each joint's advisory alarm (``health.N``) from a report: active while its verdict is
+    watch or act, its reason the alarm's message; the alarm events of what changed."""
+    joints = report["joints"]
+    assert isinstance(joints, list)
+    events: list[Event] = []
+    for joint in joints:
+        events += alarms.raised(
+            f"{ALARM_PREFIX}{joint['joint']}",
+            active=joint["verdict"] != "ok",
+            message=str(joint["reason"]),
+            now_s=now_s,
+        )
+    return events
 
 
 def _event_key(event: Event) -> tuple[object, ...]:
@@ -161,17 +178,7 @@ class Health:
     def apply(self, name: str, report: dict[str, object], now_s: float) -> None:
         """On the web loop: a robot's report to its advisory alarms and its ``health`` event."""
         robot = self.robots[name]
-        joints = report["joints"]
-        assert isinstance(joints, list)
-        events: list[Event] = []
-        for joint in joints:
-            events += robot.alarms.raised(
-                f"{ALARM_PREFIX}{joint['joint']}",
-                active=joint["verdict"] != "ok",
-                message=str(joint["reason"]),
-                now_s=now_s,
-            )
-        robot.publish_events(events)
+        robot.publish_events(advise(robot.alarms, report, now_s))
         event = health_event(report, now_s)
         key = _event_key(event)
         if self._announced.get(name) != key:
