@@ -1,4 +1,7 @@
-// Types of generate-api.mjs, for the staleness test (src/lib/api/generatedApi.test.ts).
+// Types of generate-api.mjs, for the staleness tests (src/lib/api/generatedApi.test.ts,
+// src/lib/plant/plantApi.test.ts).
 export declare const OPENAPI_PATH: string;
 export declare const API_TS_PATH: string;
-export declare function generateApiTs(documentText: string): Promise<string>;
+export declare const PLANT_OPENAPI_PATH: string;
+export declare const PLANT_API_TS_PATH: string;
+export declare function generateApiTs(documentText: string, documentName?: string): Promise<string>;

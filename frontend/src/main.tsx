@@ -23,6 +23,8 @@ async function load(): Promise<ComponentType> {
       return (await import("./fleet/FleetApp")).FleetApp;
     case "health":
       return (await import("./health/HealthApp")).HealthApp;
+    case "plant":
+      return (await import("./plant/PlantApp")).PlantApp;
     case "panel":
       return (await import("./panel/PanelApp")).PanelApp;
   }

@@ -18,6 +18,12 @@ describe("faceOf", () => {
     expect(faceOf("/healthz")).toBe("panel");
     expect(healthHref("m1013")).toBe("/health?robot=m1013");
   });
+
+  it("routes /plant to the plant page (where cobot-hmi plant sends /)", () => {
+    expect(faceOf("/plant")).toBe("plant");
+    expect(faceOf("/plant/")).toBe("plant");
+    expect(faceOf("/plants")).toBe("panel");
+  });
 });
 
 describe("robot in the URL", () => {

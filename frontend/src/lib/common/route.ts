@@ -4,13 +4,15 @@
  * so that a link opens the same robot (docs/getting-started.md).
  */
 
-export type Face = "panel" | "kiosk" | "fleet" | "health";
+export type Face = "panel" | "kiosk" | "fleet" | "health" | "plant";
 
 /** `/kiosk` is the kiosk, `/fleet` the fleet overview, `/health` a robot's health, anything else the panel. */
 export function faceOf(pathname: string): Face {
   if (/^\/kiosk\/?$/.test(pathname)) return "kiosk";
   if (/^\/fleet\/?$/.test(pathname)) return "fleet";
   if (/^\/health\/?$/.test(pathname)) return "health";
+  // The plant page: `cobot-hmi plant` serves the same build and sends its `/` here.
+  if (/^\/plant\/?$/.test(pathname)) return "plant";
   return "panel";
 }
 
