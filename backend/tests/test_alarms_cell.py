@@ -142,7 +142,7 @@ async def test_robot_list_carries_frame_age_gaps_and_alarms(cell: Cell) -> None:
         assert robot["gaps"] == 0 and robot["packet_loss_high"] is False
         alarms = robot["alarms"]
         assert alarms["robot"] == robot["name"]
-        assert set(alarms["by_priority"]) == {"critical", "high", "medium", "low"}
+        assert set(alarms["by_priority"]) == {"critical", "high", "medium", "low", "advisory"}
         assert alarms["annunciated"] == 0 and alarms["top"] is None
 
 

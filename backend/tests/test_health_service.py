@@ -193,3 +193,22 @@ async def test_a_baseline_then_wear_reads_watch_with_its_advisory_alarm(
         assert report.status_code == 200 and rows and rows[0]["robot"] == ROBOT
         assert {row["joint"] for row in rows} == {"1", "2", "3", "4", "5", "6"}
         assert [(b["id"], b["active"]) for b in listed["items"]] == [(baseline["id"], True)]
+
+
+async def test_a_baseline_without_cycles_and_health_off_are_refused(
+    emulator: Emulator, robot_host: str, plc_host: str, tmp_path: Path
+) -> None:
+    settings = _settings(emulator, robot_host, plc_host, tmp_path).replace(cycle_trigger="")
+    async with running_service(settings) as hmi:
+        operator = await hmi.login(OPERATOR)
+        refused = await _baseline(hmi, operator, reason="commissioned", cycles=5)
+        assert refused.status_code == 409 and "cycle_trigger" in refused.text
+        async with hmi.client(operator) as client:
+            audit = (await client.get("/api/v1/audit", params={"q": "cycle_trigger"})).json()
+        assert [(r["action"], r["outcome"]) for r in audit["items"]] == [
+            ("health.baseline", "refused")
+        ]
+    async with running_service(settings.replace(health_enabled=False)) as hmi:
+        async with hmi.client() as client:
+            off = await client.get(f"/api/v1/robots/{ROBOT}/health")
+        assert off.status_code == 409 and "health_enabled" in off.text

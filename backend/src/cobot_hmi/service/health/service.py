@@ -283,8 +283,15 @@ class Health:
     async def begin_baseline(
         self, name: str, reason: str, by: str, cycles: int
     ) -> dict[str, object]:
-        """Learn a new baseline from the next ``cycles`` whole cycles; saved at once."""
+        """Learn a new baseline from the next ``cycles`` whole cycles; saved at once. ``ApiError``
+        409 while health is off or the robot has no cycles (no ``cycle_trigger``)."""
         monitor = self.monitor(name)
+        if self.robots[name].settings.cycle_trigger_parsed is None:
+            raise ApiError(
+                409,
+                f"robot {name} has no cycle_trigger: a baseline is learned from its measured "
+                'cycles (docs/operations.md, "Cycle timing")',
+            )
         info = await asyncio.to_thread(monitor.begin_baseline, reason, by, time.time(), cycles)
         await self.save(name, monitor)
         return baseline_answer(info, active=False, learning=True, cycles=0)

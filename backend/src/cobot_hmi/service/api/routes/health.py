@@ -126,12 +126,11 @@ async def create_baseline(
     requested = {"reason": body.reason, "cycles": body.cycles}
     user = await action.authorize("setting a health baseline", requested)
     try:
-        service.health.monitor(robot.name)
-    except ApiError as error:  # health is off: the refusal audited
+        baseline = await service.health.begin_baseline(
+            robot.name, body.reason.strip(), user, body.cycles
+        )
+    except ApiError as error:  # health off, no cycles to learn from: the refusal audited
         raise await action.refused(error, requested=requested) from None
-    baseline = await service.health.begin_baseline(
-        robot.name, body.reason.strip(), user, body.cycles
-    )
     await action.audit(
         "started",
         requested={**requested, "baseline": baseline["id"]},
