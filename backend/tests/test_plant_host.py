@@ -397,3 +397,26 @@ def test_an_alarm_born_with_its_priority_and_text_after_it_is_told_with_them() -
     assert (transition.priority, transition.text) == ("high", "Protective stop")
     device = host.nodes[(GROUP, NODE)].devices["m1013"]
     assert device.health() == {}  # Null: not known yet
+
+
+def test_a_held_rebirth_request_goes_out_once_the_rate_limit_allows() -> None:
+    host = HostApplication("plant-host", rebirth_interval_s=5.0)
+    born(host)
+    host.on_message(topic("DDATA", "m1013"), payload(metric(alias=1001, value=13), seq=4), 101)
+    held = host.on_message(
+        topic("DDATA", "m1013"),
+        payload(metric(alias=1001, value=14), seq=9, timestamp=T0 + 2000),
+        102,
+    )
+    assert not held.publish and host.rebirths_held == 1
+    assert host.due(105.9) == []
+    # A quiet node brings nothing more: the request goes out by the clock, asking for the
+    # transitions since before the first gap.
+    assert rebirths_since(host.due(106.0)) == [(topic("NCMD"), T0 - HISTORY_MARGIN_MS)]
+    assert host.due(115.9) == []
+    # No NBIRTH answered it (a broker cluster re-forming can lose a request): asked again, for
+    # the same transitions; the births end the asking.
+    assert rebirths_since(host.due(116.0)) == [(topic("NCMD"), T0 - HISTORY_MARGIN_MS)]
+    assert host.rebirths["unanswered"] == 1
+    born(host, 117.0)
+    assert host.due(200.0) == []

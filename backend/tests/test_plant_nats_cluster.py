@@ -26,8 +26,8 @@ from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.target import Target
 from conftest import _next_host, free_tcp_port
 from plant_support import needs_pysparkplug, plant_process, pysparkplug_node
-from service_support import cell_settings, running_service
-from sparkplug_support import Panel
+from service_support import Running, cell_settings, running_service
+from sparkplug_support import Panel, edge_node_of
 from waiting import eventually, eventually_async
 
 REPO = Path(__file__).resolve().parents[2]
@@ -37,7 +37,6 @@ GROUP, NODE = "plant", "cell-7"
 
 pytestmark = [
     pytest.mark.skipif(not NATS_SERVER.exists(), reason="nats-server (make peers)"),
-    needs_pysparkplug,
     pytest.mark.timeout(180),
 ]
 
@@ -116,7 +115,9 @@ async def nats_cluster(directory: Path) -> AsyncIterator[list[NatsNode]]:
 
 
 @contextlib.asynccontextmanager
-async def our_cell(plc_host: str, directory: Path, url: str) -> AsyncIterator[dict[str, Panel]]:
+async def our_cell(
+    plc_host: str, directory: Path, url: str
+) -> AsyncIterator[tuple[dict[str, Panel], Running]]:
     """Two emulated robots and the service, its edge node on ``url``, the plant its primary
     host application."""
     panels = {"m1013": Panel(), "m0609": Panel()}
@@ -139,8 +140,8 @@ async def our_cell(plc_host: str, directory: Path, url: str) -> AsyncIterator[di
             sparkplug_node=NODE,
             sparkplug_primary_host=HOST_ID,
         )
-        async with running_service(settings):
-            yield panels
+        async with running_service(settings) as running:
+            yield panels, running
     finally:
         for target in targets:
             await target.stop()
@@ -150,10 +151,11 @@ def _devices(node: dict[str, Any]) -> dict[str, dict[str, Any]]:
     return {d["device"]: d for d in node["devices"]}
 
 
+@needs_pysparkplug
 async def test_killing_the_plants_broker_node(plc_host: str, tmp_path: Path) -> None:
     async with (
         nats_cluster(tmp_path / "nats") as (a, b, c),
-        our_cell(plc_host, tmp_path / "cell", a.url) as panels,
+        our_cell(plc_host, tmp_path / "cell", a.url) as (panels, _),
         plant_process(plc_host, tmp_path / "plant", [b.url, c.url]) as plant,
         pysparkplug_node(a.host, a.mqtt_port, "line-3", "foreign", "r1") as peer,
     ):
@@ -217,3 +219,114 @@ async def test_killing_the_plants_broker_node(plc_host: str, tmp_path: Path) -> 
             if t["node"] == "foreign"
         ]
         assert foreign_transitions == [("overheat", True), ("overheat", False)]
+
+
+class AlarmToggler:
+    """A robot's protective stop, on and off, each change once the cell's own alarm engine has
+    seen the previous one and its edge node has published it (no sleeps: at the pace of the
+    edge node's reports, ten a second)."""
+
+    def __init__(self, panel: Panel, running: Running, robot: str) -> None:
+        self.panel = panel
+        self.engine = running.service.robots[robot].alarms
+        edge = edge_node_of(running.service)
+        assert edge is not None
+        self.device = edge.devices[robot]
+        self.changes = 0
+        self.stopped = asyncio.Event()
+
+    def active(self) -> bool:
+        return self.engine.snapshot_of("protective_stop")["active"] is True
+
+    async def toggle(self) -> None:
+        want = not self.active()
+        self.panel.set(robot_state=3 if want else 13)  # INTERRUPTED / STANDALONE_STANDBY
+        await eventually(lambda: self.active() == want, timeout_s=30)
+        self.changes += 1
+        await eventually(lambda: not self.device.event_changes, timeout_s=30)
+
+    async def run(self) -> None:
+        while not self.stopped.is_set():
+            await self.toggle()
+
+
+async def _cell_transitions(running: Running, since: float) -> set[tuple[str, str, bool, int]]:
+    """The cell's own alarm history (its REST API): each activation and clearing."""
+    async with running.client() as client:
+        answer = await client.get("/api/v1/alarms/history", params={"since": since, "limit": 1000})
+    assert answer.status_code == 200, answer.text
+    return {
+        # In ms as the edge node stamps them (the same float, truncated).
+        (row["robot"], row["key"], row["transition"] == "activated", int(row["time"] * 1000))
+        for row in answer.json()["items"]
+        if row["transition"] in ("activated", "cleared")
+    }
+
+
+async def _plant_transitions(plant: Any, since: float) -> set[tuple[str, str, bool, int]]:
+    answer = await plant.get("/api/v1/plant/alarms", since=since, limit=5000)
+    return {
+        (t["device"], t["alarm"], t["active"], round(t["time"] * 1000))
+        for t in answer["transitions"]
+        if t["node"] == NODE
+    }
+
+
+async def test_no_alarm_transition_is_lost_when_the_plants_node_dies(
+    plc_host: str, tmp_path: Path
+) -> None:
+    """The cell publishes alarm transitions without pause while the node the plant is connected
+    to is killed: the plant moves to another node, asks for a rebirth with the transitions it
+    missed, and its alarm log ends equal to the cell's own alarm history."""
+    async with (
+        nats_cluster(tmp_path / "nats") as (a, b, c),
+        our_cell(plc_host, tmp_path / "cell", a.url) as (panels, running),
+        plant_process(plc_host, tmp_path / "plant", [b.url, c.url]) as plant,
+    ):
+        await plant.until(
+            GROUP, NODE, lambda n: n["online"] and all(d["online"] for d in n["devices"])
+        )
+        started = time.time()
+        toggler = AlarmToggler(panels["m1013"], running, "m1013")
+        for _ in range(4):
+            await toggler.toggle()
+        await plant.until(GROUP, NODE, lambda n: _devices(n)["m1013"]["alarms_active"] == [])
+        task = asyncio.create_task(toggler.run())
+        try:
+            before_kill = toggler.changes
+            b.kill()
+
+            async def on_c() -> bool:
+                answer = await plant.get("/api/v1/plant/status")
+                return bool(answer["broker"] == f"{c.host}:{c.mqtt_port}")
+
+            await eventually_async(on_c, timeout_s=60)
+            during = toggler.changes - before_kill
+            after_move = toggler.changes
+            await eventually(lambda: toggler.changes >= after_move + 4, timeout_s=60)
+        finally:
+            toggler.stopped.set()
+            await task
+        if toggler.active():
+            await toggler.toggle()  # end cleared
+
+        async def equal() -> bool:
+            cell = await _cell_transitions(running, started - 1)
+            seen = await _plant_transitions(plant, started - 1)
+            return bool(cell) and cell == seen
+
+        try:
+            await eventually_async(equal, timeout_s=90)
+        except AssertionError:
+            cell = await _cell_transitions(running, started - 1)
+            seen = await _plant_transitions(plant, started - 1)
+            status = await plant.get("/api/v1/plant/status")
+            raise AssertionError(
+                f"missing at the plant: {sorted(cell - seen)}\nonly at the plant: "
+                f"{sorted(seen - cell)}\n{during} changes while moving; plant: {status}"
+            ) from None
+        cell = await _cell_transitions(running, started - 1)
+        assert len(cell) >= toggler.changes
+        status = await plant.get("/api/v1/plant/status")
+        assert status["connections_lost"] >= 1
+        assert status["rebirths"].get("reconnect", 0) >= 1

@@ -53,6 +53,8 @@ BD_SEQ: Final = "bdSeq"
 REBIRTH: Final = "Node Control/Rebirth"
 ALARM_HISTORY_SINCE: Final = "Node Control/Alarm History Since"
 REBIRTH_INTERVAL_S: Final = 5.0
+REBIRTH_ANSWER_S: Final = 10.0
+"""A rebirth request not answered by an NBIRTH within this is sent again (``due``)."""
 HISTORY_MARGIN_MS: Final = 60_000
 """Transitions asked for again from this long before the last message received in order: a
 transition is published a little after it happened (the node's next report), so one stamped
@@ -108,6 +110,14 @@ class _Session:
     last_rebirth_s: float = -1e18
     in_order_ms: int | None = None
     """The payload time of the node's last message received in order (``None``: none yet)."""
+    missed_since_ms: int | None = None
+    """Messages after this time may be lost (a gap, the host's own reconnection) and no
+    rebirth request has asked for them since."""
+    held: str | None = None
+    """A rebirth request held by the rate limit (its reason): sent once it allows."""
+    awaiting: bool = False
+    """A rebirth request went out and no NBIRTH came since (it is sent again after
+    ``REBIRTH_ANSWER_S``: on a broker cluster that is still re-forming, a request can be lost)."""
 
 
 def state_payload(online: bool, timestamp_ms: int) -> bytes:
@@ -230,6 +240,7 @@ class HostApplication:
         payload = received.payload
         if payload.HasField("seq"):
             if payload.seq != (session.seq + 1) % SEQ_MODULO:
+                session.missed_since_ms = _earliest(session.missed_since_ms, session.in_order_ms)
                 self._request_rebirth(received, "seq gap")
             else:
                 session.in_order_ms = received.stamp_ms
@@ -246,6 +257,9 @@ class HostApplication:
         session.born = True
         session.seq = payload.seq if payload.HasField("seq") else 0
         session.in_order_ms = received.stamp_ms
+        if session.awaiting:  # the answer: the births, then the transitions asked for
+            session.awaiting = False
+            session.missed_since_ms = None
         session.aliases.clear()
         session.datatypes.clear()
         session.born_devices.clear()
@@ -405,25 +419,57 @@ class HostApplication:
         session = received.session
         if received.now_s - session.last_rebirth_s < self.rebirth_interval_s:
             self.rebirths_held += 1
+            session.held = session.held or reason  # sent once the limit allows (``due``)
             return
         view = received.view
         received.answer.publish.append(self._rebirth(session, view, reason, received.now_s))
 
     def _rebirth(self, session: _Session, view: NodeView, reason: str, now_s: float) -> Outgoing:
         session.last_rebirth_s = now_s
+        session.held = None
+        session.awaiting = True
         self.rebirths[reason] += 1
-        since = None if session.in_order_ms is None else session.in_order_ms - HISTORY_MARGIN_MS
-        return rebirth_request(view.group, view.node, int(now_s * 1000), since)
+        since = session.missed_since_ms = _earliest(session.missed_since_ms, session.in_order_ms)
+        return rebirth_request(
+            view.group,
+            view.node,
+            int(now_s * 1000),
+            None if since is None else since - HISTORY_MARGIN_MS,
+        )
 
     def on_reconnect(self, now_s: float) -> list[Outgoing]:
         """The host's connection came back after it was lost: whatever the nodes published
         meanwhile is lost to it, so every node it knew alive is asked for a rebirth (with its
         alarm transitions since), at once rather than at its next message."""
-        return [
-            self._rebirth(self._sessions[key], view, "reconnect", now_s)
-            for key, view in sorted(self.nodes.items())
-            if key in self._sessions and self._sessions[key].born
-        ]
+        asked = []
+        for key, view in sorted(self.nodes.items()):
+            session = self._sessions.get(key)
+            if session is not None and session.born:
+                session.missed_since_ms = _earliest(session.missed_since_ms, session.in_order_ms)
+                asked.append(self._rebirth(session, view, "reconnect", now_s))
+        return asked
+
+    def due(self, now_s: float) -> list[Outgoing]:
+        """The rebirth requests the rate limit held that it allows now, and those sent again
+        that no NBIRTH answered (call it every second or so: a quiet node sends nothing that
+        would bring them)."""
+        asked = []
+        for key, view in sorted(self.nodes.items()):
+            session = self._sessions.get(key)
+            if session is None:
+                continue
+            waited_s = now_s - session.last_rebirth_s
+            if session.held is not None and waited_s >= self.rebirth_interval_s:
+                asked.append(self._rebirth(session, view, session.held, now_s))
+            elif session.awaiting and waited_s >= max(REBIRTH_ANSWER_S, self.rebirth_interval_s):
+                asked.append(self._rebirth(session, view, "unanswered", now_s))
+        return asked
+
+
+def _earliest(first: int | None, second: int | None) -> int | None:
+    if first is None:
+        return second
+    return first if second is None else min(first, second)
 
 
 def rebirth_request(group: str, node: str, now_ms: int, since_ms: int | None = None) -> Outgoing:

@@ -61,13 +61,17 @@ def alarm_declarations(snapshots: Iterable[Mapping[str, object]]) -> list[AlarmD
     """From the alarm engine's snapshots (``AlarmEngine.all``)."""
     found = []
     for snapshot in snapshots:
-        changed = snapshot.get("changed_at")
+        active = snapshot.get("active") is True
+        # Its Active's time: when it came or went (an acknowledgement changes neither).
+        changed = snapshot.get("activated_at" if active else "cleared_at")
+        if not isinstance(changed, int | float):
+            changed = snapshot.get("changed_at")
         found.append(
             AlarmDeclaration(
                 key=str(snapshot.get("key")),
                 text=str(snapshot.get("name") or snapshot.get("key")),
                 priority=str(snapshot.get("priority") or "medium"),
-                active=snapshot.get("active") is True,
+                active=active,
                 changed_ms=int(changed * 1000) if isinstance(changed, int | float) else None,
             )
         )

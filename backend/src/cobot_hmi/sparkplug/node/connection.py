@@ -10,7 +10,7 @@ import asyncio
 import contextlib
 import logging
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Final
 
 import orjson
 
@@ -24,13 +24,16 @@ from cobot_hmi.sparkplug.mqtt_client import (
 from cobot_hmi.sparkplug.node.births import BirthWriter, death_payload
 from cobot_hmi.sparkplug.node.command_handling import CommandHandler
 from cobot_hmi.sparkplug.node.core import Background, NodeStatus, Publisher
-from cobot_hmi.sparkplug.node.device import Device
+from cobot_hmi.sparkplug.node.device import Device, now_ms
 from cobot_hmi.sparkplug.topics import MessageType, Topics
 
 if TYPE_CHECKING:
     import paho.mqtt.client as mqtt
 
 log = logging.getLogger(__name__)
+
+HOST_LOSS_MARGIN_MS: Final = 60_000
+"""How long before the primary host's offline STATE its alarm transitions are sent again."""
 
 
 class PrimaryHost:
@@ -245,6 +248,13 @@ class NodeConnection:
         elif not online and self.status.active:
             log.warning("Sparkplug: the primary host %s went offline", self.host.host_id)
             self.status.active = False  # from now on, DDATA go to the buffer
+            # What went out before this STATE came may not have reached it either (its will
+            # is published once the broker notices it gone): each robot's next DBIRTH is
+            # followed by its alarm transitions since a while before.
+            since = now_ms() - HOST_LOSS_MARGIN_MS
+            for device in self.devices.values():
+                before = device.history_from_ms
+                device.history_from_ms = since if before is None else min(before, since)
             self.background.spawn(self._cycle_connection(), "sparkplug reconnect")
 
     async def _cycle_connection(self) -> None:
