@@ -158,3 +158,6 @@ class PlantRuntime:
         while True:
             await asyncio.sleep(_SWEEP_S)
             self.sessions.sweep()
+            # Rebirth requests the host's rate limit held, once it allows them.
+            for out in self.host.due(time.time()):
+                self.client.publish(out.topic, out.payload, out.qos, out.retain)
