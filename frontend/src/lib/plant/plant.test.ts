@@ -10,6 +10,7 @@ import {
   cellHistoryHref,
   densityFor,
   figuresWords,
+  healthWords,
   safeHmiUrl,
   secondsWords,
   shiftView,
@@ -116,6 +117,16 @@ describe("the cells", () => {
     expect(safeHmiUrl("not a url")).toBeNull();
     expect(safeHmiUrl("https://cell-2.plant.example:8443/")).toBe("https://cell-2.plant.example:8443");
     expect(cellHistoryHref(null, 0, 1)).toBeNull();
+  });
+});
+
+describe("a robot's health", () => {
+  it("is its verdict and each joint not ok with its reason, never every life-used figure", () => {
+    const health = { Verdict: "watch", "J1/Verdict": "ok", "J1/Life Used": "3.2", "J3/Verdict": "watch", "J3/Reason": "friction up 22 %", "J12/Verdict": "act" };
+    expect(healthWords(health)).toBe("health watch · J3 watch: friction up 22 % · J12 act");
+    expect(healthWords({ Verdict: "ok", "J1/Verdict": "ok" })).toBe("health ok");
+    expect(healthWords({ friction: "watch", reducer: "ok" })).toBe("friction watch · reducer ok");
+    expect(healthWords({})).toBeNull();
   });
 });
 

@@ -200,9 +200,30 @@ export function cellHistoryHref(hmi: string | null, since_s: number, until_s: nu
   return `${hmi}/api/v1/alarms/history?${q.toString()}`;
 }
 
-function healthWords(health: Readonly<Record<string, string>>): string | null {
-  const entries = Object.entries(health).sort(([a], [b]) => a.localeCompare(b));
-  return entries.length === 0 ? null : entries.map(([name, verdict]) => `${name} ${verdict}`).join(" · ");
+/**
+ * A robot's health in words: its verdict (its worst joint's: ok, watch, act) and each joint that
+ * is not ok with its reason ("health watch · J3 watch: friction up 22 %"); a cell that publishes
+ * other `Health/` metrics has them named. Null: the cell publishes no health.
+ */
+export function healthWords(health: Readonly<Record<string, string>>): string | null {
+  const entries = Object.entries(health);
+  if (entries.length === 0) return null;
+  const verdict = health.Verdict;
+  if (verdict === undefined) {
+    return entries
+      .sort(([a], [b]) => a.localeCompare(b))
+      .map(([name, value]) => `${name} ${value}`)
+      .join(" · ");
+  }
+  const joints = entries
+    .map(([name, value]) => [/^(J\d+)\/Verdict$/.exec(name)?.[1], value] as const)
+    .filter((pair): pair is readonly [string, string] => pair[0] !== undefined && pair[1] !== "ok")
+    .sort(([a], [b]) => Number(a.slice(1)) - Number(b.slice(1)))
+    .map(([joint, value]) => {
+      const reason = health[`${joint}/Reason`];
+      return reason !== undefined && reason !== "" ? `${joint} ${value}: ${reason}` : `${joint} ${value}`;
+    });
+  return [`health ${verdict}`, ...joints].join(" · ");
 }
 
 export interface PageRange {
