@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import io
+import re
 from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
@@ -100,6 +101,9 @@ async def test_the_report_answers_every_joint_and_a_restart_keeps_what_it_counte
             return hmi.service.health.monitors[ROBOT].frames_fed > 0
 
         await eventually_async(frames_fed, timeout_s=60.0)
+        fed = re.search(r'^cobot_hmi_health_frames_fed_total\{robot="robot"\} (\S+)$',
+                        await hmi.metrics(), re.MULTILINE)  # fmt: skip
+        assert fed is not None and float(fed.group(1)) > 0
         async with hmi.client() as client:
             listed = await client.get(f"/api/v1/robots/{ROBOT}/health/baselines")
             unknown = await client.get("/api/v1/robots/nobody/health")
@@ -180,10 +184,16 @@ async def test_a_baseline_then_wear_reads_watch_with_its_advisory_alarm(
             trend = (await client.get(f"/api/v1/robots/{ROBOT}/health/trend")).json()
             report = await client.get(f"/api/v1/robots/{ROBOT}/health/report.csv")
             listed = (await client.get(f"/api/v1/robots/{ROBOT}/health/baselines")).json()
+        cycles = re.search(
+            r'^cobot_hmi_health_cycles_fed_total\{robot="robot"\} (\S+)$',
+            await hmi.metrics(),
+            re.MULTILINE,
+        )
+        assert cycles is not None and float(cycles.group(1)) >= BASELINE_CYCLES
         (advisory,) = [a for a in alarms if a["key"] == f"health.{WORN_JOINT}"]
         assert advisory["priority"] == "advisory" and advisory["priority_rank"] == 4
         assert "friction" in advisory["message"]
-        assert all(a["priority_rank"] < 4 for a in alarms if a["key"] != advisory["key"])
+        assert all(a["priority_rank"] < 4 for a in alarms if a["kind"] != "health")
         flagged_events = [
             e for e in events["items"] if e["joints"][WORN_JOINT - 1]["verdict"] != "ok"
         ]

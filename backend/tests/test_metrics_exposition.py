@@ -28,8 +28,28 @@ LEGACY = Path(__file__).parent / "legacy"
 # Families added after 58f13a2: the history closer's (a journal becoming its segment in a process
 # of its own), every frame consumer's drops (robots.frame_notifier), the audit's on a full disk
 # (outcomes kept in memory until the disk takes them), the rows of the events, alarms and
-# cycles waiting for the disk likewise, and the cyclic pump's.
+# cycles waiting for the disk likewise, the cyclic pump's, and robot health's (service.health).
 ADDED_SINCE_58F13A2: dict[str, Any] = {
+    "cobot_hmi_health_frames_fed": {
+        "type": "counter",
+        "samples": {"cobot_hmi_health_frames_fed_total": ["robot"]},
+    },
+    "cobot_hmi_health_cycles_fed": {
+        "type": "counter",
+        "samples": {"cobot_hmi_health_cycles_fed_total": ["robot"]},
+    },
+    "cobot_hmi_health_cycles_refused": {
+        "type": "counter",
+        "samples": {"cobot_hmi_health_cycles_refused_total": ["robot"]},
+    },
+    "cobot_hmi_health_failures": {
+        "type": "counter",
+        "samples": {"cobot_hmi_health_failures_total": [""]},
+    },
+    "cobot_hmi_health_cpu_seconds": {
+        "type": "counter",
+        "samples": {"cobot_hmi_health_cpu_seconds_total": [""]},
+    },
     "cobot_hmi_history_journals_closing": {
         "type": "gauge",
         "samples": {"cobot_hmi_history_journals_closing": [""]},

@@ -165,6 +165,7 @@ class ServiceCollector(Collector):
         recorder = service.recorder
         if recorder is not None:  # the history recorder's counters (service/recording/recorder.py)
             yield from map(family_of, recorder.metric_families())
+        yield from map(family_of, service.health.metric_families())  # service/health
 
 
 def _audit_chain_families(head: ChainHead | None) -> Iterator[Metric]:

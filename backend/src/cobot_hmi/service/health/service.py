@@ -30,6 +30,7 @@ from cobot_hmi.health import HealthEngine
 from cobot_hmi.service.alarms.engine import AlarmEngine
 from cobot_hmi.service.errors import ApiError
 from cobot_hmi.service.events.text import Event
+from cobot_hmi.service.extensions import MetricFamily
 from cobot_hmi.service.health.answers import baseline_answer, baselines_answer, report_answer
 from cobot_hmi.service.health.monitor import RobotHealth, arm_of, worst_verdict
 from cobot_hmi.service.health.settings import HealthServiceSettings
@@ -113,6 +114,8 @@ class Health:
         self._thread: threading.Thread | None = None
         self._saving: set[asyncio.Future[None]] = set()
         self.failures = 0
+        self.cpu_seconds = 0.0
+        """CPU time of the health thread (what health costs the cell, ``/metrics``)."""
 
     @property
     def enabled(self) -> bool:
@@ -193,6 +196,7 @@ class Health:
         now = time.monotonic()
         next_report, next_save, next_snapshot = now + s.health_report_s, now + s.health_save_s, now
         while not self._stopping.wait(s.health_refresh_s):
+            cpu_start_s = time.thread_time()
             now = time.monotonic()
             report_due, save_due = now >= next_report, now >= next_save
             snapshot_due = now >= next_snapshot
@@ -208,6 +212,7 @@ class Health:
                 next_save = now + s.health_save_s
             if snapshot_due:
                 next_snapshot = now + s.health_snapshot_s
+            self.cpu_seconds += time.thread_time() - cpu_start_s
 
     def _turn(
         self, name: str, monitor: RobotHealth, report_due: bool, save_due: bool, snapshot: bool
@@ -252,6 +257,27 @@ class Health:
         if not future.cancelled() and future.exception() is not None:
             self.failures += 1
             log.error("health: saving failed: %s", future.exception())
+
+    def metric_families(self) -> list[MetricFamily]:
+        """Health's counters for ``/metrics`` (the verdicts themselves are the REST answer's
+        and the doors')."""
+        monitors = list(self.monitors.items())
+
+        def per_robot(value: str) -> list[tuple[dict[str, str], float]]:
+            return [({"robot": name}, float(getattr(m, value))) for name, m in monitors]
+
+        return [
+            ("health_frames_fed_total", "counter", "frames fed to the health engine",
+             per_robot("frames_fed")),
+            ("health_cycles_fed_total", "counter", "measured cycles ended in the engine",
+             per_robot("cycles_fed")),
+            ("health_cycles_refused_total", "counter",
+             "measured cycles the engine could not take", per_robot("cycles_refused")),
+            ("health_failures_total", "counter", "health turns or saves that failed (logged)",
+             [({}, float(self.failures))]),
+            ("health_cpu_seconds_total", "counter", "CPU time of the health thread",
+             [({}, self.cpu_seconds)]),
+        ]  # fmt: skip
 
     # ------------------------------------------------------------ the routes (web loop)
 
