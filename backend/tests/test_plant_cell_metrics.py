@@ -87,6 +87,7 @@ async def test_births_declare_them_data_reports_changes_the_plant_shows_them(
             wait_births=False,
             sparkplug_primary_host=HOST_ID,
             sparkplug_hmi_url=HMI_URL,
+            health_report_s=600.0,  # only this test's health events while it runs
         ) as c,
         plant_process(plc_host, tmp_path / "plant", [c.broker.url]) as plant,
     ):

@@ -35,7 +35,8 @@ class OpcUaExtension:
 
     async def start(self) -> None:
         service, web = self._service, self._web
-        feed = ServiceFeed(service.robots, service.users, web, asyncio.get_running_loop())
+        loop = asyncio.get_running_loop()
+        feed = ServiceFeed(service.robots, service.users, web, loop, service.health.latest)
         self.server = OpcUaServer(self._settings, web.state_dir, feed)
         await self.server.start()
 

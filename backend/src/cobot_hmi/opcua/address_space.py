@@ -4,8 +4,8 @@ Each robot gets a namespace of its own (``urn:cobot-hmi:robot:<name>``: its Node
 same whatever other robots the cell has) holding its Robotics instances (``robotics``), its
 whole I/O layout (``layout_nodes``), its Machinery building blocks (``machinery``: found from
 ``Objects/Machines``), and beside them on the robot's object: ``Status`` (``ConnectionState``,
-``ControlHolder``) and, with writes on only, the methods ``TakeControl`` and ``ReleaseControl``
-(linked by ``writes``).
+``ControlHolder``), ``Health`` and its lifetime counters (``health_nodes``) and, with writes on
+only, the methods ``TakeControl`` and ``ReleaseControl`` (linked by ``writes``).
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ from asyncua import Server, ua
 
 from cobot_hmi.opcua.bindings import RobotNodes
 from cobot_hmi.opcua.companion import Companion
+from cobot_hmi.opcua.health_nodes import add_health
 from cobot_hmi.opcua.layout_nodes import LayoutBuilder
 from cobot_hmi.opcua.machinery import MachineryBuilder
 from cobot_hmi.opcua.nodes import NodeBuilder, child_id
@@ -44,6 +45,7 @@ async def build(
         LayoutBuilder(builder, nodes, writable=writable).add(system)
         await MachineryBuilder(builder, companion, nodes).add(system)
         _status_and_control(builder, nodes, system, writable=writable)
+        await add_health(builder, companion, nodes, system)
         await builder.commit()
         built[robot] = nodes
     return built, time.perf_counter() - started

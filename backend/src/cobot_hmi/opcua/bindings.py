@@ -77,6 +77,18 @@ class StateMachineBinding:
     read: Callable[[Frame | None], MachineState]
 
 
+@dataclass(frozen=True, slots=True)
+class HealthJoint:
+    """One joint's health variables (``health_nodes``): its verdict, its reason, and its
+    reducer's life used (a Machinery lifetime counter, %)."""
+
+    joint: int
+    """1-based, as the robot labels its joints."""
+    verdict: ua.NodeId
+    reason: ua.NodeId
+    life_used: ua.NodeId
+
+
 @dataclass
 class RobotNodes:
     """Every node of one robot that the updater writes (see the module docstring)."""
@@ -100,6 +112,9 @@ class RobotNodes:
     control_holder: ua.NodeId | None = None
     take_control: ua.NodeId | None = None
     release_control: ua.NodeId | None = None
+    health_verdict: ua.NodeId | None = None
+    """The robot's health verdict (its worst joint's)."""
+    health_joints: list[HealthJoint] = field(default_factory=list)
     constants: list[tuple[ua.NodeId, ua.Variant]] = field(default_factory=list)
     """Values that never change (nameplates, engineering units), written once."""
     unsupported: list[ua.NodeId] = field(default_factory=list)

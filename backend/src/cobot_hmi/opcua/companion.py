@@ -74,6 +74,8 @@ OPERATIONAL_MODE: Final = TypeRef(ROBOTICS_URI, 3006, "OperationalModeEnumeratio
 MOTION_DEVICE_CATEGORY: Final = TypeRef(ROBOTICS_URI, 18193, "MotionDeviceCategoryEnumeration")
 # Machinery (OPC 40001-1): the entry point, the nameplate, the two state machines and their states.
 MACHINES: Final = TypeRef(MACHINERY_URI, 1001, "Machines")
+LIFETIME_COUNTER_TYPE: Final = TypeRef(MACHINERY_URI, 1015, "MachineryLifetimeCounterType")
+LIFETIME_VARIABLE_TYPE: Final = TypeRef(DI_URI, 468, "LifetimeVariableType")
 MACHINE_IDENTIFICATION_TYPE: Final = TypeRef(MACHINERY_URI, 1012, "MachineIdentificationType")
 ITEM_STATE_TYPE: Final = TypeRef(MACHINERY_URI, 1002, "MachineryItemState_StateMachineType")
 OPERATION_MODE_TYPE: Final = TypeRef(MACHINERY_URI, 1008, "MachineryOperationModeStateMachineType")

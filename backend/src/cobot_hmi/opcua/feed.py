@@ -8,8 +8,9 @@ Everything the server takes from the service, and every request it makes of it, 
   dropped and counted when full), drained at each monitoring tick (``sample``): only the period's
   newest frame is used, at most one RPI old (a consumer on the web loop would see it only at the
   loop's next wake, up to a WebSocket batch later). With it the link state, the command image, the
-  control holder and the identity, read as they are (attribute reads; the web loop and the cyclic
-  thread never wait for this thread).
+  control holder, the identity and the robot's latest health event, read as they are
+  (attribute and dictionary reads; the web loop and the cyclic thread never wait for this
+  thread).
 - **Users**: ``authenticate`` checks a user name and password against the service's users file
   (scrypt, on the server's thread), behind a login throttle of its own (``service.access.auth``'s
   two budgets: per client address and per user name); a refusal during a wait is immediate.
@@ -70,8 +71,12 @@ class ServiceFeed:
         users: UsersFile,
         settings: WebSettings,
         web_loop: asyncio.AbstractEventLoop,
+        health: Mapping[str, Mapping[str, object]] | None = None,
     ) -> None:
+        """``health``: each robot's latest ``health`` event as the service keeps it (read as
+        it is at each tick)."""
         self._robots = robots
+        self._health = health if health is not None else {}
         self._users = users
         self._web_loop = web_loop
         self.anonymous_reads = not settings.view_requires_login
@@ -137,6 +142,7 @@ class ServiceFeed:
             else Identity(
                 identity.product_name, str(identity.serial_number), str(identity.product_code)
             ),
+            health=self._health.get(name),
         )
 
     # ------------------------------------------------------------ users

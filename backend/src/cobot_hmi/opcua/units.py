@@ -56,6 +56,7 @@ UNITS: Final = {
     "N": Unit("NEW", "N", "newton"),
     "mA": Unit("4K", "mA", "milliampere"),
     "V": Unit("VLT", "V", "volt"),
+    "%": Unit("P1", "%", "percent"),
 }
 """Keyed by the layout's unit strings (``Field.unit``) and ``ANALOG_OUTPUT_RANGES``' units."""
 

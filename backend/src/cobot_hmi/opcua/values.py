@@ -17,6 +17,7 @@ machines (``machinery``) stay Good: without a frame the robot is NotAvailable, m
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from typing import Any, Final
@@ -71,6 +72,8 @@ class Sample:
     command: CommandImage | None
     control_holder: str
     identity: Identity | None
+    health: Mapping[str, object] | None = None
+    """The robot's latest ``health`` event (``service.health``), if it had one."""
 
 
 class SharedDataValue(ua.DataValue):
@@ -110,6 +113,8 @@ class RobotValues:
         self._identity: Identity | None = None
         self._state: str | None = None
         self._holder: str | None = None
+        self._health_event: Mapping[str, object] | None = None
+        self._health_values: dict[ua.NodeId, object] = {}
         self.writes = 0
         """Values written (a counter: the bench reads it)."""
         self._attributes: dict[ua.NodeId, Any] = {}
@@ -152,6 +157,8 @@ class RobotValues:
             await self._write(node, _NULL, WAITING, now)
         await self._frames_status(WAITING, now)
         await self._state_machines(None, now)
+        for node in self._health_nodes():
+            await self._write(node, _NULL, WAITING, now)
 
     async def update(self, sample: Sample) -> None:
         now = time.time()
@@ -168,6 +175,9 @@ class RobotValues:
             await self._nameplates(sample.identity, _utc(now))
         if sample.command is not None:
             await self._command(sample.command, _utc(now))
+        if sample.health is not None and sample.health is not self._health_event:
+            self._health_event = sample.health
+            await self._health(sample.health)
         if not sample.connected:
             if self._frame_status is GOOD:
                 await self._frames_status(COMMUNICATION_ERROR, _utc(now))
@@ -176,6 +186,42 @@ class RobotValues:
         if sample.frame is not None:
             await self._frame(sample.frame, _utc(sample.received_at))
             await self._state_machines(sample.frame, _utc(sample.received_at))
+
+    def _health_nodes(self) -> list[ua.NodeId]:
+        nodes = self.nodes
+        joints = [n for j in nodes.health_joints for n in (j.verdict, j.reason, j.life_used)]
+        return ([nodes.health_verdict] if nodes.health_verdict is not None else []) + joints
+
+    async def _health(self, event: Mapping[str, object]) -> None:
+        """A new ``health`` event: each of its values that changed, at the event's time."""
+        when = event.get("time")
+        source = _utc(float(when)) if isinstance(when, int | float) else self._now
+        values: list[tuple[ua.NodeId | None, object, ua.VariantType]] = [
+            (self.nodes.health_verdict, event.get("verdict"), ua.VariantType.String)
+        ]
+        joints = event.get("joints")
+        by_joint = {
+            entry.get("joint"): entry
+            for entry in (joints if isinstance(joints, list) else [])
+            if isinstance(entry, Mapping)
+        }
+        for joint in self.nodes.health_joints:
+            entry = by_joint.get(joint.joint, {})
+            life = entry.get("life_used_percent")
+            values += [
+                (joint.verdict, entry.get("verdict"), ua.VariantType.String),
+                (joint.reason, entry.get("reason"), ua.VariantType.String),
+                (
+                    joint.life_used,
+                    float(life) if isinstance(life, int | float) else None,
+                    ua.VariantType.Double,
+                ),
+            ]
+        for node, value, variant in values:
+            if node is None or value is None or self._health_values.get(node) == value:
+                continue
+            self._health_values[node] = value
+            await self._write(node, ua.Variant(value, variant), GOOD, source)
 
     async def _frames_status(self, status: ua.StatusCode, source: datetime) -> None:
         """Every frame-derived variable Null with ``status`` (the link down, no data yet)."""

@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING
 from cobot_hmi.layout import LAYOUT_VERSION
 from cobot_hmi.sparkplug.buffer import DiskBuffer
 from cobot_hmi.sparkplug.catalogue import Catalogue
+from cobot_hmi.sparkplug.event_metrics import alarm_declarations
 from cobot_hmi.sparkplug.mqtt_client import BrokerAddress, ClientOptions
 from cobot_hmi.sparkplug.node.births import BirthWriter
 from cobot_hmi.sparkplug.node.command_handling import CommandHandler, door_writer
@@ -88,8 +89,9 @@ class EdgeNode:
         self.client_id = f"cobot-hmi-{self.topics.group}-{self.topics.node}"
         options = client_options(settings, self.client_id)
         self.address = options.address
+        # Every alarm of each robot's engine, declared in its births (its set is fixed).
         self.devices: dict[str, Device] = {
-            name: Device(robot, number, self.catalogue)
+            name: Device(robot, number, self.catalogue, alarm_declarations(robot.alarms.all()))
             for number, (name, robot) in enumerate(robots.items(), start=1)
         }
         state = state_dir / "sparkplug"
@@ -103,6 +105,8 @@ class EdgeNode:
         self.publisher = Publisher(NodeSession(state / "bdseq"))
         self.events = events
         self.event_feed = EventFeed(self.devices)
+        if events is not None:  # from the service's start on: no health event missed
+            events.add(self.event_feed)
         self.hmi_url = hmi_url
         self._compose(settings, options)
 
@@ -171,9 +175,7 @@ class EdgeNode:
         )
 
     async def start(self) -> None:
-        if self.events is not None:
-            self.event_feed.declare_alarms()
-            self.events.add(self.event_feed)
+        self.event_feed.restored()
         self.connection.start()
         log.info(
             "Sparkplug B edge node %s/%s on %s (%d robots)",

@@ -164,6 +164,18 @@ class EventMetrics:
         self.stamps.append(stamp_ms)
         return offset
 
+    def restore(self, alarms: Iterable[AlarmDeclaration]) -> None:
+        """The alarms' state as the alarm engine restored it (no change reported: the next
+        birth carries it)."""
+        for alarm in alarms:
+            offset = self.alarm_offsets.get(alarm.key)
+            if offset is None:
+                continue
+            index = offset - self._first
+            self.values[index : index + 3] = [alarm.active, alarm.priority, alarm.text]
+            if alarm.changed_ms is not None:
+                self.stamps[index] = alarm.changed_ms
+
     def metric(self, offset: int) -> MetricDef:
         return self.metrics[offset - self._first]
 

@@ -24,11 +24,11 @@ class EventFeed:
     def __init__(self, devices: Mapping[str, Device]) -> None:
         self.devices = devices
 
-    def declare_alarms(self) -> None:
-        """Each robot's alarms as its engine has them now (after the service restored them,
-        before the first birth)."""
+    def restored(self) -> None:
+        """Each robot's alarms as its engine has them once the service restored them (before
+        the first birth, which carries them)."""
         for device in self.devices.values():
-            device.events = device.event_metrics(alarm_declarations(device.robot.alarms.all()))
+            device.events.restore(alarm_declarations(device.robot.alarms.all()))
 
     def on_events(self, events: Sequence[Event]) -> None:
         for event in events:
