@@ -167,8 +167,9 @@ async def test_birth_writer_births_and_leaves(tmp_path: Path, plc_host: str) -> 
         nbirth, dbirth = w.subscriber.snapshot()
         assert (nbirth.kind, nbirth.seq, dbirth.kind, dbirth.seq) == ("NBIRTH", 0, "DBIRTH", 1)
         assert {m.name: m.value for m in nbirth.metrics}[BD_SEQ] == w.publisher.bd_seq
+        # The catalogue's metrics, then the robot's event metrics (alarms, cycles, health).
         assert [m.alias for m in dbirth.metrics] == [
-            2 * ALIAS_STRIDE + m.offset for m in w.catalogue.metrics
+            2 * ALIAS_STRIDE + m.offset for m in (*w.catalogue.metrics, *device.events.metrics)
         ]
         assert device.born
         await births.leave()
