@@ -9,12 +9,14 @@ from __future__ import annotations
 
 import asyncio
 import time
+from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import Annotated, Final
 from zoneinfo import ZoneInfo
 
 from fastapi import APIRouter, Query, Request
-from pydantic import BaseModel
+from fastapi.responses import Response
+from pydantic import BaseModel, TypeAdapter
 
 from cobot_hmi.layout import robot_state_name
 from cobot_hmi.plant.model import (
@@ -170,18 +172,25 @@ def _node(view: NodeView, devices: list[DeviceModel]) -> NodeModel:
     )
 
 
-@router.get("/nodes", summary="Every edge node seen, with its devices (robots)")
-async def nodes(
-    request: Request,
-    _viewer: ViewerDep,
-    area: Annotated[str | None, Query(description="only nodes of this area")] = None,
-    state: Annotated[
-        str | None, Query(description="only devices in this state group or state")
-    ] = None,
-    group: Annotated[str | None, Query(description="only this Sparkplug group")] = None,
-) -> list[NodeModel]:
+NODES_CACHE_S: Final = 0.2
+"""How long one ``/nodes`` answer serves every page that asks again (a wall display, phones,
+the control room): its cost, every device of the plant, is paid at most this often."""
+
+
+@dataclass
+class _Answered:
+    at_s: float
+    body: bytes
+
+
+_NODES_CACHE: dict[tuple[int, str | None, str | None, str | None], _Answered] = {}
+
+
+def _nodes_answer(
+    runtime: PlantRuntime, group: str | None, area: str | None, state: str | None
+) -> bytes:
     answer = []
-    for (node_group, _), view in sorted(_runtime(request).host.nodes.items()):
+    for (node_group, _), view in sorted(runtime.host.nodes.items()):
         if (group is not None and node_group != group) or (
             area is not None and view.text(AREA_METRIC) != area
         ):
@@ -192,7 +201,37 @@ async def nodes(
             if not devices:
                 continue
         answer.append(_node(view, devices))
-    return answer
+    return _NODE_LIST.dump_json(answer)
+
+
+_NODE_LIST: Final = TypeAdapter(list[NodeModel])
+
+
+@router.get(
+    "/nodes",
+    summary="Every edge node seen, with its devices (robots)",
+    response_model=list[NodeModel],
+)
+async def nodes(
+    request: Request,
+    _viewer: ViewerDep,
+    area: Annotated[str | None, Query(description="only nodes of this area")] = None,
+    state: Annotated[
+        str | None, Query(description="only devices in this state group or state")
+    ] = None,
+    group: Annotated[str | None, Query(description="only this Sparkplug group")] = None,
+) -> Response:
+    # Built from the models as they are (never validated again: they are ours), and the same
+    # answer given to every page asking within NODES_CACHE_S.
+    runtime = _runtime(request)
+    key = (id(runtime), group, area, state)
+    now_s = time.monotonic()
+    cached = _NODES_CACHE.get(key)
+    if cached is None or now_s - cached.at_s > NODES_CACHE_S:
+        if len(_NODES_CACHE) > 64:  # one plant's few filters; never grows without bound
+            _NODES_CACHE.clear()
+        cached = _NODES_CACHE[key] = _Answered(now_s, _nodes_answer(runtime, group, area, state))
+    return Response(cached.body, media_type="application/json")
 
 
 @router.get("/alarms", summary="The plant's alarm transitions and ISA-18.2 figures per cell")
