@@ -20,7 +20,7 @@ from cobot_hmi.cli.health_verb import HealthSimulation
 from cobot_hmi.emulator.robot.wear import JointWear
 from cobot_hmi.health import FrameBlock, HealthEngine
 from cobot_hmi.service.alarms.definitions import Priority
-from cobot_hmi.service.alarms.engine import AlarmEngine
+from cobot_hmi.service.alarms.engine import AlarmEngine, AlarmRefusedError
 from cobot_hmi.service.health.answers import report_answer, report_csv, trend_answer
 from cobot_hmi.service.health.service import advise, health_event
 from cobot_hmi.service.health.store import HealthStore, snapshot_of
@@ -174,3 +174,22 @@ def test_the_health_event_and_the_answers() -> None:
     rows = list(csv.DictReader(io.StringIO(report_csv(ROBOT, snapshots, 0.0, sim.now_s))))
     assert [row["joint"] for row in rows] == ["1", "2", "3", "4", "5", "6"]
     assert rows[0]["verdict"] == joints[0]["verdict"] and rows[0]["baseline_id"] == "1"
+
+
+def test_an_advisory_alarm_is_shelved_at_most_seven_days() -> None:
+    alarms = AlarmEngine(
+        ROBOT,
+        motor_temperature_c=80.0,
+        motor_temperature_deadband_c=2.0,
+        gap_rate_per_min=10.0,
+        connection_delay_s=2.0,
+        shelve_max_s=30 * 86_400.0,
+        shelve_max_by_priority_s={"high": 3600.0, "medium": 3600.0, "low": 3600.0},
+    )
+    alarms.raised("health.2", active=True, message="J2: friction 9 % above", now_s=1.0)
+    assert alarms.snapshot_of("health.2")["shelve_max_s"] == 7 * 86_400.0
+    with pytest.raises(AlarmRefusedError, match="advisory priority's own maximum"):
+        alarms.shelve(f"{ROBOT}:health.2", "olivia", "waiting for parts", 8 * 86_400.0)
+    assert alarms.shelve(f"{ROBOT}:health.2", "olivia", "waiting for parts", 7 * 86_400.0)[
+        "shelved"
+    ]

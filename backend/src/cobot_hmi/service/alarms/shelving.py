@@ -77,6 +77,8 @@ class ShelvingRules:
         """The setting that bounds this alarm's shelving (named in a refusal)."""
         own = self.max_by_priority_s.get(definition.priority)
         if own is not None and own <= self.cap_s:
+            if definition.priority is Priority.ADVISORY:  # no setting of its own
+                return "the advisory priority's own maximum"
             return f"alarm_shelve_max_{definition.priority.value}_s"
         return "alarm_shelve_max_s"
 

@@ -28,8 +28,9 @@ class HealthServiceSettings(BaseModel):
         allow_inf_nan=False,
     )
     health_report_s: float = setting(
-        5.0,
-        "the verdicts are judged again this often (advisory alarms, health events), s",
+        30.0,
+        "the verdicts are judged again this often (advisory alarms, health events), s (a "
+        "report takes tens of milliseconds: often enough for advice on wear of weeks)",
         gt=0,
         le=600.0,
         allow_inf_nan=False,
