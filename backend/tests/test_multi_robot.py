@@ -273,8 +273,8 @@ async def test_one_robot_killed_the_other_streams_without_a_gap(
                     after = await alpha.link.stats()
                     assert alpha.link.state is ConnectionState.CONNECTED
                     assert after.gaps == before.gaps == 0
-                    assert alpha.losses == 0
-                    assert beta.losses >= 1
+                    assert alpha.connection.losses == 0
+                    assert beta.connection.losses >= 1
                     seqs = stream_a.seqs()
                     assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))
                     assert not stream_a.of("dropped")
@@ -283,8 +283,8 @@ async def test_one_robot_killed_the_other_streams_without_a_gap(
                         for m in stream_a.of("event")
                         if m["event"]["kind"] == "connection"  # type: ignore[index]
                     ]
-                    assert alpha.ready() == (True, None)
-                    ready, reason = beta.ready()
+                    assert alpha.connection.ready() == (True, None)
+                    ready, reason = beta.connection.ready()
                     assert not ready and reason
     finally:
         if process.poll() is None:
@@ -345,12 +345,12 @@ async def test_a_refused_robot_never_disturbs_another(plc_host: str, tmp_path: P
                 # Beta is refused again and again (its backoff) while alpha goes on.
                 await eventually(lambda: len(stream_a.seqs()) > shown + 50, timeout_s=30)
                 stats = await alpha.link.stats()
-                assert stats.gaps == 0 and alpha.losses == 0
+                assert stats.gaps == 0 and alpha.connection.losses == 0
                 assert alpha.link.state is ConnectionState.CONNECTED
                 seqs = stream_a.seqs()
                 assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))
                 assert not stream_a.of("dropped")
-            ready, reason = beta.ready()
+            ready, reason = beta.connection.ready()
             assert not ready and reason is not None and reason.startswith("refused")
 
 

@@ -62,7 +62,7 @@ def test_config_file_from_environment(tmp_path: Path) -> None:
     config = tmp_path / "hmi.toml"
     config.write_text("ws_batch_ms = 20\n")
     settings = load_settings({}, environ={"COBOT_HMI_CONFIG": str(config)})
-    assert settings.web.ws_batch_ms == 20.0
+    assert settings.stream.ws_batch_ms == 20.0
 
 
 def test_composite_flags_and_booleans() -> None:

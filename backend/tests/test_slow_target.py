@@ -302,7 +302,7 @@ async def test_service_reports_a_slow_robot_once_and_clears(
                 next(r for r in seen if r.startswith(slow_words))
             )
             assert robot.link.state is ConnectionState.CONNECTED
-            assert robot.losses == 0
+            assert robot.connection.losses == 0
 
 
 async def _until(

@@ -274,7 +274,7 @@ async def test_a_stalled_broker_stalls_nothing(tmp_path: Path, plc_host: str) ->
             )
             async with c.running.client() as client:
                 assert (await client.get("/readyz")).status_code == 200
-            assert all(robot.down_since is None for robot in robots.values())
+            assert all(robot.connection.down_since is None for robot in robots.values())
         finally:
             process.send_signal(signal.SIGCONT)
         count = len(c.subscriber.of("DDATA", "m1013"))

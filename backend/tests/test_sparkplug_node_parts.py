@@ -55,8 +55,7 @@ class StandInRobot:
     def __init__(self, name: str) -> None:
         self.name = name
         self.frames = FrameNotifier(name)
-        self.down_since: float | None = None
-        self.connects = 1
+        self.connection = SimpleNamespace(down_since=None, connects=1)
         self.link = SimpleNamespace(command=None)
         self.control = SimpleNamespace(holder=None)
 
@@ -255,7 +254,7 @@ async def test_reports_birth_data_by_exception_buffer_and_death(
         reports.tick(device)
         assert buffer.records_buffered == 1 and device.messages["DDATA_buffered"] == 1
         status.active = True
-        cast("StandInRobot", device.robot).down_since = time.time()
+        cast("StandInRobot", device.robot).connection.down_since = time.time()
         reports.tick(device)
         await w.subscriber.wait_for(lambda ms: len(ms) == 3)
         assert w.subscriber.snapshot()[-1].kind == "DDEATH" and not device.born

@@ -81,7 +81,7 @@ class Service:
                 self.store,
                 self.events,
                 originator=settings.cell.originator_settings(robot),
-                web=settings.web,
+                stream=settings.stream,
                 alarms=settings.alarm_limits,
             )
             for robot in robot_settings
@@ -228,7 +228,7 @@ class Service:
             death = f" ({self.cyclic.last_death})" if self.cyclic.last_death else ""
             problems.append(f"the cyclic I/O thread is not running{since}{death}")
         for robot in self.robots.values():
-            down_for_s = robot.down_for_s()
+            down_for_s = robot.connection.down_for_s()
             if down_for_s is not None and down_for_s > bound_s:
                 state = robot.link.state.value
                 reason = robot.link.reason
@@ -244,7 +244,7 @@ class Service:
 
     async def _status_loop(self) -> None:
         while True:
-            await asyncio.sleep(self.settings.web.status_interval_s)
+            await asyncio.sleep(self.settings.stream.status_interval_s)
             if not any(robot.hub.clients for robot in self.robots.values()):
                 continue
             # Once per period for every stream: a panel of one robot sees the others' alarms.

@@ -2,7 +2,8 @@
 
 ``ServiceSettings`` is a pydantic-settings model holding each concern's own settings as a part
 of its own, each its concern's model in its own room: the robot cell (``cell``:
-``robots.cell_settings``), the web service and its limits (``web``: ``web.settings``), HTTPS
+``robots.cell_settings``), the web service and its limits (``web``: ``web.settings``), the
+robots' streams and writes (``stream``: ``web.stream_settings``), HTTPS
 (``tls``: ``web.tls_settings``), directory login (``directory``: ``access.directory_settings``),
 alarms (``alarm_limits``: ``alarms.settings``), history (``recording``: ``recording.settings``),
 the kiosk (``kiosk``: ``kiosk.settings``), robot health (``health``: ``health.settings``) and
@@ -46,6 +47,7 @@ from cobot_hmi.service.setting_fields import (
     setting,
 )
 from cobot_hmi.service.web.settings import WebSettings
+from cobot_hmi.service.web.stream_settings import StreamSettings
 from cobot_hmi.service.web.tls_settings import TlsSettings
 
 __all__ = [
@@ -92,7 +94,8 @@ class ServiceSettings(BaseSettings):
         env_prefix=ENV_PREFIX, extra="forbid", frozen=True, case_sensitive=False
     )
 
-    web: WebSettings = settings_part(WebSettings, "the web service, its streams and limits")
+    web: WebSettings = settings_part(WebSettings, "the web service and its limits")
+    stream: StreamSettings = settings_part(StreamSettings, "the robots' streams and writes")
     tls: TlsSettings = settings_part(TlsSettings, "HTTPS without a proxy")
     directory: DirectorySettings = settings_part(DirectorySettings, "directory login (LDAP)")
     alarm_limits: AlarmLimitSettings = settings_part(

@@ -216,8 +216,12 @@ def _connection_families(robots: _Robots) -> Iterator[Metric]:
             lambda r, s: s.late,
         ),
         ("frames_malformed_total", "T→O packets that did not decode", lambda r, s: s.malformed),
-        ("connects_total", "times the connection came up", lambda r, s: r.connects),
-        ("connection_losses_total", "times a connection was lost", lambda r, s: r.losses),
+        ("connects_total", "times the connection came up", lambda r, s: r.connection.connects),
+        (
+            "connection_losses_total",
+            "times a connection was lost",
+            lambda r, s: r.connection.losses,
+        ),
     )
     for metric, help_text, value in counters:
         yield _per_robot(_counter(metric, help_text, ["robot"]), robots, value)

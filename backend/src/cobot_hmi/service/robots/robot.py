@@ -1,13 +1,13 @@
 """Layer: service. One robot of the cell, everything the service keeps for it.
 
-A ``RobotRuntime`` holds one robot's connection handle (``link``: its originator on the shared
-cyclic thread), its broadcast hub, its control holder, its write counters (write confirmation and
-outcome counters), its connection counters and its identity once read. Robots share only the
-store, the sessions and the cyclic thread; a robot lost or refused changes nothing of another.
-
-The identity is read with an explicit ListIdentity over the robot's TCP port (CIP Vol 2
-§2-4.2) after each connection comes up, on the web loop (never on the cyclic thread); a robot
-that does not answer it keeps ``identity = None``.
+A ``RobotRuntime`` composes one robot's parts, each an object with one job that a test can build
+alone: its connection handle (``link``: its originator on the shared cyclic thread), its frames
+and their consumers (the WebSocket fan-out, receive intervals, write confirmation, the frame
+event watch), its control holder, its write counters (write confirmation and outcome
+counters), its alarms, its connection as watched (``connection``: events, counters, connection
+alarms, ``robots.connection_watch``) and its identity once read (``robots.identity``). Robots
+share only the store, the sessions and the cyclic thread; a robot lost or refused changes
+nothing of another.
 """
 
 from __future__ import annotations
@@ -15,27 +15,24 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
-import time
 from collections import Counter
 from collections.abc import Callable, Coroutine, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Final
+from typing import Any
 
-from cobot_hmi.enip.errors import EnipError
-from cobot_hmi.enip.identity import IdentityInfo
 from cobot_hmi.layout import LAYOUT_VERSION
 from cobot_hmi.scanner.originator import ConnectionState, ConnectionStats, OriginatorSettings
-from cobot_hmi.scanner.session import EnipSession, SessionError
-from cobot_hmi.scanner.t2o_pace import SlowTarget
-from cobot_hmi.service.alarms.engine import TICK_S, AlarmEngine, UserAlarm
+from cobot_hmi.service.alarms.engine import AlarmEngine, UserAlarm
 from cobot_hmi.service.alarms.persistence import AlarmChange, AlarmStore
 from cobot_hmi.service.alarms.settings import AlarmLimitSettings
 from cobot_hmi.service.events.bus import EventBus
 from cobot_hmi.service.events.text import Event
 from cobot_hmi.service.plant_time import PLANT_ZONE
 from cobot_hmi.service.robots.confirmation import FrameWaiters
+from cobot_hmi.service.robots.connection_watch import ConnectionWatch
 from cobot_hmi.service.robots.control import Control
 from cobot_hmi.service.robots.frame_notifier import FrameNotifier
+from cobot_hmi.service.robots.identity import IdentityReader, RobotIdentity
 from cobot_hmi.service.robots.intervals import ReceiveIntervals
 from cobot_hmi.service.robots.link import CyclicLoop, RobotLink
 from cobot_hmi.service.robots.settings import RobotSettings
@@ -43,11 +40,9 @@ from cobot_hmi.service.robots.watch import FrameEventWatch
 from cobot_hmi.service.robots.websocket_fanout import WebSocketFanOut
 from cobot_hmi.service.storage.store import Store
 from cobot_hmi.service.storage.tags import TagBook
-from cobot_hmi.service.web.settings import WebSettings
+from cobot_hmi.service.web.stream_settings import StreamSettings
 
 log = logging.getLogger(__name__)
-
-IDENTITY_TIMEOUT_S: Final = 3.0
 
 
 @dataclass
@@ -58,52 +53,6 @@ class WriteCounters:
 
     timeout_s: float
     outcomes: Counter[str] = field(default_factory=Counter)
-
-
-@dataclass(frozen=True, slots=True)
-class RobotIdentity:
-    """What the robot's CIP Identity object says (Vol 1 §5A-2), read by ListIdentity."""
-
-    vendor_id: int
-    device_type: int
-    product_code: int
-    revision: str
-    """major.minor"""
-    serial_number: int
-    product_name: str
-
-    @classmethod
-    def from_info(cls, info: IdentityInfo) -> RobotIdentity:
-        return cls(
-            vendor_id=info.vendor_id,
-            device_type=info.device_type,
-            product_code=info.product_code,
-            revision=info.revision,
-            serial_number=info.serial_number,
-            product_name=info.product_name,
-        )
-
-    def to_json(self) -> dict[str, object]:
-        return {
-            "vendor_id": self.vendor_id,
-            "device_type": self.device_type,
-            "product_code": self.product_code,
-            "revision": self.revision,
-            "serial_number": self.serial_number,
-            "product_name": self.product_name,
-        }
-
-
-async def read_identity(
-    host: str, tcp_port: int, timeout_s: float = IDENTITY_TIMEOUT_S
-) -> RobotIdentity:
-    """ListIdentity over TCP (a session of its own); ``OSError``/``SessionError``/``EnipError``."""
-    session = EnipSession(host, tcp_port, timeout_s)
-    try:
-        await session.open()
-        return RobotIdentity.from_info(await session.list_identity())
-    finally:
-        await session.close()
 
 
 def _alarm_engine(
@@ -141,10 +90,11 @@ def _alarm_engine(
 
 
 class RobotRuntime:
-    """One robot: connection handle, hub, control, write counters, identity.
+    """One robot: connection handle, hub, control, write counters, alarms, connection watch,
+    identity.
 
     Given what it uses and no more: its own settings, its connection's (``originator``), the
-    web service's stream and write limits (``web``) and the alarm settings (``alarms``)."""
+    streams' and writes' (``stream``) and the alarm settings (``alarms``)."""
 
     def __init__(
         self,
@@ -154,25 +104,25 @@ class RobotRuntime:
         events: EventBus,
         *,
         originator: OriginatorSettings,
-        web: WebSettings,
+        stream: StreamSettings,
         alarms: AlarmLimitSettings,
     ) -> None:
         self.name = settings.name
         self.settings = settings
         self.store = store
-        self._stale_after_s = web.stale_after_ms / 1000
+        self._stale_after_s = stream.stale_after_ms / 1000
         self._events = events
         self.frames = FrameNotifier(
             self.name,
-            frames_per_wake=max(1, round(web.ws_batch_ms / settings.rpi_ms)),
+            frames_per_wake=max(1, round(stream.ws_batch_ms / settings.rpi_ms)),
         )
         """Every frame of the robot, published once, to every consumer
         (``robots.frame_notifier``)."""
         self.hub = WebSocketFanOut(
             robot=self.name,
-            batch_s=web.ws_batch_ms / 1000,
-            client_queue_frames=web.ws_queue_frames,
-            stall_timeout_s=web.ws_stall_timeout_s,
+            batch_s=stream.ws_batch_ms / 1000,
+            client_queue_frames=stream.ws_queue_frames,
+            stall_timeout_s=stream.ws_stall_timeout_s,
         )
         """The WebSocket fan-out: the first consumer, so clients get frames before events."""
         self.frames.add(self.hub)
@@ -185,14 +135,16 @@ class RobotRuntime:
             originator,
             cyclic,
             on_frame=self.frames.publish,
-            on_state=self._on_state,
-            on_slow_target=self._on_slow_target,
+            # Late-bound: the connection watch is made below, over this link.
+            on_state=lambda state, reason: self.connection.on_state(state, reason),  # noqa: PLW0108
+            on_slow_target=lambda slow: self.connection.on_slow_target(slow),  # noqa: PLW0108
         )
         self.control = Control(
             self.link, store, self.frames, self.publish_event, input_only=settings.input_only
         )
-        self.writes = WriteCounters(timeout_s=web.write_timeout_ms / 1000)
-        self.identity: RobotIdentity | None = None
+        self.writes = WriteCounters(timeout_s=stream.write_timeout_ms / 1000)
+        self.identity_reader = IdentityReader(self.name, settings.host, settings.tcp_port)
+        """The robot's identity, read after each connection comes up (``robots.identity``)."""
         self.tags = TagBook(self.name)
         """The robot's tag names (``service.storage.tags``), loaded by ``open_state``."""
         self.alarm_store = AlarmStore(store)
@@ -205,15 +157,19 @@ class RobotRuntime:
         )
         """The robot's alarms (``service.alarms``), evaluated on every frame by ``watch``."""
         self.frames.add(FrameEventWatch(self.alarms, self.publish_events))
-        # Counters (``/metrics``).
-        self.connects = 0
-        """Times the connection came up."""
-        self.losses = 0
-        """Times it went from connected to lost."""
-        self.down_since: float | None = time.monotonic()
-        """``time.monotonic()`` since the robot is not connected (``None``: connected)."""
-        self._slow_target: SlowTarget | None = None
-        """The last slowness of T→O reported (for the words once it clears)."""
+        self.connection = ConnectionWatch(
+            self.name,
+            self.link,
+            self.frames,
+            self.alarms,
+            publish_event=self.publish_event,
+            publish_events=self.publish_events,
+            stale_after_s=self._stale_after_s,
+            on_connected=lambda: self.spawn(self.identity_reader.read(), "identity"),
+            on_down=self._connection_down,
+        )
+        """The robot's connection as watched: events, counters (``/metrics``, the doors),
+        connection alarms, readiness (``robots.connection_watch``)."""
         self._tasks: list[asyncio.Task[None]] = []
         self._background: set[asyncio.Task[None]] = set()
 
@@ -230,7 +186,9 @@ class RobotRuntime:
         slow tick."""
         self.frames.bind_loop(asyncio.get_running_loop())
         self._tasks.append(asyncio.create_task(self.hub.run(), name=f"hub {self.name}"))
-        self._tasks.append(asyncio.create_task(self._alarm_loop(), name=f"alarms {self.name}"))
+        self._tasks.append(
+            asyncio.create_task(self.connection.alarm_loop(), name=f"alarms {self.name}")
+        )
 
     async def release_control(self, reason: str) -> None:
         with contextlib.suppress(Exception):
@@ -258,80 +216,11 @@ class RobotRuntime:
 
     # ------------------------------------------------------------ connection
 
-    def _on_state(self, state: ConnectionState, reason: str | None) -> None:
-        """On the web loop: a connection state change of this robot only."""
-        self.publish_event(
-            {"kind": "connection", "time": time.time(), "state": state.value, "reason": reason}
-        )
-        for event in self._connection_alarms(time.time(), time.monotonic()):
-            self.publish_event(event)
-        if state is ConnectionState.CONNECTED:
-            self.connects += 1
-            self.down_since = None
-            self.spawn(self._read_identity(), "identity")
-            return
-        if self.down_since is None:
-            self.down_since = time.monotonic()
-            if state is ConnectionState.LOST:
-                self.losses += 1
+    def _connection_down(self, state: ConnectionState) -> None:
+        """On the web loop: the connection left CONNECTED (``connection`` counted it)."""
         self.intervals.reset_baseline()
         if self.control.holder is not None:
             self.spawn(self.control.drop(f"connection {state.value}"), "control-drop")
-
-    def _on_slow_target(self, slow: SlowTarget | None) -> None:
-        """On the web loop: the robot sends T→O slower than it granted, or keeps its grant
-        again (``scanner.t2o_pace``): a connection event in words, once each."""
-        if slow is not None:
-            self._slow_target = slow
-            reason = slow.words("robot")
-        elif self._slow_target is not None:
-            reason = self._slow_target.kept_words("robot")
-        else:
-            return
-        self.publish_event(
-            {"kind": "connection", "time": time.time(), "state": "connected", "reason": reason}
-        )
-
-    async def _read_identity(self) -> None:
-        try:
-            identity = await read_identity(self.settings.host, self.settings.tcp_port)
-        except (OSError, SessionError, EnipError, TimeoutError) as error:
-            log.info("%s: no identity (ListIdentity): %s", self.name, error)
-            return
-        if identity != self.identity:
-            log.info("%s: %s, revision %s", self.name, identity.product_name, identity.revision)
-        self.identity = identity
-
-    # ------------------------------------------------------------ alarms (slow part)
-
-    def _connection_alarms(self, now_s: float, monotonic_s: float) -> list[dict[str, object]]:
-        state = self.link.state
-        latest = self.frames.latest
-        return self.alarms.connection(
-            connected=state is ConnectionState.CONNECTED,
-            refused=state is ConnectionState.REFUSED,
-            reason=self.link.reason,
-            frame_age_s=None if latest is None else max(0.0, now_s - latest.received_at_s),
-            stale_after_s=self._stale_after_s,
-            now_s=now_s,
-            monotonic_s=monotonic_s,
-        )
-
-    async def _alarm_loop(self) -> None:
-        while True:
-            await asyncio.sleep(TICK_S)
-            try:
-                await self._alarm_tick()
-            except Exception:  # a bug here must not end the alarms' tick
-                log.exception("%s: alarm tick failed", self.name)
-
-    async def _alarm_tick(self) -> None:
-        now_s, monotonic_s = time.time(), time.monotonic()
-        events = self._connection_alarms(now_s, monotonic_s)
-        gaps = self.link.gaps if self.link.state is ConnectionState.CONNECTED else None
-        events += self.alarms.gaps(gaps, now_s=now_s, monotonic_s=monotonic_s)
-        events += self.alarms.expire_shelving(now_s)
-        self.publish_events(events)
 
     # ------------------------------------------------------------ events
 
@@ -343,22 +232,14 @@ class RobotRuntime:
         self._events.publish(self.name, *events)
 
     @property
+    def identity(self) -> RobotIdentity | None:
+        """What the robot's CIP Identity object said when last read (``None``: not yet)."""
+        return self.identity_reader.identity
+
+    @property
     def mode(self) -> str:
         """``exclusive_owner`` or ``input_only``, as the API says it."""
         return self.settings.mode.replace("-", "_")
-
-    def down_for_s(self) -> float | None:
-        """How long the robot has not been connected (``None``: connected)."""
-        since = self.down_since
-        return None if since is None else time.monotonic() - since
-
-    def ready(self) -> tuple[bool, str | None]:
-        """Connected (and frames coming), or why not: ``/readyz``."""
-        state = self.link.state
-        if state is not ConnectionState.CONNECTED:
-            reason = self.link.reason
-            return False, f"{state.value}{': ' + reason if reason else ''}"
-        return True, None
 
     # ------------------------------------------------------------ answers
 

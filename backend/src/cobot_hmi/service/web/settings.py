@@ -1,6 +1,6 @@
-"""Layer: service. The web service's settings: HTTP, sessions and logins, WebSocket streams, and
-the security limits (service/api/security.py and http_limits.py; docs/operations.md
-"Security")."""
+"""Layer: service. The web service's settings: HTTP, sessions and logins, and the security
+limits (service/api/security.py and http_limits.py; docs/operations.md "Security"). The robots'
+streams and writes have theirs (``stream_settings``)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,6 @@ from pydantic import BaseModel, ConfigDict, Field
 from cobot_hmi.service.setting_fields import (
     CommaList,
     ExpandedPath,
-    Milliseconds,
     Port,
     ProxyList,
     Seconds,
@@ -46,16 +45,6 @@ class WebSettings(BaseModel):
     login_delay_max_s: float = setting(
         30.0, "longest wait imposed after failed logins, s", ge=0, allow_inf_nan=False
     )
-    write_timeout_ms: Milliseconds = setting(
-        1000.0, "how long a write waits for the robot to confirm, ms"
-    )
-    stale_after_ms: Milliseconds = setting(500.0, "a frame older than this is flagged stale, ms")
-    ws_batch_ms: Milliseconds = setting(50.0, "WebSocket broadcast period (frames per message), ms")
-    ws_queue_frames: int = setting(400, "frames a WebSocket client may have queued", ge=1)
-    ws_stall_timeout_s: Seconds = setting(
-        5.0, "a client whose send is stuck this long is dropped, s"
-    )
-    status_interval_s: Seconds = setting(1.0, "period of WebSocket status messages, s")
     # --- security (service/api/security.py and http_limits.py; docs/operations.md "Security")
     max_body_bytes: int = setting(64 * 1024, "largest request body, bytes (413 above)", ge=1024)
     allowed_hosts: CommaList = setting(

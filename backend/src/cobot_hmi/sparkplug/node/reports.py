@@ -85,7 +85,7 @@ class DeviceReports:
         while True:
             due = max(last, device.reported_at) + self.period_s
             await asyncio.sleep(max(0.0, due - loop.time()))
-            if device.robot.down_since is None:
+            if device.robot.connection.down_since is None:
                 device.arrived.clear()
                 with contextlib.suppress(TimeoutError):
                     async with asyncio.timeout(self.period_s):
@@ -102,8 +102,8 @@ class DeviceReports:
         """What changed of ``device`` since its last tick, reported."""
         robot = device.robot
         items = device.take()
-        connected = robot.down_since is None
-        if device.alive and (not connected or robot.connects != device.connects_seen):
+        connected = robot.connection.down_since is None
+        if device.alive and (not connected or robot.connection.connects != device.connects_seen):
             device.alive = False
             if device.born and self.status.active:
                 self.births.device_death(device)
@@ -117,7 +117,7 @@ class DeviceReports:
         if not device.alive:
             if not items:
                 return  # no frame of this connection yet
-            device.connects_seen = robot.connects
+            device.connects_seen = robot.connection.connects
             device.alive = True
             device.reporter.baseline(items[-1][2])
             self._read_status(device)

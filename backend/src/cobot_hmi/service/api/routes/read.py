@@ -127,7 +127,7 @@ def _frame_age(service: Service, robot: RobotRuntime) -> tuple[float | None, boo
         return None, True
     age_s = max(0.0, time.time() - latest[1])
     stale = (
-        age_s * 1000 > service.settings.web.stale_after_ms
+        age_s * 1000 > service.settings.stream.stale_after_ms
         or robot.link.state is not ConnectionState.CONNECTED
     )
     return age_s, stale
@@ -251,7 +251,7 @@ async def healthz(service: ServiceDep) -> OrjsonResponse:
 
 
 def _ready(robot: RobotRuntime) -> tuple[dict[str, object], int]:
-    ready, reason = robot.ready()
+    ready, reason = robot.connection.ready()
     return {"ready": ready, "reason": reason, "robot": robot.name}, 200 if ready else 503
 
 
