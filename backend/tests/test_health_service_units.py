@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from pydantic import ValidationError
 
 from cobot_hmi.cli.health_verb import HealthSimulation
 from cobot_hmi.emulator.robot.wear import JointWear
@@ -23,6 +24,7 @@ from cobot_hmi.service.alarms.definitions import Priority
 from cobot_hmi.service.alarms.engine import AlarmEngine, AlarmRefusedError
 from cobot_hmi.service.health.answers import report_answer, report_csv, trend_answer
 from cobot_hmi.service.health.service import advise, health_event
+from cobot_hmi.service.health.settings import HealthServiceSettings
 from cobot_hmi.service.health.store import HealthStore, snapshot_of
 from cobot_hmi.service.storage.migrations import SCHEMA_VERSION
 from cobot_hmi.service.storage.store import Store
@@ -193,3 +195,10 @@ def test_an_advisory_alarm_is_shelved_at_most_seven_days() -> None:
     assert alarms.shelve(f"{ROBOT}:health.2", "olivia", "waiting for parts", 7 * 86_400.0)[
         "shelved"
     ]
+
+
+def test_the_arm_setting_names_an_arm_of_the_table() -> None:
+    assert HealthServiceSettings(health_arm="m0609").health_arm == "M0609"
+    assert HealthServiceSettings().health_arm == ""  # from the robot's identity
+    with pytest.raises(ValidationError, match="unknown arm 'X1'; choose one of M1013, M0609"):
+        HealthServiceSettings(health_arm="X1")

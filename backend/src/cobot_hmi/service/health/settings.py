@@ -5,9 +5,25 @@ thresholds are ``cobot_hmi.health.settings.HealthSettings``."""
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict
+from typing import Annotated
 
+from pydantic import AfterValidator, BaseModel, ConfigDict
+
+from cobot_hmi.arms import ARMS
 from cobot_hmi.service.setting_fields import setting
+
+
+def _check_arm(name: str) -> str:
+    """Empty, or an arm of the arm table (``arms.py``), in its own spelling."""
+    if not name:
+        return name
+    for arm in ARMS:
+        if arm.name == name.strip().upper():
+            return arm.name
+    raise ValueError(f"unknown arm {name!r}; choose one of {', '.join(a.name for a in ARMS)}")
+
+
+ArmName = Annotated[str, AfterValidator(_check_arm)]
 
 
 class HealthServiceSettings(BaseModel):
@@ -56,7 +72,7 @@ class HealthServiceSettings(BaseModel):
         "frames per robot health may fall behind by before the oldest are dropped (counted)",
         ge=100,
     )
-    health_arm: str = setting(
+    health_arm: ArmName = setting(
         "",
         "the arm model of every robot whose identity names none (M1013, M0609; empty: from "
         "the identity's product name, else M1013)",
