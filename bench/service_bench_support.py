@@ -190,10 +190,12 @@ class Cell:
 
 
 @contextmanager
-def emulated_cell(robots: int, state: Path, *, robot_niceness: int = 0) -> Iterator[Cell]:
+def emulated_cell(
+    robots: int, state: Path, *, robot_niceness: int = 0, emulator_args: tuple[str, ...] = ()
+) -> Iterator[Cell]:
     """``robots`` emulators on fresh loopback addresses (each its own process, accepting before
     this yields, stopped at the end), their ``[[robots]]`` file and the bench's operator user in
-    the state directory ``state``."""
+    the state directory ``state``; ``emulator_args`` go to every emulator's command line."""
     robot_hosts, service_host = loopback_cell(robots)
     names = [f"r{i + 1}" for i in range(robots)]
     tcp_ports = [free_port(host) for host in robot_hosts]
@@ -220,6 +222,7 @@ def emulated_cell(robots: int, state: Path, *, robot_niceness: int = 0) -> Itera
                     "0",
                     "--seed",
                     str(index + 1),
+                    *emulator_args,
                     log=state / f"emulator-{index + 1}.log",
                     niceness=robot_niceness,
                 )
@@ -230,6 +233,30 @@ def emulated_cell(robots: int, state: Path, *, robot_niceness: int = 0) -> Itera
     finally:
         for process in emulators:
             stop_process(process)
+
+
+@contextmanager
+def serving(
+    cell: Cell, rpi_ms: float, *service_args: str, log: str, source: Path | None = None
+) -> Iterator[Stack]:
+    """The service of ``cell`` (``Cell.serve``), once every robot is ready; stopped (SIGINT)
+    at the end. Several in a row on one cell compare services on the same robots."""
+    service: subprocess.Popen[bytes] | None = None
+    try:
+        service, http_port = cell.serve(rpi_ms, *service_args, log=log, source=source)
+        running = Stack(
+            cell.robot_hosts,
+            cell.names,
+            cell.service_host,
+            http_port,
+            cell.emulators,
+            service,
+            cell.state,
+        )
+        _wait(lambda: _ready(running), "service", service, 240)
+        yield running
+    finally:
+        stop_process(service)
 
 
 @contextmanager
@@ -250,25 +277,9 @@ def stack(
     with (
         tempfile.TemporaryDirectory(prefix="cobot-bench-") as directory,
         emulated_cell(robots, Path(directory), robot_niceness=robot_niceness) as cell,
+        serving(cell, rpi_ms, *service_args, log="service.log", source=service_source) as running,
     ):
-        service: subprocess.Popen[bytes] | None = None
-        try:
-            service, http_port = cell.serve(
-                rpi_ms, *service_args, log="service.log", source=service_source
-            )
-            running = Stack(
-                cell.robot_hosts,
-                cell.names,
-                cell.service_host,
-                http_port,
-                cell.emulators,
-                service,
-                cell.state,
-            )
-            _wait(lambda: _ready(running), "service", service, 240)
-            yield running
-        finally:
-            stop_process(service)
+        yield running
 
 
 class Mosquitto:
