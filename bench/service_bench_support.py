@@ -266,6 +266,7 @@ def stack(
     robot_niceness: int = 0,
     robots: int = 1,
     service_source: Path | None = None,
+    emulator_args: tuple[str, ...] = (),
 ) -> Iterator[Stack]:
     """``robots`` emulators and the service holding a connection to each, every one its own
     process; stopped (SIGINT) at the end. The robots are ``[[robots]]`` of a TOML file.
@@ -273,10 +274,13 @@ def stack(
     ``robot_niceness`` below 0 runs the emulators at a higher priority: a real robot is its own
     machine, whose frame timing does not suffer from this host's other processes.
     ``service_source``: the service of another commit (``_cli``); the emulators stay this one.
+    ``emulator_args``: given to every emulator (``emulated_cell``).
     """
     with (
         tempfile.TemporaryDirectory(prefix="cobot-bench-") as directory,
-        emulated_cell(robots, Path(directory), robot_niceness=robot_niceness) as cell,
+        emulated_cell(
+            robots, Path(directory), robot_niceness=robot_niceness, emulator_args=emulator_args
+        ) as cell,
         serving(cell, rpi_ms, *service_args, log="service.log", source=service_source) as running,
     ):
         yield running
