@@ -105,7 +105,9 @@ class Cell:
 
 
 async def _client(endpoint: str, **login: Any) -> Client:
-    client = Client(endpoint, timeout=ANSWER_S)
+    # asyncua's watchdog reads the server's state every second and tears the session down when
+    # one answer is late: on a busy machine that was the test's failure, not the server's.
+    client = Client(endpoint, timeout=ANSWER_S, watchdog_intervall=ANSWER_S)
     client.application_uri = CLIENT_URI
     if "certificate" in login:
         certificate, key = login["certificate"]
