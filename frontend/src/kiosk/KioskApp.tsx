@@ -175,7 +175,7 @@ function Kiosk() {
               {/* Robot health asks for a look (issue 40): seen from the cell, never above a stop. */}
               {maintenance.due && (
                 <div className="kiosk__maintenance" data-testid="kiosk-maintenance-due" data-verdict={maintenance.verdict ?? ""} role="status">
-                  <span aria-hidden="true">🔧</span> {maintenance.words}
+                  {maintenance.words}
                 </div>
               )}
               {estop && (

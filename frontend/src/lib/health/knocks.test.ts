@@ -16,7 +16,7 @@ describe("the knocks' joint-space picture", () => {
     const picture = knockPicture([KNOCK], [360, 360, 160, 360, 360, 360], 600, 260);
     expect(picture.axes.map((a) => a.joint)).toEqual([1, 2, 3, 4, 5, 6]);
     expect(picture.axes[0]?.x).toBe(48);
-    expect(picture.axes[5]?.x).toBe(584);
+    expect(picture.axes[5]?.x).toBe(560);
     const points = (picture.lines[0]?.points ?? "").split(" ").map((p) => p.split(",").map(Number));
     expect(points).toHaveLength(6);
     const middle = (picture.top + picture.bottom) / 2;

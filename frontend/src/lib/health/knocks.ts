@@ -83,8 +83,9 @@ export function axisY(position_deg: number, limit_deg: number, top: number, bott
  * joints are drawn over the joints they have.
  */
 export function knockPicture(events: readonly KnockEvent[], limits_deg: readonly number[], width = 600, height = 260): KnockPicture {
+  // Room for the axes' labels ("−360°") either side of the outer axes.
   const left = 48;
-  const right = 16;
+  const right = 40;
   const top = 24;
   const bottom = height - 28;
   const n = limits_deg.length;
