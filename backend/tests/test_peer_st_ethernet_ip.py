@@ -14,11 +14,24 @@ import shutil
 from pathlib import Path
 
 from cobot_hmi.codec import command_from_json, decode_frame, encode_command
+from cobot_hmi.emulator.connections import ConnectionInfo
 from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
 
 PEERS = Path(__file__).parent / "peers"
+
+
+async def _connections_while(
+    process: asyncio.subprocess.Process, target: Target
+) -> list[ConnectionInfo]:
+    """The target's connections once it has one, or what it has when the peer has ended."""
+    deadline = asyncio.get_running_loop().time() + 60.0
+    while not (during := target.connections()) and process.returncode is None:
+        if asyncio.get_running_loop().time() > deadline:
+            break
+        await asyncio.sleep(0.05)
+    return list(during)
 
 
 async def test_st_ethernet_ip_scanner_holds_a_connection(robot_host: str, plc_host: str) -> None:
@@ -48,8 +61,9 @@ async def test_st_ethernet_ip_scanner_holds_a_connection(robot_host: str, plc_ho
             stdout=asyncio.subprocess.PIPE,
             stderr=asyncio.subprocess.PIPE,
         )
-        await asyncio.sleep(2.5)
-        during = target.connections()
+        # While the peer holds its connection (4.5 s from when node has started, which a busy
+        # machine may take seconds to do): the target's table, seen as soon as it has a row.
+        during = await _connections_while(process, target)
         out, err = await asyncio.wait_for(process.communicate(), 30)
     finally:
         await target.stop()
