@@ -420,3 +420,6 @@ def test_a_held_rebirth_request_goes_out_once_the_rate_limit_allows() -> None:
     assert host.rebirths["unanswered"] == 1
     born(host, 117.0)
     assert host.due(200.0) == []
+    # A node that never answers is asked again three times, not forever.
+    host.on_message(topic("DDATA", "m1013"), payload(metric(alias=1001, value=13), seq=9), 300)
+    assert [len(host.due(300.0 + 10.0 * n)) for n in range(1, 6)] == [1, 1, 1, 0, 0]

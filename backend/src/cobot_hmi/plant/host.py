@@ -55,6 +55,8 @@ ALARM_HISTORY_SINCE: Final = "Node Control/Alarm History Since"
 REBIRTH_INTERVAL_S: Final = 5.0
 REBIRTH_ANSWER_S: Final = 10.0
 """A rebirth request not answered by an NBIRTH within this is sent again (``due``)."""
+REBIRTH_RETRIES: Final = 3
+"""Times an unanswered request is sent again (a node that never answers is not asked forever)."""
 HISTORY_MARGIN_MS: Final = 60_000
 """Transitions asked for again from this long before the last message received in order: a
 transition is published a little after it happened (the node's next report), so one stamped
@@ -118,6 +120,7 @@ class _Session:
     awaiting: bool = False
     """A rebirth request went out and no NBIRTH came since (it is sent again after
     ``REBIRTH_ANSWER_S``: on a broker cluster that is still re-forming, a request can be lost)."""
+    retries: int = 0
 
 
 def state_payload(online: bool, timestamp_ms: int) -> bytes:
@@ -260,6 +263,7 @@ class HostApplication:
         if session.awaiting:  # the answer: the births, then the transitions asked for
             session.awaiting = False
             session.missed_since_ms = None
+        session.retries = 0
         session.aliases.clear()
         session.datatypes.clear()
         session.born_devices.clear()
@@ -461,7 +465,12 @@ class HostApplication:
             waited_s = now_s - session.last_rebirth_s
             if session.held is not None and waited_s >= self.rebirth_interval_s:
                 asked.append(self._rebirth(session, view, session.held, now_s))
-            elif session.awaiting and waited_s >= max(REBIRTH_ANSWER_S, self.rebirth_interval_s):
+            elif (
+                session.awaiting
+                and session.retries < REBIRTH_RETRIES
+                and waited_s >= max(REBIRTH_ANSWER_S, self.rebirth_interval_s)
+            ):
+                session.retries += 1
                 asked.append(self._rebirth(session, view, "unanswered", now_s))
         return asked
 
