@@ -229,6 +229,7 @@ def measure(
     )
     window.bench_cpu_s = own_cpu_s() - cpu0[2]
     window.rss_end_mib = rss_mib(plant.pid)
+    window.extra["stats_at_end"] = json.loads(stats.read_text()) if stats.exists() else {}
     window.sent = generator.sent - sent0
     window.published = sum(c.published for c in generator.cells) - published0
     return window
@@ -286,6 +287,8 @@ def run(args: argparse.Namespace, directory: Path) -> None:
         if mosquitto is not None:
             mosquitto.stop()
     figures = json.loads(stats.read_text()) if stats.exists() else {}
+    if not figures.get("stopped"):  # killed before its last word: its figures at the window's end
+        figures = window.extra.get("stats_at_end", figures)
     report(args, template, window=window, generator=generator, poller=poller, figures=figures)
 
 
@@ -348,6 +351,12 @@ def report(
         f"{figures.get('devices_online', '?')}/{robots} robots online; connections "
         f"{figures.get('connections', '?')} ({figures.get('connections_lost', '?')} lost)"
     )
+    killed = "" if figures.get("stopped") else "; it did not stop within 30 s: killed"
+    print(
+        f"  the plant's event loop behind by {figures.get('loop_lag_s', float('nan')):.1f} s at "
+        f"the end (messages waiting their turn){killed}"
+    )
+
     print(
         f"  the page's requests: nodes p50 {percentile(poller.nodes_s, 0.5) * 1e3:.0f} ms, p99 "
         f"{percentile(poller.nodes_s, 0.99) * 1e3:.0f} ms ({len(poller.nodes_s)}); alarms p99 "

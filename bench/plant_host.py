@@ -28,6 +28,7 @@ from cobot_hmi.plant.settings import PlantSettings
 BIN_S: Final = 0.0005
 """The histogram's resolution: half a millisecond, up to ``BINS * BIN_S`` (10 s)."""
 BINS: Final = 20_000
+STATS_S: Final = 1.0
 
 
 def payload_timestamp_ms(data: bytes) -> int | None:
@@ -98,6 +99,13 @@ def figures(runtime: PlantRuntime, latencies: Latencies) -> dict[str, Any]:
     }
 
 
+def write_stats(path: Path, stats: dict[str, Any]) -> None:
+    """Whole or not at all (the bench may read it at any moment)."""
+    part = path.with_suffix(".part")
+    part.write_text(json.dumps(stats))
+    part.replace(path)
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--mqtt-url", action="append", required=True)
@@ -118,23 +126,34 @@ def main() -> int:
         )
     )
 
+    loop = {"lag_s": 0.0}
+
     async def serve() -> None:
-        # The bench's reset: latencies from now on (after the births and the settling).
-        async def reset_on_file() -> None:
+        # The bench's reset (latencies from now on, after the births and the settling), and the
+        # figures written every STATS_S: an overloaded plant, whose stop may never come in time,
+        # still says what it did. The loop's lag: how late a STATS_S sleep wakes (what waits
+        # before each message's turn on the loop).
+        async def reset_and_report() -> None:
             marker = args.stats.with_suffix(".reset")
             while True:
-                await asyncio.sleep(0.2)
+                slept = time.monotonic()
+                await asyncio.sleep(STATS_S)
+                loop["lag_s"] = max(0.0, time.monotonic() - slept - STATS_S)
                 if marker.exists():
                     marker.unlink()
                     latencies.reset()
+                write_stats(
+                    args.stats, {**figures(runtime, latencies), "loop_lag_s": loop["lag_s"]}
+                )
 
-        task = asyncio.create_task(reset_on_file())
+        task = asyncio.create_task(reset_and_report())
         try:
             await server.serve()
         finally:
             task.cancel()
             # Written while the runtime's figures are still there (the lifespan has stopped it).
-            args.stats.write_text(json.dumps(figures(runtime, latencies)))
+            final = {**figures(runtime, latencies), "loop_lag_s": loop["lag_s"], "stopped": True}
+            write_stats(args.stats, final)
 
     asyncio.run(serve())
     return 0
