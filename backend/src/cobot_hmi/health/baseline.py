@@ -31,6 +31,9 @@ class Baseline:
         self.distribution_sum: FloatArray = np.zeros((101, joints))
         self.heat = HeatFit(joints)
         self.durations = np.zeros(3)  # n, Σd, Σd²
+        self._per_speed: tuple[FloatArray, FloatArray] | None = None
+        """Friction per °/s from the steady cells and from every cell, once measured: the
+        cells change only while the baseline learns, a report asks for it every time."""
 
     @property
     def cycles(self) -> int:
@@ -44,6 +47,7 @@ class Baseline:
         """Distinct samples and their accelerations (``health.samples``)."""
         self.cells.add(block, acceleration_deg_s2)
         self.steady_cells.add(block, acceleration_deg_s2, steady_only=True)
+        self._per_speed = None
 
     def add_cycle(self, block: FrameBlock, start_s: float, end_s: float) -> None:
         points = self.settings.signature_points
@@ -57,20 +61,26 @@ class Baseline:
         """Per joint: its friction per °/s (N·m s/°) as this baseline measured it: at steady
         speeds where it saw enough of them both ways (inertia plays no part), else from every
         sample's fit."""
-        steady = friction_per_speed(self.steady_cells, joints, self.settings)
-        fitted = friction_per_speed(self.cells, joints, self.settings)
+        steady, fitted = self._friction_per_speed(joints)
         return np.where(np.isfinite(steady), steady, fitted)
 
     def friction_reference(self, joints: int) -> list[str | None]:
         """Per joint, where its friction per °/s comes from: ``"steady"`` (cells seen both
         ways at steady speed), ``"fitted"`` (every cell seen both ways, accelerating too: rougher,
         docs/health.md), ``None`` (no reference: no friction figure)."""
-        steady = friction_per_speed(self.steady_cells, joints, self.settings)
-        fitted = friction_per_speed(self.cells, joints, self.settings)
+        steady, fitted = self._friction_per_speed(joints)
         return [
             "steady" if np.isfinite(a) else "fitted" if np.isfinite(b) else None
             for a, b in zip(steady, fitted, strict=True)
         ]
+
+    def _friction_per_speed(self, joints: int) -> tuple[FloatArray, FloatArray]:
+        if self._per_speed is None or self._per_speed[0].size != joints:
+            self._per_speed = (
+                friction_per_speed(self.steady_cells, joints, self.settings),
+                friction_per_speed(self.cells, joints, self.settings),
+            )
+        return self._per_speed
 
     def due(self, now_s: float) -> bool:
         """Learned enough: the cycles asked for, or the period's end passed."""

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from itertools import chain
+from operator import attrgetter
 
 import numpy as np
 import numpy.typing as npt
@@ -103,18 +105,37 @@ class FrameBlock:
     @staticmethod
     def from_frames(times_s: Sequence[float], frames: Sequence[Frame]) -> FrameBlock:
         """The arrays of decoded frames (``times_s``: each frame's receive time)."""
-
-        def joints(name: str) -> FloatArray:
-            return np.array([getattr(frame, name) for frame in frames], dtype=np.float64)
-
+        n = len(frames)
+        joints = len(frames[0].joint_position) if n else 0
+        # One pass over the frames for the six joint fields (their tuples chained into one
+        # iterator of floats): a third of what six lists of tuples cost numpy to convert.
+        values = np.fromiter(
+            chain.from_iterable(chain.from_iterable(map(_JOINT_VALUES, frames))),
+            dtype=np.float64,
+            count=n * len(_FRAME_JOINT_FIELDS) * joints,
+        ).reshape(n, len(_FRAME_JOINT_FIELDS), joints)
         return FrameBlock(
             np.asarray(times_s, dtype=np.float64),
-            joints("joint_position"),
-            joints("joint_velocity"),
-            joints("joint_torque"),
-            joints("joint_motor_current"),
-            joints("joint_external_torque"),
-            joints("joint_motor_temperature"),
-            np.array([frame.robot_state for frame in frames], dtype=np.int64),
-            np.array([frame.servo_on for frame in frames], dtype=np.bool_),
+            values[:, 0],
+            values[:, 1],
+            values[:, 2],
+            values[:, 3],
+            values[:, 4],
+            values[:, 5],
+            np.fromiter(map(_ROBOT_STATE, frames), dtype=np.int64, count=n),
+            np.fromiter(map(_SERVO_ON, frames), dtype=np.bool_, count=n),
         )
+
+
+_FRAME_JOINT_FIELDS = (
+    "joint_position",
+    "joint_velocity",
+    "joint_torque",
+    "joint_motor_current",
+    "joint_external_torque",
+    "joint_motor_temperature",
+)
+"""The frame's fields for ``_JOINT_FIELDS``, in their order."""
+_JOINT_VALUES = attrgetter(*_FRAME_JOINT_FIELDS)
+_ROBOT_STATE = attrgetter("robot_state")
+_SERVO_ON = attrgetter("servo_on")

@@ -61,6 +61,9 @@ class CellTable:
             np.zeros(0, dtype=np.int64),
             np.zeros(0, dtype=np.int64),
         )
+        self._fits: tuple[float, tuple[IntArray, FloatArray, FloatArray]] | None = None
+        """The last ``fits`` and its minimum, until the sums change (a baseline's never do
+        once learned, and a report asks for them every time)."""
 
     def add(
         self, block: FrameBlock, acceleration_deg_s2: FloatArray, *, steady_only: bool = False
@@ -77,6 +80,7 @@ class CellTable:
         rows, joint = np.nonzero(moving)
         if rows.size == 0:
             return
+        self._fits = None
         # Only the moving samples' values, as flat vectors.
         band = _bin(block.temperature_c[rows, joint] + 40.0, s.temperature_band_c, _BANDS)
         scaled = (block.position_deg[rows, joint] + 500.0) / s.position_bin_deg
@@ -137,10 +141,14 @@ class CellTable:
 
     def decay(self, factor: float) -> None:
         self.sums *= factor
+        self._fits = None
 
     def fits(self, min_samples: float) -> tuple[IntArray, FloatArray, FloatArray]:
         """Every cell's key (sorted), and per direction (forward, back) its torque at the
-        centre ``α`` (N·m; NaN with fewer than ``min_samples``) and its samples."""
+        centre ``α`` (N·m; NaN with fewer than ``min_samples``) and its samples (arrays the
+        caller must not change: they are kept for the next call)."""
+        if self._fits is not None and self._fits[0] == min_samples:
+            return self._fits[1]
         keys, slots = self._sorted
         sums = self.sums[slots]
         alphas, counts = [], []
@@ -150,7 +158,9 @@ class CellTable:
             alpha[enough] = _intercepts(terms[enough])
             alphas.append(alpha)
             counts.append(terms[:, 0])
-        return keys, np.stack(alphas, axis=1), np.stack(counts, axis=1)
+        fits = (keys, np.stack(alphas, axis=1), np.stack(counts, axis=1))
+        self._fits = (min_samples, fits)
+        return fits
 
     def to_state(self) -> dict[str, object]:
         keys = list(self.slots)
