@@ -201,7 +201,9 @@ async def running_service(
     """The service on uvicorn in this event loop (its originator on its own thread)."""
     await asyncio.to_thread(add_users, settings)  # scrypt: keep the emulator's loop free
     service = build_service(settings)
-    server = QuietServer(uvicorn_config(create_app(service), settings, log_level="warning"))
+    server = QuietServer(
+        uvicorn_config(create_app(service), settings.web, settings.tls, log_level="warning")
+    )
     task = asyncio.create_task(server.serve())
     try:
         # Startup may load the OPC UA NodeSets (~10 s quiet, several times that when busy).

@@ -102,7 +102,9 @@ def _plant(args: argparse.Namespace) -> int:
         return _fail(str(error))
     prepare_process()
     try:
-        server = uvicorn.Server(uvicorn_config(create_plant_app(runtime), settings))
+        server = uvicorn.Server(
+            uvicorn_config(create_plant_app(runtime), settings.web, settings.tls)
+        )
         plant, web = settings.plant, settings.web
         print(
             f"cobot-hmi plant: host {plant.plant_host_id} on {', '.join(plant.mqtt_urls)}; "

@@ -23,20 +23,26 @@ from cobot_hmi.service.api.tls import ReloadingContext
 from cobot_hmi.service.api.tls_redirect import redirect_listener
 from cobot_hmi.service.runtime import Service
 from cobot_hmi.service.settings import ServiceSettings
+from cobot_hmi.service.web.settings import WebSettings
+from cobot_hmi.service.web.tls_settings import TlsSettings
 
 SWITCH_INTERVAL_S: Final = 0.0005
 """The GIL hand-over deadline. CPython's default, 5 ms, would let a busy web thread hold off
 the cyclic connection's thread for half an RPI; 0.5 ms bounds that delay (see ``link``)."""
 
 
-def uvicorn_config(app: Any, settings: ServiceSettings, **overrides: Any) -> uvicorn.Config:
+def uvicorn_config(
+    app: Any, web: WebSettings, tls_settings: TlsSettings, **overrides: Any
+) -> uvicorn.Config:
+    """uvicorn's configuration of the HTTP door: the web service's address and bounds (``web``)
+    and HTTPS (``tls_settings``)."""
     connection_counters = http_limits.ConnectionCounters()
     state = getattr(app, "state", None)
     if state is not None:  # for /metrics
         state.connection_counters = connection_counters
     options: dict[str, Any] = {
-        "host": settings.web.host,
-        "port": settings.web.port,
+        "host": web.host,
+        "port": web.port,
         "lifespan": "on",
         # permessage-deflate (RFC 7692) when the client offers it, as browsers do: a phone's
         # stream shrinks several times (docs/api.md). Paid per client per message (each has
@@ -48,22 +54,22 @@ def uvicorn_config(app: Any, settings: ServiceSettings, **overrides: Any) -> uvi
         # Bounds (service/api/http_limits.py, docs/operations.md "Security"). X-Forwarded-For and
         # -Proto only from the configured proxies: uvicorn's default trusts 127.0.0.1, which
         # let any local client forge its address.
-        "proxy_headers": bool(settings.web.trusted_proxies),
-        "forwarded_allow_ips": list(settings.web.trusted_proxies),
+        "proxy_headers": bool(web.trusted_proxies),
+        "forwarded_allow_ips": list(web.trusted_proxies),
         "http": http_limits.bounded_h11_protocol(
-            max_connections=http_limits.connection_cap(settings.web.http_max_connections),
-            idle_timeout_s=settings.web.http_idle_timeout_s,
+            max_connections=http_limits.connection_cap(web.http_max_connections),
+            idle_timeout_s=web.http_idle_timeout_s,
             counters=connection_counters,
         ),
-        "backlog": settings.web.http_backlog,
-        "timeout_keep_alive": settings.web.http_keep_alive_s,
-        "h11_max_incomplete_event_size": settings.web.http_max_header_bytes,
-        "ws_max_size": settings.web.max_body_bytes,
+        "backlog": web.http_backlog,
+        "timeout_keep_alive": web.http_keep_alive_s,
+        "h11_max_incomplete_event_size": web.http_max_header_bytes,
+        "ws_max_size": web.max_body_bytes,
     }
-    if settings.tls.tls_cert is not None and settings.tls.tls_key is not None:
+    if tls_settings.tls_cert is not None and tls_settings.tls_key is not None:
         # HTTPS and WSS (service/api/tls.py): TLS 1.2 at least, the certificate re-read when
         # its files change; TlsError here when they cannot be used.
-        tls = ReloadingContext(settings.tls.tls_cert, settings.tls.tls_key)
+        tls = ReloadingContext(tls_settings.tls_cert, tls_settings.tls_key)
         options["ssl_context_factory"] = lambda _config, _default: tls.listener
         if state is not None:
             state.tls = tls
@@ -91,7 +97,7 @@ async def serve(
     it prints a password) instead of binding ``host:port``."""
     service = build(settings)
     app = create_app(service, on_started=freeze_startup_heap)
-    server = uvicorn.Server(uvicorn_config(app, settings))
+    server = uvicorn.Server(uvicorn_config(app, settings.web, settings.tls))
     async with contextlib.AsyncExitStack() as stack:
         if settings.tls.http_redirect_port is not None:  # plain HTTP that only redirects to HTTPS
             https_port = sockets[0].getsockname()[1] if sockets else settings.web.port
