@@ -1,10 +1,15 @@
 """The health engine (issue 40) fed the emulated arm's program faster than real time, in
 process: friction, heat and cycle-time detection, no false watch over 2,000 healthy cycles with
 a cold start, the life law against a hand computation, the state document round trip, and the
-accelerated arm against ``SimulatedRobot``'s own frames."""
+accelerated arm against ``SimulatedRobot``'s own frames.
+
+The warm arm and its learned baseline are simulated once for the module (``_warm``,
+``_commissioned``) and each test runs on its own copy: a copy is exactly the run it replaces
+(the same frames, noise and figures after it), without its 150 cycles."""
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 from dataclasses import replace
@@ -32,12 +37,32 @@ def _verdicts(sim: HealthSimulation) -> list[str]:
     return [str(joint["verdict"]) for joint in _report(sim)["joints"]]
 
 
-def _baselined(cold_start: bool = False) -> HealthSimulation:
-    sim = HealthSimulation(cold_start=cold_start)
+@pytest.fixture(scope="module")
+def _warm() -> HealthSimulation:
+    """The arm after its 100 warm-up cycles, no baseline yet (copied, never run itself)."""
+    return HealthSimulation()
+
+
+@pytest.fixture(scope="module")
+def _commissioned(_warm: HealthSimulation) -> HealthSimulation:
+    """The warm arm with a baseline learned from its next 50 cycles (copied, never run)."""
+    sim = copy.deepcopy(_warm)
     sim.engine.begin_baseline("commissioning", "test", sim.now_s, cycles=50)
     sim.run(50)
     assert sim.engine.baseline is not None
     return sim
+
+
+@pytest.fixture
+def sim(_commissioned: HealthSimulation) -> HealthSimulation:
+    """A baselined arm of the test's own (``HealthSimulation()``, 50 cycles of baseline)."""
+    return copy.deepcopy(_commissioned)
+
+
+@pytest.fixture
+def warm(_warm: HealthSimulation) -> HealthSimulation:
+    """A warm arm of the test's own, no baseline (``HealthSimulation()``)."""
+    return copy.deepcopy(_warm)
 
 
 def _first_flagged(sim: HealthSimulation, joint: int, level: str, cycles: int) -> int | None:
@@ -55,9 +80,8 @@ def _first_flagged(sim: HealthSimulation, joint: int, level: str, cycles: int) -
     ("joint", "percent", "level"), [(3, 10, "watch"), (3, 25, "act"), (2, 10, "watch")]
 )
 def test_friction_on_one_joint_is_flagged_on_that_joint_within_50_cycles(
-    joint: int, percent: float, level: str
+    joint: int, percent: float, level: str, sim: HealthSimulation
 ) -> None:
-    sim = _baselined()
     sim.add_wear(joint, JointWear(friction_percent=percent))
     found = _first_flagged(sim, joint, level, 50)
     assert found is not None, _report(sim)["joints"]
@@ -69,8 +93,7 @@ def test_friction_on_one_joint_is_flagged_on_that_joint_within_50_cycles(
     assert "above its baseline of" in figures["reason"]
 
 
-def test_no_false_watch_over_2000_healthy_cycles_with_a_cold_start() -> None:
-    sim = _baselined()
+def test_no_false_watch_over_2000_healthy_cycles_with_a_cold_start(sim: HealthSimulation) -> None:
     flagged: list[tuple[int, list[str]]] = []
     for block in range(40):
         if block == 20:
@@ -84,8 +107,7 @@ def test_no_false_watch_over_2000_healthy_cycles_with_a_cold_start() -> None:
     assert not flagged
 
 
-def test_a_hot_motor_is_found_within_50_cycles() -> None:
-    sim = _baselined()
+def test_a_hot_motor_is_found_within_50_cycles(sim: HealthSimulation) -> None:
     sim.add_wear(2, JointWear(hot_c=8.0))
     found = _first_flagged(sim, 2, "watch", 50)
     assert found is not None
@@ -93,8 +115,7 @@ def test_a_hot_motor_is_found_within_50_cycles() -> None:
     assert "hotter than its current explains" in figures["reason"]
 
 
-def test_a_cycle_time_change_of_5_percent_is_found_within_50_cycles() -> None:
-    sim = _baselined()
+def test_a_cycle_time_change_of_5_percent_is_found_within_50_cycles(sim: HealthSimulation) -> None:
     before = sim.arm.duration_s
     sim.set_speed_fraction(0.355)  # from 0.4: the program's moves slower, the dwells the same
     assert sim.arm.duration_s / before - 1.0 == pytest.approx(0.05, abs=0.002)
@@ -146,8 +167,7 @@ def test_life_used_matches_the_law_by_hand() -> None:
     assert report["joints"][1]["life_remaining_h"] > 0
 
 
-def test_the_state_document_restores_the_same_figures() -> None:
-    sim = _baselined()
+def test_the_state_document_restores_the_same_figures(sim: HealthSimulation) -> None:
     sim.add_wear(3, JointWear(friction_percent=25))
     sim.run(20)
     document = sim.engine.to_document()
@@ -192,8 +212,9 @@ def _feed(sim: HealthSimulation, block: FrameBlock) -> None:
     sim.now_s += sim.arm.duration_s
 
 
-def test_a_knock_is_counted_with_where_it_happened_and_the_joint_watched() -> None:
-    sim = _baselined()
+def test_a_knock_is_counted_with_where_it_happened_and_the_joint_watched(
+    sim: HealthSimulation,
+) -> None:
     block = _cycle_frames(sim)
     external = block.external_torque_nm.copy()
     external[300:305, 1] += 80.0  # J2 hits something: 80 N·m over its 44 N·m threshold
@@ -212,8 +233,7 @@ def test_a_knock_is_counted_with_where_it_happened_and_the_joint_watched() -> No
     assert "1 external-torque peak(s) over 44 N·m this shift" in joint["reason"]
 
 
-def test_rebaselining_keeps_the_old_baseline_and_the_trend_spans_it() -> None:
-    sim = _baselined()
+def test_rebaselining_keeps_the_old_baseline_and_the_trend_spans_it(sim: HealthSimulation) -> None:
     sim.add_wear(3, JointWear(friction_percent=12))
     sim.run(50)
     assert _verdicts(sim)[2] == "watch"
@@ -228,8 +248,7 @@ def test_rebaselining_keeps_the_old_baseline_and_the_trend_spans_it() -> None:
     assert j3["friction_percent_since_first_baseline"] == pytest.approx(12.0, abs=2.5)
 
 
-def test_a_ramp_of_wear_reads_as_friction_rising_a_week() -> None:
-    sim = _baselined()
+def test_a_ramp_of_wear_reads_as_friction_rising_a_week(sim: HealthSimulation) -> None:
     sim.wear.set_time_factor(168.0, sim.now_s)  # a week of wear in each hour of frames
     sim.add_wear(3, JointWear(friction_percent=20, ramp_s=7 * 86_400.0))
     sim.run(600)  # 80 minutes of frames
@@ -240,8 +259,7 @@ def test_a_ramp_of_wear_reads_as_friction_rising_a_week() -> None:
     assert "rising" in j3["reason"]
 
 
-def test_bad_frames_are_dropped_and_counted_and_bad_shapes_refused() -> None:
-    sim = _baselined()
+def test_bad_frames_are_dropped_and_counted_and_bad_shapes_refused(sim: HealthSimulation) -> None:
     block = _cycle_frames(sim)
     torque = block.torque_nm.copy()
     torque[10, 2] = math.nan
@@ -314,8 +332,8 @@ def test_the_engine_fed_as_the_service_will_feed_it_finds_worn_j3() -> None:
     assert report["joints"][2]["friction_percent"] > 10.0
 
 
-def test_a_baseline_over_a_period_and_one_without_a_reason_refused() -> None:
-    sim = HealthSimulation()
+def test_a_baseline_over_a_period_and_one_without_a_reason_refused(warm: HealthSimulation) -> None:
+    sim = warm
     with pytest.raises(ValueError, match="a baseline needs a reason"):
         sim.engine.begin_baseline("  ", "test", sim.now_s, cycles=10)
     period_s = 20 * sim.arm.duration_s + 1.0

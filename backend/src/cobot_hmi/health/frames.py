@@ -81,6 +81,8 @@ class FrameBlock:
         return self.take(keep)
 
     def take(self, keep: BoolArray | IntArray) -> FrameBlock:
+        if keep.dtype == np.bool_ and keep.size == len(self) and keep.all():
+            return self  # every frame kept: no copy (the arrays are never written to)
         return FrameBlock(
             self.time_s[keep],
             self.position_deg[keep],
@@ -95,6 +97,8 @@ class FrameBlock:
 
     @staticmethod
     def concatenate(blocks: Sequence[FrameBlock]) -> FrameBlock:
+        if len(blocks) == 1:
+            return blocks[0]
         return FrameBlock(
             *(
                 np.concatenate([getattr(block, name) for block in blocks])
