@@ -1,6 +1,6 @@
 """The settings are nested, one part per concern, and every flat key still works: each key of
-every part (taken from the models, so a new setting is covered without a word here) reaches its
-part from a flag, from ``COBOT_HMI_<NAME>`` and from a TOML file, flat or in its part's table;
+every part of ``serve``'s and the plant's settings (taken from the models, so a new setting is
+covered without a word here) reaches its part from a flag, from ``COBOT_HMI_<NAME>`` and from a TOML file, flat or in its part's table;
 an old flat settings file loads; an unknown key is refused by name; and no part is built with
 the whole settings."""
 
@@ -26,13 +26,21 @@ from cobot_hmi.service.settings import ServiceSettings, SettingsError
 from cobot_hmi.settings import HmiSettings
 
 KEYS = HmiSettings.setting_keys()
+CLASSES: dict[str, type[ServiceSettings]] = {"serve": HmiSettings, "plant": PlantSettings}
+CASES = [("serve", name) for name in KEYS] + [
+    ("plant", name) for name, part in PlantSettings.setting_keys().items() if part == "plant"
+]
+"""Every key of ``serve``'s settings and those the plant adds: (the command's, key)."""
 DEFAULTS = {
-    name: info.get_default(call_default_factory=True)
-    for name, info in HmiSettings.flat_fields().items()
+    (command, name): CLASSES[command].flat_fields()[name].get_default(call_default_factory=True)
+    for command, name in CASES
 }
 # The robot list comes from the source that names robots: an empty one names none.
-DEFAULTS |= {"robot_host": "10.0.0.9", "robots": [{"name": "a", "host": "10.0.0.8"}]}
-GIVEN_KEYS = sorted(name for name, value in DEFAULTS.items() if value is not None)
+DEFAULTS |= {
+    ("serve", "robot_host"): "10.0.0.9",
+    ("serve", "robots"): [{"name": "a", "host": "10.0.0.8"}],
+}
+GIVEN = sorted(case for case, value in DEFAULTS.items() if value is not None)
 """Keys with a value to give (a key whose default is "none" has no TOML form)."""
 
 
@@ -66,8 +74,9 @@ def _toml_value(value: Any) -> str:
 
 def _reached(settings: ServiceSettings, name: str) -> Any:
     """The key's value in its part, which must have been given it (not defaulted)."""
-    part = getattr(settings, KEYS[name])
-    assert name in part.model_fields_set, f"{name} did not reach the part {KEYS[name]}"
+    part_name = settings.setting_keys()[name]
+    part = getattr(settings, part_name)
+    assert name in part.model_fields_set, f"{name} did not reach the part {part_name}"
     return _plain(getattr(part, name))
 
 
@@ -90,22 +99,24 @@ def test_every_key_is_in_exactly_one_part() -> None:
     assert set(PlantSettings.setting_keys()) >= set(ServiceSettings.setting_keys())
 
 
-@pytest.mark.parametrize("name", list(KEYS))
-def test_every_key_is_routed_to_its_part(name: str) -> None:
+@pytest.mark.parametrize(("command", "name"), CASES)
+def test_every_key_is_routed_to_its_part(command: str, name: str) -> None:
     marker = object()
-    routed = HmiSettings.route_keys({name: marker})
-    assert routed == {KEYS[name]: {name: marker}}
+    settings_class = CLASSES[command]
+    routed = settings_class.route_keys({name: marker})
+    assert routed == {settings_class.setting_keys()[name]: {name: marker}}
 
 
-@pytest.mark.parametrize("name", list(KEYS))
-def test_every_key_reaches_its_part_from_a_flag(name: str) -> None:
-    settings = load_settings({name: DEFAULTS[name]}, {}, None, HmiSettings)
-    assert _reached(settings, name) == _plain(DEFAULTS[name])
+@pytest.mark.parametrize(("command", "name"), CASES)
+def test_every_key_reaches_its_part_from_a_flag(command: str, name: str) -> None:
+    value = DEFAULTS[command, name]
+    settings = load_settings({name: value}, {}, None, CLASSES[command])
+    assert _reached(settings, name) == _plain(value)
 
 
-@pytest.mark.parametrize("name", GIVEN_KEYS)
-def test_every_key_reaches_its_part_from_the_environment(name: str) -> None:
-    value = _plain(DEFAULTS[name])
+@pytest.mark.parametrize(("command", "name"), GIVEN)
+def test_every_key_reaches_its_part_from_the_environment(command: str, name: str) -> None:
+    value = _plain(DEFAULTS[command, name])
     if isinstance(value, bool):
         text = "true" if value else "false"
     elif isinstance(value, (list, dict)) and name not in ("robots", "alarms"):
@@ -114,7 +125,7 @@ def test_every_key_reaches_its_part_from_the_environment(name: str) -> None:
         text = json.dumps(value)
     else:
         text = str(value)
-    settings = load_settings({}, {env_name(name): text}, None, HmiSettings)
+    settings = load_settings({}, {env_name(name): text}, None, CLASSES[command])
     assert _reached(settings, name) == value
 
 
@@ -127,22 +138,25 @@ def _env_text(name: str, value: list[Any] | dict[str, Any]) -> str:
     return ",".join(f"{k}={v}" for k, v in value.items())
 
 
-@pytest.mark.parametrize("name", GIVEN_KEYS)
+@pytest.mark.parametrize(("command", "name"), GIVEN)
 def test_every_key_reaches_its_part_from_a_flat_or_a_nested_toml_key(
-    name: str, tmp_path: Path
+    command: str, name: str, tmp_path: Path
 ) -> None:
-    value = _toml_value(DEFAULTS[name])
-    flat = load_settings({}, {}, _config(tmp_path, f"{name} = {value}\n"), HmiSettings)
-    assert _reached(flat, name) == _plain(DEFAULTS[name])
-    table = f"[{KEYS[name]}]\n{name} = {value}\n"
-    nested = load_settings({}, {}, _config(tmp_path, table), HmiSettings)
-    assert _reached(nested, name) == _plain(DEFAULTS[name])
+    settings_class, given = CLASSES[command], DEFAULTS[command, name]
+    value = _toml_value(given)
+    flat = load_settings({}, {}, _config(tmp_path, f"{name} = {value}\n"), settings_class)
+    assert _reached(flat, name) == _plain(given)
+    table = f"[{settings_class.setting_keys()[name]}]\n{name} = {value}\n"
+    nested = load_settings({}, {}, _config(tmp_path, table), settings_class)
+    assert _reached(nested, name) == _plain(given)
 
 
-@pytest.mark.parametrize("name", [n for n in KEYS if n not in ("robots", "alarms")])
-def test_every_key_but_the_tables_has_its_flag(name: str) -> None:
+@pytest.mark.parametrize(
+    ("command", "name"), [case for case in CASES if case[1] not in ("robots", "alarms")]
+)
+def test_every_key_but_the_tables_has_its_flag(command: str, name: str) -> None:
     parser = argparse.ArgumentParser()
-    add_arguments(parser, settings_class=HmiSettings)
+    add_arguments(parser, settings_class=CLASSES[command])
     flags = [a for a in parser._actions if a.dest == name]
     assert len(flags) == 1, name
     assert env_name(name) in str(flags[0].help)
