@@ -1,8 +1,8 @@
 """The settings are nested, one part per concern, and every flat key still works: each key of
 every part of ``serve``'s and the plant's settings (taken from the models, so a new setting is
-covered without a word here) reaches its part from a flag, from ``COBOT_HMI_<NAME>`` and from a TOML file, flat or in its part's table;
-an old flat settings file loads; an unknown key is refused by name; and no part is built with
-the whole settings."""
+covered without a word here) reaches its part from a flag, from ``COBOT_HMI_<NAME>`` and from
+a TOML file, flat or in its part's table; an old flat settings file loads; an unknown key is
+refused by name; and no part is built with the whole settings."""
 
 from __future__ import annotations
 
