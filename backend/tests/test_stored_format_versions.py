@@ -4,7 +4,8 @@ today's files carry their version, and a newer version is refused by name, the f
 
 The fixtures (``legacy/stored_formats/README.md``) hold 30 frames of the golden T→O payloads
 (``golden/t2o_*.hex``) 10 ms apart from 2025-12-01 00:00 UTC: the open segment's journal,
-the same closed into a segment and its cells file, a users file and a Sparkplug spool.
+the same closed into a segment and its cells file, a users file and a Sparkplug spool; under
+``legacy/stored_formats/v2``, the spool of the version before today's (no metric catalogue).
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ from cobot_hmi.sparkplug.payload import parse_payload
 from cobot_hmi.stored_format import FormatVersionError
 
 V1 = Path(__file__).parent / "legacy" / "stored_formats" / "v1"
+V2 = Path(__file__).parent / "legacy" / "stored_formats" / "v2"
 GOLDEN = Path(__file__).parent / "golden"
 START_S = 1_764_547_200.0
 ROBOT = "m1013"
@@ -267,17 +269,40 @@ def test_a_spool_segment_of_the_previous_version_replays_and_is_written_back_as_
     assert [topic for topic, _ in records] == ["spBv1.0/cell/DDATA/edge/m1013"] * 3
     values = [parse_payload(payload).metrics[0].int_value for _, payload in records]
     assert values == [1, 2, 3]
-    buffer.put_back(sealed, records[1:])  # a replay cut short: the rest stays, as version 2
-    assert sealed.read_bytes().startswith(b"CHMISPL\n\x02\x00")
+    buffer.put_back(sealed, records[1:])  # a replay cut short: the rest stays, as today's
+    assert sealed.read_bytes().startswith(b"CHMISPL\n\x03\x00")
     assert [parse_payload(p).metrics[0].int_value for _, p in buffer.read(sealed)] == [2, 3]
     assert DiskBuffer(spool, 1 << 20).records_buffered == 2
+
+
+def test_a_spool_segment_of_version_2_replays_its_catalogue_unknown(tmp_path: Path) -> None:
+    """Version 2 (``legacy/stored_formats/v2``, the mark and version, no metric catalogue): its
+    records read as they were; the replay keeps only the layout's metrics of them
+    (``test_sparkplug_spool_catalogue``)."""
+    spool = tmp_path / "sparkplug-spool"
+    shutil.copytree(V2 / "sparkplug-spool", spool)
+    old = spool / "0000000000.seg"
+    assert old.read_bytes().startswith(b"CHMISPL\n\x02\x00")
+    buffer = DiskBuffer(spool, 1 << 20, {ROBOT: [(1005, "controlbox_di/DI 6", 11)]})
+    assert buffer.records_buffered == 3
+    [sealed] = buffer.sealed()
+    segment = buffer.read_segment(sealed)
+    assert (segment.version, segment.current, segment.catalogue) == (2, False, None)
+    assert [parse_payload(p).metrics[0].boolean_value for _, p in segment.records] == [
+        True,
+        False,
+        True,
+    ]
+    buffer.put_back(sealed, segment.records[1:])
+    today = buffer.read_segment(sealed)
+    assert (today.version, today.current, len(today.records)) == (3, True, 2)
 
 
 def test_a_new_spool_segment_says_its_version(tmp_path: Path) -> None:
     buffer = DiskBuffer(tmp_path, 1 << 20)
     assert buffer.append("spBv1.0/cell/DDATA/edge/m1013", b"\x08\x01")
     [path] = sorted(tmp_path.glob("*.seg"))
-    assert path.read_bytes()[:10] == b"CHMISPL\n\x02\x00"
+    assert path.read_bytes()[:10] == b"CHMISPL\n\x03\x00"
     assert buffer.bytes_buffered == path.stat().st_size
     assert DiskBuffer(tmp_path, 1 << 20).read(path) == [
         ("spBv1.0/cell/DDATA/edge/m1013", b"\x08\x01")
@@ -288,14 +313,14 @@ def test_a_spool_segment_of_a_newer_version_is_refused_by_name_and_kept(
     tmp_path: Path, caplog: pytest.LogCaptureFixture
 ) -> None:
     newer = tmp_path / "0000000007.seg"
-    newer.write_bytes(b"CHMISPL\n\x03\x00" + b"records of a format this build does not know")
+    newer.write_bytes(b"CHMISPL\n\x04\x00" + b"records of a format this build does not know")
     before = newer.read_bytes()
     with caplog.at_level("ERROR", logger="cobot_hmi.sparkplug.buffer"):
         buffer = DiskBuffer(tmp_path, 1 << 20)
-    assert "Sparkplug spool segment version 3" in caplog.text
+    assert "Sparkplug spool segment version 4" in caplog.text
     assert buffer.records_buffered == 0 and buffer.sealed() == []
     assert buffer.append("spBv1.0/cell/DDATA/edge/m1013", b"\x08\x01")
     assert sorted(p.name for p in tmp_path.glob("*.seg")) == ["0000000007.seg", "0000000008.seg"]
     assert newer.read_bytes() == before
-    with pytest.raises(FormatVersionError, match="Sparkplug spool segment version 3"):
+    with pytest.raises(FormatVersionError, match="Sparkplug spool segment version 4"):
         buffer.read(newer)

@@ -9,9 +9,20 @@ left by a previous run are replayed too. Writes go through the page cache (no fs
 power cut may lose the newest records, never corrupts older ones (a torn last record is cut).
 
 Each segment starts with its format's version (``SPOOL_FORMAT``): an 8-byte mark and a 16-bit
-version, then the records. Version 1, written before segments carried one, is the records
-alone (no record starts with the mark: its topic would be 18,499 bytes long) and is read as it
-is; a segment of a newer version is refused by name, left on disk as it is and never replayed.
+version, then (version 3) the metric catalogue its records were written with, then the records.
+Version 1, written before segments carried one, is the records alone (no record starts with the
+mark: its topic would be 18,499 bytes long); version 2 is the mark and version, then the records.
+Both are read as they are, their catalogue unknown (``Segment.catalogue`` ``None``); a segment
+of a newer version is refused by name, left on disk as it is and never replayed.
+
+The catalogue (``SpoolCatalogue``: per robot, each metric's alias, name and datatype) is what a
+DDATA's aliases mean: the edge node declares per-robot metrics that depend on the configuration
+(every alarm of the robot's alarm engine), so a segment written under another configuration
+names other metrics by the same aliases. Version 3 keeps it with the segment: its SHA-256
+fingerprint (32 bytes), its length (32 bits) and its canonical JSON, zlib-compressed, so that
+the replay can tell a segment written with today's catalogue (``Segment.current``) from one to
+translate by name. A segment whose catalogue cannot be read is set aside (``set_aside``: moved to
+``aside/``, never replayed).
 
 Imports only ``stored_format`` of the project.
 """
@@ -19,9 +30,13 @@ Imports only ``stored_format`` of the project.
 from __future__ import annotations
 
 import contextlib
+import hashlib
+import json
 import logging
 import struct
-from collections.abc import Iterator
+import zlib
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Final
 
@@ -29,10 +44,14 @@ from cobot_hmi.stored_format import FormatVersionError, StoredFormat
 
 log = logging.getLogger(__name__)
 
-SPOOL_FORMAT: Final = StoredFormat("Sparkplug spool segment", 2)
+SPOOL_FORMAT: Final = StoredFormat("Sparkplug spool segment", 3)
 _MARK: Final = b"CHMISPL\n"
 _FILE_HEADER: Final = struct.Struct("<8sH")
 """The mark and the format's version at the start of a segment."""
+_CATALOGUE_HEADER: Final = struct.Struct("<32sI")
+"""Version 3: the catalogue's fingerprint and its compressed length, after the version."""
+SET_ASIDE: Final = "aside"
+"""The directory (in the buffer's) of segments never to replay, kept for a person to look at."""
 
 _HEADER: Final = struct.Struct("<HI")
 """Topic length, payload length."""
@@ -41,22 +60,95 @@ _SEGMENTS: Final = 16
 """About this many segments make up the bound: dropping one loses 1/16 of the buffer."""
 
 Record = tuple[str, bytes]
+CatalogueEntry = tuple[int, str, int]
+"""A metric as a robot's births declare it: ``(alias, name, Sparkplug datatype)``."""
+SpoolCatalogue = Mapping[str, Sequence[CatalogueEntry]]
+"""Robot (device) name → its metrics: what the aliases of its buffered DDATA mean."""
 
 
-def _file_header() -> bytes:
-    return _FILE_HEADER.pack(_MARK, SPOOL_FORMAT.version)
+def _canonical(catalogue: SpoolCatalogue) -> bytes:
+    plain = {name: [list(entry) for entry in entries] for name, entries in catalogue.items()}
+    return json.dumps(plain, sort_keys=True, separators=(",", ":")).encode()
 
 
-def _records_start(data: bytes, where: Path) -> int:
-    """Where a segment's records start (after its header; 0 in a version 1 segment), its version
-    checked (``FormatVersionError`` for a newer one)."""
+def fingerprint(catalogue: SpoolCatalogue) -> bytes:
+    """The catalogue's SHA-256 (of its canonical JSON): equal catalogues, equal fingerprints."""
+    return hashlib.sha256(_canonical(catalogue)).digest()
+
+
+def _file_header(catalogue: SpoolCatalogue) -> bytes:
+    packed = zlib.compress(_canonical(catalogue))
+    return (
+        _FILE_HEADER.pack(_MARK, SPOOL_FORMAT.version)
+        + _CATALOGUE_HEADER.pack(fingerprint(catalogue), len(packed))
+        + packed
+    )
+
+
+@dataclass(frozen=True, slots=True)
+class _Header:
+    start: int
+    """Where the records start."""
+    version: int
+    fingerprint: bytes | None = None
+    """Version 3: the catalogue's fingerprint (``None`` before, or when torn)."""
+    catalogue: bytes | None = None
+    """Version 3: the compressed catalogue (``None`` before, or when torn)."""
+
+
+def _read_header(data: bytes, where: Path) -> _Header:
+    """Where a segment's records start (after its header; 0 in a version 1 segment) and what
+    the header says, its version checked (``FormatVersionError`` for a newer one)."""
     if not data.startswith(_MARK):
-        return 0
+        return _Header(0, 1)
     if len(data) < _FILE_HEADER.size:
-        return len(data)  # a header torn by a crash: no records
-    _, version = _FILE_HEADER.unpack_from(data)
-    SPOOL_FORMAT.read_version(version, where)
-    return _FILE_HEADER.size
+        return _Header(len(data), 2)  # a header torn by a crash: no records
+    _, found = _FILE_HEADER.unpack_from(data)
+    version = SPOOL_FORMAT.read_version(found, where)
+    if version < 3:
+        return _Header(_FILE_HEADER.size, version)
+    start = _FILE_HEADER.size + _CATALOGUE_HEADER.size
+    if len(data) < start:
+        return _Header(len(data), version)  # torn: no records, no catalogue
+    digest, length = _CATALOGUE_HEADER.unpack_from(data, _FILE_HEADER.size)
+    if len(data) < start + length:
+        return _Header(len(data), version)
+    return _Header(start + length, version, digest, data[start : start + length])
+
+
+def _catalogue(header: _Header) -> SpoolCatalogue | None:
+    """The catalogue a version 3 header carries, checked against its fingerprint (``None``
+    when it cannot be read)."""
+    if header.catalogue is None:
+        return None
+    try:
+        text = zlib.decompress(header.catalogue)
+        plain = json.loads(text)
+    except (zlib.error, ValueError):
+        return None
+    if hashlib.sha256(text).digest() != header.fingerprint or not isinstance(plain, dict):
+        return None
+    try:
+        return {
+            str(name): [(int(alias), str(metric), int(kind)) for alias, metric, kind in entries]
+            for name, entries in plain.items()
+        }
+    except (TypeError, ValueError):
+        return None
+
+
+@dataclass(frozen=True, slots=True)
+class Segment:
+    """A sealed segment as the replay reads it."""
+
+    records: list[Record]
+    version: int
+    current: bool
+    """Written with the buffer's catalogue (today's): its aliases mean what they mean now."""
+    catalogue: SpoolCatalogue | None
+    """The catalogue it was written with; ``None``: not known (versions 1 and 2)."""
+    unreadable: bool = False
+    """A version 3 segment whose catalogue cannot be read: never to replay (``set_aside``)."""
 
 
 def _records(data: bytes, offset: int = 0) -> Iterator[Record]:
@@ -76,11 +168,18 @@ def encode_record(topic: str, payload: bytes) -> bytes:
 
 
 class DiskBuffer:
-    """Segments ``NNNNNNNNNN.seg`` in ``directory``; at most ``max_bytes`` on disk."""
+    """Segments ``NNNNNNNNNN.seg`` in ``directory``; at most ``max_bytes`` on disk; new ones
+    written with ``catalogue`` (the metrics the writer declares today)."""
 
-    def __init__(self, directory: Path, max_bytes: int) -> None:
+    def __init__(
+        self, directory: Path, max_bytes: int, catalogue: SpoolCatalogue | None = None
+    ) -> None:
         self.directory = directory
         self.max_bytes = max_bytes
+        self.catalogue: SpoolCatalogue = catalogue or {}
+        self.fingerprint = fingerprint(self.catalogue)
+        self._header = _file_header(self.catalogue)
+        self.records_set_aside = 0
         self.segment_bytes = max(_MIN_SEGMENT_BYTES, max_bytes // _SEGMENTS)
         self._segments: list[tuple[Path, int, int]] = []
         """(path, bytes, records) oldest first; the last one is being appended to."""
@@ -106,7 +205,7 @@ class DiskBuffer:
                     continue
                 self._next_number = max(self._next_number, number + 1)
                 try:
-                    start = _records_start(data, path)
+                    start = _read_header(data, path).start
                 except FormatVersionError as error:
                     log.error("Sparkplug buffer: left as it is, not replayed: %s", error)
                     continue
@@ -120,6 +219,9 @@ class DiskBuffer:
                 self.records_buffered,
                 self.directory,
             )
+            # New records go to a new segment, under today's catalogue, not after the last
+            # run's (written with its catalogue, perhaps another).
+            self._new_segment()
 
     def _new_segment(self) -> Path:
         path = self.directory / f"{self._next_number:010d}.seg"
@@ -136,7 +238,7 @@ class DiskBuffer:
         if not self._segments or self._segments[-1][1] + len(record) > self.segment_bytes:
             self._new_segment()
         if self._segments[-1][1] == 0:
-            record = _file_header() + record  # a new segment starts with its version
+            record = self._header + record  # a new segment starts with its version, catalogue
         while self.bytes_buffered + len(record) > self.max_bytes and len(self._segments) > 1:
             self._drop_oldest()
         path, size, count = self._segments[-1]
@@ -172,11 +274,40 @@ class DiskBuffer:
 
     def read(self, path: Path) -> list[Record]:
         """A segment's records (none if it cannot be read)."""
+        return self.read_segment(path).records
+
+    def read_segment(self, path: Path) -> Segment:
+        """A segment's records and the catalogue they were written with."""
         try:
             data = path.read_bytes()
         except OSError:
-            return []
-        return list(_records(data, _records_start(data, path)))
+            return Segment([], SPOOL_FORMAT.version, True, self.catalogue)
+        header = _read_header(data, path)
+        records = list(_records(data, header.start))
+        if header.version < 3:
+            return Segment(records, header.version, False, None)
+        if header.fingerprint == self.fingerprint:
+            return Segment(records, header.version, True, self.catalogue)
+        catalogue = _catalogue(header)
+        return Segment(records, header.version, False, catalogue, unreadable=catalogue is None)
+
+    def set_aside(self, path: Path) -> Path:
+        """A segment never to replay: moved to ``aside/`` (no longer counted), kept for a
+        person to look at; where it went."""
+        target = self.directory / SET_ASIDE / path.name
+        for i, (candidate, size, count) in enumerate(self._segments):
+            if candidate == path:
+                del self._segments[i]
+                self.records_buffered -= count
+                self.bytes_buffered -= size
+                self.records_set_aside += count
+                break
+        try:
+            target.parent.mkdir(parents=True, exist_ok=True)
+            path.replace(target)
+        except OSError as error:
+            log.warning("Sparkplug buffer: cannot set %s aside: %s", path, error)
+        return target
 
     def finish(self, path: Path) -> None:
         """The segment went out: delete it."""
@@ -190,8 +321,9 @@ class DiskBuffer:
             path.unlink()
 
     def put_back(self, path: Path, remaining: list[Record]) -> None:
-        """Replay stopped part-way: keep what did not go out, still the oldest."""
-        data = _file_header() + b"".join(encode_record(t, payload) for t, payload in remaining)
+        """Replay stopped part-way: keep what did not go out, still the oldest (``remaining``
+        in today's aliases: it is written with today's catalogue)."""
+        data = self._header + b"".join(encode_record(t, payload) for t, payload in remaining)
         for i, (candidate, size, count) in enumerate(self._segments):
             if candidate == path:
                 try:

@@ -44,7 +44,7 @@ from cobot_hmi.sparkplug.node.core import Background, NodeStatus, Publisher
 from cobot_hmi.sparkplug.node.device import Device
 from cobot_hmi.sparkplug.node.events import EventFeed
 from cobot_hmi.sparkplug.node.metrics import NodeMetrics
-from cobot_hmi.sparkplug.node.replay import Replayer
+from cobot_hmi.sparkplug.node.replay import Replayer, spool_catalogue
 from cobot_hmi.sparkplug.node.reports import DeviceReports
 from cobot_hmi.sparkplug.session import NodeSession
 from cobot_hmi.sparkplug.topics import Topics
@@ -96,9 +96,13 @@ class EdgeNode:
         }
         state = state_dir / "sparkplug"
         # Per layout version: a buffered metric is its robot's catalogue offset (in the alias),
-        # which another layout numbers otherwise.
+        # which another layout numbers otherwise; each segment also keeps the robots' metric
+        # catalogue it was written with (the alarms' metrics depend on the configuration), so
+        # that a replay after a restart under another one goes out by name (``replay``).
         self.buffer = DiskBuffer(
-            state / f"buffer-layout-{LAYOUT_VERSION}", settings.sparkplug_buffer_bytes
+            state / f"buffer-layout-{LAYOUT_VERSION}",
+            settings.sparkplug_buffer_bytes,
+            spool_catalogue(self.devices),
         )
         self.status = NodeStatus()
         self.background = Background()
