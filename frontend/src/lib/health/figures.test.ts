@@ -1,5 +1,5 @@
 import { describe, expect, it } from "vitest";
-import { collisionsWords, frictionTrendWords, frictionWords, heatWords, hoursWords, jointFigures, lifeBar, ratedWords, signed } from "./figures";
+import { collisionsWords, frictionSinceFirstWords, frictionTrendWords, frictionWords, heatWords, hoursWords, jointFigures, lifeBar, ratedWords, signed } from "./figures";
 import { joint } from "./healthTestSupport";
 
 describe("a joint's figures in words", () => {
@@ -44,8 +44,16 @@ describe("a joint's figures in words", () => {
     expect(ratedWords({ rated: { torque_nm: 50, speed_deg_s: 225, life_h: 6000, assumed: false } })).toBe("50 N·m, 225 °/s, 6,000 h");
   });
 
+  it("chains friction through re-baselinings only where that says more than the baseline in use", () => {
+    expect(frictionSinceFirstWords({ friction_percent: 2, friction_percent_since_first_baseline: 16.04 })).toBe("+16.0 % since its first baseline");
+    expect(frictionSinceFirstWords({ friction_percent: 2, friction_percent_since_first_baseline: 2 })).toBeNull();
+    expect(frictionSinceFirstWords({ friction_percent: null, friction_percent_since_first_baseline: null })).toBeNull();
+    const keys = jointFigures(joint(2, { friction_percent: 1, friction_percent_since_first_baseline: 9 })).map((f) => f.key);
+    expect(keys.slice(0, 2)).toEqual(["friction", "friction-since-first"]);
+  });
+
   it("lists a card's figures in the order a planner reads them, each with its number", () => {
-    const figures = jointFigures(joint(3, { friction_percent: 25.3, collisions_this_shift: 2 }));
+    const figures = jointFigures(joint(3, { friction_percent: 25.3, friction_percent_since_first_baseline: 25.3, collisions_this_shift: 2 }));
     expect(figures.map((f) => f.key)).toEqual(["friction", "friction-trend", "heat", "collisions", "rated"]);
     expect(figures[0]).toMatchObject({ value: "+25.3 % against its baseline", raw: 25.3 });
     expect(figures[3]).toMatchObject({ value: "2", raw: 2 });

@@ -94,10 +94,23 @@ export function ratedWords(joint: Pick<JointHealth, "rated">): string {
   return r.assumed ? `${text} (assumed: not published by the maker)` : text;
 }
 
+/**
+ * Friction chained through every re-baselining since the first baseline, when it says more
+ * than the figure against the baseline in use (after a re-baselining): null otherwise.
+ */
+export function frictionSinceFirstWords(joint: Pick<JointHealth, "friction_percent" | "friction_percent_since_first_baseline">): string | null {
+  const since = finite(joint.friction_percent_since_first_baseline);
+  const now = finite(joint.friction_percent);
+  if (since === null || (now !== null && Math.abs(since - now) < 0.05)) return null;
+  return `${signed(since)} % since its first baseline`;
+}
+
 /** A joint card's figures, in the order a planner reads them. */
 export function jointFigures(joint: JointHealth): readonly Figure[] {
+  const since = frictionSinceFirstWords(joint);
   return [
     { key: "friction", label: "friction", value: frictionWords(joint), raw: finite(joint.friction_percent) },
+    ...(since !== null ? [{ key: "friction-since-first", label: "friction since the first baseline", value: since, raw: finite(joint.friction_percent_since_first_baseline) }] : []),
     { key: "friction-trend", label: "friction trend", value: frictionTrendWords(joint), raw: finite(joint.friction_percent_per_week) },
     { key: "heat", label: "heat beyond its current", value: heatWords(joint), raw: finite(joint.heat_excess_c) },
     { key: "collisions", label: "collisions this shift", value: collisionsWords(joint), raw: finite(joint.collisions_this_shift) },
