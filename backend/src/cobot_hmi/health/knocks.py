@@ -56,24 +56,29 @@ class KnockCounter:
             self.shift_start_s = shift
             self.collisions = [0] * len(self.collisions)
             self.counts = dict.fromkeys(KINDS[1:], 0)
+        # Each edge search only where there can be an edge (nothing over, no stop, the servo
+        # on, in the block and before it: the usual second has none).
         over = np.abs(block.external_torque_nm) > self.threshold_nm
-        for i, j in zip(*np.nonzero(_rising(over, self._over)), strict=True):
-            self.collisions[int(j)] += 1
-            peak = float(block.external_torque_nm[i, j])
-            self._event(block, int(i), "collision", int(j) + 1, peak)
+        if over.any():
+            for i, j in zip(*np.nonzero(_rising(over, self._over)), strict=True):
+                self.collisions[int(j)] += 1
+                peak = float(block.external_torque_nm[i, j])
+                self._event(block, int(i), "collision", int(j) + 1, peak)
         self._over = over[-1]
         stops = np.stack(
             [block.robot_state == PROTECTIVE_STOP, block.robot_state == EMERGENCY_STOP], axis=1
         )
-        for i, k in zip(*np.nonzero(_rising(stops, self._stopped)), strict=True):
-            kind = KINDS[1 + int(k)]
-            self.counts[kind] += 1
-            self._event(block, int(i), kind, None, None)
+        if stops.any():
+            for i, k in zip(*np.nonzero(_rising(stops, self._stopped)), strict=True):
+                kind = KINDS[1 + int(k)]
+                self.counts[kind] += 1
+                self._event(block, int(i), kind, None, None)
         self._stopped = stops[-1]
-        servo_off = ~block.servo_on
-        for i in np.nonzero(_rising(servo_off, np.array(not self._servo_on)))[0]:
-            self.counts["servo_off"] += 1
-            self._event(block, int(i), "servo_off", None, None)
+        if not block.servo_on.all():
+            servo_off = ~block.servo_on
+            for i in np.nonzero(_rising(servo_off, np.array(not self._servo_on)))[0]:
+                self.counts["servo_off"] += 1
+                self._event(block, int(i), "servo_off", None, None)
         self._servo_on = bool(block.servo_on[-1])
 
     def _event(

@@ -36,8 +36,13 @@ class LifeMeter:
             return
         times = block.time_s
         previous = times[0] if self.last_time_s is None else self.last_time_s
-        steps = np.diff(times, prepend=previous)
-        steps = np.clip(steps, 0.0, MAX_STEP_S)
+        # np.diff(prepend=) and np.clip, written out: the same steps at a third of the calls'
+        # overhead, which is most of their cost in a second's block.
+        steps = np.empty_like(times)
+        steps[0] = times[0] - previous
+        np.subtract(times[1:], times[:-1], out=steps[1:])
+        np.maximum(steps, 0.0, out=steps)
+        np.minimum(steps, MAX_STEP_S, out=steps)
         load = (np.abs(block.velocity_deg_s) / self.rated_speed_deg_s) * (
             np.abs(block.torque_nm) / self.rated_torque_nm
         ) ** LIFE_EXPONENT

@@ -36,12 +36,13 @@ class DistinctSamples:
         than the tolerance (and 10 %: the sample straddles a change of acceleration) or one is
         missing (the first sample after a gap, the block's last)."""
         values = np.concatenate([block.position_deg, block.velocity_deg_s, block.torque_nm], axis=1)
-        if self.last is not None:
-            before = np.concatenate(self.last[1:])[None, :]
-        else:
-            before = np.full((1, values.shape[1]), np.nan)
-        previous = np.concatenate([before, values[:-1]], axis=0)
-        distinct = block.take(np.any(values != previous, axis=1))
+        changed = np.empty(values.shape[0], dtype=np.bool_)
+        if changed.size:
+            np.any(values[1:] != values[:-1], axis=1, out=changed[1:])
+            changed[0] = self.last is None or bool(
+                np.any(values[0] != np.concatenate(self.last[1:]))
+            )
+        distinct = block.take(changed)
         if len(distinct) == 0:
             return distinct, np.zeros_like(distinct.velocity_deg_s)
         times, velocity = distinct.time_s, distinct.velocity_deg_s
