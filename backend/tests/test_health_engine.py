@@ -20,6 +20,7 @@ import pytest
 
 from cobot_hmi.arms import M1013_ARM
 from cobot_hmi.cli.health_verb import HealthSimulation
+from cobot_hmi.codec import decode_frame, encode_frame
 from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot
 from cobot_hmi.emulator.robot.accelerated import AcceleratedArm
 from cobot_hmi.emulator.robot.wear import JointWear, Wear
@@ -347,3 +348,24 @@ def test_a_baseline_over_a_period_and_one_without_a_reason_refused(warm: HealthS
     assert report["baseline"]["cycles"] == 21
     assert report["baseline"]["arm"] == "M1013"
     assert report["baseline"]["layout_version"] == 1
+
+
+def test_a_block_from_the_undecoded_payloads_is_the_block_from_the_decoded_frames() -> None:
+    """``FrameBlock.from_payloads`` (the frame records' raw bytes, read with numpy) gives the
+    very arrays ``from_frames`` gives of the decoded frames: the robot powering on (servo off,
+    its states changing) and running its program, a collision's external torque."""
+    robot = SimulatedRobot(RobotSettings(cycle_marker_register=63), start_s=0.0)
+    times = [k / 100 for k in range(1500)]
+    frames = [robot.produce_frame(t) for t in times]
+    frames[700] = frames[700]._replace(joint_external_torque=(0.0, -91.5, 0.0, 0.0, 0.0, 0.0))
+    payloads = [encode_frame(frame) for frame in frames]
+    decoded = FrameBlock.from_frames(times, [decode_frame(p) for p in payloads])
+    raw = FrameBlock.from_payloads(times, payloads)
+    for name in FrameBlock.__slots__:
+        ours, theirs = getattr(raw, name), getattr(decoded, name)
+        assert ours.dtype == theirs.dtype, name
+        assert np.array_equal(ours, theirs), name
+    assert not raw.servo_on.all() and raw.servo_on.any()
+    assert len(set(raw.robot_state.tolist())) > 1
+    with pytest.raises(ValueError, match="T→O payloads of 284 bytes"):
+        FrameBlock.from_payloads(times[:2], [payloads[0], payloads[1][:-1]])
