@@ -37,6 +37,16 @@ def _vendor_id(text: str) -> int:
     return value
 
 
+def _temperature_rise_c(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError("expected °C, e.g. 40 or 0") from None
+    if not 0.0 <= value <= 200.0:
+        raise argparse.ArgumentTypeError("expected 0 to 200 °C")
+    return value
+
+
 def _register_map(text: str) -> tuple[int | None, ...]:
     from cobot_hmi.emulator.robot.robot_io import parse_register_map
 
@@ -197,6 +207,15 @@ def _add_robot_arguments(robot: argparse._ArgumentGroup) -> None:
         "0: every frame",
     )
     robot.add_argument(
+        "--motor-temperature-rise-c",
+        type=_temperature_rise_c,
+        default=None,
+        metavar="C",
+        help="how many °C above room temperature (25 °C) a motor settles at its rated current "
+        "(default 40); 0 holds every motor at room temperature, so a test's friction reads in "
+        "one temperature band from the start (docs/emulator.md)",
+    )
+    robot.add_argument(
         "--register-map",
         type=_register_map,
         default=None,
@@ -326,18 +345,20 @@ def _robot(args: argparse.Namespace) -> ProcessImage | int:
         return _replay_robot(args)
     if args.static:
         return StaticRobot(idle)
-    simulated = SimulatedRobot(
-        RobotSettings(
-            model=args.model,
-            seed=args.seed,
-            autostart_program=not args.no_program,
-            collaborative=args.collaborative,
-            idle_behaviour=idle,
-            kinematic_refresh_ms=args.kinematic_refresh_ms,
-            register_map=args.register_map,
-            cycle_marker_register=args.cycle_marker_register,
-        )
+    settings = RobotSettings(
+        model=args.model,
+        seed=args.seed,
+        autostart_program=not args.no_program,
+        collaborative=args.collaborative,
+        idle_behaviour=idle,
+        kinematic_refresh_ms=args.kinematic_refresh_ms,
+        register_map=args.register_map,
+        cycle_marker_register=args.cycle_marker_register,
     )
+    # Set only when asked for: RobotSettings' own default stays the one place it is said.
+    if args.motor_temperature_rise_c is not None:
+        settings.temperature_rise_at_rated_current_c = args.motor_temperature_rise_c
+    simulated = SimulatedRobot(settings)
     if args.wear is not None and not _apply_wear_scenario(args.wear, simulated):
         return 2
     return simulated
