@@ -16,6 +16,7 @@ from asyncua import Client, ua
 
 from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.target import Target
+from cobot_hmi.service.health.service import LatestHealth, health_event
 from conftest import _next_host, free_tcp_port
 from service_support import cell_settings, running_service
 from sparkplug_support import Panel
@@ -96,3 +97,24 @@ async def test_health_variables_follow_the_health_events(plc_host: str, tmp_path
             assert (await verdict.read_data_value()).SourceTimestamp == verdict_at
     finally:
         await target.stop()
+
+
+def test_the_latest_health_events_are_handed_over_whole_never_changed() -> None:
+    """``Health.latest`` is read from the OPC UA server's thread while the web loop publishes:
+    what a reader holds (the snapshot, an event, its joints) never changes; a new event
+    replaces the snapshot whole."""
+    latest = LatestHealth()
+    assert latest.get(ROBOT) is None and len(latest) == 0
+    latest.publish(ROBOT, health_event(report("watch", 12.0), 1.0))
+    held = latest[ROBOT]
+    held_snapshot = dict(latest)
+    latest.publish("h2017", health_event(report("ok", 1.0), 2.0))
+    latest.publish(ROBOT, health_event(report("act", 12.5), 3.0))
+    assert held["verdict"] == "watch" and held_snapshot == {ROBOT: held}
+    assert latest[ROBOT]["verdict"] == "act" and list(latest) == [ROBOT, "h2017"]
+    joints = held["joints"]
+    assert isinstance(joints, tuple)
+    with pytest.raises(TypeError):
+        held["verdict"] = "ok"  # type: ignore[index]
+    with pytest.raises(TypeError):
+        joints[2]["verdict"] = "ok"

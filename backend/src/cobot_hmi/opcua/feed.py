@@ -10,7 +10,8 @@ Everything the server takes from the service, and every request it makes of it, 
   loop's next wake, up to a WebSocket batch later). With it the link state, the command image, the
   control holder, the identity and the robot's latest health event, read as they are
   (attribute and dictionary reads; the web loop and the cyclic thread never wait for this
-  thread).
+  thread; the health events from the health service's read-only snapshot, which the web loop
+  replaces whole and never changes, ``service.health.service.LatestHealth``).
 - **Users**: ``authenticate`` checks a user name and password against the service's users file
   (scrypt, on the server's thread), behind a login throttle of its own (``service.access.auth``'s
   two budgets: per client address and per user name); a refusal during a wait is immediate.

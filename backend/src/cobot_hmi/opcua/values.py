@@ -202,7 +202,7 @@ class RobotValues:
         joints = event.get("joints")
         by_joint = {
             entry.get("joint"): entry
-            for entry in (joints if isinstance(joints, list) else [])
+            for entry in (joints if isinstance(joints, list | tuple) else [])
             if isinstance(entry, Mapping)
         }
         for joint in self.nodes.health_joints:

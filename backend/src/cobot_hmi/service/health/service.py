@@ -13,6 +13,9 @@ and ``health`` events (docs/health.md "In the service").
   publishes a ``health`` event when a verdict or a joint's life used (to 0.1 %) changed.
 - Durability (``health.store``): restored at start, saved every ``health_save_s`` and at stop;
   a snapshot of the figures every ``health_snapshot_s`` for the trends.
+- Each robot's latest ``health`` event (``Health.latest``, a ``LatestHealth``) is read by the
+  OPC UA server from its own thread: the web loop never changes what a reader may hold, it
+  replaces the whole read-only snapshot (``LatestHealth.publish``).
 """
 
 from __future__ import annotations
@@ -23,7 +26,8 @@ import contextlib
 import logging
 import threading
 import time
-from collections.abc import Coroutine, Mapping, Sequence
+from collections.abc import Coroutine, Iterator, Mapping, Sequence
+from types import MappingProxyType
 from typing import Any, Final
 
 from cobot_hmi.health import HealthEngine
@@ -68,6 +72,38 @@ def health_event(report: Mapping[str, object], now_s: float) -> Event:
     }
 
 
+def frozen_event(event: Event) -> Mapping[str, object]:
+    """A ``health`` event nobody can change: read-only, its joints a tuple of read-only ones."""
+    joints = event.get("joints")
+    entries = joints if isinstance(joints, list) else []
+    return MappingProxyType(
+        {**event, "joints": tuple(MappingProxyType(dict(entry)) for entry in entries)}
+    )
+
+
+class LatestHealth(Mapping[str, Mapping[str, object]]):
+    """Each robot's last ``health`` event, read from other threads (the OPC UA server's) while
+    the web loop publishes, thread-safe by construction: a snapshot (a read-only mapping of
+    frozen events) is never changed once made; each new event replaces it whole, by one
+    reference store, so a reader sees the previous snapshot or the next, never one changing."""
+
+    def __init__(self) -> None:
+        self._snapshot: Mapping[str, Mapping[str, object]] = MappingProxyType({})
+
+    def __getitem__(self, name: str) -> Mapping[str, object]:
+        return self._snapshot[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._snapshot)
+
+    def __len__(self) -> int:
+        return len(self._snapshot)
+
+    def publish(self, name: str, event: Event) -> None:
+        """The robot's new event (on the web loop, the one writer)."""
+        self._snapshot = MappingProxyType({**self._snapshot, name: frozen_event(event)})
+
+
 def advise(alarms: AlarmEngine, report: Mapping[str, object], now_s: float) -> list[Event]:
     """Each joint's advisory alarm (``health.N``) from a report: active while its verdict is
     watch or act, its reason the alarm's message; the alarm events of what changed."""
@@ -106,8 +142,8 @@ class Health:
         self.robots = robots
         self.store = HealthStore(store)
         self.monitors: dict[str, RobotHealth] = {}
-        self.latest: dict[str, Event] = {}
-        """Each robot's last ``health`` event (what its doors show now)."""
+        self.latest = LatestHealth()
+        """Each robot's last ``health`` event (what its doors show now; other threads read it)."""
         self._announced: dict[str, tuple[object, ...]] = {}
         self._loop: asyncio.AbstractEventLoop | None = None
         self._stopping = threading.Event()
@@ -186,7 +222,7 @@ class Health:
         key = _event_key(event)
         if self._announced.get(name) != key:
             self._announced[name] = key
-            self.latest[name] = event
+            self.latest.publish(name, event)
             robot.publish_event(dict(event))
 
     # ------------------------------------------------------------ the health thread
