@@ -183,7 +183,7 @@ class _Answered:
     body: bytes
 
 
-_NODES_CACHE: dict[tuple[int, str | None, str | None, str | None], _Answered] = {}
+NodesCache = dict[tuple[str | None, str | None, str | None], _Answered]
 
 
 def _nodes_answer(
@@ -224,13 +224,17 @@ async def nodes(
     # Built from the models as they are (never validated again: they are ours), and the same
     # answer given to every page asking within NODES_CACHE_S.
     runtime = _runtime(request)
-    key = (id(runtime), group, area, state)
+    state_of_app = request.app.state
+    if not hasattr(state_of_app, "plant_nodes_cache"):
+        state_of_app.plant_nodes_cache = {}
+    answers: NodesCache = state_of_app.plant_nodes_cache  # this app's (its runtime's) own
+    key = (group, area, state)
     now_s = time.monotonic()
-    cached = _NODES_CACHE.get(key)
+    cached = answers.get(key)
     if cached is None or now_s - cached.at_s > NODES_CACHE_S:
-        if len(_NODES_CACHE) > 64:  # one plant's few filters; never grows without bound
-            _NODES_CACHE.clear()
-        cached = _NODES_CACHE[key] = _Answered(now_s, _nodes_answer(runtime, group, area, state))
+        if len(answers) > 64:  # one plant's few filters; never grows without bound
+            answers.clear()
+        cached = answers[key] = _Answered(now_s, _nodes_answer(runtime, group, area, state))
     return Response(cached.body, media_type="application/json")
 
 
