@@ -79,7 +79,8 @@ class Stack:
         return f"ws://{self.service_host}:{self.http_port}/api/v1/robots/{name}/stream"
 
     def get(self, path: str) -> bytes:
-        with urllib.request.urlopen(self.base_url + path, timeout=5) as answer:
+        # 30 s: a service with many robots and clients on a busy machine answers late, not never
+        with urllib.request.urlopen(self.base_url + path, timeout=30) as answer:
             data: bytes = answer.read()
             return data
 
