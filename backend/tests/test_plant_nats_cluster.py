@@ -5,7 +5,12 @@ node the plant is connected to is killed (SIGKILL): the plant moves to the other
 rebirths its seq checks call for, and shows the cell as it is now.
 
 NATS's MQTT: QoS 0 and 1 (no 2), retained messages and wills kept in JetStream, a server name
-and JetStream on every node (docs/operations.md "The plant")."""
+and JetStream on every node (docs/operations.md "The plant").
+
+The tests share one cluster (starting three nodes and their JetStream is most of a test's time):
+each test gets it with every node up and taking MQTT clients, a node the previous test killed
+started again on its own store (it rejoins the cluster); each test has its own cell, plant and
+client ids' sessions are clean."""
 
 from __future__ import annotations
 
@@ -14,8 +19,9 @@ import contextlib
 import functools
 import signal
 import socket
+import subprocess
 import time
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -47,24 +53,29 @@ class NatsNode:
     host: str
     mqtt_port: int
     config: Path
-    process: asyncio.subprocess.Process | None = None
+    process: subprocess.Popen[bytes] | None = None
 
     @property
     def url(self) -> str:
         return f"mqtt://{self.host}:{self.mqtt_port}"
 
-    async def start(self) -> None:
-        self.process = await asyncio.create_subprocess_exec(
-            str(NATS_SERVER),
-            "-c",
-            str(self.config),
-            stdout=asyncio.subprocess.DEVNULL,
-            stderr=asyncio.subprocess.DEVNULL,
+    @property
+    def running(self) -> bool:
+        return self.process is not None and self.process.poll() is None
+
+    def start(self) -> None:
+        self.process = subprocess.Popen(
+            [str(NATS_SERVER), "-c", str(self.config)],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
         )
 
     def kill(self) -> None:
-        if self.process is not None and self.process.returncode is None:
+        """SIGKILL, and the process reaped (a killed node is started again by ``cluster``)."""
+        if self.running:
+            assert self.process is not None
             self.process.send_signal(signal.SIGKILL)
+            self.process.wait()
 
 
 def _mqtt_accepts(node: NatsNode) -> bool:
@@ -81,13 +92,14 @@ def _mqtt_accepts(node: NatsNode) -> bool:
     return answer[:1] == b"\x20" and answer[3:4] == b"\x00"
 
 
-@contextlib.asynccontextmanager
-async def nats_cluster(directory: Path) -> AsyncIterator[list[NatsNode]]:
+@pytest.fixture(scope="module")
+def nats_nodes(tmp_path_factory: pytest.TempPathFactory) -> Iterator[list[NatsNode]]:
+    """Three clustered nodes for the module's tests, started (``cluster`` waits for them)."""
+    directory = tmp_path_factory.mktemp("nats")
     hosts = [_next_host() for _ in range(3)]
     cluster_ports = [free_tcp_port(h) for h in hosts]
     routes = ", ".join(f"nats-route://{h}:{p}" for h, p in zip(hosts, cluster_ports, strict=True))
     nodes = []
-    await asyncio.to_thread(directory.mkdir, parents=True, exist_ok=True)
     for index, host in enumerate(hosts):
         name = f"n{index + 1}"
         config = directory / f"{name}.conf"
@@ -103,15 +115,22 @@ async def nats_cluster(directory: Path) -> AsyncIterator[list[NatsNode]]:
         nodes.append(NatsNode(name, host, mqtt_port, config))
     try:
         for node in nodes:
-            await node.start()
-        for node in nodes:
-            await eventually(functools.partial(_mqtt_accepts, node), timeout_s=60)
+            node.start()
         yield nodes
     finally:
         for node in nodes:
             node.kill()
-            if node.process is not None:
-                await node.process.wait()
+
+
+@pytest.fixture
+async def cluster(nats_nodes: list[NatsNode]) -> list[NatsNode]:
+    """The module's cluster with every node up: one a previous test killed started again."""
+    for node in nats_nodes:
+        if not node.running:
+            node.start()
+    for node in nats_nodes:
+        await eventually(functools.partial(_mqtt_accepts, node), timeout_s=60)
+    return nats_nodes
 
 
 @contextlib.asynccontextmanager
@@ -152,9 +171,11 @@ def _devices(node: dict[str, Any]) -> dict[str, dict[str, Any]]:
 
 
 @needs_pysparkplug
-async def test_killing_the_plants_broker_node(plc_host: str, tmp_path: Path) -> None:
+async def test_killing_the_plants_broker_node(
+    plc_host: str, tmp_path: Path, cluster: list[NatsNode]
+) -> None:
+    a, b, c = cluster
     async with (
-        nats_cluster(tmp_path / "nats") as (a, b, c),
         our_cell(plc_host, tmp_path / "cell", a.url) as (panels, _),
         plant_process(plc_host, tmp_path / "plant", [b.url, c.url]) as plant,
         pysparkplug_node(a.host, a.mqtt_port, "line-3", "foreign", "r1") as peer,
@@ -273,13 +294,13 @@ async def _plant_transitions(plant: Any, since: float) -> set[tuple[str, str, bo
 
 
 async def test_no_alarm_transition_is_lost_when_the_plants_node_dies(
-    plc_host: str, tmp_path: Path
+    plc_host: str, tmp_path: Path, cluster: list[NatsNode]
 ) -> None:
     """The cell publishes alarm transitions without pause while the node the plant is connected
     to is killed: the plant moves to another node, asks for a rebirth with the transitions it
     missed, and its alarm log ends equal to the cell's own alarm history."""
+    a, b, c = cluster
     async with (
-        nats_cluster(tmp_path / "nats") as (a, b, c),
         our_cell(plc_host, tmp_path / "cell", a.url) as (panels, running),
         plant_process(plc_host, tmp_path / "plant", [b.url, c.url]) as plant,
     ):
