@@ -35,6 +35,7 @@ _TERMS = 9
 y the acceleration in hundreds of °/s²)."""
 _ACCELERATION_SCALE = 100.0
 _COLUMNS = 2 * _TERMS  # forward, then back
+_TERM_OFFSETS = np.arange(_TERMS)
 _RIDGE = 1e-3
 """Keeps a fit whose samples do not spread in position or acceleration to its mean there."""
 MIN_SHARED_SAMPLES = 20.0
@@ -105,9 +106,18 @@ class CellTable:
         for column, value in enumerate(columns, start=1):
             terms[:, column] = value
         base = self._slots_of(keys) * _COLUMNS + np.where(velocity[rows, joint] > 0.0, 0, _TERMS)
-        index = (base[:, None] + np.arange(_TERMS)).ravel()
         flat = self.sums.reshape(-1)
-        flat += np.bincount(index, weights=terms.ravel(), minlength=flat.size)
+        if base.size * _TERMS * 4 >= flat.size:
+            index = (base[:, None] + _TERM_OFFSETS).ravel()
+            flat += np.bincount(index, weights=terms.ravel(), minlength=flat.size)
+            return
+        # A few samples (a second's block at a 100 ms refresh) against a large table: the sums
+        # binned over the cells they touch only, not over the whole table (the same sums, each
+        # cell's samples added in the same order).
+        touched, inverse = np.unique(base, return_inverse=True)
+        index = (inverse.reshape(-1)[:, None] * _TERMS + _TERM_OFFSETS).ravel()
+        partial = np.bincount(index, weights=terms.ravel(), minlength=touched.size * _TERMS)
+        flat[(touched[:, None] + _TERM_OFFSETS).ravel()] += partial
 
     def _slots_of(self, keys: IntArray) -> IntArray:
         """Each key's slot: found in the sorted known keys at numpy speed; a key never seen
