@@ -8,7 +8,8 @@ thread feeds it (``service/health/monitor.py``): the frames appended one by one 
 delivered, a block every second (``FrameBlock.from_frames``, ``observe``), the cycles ended at
 the marker's rising edges once their frames are in, a baseline learned from the cycles after
 the first three, a report every 30 s (``health_report_s``). Timed with the process's CPU clock,
-best of ``--rounds``, split into the block's conversion, the engine and the reports.
+best of ``--rounds``, split into the block's conversion, the engine and the reports; beside
+the conversion, what ``FrameBlock.from_payloads`` costs the same blocks from their raw bytes.
 
 Beside it, two references on the same frames and the same clock: decoding each frame from its
 284 bytes (``decode_frame``: what the scanner pays once per frame for every consumer) and a
@@ -146,6 +147,13 @@ def main() -> None:
     n = best.frames
     raws = [encode_frame(f) for f in frames]
     decode_us = per_frame_us(lambda: [decode_frame(r) for r in raws], len(raws), args.rounds)
+    blocks = [
+        (times[k : k + BLOCK_FRAMES], raws[k : k + BLOCK_FRAMES])
+        for k in range(0, len(raws), BLOCK_FRAMES)
+    ]
+    payloads_us = per_frame_us(
+        lambda: [FrameBlock.from_payloads(t, r) for t, r in blocks], len(raws), args.rounds
+    )
     copy_us = per_frame_us(
         lambda: np.array([f.joint_torque for f in frames]), len(frames), args.rounds
     )
@@ -164,6 +172,10 @@ def main() -> None:
     )
     for name, seconds, note in rows:
         print(f"{name:<20}{1e6 * seconds / n:7.2f} µs/robot-frame ({note})")
+    print(
+        f"{'  from payloads':<20}{payloads_us:7.2f} µs/robot-frame "
+        "(FrameBlock.from_payloads of the raw bytes, in place of the conversion)"
+    )
     print(f"{'reference: decode':<20}{decode_us:7.2f} µs/frame (decode_frame of its 284 bytes)")
     print(f"{'reference: copy':<20}{copy_us:7.2f} µs/frame (np.array of one joint field)")
 
