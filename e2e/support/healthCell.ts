@@ -2,24 +2,34 @@
  * A private cell for the robot-health scenario (44): an emulated M1013 running its demo program
  * with its cycle marker, on a loopback address of its own, and a `cobot-hmi serve` for that one
  * robot on a free port, with its own users and database, started by the spec and stopped by it.
+ * The service opens both of the plant's doors: a Sparkplug B edge node on a Mosquitto of the
+ * cell's own, and an OPC UA server; `startHealthPeer` reads both (support/health_peer.py).
  * Health counts knocks per shift and keeps every baseline: in the worker's cell those would stay
  * for every later spec (an advisory alarm the others' banners would show), so it gets a cell
  * that ends with it.
  */
+import { expect } from "@playwright/test";
+import { spawn } from "node:child_process";
 import { mkdtempSync, writeFileSync } from "node:fs";
 import path from "node:path";
-import { type Child, cobotHmi, freePort, runCobotHmi } from "./processes";
-import { env, ofCell, settings } from "./settings";
+import { startMosquitto } from "./mosquitto";
+import { Child, cobotHmi, freePort, runCobotHmi } from "./processes";
+import { E2E_DIR, env, ofCell, settings } from "./settings";
 
 export type { Child };
 
-/** Clear of the worker's cell (.1, .3, .4, .6), the replay cell (.9, .10), `make demo` (.2) and pytest (127.10+). */
+/** Clear of the worker's cell (.1, .3, .4, .6), the replay cell (.9, .10), the plant (.20–.24), `make demo` (.2) and pytest (127.10+). */
 export const healthSettings = {
   /** The emulated robot's EtherNet/IP target and control API (on settings.controlPort). */
   robotHost: ofCell(env("E2E_HEALTH_ROBOT_HOST", "127.0.0.11")),
   /** The service's own EtherNet/IP address (it receives T→O on UDP 2222 there). */
   localHost: ofCell(env("E2E_HEALTH_LOCAL_HOST", "127.0.0.12")),
   robotName: env("E2E_HEALTH_ROBOT_NAME", "worn"),
+  /** The cell's own broker (Mosquitto, a free TCP port) and the service's OPC UA server (a free TCP port). */
+  brokerHost: ofCell(env("E2E_HEALTH_BROKER_HOST", "127.0.0.13")),
+  opcuaHost: ofCell(env("E2E_HEALTH_OPCUA_HOST", "127.0.0.14")),
+  sparkplugGroup: "e2e-health",
+  sparkplugNode: "health-cell",
   /**
    * The verdicts judged every second and a trend snapshot every 2 s (the defaults, 5 s and
    * 10 min, are a plant's): the page shows a change within a test's patience.
@@ -31,6 +41,8 @@ export const healthSettings = {
 export interface HealthCell {
   readonly baseURL: string;
   readonly controlURL: string;
+  readonly brokerAddress: string;
+  readonly opcuaURL: string;
   readonly emulator: Child;
   readonly service: Child;
 }
@@ -56,6 +68,10 @@ export async function startHealthCell(started: (child: Child) => void): Promise<
     // Every frame a fresh measurement (the controller's 100 ms refresh is the default): a
     // baseline of two cycles then has enough friction cells to compare with.
     "--kinematic-refresh-ms", "0",
+    // The motors held at room temperature: the engine compares friction within 2 °C bands of
+    // the motor's temperature, and a fresh emulator's motors warm for about ten minutes after
+    // the baseline, so a friction wear would not read within the test (docs/emulator.md).
+    "--motor-temperature-rise-c", "0",
   ]);
   started(emulator);
   const stateDir = ["--state-dir", dir];
@@ -75,6 +91,10 @@ export async function startHealthCell(started: (child: Child) => void): Promise<
   );
   const controlURL = `http://${healthSettings.robotHost}:${settings.controlPort}`;
   await emulator.waitForHttp(`${controlURL}/status`, 200, 60_000, "health emulator: control API up");
+  const brokerPort = await freePort(healthSettings.brokerHost);
+  await startMosquitto(dir, healthSettings.brokerHost, brokerPort, started);
+  const brokerAddress = `${healthSettings.brokerHost}:${brokerPort}`;
+  const opcuaURL = `opc.tcp://${healthSettings.opcuaHost}:${await freePort(healthSettings.opcuaHost)}`;
   const port = await freePort(settings.httpHost);
   const service = cobotHmi("health service", [
     "serve",
@@ -89,9 +109,76 @@ export async function startHealthCell(started: (child: Child) => void): Promise<
     "--port", String(port),
     ...stateDir,
     "--frontend-dir", settings.frontendDir,
+    "--mqtt-url", `mqtt://${brokerAddress}`,
+    "--sparkplug-group", healthSettings.sparkplugGroup,
+    "--sparkplug-node", healthSettings.sparkplugNode,
+    "--opcua-url", opcuaURL,
   ]);
   started(service);
   const baseURL = `http://${settings.httpHost}:${port}`;
   await service.waitForHttp(`${baseURL}/readyz`, 200, 60_000, "health service connected to its robot");
-  return { baseURL, controlURL, emulator, service };
+  return { baseURL, controlURL, brokerAddress, opcuaURL, emulator, service };
+}
+
+/** What the peer reads at each door: metric name (`Health/J3/Verdict`, …) to value. */
+export interface DoorReadings {
+  readonly sparkplug: Record<string, unknown>;
+  readonly opcua: Record<string, unknown>;
+}
+
+/**
+ * An independent reader of the robot's health at both doors (support/health_peer.py, run with
+ * the python beside `cobot-hmi`): `readings()` is the last it printed.
+ */
+export class HealthPeer {
+  constructor(readonly child: Child) {}
+
+  readings(): DoorReadings {
+    const lines = this.child.output.split("\n");
+    for (let i = lines.length - 1; i >= 0; i--) {
+      if (!lines[i]!.startsWith("{")) continue;
+      try {
+        return JSON.parse(lines[i]!) as DoorReadings;
+      } catch {
+        // a line still being written: the one before
+      }
+    }
+    return { sparkplug: {}, opcua: {} };
+  }
+
+  /** Until `name` reads a value matching `pattern` at both doors. */
+  async waitForBoth(name: string, pattern: RegExp, timeout_ms = 60_000): Promise<void> {
+    await expect
+      .poll(
+        () => {
+          if (!this.child.running) throw new Error(`health peer exited:\n${this.child.output}`);
+          const { sparkplug, opcua } = this.readings();
+          return { sparkplug: String(sparkplug[name]), opcua: String(opcua[name]) };
+        },
+        { timeout: timeout_ms, message: `${name} at both doors matches ${pattern}` },
+      )
+      .toEqual({ sparkplug: expect.stringMatching(pattern), opcua: expect.stringMatching(pattern) });
+  }
+}
+
+export function startHealthPeer(cell: HealthCell, started: (child: Child) => void): HealthPeer {
+  const python = path.join(path.dirname(settings.cobotHmi), "python");
+  const script = path.join(E2E_DIR, "support", "health_peer.py");
+  const child = new Child(
+    "health peer",
+    spawn(
+      python,
+      [
+        script,
+        "--mqtt", cell.brokerAddress,
+        "--group", healthSettings.sparkplugGroup,
+        "--node", healthSettings.sparkplugNode,
+        "--opcua", cell.opcuaURL,
+        "--robot", healthSettings.robotName,
+      ],
+      { stdio: ["ignore", "pipe", "pipe"], env: { ...process.env, PYTHONUNBUFFERED: "1" } },
+    ),
+  );
+  started(child);
+  return new HealthPeer(child);
 }
