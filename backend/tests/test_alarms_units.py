@@ -35,7 +35,7 @@ from cobot_hmi.service.alarms.state import (
 )
 from cobot_hmi.service.config.loading import load_settings
 from cobot_hmi.service.labels import element_label, labels_of, write_summary
-from cobot_hmi.service.settings import ServiceSettings, SettingsError
+from cobot_hmi.service.service_settings import ServiceSettings, SettingsError
 from cobot_hmi.service.storage.store import iso8601
 from cobot_hmi.service.storage.tags import POINTS_BY_KEY, TagError, check_tags, from_csv, to_csv
 

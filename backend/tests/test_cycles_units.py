@@ -19,7 +19,7 @@ from cobot_hmi.service.config.arguments import add_arguments, settings_from_args
 from cobot_hmi.service.config.loading import load_settings
 from cobot_hmi.service.cycles.meter import CycleMeter
 from cobot_hmi.service.robots.cycle_trigger import TriggerError, parse_trigger
-from cobot_hmi.service.settings import SettingsError
+from cobot_hmi.service.service_settings import SettingsError
 from emulator_harness import FAST_TIMINGS
 
 RPI_S = 0.01

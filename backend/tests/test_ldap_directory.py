@@ -19,7 +19,7 @@ from cobot_hmi.service.access.directory_settings import DirectorySettings
 from cobot_hmi.service.config.arguments import add_arguments
 from cobot_hmi.service.config.arguments import settings_from_args as from_args
 from cobot_hmi.service.config.loading import load_settings
-from cobot_hmi.service.settings import SettingsError
+from cobot_hmi.service.service_settings import SettingsError
 from conftest import free_tcp_port
 from ldap_support import (
     ADMINS,

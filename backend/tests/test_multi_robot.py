@@ -25,7 +25,7 @@ from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.scanner.originator import ConnectionState
 from cobot_hmi.service.errors import UnknownRobotError
 from cobot_hmi.service.runtime import Service
-from cobot_hmi.service.settings import RobotSettings
+from cobot_hmi.service.service_settings import RobotSettings
 from cobot_hmi.settings import HmiSettings
 from conftest import _next_host, free_tcp_port
 from service_support import (

@@ -17,11 +17,11 @@ from cobot_hmi.generated.frames import RobotState
 from cobot_hmi.layout import ANALOG_OUTPUT_RANGES, O2T_FIELDS, T2O_FIELDS
 from cobot_hmi.opcua import companion, robotics
 from cobot_hmi.opcua.server import PUBLISH_AFTER_TICK, subscription_delay_s, tick_deadline
-from cobot_hmi.opcua.settings import DEFAULT_PORT
+from cobot_hmi.opcua.opcua_settings import DEFAULT_PORT
 from cobot_hmi.opcua.units import PER_TYPE, analog_unit, unit_for
 from cobot_hmi.opcua.values import GOOD, SharedDataValue
 from cobot_hmi.service.config.loading import load_settings
-from cobot_hmi.service.settings import SettingsError
+from cobot_hmi.service.service_settings import SettingsError
 from cobot_hmi.settings import HmiSettings
 
 UA_NS = "{http://opcfoundation.org/UA/2011/03/UANodeSet.xsd}"

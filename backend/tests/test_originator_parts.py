@@ -28,7 +28,7 @@ from cobot_hmi.enip.encapsulation import ENIP_UDP_PORT
 from cobot_hmi.scanner.connection.lifecycle import ConnectionLifecycle
 from cobot_hmi.scanner.connection.link import Link
 from cobot_hmi.scanner.connection.o2t_send import O2TSender
-from cobot_hmi.scanner.connection.settings import OriginatorSettings
+from cobot_hmi.scanner.connection.originator_settings import OriginatorSettings
 from cobot_hmi.scanner.connection.state import (
     ConnectionState,
     ConnectionStatus,

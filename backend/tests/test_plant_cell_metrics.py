@@ -14,7 +14,7 @@ from typing import Any
 
 import pytest
 
-from cobot_hmi.sparkplug.settings import SparkplugSettings
+from cobot_hmi.sparkplug.sparkplug_settings import SparkplugSettings
 from mosquitto_support import Message, encode_command, needs_mosquitto
 from plant_support import plant_process
 from sparkplug_support import GROUP, NODE, STRING, Cell, cell

@@ -16,7 +16,7 @@ from cobot_hmi.service.robots.connection_watch import ConnectionWatch
 from cobot_hmi.service.robots.frame_notifier import FrameNotifier
 from cobot_hmi.service.robots.identity import IdentityReader, RobotIdentity
 from cobot_hmi.service.robots.link import CyclicLoop, RobotLink
-from cobot_hmi.service.robots.settings import RobotSettings
+from cobot_hmi.service.robots.robot_settings import RobotSettings
 
 
 class _Watched:

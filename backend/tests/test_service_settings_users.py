@@ -27,7 +27,7 @@ from cobot_hmi.service.access.users import (
 )
 from cobot_hmi.service.config.arguments import add_arguments, settings_from_args
 from cobot_hmi.service.config.loading import load_settings
-from cobot_hmi.service.settings import ServiceSettings, SettingsError
+from cobot_hmi.service.service_settings import ServiceSettings, SettingsError
 
 
 def _parse(argv: list[str]) -> argparse.Namespace:

@@ -14,7 +14,7 @@ from cobot_hmi import connection_params as cp
 from cobot_hmi.cli import main
 from cobot_hmi.service.config.arguments import add_arguments, settings_from_args
 from cobot_hmi.service.config.loading import load_settings
-from cobot_hmi.service.settings import RobotSettings, ServiceSettings, SettingsError
+from cobot_hmi.service.service_settings import RobotSettings, ServiceSettings, SettingsError
 
 CELL = """
 rpi_ms = 20

@@ -22,7 +22,7 @@ import cobot_hmi
 from cobot_hmi.plant.settings import PlantSettings
 from cobot_hmi.service.config.arguments import add_arguments, settings_from_args
 from cobot_hmi.service.config.loading import env_name, load_settings
-from cobot_hmi.service.settings import ServiceSettings, SettingsError
+from cobot_hmi.service.service_settings import ServiceSettings, SettingsError
 from cobot_hmi.settings import HmiSettings
 
 KEYS = HmiSettings.setting_keys()

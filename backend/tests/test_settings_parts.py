@@ -10,10 +10,10 @@ from pathlib import Path
 from cobot_hmi.scanner.originator import OriginatorSettings
 from cobot_hmi.service.access.directory_settings import DirectorySettings
 from cobot_hmi.service.config.loading import load_settings
-from cobot_hmi.service.recording.settings import HistorySettings
+from cobot_hmi.service.recording.history_settings import HistorySettings
 from cobot_hmi.service.runtime import Service
-from cobot_hmi.service.settings import ServiceSettings
-from cobot_hmi.service.web.settings import WebSettings
+from cobot_hmi.service.service_settings import ServiceSettings
+from cobot_hmi.service.web.web_settings import WebSettings
 
 
 def _settings(tmp_path: Path) -> ServiceSettings:

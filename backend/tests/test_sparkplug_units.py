@@ -15,7 +15,7 @@ from cobot_hmi.codec import zero_frame
 from cobot_hmi.layout import T2O_FIELDS
 from cobot_hmi.service.config.loading import load_settings
 from cobot_hmi.service.robots.frame_notifier import FrameNotifier, FrameRecord
-from cobot_hmi.service.settings import DEFAULT_DEADBANDS, SettingsError
+from cobot_hmi.service.service_settings import DEFAULT_DEADBANDS, SettingsError
 from cobot_hmi.settings import HmiSettings
 from cobot_hmi.sparkplug.buffer import DiskBuffer
 from cobot_hmi.sparkplug.catalogue import ALIAS_STRIDE, Catalogue

@@ -184,7 +184,7 @@ async def test_permessage_deflate_is_negotiated(hmi: Running) -> None:
 def test_the_kiosk_settings_are_checked_and_sorted() -> None:
     from pydantic import ValidationError
 
-    from cobot_hmi.service.kiosk.settings import KioskSettings
+    from cobot_hmi.service.kiosk.kiosk_settings import KioskSettings
 
     settings = KioskSettings(shift_starts="22:00,06:00,14:00", kiosk_plot_window_s=45)  # type: ignore[arg-type]
     assert settings.kiosk_hello() == {

@@ -26,7 +26,7 @@ from cobot_hmi.service.api.tls import TlsError, fingerprint_of, not_after_of, se
 from cobot_hmi.service.api.tls_redirect import redirect_listener
 from cobot_hmi.service.api.tls_selfsigned import self_signed_pair
 from cobot_hmi.service.config.loading import load_settings
-from cobot_hmi.service.settings import ServiceSettings, SettingsError
+from cobot_hmi.service.service_settings import ServiceSettings, SettingsError
 from conftest import free_tcp_port
 from service_support import DEADLINE_S, OPERATOR, running_service, service_settings
 from tls_support import TestCa

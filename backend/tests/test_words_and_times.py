@@ -24,7 +24,7 @@ from cobot_hmi.history.schema import SEQ, T2O_SEQUENCE, TIME
 from cobot_hmi.service.alarms.engine import AlarmEngine
 from cobot_hmi.service.alarms.persistence import AlarmChange
 from cobot_hmi.service.plant_time import PLANT_ZONE, host_zone_name
-from cobot_hmi.service.settings import ServiceSettings, SettingsError
+from cobot_hmi.service.service_settings import ServiceSettings, SettingsError
 from service_support import running_service, service_settings
 
 pytestmark = pytest.mark.timeout(120)

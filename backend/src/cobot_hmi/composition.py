@@ -14,10 +14,10 @@ from collections.abc import Iterable, Sequence
 
 from cobot_hmi.opcua.feed import ServiceFeed
 from cobot_hmi.opcua.server import OpcUaServer
-from cobot_hmi.opcua.settings import OpcUaSettings
+from cobot_hmi.opcua.opcua_settings import OpcUaSettings
 from cobot_hmi.service.extensions import MetricFamily, ServiceExtension
 from cobot_hmi.service.runtime import Service
-from cobot_hmi.service.web.settings import WebSettings
+from cobot_hmi.service.web.web_settings import WebSettings
 from cobot_hmi.settings import HmiSettings
 from cobot_hmi.sparkplug.edge_node import EdgeNode
 

@@ -43,7 +43,7 @@ def _verify(args: argparse.Namespace) -> int:
     import contextlib
 
     from cobot_hmi.cli.hmi_settings import hmi_settings
-    from cobot_hmi.service.settings import SettingsError
+    from cobot_hmi.service.service_settings import SettingsError
 
     try:
         settings = hmi_settings(args)

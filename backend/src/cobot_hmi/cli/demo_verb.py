@@ -320,7 +320,7 @@ def _demo(args: argparse.Namespace) -> int:
     import tempfile
 
     from cobot_hmi.service.config.loading import load_settings
-    from cobot_hmi.service.settings import SettingsError
+    from cobot_hmi.service.service_settings import SettingsError
     from cobot_hmi.settings import HmiSettings
 
     try:

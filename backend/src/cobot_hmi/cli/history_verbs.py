@@ -55,7 +55,7 @@ def _export(args: argparse.Namespace) -> int:
     from cobot_hmi.history.times import TimeFormatError, parse_time
     from cobot_hmi.service.api.routes.history import export_chunks
     from cobot_hmi.service.plant_time import host_zone_name
-    from cobot_hmi.service.settings import SettingsError
+    from cobot_hmi.service.service_settings import SettingsError
 
     try:
         settings = hmi_settings(args)

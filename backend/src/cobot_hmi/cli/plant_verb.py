@@ -52,7 +52,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
             "REST API with the same login, roles, TLS and directory options as serve."
         ),
     )
-    from cobot_hmi.service.settings import ServiceSettings
+    from cobot_hmi.service.service_settings import ServiceSettings
 
     own = list(PlantHostSettings.model_fields)
     shared = [
@@ -79,7 +79,7 @@ def _plant(args: argparse.Namespace) -> int:
     from cobot_hmi.service.api.server import prepare_process, uvicorn_config
     from cobot_hmi.service.api.tls import TlsError
     from cobot_hmi.service.config.arguments import settings_from_args
-    from cobot_hmi.service.settings import SettingsError
+    from cobot_hmi.service.service_settings import SettingsError
 
     try:
         settings = settings_from_args(args, None, PlantSettings)

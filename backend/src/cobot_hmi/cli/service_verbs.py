@@ -77,7 +77,7 @@ def _serve(args: argparse.Namespace) -> int:
     from cobot_hmi.composition import build_service
     from cobot_hmi.service.api.server import prepare_process, serve
     from cobot_hmi.service.api.tls import TlsError
-    from cobot_hmi.service.settings import SettingsError
+    from cobot_hmi.service.service_settings import SettingsError
 
     try:
         settings = hmi_settings(args)
@@ -96,7 +96,7 @@ def _serve(args: argparse.Namespace) -> int:
 def _users_add(args: argparse.Namespace) -> int:
     from cobot_hmi.cli.hmi_settings import hmi_settings
     from cobot_hmi.service.access.users import Role, UsersError, UsersFile
-    from cobot_hmi.service.settings import SettingsError
+    from cobot_hmi.service.service_settings import SettingsError
 
     try:
         settings = hmi_settings(args)
@@ -117,7 +117,7 @@ def _users_add(args: argparse.Namespace) -> int:
 def _users_list(args: argparse.Namespace) -> int:
     from cobot_hmi.cli.hmi_settings import hmi_settings
     from cobot_hmi.service.access.users import UsersError, UsersFile
-    from cobot_hmi.service.settings import SettingsError
+    from cobot_hmi.service.service_settings import SettingsError
 
     try:
         settings = hmi_settings(args)
@@ -141,7 +141,7 @@ def _users_list(args: argparse.Namespace) -> int:
 def _users_token(args: argparse.Namespace) -> int:
     from cobot_hmi.cli.hmi_settings import hmi_settings
     from cobot_hmi.service.access.users import Role, UsersError, UsersFile
-    from cobot_hmi.service.settings import SettingsError
+    from cobot_hmi.service.service_settings import SettingsError
 
     try:
         settings = hmi_settings(args)
@@ -165,7 +165,7 @@ def _users_token(args: argparse.Namespace) -> int:
 def _users_revoke(args: argparse.Namespace) -> int:
     from cobot_hmi.cli.hmi_settings import hmi_settings
     from cobot_hmi.service.access.users import UsersError, UsersFile
-    from cobot_hmi.service.settings import SettingsError
+    from cobot_hmi.service.service_settings import SettingsError
 
     try:
         settings = hmi_settings(args)

@@ -3,7 +3,7 @@ specification's shape (OPC 40010-1 over the Devices model, OPC 10000-100) and as
 the Machinery building blocks (OPC 40001-1), with the whole I/O layout in a namespace of each
 robot's own. Off unless ``opcua_url`` is set.
 
-One concern per module: ``settings`` (declared once), ``companion`` (the OPC Foundation's
+One concern per module: ``opcua_settings`` (declared once), ``companion`` (the OPC Foundation's
 NodeSet files, the types named), ``nodes`` (adding nodes, instantiating types),
 ``robotics``, ``machinery`` and ``layout_nodes`` (one robot's instances and variables),
 ``address_space`` (every robot), ``bindings`` and ``values`` (the variables follow the

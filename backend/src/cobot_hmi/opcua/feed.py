@@ -44,7 +44,7 @@ from cobot_hmi.service.writes.pipeline import (
 
 if TYPE_CHECKING:
     from cobot_hmi.service.robots.robot import RobotRuntime
-    from cobot_hmi.service.web.settings import WebSettings
+    from cobot_hmi.service.web.web_settings import WebSettings
 
 QUEUE_FRAMES: Final = 256
 """Frames a robot's queue holds between two ticks (2.56 s at RPI 10 ms: a tick takes them all,

@@ -17,7 +17,7 @@ from cobot_hmi.service.setting_fields import (
     ReadableFile,
     setting,
 )
-from cobot_hmi.service.settings import ServiceSettings, settings_part
+from cobot_hmi.service.service_settings import ServiceSettings, settings_part
 
 
 class PlantHostSettings(BaseModel):

@@ -37,7 +37,7 @@ from cobot_hmi.service.robots.control import Control
 from cobot_hmi.service.robots.link import CyclicLoop, RobotLink, stats_of
 from cobot_hmi.service.robots.robot import RobotRuntime
 from cobot_hmi.service.robots.websocket_fanout import WebSocketFanOut
-from cobot_hmi.service.settings import ServiceSettings
+from cobot_hmi.service.service_settings import ServiceSettings
 from cobot_hmi.service.storage.event_log import EventLog
 from cobot_hmi.service.storage.store import Store
 

@@ -2,11 +2,11 @@
 
 ``ServiceSettings`` is a pydantic-settings model holding each concern's own settings as a part
 of its own, each its concern's model in its own room: the robot cell (``cell``:
-``robots.cell_settings``), the web service and its limits (``web``: ``web.settings``), the
+``robots.cell_settings``), the web service and its limits (``web``: ``web.web_settings``), the
 robots' streams and writes (``stream``: ``web.stream_settings``), HTTPS
 (``tls``: ``web.tls_settings``), directory login (``directory``: ``access.directory_settings``),
-alarms (``alarm_limits``: ``alarms.settings``), history (``recording``: ``recording.settings``),
-the kiosk (``kiosk``: ``kiosk.settings``), robot health (``health``: ``health.settings``) and
+alarms (``alarm_limits``: ``alarms.alarm_settings``), history (``recording``: ``recording.history_settings``),
+the kiosk (``kiosk``: ``kiosk.kiosk_settings``), robot health (``health``: ``health.health_service_settings``) and
 the site's time zone (``site``, here). A part is given to what uses it and nothing more (the
 recorder its ``HistorySettings``, a robot its ``RobotSettings``, …): no part below receives the
 whole. The doors above the service (the Sparkplug B edge node, the OPC UA server) add their
@@ -33,12 +33,12 @@ from pydantic.fields import FieldInfo
 from pydantic_settings import BaseSettings, PydanticBaseSettingsSource, SettingsConfigDict
 
 from cobot_hmi.service.access.directory_settings import DirectorySettings
-from cobot_hmi.service.alarms.settings import AlarmLimitSettings, AlarmSettings
-from cobot_hmi.service.health.settings import HealthServiceSettings
-from cobot_hmi.service.kiosk.settings import KioskSettings
-from cobot_hmi.service.recording.settings import HistorySettings
+from cobot_hmi.service.alarms.alarm_settings import AlarmLimitSettings, AlarmSettings
+from cobot_hmi.service.health.health_service_settings import HealthServiceSettings
+from cobot_hmi.service.kiosk.kiosk_settings import KioskSettings
+from cobot_hmi.service.recording.history_settings import HistorySettings
 from cobot_hmi.service.robots.cell_settings import CellSettings
-from cobot_hmi.service.robots.settings import RobotSettings
+from cobot_hmi.service.robots.robot_settings import RobotSettings
 from cobot_hmi.service.setting_fields import (
     DEFAULT_DEADBANDS,
     ENV_PREFIX,
@@ -46,7 +46,7 @@ from cobot_hmi.service.setting_fields import (
     TimeZoneName,
     setting,
 )
-from cobot_hmi.service.web.settings import WebSettings
+from cobot_hmi.service.web.web_settings import WebSettings
 from cobot_hmi.service.web.stream_settings import StreamSettings
 from cobot_hmi.service.web.tls_settings import TlsSettings
 

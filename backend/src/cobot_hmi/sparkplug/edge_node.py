@@ -53,7 +53,7 @@ if TYPE_CHECKING:
     from cobot_hmi.service.events.bus import EventBus
     from cobot_hmi.service.extensions import MetricFamily
     from cobot_hmi.service.robots.robot import RobotRuntime
-    from cobot_hmi.sparkplug.settings import SparkplugSettings
+    from cobot_hmi.sparkplug.sparkplug_settings import SparkplugSettings
 
 
 log = logging.getLogger(__name__)

@@ -33,7 +33,7 @@ from cobot_hmi.enip.encapsulation import ENIP_UDP_PORT
 from cobot_hmi.enip.errors import EnipError
 from cobot_hmi.scanner.connection.link import Link, t2o_batch_s, timeout_s
 from cobot_hmi.scanner.connection.o2t_send import O2TSender
-from cobot_hmi.scanner.connection.settings import OriginatorSettings, local_address_to
+from cobot_hmi.scanner.connection.originator_settings import OriginatorSettings, local_address_to
 from cobot_hmi.scanner.connection.state import ConnectionState, ConnectionStatus
 from cobot_hmi.scanner.connection.t2o_receive import T2OReceiver
 from cobot_hmi.scanner.io_port import IoPort

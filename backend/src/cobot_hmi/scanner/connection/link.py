@@ -12,7 +12,7 @@ from cobot_hmi.codec import Frame
 from cobot_hmi.enip.connection_manager import connection_timeout_us
 from cobot_hmi.enip.encapsulation import ENIP_UDP_PORT
 from cobot_hmi.enip.sequence import SequenceTracker
-from cobot_hmi.scanner.connection.settings import OriginatorSettings
+from cobot_hmi.scanner.connection.originator_settings import OriginatorSettings
 from cobot_hmi.scanner.o2t_stream import O2TStream
 from cobot_hmi.udp_endpoint import BATCH_PERIOD_S
 

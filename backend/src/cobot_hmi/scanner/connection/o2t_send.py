@@ -17,7 +17,7 @@ from cobot_hmi.codec import (
 )
 from cobot_hmi.enip import io
 from cobot_hmi.scanner.connection.link import Link
-from cobot_hmi.scanner.connection.settings import OriginatorSettings, fit_o2t_data
+from cobot_hmi.scanner.connection.originator_settings import OriginatorSettings, fit_o2t_data
 from cobot_hmi.scanner.connection.state import (
     ConnectionState,
     ConnectionStatus,

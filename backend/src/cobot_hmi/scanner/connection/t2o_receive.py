@@ -16,7 +16,7 @@ from cobot_hmi.codec import CodecError, Frame, decode_frame
 from cobot_hmi.enip import io
 from cobot_hmi.enip.sequence import DUPLICATE, STALE
 from cobot_hmi.scanner.connection.link import Link, timeout_s
-from cobot_hmi.scanner.connection.settings import OriginatorSettings
+from cobot_hmi.scanner.connection.originator_settings import OriginatorSettings
 from cobot_hmi.scanner.io_port import IoPort
 from cobot_hmi.scanner.stats import IntervalFigures, IntervalWindow
 from cobot_hmi.scanner.t2o_pace import PaceWatch, SlowTarget

@@ -58,7 +58,7 @@ from cobot_hmi.service.api.tls import HSTS_HEADER
 if TYPE_CHECKING:
     from fastapi import FastAPI
 
-    from cobot_hmi.service.web.settings import WebSettings
+    from cobot_hmi.service.web.web_settings import WebSettings
 
 SAFE_METHODS: Final = frozenset({"GET", "HEAD", "OPTIONS"})
 

@@ -22,8 +22,8 @@ from cobot_hmi.service.api.security import policy_from_settings
 from cobot_hmi.service.api.tls import ReloadingContext
 from cobot_hmi.service.api.tls_redirect import redirect_listener
 from cobot_hmi.service.runtime import Service
-from cobot_hmi.service.settings import ServiceSettings
-from cobot_hmi.service.web.settings import WebSettings
+from cobot_hmi.service.service_settings import ServiceSettings
+from cobot_hmi.service.web.web_settings import WebSettings
 from cobot_hmi.service.web.tls_settings import TlsSettings
 
 SWITCH_INTERVAL_S: Final = 0.0005

@@ -1,1 +1,1 @@
-"""Layer: service. What the kiosk is told by the service (``settings``)."""
+"""Layer: service. What the kiosk is told by the service (``kiosk_settings``)."""

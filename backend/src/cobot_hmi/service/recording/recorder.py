@@ -55,7 +55,7 @@ from cobot_hmi.service.extensions import MetricFamily
 from cobot_hmi.service.robots.frame_notifier import FrameRecord, Registration, Runs
 
 if TYPE_CHECKING:
-    from cobot_hmi.service.recording.settings import HistorySettings
+    from cobot_hmi.service.recording.history_settings import HistorySettings
     from cobot_hmi.service.robots.robot import RobotRuntime
 
 log = logging.getLogger(__name__)

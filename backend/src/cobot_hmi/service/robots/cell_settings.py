@@ -18,7 +18,7 @@ from pydantic import ConfigDict, Field, model_validator
 
 from cobot_hmi import connection_params as cp
 from cobot_hmi.service.robots.cycle_settings import CycleSettings
-from cobot_hmi.service.robots.settings import RobotSettings
+from cobot_hmi.service.robots.robot_settings import RobotSettings
 from cobot_hmi.service.setting_fields import (
     DEFAULT_ROBOT_NAME,
     Port,

@@ -24,7 +24,7 @@ from cobot_hmi.layout import LAYOUT_VERSION
 from cobot_hmi.scanner.originator import ConnectionState, ConnectionStats, OriginatorSettings
 from cobot_hmi.service.alarms.engine import AlarmEngine, UserAlarm
 from cobot_hmi.service.alarms.persistence import AlarmChange, AlarmStore
-from cobot_hmi.service.alarms.settings import AlarmLimitSettings
+from cobot_hmi.service.alarms.alarm_settings import AlarmLimitSettings
 from cobot_hmi.service.events.bus import EventBus
 from cobot_hmi.service.events.text import Event
 from cobot_hmi.service.plant_time import PLANT_ZONE
@@ -35,7 +35,7 @@ from cobot_hmi.service.robots.frame_notifier import FrameNotifier
 from cobot_hmi.service.robots.identity import IdentityReader, RobotIdentity
 from cobot_hmi.service.robots.intervals import ReceiveIntervals
 from cobot_hmi.service.robots.link import CyclicLoop, RobotLink
-from cobot_hmi.service.robots.settings import RobotSettings
+from cobot_hmi.service.robots.robot_settings import RobotSettings
 from cobot_hmi.service.robots.watch import FrameEventWatch
 from cobot_hmi.service.robots.websocket_fanout import WebSocketFanOut
 from cobot_hmi.service.storage.store import Store

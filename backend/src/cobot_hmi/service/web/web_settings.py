@@ -98,5 +98,5 @@ class WebSettings(BaseModel):
     def frontend_path(self) -> Path:
         if self.frontend_dir is not None:
             return self.frontend_dir
-        # backend/src/cobot_hmi/service/web/settings.py → the repository's frontend/dist
+        # backend/src/cobot_hmi/service/web/web_settings.py → the repository's frontend/dist
         return Path(__file__).resolve().parents[5] / "frontend" / "dist"
