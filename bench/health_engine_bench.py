@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import math
 import os
 import time
 from collections.abc import Callable, Sequence
@@ -151,8 +152,11 @@ def main() -> None:
         (times[k : k + BLOCK_FRAMES], raws[k : k + BLOCK_FRAMES])
         for k in range(0, len(raws), BLOCK_FRAMES)
     ]
-    payloads_us = per_frame_us(
-        lambda: [FrameBlock.from_payloads(t, r) for t, r in blocks], len(raws), args.rounds
+    from_payloads = getattr(FrameBlock, "from_payloads", None)  # absent in older trees
+    payloads_us = (
+        math.nan
+        if from_payloads is None
+        else per_frame_us(lambda: [from_payloads(t, r) for t, r in blocks], len(raws), args.rounds)
     )
     copy_us = per_frame_us(
         lambda: np.array([f.joint_torque for f in frames]), len(frames), args.rounds
