@@ -26,7 +26,7 @@ from __future__ import annotations
 import json
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import Final
+from typing import Final, NamedTuple
 
 from cobot_hmi.plant.model import (
     ALARM_PREFIX,
@@ -61,6 +61,7 @@ HISTORY_MARGIN_MS: Final = 60_000
 """Transitions asked for again from this long before the last message received in order: a
 transition is published a little after it happened (the node's next report), so one stamped
 before that message may have come after it."""
+_MESSAGE_TYPES: Final = {t.value: t for t in MessageType}
 _SIGNED_BITS: Final[dict[int, int]] = {
     DataType.INT8: 8,
     DataType.INT16: 16,
@@ -77,9 +78,9 @@ class Outgoing:
     retain: bool = False
 
 
-@dataclass(frozen=True, slots=True)
-class Sample:
-    """One metric value as received, for the history."""
+class Sample(NamedTuple):
+    """One metric value as received, for the history (a tuple: made for every value received,
+    and transposed into the recorder's columns in one step)."""
 
     time_ms: int
     group: str
@@ -88,6 +89,25 @@ class Sample:
     metric: str
     value: MetricValue | None
     historical: bool
+
+
+@dataclass(slots=True)
+class _Known:
+    """A metric a birth named, with what handling its values needs, worked out once: a DDATA
+    names its metrics by alias only, tens of them a message, many messages a second."""
+
+    device: str | None
+    name: str
+    datatype: int
+    alarm: bool
+    """An ``Alarm/...`` metric."""
+    active: bool
+    """An ``Alarm/<id>/Active``: applied after the message's other metrics."""
+
+
+def _known(device: str | None, name: str, datatype: int) -> _Known:
+    alarm = name.startswith(ALARM_PREFIX)
+    return _Known(device, name, datatype, alarm, alarm and name.endswith(ACTIVE))
 
 
 @dataclass(slots=True)
@@ -105,9 +125,11 @@ class _Session:
 
     born: bool = False
     seq: int = 0
-    aliases: dict[int, tuple[str | None, str]] = field(default_factory=dict)
-    """alias → (device or ``None`` for the node, metric name); unique across the node."""
-    datatypes: dict[tuple[str | None, str], int] = field(default_factory=dict)
+    aliases: dict[int, _Known] = field(default_factory=dict)
+    """alias → the metric (its device, ``None`` for the node's, and name); unique across the
+    node."""
+    named: dict[tuple[str | None, str], _Known] = field(default_factory=dict)
+    """(device, name) → the metric, as the births named it."""
     born_devices: set[str] = field(default_factory=set)
     last_rebirth_s: float = -1e18
     in_order_ms: int | None = None
@@ -139,8 +161,14 @@ def decode_value(metric: Payload.Metric, datatype: int) -> MetricValue | None:
     if which is None or metric.is_null:
         return None
     value: MetricValue = getattr(metric, which)
+    if isinstance(value, int) and not isinstance(value, bool):
+        return _signed(value, datatype)
+    return value
+
+
+def _signed(value: int, datatype: int) -> int:
     bits = _SIGNED_BITS.get(datatype)
-    if bits is not None and isinstance(value, int) and not isinstance(value, bool):
+    if bits is not None:
         value &= (1 << bits) - 1
         if value >= 1 << (bits - 1):
             value -= 1 << bits
@@ -204,9 +232,9 @@ class HostApplication:
         if self.groups and group not in self.groups:
             return answer
         try:
-            message_type = MessageType(parts[2])
+            message_type = _MESSAGE_TYPES[parts[2]]
             payload = parse_payload(data)
-        except (ValueError, PayloadError):
+        except (KeyError, PayloadError):
             self.bad_messages += 1
             return answer
         if message_type in (MessageType.NCMD, MessageType.DCMD):
@@ -265,7 +293,7 @@ class HostApplication:
             session.missed_since_ms = None
         session.retries = 0
         session.aliases.clear()
-        session.datatypes.clear()
+        session.named.clear()
         session.born_devices.clear()
         view.online = True
         view.since_ms = received.stamp_ms
@@ -322,60 +350,82 @@ class HostApplication:
 
     def _births(self, received: _Received) -> None:
         """A birth's metrics: names, aliases and data types learnt, every value live."""
-        session = received.session
+        session, device = received.session, received.device
         for metric in received.payload.metrics:
             if not metric.name:
                 continue
+            known = _known(device, metric.name, metric.datatype)
             if metric.HasField("alias"):
-                session.aliases[metric.alias] = (received.device, metric.name)
-            session.datatypes[(received.device, metric.name)] = metric.datatype
+                session.aliases[metric.alias] = known
+            session.named[(device, metric.name)] = known
         self._apply(received)
 
     def _data(self, received: _Received) -> None:
-        aliases = received.session.aliases
-        if any(
-            not m.name and (not m.HasField("alias") or m.alias not in aliases)
-            for m in received.payload.metrics
-        ):
+        if self._apply(received):
             self._request_rebirth(received, "unknown alias")
-        self._apply(received)
 
-    def _apply(self, received: _Received) -> None:
-        session, view, device = received.session, received.view, received.device
-        metrics = received.metrics
+    def _apply(self, received: _Received) -> bool:
+        """The message's metrics recorded and the live ones applied, an alarm's ``Active``
+        after the rest (its priority and text, which the same message may give, first: a birth
+        lists them after it); ``True`` when one named no metric the births did (no name, and
+        no alias or an unknown one)."""
+        session, device = received.session, received.device
+        aliases, named = session.aliases, session.named
+        others: list[tuple[_Known, Payload.Metric]] = []
+        actives: list[tuple[_Known, Payload.Metric]] = []
+        unknown = False
+        for metric in received.payload.metrics:
+            name = metric.name
+            known: _Known | None
+            if name:
+                known = named.get((device, name)) or _known(device, name, 0)
+            else:
+                alias = metric.alias  # 0 is an alias too, when the field is there
+                known = aliases.get(alias) if alias or metric.HasField("alias") else None
+                if known is None:
+                    unknown = True
+                    continue
+            (actives if known.active else others).append((known, metric))
+        self._values(received, others)
+        if actives:
+            self._values(received, actives)
+        return unknown
+
+    def _values(self, received: _Received, metrics: list[tuple[_Known, Payload.Metric]]) -> None:
+        view, device = received.view, received.device
+        live = received.metrics
         device_view = view.devices.get(device) if device is not None else None
-        named = [(self._name(session, metric), metric) for metric in received.payload.metrics]
-        # An alarm's priority and text before its Active: a transition is told with the ones
-        # the same message gives (a birth lists them after it).
-        named.sort(key=lambda item: item[0].startswith(ALARM_PREFIX) and item[0].endswith(ACTIVE))
-        for name, metric in named:
-            if not name:
-                continue
-            datatype = metric.datatype or session.datatypes.get((device, name), 0)
-            value = decode_value(metric, datatype)
-            time_ms = metric.timestamp if metric.HasField("timestamp") else received.stamp_ms
+        group, node, device_name = view.group, view.node, device or ""
+        stamp_ms = received.stamp_ms
+        samples = received.answer.samples
+        for known, metric in metrics:
+            name = known.name
+            which = metric.WhichOneof("value")
+            value: MetricValue | None = None
+            if which is not None and not metric.is_null:
+                value = getattr(metric, which)
+                if type(value) is int:  # signed integers come in unsigned fields
+                    value = _signed(value, metric.datatype or known.datatype)
+            time_ms = metric.timestamp
+            if not time_ms and not metric.HasField("timestamp"):
+                time_ms = stamp_ms
             historical = metric.is_historical
             if (
-                device_view is not None
-                and name.startswith(ALARM_PREFIX)
+                known.alarm
+                and device_view is not None
                 and not self._alarm(
                     received, device_view, name, value, time_ms, historical=historical
                 )
             ):
                 continue  # a historical transition the log already has: recorded once
-            received.answer.samples.append(
-                Sample(time_ms, view.group, view.node, device or "", name, value, historical)
-            )
+            samples.append(Sample(time_ms, group, node, device_name, name, value, historical))
             if not historical:
-                current = metrics.get(name)
-                if current is None or time_ms >= current.timestamp_ms:
-                    metrics[name] = MetricState(value, time_ms)
-
-    @staticmethod
-    def _name(session: _Session, metric: Payload.Metric) -> str:
-        if not metric.name and metric.HasField("alias"):
-            return session.aliases.get(metric.alias, (None, ""))[1]
-        return metric.name
+                current = live.get(name)
+                if current is None:
+                    live[name] = MetricState(value, time_ms)
+                elif time_ms >= current.timestamp_ms:  # changed in place: no new object
+                    current.value = value
+                    current.timestamp_ms = time_ms
 
     def _alarm(
         self,
