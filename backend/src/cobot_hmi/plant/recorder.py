@@ -15,6 +15,7 @@ Imports ``stored_format`` and the plant's host (its ``Sample``).
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import logging
 import os
@@ -42,6 +43,7 @@ FLUSH_S: Final = 1.0
 COMPACT_AFTER_S: Final = 600.0
 SEGMENT: Final = "segment.parquet"
 _HOUR_FORMAT: Final = "%Y-%m-%dT%H"
+HOUR_MS: Final = 3_600_000
 SCHEMA: Final = pa.schema(
     [
         ("time_ms", pa.int64()),
@@ -75,8 +77,55 @@ class Point:
     historical: bool
 
 
-def _hour_of(time_ms: int) -> str:
-    return datetime.fromtimestamp(time_ms / 1000, UTC).strftime(_HOUR_FORMAT)
+@functools.lru_cache(maxsize=256)
+def _hour_name(hour: int) -> str:
+    """An hour's folder name (cached: the rows of a flush are nearly all of the same hour)."""
+    return datetime.fromtimestamp(hour * HOUR_MS / 1000, UTC).strftime(_HOUR_FORMAT)
+
+
+def _table(samples: list[Sample]) -> pa.Table:
+    """Rows to columns in one step (the samples are tuples), values split by kind."""
+    times, groups, nodes, devices, metrics, values, historical = zip(*samples, strict=True)
+    return pa.table(
+        {
+            "time_ms": times,
+            "group": groups,
+            "node": nodes,
+            "device": devices,
+            "metric": metrics,
+            "value": [v if type(v) is float else _numeric(v) for v in values],
+            "text": [v if type(v) is str else None for v in values],
+            "historical": historical,
+        },
+        schema=SCHEMA,
+    )
+
+
+def _by_hour(samples: list[Sample]) -> list[tuple[str, pa.Table]]:
+    """The samples as a table per hour (UTC, by each value's own time), the hours in order."""
+    if not samples:
+        return []
+    table = _table(samples)
+    hours = pc.divide(table["time_ms"], pa.scalar(HOUR_MS, pa.int64()))
+    first, last = pc.min_max(hours).values()
+    if first == last:
+        return [(_hour_name(first.as_py()), table)]
+    return [
+        (_hour_name(hour), table.filter(pc.equal(hours, pa.scalar(hour, pa.int64()))))
+        for hour in sorted(pc.unique(hours).to_pylist())
+    ]
+
+
+def _samples(table: pa.Table) -> list[Sample]:
+    """A table's rows as samples again (kept for the next flush when they could not be
+    written)."""
+    columns = [table[c].to_pylist() for c in ("time_ms", "group", "node", "device", "metric")]
+    values = [
+        text if text is not None else value
+        for value, text in zip(table["value"].to_pylist(), table["text"].to_pylist(), strict=True)
+    ]
+    historical = table["historical"].to_pylist()
+    return [Sample(*row) for row in zip(*columns, values, historical, strict=True)]
 
 
 def _numeric(value: object) -> float | None:
@@ -107,41 +156,25 @@ class PlantRecorder:
         cannot be written (a full disk) stays pending for the next flush."""
         with self._lock:
             pending, self._pending = self._pending, []
-        by_hour: dict[str, list[Sample]] = {}
-        for sample in pending:
-            by_hour.setdefault(_hour_of(sample.time_ms), []).append(sample)
         written = 0
-        for hour, samples in sorted(by_hour.items()):
+        for hour, table in _by_hour(pending):
             try:
-                self._write_part(hour, samples)
+                self._write_part(hour, table)
             except OSError as error:
                 self.write_errors += 1
                 log.warning("plant history: hour %s not written (%s): kept for later", hour, error)
-                self.add(samples)
+                self.add(_samples(table))
                 continue
-            written += len(samples)
+            written += table.num_rows
         self.rows_written += written
         self._compact_finished()
         return written
 
-    def _write_part(self, hour: str, samples: list[Sample]) -> None:
+    def _write_part(self, hour: str, table: pa.Table) -> None:
         folder = self.directory / hour
         folder.mkdir(parents=True, exist_ok=True)
         self._part += 1
         name = f"part-{time.time_ns()}-{self._part}.parquet"
-        table = pa.table(
-            {
-                "time_ms": [s.time_ms for s in samples],
-                "group": [s.group for s in samples],
-                "node": [s.node for s in samples],
-                "device": [s.device for s in samples],
-                "metric": [s.metric for s in samples],
-                "value": [_numeric(s.value) for s in samples],
-                "text": [s.value if isinstance(s.value, str) else None for s in samples],
-                "historical": [s.historical for s in samples],
-            },
-            schema=SCHEMA,
-        )
         temporary = folder / (name + ".tmp")
         pq.write_table(table, temporary)
         os.replace(temporary, folder / name)
