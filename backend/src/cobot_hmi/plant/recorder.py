@@ -18,6 +18,7 @@ import contextlib
 import functools
 import json
 import logging
+import operator
 import os
 import threading
 import time
@@ -84,8 +85,10 @@ def _hour_name(hour: int) -> str:
 
 
 def _table(samples: list[Sample]) -> pa.Table:
-    """Rows to columns in one step (the samples are tuples), values split by kind."""
-    times, groups, nodes, devices, metrics, values, historical = zip(*samples, strict=True)
+    """Rows to columns (a C-level pass each: the samples are tuples), values split by kind."""
+    times, groups, nodes, devices, metrics, values, historical = (
+        list(map(operator.itemgetter(column), samples)) for column in range(7)
+    )
     return pa.table(
         {
             "time_ms": times,
