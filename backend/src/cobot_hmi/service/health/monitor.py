@@ -22,7 +22,6 @@ from collections.abc import Sequence
 from typing import Final
 
 from cobot_hmi.arms import ARMS, Arm, arm_by_name
-from cobot_hmi.codec import Frame
 from cobot_hmi.health import FrameBlock, HealthEngine
 from cobot_hmi.service.robots.frame_notifier import FrameRecord, Registration, Runs
 from cobot_hmi.service.robots.robot import RobotRuntime
@@ -66,7 +65,9 @@ class RobotHealth:
         self.cycles: deque[tuple[float, float, bool]] = deque(maxlen=1000)
         """Measured cycles (start, end, interrupted) waiting for their frames."""
         self._times: list[float] = []
-        self._frames: list[Frame] = []
+        self._payloads: list[bytes] = []
+        """The frames' undecoded T→O payloads: read in place as one block
+        (``FrameBlock.from_payloads``, a sixth of what the decoded frames cost)."""
         self.frames_fed = 0
         self.cycles_fed = 0
         self.cycles_refused = 0
@@ -78,15 +79,15 @@ class RobotHealth:
         """The queued frames (``Registration.deliver`` on the health thread)."""
         for record in records:
             self._times.append(record.received_at_s)
-            self._frames.append(record.frame)
+            self._payloads.append(record.raw)
 
     def step(self) -> None:
         """Take the queued frames, feed them, end the cycles whose frames are all in."""
         if self.registration is not None:
             self.registration.deliver()
-        if self._frames:
-            block = FrameBlock.from_frames(self._times, self._frames)
-            self._times, self._frames = [], []
+        if self._payloads:
+            block = FrameBlock.from_payloads(self._times, self._payloads)
+            self._times, self._payloads = [], []
             with self.lock:
                 self.engine.observe(block)
             self.frames_fed += len(block)
