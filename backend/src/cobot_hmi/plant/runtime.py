@@ -1,8 +1,9 @@
 """Layer: plant (a door above the service). The running plant: the host application fed by the
-MQTT client's thread on the web event loop (one message at a time, in arrival order), its
-rebirth requests published, what it receives handed to the recorder (flushed on a worker
-thread), and the service's login pieces (users file, sessions, login throttle, directory) that
-the plant's web API shares with ``serve``'s through the service's own auth routes.
+MQTT client's thread on the web event loop (through a bounded inbox, in batches, in arrival
+order: a full inbox holds the client's thread, nothing is dropped), its rebirth requests
+published, what it receives handed to the recorder (flushed on a worker thread), and the
+service's login pieces (users file, sessions, login throttle, directory) that the plant's web
+API shares with ``serve``'s through the service's own auth routes.
 """
 
 from __future__ import annotations
@@ -10,8 +11,9 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import threading
 import time
-from collections import Counter
+from collections import Counter, deque
 from typing import Final
 
 from cobot_hmi.plant.client import FailoverClient
@@ -27,6 +29,13 @@ from cobot_hmi.sparkplug.mqtt_client import BrokerAddress, ClientOptions
 log = logging.getLogger(__name__)
 
 _SWEEP_S: Final = 1.0
+INBOX_LIMIT: Final = 5000
+"""Messages received and not yet handled, at most (about 1.5 s of a 500-robot plant's DDATA,
+a few MiB): past it the client's thread waits, and the brokers hold the rest."""
+INBOX_WAIT_S: Final = 0.5
+"""The client's thread, waiting for room, looks again this often whether the plant stops."""
+BATCH: Final = 500
+"""Messages handled in one turn of the event loop (about 50 ms at 0.1 ms each)."""
 
 
 class PlantRuntime:
@@ -79,6 +88,14 @@ class PlantRuntime:
         self.started_at = time.time()
         self.messages = 0
         self._loop: asyncio.AbstractEventLoop | None = None
+        self._inbox: deque[tuple[str, bytes, float]] = deque()
+        """Messages from the client's thread, not yet handled on the event loop."""
+        self._room = threading.Condition()
+        """Guards the inbox; the client's thread waits on it while the inbox is full."""
+        self._wake_pending = False
+        self._closing = False
+        self.inbox_full = 0
+        """Times the client's thread waited for room (the plant behind its brokers)."""
         self._tasks: list[asyncio.Task[None]] = []
 
     async def start(self) -> None:
@@ -92,6 +109,9 @@ class PlantRuntime:
         self.client.start()
 
     async def stop(self) -> None:
+        with self._room:  # a client's thread waiting for room lets go
+            self._closing = True
+            self._room.notify_all()
         await asyncio.to_thread(self.client.stop)
         for task in self._tasks:
             task.cancel()
@@ -105,10 +125,42 @@ class PlantRuntime:
     # ------------------------------------------------------------ messages
 
     def _from_client(self, topic: str, data: bytes) -> None:
-        """On the client's thread: to the event loop, with the time it was received."""
+        """On the client's thread: into the inbox, with the time it was received; the event
+        loop woken once for all that come before it drains them. A full inbox holds this
+        thread (it reads no more from the broker, whose QoS rules then hold or drop for the
+        plant: a lost QoS 0 DDATA is a seq gap the host answers with a rebirth) until the loop
+        has made room: nothing is dropped here, and the memory stays bounded."""
+        received_s = time.time()
+        with self._room:
+            while len(self._inbox) >= INBOX_LIMIT:
+                loop = self._loop
+                if self._closing or loop is None or loop.is_closed():
+                    return
+                self.inbox_full += 1
+                self._room.wait(INBOX_WAIT_S)
+            self._inbox.append((topic, data, received_s))
+            if self._wake_pending:
+                return
+            self._wake_pending = True
         loop = self._loop
         if loop is not None and not loop.is_closed():
-            loop.call_soon_threadsafe(self._handle, topic, data, time.time())
+            loop.call_soon_threadsafe(self._drain)
+
+    def _drain(self) -> None:
+        """On the event loop: up to ``BATCH`` messages, in arrival order; the rest on the next
+        turn, so that the web requests are answered in between."""
+        with self._room:
+            inbox = self._inbox
+            batch = [inbox.popleft() for _ in range(min(len(inbox), BATCH))]
+            more = bool(inbox)
+            self._wake_pending = more
+            self._room.notify()
+        try:
+            for topic, data, received_s in batch:
+                self._handle(topic, data, received_s)
+        finally:  # whatever one message raised, the rest are still drained
+            if more and self._loop is not None and not self._loop.is_closed():
+                self._loop.call_soon(self._drain)
 
     def _handle(self, topic: str, data: bytes, received_s: float) -> None:
         self.messages += 1
