@@ -9,13 +9,13 @@ sentence. ``HealthEngine`` is the one object a consumer holds per robot: frames 
 (``FrameBlock``), cycle boundaries in (``end_cycle``), figures out (``report``), and its whole
 state as a versioned JSON document (``to_document`` / ``from_document``). One concern per
 module: ``frames`` (the arrays), ``samples`` (the distinct measurements among them),
-``settings`` (thresholds), ``friction``, ``signature``,
+``health_settings`` (thresholds), ``friction``, ``signature``,
 ``heat``, ``life``, ``knocks``, ``drift``, ``baseline``, ``verdict``, ``report`` (the
 figures and the state's body), ``document``, ``engine``.
 """
 
 from cobot_hmi.health.engine import HealthEngine
 from cobot_hmi.health.frames import FrameBlock
-from cobot_hmi.health.settings import HealthSettings
+from cobot_hmi.health.health_settings import HealthSettings
 
 __all__ = ["FrameBlock", "HealthEngine", "HealthSettings"]

@@ -1,4 +1,4 @@
-"""Layer: health (pure). Imports ``health.frames`` and ``health.settings``.
+"""Layer: health (pure). Imports ``health.frames`` and ``health.health_settings``.
 
 Friction: what a joint needs at the same position and speed beyond its baseline, in the same
 band of motor temperature. Samples (``health.samples``: distinct measurements, each with its
@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from cobot_hmi.health.frames import FloatArray, FrameBlock, IntArray
-from cobot_hmi.health.settings import HealthSettings
+from cobot_hmi.health.health_settings import HealthSettings
 
 _BANDS = 100  # temperature bands from −40 °C
 _POSITIONS = 100  # position bins from −500°

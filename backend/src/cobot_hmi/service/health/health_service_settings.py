@@ -1,7 +1,7 @@
 """Layer: service (pure). The service's health settings, declared once (``setting_fields``):
 whether every robot's health is read from its frames, how often, how often its state is saved
 and a snapshot kept for the trends (docs/health.md "In the service"). The engine's own
-thresholds are ``cobot_hmi.health.settings.HealthSettings``."""
+thresholds are ``cobot_hmi.health.health_settings.HealthSettings``."""
 
 from __future__ import annotations
 
