@@ -23,8 +23,8 @@ from cobot_hmi.health import FrameBlock, HealthEngine
 from cobot_hmi.service.alarms.definitions import Priority
 from cobot_hmi.service.alarms.engine import AlarmEngine, AlarmRefusedError
 from cobot_hmi.service.health.answers import report_answer, report_csv, trend_answer
-from cobot_hmi.service.health.service import advise, health_event
 from cobot_hmi.service.health.health_service_settings import HealthServiceSettings
+from cobot_hmi.service.health.service import advise, health_event
 from cobot_hmi.service.health.store import HealthStore, snapshot_of
 from cobot_hmi.service.storage.migrations import SCHEMA_VERSION
 from cobot_hmi.service.storage.store import Store

@@ -102,7 +102,8 @@ def package_copy(tmp_path_factory: pytest.TempPathFactory) -> Path:
         (
             "service/recording/recorder.py",
             "from cobot_hmi.service.service_settings import ServiceSettings",
-            "cobot_hmi.service.recording is not allowed to import cobot_hmi.service.service_settings",
+            "cobot_hmi.service.recording is not allowed to import "
+            "cobot_hmi.service.service_settings",
         ),
         # the service knowing a door above it
         (

@@ -16,8 +16,8 @@ from cobot_hmi.codec import zero_frame
 from cobot_hmi.generated.frames import RobotState
 from cobot_hmi.layout import ANALOG_OUTPUT_RANGES, O2T_FIELDS, T2O_FIELDS
 from cobot_hmi.opcua import companion, robotics
-from cobot_hmi.opcua.server import PUBLISH_AFTER_TICK, subscription_delay_s, tick_deadline
 from cobot_hmi.opcua.opcua_settings import DEFAULT_PORT
+from cobot_hmi.opcua.server import PUBLISH_AFTER_TICK, subscription_delay_s, tick_deadline
 from cobot_hmi.opcua.units import PER_TYPE, analog_unit, unit_for
 from cobot_hmi.opcua.values import GOOD, SharedDataValue
 from cobot_hmi.service.config.loading import load_settings

@@ -13,8 +13,8 @@ import asyncio
 from collections.abc import Iterable, Sequence
 
 from cobot_hmi.opcua.feed import ServiceFeed
-from cobot_hmi.opcua.server import OpcUaServer
 from cobot_hmi.opcua.opcua_settings import OpcUaSettings
+from cobot_hmi.opcua.server import OpcUaServer
 from cobot_hmi.service.extensions import MetricFamily, ServiceExtension
 from cobot_hmi.service.runtime import Service
 from cobot_hmi.service.web.web_settings import WebSettings

@@ -3,9 +3,9 @@ never the emulator, the scanner, the service or any I/O.
 
 The one declaration of each class 1 connection setting: its default, unit, bounds and help
 text. The emulator (``emulator.settings.TargetSettings``), the scanner
-(``scanner.originator.OriginatorSettings``) and the service (``service.service_settings``, where each
-becomes a typed, bounded setting with its flag and ``COBOT_HMI_*`` variable) take them from
-here, so a default or a limit is changed in one place.
+(``scanner.originator.OriginatorSettings``) and the service (``service.service_settings``,
+where each becomes a typed, bounded setting with its flag and ``COBOT_HMI_*`` variable) take
+them from here, so a default or a limit is changed in one place.
 
 The bounds are what the protocol can carry (Forward Open, CIP Vol 1 §3-5.4): a real robot may
 accept less, and says so by refusing the Forward Open with an extended status.

@@ -12,8 +12,8 @@ import numpy as np
 
 from cobot_hmi.health.frames import FloatArray, FrameBlock
 from cobot_hmi.health.friction import CellTable, friction_per_speed
-from cobot_hmi.health.heat import HeatFit, cycle_heat
 from cobot_hmi.health.health_settings import HealthSettings
+from cobot_hmi.health.heat import HeatFit, cycle_heat
 from cobot_hmi.health.signature import quantiles, resample
 
 

@@ -20,11 +20,11 @@ from cobot_hmi.health.baseline import Baseline
 from cobot_hmi.health.drift import CycleTimeDrift
 from cobot_hmi.health.frames import FloatArray, FrameBlock
 from cobot_hmi.health.friction import CellTable, friction_excess_percent
+from cobot_hmi.health.health_settings import HealthSettings
 from cobot_hmi.health.heat import HeatMonitor, cycle_heat
 from cobot_hmi.health.knocks import KnockCounter
 from cobot_hmi.health.life import LifeMeter
 from cobot_hmi.health.samples import DistinctSamples
-from cobot_hmi.health.health_settings import HealthSettings
 from cobot_hmi.health.signature import compare, quantiles, resample
 from cobot_hmi.layout import LAYOUT_VERSION
 

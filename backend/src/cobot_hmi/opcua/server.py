@@ -39,8 +39,8 @@ from cobot_hmi.opcua.build_info import build_info, describe
 from cobot_hmi.opcua.channel_policy import EndpointGuard, GuardedServer
 from cobot_hmi.opcua.companion import load
 from cobot_hmi.opcua.feed import ServiceFeed
-from cobot_hmi.opcua.sessions import RobotInternalServer
 from cobot_hmi.opcua.opcua_settings import OpcUaSettings
+from cobot_hmi.opcua.sessions import RobotInternalServer
 from cobot_hmi.opcua.values import RobotValues
 from cobot_hmi.opcua.writes import CommandWrites
 

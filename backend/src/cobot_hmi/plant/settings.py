@@ -11,13 +11,13 @@ from pathlib import Path
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from cobot_hmi.service.service_settings import ServiceSettings, settings_part
 from cobot_hmi.service.setting_fields import (
     SPARKPLUG_ID_PATTERN,
     CommaList,
     ReadableFile,
     setting,
 )
-from cobot_hmi.service.service_settings import ServiceSettings, settings_part
 
 
 class PlantHostSettings(BaseModel):

@@ -49,7 +49,11 @@ from cobot_hmi.codec import CommandImage, Frame
 from cobot_hmi.scanner.connection.lifecycle import ConnectionLifecycle
 from cobot_hmi.scanner.connection.link import Link
 from cobot_hmi.scanner.connection.o2t_send import O2TSender
-from cobot_hmi.scanner.connection.originator_settings import OriginatorSettings, fit_o2t_data, local_address_to
+from cobot_hmi.scanner.connection.originator_settings import (
+    OriginatorSettings,
+    fit_o2t_data,
+    local_address_to,
+)
 from cobot_hmi.scanner.connection.state import (
     ConnectionState,
     ConnectionStats,

@@ -5,13 +5,13 @@ of its own, each its concern's model in its own room: the robot cell (``cell``:
 ``robots.cell_settings``), the web service and its limits (``web``: ``web.web_settings``), the
 robots' streams and writes (``stream``: ``web.stream_settings``), HTTPS
 (``tls``: ``web.tls_settings``), directory login (``directory``: ``access.directory_settings``),
-alarms (``alarm_limits``: ``alarms.alarm_settings``), history (``recording``: ``recording.history_settings``),
-the kiosk (``kiosk``: ``kiosk.kiosk_settings``), robot health (``health``: ``health.health_service_settings``) and
-the site's time zone (``site``, here). A part is given to what uses it and nothing more (the
-recorder its ``HistorySettings``, a robot its ``RobotSettings``, …): no part below receives the
-whole. The doors above the service (the Sparkplug B edge node, the OPC UA server) add their
-parts in ``cobot_hmi.settings.HmiSettings``, the settings of ``cobot-hmi serve``: the service
-imports neither.
+alarms (``alarm_limits``: ``alarms.alarm_settings``), history (``recording``:
+``recording.history_settings``), the kiosk (``kiosk``: ``kiosk.kiosk_settings``), robot health
+(``health``: ``health.health_service_settings``) and the site's time zone (``site``, here). A
+part is given to what uses it and nothing more (the recorder its ``HistorySettings``, a robot
+its ``RobotSettings``, …): no part below receives the whole. The doors above the service (the
+Sparkplug B edge node, the OPC UA server) add their parts in ``cobot_hmi.settings.HmiSettings``,
+the settings of ``cobot-hmi serve``: the service imports neither.
 
 Keys stay flat: a field's name is its key, unique across the parts (``flat_fields``): the TOML
 key, ``COBOT_HMI_<NAME>`` its environment variable and ``--name`` its flag (``setting_fields``
@@ -46,9 +46,9 @@ from cobot_hmi.service.setting_fields import (
     TimeZoneName,
     setting,
 )
-from cobot_hmi.service.web.web_settings import WebSettings
 from cobot_hmi.service.web.stream_settings import StreamSettings
 from cobot_hmi.service.web.tls_settings import TlsSettings
+from cobot_hmi.service.web.web_settings import WebSettings
 
 __all__ = [
     "DEFAULT_DEADBANDS",

@@ -23,8 +23,8 @@ from cobot_hmi.service.api.tls import ReloadingContext
 from cobot_hmi.service.api.tls_redirect import redirect_listener
 from cobot_hmi.service.runtime import Service
 from cobot_hmi.service.service_settings import ServiceSettings
-from cobot_hmi.service.web.web_settings import WebSettings
 from cobot_hmi.service.web.tls_settings import TlsSettings
+from cobot_hmi.service.web.web_settings import WebSettings
 
 SWITCH_INTERVAL_S: Final = 0.0005
 """The GIL hand-over deadline. CPython's default, 5 ms, would let a busy web thread hold off

@@ -12,8 +12,8 @@ from typing import Any, overload
 
 from cobot_hmi import connection_params as cp
 from cobot_hmi.service.config.loading import SettingsT, env_name, load_settings
-from cobot_hmi.service.setting_fields import O2T_SIZE, T2O_SIZE, SettingsError
 from cobot_hmi.service.service_settings import ServiceSettings
+from cobot_hmi.service.setting_fields import O2T_SIZE, T2O_SIZE, SettingsError
 
 # --------------------------------------------------------------------------- command line
 

@@ -19,8 +19,8 @@ from pydantic_settings import BaseSettings, EnvSettingsSource, SettingsConfigDic
 from pydantic_settings import SettingsError as PydanticSettingsError
 from pydantic_settings.sources.utils import parse_env_vars
 
-from cobot_hmi.service.setting_fields import CONFIG_ENV, ENV_PREFIX, SettingsError
 from cobot_hmi.service.service_settings import ServiceSettings
+from cobot_hmi.service.setting_fields import CONFIG_ENV, ENV_PREFIX, SettingsError
 
 # --------------------------------------------------------------------------- loading
 

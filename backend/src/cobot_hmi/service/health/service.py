@@ -36,8 +36,8 @@ from cobot_hmi.service.errors import ApiError
 from cobot_hmi.service.events.text import Event
 from cobot_hmi.service.extensions import MetricFamily
 from cobot_hmi.service.health.answers import baseline_answer, baselines_answer, report_answer
-from cobot_hmi.service.health.monitor import RobotHealth, arm_of, worst_verdict
 from cobot_hmi.service.health.health_service_settings import HealthServiceSettings
+from cobot_hmi.service.health.monitor import RobotHealth, arm_of, worst_verdict
 from cobot_hmi.service.health.store import HealthStore, Snapshot, snapshot_of
 from cobot_hmi.service.robots.robot import RobotRuntime
 from cobot_hmi.service.storage.store import Store

@@ -22,9 +22,9 @@ from typing import Any
 
 from cobot_hmi.layout import LAYOUT_VERSION
 from cobot_hmi.scanner.originator import ConnectionState, ConnectionStats, OriginatorSettings
+from cobot_hmi.service.alarms.alarm_settings import AlarmLimitSettings
 from cobot_hmi.service.alarms.engine import AlarmEngine, UserAlarm
 from cobot_hmi.service.alarms.persistence import AlarmChange, AlarmStore
-from cobot_hmi.service.alarms.alarm_settings import AlarmLimitSettings
 from cobot_hmi.service.events.bus import EventBus
 from cobot_hmi.service.events.text import Event
 from cobot_hmi.service.plant_time import PLANT_ZONE

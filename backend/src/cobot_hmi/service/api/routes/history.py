@@ -28,8 +28,8 @@ from cobot_hmi.service.api.openapi_extras import READ, errors
 from cobot_hmi.service.errors import ApiError
 from cobot_hmi.service.events.text import with_text
 from cobot_hmi.service.plant_time import PLANT_ZONE
-from cobot_hmi.service.recording.recorder import Recorder
 from cobot_hmi.service.recording.history_settings import HistorySettings
+from cobot_hmi.service.recording.recorder import Recorder
 from cobot_hmi.service.runtime import Service
 from cobot_hmi.service.storage.history_events import events_between, iter_events
 
