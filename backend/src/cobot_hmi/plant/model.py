@@ -98,6 +98,24 @@ class DeviceView:
     metrics: dict[str, MetricState] = field(default_factory=dict)
     alarm_since_ms: dict[str, int] = field(default_factory=dict)
     """Each active alarm's start (live or replayed)."""
+    _actives: list[str] = field(default_factory=list, init=False, repr=False, compare=False)
+    _health: list[str] = field(default_factory=list, init=False, repr=False, compare=False)
+    _listed: int = field(default=-1, init=False, repr=False, compare=False)
+    """How many metrics there were when ``_actives`` and ``_health`` were listed: a device's
+    metrics are only ever added to (a value changes in place), so the lists stay right until
+    one more comes, and the page, which asks for every device several times a second, does not
+    look through every metric of each."""
+
+    def _names(self) -> tuple[list[str], list[str]]:
+        """The names of the alarms' ``Active`` metrics and of the health metrics."""
+        if self._listed != len(self.metrics):
+            names = list(self.metrics)
+            self._actives = [
+                n for n in names if n.startswith(ALARM_PREFIX) and n.endswith("/Active")
+            ]
+            self._health = [n for n in names if n.startswith(HEALTH_PREFIX)]
+            self._listed = len(names)
+        return self._actives, self._health
 
     def value(self, name: str) -> MetricValue | None:
         metric = self.metrics.get(name)
@@ -115,9 +133,8 @@ class DeviceView:
     def alarms_active(self) -> list[ActiveAlarm]:
         """The active alarms, the most urgent first, then the oldest."""
         active = []
-        for name, metric in self.metrics.items():
-            if not (name.startswith(ALARM_PREFIX) and name.endswith("/Active")):
-                continue
+        for name in self._names()[0]:
+            metric = self.metrics[name]
             if metric.value is not True:
                 continue
             alarm = name[len(ALARM_PREFIX) : -len("/Active")]
@@ -140,10 +157,11 @@ class DeviceView:
         return str(value) if value is not None else alarm
 
     def health(self) -> dict[str, str]:
+        metrics = self.metrics
         return {
-            name[len(HEALTH_PREFIX) :]: str(m.value)
-            for name, m in self.metrics.items()
-            if name.startswith(HEALTH_PREFIX) and m.value is not None
+            name[len(HEALTH_PREFIX) :]: str(metrics[name].value)
+            for name in self._names()[1]
+            if metrics[name].value is not None
         }
 
 
