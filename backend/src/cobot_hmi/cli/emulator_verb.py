@@ -13,7 +13,7 @@ from cobot_hmi.layout import CONNECTION_POINTS, O2T_ASSEMBLY, T2O_ASSEMBLY
 if TYPE_CHECKING:
     from cobot_hmi.emulator.process_image import ProcessImage
     from cobot_hmi.emulator.replay_robot import ReplayRobot
-    from cobot_hmi.emulator.robot import SimulatedRobot
+    from cobot_hmi.emulator.robot.wear import WearScenario
     from cobot_hmi.emulator.settings import TargetSettings
 
 
@@ -38,12 +38,14 @@ def _vendor_id(text: str) -> int:
 
 
 def _temperature_rise_c(text: str) -> float:
+    from cobot_hmi.emulator.robot.wear import MAX_MOTOR_TEMPERATURE_RISE_C as MAX_C
+
     try:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError("expected °C, e.g. 40 or 0") from None
-    if not 0.0 <= value <= 200.0:
-        raise argparse.ArgumentTypeError("expected 0 to 200 °C")
+    if not 0.0 <= value <= MAX_C:
+        raise argparse.ArgumentTypeError(f"expected 0 to {MAX_C:g} °C")
     return value
 
 
@@ -259,22 +261,20 @@ def _add_control_arguments(robot: argparse._ArgumentGroup) -> None:
     )
 
 
-def _apply_wear_scenario(path: Path, robot: SimulatedRobot) -> bool:
-    """The scenario file's wear on the robot from now; False (said why) when it is unusable."""
+def _wear_scenario(path: Path, joints: int) -> WearScenario | None:
+    """The scenario file, read before the robot is built (it may shape the motors' heating);
+    None (said why) when it is unusable."""
     import json
-    import time
 
     from cobot_hmi.emulator.robot.wear import WearError, parse_scenario
 
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
-        scenario = parse_scenario(data, len(robot.model.joints))
+        return parse_scenario(data, joints)
     except (OSError, ValueError) as error:  # WearError and JSONDecodeError are ValueErrors
         kind = "wear scenario" if isinstance(error, WearError) else "cannot read"
         print(f"cobot-hmi emulator: --wear {path}: {kind}: {error}", flush=True)
-        return False
-    scenario.apply(robot.wear, time.time())
-    return True
+        return None
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -336,8 +336,11 @@ def _target_settings(args: argparse.Namespace) -> TargetSettings:
 def _robot(args: argparse.Namespace) -> ProcessImage | int:
     """The robot behind the target: a replay, a robot standing still or the simulation; an exit
     status (2, said why) when the arguments cannot make one."""
+    import time
+
     from cobot_hmi.emulator.process_image import IdleBehaviour
     from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot
+    from cobot_hmi.emulator.robot.models import model_by_name
     from cobot_hmi.emulator.static_robot import StaticRobot
 
     idle = IdleBehaviour(args.idle)
@@ -345,6 +348,11 @@ def _robot(args: argparse.Namespace) -> ProcessImage | int:
         return _replay_robot(args)
     if args.static:
         return StaticRobot(idle)
+    scenario = None
+    if args.wear is not None:
+        scenario = _wear_scenario(args.wear, len(model_by_name(args.model).joints))
+        if scenario is None:
+            return 2
     settings = RobotSettings(
         model=args.model,
         seed=args.seed,
@@ -355,12 +363,16 @@ def _robot(args: argparse.Namespace) -> ProcessImage | int:
         register_map=args.register_map,
         cycle_marker_register=args.cycle_marker_register,
     )
-    # Set only when asked for: RobotSettings' own default stays the one place it is said.
-    if args.motor_temperature_rise_c is not None:
-        settings.temperature_rise_at_rated_current_c = args.motor_temperature_rise_c
+    # The command line's rise over the scenario file's; set only when one says it, so that
+    # RobotSettings' own default stays the one place it is said.
+    rise_c = args.motor_temperature_rise_c
+    if rise_c is None and scenario is not None:
+        rise_c = scenario.motor_temperature_rise_c
+    if rise_c is not None:
+        settings.temperature_rise_at_rated_current_c = rise_c
     simulated = SimulatedRobot(settings)
-    if args.wear is not None and not _apply_wear_scenario(args.wear, simulated):
-        return 2
+    if scenario is not None:
+        scenario.apply(simulated.wear, time.time())
     return simulated
 
 

@@ -27,6 +27,9 @@ WARM_C: Final = 45.0
 MAX_PERCENT: Final = 1000.0
 MAX_RAMP_S: Final = 365 * 86_400.0
 MAX_TIME_FACTOR: Final = 1_000_000.0
+MAX_MOTOR_TEMPERATURE_RISE_C: Final = 200.0
+"""The most a scenario (or ``--motor-temperature-rise-c``) may say a motor settles above room
+temperature at its rated current."""
 COLLISION_S: Final = 0.2
 """How long a collision's external-torque spike shows in the frames."""
 
@@ -222,10 +225,14 @@ class Wear:
 @dataclass(frozen=True, slots=True)
 class WearScenario:
     """A wear scenario file (``cobot-hmi emulator --wear FILE``, docs/emulator.md "Wear"):
-    ``{"time_factor": 1000, "wear": [{"joint": 3, "friction_percent": 25, "ramp_h": 168}]}``."""
+    ``{"time_factor": 1000, "wear": [{"joint": 3, "friction_percent": 25, "ramp_h": 168}]}``.
+    ``motor_temperature_rise_c`` shapes the robot rather than its wear (the motors' rise above
+    room temperature at rated current, ``RobotSettings.temperature_rise_at_rated_current_c``):
+    the emulator reads it before it builds the robot; ``apply`` leaves it alone."""
 
     time_factor: float
     entries: tuple[tuple[int, JointWear], ...]
+    motor_temperature_rise_c: float | None = None
 
     def apply(self, wear: Wear, now_s: float) -> None:
         wear.set_time_factor(self.time_factor, now_s)
@@ -237,9 +244,11 @@ def parse_scenario(data: object, joints: int) -> WearScenario:
     """A scenario from its JSON (``WearError`` naming what is wrong, nothing applied)."""
     if not isinstance(data, dict):
         raise WearError(f"expected a JSON object, got {type(data).__name__}")
-    unknown = sorted(set(data) - {"time_factor", "wear"})
+    known = {"time_factor", "wear", "motor_temperature_rise_c"}
+    unknown = sorted(set(data) - known)
     if unknown:
-        raise WearError(f"unknown field {unknown[0]!r}; expected time_factor, wear", unknown[0])
+        expected = ", ".join(sorted(known))
+        raise WearError(f"unknown field {unknown[0]!r}; expected {expected}", unknown[0])
     factor = data.get("time_factor", 1.0)
     if isinstance(factor, bool) or not isinstance(factor, int | float):
         raise WearError(f"time_factor: expected a number, got {factor!r}", "time_factor")
@@ -256,7 +265,19 @@ def parse_scenario(data: object, joints: int) -> WearScenario:
             parsed.append(parse_entry(entry, joints))
         except WearError as error:
             raise WearError(f"wear[{i}]: {error}", error.field) from None
-    return WearScenario(float(factor), tuple(parsed))
+    return WearScenario(float(factor), tuple(parsed), _temperature_rise_c(data))
+
+
+def _temperature_rise_c(data: Mapping[str, object]) -> float | None:
+    rise = data.get("motor_temperature_rise_c")
+    if rise is None:
+        return None
+    name = "motor_temperature_rise_c"
+    if isinstance(rise, bool) or not isinstance(rise, int | float):
+        raise WearError(f"{name}: expected a number of °C, got {rise!r}", name)
+    if not 0.0 <= rise <= MAX_MOTOR_TEMPERATURE_RISE_C:
+        raise WearError(f"{name}: {rise} is outside 0–{MAX_MOTOR_TEMPERATURE_RISE_C:g}", name)
+    return float(rise)
 
 
 WEAR_FIELDS: Final = tuple(f.name for f in fields(JointWear))
