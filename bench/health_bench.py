@@ -142,7 +142,9 @@ async def run(args: argparse.Namespace, state: Path) -> dict[str, Condition]:
     conditions = {"off": Condition(), "on": Condition()}
     emulator_args = ("--cycle-marker-register", str(CYCLE_MARKER_REGISTER))
     given_baselines = False
-    with emulated_cell(args.robots, state, emulator_args=emulator_args) as cell:
+    with emulated_cell(
+        args.robots, state, robot_niceness=args.robot_niceness, emulator_args=emulator_args
+    ) as cell:
         for cycle in range(args.cycles):
             for condition in ("off", "on"):
                 switch = ("--no-health-enabled",) if condition == "off" else ()
@@ -214,6 +216,12 @@ def _arguments() -> argparse.Namespace:
     parser.add_argument("--cycles", type=int, default=2, help="off/on alternations")
     parser.add_argument(
         "--baseline-cycles", type=int, default=3, help="each robot's cycles its baseline learns"
+    )
+    parser.add_argument(
+        "--robot-niceness",
+        type=int,
+        default=-10,
+        help="nice value of the emulators (a real robot is its own machine; 0: same as the rest)",
     )
     return parser.parse_args()
 
