@@ -29,9 +29,12 @@ from cobot_hmi.sparkplug.mqtt_client import BrokerAddress, ClientOptions
 log = logging.getLogger(__name__)
 
 _SWEEP_S: Final = 1.0
-INBOX_LIMIT: Final = 5000
-"""Messages received and not yet handled, at most (about 1.5 s of a 500-robot plant's DDATA,
-a few MiB): past it the client's thread waits, and the brokers hold the rest."""
+INBOX_LIMIT: Final = 20_000
+"""Messages received and not yet handled, at most (about 6 s of a 500-robot plant's DDATA, some
+15 MiB): past it the client's thread waits, and the brokers hold the rest. Not less: a broker
+keeps little for a slow QoS 0 subscriber (Mosquitto about 1000 messages) and drops the rest,
+each drop a seq gap, each gap a rebirth of the whole node, several times the work of its
+DDATA; a hiccup of the machine of a few seconds should cost none."""
 INBOX_WAIT_S: Final = 0.5
 """The client's thread, waiting for room, looks again this often whether the plant stops."""
 BATCH: Final = 500
