@@ -153,11 +153,13 @@ export class HealthPeer {
         () => {
           if (!this.child.running) throw new Error(`health peer exited:\n${this.child.output}`);
           const { sparkplug, opcua } = this.readings();
-          return { sparkplug: String(sparkplug[name]), opcua: String(opcua[name]) };
+          // The reason beside a verdict, so that a failure says why the engine judged so.
+          const reason = opcua[name.replace(/Verdict$/, "Reason")];
+          return { sparkplug: String(sparkplug[name]), opcua: String(opcua[name]), reason };
         },
         { timeout: timeout_ms, message: `${name} at both doors matches ${pattern}` },
       )
-      .toEqual({ sparkplug: expect.stringMatching(pattern), opcua: expect.stringMatching(pattern) });
+      .toEqual(expect.objectContaining({ sparkplug: expect.stringMatching(pattern), opcua: expect.stringMatching(pattern) }));
   }
 }
 
