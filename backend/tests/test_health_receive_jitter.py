@@ -1,18 +1,15 @@
 """The health engine fed a healthy emulated M1013's frames with the receive times a loaded
 machine gives them (a few ms of jitter on a 10 ms RPI, every frame a fresh measurement, as in
 the end-to-end scenario 44): no joint may read a friction change against a baseline of two
-cycles. Today they do (J2 −21 % with seed 1, +70 % with seed 3; e2e 44 saw a healthy J3 read
-act): the samples' accelerations are the velocity's slopes over the frames' *receive* times, so
-a jitter of 2 ms on 10 ms makes them 20 % wrong and the friction fits of cells with a few
-samples (``min_cell_frames`` 3 for a three-term fit) far off. Strictly expected to fail until
-the engine takes its time base from the frames' nominal spacing (the packets' T→O sequence ×
-RPI, or the spacings snapped to the block's median); then the marker goes."""
+cycles. They did (J2 −21 % with seed 1, +70 % with seed 3; e2e 44 saw a healthy J3 read act):
+the samples' accelerations were the velocity's slopes over the frames' *receive* times, so a
+jitter of 2 ms on 10 ms made them 20 % wrong, and the friction fits of cells with a few samples
+(``min_cell_frames`` 3 for a three-term fit) far off. The engine now snaps the spacings to
+whole frame periods (``health.samples``) and fits a cell from six samples"""
 
 from __future__ import annotations
 
 import random
-
-import pytest
 
 from cobot_hmi.arms import M1013_ARM
 from cobot_hmi.codec import Frame
@@ -72,9 +69,6 @@ def test_exact_receive_times_read_no_friction_change() -> None:
         assert all(f is None or abs(f) < 3.0 for f in frictions), (seed, frictions)
 
 
-@pytest.mark.xfail(
-    strict=True, reason="the engine's accelerations follow the receive times' jitter (see above)"
-)
 def test_jittered_receive_times_read_no_friction_change() -> None:
     watch = HealthSettings().friction_watch_percent
     for seed in (1, 3, 5):

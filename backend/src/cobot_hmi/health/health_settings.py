@@ -26,7 +26,9 @@ class HealthSettings:
     jerk_tolerance_deg_s2: float = 10.0
     """A sample whose acceleration before and after differ by more than this (and 10 %) straddles
     a change of acceleration: left out of the friction fit."""
-    min_cell_frames: float = 3.0
+    min_cell_frames: float = 6.0
+    """Samples a cell needs before its three-term fit counts: with three a few samples of
+    uneven spacing or noise made a healthy joint read ±20 % (tests/test_health_receive_jitter)."""
     heat_watch_c: float = 5.0
     heat_act_c: float = 10.0
     thermal_time_constant_s: float = 180.0
