@@ -19,9 +19,9 @@ from hypothesis import HealthCheck
 from hypothesis import settings as hypothesis_settings
 
 from cobot_hmi.emulator.process_image import IdleBehaviour
-from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
+from cobot_hmi.emulator.target_settings import TargetSettings
 
 # Hypothesis's timing checks measure the machine, not the code under test: on a loaded 2-core
 # machine (a fresh clone's suite beside a bench) drawing a frame or running an example takes

@@ -17,8 +17,8 @@ import httpx
 
 from cobot_hmi.emulator.control_api import ControlApiServer, create_control_app
 from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot, StateTimings
-from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.target import Target
+from cobot_hmi.emulator.target_settings import TargetSettings
 from cobot_hmi.generated.frames import Frame
 from cobot_hmi.layout import flag_fields
 from cobot_hmi.scanner.originator import ConnectionState, Originator, OriginatorSettings

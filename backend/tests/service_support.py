@@ -26,9 +26,9 @@ import uvicorn
 from cobot_hmi.composition import build_service
 from cobot_hmi.emulator.faults import TargetFaults
 from cobot_hmi.emulator.process_image import IdleBehaviour, ProcessImage
-from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
+from cobot_hmi.emulator.target_settings import TargetSettings
 from cobot_hmi.service.access.users import Role, UsersFile
 from cobot_hmi.service.api.app import create_app
 from cobot_hmi.service.api.server import uvicorn_config

@@ -13,9 +13,9 @@ from typing import Any
 
 from cobot_hmi.codec import Frame
 from cobot_hmi.emulator.process_image import IdleBehaviour
-from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
+from cobot_hmi.emulator.target_settings import TargetSettings
 from cobot_hmi.layout import O2T_FIELDS, T2O_FIELDS, Field
 from cobot_hmi.service.robots.frame_notifier import FrameRecord
 from cobot_hmi.service.runtime import Service

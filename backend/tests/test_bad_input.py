@@ -12,9 +12,9 @@ from collections.abc import AsyncIterator
 
 import pytest
 
-from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
+from cobot_hmi.emulator.target_settings import TargetSettings
 from cobot_hmi.enip import cpf, encapsulation, io
 from cobot_hmi.enip.encapsulation import Command
 from cobot_hmi.scanner.originator import ConnectionState, Originator, OriginatorSettings

@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 
 from cobot_hmi.emulator.eds import eds_text
-from cobot_hmi.emulator.settings import TargetSettings, default_identity
+from cobot_hmi.emulator.target_settings import TargetSettings, default_identity
 from cobot_hmi.enip import epath
 from cobot_hmi.layout import CONNECTION_POINTS, O2T_ASSEMBLY, T2O_ASSEMBLY
 

@@ -16,9 +16,9 @@ import pytest
 from cobot_hmi.emulator.control_api import ControlApiServer, create_control_app
 from cobot_hmi.emulator.process_image import IdleBehaviour
 from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot
-from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
+from cobot_hmi.emulator.target_settings import TargetSettings
 from cobot_hmi.enip import encapsulation
 from cobot_hmi.enip.encapsulation import Command
 from conftest import free_tcp_port

@@ -21,9 +21,9 @@ from pycomm3 import CIPDriver, ClassCode, Services
 from pycomm3.cip.data_types import UINT, USINT
 from pycomm3.custom_types import ModuleIdentityObject
 
-from cobot_hmi.emulator.settings import DOOSAN_VENDOR_ID, TargetSettings, default_identity
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
+from cobot_hmi.emulator.target_settings import DOOSAN_VENDOR_ID, TargetSettings, default_identity
 from cobot_hmi.scanner.originator import Originator, OriginatorSettings
 
 pytestmark = pytest.mark.timeout(120)

@@ -16,9 +16,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cobot_hmi.emulator.settings import TargetSettings, default_identity
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
+from cobot_hmi.emulator.target_settings import TargetSettings, default_identity
 from cobot_hmi.enip import cip, epath
 from cobot_hmi.enip.cip import MessageRouterRequest, Service
 from cobot_hmi.enip.connection_manager import ForwardOpenRequest, NetworkParams

@@ -21,9 +21,9 @@ from collections.abc import AsyncIterator
 import pytest
 
 from cobot_hmi.codec import CommandImage, Frame, decode_frame, encode_command, encode_frame
-from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
+from cobot_hmi.emulator.target_settings import TargetSettings
 from cobot_hmi.enip import cip, cpf, encapsulation, io
 from cobot_hmi.enip.cip import MessageRouterResponse, Service
 from cobot_hmi.enip.connection_manager import (

@@ -24,8 +24,8 @@ import pytest_asyncio
 
 from cobot_hmi.emulator.control_api import ControlApiServer, create_control_app
 from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot
-from cobot_hmi.emulator.settings import TargetSettings, default_identity
 from cobot_hmi.emulator.target import Target
+from cobot_hmi.emulator.target_settings import TargetSettings, default_identity
 from cobot_hmi.opcua.feed import ServiceFeed
 from cobot_hmi.opcua.server import OpcUaServer
 from cobot_hmi.opcua.units import unit_for

@@ -14,8 +14,8 @@ from typing import Any
 import pytest
 from asyncua import Client, ua
 
-from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.target import Target
+from cobot_hmi.emulator.target_settings import TargetSettings
 from cobot_hmi.service.health.service import LatestHealth, health_event
 from conftest import _next_host, free_tcp_port
 from service_support import cell_settings, running_service

@@ -28,8 +28,8 @@ from asyncua import Client, ua
 from cobot_hmi import __version__
 from cobot_hmi.emulator.control_api import ControlApiServer, create_control_app
 from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot
-from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.target import Target
+from cobot_hmi.emulator.target_settings import TargetSettings
 from conftest import _next_host as next_host
 from conftest import free_tcp_port
 from emulator_harness import FAST_TIMINGS

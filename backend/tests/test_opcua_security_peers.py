@@ -51,8 +51,8 @@ from cryptography import x509
 from cryptography.hazmat.primitives import hashes, serialization
 
 from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot
-from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.target import Target
+from cobot_hmi.emulator.target_settings import TargetSettings
 from cobot_hmi.opcua.feed import ServiceFeed
 from cobot_hmi.opcua.server import OpcUaServer
 from conftest import _next_host as next_host

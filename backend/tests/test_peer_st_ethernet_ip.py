@@ -15,9 +15,9 @@ from pathlib import Path
 
 from cobot_hmi.codec import command_from_json, decode_frame, encode_command
 from cobot_hmi.emulator.connections import ConnectionInfo
-from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
+from cobot_hmi.emulator.target_settings import TargetSettings
 
 PEERS = Path(__file__).parent / "peers"
 

@@ -28,8 +28,8 @@ from typing import Any
 
 import pytest
 
-from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.target import Target
+from cobot_hmi.emulator.target_settings import TargetSettings
 from conftest import _next_host, free_tcp_port
 from plant_support import needs_pysparkplug, plant_process, pysparkplug_node
 from service_support import Running, cell_settings, running_service

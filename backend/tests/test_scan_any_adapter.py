@@ -16,9 +16,9 @@ from collections.abc import AsyncIterator, Callable
 
 import pytest
 
-from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
+from cobot_hmi.emulator.target_settings import TargetSettings
 from cobot_hmi.scanner.originator import ConnectionState, Originator, OriginatorSettings
 
 DEADLINE_S = 10.0

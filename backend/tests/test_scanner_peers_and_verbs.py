@@ -11,9 +11,9 @@ from collections.abc import AsyncIterator
 
 import pytest
 
-from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
+from cobot_hmi.emulator.target_settings import TargetSettings
 from cobot_hmi.scanner import explicit
 from conftest import free_tcp_port
 

@@ -12,9 +12,9 @@ from collections import defaultdict
 from pathlib import Path
 
 from cobot_hmi.codec import command_from_json
-from cobot_hmi.emulator.settings import TargetSettings
 from cobot_hmi.emulator.static_robot import StaticRobot
 from cobot_hmi.emulator.target import Target
+from cobot_hmi.emulator.target_settings import TargetSettings
 from cobot_hmi.scanner.originator import Originator, OriginatorSettings
 
 

@@ -2,7 +2,7 @@
 never the emulator, the scanner, the service or any I/O.
 
 The one declaration of each class 1 connection setting: its default, unit, bounds and help
-text. The emulator (``emulator.settings.TargetSettings``), the scanner
+text. The emulator (``emulator.target_settings.TargetSettings``), the scanner
 (``scanner.originator.OriginatorSettings``) and the service (``service.service_settings``,
 where each becomes a typed, bounded setting with its flag and ``COBOT_HMI_*`` variable) take
 them from here, so a default or a limit is changed in one place.

@@ -106,7 +106,7 @@ def _eds(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from cobot_hmi.emulator.eds import eds_text
-    from cobot_hmi.emulator.settings import TargetSettings, default_identity
+    from cobot_hmi.emulator.target_settings import TargetSettings, default_identity
 
     text = eds_text(TargetSettings(identity=default_identity(args.model)))
     if args.output is None or args.output == "-":

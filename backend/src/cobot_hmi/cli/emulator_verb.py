@@ -14,7 +14,7 @@ if TYPE_CHECKING:
     from cobot_hmi.emulator.process_image import ProcessImage
     from cobot_hmi.emulator.replay_robot import ReplayRobot
     from cobot_hmi.emulator.robot.wear import WearScenario
-    from cobot_hmi.emulator.settings import TargetSettings
+    from cobot_hmi.emulator.target_settings import TargetSettings
 
 
 def _rpi_range(text: str) -> tuple[int, int]:
@@ -302,7 +302,11 @@ def _run(args: argparse.Namespace) -> int:
 
 def _target_settings(args: argparse.Namespace) -> TargetSettings:
     from cobot_hmi.emulator.process_image import IdleBehaviour
-    from cobot_hmi.emulator.settings import DOOSAN_VENDOR_ID, TargetSettings, default_identity
+    from cobot_hmi.emulator.target_settings import (
+        DOOSAN_VENDOR_ID,
+        TargetSettings,
+        default_identity,
+    )
 
     return TargetSettings(
         host=args.host,

@@ -21,7 +21,7 @@ from collections.abc import Callable
 from cobot_hmi.codec import O2T_SIZE, CodecError, decode_command, encode_command, encode_frame
 from cobot_hmi.emulator.process_image import ProcessImage
 from cobot_hmi.emulator.replies import class_attribute, reply
-from cobot_hmi.emulator.settings import TargetSettings
+from cobot_hmi.emulator.target_settings import TargetSettings
 from cobot_hmi.enip.cip import MessageRouterRequest, MessageRouterResponse, Service
 from cobot_hmi.enip.epath import RequestPath
 from cobot_hmi.enip.status import GeneralStatus

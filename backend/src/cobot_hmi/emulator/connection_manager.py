@@ -22,7 +22,7 @@ from cobot_hmi.emulator.connections import ConnectionKind, IoConnection
 from cobot_hmi.emulator.counters import TargetCounters
 from cobot_hmi.emulator.encap_server import SessionContext
 from cobot_hmi.emulator.faults import TargetFaults
-from cobot_hmi.emulator.settings import TargetSettings
+from cobot_hmi.emulator.target_settings import TargetSettings
 from cobot_hmi.enip import cip, epath
 from cobot_hmi.enip.cip import MessageRouterRequest, MessageRouterResponse, Service
 from cobot_hmi.enip.connection_manager import (

@@ -27,7 +27,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Final
 
-from cobot_hmi.emulator.settings import DOOSAN_VENDOR_ID, TargetSettings
+from cobot_hmi.emulator.target_settings import DOOSAN_VENDOR_ID, TargetSettings
 from cobot_hmi.enip import epath
 from cobot_hmi.layout import LAYOUT_VERSION
 

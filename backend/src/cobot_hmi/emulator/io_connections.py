@@ -23,7 +23,7 @@ from cobot_hmi.emulator.counters import TargetCounters
 from cobot_hmi.emulator.faults import TargetFaults
 from cobot_hmi.emulator.o2t_watchdog import O2TWatchdogs
 from cobot_hmi.emulator.process_image import ProcessImage
-from cobot_hmi.emulator.settings import TargetSettings
+from cobot_hmi.emulator.target_settings import TargetSettings
 from cobot_hmi.enip import io
 from cobot_hmi.enip.connection_manager import ForwardOpenRequest
 from cobot_hmi.enip.epath import ConnectionPath

@@ -28,7 +28,7 @@ from cobot_hmi.emulator.io_connections import (
 )
 from cobot_hmi.emulator.objects import MessageRouter
 from cobot_hmi.emulator.process_image import ProcessImage
-from cobot_hmi.emulator.settings import TargetSettings
+from cobot_hmi.emulator.target_settings import TargetSettings
 from cobot_hmi.enip import cip
 from cobot_hmi.enip.cpf import CpfItem, Sockaddr
 from cobot_hmi.enip.identity import IdentityInfo
