@@ -34,6 +34,7 @@ KEEPALIVE_S: Final = 10
 CONNECT_TIMEOUT_S: Final = 3.0
 SUBSCRIBE_TIMEOUT_S: Final = 5.0
 READ_BURST: Final = 1000
+READ_BUFFER_BYTES: Final = 256 * 1024
 """Messages read at most between two calls of paho's ``loop`` (a fraction of a second's)."""
 
 MessageHandler = Callable[[str, bytes], None]
@@ -143,6 +144,7 @@ class FailoverClient:
             c, mid, reasons, attempt
         )
         client.on_message = lambda _c, _u, message: self._received(message)
+        reads = _BufferedReads(client)
         address = options.address
         try:
             client.connect(address.host, address.port, keepalive=KEEPALIVE_S)
@@ -154,9 +156,9 @@ class FailoverClient:
         started = time.monotonic()
         try:
             while not self._stop.is_set():
-                if client.loop(timeout=0.2) != mqtt.MQTT_ERR_SUCCESS:
+                if client.loop(timeout=0.0 if reads.buffered else 0.2) != mqtt.MQTT_ERR_SUCCESS:
                     break
-                if self._read_burst(client) != mqtt.MQTT_ERR_SUCCESS:
+                if self._read_burst(client, reads) != mqtt.MQTT_ERR_SUCCESS:
                     break
                 if not attempt.established.is_set() and attempt.overdue(started):
                     log.warning(
@@ -177,16 +179,16 @@ class FailoverClient:
         self.messages += 1
         self._on_message(message.topic, bytes(message.payload))
 
-    def _read_burst(self, client: mqtt.Client) -> int:
-        """The messages already waiting in the socket, read without a ``select`` each: paho's
-        ``loop`` reads one packet a call when nothing of QoS 1 or 2 is in flight, and a plant
-        receives thousands a second. Stops at the first read that brought no message (nothing
-        waiting, or another packet: the next ``loop`` handles the rest), or after
-        ``READ_BURST`` (so that ``loop`` still keeps the connection alive and writes)."""
+    def _read_burst(self, client: mqtt.Client, reads: _BufferedReads) -> int:
+        """The messages already waiting, read without a ``select`` each: paho's ``loop`` reads
+        one packet a call when nothing of QoS 1 or 2 is in flight, and a plant receives
+        thousands a second. Stops once a read brought no message and nothing is left in the
+        buffer (the next ``loop`` handles the rest), or after ``READ_BURST`` (so that ``loop``
+        still keeps the connection alive and writes)."""
         for _ in range(READ_BURST):
             before = self.messages
             rc = client.loop_read()
-            if rc != mqtt.MQTT_ERR_SUCCESS or self.messages == before:
+            if rc != mqtt.MQTT_ERR_SUCCESS or (self.messages == before and not reads.buffered):
                 return int(rc)
         return int(mqtt.MQTT_ERR_SUCCESS)
 
@@ -228,6 +230,34 @@ class FailoverClient:
             _, mid = client.subscribe(topic_filter, qos=0)
             if mid is not None:
                 attempt.pending.add(mid)
+
+
+class _BufferedReads:
+    """paho's reads of one connection served from a buffer filled ``READ_BUFFER_BYTES`` at a
+    time (paho asks for a packet's first byte, then its length byte by byte, then the rest: a
+    socket call each, four a message, and every one lets go of the GIL, which the event loop's
+    thread, busy with the messages before, then holds for up to the interpreter's switch
+    interval). Its own reader (TLS's wants turned into paho's ``BlockingIOError``) fills it."""
+
+    def __init__(self, client: mqtt.Client) -> None:
+        self._read = client._sock_recv  # paho's own, kept: its TLS and error handling
+        self._data = b""
+        self._at = 0
+        client._sock_recv = self.recv  # type: ignore[method-assign,assignment]  # paho reads so
+
+    @property
+    def buffered(self) -> int:
+        return len(self._data) - self._at
+
+    def recv(self, size: int) -> bytes:
+        if self._at >= len(self._data):
+            data = self._read(READ_BUFFER_BYTES)
+            if not data:  # the connection closed: paho's own reading of it
+                return data
+            self._data, self._at = bytes(data), 0
+        chunk = self._data[self._at : self._at + size]
+        self._at += len(chunk)
+        return chunk
 
 
 class _Attempt:
