@@ -640,7 +640,7 @@ export interface paths {
         /** The robot's baselines, oldest first: who set each, why, when, from which cycles, which is active and which is being learned */
         get: operations["list_baselines_api_v1_robots__name__health_baselines_get"];
         put?: never;
-        /** Learn a new baseline from the next N whole cycles (after a reducer change, a new program): the verdicts restart from it once learned; the one in use stays until then. Operator or above; audited with its reason */
+        /** Learn a new baseline (after a reducer change, a new program): from the next N whole cycles (the verdicts restart from it once learned; the one in use stays until then), or from a period already recorded (from, to: its recorded frames and measured cycles, adopted at once). Operator or above; audited with its reason */
         post: operations["create_baseline_api_v1_robots__name__health_baselines_post"];
         delete?: never;
         options?: never;
@@ -2607,20 +2607,31 @@ export interface components {
         };
         /**
          * HealthBaselineCreate
-         * @description Learn a new baseline from the next whole cycles: after a reducer change, a new program.
+         * @description Learn a new baseline (after a reducer change, a new program): from the next N whole
+         *     cycles (``cycles``, the default), or from a period already recorded (``from`` and ``to``):
+         *     one or the other, not both.
          */
         HealthBaselineCreate: {
             /**
              * Cycles
-             * @description learn from the next N whole cycles of the cycle meter
-             * @default 50
+             * @description learn from the next N whole cycles of the cycle meter (default 50 when no period is given)
              */
-            cycles?: number;
+            cycles?: number | null;
+            /**
+             * From
+             * @description learn from the robot's recorded frames (history) and the cycles the cycle meter stored from this time on: seconds since the epoch, or ISO 8601 (without an offset: the plant's time zone), as the other routes' from and to
+             */
+            from?: number | string | null;
             /**
              * Reason
              * @description why, in words
              */
             reason: string;
+            /**
+             * To
+             * @description … until this time: not in the future, at most 7 days after from
+             */
+            to?: number | string | null;
         };
         /** HealthBaselineList */
         HealthBaselineList: {

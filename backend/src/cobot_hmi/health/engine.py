@@ -153,6 +153,15 @@ class HealthEngine:
         if self.baseline is not None and self.cycles % s.trend_every_cycles == 0:
             self._trend_point(self.baseline, end_s)
 
+    def adopt_learned(self, baseline: Baseline, finished_s: float) -> dict[str, object]:
+        """Adopt a baseline another engine learned (from a recorded period, on the same arm and
+        settings) as if learned here: numbered after this engine's, its record returned."""
+        if self.learning is not None:
+            raise ValueError("a baseline is being learned: it would be numbered the same")
+        baseline.info["id"] = len(self.history) + 1
+        self._adopt(baseline, finished_s)
+        return baseline.info
+
     def _adopt(self, baseline: Baseline, now_s: float) -> None:
         baseline.info["finished_s"] = now_s
         baseline.info["cycles"] = baseline.cycles

@@ -4,9 +4,18 @@ engine's (``cobot_hmi.health.report``); their laws and limits are docs/health.md
 
 from __future__ import annotations
 
+import time
 from typing import Literal
 
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from cobot_hmi.service.api.search import epoch_s
+
+PERIOD_MAX_DAYS = 7
+_TIME_HELP = (
+    "seconds since the epoch, or ISO 8601 (without an offset: the plant's time zone), as the "
+    "other routes' from and to"
+)
 
 Verdict = Literal["ok", "watch", "act"]
 
@@ -135,12 +144,64 @@ class HealthBaselineList(BaseModel):
 
 
 class HealthBaselineCreate(BaseModel):
-    """Learn a new baseline from the next whole cycles: after a reducer change, a new program."""
+    """Learn a new baseline (after a reducer change, a new program): from the next N whole
+    cycles (``cycles``, the default), or from a period already recorded (``from`` and ``to``):
+    one or the other, not both."""
+
+    model_config = ConfigDict(populate_by_name=True)
 
     reason: str = Field(min_length=1, max_length=500, pattern=r"\S", description="why, in words")
-    cycles: int = Field(
-        50, ge=1, le=10_000, description="learn from the next N whole cycles of the cycle meter"
+    cycles: int | None = Field(
+        None,
+        ge=1,
+        le=10_000,
+        description="learn from the next N whole cycles of the cycle meter (default 50 when "
+        "no period is given)",
     )
+    from_: float | str | None = Field(
+        None,
+        alias="from",
+        description="learn from the robot's recorded frames (history) and the cycles the cycle "
+        f"meter stored from this time on: {_TIME_HELP}",
+    )
+    to: float | str | None = Field(
+        None,
+        description=f"… until this time: not in the future, at most {PERIOD_MAX_DAYS} days "
+        "after from",
+    )
+
+    @model_validator(mode="after")
+    def _one_way(self) -> HealthBaselineCreate:
+        period = self.from_ is not None or self.to is not None
+        if period and self.cycles is not None:
+            raise ValueError("give either 'cycles' or 'from' and 'to', not both")
+        if period and (self.from_ is None or self.to is None):
+            missing = "from" if self.from_ is None else "to"
+            raise ValueError(f"a period needs both 'from' and 'to': '{missing}' is missing")
+        if period:
+            self.period_s()
+        return self
+
+    def period_s(self) -> tuple[float, float]:
+        """The period as seconds since the epoch; ``ValueError`` naming the field that is
+        wrong."""
+        times: list[float] = []
+        for name, text in (("from", self.from_), ("to", self.to)):
+            try:
+                value = None if text is None else epoch_s(str(text))
+            except ValueError as error:
+                raise ValueError(f"'{name}': {error}") from None
+            if value is None:
+                raise ValueError(f"'{name}' is missing")
+            times.append(value)
+        from_s, to_s = times
+        if to_s > time.time():
+            raise ValueError("'to' is in the future: a baseline is learned from recorded frames")
+        if from_s >= to_s:
+            raise ValueError("'from' must be before 'to'")
+        if to_s - from_s > PERIOD_MAX_DAYS * 86_400.0:
+            raise ValueError(f"the period from 'from' to 'to' is over {PERIOD_MAX_DAYS} days")
+        return from_s, to_s
 
 
 class HealthTrendJoint(BaseModel):

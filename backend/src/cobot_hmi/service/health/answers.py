@@ -41,8 +41,9 @@ def baseline_answer(
         "layout_version": info["layout_version"],
         "target_cycles": info.get("target_cycles"),
         "cycles": cycles if cycles is not None else info.get("cycles"),
-        "learned_from": info["started_s"],
-        "learned_to": info.get("finished_s"),
+        # A period's baseline was learned from recorded frames: the period, not when asked.
+        "learned_from": info.get("period_from_s", info["started_s"]),
+        "learned_to": info.get("period_to_s", info.get("finished_s")),
         "active": active,
         "learning": learning,
     }

@@ -23,14 +23,17 @@ from __future__ import annotations
 import asyncio
 import concurrent.futures
 import contextlib
+import functools
 import logging
 import threading
 import time
 from collections.abc import Coroutine, Iterator, Mapping, Sequence
+from pathlib import Path
 from types import MappingProxyType
 from typing import Any, Final
 
 from cobot_hmi.health import HealthEngine
+from cobot_hmi.health.baseline import Baseline
 from cobot_hmi.service.alarms.engine import AlarmEngine
 from cobot_hmi.service.errors import ApiError
 from cobot_hmi.service.events.text import Event
@@ -38,6 +41,7 @@ from cobot_hmi.service.extensions import MetricFamily
 from cobot_hmi.service.health.answers import baseline_answer, baselines_answer, report_answer
 from cobot_hmi.service.health.health_service_settings import HealthServiceSettings
 from cobot_hmi.service.health.monitor import RobotHealth, arm_of, worst_verdict
+from cobot_hmi.service.health.period import PeriodCycle, PeriodRequest, learn_period
 from cobot_hmi.service.health.store import HealthStore, Snapshot, snapshot_of
 from cobot_hmi.service.robots.robot import RobotRuntime
 from cobot_hmi.service.storage.store import Store
@@ -357,6 +361,46 @@ class Health:
         info = await asyncio.to_thread(monitor.begin_baseline, reason, by, time.time(), cycles)
         await self.save(name, monitor)
         return baseline_answer(info, active=False, learning=True, cycles=0)
+
+    async def learn_period(
+        self,
+        name: str,
+        request: PeriodRequest,
+        history_root: Path,
+        cycles: Sequence[PeriodCycle],
+    ) -> dict[str, object]:
+        """Learn a baseline from a recorded period (``period.learn_period``) off the web loop,
+        adopt it as the active one, save. ``ApiError`` 409 while health is off, a baseline is
+        being learned, or the period holds no recording or too few cycles."""
+        monitor = self.monitor(name)
+        if monitor.engine.learning is not None:
+            raise ApiError(409, "a baseline is being learned from the next cycles: wait for it")
+        with monitor.lock:
+            arm, settings = monitor.engine.arm, monitor.engine.settings
+        try:
+            learned = await asyncio.to_thread(
+                functools.partial(
+                    learn_period,
+                    arm,
+                    settings,
+                    history_root=history_root,
+                    robot=name,
+                    cycles=cycles,
+                    request=request,
+                )
+            )
+            record = await asyncio.to_thread(self._adopt, monitor, learned, time.time())
+        except ValueError as error:  # PeriodError, or a baseline began learning meanwhile
+            raise ApiError(409, str(error)) from None
+        await self.save(name, monitor)
+        return baseline_answer(record, active=True, learning=False)
+
+    @staticmethod
+    def _adopt(monitor: RobotHealth, learned: Baseline, now_s: float) -> dict[str, object]:
+        with monitor.lock:
+            if learned.info["arm"] != monitor.engine.arm.name:
+                raise ValueError("the robot's health engine changed meanwhile: ask again")
+            return dict(monitor.engine.adopt_learned(learned, now_s))
 
     async def trend(
         self, name: str, since: float | None, until: float | None, limit: int

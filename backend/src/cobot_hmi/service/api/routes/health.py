@@ -4,7 +4,9 @@ listed by the same, created by an operator or above (audited, with a reason)."""
 
 from __future__ import annotations
 
+import asyncio
 import time
+from datetime import UTC, datetime
 from typing import Annotated, Final
 
 from fastapi import APIRouter, Query, Request, Response
@@ -24,12 +26,20 @@ from cobot_hmi.service.api.origin import audited_action
 from cobot_hmi.service.api.search import From, To, epoch_s
 from cobot_hmi.service.errors import ApiError
 from cobot_hmi.service.health.answers import report_csv, trend_answer
+from cobot_hmi.service.health.period import PeriodCycle, PeriodRequest
+from cobot_hmi.service.runtime import Service
 
 router = APIRouter(prefix="/api/v1", tags=["health"])
 
 WEEK_S: Final = 7 * 86_400.0
 MAX_POINTS: Final = 10_000
 _JSON: Final = "application/json"
+DEFAULT_CYCLES: Final = 50
+"""A baseline's cycles when neither cycles nor a period is given."""
+MAX_PERIOD_CYCLES: Final = 100_000
+"""The most cycles of a period read (a week of 6 s cycles)."""
+RECENT_S: Final = 10.0
+FLUSH_TIMEOUT_S: Final = 5.0
 
 
 def _json(body: object, status_code: int = 200) -> Response:
@@ -108,9 +118,10 @@ async def list_baselines(service: ServiceDep, robot: RobotDep, _: ViewerDep) -> 
 
 @router.post(
     "/robots/{name}/health/baselines",
-    summary="Learn a new baseline from the next N whole cycles (after a reducer change, a new "
-    "program): the verdicts restart from it once learned; the one in use stays until then. "
-    "Operator or above; audited with its reason",
+    summary="Learn a new baseline (after a reducer change, a new program): from the next N "
+    "whole cycles (the verdicts restart from it once learned; the one in use stays until then), "
+    "or from a period already recorded (from, to: its recorded frames and measured cycles, "
+    "adopted at once). Operator or above; audited with its reason",
     response_model=HealthBaseline,
     status_code=201,
     responses=errors(401, 403, 404, 409, 422, 503),
@@ -123,22 +134,57 @@ async def create_baseline(
     body: HealthBaselineCreate,
 ) -> Response:
     action = audited_action(robot, writer, request, "health.baseline")
-    requested = {"reason": body.reason, "cycles": body.cycles}
+    reason = body.reason.strip()
+    period = body.period_s() if body.from_ is not None else None
+    requested: dict[str, object] = {"reason": body.reason}
+    if period is None:
+        requested["cycles"] = cycles = body.cycles or DEFAULT_CYCLES
+    else:
+        requested["from"], requested["to"] = period
     user = await action.authorize("setting a health baseline", requested)
     try:
-        baseline = await service.health.begin_baseline(
-            robot.name, body.reason.strip(), user, body.cycles
-        )
-    except ApiError as error:  # health off, no cycles to learn from: the refusal audited
+        if period is None:
+            baseline = await service.health.begin_baseline(robot.name, reason, user, cycles)
+            summary = f"from the next {cycles} cycles"
+        else:
+            request_ = PeriodRequest(reason, user, time.time(), *period)
+            baseline = await _learn_period(service, robot.name, request_)
+            summary = f"from the period {_iso(period[0])} to {_iso(period[1])}"
+    except ApiError as error:  # health off, no cycles or recording to learn from: audited
         raise await action.refused(error, requested=requested) from None
     await action.audit(
-        "started",
+        "started" if period is None else "saved",  # learned and adopted at once
         requested={**requested, "baseline": baseline["id"]},
-        reason=body.reason.strip(),
-        summary=f"health baseline {baseline['id']} from the next {body.cycles} cycles: "
-        f"{body.reason.strip()}",
+        reason=reason,
+        summary=f"health baseline {baseline['id']} {summary}: {reason}",
     )
     return _json(baseline, status_code=201)
+
+
+async def _learn_period(service: Service, name: str, request: PeriodRequest) -> dict[str, object]:
+    """A baseline of the robot's recording of the period and the cycles the cycle meter stored
+    in it (``service.health.period``); ``ApiError`` 409 without either."""
+    from_s, to_s = request.from_s, request.to_s
+    recorder = service.recorder
+    if recorder is None:
+        raise ApiError(409, "history is off: a period's baseline is learned from its recording")
+    if to_s > time.time() - RECENT_S:  # the period reaches the present: its last frames written
+        await asyncio.to_thread(recorder.flush, FLUSH_TIMEOUT_S)
+    store = service.cycles.store
+    await store.flush()
+    stored = await store.read_range(
+        name, since=from_s, until=to_s, limit=MAX_PERIOD_CYCLES, last_n=1, include_interrupted=True
+    )
+    cycles = [
+        PeriodCycle(float(c["start"]), float(c["end"]), bool(c["interrupted"]))  # type: ignore[arg-type]
+        for c in stored.cycles
+        if float(c["end"]) <= to_s  # type: ignore[arg-type]
+    ]
+    return await service.health.learn_period(name, request, service.settings.history_path, cycles)
+
+
+def _iso(epoch: float) -> str:
+    return datetime.fromtimestamp(epoch, UTC).isoformat(timespec="seconds")
 
 
 def _range(since: str | None, until: str | None) -> tuple[float, float]:
