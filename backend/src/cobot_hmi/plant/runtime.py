@@ -133,11 +133,13 @@ class PlantRuntime:
         thread (it reads no more from the broker, whose QoS rules then hold or drop for the
         plant: a lost QoS 0 DDATA is a seq gap the host answers with a rebirth) until the loop
         has made room: nothing is dropped here, and the memory stays bounded."""
+        loop = self._loop
+        if loop is None or loop.is_closed():
+            return
         received_s = time.time()
         with self._room:
             while len(self._inbox) >= INBOX_LIMIT:
-                loop = self._loop
-                if self._closing or loop is None or loop.is_closed():
+                if self._closing or loop.is_closed():
                     return
                 self.inbox_full += 1
                 self._room.wait(INBOX_WAIT_S)
@@ -145,8 +147,7 @@ class PlantRuntime:
             if self._wake_pending:
                 return
             self._wake_pending = True
-        loop = self._loop
-        if loop is not None and not loop.is_closed():
+        with contextlib.suppress(RuntimeError):  # the loop closed meanwhile: the plant stops
             loop.call_soon_threadsafe(self._drain)
 
     def _drain(self) -> None:
@@ -158,12 +159,13 @@ class PlantRuntime:
             more = bool(inbox)
             self._wake_pending = more
             self._room.notify()
-        try:
-            for topic, data, received_s in batch:
+        for topic, data, received_s in batch:
+            try:
                 self._handle(topic, data, received_s)
-        finally:  # whatever one message raised, the rest are still drained
-            if more and self._loop is not None and not self._loop.is_closed():
-                self._loop.call_soon(self._drain)
+            except Exception:  # one message's failure never stalls the others
+                log.exception("plant: message on %s not handled", topic)
+        if more and self._loop is not None and not self._loop.is_closed():
+            self._loop.call_soon(self._drain)
 
     def _handle(self, topic: str, data: bytes, received_s: float) -> None:
         self.messages += 1
