@@ -1,13 +1,14 @@
 /**
  * The robot's baselines (who set each, when and why, what it was learned from, the one in use
  * and the one being learned) and the form that asks for a new one: a reason (required: the
- * audit keeps it) and the cycles to learn from. Offered to operators only; the service's
- * refusal is said beside the form in words (lib/health/baselines.ts).
+ * audit keeps it) and what to learn from: the next N cycles, or a period already recorded (from,
+ * to). Offered to operators only; the service's refusal is said beside the form in words
+ * (lib/health/baselines.ts).
  */
 import { useState, type FormEvent } from "react";
 import { errorReason } from "../lib/api/api";
 import type { User } from "../lib/api/protocol";
-import { DEFAULT_BASELINE_CYCLES, MAX_BASELINE_CYCLES, MIN_BASELINE_CYCLES, baselineBlockedReason, baselineRefusalWords, baselineRows, checkBaselineForm } from "../lib/health/baselines";
+import { DEFAULT_BASELINE_CYCLES, MAX_BASELINE_CYCLES, MAX_BASELINE_PERIOD_DAYS, MIN_BASELINE_CYCLES, baselineBlockedReason, baselineRefusalWords, baselineRows, checkBaselineForm, checkPeriodBaselineForm } from "../lib/health/baselines";
 import { healthApi } from "../lib/health/healthApi";
 import type { BaselineRecord } from "../lib/health/healthTypes";
 
@@ -22,17 +23,39 @@ interface Props {
   readonly onAsked: () => void;
 }
 
+type Mode = "cycles" | "period";
+type Field = "reason" | "cycles" | "from" | "to";
+
+/** The fields of a recorded period: from and to as the page's date-time inputs type them. */
+function PeriodFields({ from, to, error, onFrom, onTo }: { readonly from: string; readonly to: string; readonly error: Field | null; readonly onFrom: (v: string) => void; readonly onTo: (v: string) => void }) {
+  return (
+    <>
+      <label>
+        <span>from</span>
+        <input data-testid="baseline-from" type="datetime-local" step={1} value={from} aria-invalid={error === "from"} onChange={(e) => onFrom(e.target.value)} />
+      </label>
+      <label>
+        <span>to</span>
+        <input data-testid="baseline-to" type="datetime-local" step={1} value={to} aria-invalid={error === "to"} onChange={(e) => onTo(e.target.value)} />
+      </label>
+    </>
+  );
+}
+
 function BaselineForm({ robot, onAsked }: { readonly robot: string; readonly onAsked: () => void }) {
   const [reason, setReason] = useState("");
+  const [mode, setMode] = useState<Mode>("cycles");
   const [cycles, setCycles] = useState(String(DEFAULT_BASELINE_CYCLES));
+  const [from, setFrom] = useState("");
+  const [to, setTo] = useState("");
   const [busy, setBusy] = useState(false);
-  const [error, setError] = useState<{ field: "reason" | "cycles" | null; words: string } | null>(null);
+  const [error, setError] = useState<{ field: Field | null; words: string } | null>(null);
   const [done, setDone] = useState<string | null>(null);
 
   const submit = async (e: FormEvent) => {
     e.preventDefault();
     setDone(null);
-    const check = checkBaselineForm(reason, cycles);
+    const check = mode === "cycles" ? checkBaselineForm(reason, cycles) : checkPeriodBaselineForm(reason, from, to);
     if (!check.ok) {
       setError({ field: check.field, words: check.reason });
       return;
@@ -43,7 +66,11 @@ function BaselineForm({ robot, onAsked }: { readonly robot: string; readonly onA
       const answer = await healthApi.setBaseline(robot, check.body);
       if (answer.status >= 200 && answer.status < 300) {
         setReason("");
-        setDone(`Learning a new baseline from the next ${check.body.cycles} cycles; the one in use stays until it is learned.`);
+        setDone(
+          mode === "cycles"
+            ? `Learning a new baseline from the next ${cycles.trim()} cycles; the one in use stays until it is learned.`
+            : "Learned a new baseline from the recorded period: it is in use now.",
+        );
         onAsked();
       } else {
         setError({ field: null, words: baselineRefusalWords(answer.status, errorReason(answer)) });
@@ -58,7 +85,16 @@ function BaselineForm({ robot, onAsked }: { readonly robot: string; readonly onA
   return (
     <form className="health-baseline-form" onSubmit={(e) => void submit(e)} aria-labelledby="baseline-form-title" data-testid="baseline-form" noValidate>
       <h3 id="baseline-form-title">Set a new baseline</h3>
-      <p className="hint">After a reducer change or a new program: the robot's next cycles become its healthy reference. The old baselines are kept.</p>
+      <p className="hint">After a reducer change or a new program: the robot's next cycles, or those of a period already recorded, become its healthy reference. The old baselines are kept.</p>
+      <fieldset className="health-baseline-form__mode" data-testid="baseline-mode">
+        <legend>learn from</legend>
+        <label>
+          <input type="radio" name="baseline-mode" data-testid="baseline-mode-cycles" checked={mode === "cycles"} onChange={() => setMode("cycles")} /> the next N cycles
+        </label>
+        <label>
+          <input type="radio" name="baseline-mode" data-testid="baseline-mode-period" checked={mode === "period"} onChange={() => setMode("period")} /> a recorded period (from, to; at most {MAX_BASELINE_PERIOD_DAYS} days)
+        </label>
+      </fieldset>
       <div className="health-baseline-form__fields">
         <label>
           <span>reason (required)</span>
@@ -72,21 +108,25 @@ function BaselineForm({ robot, onAsked }: { readonly robot: string; readonly onA
             onChange={(e) => setReason(e.target.value)}
           />
         </label>
-        <label>
-          <span>cycles to learn from</span>
-          <input
-            data-testid="baseline-cycles"
-            type="number"
-            inputMode="numeric"
-            min={MIN_BASELINE_CYCLES}
-            max={MAX_BASELINE_CYCLES}
-            step={1}
-            value={cycles}
-            aria-invalid={error?.field === "cycles"}
-            aria-describedby={error !== null ? "baseline-error" : undefined}
-            onChange={(e) => setCycles(e.target.value)}
-          />
-        </label>
+        {mode === "cycles" ? (
+          <label>
+            <span>cycles to learn from</span>
+            <input
+              data-testid="baseline-cycles"
+              type="number"
+              inputMode="numeric"
+              min={MIN_BASELINE_CYCLES}
+              max={MAX_BASELINE_CYCLES}
+              step={1}
+              value={cycles}
+              aria-invalid={error?.field === "cycles"}
+              aria-describedby={error !== null ? "baseline-error" : undefined}
+              onChange={(e) => setCycles(e.target.value)}
+            />
+          </label>
+        ) : (
+          <PeriodFields from={from} to={to} error={error?.field ?? null} onFrom={setFrom} onTo={setTo} />
+        )}
         <button type="submit" className="primary" data-testid="baseline-submit" disabled={busy}>
           Learn a new baseline
         </button>

@@ -1,5 +1,5 @@
 import { describe, expect, it } from "vitest";
-import { baselineBlockedReason, baselineRefusalWords, baselineRows, checkBaselineForm } from "./baselines";
+import { baselineBlockedReason, baselineRefusalWords, baselineRows, checkBaselineForm, checkPeriodBaselineForm } from "./baselines";
 import { baseline } from "./healthTestSupport";
 
 describe("the re-baselining form", () => {
@@ -9,6 +9,15 @@ describe("the re-baselining form", () => {
     expect(checkBaselineForm("new program", "")).toMatchObject({ ok: false, field: "cycles" });
     expect(checkBaselineForm("new program", "2.5")).toMatchObject({ ok: false, field: "cycles" });
     expect(checkBaselineForm("new program", "0")).toMatchObject({ ok: false, field: "cycles", reason: "between 1 and 100,000 cycles" });
+  });
+
+  it("or a recorded period: both ends, the end after the start, at most 7 days, sent as typed", () => {
+    expect(checkPeriodBaselineForm(" new program ", "2026-12-01T06:00", "2026-12-01T14:00")).toEqual({ ok: true, body: { reason: "new program", from: "2026-12-01T06:00", to: "2026-12-01T14:00" } });
+    expect(checkPeriodBaselineForm("", "2026-12-01T06:00", "2026-12-01T14:00")).toMatchObject({ ok: false, field: "reason" });
+    expect(checkPeriodBaselineForm("r", "", "2026-12-01T14:00")).toMatchObject({ ok: false, field: "from" });
+    expect(checkPeriodBaselineForm("r", "2026-12-01T06:00", "")).toMatchObject({ ok: false, field: "to" });
+    expect(checkPeriodBaselineForm("r", "2026-12-01T14:00", "2026-12-01T06:00")).toMatchObject({ ok: false, field: "to", reason: "the period must end after it starts" });
+    expect(checkPeriodBaselineForm("r", "2026-12-01T06:00", "2026-12-09T06:00")).toMatchObject({ ok: false, field: "to", reason: "a period of at most 7 days" });
   });
 
   it("is offered to operators and admins only, saying why to anyone else", () => {

@@ -27,6 +27,26 @@ export function checkBaselineForm(reason: string, cycles: string): BaselineCheck
   return { ok: true, body: { reason: why, cycles: n } };
 }
 
+/** The longest period a baseline is learned from (the service's bound). */
+export const MAX_BASELINE_PERIOD_DAYS = 7;
+
+/** A recorded period's form, checked: from and to as typed in the page's date-time fields
+ * (no offset: the service reads them in the plant's time zone, as the pages show times). */
+export type PeriodCheck = { readonly ok: true; readonly body: BaselineRequest & { readonly from: string; readonly to: string } } | { readonly ok: false; readonly field: "reason" | "from" | "to"; readonly reason: string };
+
+export function checkPeriodBaselineForm(reason: string, from: string, to: string): PeriodCheck {
+  const why = reason.trim();
+  if (why === "") return { ok: false, field: "reason", reason: "say why (a reducer changed, a new program…): the audit keeps it" };
+  const start = from.trim();
+  const end = to.trim();
+  if (start === "" || Number.isNaN(Date.parse(start))) return { ok: false, field: "from", reason: "the period's start: a date and time" };
+  if (end === "" || Number.isNaN(Date.parse(end))) return { ok: false, field: "to", reason: "the period's end: a date and time" };
+  const spanMs = Date.parse(end) - Date.parse(start);
+  if (spanMs <= 0) return { ok: false, field: "to", reason: "the period must end after it starts" };
+  if (spanMs > MAX_BASELINE_PERIOD_DAYS * 86_400_000) return { ok: false, field: "to", reason: `a period of at most ${MAX_BASELINE_PERIOD_DAYS} days` };
+  return { ok: true, body: { reason: why, from: start, to: end } };
+}
+
 /** Why the form is not offered to this person (null: it is). */
 export function baselineBlockedReason(user: User | null): string | null {
   if (user === null) return "Log in as an operator to set a new baseline.";
