@@ -1,9 +1,10 @@
-"""A baseline learned from a period already recorded (issue 40, docs/health.md "Baselines") on
+"""A baseline learned from a period already recorded (issue 40, docs/health.md "In the service") on
 the real stack: the emulator runs its demo program and marks each cycle on a register, the
 service records every frame (history) and measures the cycles; once a few cycles are in, an
 operator names the period that holds them (``from``, ``to``) and the baseline is learned from
-its recording at once: active, listed with its period, audited. A period without recording
-or cycles is refused (409), a body naming both ways or half a period is a 422."""
+its recording at once: active, listed with its period, audited, kept across a restart. A period
+without recording or cycles is refused (409), a body naming both ways or half a period is a
+422."""
 
 from __future__ import annotations
 
@@ -81,7 +82,8 @@ async def test_a_period_baseline_is_learned_from_its_recording_and_adopted(
     emulator: Emulator, robot_host: str, plc_host: str, tmp_path: Path
 ) -> None:
     started_s = time.time()
-    async with running_service(_settings(emulator, robot_host, plc_host, tmp_path)) as hmi:
+    settings = _settings(emulator, robot_host, plc_host, tmp_path)
+    async with running_service(settings) as hmi:
         operator, viewer = await hmi.login(OPERATOR), await hmi.login(VIEWER)
 
         async def recorded_cycles() -> bool:
@@ -138,3 +140,11 @@ async def test_a_period_baseline_is_learned_from_its_recording_and_adopted(
         (adopted,) = [r for r in audit["items"] if r["outcome"] == "saved"]
         assert "from the period" in adopted["summary"]
         assert adopted["reason"] == "new reducer on J2"
+    # Kept: started again on the same database, the period's baseline is the one in use.
+    async with running_service(settings) as hmi:
+        async with hmi.client() as client:
+            again = (await client.get(f"/api/v1/robots/{ROBOT}/health/baselines")).json()
+        (kept,) = [b for b in again["items"] if b["id"] == baseline["id"]]
+        assert kept["active"] is True and kept["reason"] == "new reducer on J2"
+        assert kept["learned_from"] == pytest.approx(from_s, abs=1e-3)
+        assert kept["learned_to"] == pytest.approx(to_s)
