@@ -22,8 +22,8 @@ from typing import Any, Final
 import uvicorn
 
 from cobot_hmi.plant.app import create_plant_app
+from cobot_hmi.plant.plant_settings import PlantSettings
 from cobot_hmi.plant.runtime import PlantRuntime
-from cobot_hmi.plant.settings import PlantSettings
 
 BIN_S: Final = 0.0005
 """The histogram's resolution: half a millisecond, up to ``BINS * BIN_S`` (10 s)."""

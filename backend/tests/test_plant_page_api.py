@@ -19,9 +19,9 @@ import uvicorn
 from cobot_hmi.cli import main as cli_main
 from cobot_hmi.cli.openapi_verb import PLANT_OUTPUT, render
 from cobot_hmi.plant.app import create_plant_app
+from cobot_hmi.plant.plant_settings import PlantSettings
 from cobot_hmi.plant.routes import shift_start
 from cobot_hmi.plant.runtime import PlantRuntime
-from cobot_hmi.plant.settings import PlantSettings
 from conftest import free_tcp_port
 from waiting import eventually
 

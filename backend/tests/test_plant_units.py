@@ -21,9 +21,9 @@ import uvicorn
 from cobot_hmi.plant import recorder as recorder_module
 from cobot_hmi.plant.app import create_plant_app
 from cobot_hmi.plant.host import Sample
+from cobot_hmi.plant.plant_settings import PlantSettings
 from cobot_hmi.plant.recorder import MetricKey, PlantRecorder
 from cobot_hmi.plant.runtime import PlantRuntime
-from cobot_hmi.plant.settings import PlantSettings
 from cobot_hmi.service.access.users import Role, UsersFile
 from conftest import free_tcp_port
 from waiting import eventually

@@ -19,7 +19,7 @@ import pytest
 from pydantic import BaseModel, SecretStr
 
 import cobot_hmi
-from cobot_hmi.plant.settings import PlantSettings
+from cobot_hmi.plant.plant_settings import PlantSettings
 from cobot_hmi.service.config.arguments import add_arguments, settings_from_args
 from cobot_hmi.service.config.loading import env_name, load_settings
 from cobot_hmi.service.service_settings import ServiceSettings, SettingsError

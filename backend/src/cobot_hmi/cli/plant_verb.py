@@ -39,7 +39,7 @@ HTTP bounds): the robots' are not the plant's flags."""
 
 
 def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    from cobot_hmi.plant.settings import PlantHostSettings, PlantSettings
+    from cobot_hmi.plant.plant_settings import PlantHostSettings, PlantSettings
     from cobot_hmi.service.config.arguments import add_arguments
 
     plant = subparsers.add_parser(
@@ -73,8 +73,8 @@ def _plant(args: argparse.Namespace) -> int:
     import uvicorn
 
     from cobot_hmi.plant.app import create_plant_app
+    from cobot_hmi.plant.plant_settings import PlantSettings
     from cobot_hmi.plant.runtime import PlantRuntime
-    from cobot_hmi.plant.settings import PlantSettings
     from cobot_hmi.service.access.users import Role, UsersError, UsersFile, generate_password
     from cobot_hmi.service.api.server import prepare_process, uvicorn_config
     from cobot_hmi.service.api.tls import TlsError

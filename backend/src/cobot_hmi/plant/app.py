@@ -86,7 +86,7 @@ def create_plant_app(runtime: PlantRuntime) -> FastAPI:
 def plant_openapi_document() -> dict[str, Any]:
     """The plant app's document as ``/openapi.json`` serves it, built without starting anything
     (``cobot-hmi openapi --plant``; the frontend's ``generated/plantApi.ts`` is made from it)."""
-    from cobot_hmi.plant.settings import PlantSettings
+    from cobot_hmi.plant.plant_settings import PlantSettings
 
     with TemporaryDirectory(prefix="cobot-hmi-plant-openapi-") as state:
         settings = PlantSettings.from_keys(

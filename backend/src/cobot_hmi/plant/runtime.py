@@ -18,8 +18,8 @@ from typing import Final
 
 from cobot_hmi.plant.client import FailoverClient
 from cobot_hmi.plant.host import HostApplication
+from cobot_hmi.plant.plant_settings import PlantSettings
 from cobot_hmi.plant.recorder import FLUSH_S, PlantRecorder
-from cobot_hmi.plant.settings import PlantSettings
 from cobot_hmi.service.access.auth import LoginThrottle, Session, Sessions
 from cobot_hmi.service.access.directory import Directory
 from cobot_hmi.service.access.users import User, UsersFile
