@@ -25,13 +25,16 @@ PEERS = Path(__file__).parent / "peers"
 async def _connections_while(
     process: asyncio.subprocess.Process, target: Target
 ) -> list[ConnectionInfo]:
-    """The target's connections once it has one, or what it has when the peer has ended."""
+    """The target's connections once one is running (its O→T data has come with the run bit:
+    the Forward Open alone makes the row), or what it has when the peer has ended."""
     deadline = asyncio.get_running_loop().time() + 60.0
-    while not (during := target.connections()) and process.returncode is None:
+    while True:
+        during = target.connections()
+        if any(c.run for c in during) or process.returncode is not None:
+            return during
         if asyncio.get_running_loop().time() > deadline:
-            break
+            return during
         await asyncio.sleep(0.05)
-    return list(during)
 
 
 async def test_st_ethernet_ip_scanner_holds_a_connection(robot_host: str, plc_host: str) -> None:
