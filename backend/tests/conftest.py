@@ -81,29 +81,39 @@ def pytest_configure(config: pytest.Config) -> None:
 
 SLOW_MODULES_FIRST: tuple[str, ...] = (
     "test_history_service.py",
-    "test_history_storage.py",
     "test_node_selection.py",
-    "test_opcua.py",
     "test_cycles_service.py",
-    "test_history_replay.py",
-    "test_slow_target.py",
-    "test_codec.py",
-    "test_restart.py",
     "test_demo.py",
-    "test_service_robots.py",
+    "test_session_idle.py",
+    "test_plant_nats_cluster.py",
+    "test_health_service.py",
+    "test_health_period_baseline.py",
+    "test_history_replay.py",
+    "test_history_storage.py",
+    "test_slow_target.py",
+    "test_opcua.py",
+    "test_opcua_security_peers.py",
+    "test_sparkplug_replay_peers.py",
+    "test_restart.py",
     "test_history_crash.py",
-    "test_hardening.py",
-    "test_sparkplug_faults.py",
-    "test_emulator_scenarios.py",
     "test_sparkplug_doors.py",
+    "test_sparkplug_faults.py",
+    "test_codec.py",
+    "test_http_limits.py",
+    "test_service_process.py",
+    "test_service_robots.py",
+    "test_rest_bounds_schemathesis.py",
+    "test_emulator_hardening.py",
+    "test_history_disk_full.py",
+    "test_hardening.py",
+    "test_emulator_scenarios.py",
     "test_alarm_words_and_consequences.py",
     "test_service_api.py",
-    "test_http_limits.py",
     "test_class1_cycle.py",
     "test_service_stream.py",
 )
-"""The modules whose tests take longest in all (``--durations=0`` summed by module, 3 workers on
-2 cores), slowest first.
+"""The modules whose tests take longest in all (``--durations`` summed by module, 4 workers on
+2 cores, measured 2026-12-07), slowest first.
 pytest-xdist (``--dist loadfile``) hands a worker the next file as it frees up, in collection
 order: started first, these no longer leave one worker alone on a minute-long file at the end
 while the other idles."""
