@@ -22,7 +22,7 @@ from cobot_hmi.plant import recorder as recorder_module
 from cobot_hmi.plant.app import create_plant_app
 from cobot_hmi.plant.host import Sample
 from cobot_hmi.plant.plant_settings import PlantSettings
-from cobot_hmi.plant.recorder import MetricKey, PlantRecorder
+from cobot_hmi.plant.recorder import PLANT_SEGMENT, MetricKey, PlantRecorder
 from cobot_hmi.plant.runtime import PlantRuntime
 from cobot_hmi.service.access.users import Role, UsersFile
 from conftest import free_tcp_port
@@ -67,7 +67,8 @@ def test_values_go_into_the_hour_they_happened_and_read_back(tmp_path: Path) -> 
     rows = relation.fetchall()
     assert rows == [(3,)]
     for path in files:
-        assert pq.read_schema(path).metadata[b"cobot_hmi.format_version"] == b"1"
+        version = pq.read_schema(path).metadata[b"cobot_hmi.format_version"]
+        assert version == str(PLANT_SEGMENT.version).encode()
 
 
 def test_a_finished_hour_is_compacted_and_a_newer_format_left_out(

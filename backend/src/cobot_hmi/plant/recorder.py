@@ -7,16 +7,16 @@ historical values land in the hour they happened): parts written every ``FLUSH_S
 hour is open, compacted into one ``segment.parquet`` once it has been over for
 ``COMPACT_AFTER_S`` (a part that comes later, a late replay, is read beside it). Every file says
 its format's version in its Parquet metadata (``stored_format``); a newer one is left out of
-queries, named in the log. A query reads only the hours of its range.
+queries, named in the log. A query reads only the hours of its range, and of each only the row
+groups that hold its series (the files' layout and reading: ``segments.py``).
 
-Imports ``stored_format`` and the plant's host (its ``Sample``).
+Imports ``segments`` and the plant's host (its ``Sample``).
 """
 
 from __future__ import annotations
 
 import contextlib
 import functools
-import json
 import logging
 import operator
 import os
@@ -33,31 +33,26 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from cobot_hmi.plant.host import Sample
-from cobot_hmi.stored_format import FormatVersionError, StoredFormat
+from cobot_hmi.plant.segments import (
+    ABSORBED_KEY,
+    PLANT_SEGMENT,
+    SCHEMA,
+    VERSION_KEY,
+    absorbed_parts,
+    read_series_files,
+    read_whole,
+    write_segment,
+)
 
 log = logging.getLogger(__name__)
 
-PLANT_SEGMENT = StoredFormat("plant history segment", 1)
-VERSION_KEY: Final = b"cobot_hmi.format_version"
-ABSORBED_KEY: Final = b"cobot_hmi.absorbed_parts"
+__all__ = ["ABSORBED_KEY", "PLANT_SEGMENT", "SCHEMA", "VERSION_KEY", "PlantRecorder"]
+
 FLUSH_S: Final = 1.0
 COMPACT_AFTER_S: Final = 600.0
 SEGMENT: Final = "segment.parquet"
 _HOUR_FORMAT: Final = "%Y-%m-%dT%H"
 HOUR_MS: Final = 3_600_000
-SCHEMA: Final = pa.schema(
-    [
-        ("time_ms", pa.int64()),
-        ("group", pa.string()),
-        ("node", pa.string()),
-        ("device", pa.string()),
-        ("metric", pa.string()),
-        ("value", pa.float64()),
-        ("text", pa.string()),
-        ("historical", pa.bool_()),
-    ],
-    metadata={VERSION_KEY: str(PLANT_SEGMENT.version).encode()},
-)
 
 
 @dataclass(frozen=True, slots=True)
@@ -207,104 +202,71 @@ class PlantRecorder:
         tables = []
         absorbed: list[str] = []
         if segment.exists():
-            table = _read(segment)
+            table = read_whole(segment)
             if table is None:
                 return
             tables.append(table)
-            absorbed = _absorbed(segment)
+            absorbed = absorbed_parts(segment)
         read = []
         for part in parts:
             if part.name in absorbed:  # a removal the last compaction did not finish
                 with contextlib.suppress(OSError):
                     part.unlink()
                 continue
-            table = _read(part)
+            table = read_whole(part)
             if table is not None:
                 tables.append(table)
                 read.append(part)
         if not read:
             return
-        merged = pa.concat_tables(tables).sort_by("time_ms")
-        names = json.dumps(absorbed + [p.name for p in read]).encode()
-        metadata = {**(SCHEMA.metadata or {}), ABSORBED_KEY: names}
         temporary = folder / (SEGMENT + ".tmp")
-        pq.write_table(merged.replace_schema_metadata(metadata), temporary)
+        write_segment(temporary, pa.concat_tables(tables), absorbed + [p.name for p in read])
         os.replace(temporary, segment)
         for part in read:
             with contextlib.suppress(OSError):
                 part.unlink()
 
-    def trend(self, key: MetricKey, start_ms: int, end_ms: int) -> list[Point]:
-        """Every recorded value of one metric in ``[start_ms, end_ms]``, in time order."""
-        hours = []
+    def hour_files(self, start_ms: int, end_ms: int) -> list[Path]:
+        """The files of the hours of ``[start_ms, end_ms]``: each hour's segment and its parts
+        that the segment does not hold yet."""
+        files: list[Path] = []
         hour = datetime.fromtimestamp(start_ms / 1000, UTC).replace(
             minute=0, second=0, microsecond=0
         )
         while hour.timestamp() * 1000 <= end_ms:
-            hours.append(self.directory / hour.strftime(_HOUR_FORMAT))
+            folder = self.directory / hour.strftime(_HOUR_FORMAT)
             hour += timedelta(hours=1)
-        tables = []
-        for folder in hours:
             if not folder.is_dir():
                 continue
             segment = folder / SEGMENT
-            absorbed = set(_absorbed(segment)) if segment.exists() else set()
-            for path in sorted(folder.glob("*.parquet")):
-                if path.name in absorbed:  # already in the segment, not yet removed
-                    continue
-                table = _read(path, (key, start_ms, end_ms))
-                if table is not None and table.num_rows:
-                    tables.append(table)
-        if not tables:
-            return []
-        merged = pa.concat_tables(tables).sort_by("time_ms")
-        return [
-            Point(t, v, x, h)
-            for t, v, x, h in zip(
-                merged["time_ms"].to_pylist(),
-                merged["value"].to_pylist(),
-                merged["text"].to_pylist(),
-                merged["historical"].to_pylist(),
-                strict=True,
+            absorbed = set(absorbed_parts(segment)) if segment.exists() else set()
+            files.extend(
+                path
+                for path in sorted(folder.glob("*.parquet"))
+                if path.name not in absorbed  # already in the segment, not yet removed
             )
-        ]
+        return files
+
+    def trend_table(self, key: MetricKey, start_ms: int, end_ms: int) -> pa.Table:
+        """One metric's rows in ``[start_ms, end_ms]`` in time order (columns ``time_ms``,
+        ``value``, ``text``, ``historical``)."""
+        series = (key.group, key.node, key.device, key.metric)
+        return read_series_files(self.hour_files(start_ms, end_ms), series, start_ms, end_ms)
+
+    def trend(self, key: MetricKey, start_ms: int, end_ms: int) -> list[Point]:
+        """Every recorded value of one metric in ``[start_ms, end_ms]``, in time order."""
+        return points_of(self.trend_table(key, start_ms, end_ms))
 
 
-def _absorbed(segment: Path) -> list[str]:
-    """The names of the parts a segment holds (its metadata), empty when it cannot say."""
-    try:
-        found = (pq.read_schema(segment).metadata or {}).get(ABSORBED_KEY)
-        names = json.loads(found) if found else []
-    except (OSError, ValueError, pa.ArrowException):
-        return []
-    return [str(n) for n in names] if isinstance(names, list) else []
-
-
-def _read(path: Path, where: tuple[MetricKey, int, int] | None = None) -> pa.Table | None:
-    """One file's rows (of one metric in a range, with ``where``); ``None`` when it cannot be
-    read or is of a newer format (named in the log, left on disk)."""
-    try:
-        metadata = pq.read_schema(path).metadata or {}
-        PLANT_SEGMENT.read_version(metadata.get(VERSION_KEY), path)
-        if where is None:
-            return pq.read_table(path, schema=SCHEMA)
-        key, start_ms, end_ms = where
-        table = pq.read_table(
-            path,
-            columns=["time_ms", "value", "text", "historical"],
-            filters=[
-                ("group", "=", key.group),
-                ("node", "=", key.node),
-                ("device", "=", key.device),
-                ("metric", "=", key.metric),
-                ("time_ms", ">=", start_ms),
-                ("time_ms", "<=", end_ms),
-            ],
+def points_of(table: pa.Table) -> list[Point]:
+    """A trend table's rows as points."""
+    return [
+        Point(t, v, x, h)
+        for t, v, x, h in zip(
+            table["time_ms"].to_pylist(),
+            table["value"].to_pylist(),
+            table["text"].to_pylist(),
+            table["historical"].to_pylist(),
+            strict=True,
         )
-    except FormatVersionError as error:
-        log.warning("plant history: %s", error)
-        return None
-    except (OSError, pa.ArrowException) as error:
-        log.warning("plant history: %s unreadable: %s", path, error)
-        return None
-    return table.filter(pc.is_valid(table["time_ms"]))
+    ]

@@ -19,6 +19,7 @@ from fastapi.responses import Response
 from pydantic import BaseModel, TypeAdapter
 
 from cobot_hmi.layout import robot_state_name
+from cobot_hmi.plant import trends
 from cobot_hmi.plant.model import (
     AREA_METRIC,
     CYCLE_AVERAGE,
@@ -290,17 +291,28 @@ async def trend(
     since: Annotated[float, Query(description="epoch s")],
     until: Annotated[float | None, Query(description="epoch s (default: now)")] = None,
     device: Annotated[str, Query(description="empty: the node's own metric")] = "",
+    points: Annotated[
+        int | None,
+        Query(
+            ge=1,
+            le=trends.MAX_BUCKETS,
+            description="decimated to this many equal spans of the range, each its first, "
+            "lowest, highest and last value (default: every value)",
+        ),
+    ] = None,
 ) -> list[TrendPoint]:
     end_ms = int((until if until is not None else time.time()) * 1000)
-    points = await asyncio.to_thread(
-        _runtime(request).recorder.trend,
+    found = await asyncio.to_thread(
+        trends.trend,
+        _runtime(request).recorder,
         MetricKey(group, node, device, metric),
         int(since * 1000),
         end_ms,
+        points,
     )
     return [
         TrendPoint(time=p.time_ms / 1000, value=p.value, text=p.text, historical=p.historical)
-        for p in points
+        for p in found
     ]
 
 
