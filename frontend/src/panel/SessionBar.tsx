@@ -1,14 +1,15 @@
 /**
- * Login form, the logged-in user, and Take control / Release of the robot shown. While logged in
+ * The login form (components/LoginForm), the logged-in user, and Take control / Release of the robot shown. While logged in
  * it keeps the session's idle clock (useSessionIdle): an expired session turns the page to
  * logged out at once, with "Session expired: log in again" (the service has released control).
  */
-import { useCallback, useState, type FormEvent } from "react";
+import { useCallback, useState } from "react";
+import { LoginForm } from "../components/LoginForm";
 import { api, controlOf, errorReason } from "../lib/api/api";
 import { SESSION_EXPIRED_WORDS } from "../lib/writes/sessionIdle";
 import { useSessionIdle } from "./useSessionIdle";
 import type { Ownership } from "../lib/writes/controlSession";
-import { roleAtLeast, userOf, type ControlStatus, type User } from "../lib/api/protocol";
+import { roleAtLeast, type ControlStatus, type User } from "../lib/api/protocol";
 import type { HttpAnswer } from "../lib/writes/writes";
 
 interface Props {
@@ -29,10 +30,7 @@ interface Props {
 }
 
 export function SessionBar({ robot, user, ownership, onUser, onControl, onLoginWanted, onLoggingOut }: Props) {
-  const [username, setUsername] = useState("");
-  const [password, setPassword] = useState("");
   const [busy, setBusy] = useState(false);
-  const [loginError, setLoginError] = useState<string | null>(null);
   const [controlError, setControlError] = useState<string | null>(null);
   const [expired, setExpired] = useState(false);
   const onExpired = useCallback(() => {
@@ -40,26 +38,6 @@ export function SessionBar({ robot, user, ownership, onUser, onControl, onLoginW
     onUser(null);
   }, [onUser]);
   useSessionIdle(user, onExpired);
-
-  const submit = async (e: FormEvent) => {
-    e.preventDefault();
-    setBusy(true);
-    setLoginError(null);
-    try {
-      const answer = await api.login(username, password);
-      if (answer.status === 200) {
-        setPassword("");
-        setExpired(false);
-        onUser(userOf((answer.body as { user?: unknown } | null)?.user));
-      } else {
-        setLoginError(answer.status === 401 ? "wrong user name or password" : errorReason(answer));
-      }
-    } catch (error) {
-      setLoginError(error instanceof Error ? error.message : String(error));
-    } finally {
-      setBusy(false);
-    }
-  };
 
   const controlAction = async (action: () => Promise<HttpAnswer>) => {
     setBusy(true);
@@ -98,33 +76,12 @@ export function SessionBar({ robot, user, ownership, onUser, onControl, onLoginW
             Log in
           </button>
         )}
-        <form className="session session--login" onSubmit={(e) => void submit(e)} aria-label="Operator login">
-          <input
-            aria-label="User name"
-            placeholder="user"
-            autoComplete="username"
-            data-testid="login-username"
-            value={username}
-            onChange={(e) => setUsername(e.target.value)}
-          />
-          <input
-            aria-label="Password"
-            placeholder="password"
-            type="password"
-            autoComplete="current-password"
-            data-testid="login-password"
-            value={password}
-            onChange={(e) => setPassword(e.target.value)}
-          />
-          <button type="submit" data-testid="login-submit" disabled={busy || username === ""}>
-            Log in
-          </button>
-          {loginError !== null && (
-            <span className="reason" data-testid="login-error" role="alert">
-              {loginError}
-            </span>
-          )}
-        </form>
+        <LoginForm
+          onUser={(next) => {
+            setExpired(false);
+            onUser(next);
+          }}
+        />
       </>
     );
   }
