@@ -4,7 +4,7 @@
  * and its reducer's life used; the trend over days; this shift's knocks on the arm's
  * joint-space picture; the baselines with who set them and why, and the form for a new one
  * (operators). Printed, it is the weekly health report (styles/health.css); the same report as
- * CSV is a download link. The report is polled every few seconds (lib/health/healthPoller.ts).
+ * CSV is a download link. The report is polled every few seconds (lib/common/poller.ts).
  */
 import { useCallback, useEffect, useMemo, useState, useSyncExternalStore } from "react";
 import { ThemeSwitch, useTheme } from "../components/theme";
@@ -13,7 +13,8 @@ import type { User } from "../lib/api/protocol";
 import { formatDateTime_ms, formatTimestamp } from "../lib/common/dates";
 import { FLEET_HREF, chooseRobot, healthHref, kioskHref, panelHref, robotFromSearch } from "../lib/common/route";
 import { healthApi } from "../lib/health/healthApi";
-import { Poller } from "../lib/health/healthPoller";
+import { Poller } from "../lib/common/poller";
+import { HEALTH_POLL_MS } from "../lib/health/healthApi";
 import type { HealthAnswer } from "../lib/health/healthTypes";
 import { maintenanceMark } from "../lib/health/maintenanceMark";
 import { isVerdict, robotVerdictWords, worstVerdict } from "../lib/health/verdicts";
@@ -72,7 +73,7 @@ function Summary({ report }: { readonly report: HealthAnswer }) {
 
 function HealthPage({ robot, robots, user, onUser }: { readonly robot: string; readonly robots: readonly string[]; readonly user: User | null; readonly onUser: (user: User | null) => void }) {
   const theme = useTheme();
-  const poller = useMemo(() => new Poller(() => healthApi.report(robot)), [robot]);
+  const poller = useMemo(() => new Poller(() => healthApi.report(robot), HEALTH_POLL_MS), [robot]);
   useEffect(() => {
     poller.start();
     return () => poller.stop();

@@ -7,6 +7,7 @@
 import { briefWords, summaryCountWords } from "../alarms/alarmsCell";
 import { formatDuration_ms } from "../stream/health";
 import type { AlarmSummary, LinkState, RobotSummary } from "../api/protocol";
+import { Poller, type Fetched, type PolledSnapshot } from "../common/poller";
 import { kioskHref, panelHref } from "../common/route";
 
 export interface FleetTile {
@@ -102,72 +103,44 @@ export function knownRobots(fleet: FleetSnapshot): readonly string[] | null {
 
 export const FLEET_POLL_MS = 1000;
 
-type Listener = () => void;
-
 /**
- * Polls `fetchRobots` every `interval_ms` (one request at a time: a slow answer delays the
- * next poll rather than piling requests up) and publishes snapshots to its subscribers.
+ * Polls `fetchRobots` every `interval_ms` (lib/common/poller.ts: one request at a time, the last
+ * good list kept and marked stale) and publishes the tiles to its subscribers.
  */
 export class FleetPoller {
-  private readonly fetchRobots: () => Promise<RobotsAnswer>;
-  private readonly interval_ms: number;
-  private readonly listeners = new Set<Listener>();
-  private timer: ReturnType<typeof setTimeout> | null = null;
-  private running = false;
-  private generation = 0;
+  private readonly poller: Poller<readonly FleetTile[]>;
+  private shown: PolledSnapshot<readonly FleetTile[]> | null = null;
   private current: FleetSnapshot = { tiles: [], error: null, stale: false, loaded: false, answered: false };
 
   constructor(fetchRobots: () => Promise<RobotsAnswer>, interval_ms = FLEET_POLL_MS) {
-    this.fetchRobots = fetchRobots;
-    this.interval_ms = interval_ms;
+    this.poller = new Poller(async (): Promise<Fetched<readonly FleetTile[]>> => {
+      const answer = await fetchRobots();
+      return answer.ok ? { ok: true, value: answer.robots.map(fleetTile) } : { ok: false, status: 0, reason: answer.reason };
+    }, interval_ms);
   }
 
-  subscribe = (listener: Listener): (() => void) => {
-    this.listeners.add(listener);
-    return () => {
-      this.listeners.delete(listener);
-    };
+  subscribe = (listener: () => void): (() => void) => this.poller.subscribe(listener);
+
+  /** The same object until the next answer (useSyncExternalStore compares by identity). */
+  getSnapshot = (): FleetSnapshot => {
+    const polled = this.poller.getSnapshot();
+    if (polled !== this.shown) {
+      this.shown = polled;
+      this.current = { tiles: polled.value ?? [], error: polled.error, stale: polled.stale, loaded: polled.loaded, answered: polled.value !== null };
+    }
+    return this.current;
   };
 
-  getSnapshot = (): FleetSnapshot => this.current;
-
   start(): void {
-    if (this.running) return;
-    this.running = true;
-    void this.poll(++this.generation);
+    this.poller.start();
   }
 
   stop(): void {
-    this.running = false;
-    this.generation++;
-    if (this.timer !== null) clearTimeout(this.timer);
-    this.timer = null;
+    this.poller.stop();
   }
 
   /** Poll now (e.g. after a login) instead of waiting for the next turn. */
   refresh(): void {
-    if (!this.running) return;
-    if (this.timer !== null) clearTimeout(this.timer);
-    this.timer = null;
-    void this.poll(++this.generation);
-  }
-
-  private async poll(generation: number): Promise<void> {
-    let answer: RobotsAnswer;
-    try {
-      answer = await this.fetchRobots();
-    } catch (error) {
-      answer = { ok: false, reason: error instanceof Error ? error.message : String(error) };
-    }
-    // A stop or a refresh while this poll was out makes its answer (and its next turn) moot.
-    if (!this.running || generation !== this.generation) return;
-    this.current = answer.ok
-      ? { tiles: answer.robots.map(fleetTile), error: null, stale: false, loaded: true, answered: true }
-      : { ...this.current, error: answer.reason, stale: this.current.answered, loaded: true };
-    for (const listener of this.listeners) listener();
-    this.timer = setTimeout(() => {
-      this.timer = null;
-      void this.poll(generation);
-    }, this.interval_ms);
+    this.poller.refresh();
   }
 }

@@ -1,6 +1,6 @@
 import { afterEach, beforeEach, describe, expect, it, vi } from "vitest";
 import { FleetHealthPoller, healthCell } from "./fleetHealth";
-import type { Fetched } from "./healthPoller";
+import type { Fetched } from "../common/poller";
 import { joint, report, SIX_OK } from "./healthTestSupport";
 import type { HealthAnswer } from "./healthTypes";
 

@@ -5,7 +5,7 @@
  * could not be read says why, never "ok".
  */
 import { healthHref } from "../common/route";
-import type { Fetched } from "./healthPoller";
+import type { Fetched } from "../common/poller";
 import type { HealthAnswer, Verdict } from "./healthTypes";
 import { maintenanceMark } from "./maintenanceMark";
 import { isVerdict, robotVerdictWords, worstVerdict } from "./verdicts";

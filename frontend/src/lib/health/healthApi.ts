@@ -7,8 +7,14 @@
  */
 import { api, errorReason, type JsonClient } from "../api/api";
 import type { HttpAnswer } from "../writes/writes";
-import type { Fetched } from "./healthPoller";
+import type { Fetched } from "../common/poller";
 import type { BaselineList, BaselineRequest, HealthAnswer, TrendAnswer } from "./healthTypes";
+
+/**
+ * How often the health page asks for its report: the service judges the verdicts again every few
+ * seconds (`health_report_s`), so a poll every few seconds shows every change.
+ */
+export const HEALTH_POLL_MS = 3000;
 
 /** What openapi-fetch gives back. */
 interface Result<T> {

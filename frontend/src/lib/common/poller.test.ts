@@ -1,5 +1,5 @@
 import { afterEach, beforeEach, describe, expect, it, vi } from "vitest";
-import { Poller, type Fetched } from "./healthPoller";
+import { Poller, type Fetched } from "./poller";
 
 /** A fetch whose answers the test gives, one per call, in order. */
 function scripted<T>() {

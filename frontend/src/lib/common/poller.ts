@@ -1,9 +1,9 @@
 /**
- * Layer: the health page's and the fleet's polling of a report (plain TypeScript, no React, no
- * DOM): one request at a time (a slow answer delays the next poll rather than piling requests
- * up), the last good answer kept and marked stale while the service does not answer. The
- * verdicts are judged again every few seconds in the service (`health_report_s`), so a poll
- * every few seconds shows every change.
+ * Layer: polling one answer of the service (plain TypeScript, no React, no DOM), as the fleet's
+ * robot list, the health page's report and its baselines are: one request at a time (a slow
+ * answer delays the next poll rather than piling requests up), the last good answer kept and
+ * marked stale while the service does not answer. Subscribe and getSnapshot are React's
+ * useSyncExternalStore pair.
  */
 
 /** What one fetch gave: the value, or why there is none. */
@@ -22,8 +22,6 @@ export interface PolledSnapshot<T> {
   readonly loaded: boolean;
 }
 
-export const HEALTH_POLL_MS = 3000;
-
 type Listener = () => void;
 
 export class Poller<T> {
@@ -35,7 +33,7 @@ export class Poller<T> {
 
   constructor(
     private readonly fetchValue: () => Promise<Fetched<T>>,
-    private readonly interval_ms = HEALTH_POLL_MS,
+    private readonly interval_ms: number,
   ) {}
 
   subscribe = (listener: Listener): (() => void) => {
