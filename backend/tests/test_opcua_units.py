@@ -1,6 +1,7 @@
 """The OPC UA server's pure parts: its settings, the layout's units as UN/CEFACT codes, the
 safety state's reading of the frame, the bundled NodeSets' provenance, the values shared with
-asyncua's monitored items, and the ticks' grid that subscriptions start in phase with."""
+asyncua's monitored items, the ticks' grid that subscriptions start in phase with, and which
+robots a tick updates (as often as their fastest watcher samples)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,9 @@ from datetime import UTC, datetime
 
 import pytest
 from asyncua import ua
+from asyncua.server.address_space import AddressSpace
+from asyncua.server.internal_subscription import InternalSubscription
+from asyncua.server.monitored_item_service import MonitoredItemData
 from asyncua.ua.ua_binary import struct_to_binary
 
 from cobot_hmi.codec import zero_frame
@@ -17,9 +21,15 @@ from cobot_hmi.generated.frames import RobotState
 from cobot_hmi.layout import ANALOG_OUTPUT_RANGES, O2T_FIELDS, T2O_FIELDS
 from cobot_hmi.opcua import companion, robotics
 from cobot_hmi.opcua.opcua_settings import DEFAULT_PORT
-from cobot_hmi.opcua.server import PUBLISH_AFTER_TICK, subscription_delay_s, tick_deadline
+from cobot_hmi.opcua.server import (
+    PUBLISH_AFTER_TICK,
+    SamplingPlan,
+    subscription_delay_s,
+    tick_deadline,
+    watched_intervals,
+)
 from cobot_hmi.opcua.units import PER_TYPE, analog_unit, unit_for
-from cobot_hmi.opcua.values import GOOD, SharedDataValue
+from cobot_hmi.opcua.values import GOOD, SharedDataValue, scalar_variant, shared_value
 from cobot_hmi.service.config.loading import load_settings
 from cobot_hmi.service.service_settings import SettingsError
 from cobot_hmi.settings import HmiSettings
@@ -122,3 +132,61 @@ def test_a_subscription_starts_just_after_a_tick(now: float) -> None:
     assert 0 <= delay < period_s
     phase = (now + delay - next_tick) % period_s  # where in the period the cycle starts
     assert phase == pytest.approx(PUBLISH_AFTER_TICK * period_s, abs=1e-9)
+
+
+def _subscription(publishing_ms: float, *nodes: ua.NodeId) -> InternalSubscription:
+    """asyncua's own subscription, its monitored items on ``nodes`` (as it holds them)."""
+    data = ua.CreateSubscriptionResult(RevisedPublishingInterval=publishing_ms)
+    subscription = InternalSubscription(data, AddressSpace(), _publish, ua.NodeId(1, 0))
+    service = subscription.monitored_item_srv
+    for node in nodes:
+        service._monitored_item_counter += 1
+        item = MonitoredItemData()
+        item.read_value_id = ua.ReadValueId(NodeId=node, AttributeId=ua.AttributeIds.Value)
+        service._monitored_items[service._monitored_item_counter] = item
+    return subscription
+
+
+async def _publish(*_: object) -> None:  # pragma: no cover - never published here
+    return None
+
+
+def test_each_robot_is_updated_as_often_as_its_fastest_watcher_samples() -> None:
+    robots = {2: "a", 3: "b", 4: "c"}  # by namespace index; nobody watches c
+    historian = _subscription(1000.0, ua.NodeId("x", 2), ua.NodeId("y", 3), ua.NodeId(85, 0))
+    screen = _subscription(100.0, ua.NodeId("z", 3))
+    assert watched_intervals({1: historian, 2: screen}, robots, 0.1) == {"a": 1.0, "b": 0.1}
+    plan = SamplingPlan(robots, 0.1)
+    plan.refresh({1: historian, 2: screen})
+    assert [sum(plan.due(name, tick) for tick in range(100)) for name in "abc"] == [10, 100, 0]
+    assert [tick for tick in range(20) if plan.due("a", tick)] == [0, 10]
+    plan.refresh({1: historian})  # the screen's subscription deleted: b as the historian
+    assert plan.every == {"a": 10, "b": 10}
+    assert [tick for tick in range(20) if plan.due("b", tick)] == [9, 19]  # spread over ticks
+    faster = _subscription(50.0, ua.NodeId("x", 2))  # faster than the ticks: every tick
+    plan.refresh({1: historian, 3: faster})
+    assert plan.every["a"] == 1
+
+
+@pytest.mark.parametrize(
+    ("value", "variant"),
+    [
+        (1.5, ua.VariantType.Double),
+        (7, ua.VariantType.UInt16),
+        (True, ua.VariantType.Boolean),
+        ("text", ua.VariantType.String),
+        (None, ua.VariantType.String),
+        ([1.0, 2.0], ua.VariantType.Float),
+    ],
+)
+def test_values_made_without_the_checks_equal_the_constructors(
+    value: object, variant: ua.VariantType
+) -> None:
+    made = scalar_variant(value, variant)
+    assert made == ua.Variant(value, variant)
+    assert (made.Dimensions, made.is_array) == (None, isinstance(value, list))
+    when = datetime(2026, 12, 7, tzinfo=UTC)
+    fast = shared_value(made, GOOD, when, when)
+    slow = SharedDataValue(made, StatusCode=GOOD, SourceTimestamp=when, ServerTimestamp=when)
+    assert fast == slow
+    assert struct_to_binary(fast) == struct_to_binary(slow)

@@ -116,6 +116,13 @@ class ServiceFeed:
         registration = self._registrations.get(name)
         return 0 if registration is None else registration.dropped
 
+    def keep_newest(self, name: str) -> None:
+        """A tick that does not update the robot: its queued frames taken, the newest kept for
+        its next ``sample`` (the queue never fills while nobody watches the robot)."""
+        registration = self._registrations.get(name)
+        if registration is not None:
+            registration.deliver()
+
     def sample(self, name: str) -> Sample:
         """The robot as it is now, with the newest frame since the last sample (if any)."""
         robot = self._robots[name]

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
-from collections.abc import Callable
+from collections.abc import Awaitable, Callable
 from typing import Any
 
 from asyncua import ua
@@ -53,6 +53,9 @@ class RobotInternalServer(InternalServer):
         """Set once the robots' nodes exist (before the server listens)."""
         self.subscription_phase: Callable[[], float] | None = None
         """Seconds until a new subscription's publishing cycle should start (``server``)."""
+        self.freshen: Callable[[list[ua.NodeId]], Awaitable[None]] | None = None
+        """Brings the values of these nodes' robots up to date (``server``): before a Read
+        and before new monitored items take their first value."""
         self._closing: set[asyncio.Task[None]] = set()
 
     def create_session(
@@ -123,6 +126,22 @@ class RobotSession(InternalSession):
         if phase is not None:
             await asyncio.sleep(phase())
         return await super().create_subscription(params, callback, request_callback)
+
+    async def read(self, params: ua.ReadParameters) -> list[ua.DataValue]:
+        freshen = self._server.freshen
+        if freshen is not None:
+            await freshen([item.NodeId for item in params.NodesToRead])
+        values: list[ua.DataValue] = await super().read(params)
+        return values
+
+    async def create_monitored_items(
+        self, params: ua.CreateMonitoredItemsParameters
+    ) -> list[ua.MonitoredItemCreateResult]:
+        freshen = self._server.freshen
+        if freshen is not None:
+            await freshen([item.ItemToMonitor.NodeId for item in params.ItemsToCreate])
+        results: list[ua.MonitoredItemCreateResult] = await super().create_monitored_items(params)
+        return results
 
     async def write(self, params: ua.WriteParameters) -> list[ua.StatusCode]:
         routes = self._server.routes
