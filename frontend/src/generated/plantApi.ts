@@ -106,6 +106,23 @@ export interface paths {
         patch?: never;
         trace?: never;
     };
+    "/api/v1/plant/peers": {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        /** The other plant processes this one's page shows (--peer) */
+        get: operations["peers_api_v1_plant_peers_get"];
+        put?: never;
+        post?: never;
+        delete?: never;
+        options?: never;
+        head?: never;
+        patch?: never;
+        trace?: never;
+    };
     "/api/v1/plant/shift": {
         parameters: {
             query?: never;
@@ -133,7 +150,8 @@ export interface paths {
         /**
          * Every robot over the shift in progress: state groups, cycles
          * @description What the plant page's shift table shows: ``/shift`` for every device the plant knows,
-         *     over the shift in progress (``shift_starts`` in ``time_zone``, as the kiosk counts).
+         *     over the shift in progress (``shift_starts`` in ``time_zone``, as the kiosk counts); its
+         *     peers' robots as they count them.
          */
         get: operations["shifts_api_v1_plant_shifts_get"];
         put?: never;
@@ -372,8 +390,23 @@ export interface components {
             node: string;
             /** Online */
             online: boolean;
+            /** Peer */
+            peer?: string | null;
             /** Since */
             since: number;
+        };
+        /** PeerModel */
+        PeerModel: {
+            /** Answering */
+            answering: boolean;
+            /** Error */
+            error: string | null;
+            /** Nodes */
+            nodes: number;
+            /** Since */
+            since: number;
+            /** Url */
+            url: string;
         };
         /** RobotShiftModel */
         RobotShiftModel: {
@@ -688,6 +721,8 @@ export interface operations {
                 /** @description epoch s (default: now) */
                 until?: number | null;
                 limit?: number;
+                /** @description only this process's, not its peers' */
+                local?: boolean;
             };
             header?: never;
             path?: never;
@@ -724,6 +759,8 @@ export interface operations {
                 state?: string | null;
                 /** @description only this Sparkplug group */
                 group?: string | null;
+                /** @description only this process's nodes, not its peers' (a peer asks so) */
+                local?: boolean;
             };
             header?: never;
             path?: never;
@@ -747,6 +784,26 @@ export interface operations {
                 };
                 content: {
                     "application/json": components["schemas"]["HTTPValidationError"];
+                };
+            };
+        };
+    };
+    peers_api_v1_plant_peers_get: {
+        parameters: {
+            query?: never;
+            header?: never;
+            path?: never;
+            cookie?: never;
+        };
+        requestBody?: never;
+        responses: {
+            /** @description Successful Response */
+            200: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["PeerModel"][];
                 };
             };
         };
@@ -790,7 +847,10 @@ export interface operations {
     };
     shifts_api_v1_plant_shifts_get: {
         parameters: {
-            query?: never;
+            query?: {
+                /** @description only this process's, not its peers' */
+                local?: boolean;
+            };
             header?: never;
             path?: never;
             cookie?: never;
@@ -804,6 +864,15 @@ export interface operations {
                 };
                 content: {
                     "application/json": components["schemas"]["ShiftsAnswer"];
+                };
+            };
+            /** @description Validation Error */
+            422: {
+                headers: {
+                    [name: string]: unknown;
+                };
+                content: {
+                    "application/json": components["schemas"]["HTTPValidationError"];
                 };
             };
         };
@@ -840,6 +909,8 @@ export interface operations {
                 until?: number | null;
                 /** @description empty: the node's own metric */
                 device?: string;
+                /** @description decimated to this many equal spans of the range, each its first, lowest, highest and last value (default: every value) */
+                points?: number | null;
             };
             header?: never;
             path?: never;

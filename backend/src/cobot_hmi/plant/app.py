@@ -20,6 +20,7 @@ from fastapi.responses import JSONResponse, RedirectResponse, Response
 
 from cobot_hmi import __version__
 from cobot_hmi.plant import routes as plant_routes
+from cobot_hmi.plant.peers import Peers
 from cobot_hmi.plant.runtime import PlantRuntime
 from cobot_hmi.service.api import security, static_files
 from cobot_hmi.service.api.routes import auth as routes_auth
@@ -31,12 +32,16 @@ PLANT_PAGE: Final = "/plant"
 
 
 def create_plant_app(runtime: PlantRuntime) -> FastAPI:
+    peers = Peers(runtime.settings.plant.plant_peers, runtime.settings.plant.plant_peer_token)
+
     @asynccontextmanager
     async def lifespan(_: FastAPI) -> AsyncIterator[None]:
         await runtime.start()
+        await peers.start()
         try:
             yield
         finally:
+            await peers.stop()
             await runtime.stop()
 
     app = FastAPI(
@@ -50,6 +55,7 @@ def create_plant_app(runtime: PlantRuntime) -> FastAPI:
     # The auth routes and the viewer gate read ``app.state.service``: the runtime has the login
     # parts they use (users, sessions, throttle, logins, directory, store, settings).
     app.state.service = runtime
+    app.state.plant_peers = peers  # the other plant processes its page shows (plant/peers.py)
     security.install(app, security.policy_from_settings(runtime.settings.web))
 
     @app.exception_handler(ApiError)

@@ -32,6 +32,7 @@ from cobot_hmi.plant.model import (
     shift_figures,
     state_group,
 )
+from cobot_hmi.plant.peers import Peers
 from cobot_hmi.plant.recorder import MetricKey, PlantRecorder, Point
 from cobot_hmi.plant.runtime import PlantRuntime
 from cobot_hmi.service.api.deps import ViewerDep
@@ -73,6 +74,8 @@ class NodeModel(BaseModel):
     hmi_url: str | None
     area: str | None
     devices: list[DeviceModel]
+    peer: str | None = None
+    """The plant process that follows this node: null this one, else its URL (``--peer``)."""
 
 
 class AlarmTransitionModel(BaseModel):
@@ -184,12 +187,64 @@ class _Answered:
     body: bytes
 
 
-NodesCache = dict[tuple[str | None, str | None, str | None], _Answered]
+NodesCache = dict[tuple[str | None, str | None, str | None, bool], _Answered]
+
+
+def _matching(
+    node: NodeModel, group: str | None, area: str | None, state: str | None
+) -> NodeModel | None:
+    """A peer's node as the filters leave it (as ``_local_nodes`` filters this process's)."""
+    if (group is not None and node.group != group) or (area is not None and node.area != area):
+        return None
+    if state is None:
+        return node
+    devices = [d for d in node.devices if state in (d.state, d.state_group)]
+    return node.model_copy(update={"devices": devices}) if devices else None
+
+
+def _peer_nodes(
+    peers: Peers, known: set[tuple[str, str]], filters: tuple[str | None, str | None, str | None]
+) -> list[NodeModel]:
+    """Every peer's nodes as last answered (a node this process follows too: its own kept)."""
+    found = []
+    for peer in peers.peers:
+        try:
+            nodes = _NODE_LIST.validate_python(peer.nodes)
+        except ValueError:
+            continue
+        for node in nodes:
+            if (node.group, node.node) in known:
+                continue
+            known.add((node.group, node.node))
+            matching = _matching(node.model_copy(update={"peer": peer.url}), *filters)
+            if matching is not None:
+                found.append(matching)
+    return found
 
 
 def _nodes_answer(
-    runtime: PlantRuntime, group: str | None, area: str | None, state: str | None
+    runtime: PlantRuntime,
+    peers: Peers | None,
+    group: str | None,
+    area: str | None,
+    state: str | None,
 ) -> bytes:
+    answer = _local_nodes(runtime, group, area, state)
+    if peers is not None and peers.peers:
+        known = set(runtime.host.nodes)
+        answer += _peer_nodes(peers, known, (group, area, state))
+        answer.sort(key=lambda n: (n.group, n.node))
+    return _NODE_LIST.dump_json(answer)
+
+
+def _peers(request: Request) -> Peers | None:
+    found: Peers | None = getattr(request.app.state, "plant_peers", None)
+    return found
+
+
+def _local_nodes(
+    runtime: PlantRuntime, group: str | None, area: str | None, state: str | None
+) -> list[NodeModel]:
     answer = []
     for (node_group, _), view in sorted(runtime.host.nodes.items()):
         if (group is not None and node_group != group) or (
@@ -202,7 +257,7 @@ def _nodes_answer(
             if not devices:
                 continue
         answer.append(_node(view, devices))
-    return _NODE_LIST.dump_json(answer)
+    return answer
 
 
 _NODE_LIST: Final = TypeAdapter(list[NodeModel])
@@ -221,6 +276,9 @@ async def nodes(
         str | None, Query(description="only devices in this state group or state")
     ] = None,
     group: Annotated[str | None, Query(description="only this Sparkplug group")] = None,
+    local: Annotated[
+        bool, Query(description="only this process's nodes, not its peers' (a peer asks so)")
+    ] = False,
 ) -> Response:
     # Built from the models as they are (never validated again: they are ours), and the same
     # answer given to every page asking within NODES_CACHE_S.
@@ -229,13 +287,15 @@ async def nodes(
     if not hasattr(state_of_app, "plant_nodes_cache"):
         state_of_app.plant_nodes_cache = {}
     answers: NodesCache = state_of_app.plant_nodes_cache  # this app's (its runtime's) own
-    key = (group, area, state)
+    key = (group, area, state, local)
     now_s = time.monotonic()
     cached = answers.get(key)
     if cached is None or now_s - cached.at_s > NODES_CACHE_S:
         if len(answers) > 64:  # one plant's few filters; never grows without bound
             answers.clear()
-        cached = answers[key] = _Answered(now_s, _nodes_answer(runtime, group, area, state))
+        peers = None if local else _peers(request)
+        body = _nodes_answer(runtime, peers, group, area, state)
+        cached = answers[key] = _Answered(now_s, body)
     return Response(cached.body, media_type="application/json")
 
 
@@ -246,10 +306,31 @@ async def alarms(
     since: Annotated[float | None, Query(description="epoch s (default: a day ago)")] = None,
     until: Annotated[float | None, Query(description="epoch s (default: now)")] = None,
     limit: Annotated[int, Query(ge=1, le=MAX_ALARMS)] = 500,
+    local: Annotated[bool, Query(description="only this process's, not its peers'")] = False,
 ) -> AlarmsAnswer:
     end_ms = int((until if until is not None else time.time()) * 1000)
     start_ms = int(since * 1000) if since is not None else end_ms - DAY_MS
-    transitions = _runtime(request).host.alarms.between(start_ms, end_ms)
+    answer = _local_alarms(_runtime(request), start_ms, end_ms, limit)
+    peers = None if local else _peers(request)
+    if peers is None or not peers.peers:
+        return answer
+    range_ = {"since": str(start_ms / 1000), "until": str(end_ms / 1000), "limit": str(limit)}
+    for peer, found in await peers.ask_all("/api/v1/plant/alarms", range_):
+        try:
+            theirs = AlarmsAnswer.model_validate(found)
+        except ValueError:
+            peer.failed("not an alarm list")
+            continue
+        answer.transitions += theirs.transitions
+        answer.figures += theirs.figures
+    answer.transitions.sort(key=lambda t: t.time, reverse=True)
+    del answer.transitions[limit:]
+    answer.figures.sort(key=lambda f: (f.group, f.node))
+    return answer
+
+
+def _local_alarms(runtime: PlantRuntime, start_ms: int, end_ms: int, limit: int) -> AlarmsAnswer:
+    transitions = runtime.host.alarms.between(start_ms, end_ms)
     figures = alarm_figures(transitions, start_ms, end_ms)
     return AlarmsAnswer(
         transitions=[
@@ -407,10 +488,26 @@ def shift_start(now: datetime, starts: list[str]) -> datetime:
 
 
 @router.get("/shifts", summary="Every robot over the shift in progress: state groups, cycles")
-async def shifts(request: Request, _viewer: ViewerDep) -> ShiftsAnswer:
+async def shifts(
+    request: Request,
+    _viewer: ViewerDep,
+    local: Annotated[bool, Query(description="only this process's, not its peers'")] = False,
+) -> ShiftsAnswer:
     """What the plant page's shift table shows: ``/shift`` for every device the plant knows,
-    over the shift in progress (``shift_starts`` in ``time_zone``, as the kiosk counts)."""
-    runtime = _runtime(request)
+    over the shift in progress (``shift_starts`` in ``time_zone``, as the kiosk counts); its
+    peers' robots as they count them."""
+    answer = await _local_shifts(_runtime(request))
+    peers = None if local else _peers(request)
+    if peers is not None:
+        for peer, found in await peers.ask_all("/api/v1/plant/shifts", {}):
+            try:
+                answer.robots += ShiftsAnswer.model_validate(found).robots
+            except ValueError:
+                peer.failed("not a shift answer")
+    return answer
+
+
+async def _local_shifts(runtime: PlantRuntime) -> ShiftsAnswer:
     zone_name = runtime.settings.site.time_zone or host_zone_name()
     now = datetime.now(ZoneInfo(zone_name))
     start = shift_start(now, list(runtime.settings.kiosk.shift_starts))
@@ -438,3 +535,29 @@ async def shifts(request: Request, _viewer: ViewerDep) -> ShiftsAnswer:
         time_zone=zone_name,
         robots=await asyncio.to_thread(read),
     )
+
+
+class PeerModel(BaseModel):
+    url: str
+    answering: bool
+    since: float
+    """Epoch s: since when it answers, or since when it does not."""
+    error: str | None
+    """Why it does not answer."""
+    nodes: int
+    """Its edge nodes as it last answered (shown as last answered while it does not)."""
+
+
+@router.get("/peers", summary="The other plant processes this one's page shows (--peer)")
+async def peers(request: Request, _viewer: ViewerDep) -> list[PeerModel]:
+    found = _peers(request)
+    return [
+        PeerModel(
+            url=p.url,
+            answering=p.answering,
+            since=p.since_ms / 1000,
+            error=p.error,
+            nodes=len(p.nodes),
+        )
+        for p in (found.peers if found is not None else [])
+    ]
