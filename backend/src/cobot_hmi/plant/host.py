@@ -24,7 +24,9 @@ Imports ``sparkplug.payload`` and ``sparkplug.topics`` (the wire) and the plant'
 from __future__ import annotations
 
 import json
+import threading
 from collections import Counter
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Final, NamedTuple
 
@@ -62,9 +64,6 @@ HISTORY_MARGIN_MS: Final = 60_000
 transition is published a little after it happened (the node's next report), so one stamped
 before that message may have come after it."""
 _MESSAGE_TYPES: Final = {t.value: t for t in MessageType}
-_new_tuple: Final = tuple.__new__
-"""Makes a ``Sample`` from a tuple in C: its own constructor, a Python function, costs three
-times as much, once for every value received."""
 _SIGNED_BITS: Final[dict[int, int]] = {
     DataType.INT8: 8,
     DataType.INT16: 16,
@@ -81,9 +80,15 @@ class Outgoing:
     retain: bool = False
 
 
+SampleRow = tuple[int, str, str, str, str, "MetricValue | None", bool]
+"""One metric value as received: (time_ms, group, node, device, metric, value, historical),
+the fields of ``Sample``."""
+SeriesName = tuple[str, str, str, str]
+"""(group, node, device, metric): one metric of one device (device empty: the node's own)."""
+
+
 class Sample(NamedTuple):
-    """One metric value as received, for the history (a tuple: made for every value received,
-    and transposed into the recorder's columns in one step)."""
+    """One metric value as received, for the history (``SampleRow`` with its fields named)."""
 
     time_ms: int
     group: str
@@ -94,11 +99,84 @@ class Sample(NamedTuple):
     historical: bool
 
 
+class SeriesIds:
+    """Every series (``SeriesName``) numbered once, in the order first seen: a value is
+    recorded with its series' number, and the recorder makes the four names' columns from the
+    numbers in one step (four strings a value cost the recorder more than the rest of it).
+    Only ever added to; read by the recorder's thread up to the length it sees."""
+
+    __slots__ = ("_ids", "_lock", "names")
+
+    def __init__(self) -> None:
+        self.names: list[SeriesName] = []
+        self._ids: dict[SeriesName, int] = {}
+        self._lock = threading.Lock()
+        """A new series numbered by one thread at a time (the recorder's numbers the rows of a
+        write that failed, to keep them)."""
+
+    def id(self, group: str, node: str, device: str, metric: str) -> int:
+        key = (group, node, device, metric)
+        found = self._ids.get(key)
+        if found is None:
+            with self._lock:
+                found = self._ids.get(key)
+                if found is None:
+                    found = len(self.names)
+                    self.names.append(key)
+                    self._ids[key] = found
+        return found
+
+
+class SampleColumns:
+    """Values received, for the history, as columns (row ``i``: ``times_ms[i]``, ``series[i]``
+    of ``SeriesIds``, ``values[i]``, ``historical[i]``): the host appends to them as it reads
+    each metric and the recorder turns them into Arrow columns without a pass of Python per row.
+    Plain lists of numbers and strings besides: nothing the garbage collector tracks per value
+    (a plant's second of values, some 100 000, waits in the recorder; as ``NamedTuple`` rows,
+    which the collector never stops tracking, every full collection walked them all)."""
+
+    __slots__ = ("historical", "series", "times_ms", "values")
+
+    def __init__(self) -> None:
+        self.times_ms: list[int] = []
+        self.series: list[int] = []
+        self.values: list[MetricValue | None] = []
+        self.historical: list[bool] = []
+
+    def __len__(self) -> int:
+        return len(self.times_ms)
+
+    def extend(self, other: SampleColumns) -> None:
+        self.times_ms += other.times_ms
+        self.series += other.series
+        self.values += other.values
+        self.historical += other.historical
+
+    def append(self, row: SampleRow, series: SeriesIds) -> None:
+        """One row given by name (the slow way: tests, a write that failed)."""
+        time_ms, group, node, device, metric, value, historical = row
+        self.times_ms.append(time_ms)
+        self.series.append(series.id(group, node, device, metric))
+        self.values.append(value)
+        self.historical.append(historical)
+
+    def rows(self, names: Sequence[SeriesName]) -> list[Sample]:
+        """The rows with their series' names."""
+        return [
+            Sample(t, *names[s], v, h)
+            for t, s, v, h in zip(
+                self.times_ms, self.series, self.values, self.historical, strict=True
+            )
+        ]
+
+
 @dataclass(slots=True)
 class _Known:
     """A metric a birth named, with what handling its values needs, worked out once: a DDATA
     names its metrics by alias only, tens of them a message, many messages a second."""
 
+    series: int
+    """Its number in the host's ``SeriesIds``."""
     device: str | None
     name: str
     datatype: int
@@ -108,9 +186,15 @@ class _Known:
     """An ``Alarm/<id>/Active``: applied after the message's other metrics."""
 
 
-def _known(device: str | None, name: str, datatype: int) -> _Known:
+def _active_last(entry: tuple[_Known, Payload.Metric]) -> bool:
+    """Sort key: an alarm's ``Active`` after its priority and text (a stable sort keeps the
+    message's order otherwise)."""
+    return entry[0].active
+
+
+def _known(series: int, device: str | None, name: str, datatype: int) -> _Known:
     alarm = name.startswith(ALARM_PREFIX)
-    return _Known(device, name, datatype, alarm, alarm and name.endswith(ACTIVE))
+    return _Known(series, device, name, datatype, alarm, alarm and name.endswith(ACTIVE))
 
 
 @dataclass(slots=True)
@@ -118,8 +202,16 @@ class Answer:
     """What one message asks of the host's surroundings."""
 
     publish: list[Outgoing] = field(default_factory=list)
-    samples: list[Sample] = field(default_factory=list)
+    columns: SampleColumns = field(default_factory=SampleColumns)
+    """The values to record."""
     transitions: list[AlarmTransition] = field(default_factory=list)
+    names: Sequence[SeriesName] = ()
+    """The host's series' names (``SeriesIds.names``), for ``samples``."""
+
+    @property
+    def samples(self) -> list[Sample]:
+        """The values to record as named rows."""
+        return self.columns.rows(self.names)
 
 
 @dataclass(slots=True)
@@ -180,23 +272,49 @@ def _signed(value: int, datatype: int) -> int:
     return value
 
 
-@dataclass(slots=True)
 class _Received:
-    """One message being handled: whose it is and what it asks."""
+    """One message being handled: whose it is and what it asks, with what each of its values
+    needs worked out once (a DDATA brings tens)."""
 
-    session: _Session
-    view: NodeView
-    device: str | None
-    payload: Payload
-    stamp_ms: int
-    now_s: float
-    answer: Answer
+    __slots__ = (
+        "answer",
+        "device",
+        "device_name",
+        "device_view",
+        "group",
+        "live",
+        "node",
+        "now_s",
+        "payload",
+        "session",
+        "stamp_ms",
+        "view",
+    )
 
-    @property
-    def metrics(self) -> dict[str, MetricState]:
-        if self.device is None:
-            return self.view.metrics
-        return self.view.devices[self.device].metrics
+    def __init__(
+        self,
+        session: _Session,
+        view: NodeView,
+        device: str | None,
+        *,
+        payload: Payload,
+        stamp_ms: int,
+        now_s: float,
+        answer: Answer,
+    ) -> None:
+        self.session = session
+        self.view = view
+        self.device = device
+        self.payload = payload
+        self.stamp_ms = stamp_ms
+        self.now_s = now_s
+        self.answer = answer
+        self.group = view.group
+        self.node = view.node
+        self.device_name = device or ""
+        self.device_view = view.devices[device] if device is not None else None
+        self.live = view.metrics if self.device_view is None else self.device_view.metrics
+        """The live values this message's metrics update."""
 
 
 class HostApplication:
@@ -213,6 +331,8 @@ class HostApplication:
         self.rebirth_interval_s = rebirth_interval_s
         self.nodes: dict[tuple[str, str], NodeView] = {}
         self.alarms = AlarmLog()
+        self.series = SeriesIds()
+        """Every metric's series in the history (the recorder is given the same)."""
         self._sessions: dict[tuple[str, str], _Session] = {}
         self.rebirths: Counter[str] = Counter()
         """Rebirth requests sent, by reason (seq gap, unknown alias, before birth)."""
@@ -229,7 +349,7 @@ class HostApplication:
 
     def on_message(self, topic: str, data: bytes, now_s: float) -> Answer:
         """One received message; what to publish (rebirth requests) and record."""
-        answer = Answer()
+        answer = Answer(names=self.series.names)
         parts = topic.split("/")
         if len(parts) not in (4, 5) or parts[0] != NAMESPACE or parts[1] == "STATE":
             return answer
@@ -245,19 +365,22 @@ class HostApplication:
         if message_type in (MessageType.NCMD, MessageType.DCMD):
             return answer
         key = (group, node)
-        stamp_ms = payload.timestamp if payload.HasField("timestamp") else int(now_s * 1000)
+        stamp_ms = payload.timestamp
+        if not stamp_ms and not payload.HasField("timestamp"):
+            stamp_ms = int(now_s * 1000)
         device = parts[4] if len(parts) == 5 else None
-        view = self.nodes.setdefault(key, NodeView(group, node))
-        if device is not None:
-            view.devices.setdefault(device, DeviceView(device))
+        # Looked up, made only when new (setdefault would build a view or session, with its
+        # dicts, for every message).
+        view = self.nodes.get(key)
+        if view is None:
+            view = self.nodes[key] = NodeView(group, node)
+        if device is not None and device not in view.devices:
+            view.devices[device] = DeviceView(device)
+        session = self._sessions.get(key)
+        if session is None:
+            session = self._sessions[key] = _Session()
         received = _Received(
-            self._sessions.setdefault(key, _Session()),
-            view,
-            device,
-            payload,
-            stamp_ms,
-            now_s,
-            answer,
+            session, view, device, payload=payload, stamp_ms=stamp_ms, now_s=now_s, answer=answer
         )
         self._dispatch(message_type, received)
         return answer
@@ -368,7 +491,10 @@ class HostApplication:
             datatype = metric.datatype
             known = session.known.get((device, name, datatype))
             if known is None:
-                known = session.known[(device, name, datatype)] = _known(device, name, datatype)
+                series = self.series.id(received.group, received.node, received.device_name, name)
+                known = session.known[(device, name, datatype)] = _known(
+                    series, device, name, datatype
+                )
             if metric.HasField("alias"):
                 aliases[metric.alias] = known
             named[(device, name)] = known
@@ -389,36 +515,67 @@ class HostApplication:
         """The message's metrics recorded and the live ones applied, an alarm's ``Active``
         after the rest (its priority and text, which the same message may give, first: a birth
         lists them after it); ``True`` when one named no metric the births did (no name, and
-        no alias or an unknown one)."""
+        no alias or an unknown one). One pass, each metric resolved and applied at once, the
+        common case (not an alarm's) inline: a DDATA brings tens, a plant thousands a second."""
         session, device = received.session, received.device
-        aliases, named = session.aliases, session.named
-        others: list[tuple[_Known, Payload.Metric]] = []
-        actives: list[tuple[_Known, Payload.Metric]] = []
+        aliases, named, live = session.aliases, session.named, received.live
+        columns = received.answer.columns
+        add_time, add_series = columns.times_ms.append, columns.series.append
+        add_value, add_historical = columns.values.append, columns.historical.append
+        stamp_ms = received.stamp_ms
+        alarms: list[tuple[_Known, Payload.Metric]] = []
         unknown = False
         for metric in received.payload.metrics:
             name = metric.name
             known: _Known | None
             if name:
-                known = named.get((device, name)) or _known(device, name, 0)
+                known = named.get((device, name)) or self._unnamed(received, name)
             else:
                 alias = metric.alias  # 0 is an alias too, when the field is there
                 known = aliases.get(alias) if alias or metric.HasField("alias") else None
                 if known is None:
                     unknown = True
                     continue
-            (actives if known.active else others).append((known, metric))
-        self._values(received, others)
-        if actives:
-            self._values(received, actives)
+            if known.alarm:
+                alarms.append((known, metric))
+                continue
+            which = metric.WhichOneof("value")
+            value: MetricValue | None = None
+            if which is not None and not metric.is_null:
+                value = getattr(metric, which)
+                if type(value) is int:  # signed integers come in unsigned fields
+                    value = _signed(value, metric.datatype or known.datatype)
+            time_ms = metric.timestamp
+            if not time_ms and not metric.HasField("timestamp"):
+                time_ms = stamp_ms
+            name = known.name
+            historical = metric.is_historical
+            add_time(time_ms)
+            add_series(known.series)
+            add_value(value)
+            add_historical(historical)
+            if not historical:
+                current = live.get(name)
+                if current is None:
+                    live[name] = MetricState(value, time_ms)
+                elif time_ms >= current.timestamp_ms:  # changed in place: no new object
+                    current.value = value
+                    current.timestamp_ms = time_ms
+        if alarms:  # the Actives after the rest
+            alarms.sort(key=_active_last)
+            self._values(received, alarms)
         return unknown
 
+    def _unnamed(self, received: _Received, name: str) -> _Known:
+        """A metric a DDATA names that no birth did: recorded and applied all the same."""
+        series = self.series.id(received.group, received.node, received.device_name, name)
+        return _known(series, received.device, name, 0)
+
     def _values(self, received: _Received, metrics: list[tuple[_Known, Payload.Metric]]) -> None:
-        view, device = received.view, received.device
-        live = received.metrics
-        device_view = view.devices.get(device) if device is not None else None
-        group, node, device_name = view.group, view.node, device or ""
+        """Each metric's value recorded, and applied to the live model unless historical."""
+        live, columns = received.live, received.answer.columns
+        device_view = received.device_view
         stamp_ms = received.stamp_ms
-        samples = received.answer.samples
         for known, metric in metrics:
             name = known.name
             which = metric.WhichOneof("value")
@@ -439,9 +596,10 @@ class HostApplication:
                 )
             ):
                 continue  # a historical transition the log already has: recorded once
-            samples.append(
-                _new_tuple(Sample, (time_ms, group, node, device_name, name, value, historical))
-            )
+            columns.times_ms.append(time_ms)
+            columns.series.append(known.series)
+            columns.values.append(value)
+            columns.historical.append(historical)
             if not historical:
                 current = live.get(name)
                 if current is None:

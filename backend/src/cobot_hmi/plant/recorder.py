@@ -18,7 +18,6 @@ from __future__ import annotations
 import contextlib
 import functools
 import logging
-import operator
 import os
 import threading
 import time
@@ -32,7 +31,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from cobot_hmi.plant.host import Sample
+from cobot_hmi.plant.host import Sample, SampleColumns, SampleRow, SeriesIds
 from cobot_hmi.plant.segments import (
     ABSORBED_KEY,
     PLANT_SEGMENT,
@@ -79,31 +78,61 @@ def _hour_name(hour: int) -> str:
     return datetime.fromtimestamp(hour * HOUR_MS / 1000, UTC).strftime(_HOUR_FORMAT)
 
 
-def _table(samples: list[Sample]) -> pa.Table:
-    """Rows to columns (a C-level pass each: the samples are tuples), values split by kind."""
-    times, groups, nodes, devices, metrics, values, historical = (
-        list(map(operator.itemgetter(column), samples)) for column in range(7)
-    )
+class _SeriesColumns:
+    """The series' names as Arrow columns (group, node, device, metric by series number), the
+    names of series added since the last flush appended (a plant's births add thousands):
+    a flush's name columns are taken from them by number."""
+
+    def __init__(self, series: SeriesIds) -> None:
+        self._series = series
+        self._columns: list[pa.Array] = [pa.array([], pa.string()) for _ in range(4)]
+        self._count = 0
+
+    def columns(self) -> list[pa.Array]:
+        names = self._series.names
+        count = len(names)  # what the host adds after this is in no row of this flush
+        if count != self._count:
+            added = names[self._count : count]
+            self._columns = [
+                pa.concat_arrays([column, pa.array([name[i] for name in added], pa.string())])
+                for i, column in enumerate(self._columns)
+            ]
+            self._count = count
+        return self._columns
+
+
+def _table(samples: SampleColumns, names: list[pa.Array]) -> pa.Table:
+    """Columns to an Arrow table: the names taken by series number, the values split by kind
+    (numbers and booleans as numbers in one C-level step unless a text is among them)."""
+    series = pa.array(samples.series, pa.int32())
+    group, node, device, metric = (column.take(series) for column in names)
+    values = samples.values
+    try:
+        value = pa.array(values, pa.float64())
+        text = pa.nulls(len(values), pa.string())
+    except pa.ArrowInvalid:  # texts among them
+        value = pa.array([v if type(v) is float else _numeric(v) for v in values], pa.float64())
+        text = pa.array([v if type(v) is str else None for v in values], pa.string())
     return pa.table(
         {
-            "time_ms": times,
-            "group": groups,
-            "node": nodes,
-            "device": devices,
-            "metric": metrics,
-            "value": [v if type(v) is float else _numeric(v) for v in values],
-            "text": [v if type(v) is str else None for v in values],
-            "historical": historical,
+            "time_ms": pa.array(samples.times_ms, pa.int64()),
+            "group": group,
+            "node": node,
+            "device": device,
+            "metric": metric,
+            "value": value,
+            "text": text,
+            "historical": pa.array(samples.historical, pa.bool_()),
         },
         schema=SCHEMA,
     )
 
 
-def _by_hour(samples: list[Sample]) -> list[tuple[str, pa.Table]]:
+def _by_hour(samples: SampleColumns, names: list[pa.Array]) -> list[tuple[str, pa.Table]]:
     """The samples as a table per hour (UTC, by each value's own time), the hours in order."""
-    if not samples:
+    if not len(samples):
         return []
-    table = _table(samples)
+    table = _table(samples, names)
     hours = pc.divide(table["time_ms"], pa.scalar(HOUR_MS, pa.int64()))
     first, last = pc.min_max(hours).values()
     if first == last:
@@ -135,27 +164,39 @@ def _numeric(value: object) -> float | None:
 
 
 class PlantRecorder:
-    """Samples in (from the event loop), hourly segments out (``flush`` on a worker thread)."""
+    """Samples in (from the event loop), hourly segments out (``flush`` on a worker thread).
+    ``series``: the host's (``HostApplication.series``), whose numbers the columns it gives
+    ``add_columns`` carry; by default one of its own."""
 
-    def __init__(self, directory: Path) -> None:
+    def __init__(self, directory: Path, series: SeriesIds | None = None) -> None:
         self.directory = directory
-        self._pending: list[Sample] = []
+        self.series = series if series is not None else SeriesIds()
+        self._names = _SeriesColumns(self.series)
+        self._pending = SampleColumns()
         self._lock = threading.Lock()
         self._part = 0
         self.rows_written = 0
         self.write_errors = 0
 
-    def add(self, samples: Iterable[Sample]) -> None:
+    def add(self, samples: Iterable[SampleRow]) -> None:
+        """Rows given by name."""
+        columns = SampleColumns()
+        for row in samples:
+            columns.append(row, self.series)
+        self.add_columns(columns)
+
+    def add_columns(self, columns: SampleColumns) -> None:
+        """Rows whose series are numbered by ``self.series`` (the host's)."""
         with self._lock:
-            self._pending.extend(samples)
+            self._pending.extend(columns)
 
     def flush(self) -> int:
         """Write what came since the last flush, a part per hour; compact finished hours. What
         cannot be written (a full disk) stays pending for the next flush."""
         with self._lock:
-            pending, self._pending = self._pending, []
+            pending, self._pending = self._pending, SampleColumns()
         written = 0
-        for hour, table in _by_hour(pending):
+        for hour, table in _by_hour(pending, self._names.columns()):
             try:
                 self._write_part(hour, table)
             except OSError as error:

@@ -70,7 +70,7 @@ class PlantRuntime:
             frozenset(settings.plant.plant_groups),
             settings.plant.plant_rebirth_interval_s,
         )
-        self.recorder = PlantRecorder(settings.plant_history_path)
+        self.recorder = PlantRecorder(settings.plant_history_path, self.host.series)
         options = [
             ClientOptions(
                 BrokerAddress.parse(url),
@@ -176,8 +176,8 @@ class PlantRuntime:
             return
         for out in answer.publish:
             self.client.publish(out.topic, out.payload, out.qos, out.retain)
-        if answer.samples:
-            self.recorder.add(answer.samples)
+        if answer.columns.times_ms:
+            self.recorder.add_columns(answer.columns)
 
     def _connected(self, url: str) -> None:
         """On the client's thread: connected and subscribed (the STATE birth went out)."""
