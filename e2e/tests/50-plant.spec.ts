@@ -4,10 +4,11 @@
 // stop in cell 2 shows on the plant page, within 1 s of the page getting it (its own share of
 // the way; the whole way from the press, cells, broker and plant included, is noted, and
 // bench/plant measures the plant's share); the area filter keeps cell 2 alone; its link opens
-// cell 2's panel. Then the wall display: 50 robots fit 1920 x 1080 without scrolling, and a
+// cell 2's panel, and its robot's History link cell 2's panel with the plots at the page's range. Then the wall display: 50 robots fit 1920 x 1080 without scrolling, and a
 // phone shows them in one column, no wider than its screen (the page fed 50 robots by routing
 // its three requests: a layout check, not the plant's data path, which the first test drives).
 import { expect, test, type Page, type Route } from "@playwright/test";
+import { shownRange } from "../support/plotRange";
 import { SmallPlant, answerAt, noteAnswer, noteShown, plantSettings, shownAt, watchAnswers } from "../support/plant";
 
 test.describe.configure({ mode: "serial" });
@@ -90,9 +91,23 @@ test("an emergency stop in cell 2 shows on the plant page; the link opens cell 2
     "href",
     cell2.baseURL,
   );
+  // Its History link: the robot's recorded frames in cell 2's panel over the page's range.
+  const history = (await row2.getByTestId("plant-robot-history").getAttribute("href"))!;
+  const named = new URL(history);
+  expect(`${named.origin}${named.pathname}`).toBe(`${cell2.baseURL}/`);
+  expect(named.searchParams.get("robot")).toBe(plantSettings.robotName);
+  const [from_s, to_s] = [Number(named.searchParams.get("from")), Number(named.searchParams.get("to"))];
+  expect(to_s).toBeGreaterThan(from_s);
+  expect(to_s).toBeGreaterThanOrEqual(pressed_ms / 1000 - 60);
   await row2.getByRole("link", { name: plantSettings.robotName }).click();
   await expect(page).toHaveURL(`${cell2.baseURL}/?robot=${plantSettings.robotName}`);
   await expect(page.getByTestId("robot-state")).toHaveAttribute("data-state-name", "EMERGENCY_STOP");
+  // Followed, it opens the panel's plots at that range (the recording's, not live).
+  await page.goto(history);
+  const plot = page.getByTestId("plot-joint-position");
+  await expect
+    .poll(async () => (await shownRange(plot)).map((t) => Math.round(t / 1000)), { message: "the plot at the plant page's range" })
+    .toEqual([from_s, to_s]);
 });
 
 // ---------------------------------------------------------------- the layout, fed 50 robots

@@ -26,7 +26,7 @@ import { FleetPoller, knownRobots, type FleetTile } from "../lib/fleet/fleet";
 import { historyFetcher } from "../lib/history/historyApi";
 import { ALL_PLOTS, JOINT_PLOTS, TCP_PLOTS } from "../lib/plots/plots";
 import type { ControlStatus, User } from "../lib/api/protocol";
-import { chooseRobot, robotFromSearch, searchWithRobot } from "../lib/common/route";
+import { chooseRobot, rangeFromSearch, robotFromSearch, searchWithRobot } from "../lib/common/route";
 import { controlOwnership } from "../lib/writes/controlSession";
 import { createLiveRuntime, type LiveRuntime } from "../lib/stream/runtime";
 import type { TagNames } from "../lib/layout/tags";
@@ -279,7 +279,8 @@ function RobotPanel(props: PanelProps) {
   }, [runtime]);
   // The plots reach the recording through the REST client; a marker's jump moves them all.
   const plotHistory = useMemo<PlotHistoryAccess>(
-    () => ({ fetcher: (name, fields) => historyFetcher(api.client, name, fields), timeRange: new PlotTimeRange() }),
+    // A link naming a range (the plant page's History: `?robot=&from=&to=`) opens the plots there.
+    () => ({ fetcher: (name, fields) => historyFetcher(api.client, name, fields), timeRange: new PlotTimeRange().openAt(rangeFromSearch(window.location.search)) }),
     [],
   );
   return (

@@ -15,6 +15,8 @@ import {
   badActorWords,
   cellCards,
   densityFor,
+  downPeerWords,
+  downPeers,
   stateCounts,
   type CellCard,
   type PlantFilter,
@@ -54,6 +56,12 @@ function ShiftBar({ row }: { row: RobotRow }) {
 
 function Robot({ row }: { row: RobotRow }) {
   const name = row.panelHref !== null ? <a href={row.panelHref}>{row.device}</a> : row.device;
+  const history =
+    row.historyHref !== null ? (
+      <a className="plant-robot__history" href={row.historyHref} data-testid="plant-robot-history" title={`${row.device}'s recorded frames over this shift, in its cell`}>
+        history
+      </a>
+    ) : null;
   return (
     <li
       className={`plant-robot${row.online ? "" : " is-offline"}`}
@@ -64,7 +72,9 @@ function Robot({ row }: { row: RobotRow }) {
       data-state-group={row.stateGroup ?? ""}
       data-online={row.online ? "true" : "false"}
     >
-      <span className="plant-robot__name">{name}</span>
+      <span className="plant-robot__name">
+        {name} {history}
+      </span>
       <span
         className={`plant-robot__state${row.state.alternating ? " is-alternating" : ""}`}
         style={paintStyle(row.state.paints)}
@@ -104,8 +114,10 @@ function Robot({ row }: { row: RobotRow }) {
 function Cell({ card }: { card: CellCard }) {
   return (
     <section
-      className={`plant-cell${card.online ? "" : " is-offline"}${card.figures?.flood === true ? " is-flood" : ""}`}
+      className={`plant-cell${card.online && !card.peerDown ? "" : " is-offline"}${card.figures?.flood === true ? " is-flood" : ""}`}
       data-testid="plant-cell"
+      data-peer={card.peer ?? ""}
+      data-peer-down={card.peerDown ? "true" : "false"}
       data-group={card.group}
       data-cell={card.node}
       data-online={card.online ? "true" : "false"}
@@ -127,7 +139,7 @@ function Cell({ card }: { card: CellCard }) {
             </a>
           )}
           {card.historyHref !== null && (
-            <a href={card.historyHref} data-testid="plant-cell-history" title="the cell's alarm history over this shift (CSV, in the cell)">
+            <a href={card.historyHref} data-testid="plant-cell-history" title="the cell's history over this shift: its recorded frames, in its panel">
               History
             </a>
           )}
@@ -193,7 +205,8 @@ export function PlantApp() {
   const viewport = useViewport();
   const now_ms = plant.answered_ms || Date.now();
   const range = { since_s: plant.shifts?.since ?? now_ms / 1000 - 8 * 3600, until_s: now_ms / 1000 };
-  const cards = cellCards(plant.nodes, plant.alarms?.figures ?? [], plant.shifts?.robots ?? [], filter, range, now_ms, plant.shifts?.time_zone);
+  const cards = cellCards(plant.nodes, plant.alarms?.figures ?? [], plant.shifts?.robots ?? [], filter, range, now_ms, plant.shifts?.time_zone, downPeers(plant.peers));
+  const peersDown = downPeerWords(plant.peers, now_ms, plant.shifts?.time_zone);
   const robots = cards.reduce((n, c) => n + c.robots.length, 0);
   const wide = viewport.width >= WIDE_PX;
   const columns = wide ? Math.max(1, Math.floor((viewport.width - ASIDE_PX - 32) / CELL_COLUMN_PX)) : 1;
@@ -249,6 +262,11 @@ export function PlantApp() {
           {plant.stale ? "Not current: " : ""}the plant did not answer: {plant.error}
         </div>
       )}
+      {peersDown.map((words) => (
+        <div key={words} className="stale-banner" role="status" data-testid="plant-peer-down">
+          {words}
+        </div>
+      ))}
       {plant.loginNeeded && <Login onDone={() => poller.restart()} />}
       <main className="plant__cells" data-testid="plant-cells">
         {cards.map((card) => (

@@ -1,5 +1,5 @@
 import { describe, expect, it } from "vitest";
-import { chooseRobot, faceOf, healthHref, kioskHref, panelHref, robotFromSearch, searchWithRobot } from "./route";
+import { chooseRobot, faceOf, healthHref, historyHref, kioskHref, panelHref, rangeFromSearch, robotFromSearch, searchWithRobot } from "./route";
 
 describe("faceOf", () => {
   it("routes /kiosk, /fleet and everything else to the panel", () => {
@@ -61,5 +61,24 @@ describe("chooseRobot", () => {
     expect(chooseRobot(null, ["a", "b"])).toEqual({ robot: "a", unknown: null });
     expect(chooseRobot("ghost", ["a", "b"])).toEqual({ robot: "a", unknown: "ghost" });
     expect(chooseRobot("ghost", [])).toEqual({ robot: null, unknown: "ghost" });
+  });
+});
+
+describe("a range in the URL (the plant page's History link)", () => {
+  it("reads from and to in epoch seconds, the end after the start", () => {
+    expect(rangeFromSearch("?robot=m1013&from=1764547200&to=1764576000")).toEqual({ from_s: 1764547200, to_s: 1764576000 });
+    expect(rangeFromSearch("?from=10.5&to=11")).toEqual({ from_s: 10.5, to_s: 11 });
+  });
+  it("names none when a bound is missing, empty, not a number or not after the start", () => {
+    for (const search of ["", "?robot=m1013", "?from=10", "?to=10", "?from=&to=10", "?from=a&to=10", "?from=10&to=10", "?from=11&to=10"]) {
+      expect(rangeFromSearch(search)).toBeNull();
+    }
+  });
+  it("is what historyHref writes", () => {
+    const href = historyHref("m1013", 1764547200.4, 1764576000);
+    expect(href).toBe("/?robot=m1013&from=1764547200&to=1764576000");
+    const search = href.slice(1);
+    expect(robotFromSearch(search)).toBe("m1013");
+    expect(rangeFromSearch(search)).toEqual({ from_s: 1764547200, to_s: 1764576000 });
   });
 });

@@ -66,3 +66,20 @@ export function healthHref(robot: string): string {
 }
 
 export const FLEET_HREF = "/fleet";
+
+/** A range of the past a URL names (`from` and `to`, epoch seconds: the panel opens its plots
+ * there, as the plant page's History link asks), or null when it names none or no valid one. */
+export function rangeFromSearch(search: string): { readonly from_s: number; readonly to_s: number } | null {
+  const query = new URLSearchParams(search);
+  const from = query.get("from");
+  const to = query.get("to");
+  if (from === null || to === null || from.trim() === "" || to.trim() === "") return null;
+  const from_s = Number(from);
+  const to_s = Number(to);
+  return Number.isFinite(from_s) && Number.isFinite(to_s) && to_s > from_s ? { from_s, to_s } : null;
+}
+
+/** A robot's recorded frames over `[from_s, to_s]` in its cell's panel (`rangeFromSearch`). */
+export function historyHref(robot: string, from_s: number, to_s: number): string {
+  return `/?${new URLSearchParams({ robot, from: from_s.toFixed(0), to: to_s.toFixed(0) }).toString()}`;
+}

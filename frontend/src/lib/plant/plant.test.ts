@@ -1,6 +1,7 @@
 import { describe, expect, it } from "vitest";
 import { LAYOUT } from "../../generated/layout";
 import { stateBadge } from "../layout/stateBadge";
+import { rangeFromSearch, robotFromSearch } from "../common/route";
 import {
   NO_FILTER,
   alarmLines,
@@ -9,6 +10,8 @@ import {
   cellCards,
   cellHistoryHref,
   densityFor,
+  downPeerWords,
+  downPeers,
   figuresWords,
   healthWords,
   safeHmiUrl,
@@ -82,7 +85,36 @@ describe("the cells", () => {
     expect(robot.cycleLastWords).toBe("12.3 s");
     expect(robot.panelHref).toBe("http://127.0.0.1:8000/?robot=m1013");
     expect(cards[1]!.hmiHref).toBe("http://127.0.0.1:8000");
-    expect(cards[1]!.historyHref).toBe(`http://127.0.0.1:8000/api/v1/alarms/history?since=${RANGE.since_s}&until=${RANGE.until_s}&format=csv`);
+    // The History links open the robot's recorded frames in its cell's panel at the page's range.
+    const range = `from=${Math.floor(RANGE.since_s)}&to=${Math.ceil(RANGE.until_s)}`;
+    expect(robot.historyHref).toBe(`http://127.0.0.1:8000/?robot=m1013&${range}`);
+    expect(cards[0]!.historyHref).toBe(`http://127.0.0.1:8000/?robot=m1013&${range}`);
+    expect(cards[0]!.robots[1]!.historyHref).toBe(`http://127.0.0.1:8000/?robot=m0609&${range}`);
+    expect(cards[2]!.historyHref).toBeNull(); // the cell names no HMI
+    expect(cards.every((c) => c.peer === null && !c.peerDown)).toBe(true);
+  });
+
+  it("link a robot's history the way the cell's panel reads it (its robot and range)", () => {
+    const href = cellHistoryHref("https://cell-2.plant.example:8443", "m1013", 1764547200.7, 1764576000.2);
+    expect(href).toBe("https://cell-2.plant.example:8443/?robot=m1013&from=1764547200&to=1764576001");
+    const search = new URL(href!).search;
+    expect(robotFromSearch(search)).toBe("m1013");
+    expect(rangeFromSearch(search)).toEqual({ from_s: 1764547200, to_s: 1764576001 });
+  });
+
+  it("say which peer follows a cell, and grey a cell whose peer does not answer", () => {
+    const peer = "http://127.5.0.2:8152";
+    const nodes = [...PLANT, node("east", "cell-e", [device("r1")], { peer })];
+    const peers = [{ url: peer, answering: false, since: NOW_MS / 1000 - 30, error: "timed out", nodes: 1 }];
+    const cards = cellCards(nodes, [], [], NO_FILTER, RANGE, NOW_MS, "UTC", downPeers(peers));
+    expect(cards.map((c) => [c.node, c.peer, c.peerDown])).toEqual([
+      ["cell-1", null, false],
+      ["cell-2", null, false],
+      ["cell-3", null, false],
+      ["cell-e", peer, true],
+    ]);
+    expect(downPeerWords(peers, NOW_MS, "UTC")).toEqual([`plant process ${peer} does not answer since 11:59:30 (timed out): its cells as last seen`]);
+    expect(downPeerWords([{ ...peers[0]!, answering: true }], NOW_MS, "UTC")).toEqual([]);
   });
 
   it("mark an offline cell's robots offline since the cell's death, their last state kept", () => {
@@ -116,7 +148,7 @@ describe("the cells", () => {
     expect(safeHmiUrl("javascript:alert(1)")).toBeNull();
     expect(safeHmiUrl("not a url")).toBeNull();
     expect(safeHmiUrl("https://cell-2.plant.example:8443/")).toBe("https://cell-2.plant.example:8443");
-    expect(cellHistoryHref(null, 0, 1)).toBeNull();
+    expect(cellHistoryHref(null, "m1013", 0, 1)).toBeNull();
   });
 });
 

@@ -13,6 +13,7 @@ import { LAYOUT } from "../../generated/layout";
 import { PRIORITY_COLOUR, alarmPaint } from "../alarms/alarms";
 import { paintOf, stateBadge, UNKNOWN_PAINT, type Paint } from "../layout/stateBadge";
 import { formatMoment } from "../common/dates";
+import { historyHref } from "../common/route";
 
 type Schemas = components["schemas"];
 export type PlantNode = Schemas["NodeModel"];
@@ -22,6 +23,7 @@ export type PlantTransition = Schemas["AlarmTransitionModel"];
 export type CellFigures = Schemas["CellFiguresModel"];
 export type PlantShifts = Schemas["ShiftsAnswer"];
 export type RobotShift = Schemas["RobotShiftModel"];
+export type PlantPeer = Schemas["PeerModel"];
 
 /** The plant's state groups (model.state_group), and a robot whose cell or itself is offline. */
 export const STATE_GROUPS = ["running", "standby", "stopped", "error"] as const;
@@ -160,6 +162,8 @@ export interface RobotRow {
   readonly shift: ShiftView | null;
   /** Its panel in its cell (`HMI/?robot=NAME`), null when the cell names no HMI. */
   readonly panelHref: string | null;
+  /** Its recorded frames over the page's range in its cell (`HMI/?robot=NAME&from=&to=`). */
+  readonly historyHref: string | null;
 }
 
 export interface CellCard {
@@ -170,8 +174,13 @@ export interface CellCard {
   readonly online: boolean;
   readonly sinceWords: string;
   readonly hmiHref: string | null;
-  /** The cell's alarm history over the page's range (the shift), in the cell. */
+  /** The cell's history over the page's range (the shift): its first robot's recorded frames
+   * in its panel, the plots opened at that range (`HMI/?robot=NAME&from=&to=`). */
   readonly historyHref: string | null;
+  /** The plant process that follows the cell: null the page's own, else a peer's URL. */
+  readonly peer: string | null;
+  /** Its peer does not answer: the cell as last answered. */
+  readonly peerDown: boolean;
   readonly figures: CellFigures | undefined;
   readonly figuresWords: string;
   readonly robots: readonly RobotRow[];
@@ -193,11 +202,13 @@ export function robotPanelHref(hmi: string | null, device: string): string | nul
   return hmi === null ? null : `${hmi}/?${new URLSearchParams({ robot: device }).toString()}`;
 }
 
-/** The cell's alarm history over `[since_s, until_s]` (its API, with the person's login there). */
-export function cellHistoryHref(hmi: string | null, since_s: number, until_s: number): string | null {
-  if (hmi === null) return null;
-  const q = new URLSearchParams({ since: since_s.toFixed(0), until: until_s.toFixed(0), format: "csv" });
-  return `${hmi}/api/v1/alarms/history?${q.toString()}`;
+/**
+ * A robot's history in its cell over `[since_s, until_s]`: the cell's panel for the robot with
+ * its plots opened at that range (`?robot=NAME&from=S&to=S`, epoch seconds: what the panel reads,
+ * lib/common/route.ts `rangeFromSearch`), where its raw frames are. Null without an HMI address.
+ */
+export function cellHistoryHref(hmi: string | null, robot: string, since_s: number, until_s: number): string | null {
+  return hmi === null ? null : `${hmi}${historyHref(robot, Math.floor(since_s), Math.ceil(until_s))}`;
 }
 
 /**
@@ -231,7 +242,7 @@ export interface PageRange {
   readonly until_s: number;
 }
 
-export function robotRow(node: PlantNode, device: PlantDevice, shifts: ReadonlyMap<string, RobotShift>, now_ms: number, zone?: string): RobotRow {
+export function robotRow(node: PlantNode, device: PlantDevice, shifts: ReadonlyMap<string, RobotShift>, now_ms: number, zone?: string, range?: PageRange): RobotRow {
   const online = node.online && device.online;
   const top = device.alarms_active[0];
   const hmi = safeHmiUrl(node.hmi_url);
@@ -252,6 +263,7 @@ export function robotRow(node: PlantNode, device: PlantDevice, shifts: ReadonlyM
     healthWords: healthWords(device.health),
     shift: shiftView(shifts.get(key)),
     panelHref: robotPanelHref(hmi, device.device),
+    historyHref: range === undefined ? null : cellHistoryHref(hmi, device.device, range.since_s, range.until_s),
   };
 }
 
@@ -273,13 +285,14 @@ export function cellCards(
   range: PageRange,
   now_ms: number,
   zone?: string,
+  downPeers: ReadonlySet<string> = new Set(),
 ): CellCard[] {
   const figuresOf = new Map(figures.map((f) => [cellKey(f.group, f.node), f]));
   const shiftOf = new Map(shifts.map((s) => [`${cellKey(s.group, s.node)}/${s.device}`, s]));
   const cards: CellCard[] = [];
   for (const node of nodes) {
     if (filter.area !== null && node.group !== filter.area) continue;
-    const robots = node.devices.map((d) => robotRow(node, d, shiftOf, now_ms, zone)).filter((r) => matchesState(r, filter.state));
+    const robots = node.devices.map((d) => robotRow(node, d, shiftOf, now_ms, zone, range)).filter((r) => matchesState(r, filter.state));
     if (filter.state !== null && robots.length === 0) continue;
     const key = cellKey(node.group, node.node);
     const hmi = safeHmiUrl(node.hmi_url);
@@ -291,13 +304,29 @@ export function cellCards(
       online: node.online,
       sinceWords: sinceWords(node.online, node.since, now_ms, zone),
       hmiHref: hmi,
-      historyHref: cellHistoryHref(hmi, range.since_s, range.until_s),
+      historyHref: node.devices[0] === undefined ? null : cellHistoryHref(hmi, node.devices[0].device, range.since_s, range.until_s),
+      peer: node.peer ?? null,
+      peerDown: node.peer !== null && node.peer !== undefined && downPeers.has(node.peer),
       figures: figuresOf.get(key),
       figuresWords: figuresWords(figuresOf.get(key)),
       robots,
     });
   }
   return cards;
+}
+
+/** The peers (other plant processes, `--peer`) that do not answer, in words for the page's
+ * banner: "plant process http://h:8101 does not answer since 07:21:04 (timed out): its cells
+ * as last seen". */
+export function downPeerWords(peers: readonly PlantPeer[], now_ms: number, zone?: string): readonly string[] {
+  return peers
+    .filter((p) => !p.answering)
+    .map((p) => `plant process ${p.url} does not answer since ${formatMoment(p.since * 1000, now_ms, zone)}${p.error ? ` (${p.error})` : ""}: its cells as last seen`);
+}
+
+/** The peers that do not answer, by URL (`cellCards`' `downPeers`). */
+export function downPeers(peers: readonly PlantPeer[]): ReadonlySet<string> {
+  return new Set(peers.filter((p) => !p.answering).map((p) => p.url));
 }
 
 /** The areas to choose from: every Sparkplug group heard, sorted. */

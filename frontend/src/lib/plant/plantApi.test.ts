@@ -1,8 +1,8 @@
 import { readFileSync } from "node:fs";
 import { afterEach, beforeEach, describe, expect, it, vi } from "vitest";
 import { PLANT_API_TS_PATH, PLANT_OPENAPI_PATH, generateApiTs } from "../../../scripts/generate-api.mjs";
-import { NODES_POLL_MS, PlantPoller, type Answer } from "./plantApi";
-import type { PlantAlarms, PlantNode, PlantShifts } from "./plant";
+import { ALARMS_POLL_MS, NODES_POLL_MS, PlantPoller, type Answer } from "./plantApi";
+import type { PlantAlarms, PlantNode, PlantPeer, PlantShifts } from "./plant";
 
 describe("src/generated/plantApi.ts", { timeout: 60_000 }, () => {
   it("is what docs/plant-openapi.json generates (else run `make codegen`)", async () => {
@@ -62,5 +62,20 @@ describe("the plant's poller", () => {
     const count = since.length;
     await vi.advanceTimersByTimeAsync(5000);
     expect(since.length).toBe(count);
+  });
+
+  it("follows the plant's peers with the alarms: a peer that stops answering is published", async () => {
+    let answering = true;
+    const { api } = fakeApi(() => ({ ok: true, data: [NODE] }));
+    const peers = (): Promise<Answer<PlantPeer[]>> =>
+      Promise.resolve({ ok: true, data: [{ url: "http://p:8101", answering, since: 1, error: answering ? null : "timed out", nodes: 1 }] });
+    const poller = new PlantPoller({ ...api, peers }, () => 5000);
+    poller.start();
+    await vi.advanceTimersByTimeAsync(0);
+    expect(poller.getSnapshot().peers.map((p) => p.answering)).toEqual([true]);
+    answering = false;
+    await vi.advanceTimersByTimeAsync(ALARMS_POLL_MS);
+    expect(poller.getSnapshot().peers.map((p) => [p.answering, p.error])).toEqual([[false, "timed out"]]);
+    poller.stop();
   });
 });

@@ -10,7 +10,7 @@
  */
 import createClient, { type Client } from "openapi-fetch";
 import type { paths } from "../../generated/plantApi";
-import type { PlantAlarms, PlantNode, PlantShifts } from "./plant";
+import type { PlantAlarms, PlantNode, PlantPeer, PlantShifts } from "./plant";
 
 export const NODES_POLL_MS = 250;
 export const ALARMS_POLL_MS = 1000;
@@ -58,6 +58,11 @@ export class PlantApi {
     return answerOf<PlantShifts>(await this.client.GET("/api/v1/plant/shifts"));
   }
 
+  /** The other plant processes whose cells the page shows (`--peer`), answering or not. */
+  async peers(): Promise<Answer<PlantPeer[]>> {
+    return answerOf<PlantPeer[]>(await this.client.GET("/api/v1/plant/peers"));
+  }
+
   async me(): Promise<string | null> {
     const result = await this.client.GET("/api/v1/auth/me");
     return result.data?.user?.name ?? null;
@@ -79,6 +84,8 @@ export interface PlantSnapshot {
   readonly nodes: readonly PlantNode[];
   readonly alarms: PlantAlarms | null;
   readonly shifts: PlantShifts | null;
+  /** The plant's other processes (`--peer`), polled with the alarms. */
+  readonly peers: readonly PlantPeer[];
   /** Why the last poll of the nodes failed, null when it succeeded. */
   readonly error: string | null;
   /** The plant asks for a login (401). */
@@ -95,6 +102,7 @@ export const EMPTY_SNAPSHOT: PlantSnapshot = {
   nodes: [],
   alarms: null,
   shifts: null,
+  peers: [],
   error: null,
   loginNeeded: false,
   loaded: false,
@@ -116,7 +124,7 @@ export class PlantPoller {
   private current: PlantSnapshot = EMPTY_SNAPSHOT;
 
   constructor(
-    private readonly api: Pick<PlantApi, "nodes" | "alarms" | "shifts">,
+    private readonly api: Pick<PlantApi, "nodes" | "alarms" | "shifts"> & Partial<Pick<PlantApi, "peers">>,
     private readonly now_ms: () => number = Date.now,
   ) {}
 
@@ -136,6 +144,7 @@ export class PlantPoller {
     void this.loop(generation, NODES_POLL_MS, () => this.pollNodes());
     void this.loop(generation, ALARMS_POLL_MS, () => this.pollAlarms());
     void this.loop(generation, SHIFTS_POLL_MS, () => this.pollShifts());
+    if (this.api.peers !== undefined) void this.loop(generation, ALARMS_POLL_MS, () => this.pollPeers());
   }
 
   stop(): void {
@@ -182,6 +191,11 @@ export class PlantPoller {
     const since_s = this.current.shifts?.since ?? this.now_ms() / 1000 - DEFAULT_RANGE_S;
     const answer = await this.api.alarms(since_s);
     return answer.ok ? { alarms: answer.data } : null;
+  }
+
+  private async pollPeers(): Promise<Partial<PlantSnapshot> | null> {
+    const answer = await this.api.peers?.();
+    return answer?.ok === true ? { peers: answer.data } : null;
   }
 
   private async pollShifts(): Promise<Partial<PlantSnapshot> | null> {

@@ -83,4 +83,22 @@ describe("PlotTimeRange", () => {
     shared.setCursor(5);
     expect(got).toHaveLength(2);
   });
+
+  it("opens at a URL's range: a plot that links while it is shown follows it at once", () => {
+    const range = { from_s: 100, to_s: 200 };
+    const shared = new PlotTimeRange().openAt(range);
+    expect(shared.current).toEqual(range);
+    const first: PlotMove[] = [];
+    const plot = { onMove: null as ((m: PlotMove) => void) | null, follow: (m: PlotMove) => first.push(m) };
+    linkPlot(shared, plot);
+    expect(first).toEqual([{ kind: "jump", range }]);
+    // Back to live: a plot linked later opens live.
+    shared.backToLive();
+    const later: PlotMove[] = [];
+    shared.subscribe((m) => later.push(m));
+    expect(later).toEqual([]);
+    // No range, or none that is one: the axis opens live.
+    expect(new PlotTimeRange().openAt(null).current).toBeNull();
+    expect(new PlotTimeRange().openAt({ from_s: 5, to_s: 5 }).current).toBeNull();
+  });
 });

@@ -27,6 +27,19 @@ export class PlotTimeRange {
   private readonly cursorListeners = new Set<CursorListener>();
   private shown: TimeRange | null = null;
   private cursor: number | null = null;
+  private opening: TimeRange | null = null;
+
+  /**
+   * The panel opens at `range` (its URL's `from`/`to`, lib/common/route.ts): a jump there, which
+   * every plot that links while the axis still shows it follows at once as it links (the plots
+   * come after the axis). Null: the panel opens live.
+   */
+  openAt(range: TimeRange | null): this {
+    if (range === null || !(range.to_s > range.from_s)) return this;
+    this.opening = range;
+    this.jumpTo(range);
+    return this;
+  }
 
   /** The range of the last jump, or null before any and after the way back to live. */
   get current(): TimeRange | null {
@@ -58,6 +71,7 @@ export class PlotTimeRange {
   /** Listen as `key` (a plot's own moves are not told back to it); the function returned stops. */
   subscribe(listener: MoveListener, key: object = {}): () => void {
     this.listeners.set(key, listener);
+    if (this.opening !== null && this.shown === this.opening) listener({ kind: "jump", range: this.opening });
     return () => {
       this.listeners.delete(key);
     };
