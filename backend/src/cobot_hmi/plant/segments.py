@@ -48,9 +48,9 @@ ABSORBED_KEY: Final = b"cobot_hmi.absorbed_parts"
 ROW_GROUP_KEYS: Final = b"cobot_hmi.row_group_keys"
 """Version 2: JSON, per row group ``[first series, last series]``, each ``[group, node,
 device, metric]``."""
-ROW_GROUP_ROWS: Final = 32_768
-"""A compacted segment's row group: a series is read as at most this many rows around it (an
-hour of a 500-robot plant is some 100 row groups of it: a small footer, a quick read)."""
+ROW_GROUP_ROWS: Final = 8192
+"""A compacted segment's row group: a series is read as one or two of them (an hour of a
+500-robot plant, 1.8 M rows, is some 220: a footer of about 100 kB, read once)."""
 SERIES: Final = ("group", "node", "device", "metric")
 VALUES: Final = ("time_ms", "value", "text", "historical")
 FILE_INDEX_LIMIT: Final = 4096
@@ -108,27 +108,25 @@ class _FileIndex:
     first_keys: list[Series] | None
     """Version 2 segments: each row group's first and last series (sorted: bisected)."""
     last_keys: list[Series] | None
-    statistics: list[tuple[dict[str, tuple[object, object]], bool]]
-    """Per row group: each column's (min, max), and whether every column had them."""
+    statistics: list[dict[str, tuple[object, object]]]
+    """Files without row-group keys: per row group, each key column's and the time's (min, max)
+    where the file has them (version 2 segments: empty, their keys say more)."""
 
 
 _INDEX: OrderedDict[tuple[str, int, int], _FileIndex] = OrderedDict()
 _INDEX_LOCK = threading.Lock()
 
 
-def _statistics(metadata: pq.FileMetaData) -> list[tuple[dict[str, tuple[object, object]], bool]]:
-    names = [metadata.schema.column(i).name for i in range(metadata.num_columns)]
-    wanted = {name: i for i, name in enumerate(names) if name in (*SERIES, "time_ms")}
-    groups = []
-    for g in range(metadata.num_row_groups):
-        row_group = metadata.row_group(g)
-        ranges: dict[str, tuple[object, object]] = {}
-        for name, i in wanted.items():
-            stats = row_group.column(i).statistics
-            if stats is not None and stats.has_min_max:
-                ranges[name] = (stats.min, stats.max)
-        groups.append((ranges, len(ranges) == len(wanted)))
-    return groups
+def _ranges(metadata: pq.FileMetaData, group: int) -> dict[str, tuple[object, object]]:
+    """A row group's key columns' and time's (min, max), where the file has them."""
+    row_group = metadata.row_group(group)
+    ranges: dict[str, tuple[object, object]] = {}
+    for i in range(metadata.num_columns):
+        name = metadata.schema.column(i).name
+        stats = row_group.column(i).statistics
+        if name in (*SERIES, "time_ms") and stats is not None and stats.has_min_max:
+            ranges[name] = (stats.min, stats.max)
+    return ranges
 
 
 def _load_index(path: Path) -> _FileIndex:
@@ -137,6 +135,7 @@ def _load_index(path: Path) -> _FileIndex:
     version = PLANT_SEGMENT.read_version(found.get(VERSION_KEY), path)
     absorbed = json.loads(found[ABSORBED_KEY]) if ABSORBED_KEY in found else []
     first_keys = last_keys = None
+    len_groups = metadata.num_row_groups
     if version >= 2 and ROW_GROUP_KEYS in found:
         keys = json.loads(found[ROW_GROUP_KEYS])
         if len(keys) == metadata.num_row_groups:
@@ -148,7 +147,7 @@ def _load_index(path: Path) -> _FileIndex:
         tuple(str(n) for n in absorbed) if isinstance(absorbed, list) else (),
         first_keys,
         last_keys,
-        _statistics(metadata),
+        [] if first_keys is not None else [_ranges(metadata, g) for g in range(len_groups)],
     )
 
 
@@ -197,7 +196,7 @@ def _row_groups(index: _FileIndex, series: Series, start_ms: int, end_ms: int) -
     chosen = []
     wanted = dict(zip(SERIES, series, strict=True))
     for g in candidates:
-        ranges, _ = index.statistics[g]
+        ranges = index.statistics[g] if index.statistics else _ranges(index.metadata, g)
         if any(
             name in ranges and not ranges[name][0] <= value <= ranges[name][1]  # type: ignore[operator]
             for name, value in wanted.items()
@@ -218,9 +217,10 @@ def read_series(path: Path, series: Series, start_ms: int, end_ms: int) -> pa.Ta
         groups = _row_groups(index, series, start_ms, end_ms)
         if not groups:
             return None
-        table = pq.ParquetFile(path, metadata=index.metadata).read_row_groups(
-            groups, columns=[*SERIES, *VALUES], use_threads=False
-        )
+        # The series' columns as dictionaries: compared by index, never made into strings.
+        table = pq.ParquetFile(
+            path, metadata=index.metadata, read_dictionary=list(SERIES)
+        ).read_row_groups(groups, columns=[*SERIES, *VALUES], use_threads=False)
     except FormatVersionError as error:
         log.warning("plant history: %s", error)
         return None
@@ -231,8 +231,23 @@ def read_series(path: Path, series: Series, start_ms: int, end_ms: int) -> pa.Ta
         pc.greater_equal(table["time_ms"], start_ms), pc.less_equal(table["time_ms"], end_ms)
     )
     for name, value in zip(SERIES, series, strict=True):
-        mask = pc.and_(mask, pc.equal(table[name], value))
+        mask = pc.and_(mask, _equal(table[name], value))
     return table.filter(mask).select(list(VALUES))
+
+
+def _equal(column: pa.ChunkedArray, value: str) -> pa.ChunkedArray:
+    """Where a column (dictionaries, one per row group) holds ``value``."""
+    chunks = []
+    for chunk in column.chunks:
+        if not isinstance(chunk, pa.DictionaryArray):
+            chunks.append(pc.equal(chunk, value))
+            continue
+        position = pc.index(chunk.dictionary, value).as_py()
+        if position < 0:
+            chunks.append(pa.nulls(len(chunk), pa.bool_()).fill_null(False))
+        else:
+            chunks.append(pc.equal(chunk.indices, pa.scalar(position, chunk.indices.type)))
+    return pa.chunked_array(chunks, pa.bool_())
 
 
 @functools.cache
