@@ -279,11 +279,15 @@ class PlantRecorder:
             hour += timedelta(hours=1)
             if not folder.is_dir():
                 continue
+            found = sorted(folder.glob("*.parquet"))
             segment = folder / SEGMENT
-            absorbed = set(absorbed_parts(segment)) if segment.exists() else set()
+            # Only an hour with parts beside its segment asks the segment which it holds (a
+            # compacted hour's footer is read by the reader's threads, not here, one by one).
+            holds = segment in found and len(found) > 1
+            absorbed = set(absorbed_parts(segment)) if holds else set()
             files.extend(
                 path
-                for path in sorted(folder.glob("*.parquet"))
+                for path in found
                 if path.name not in absorbed  # already in the segment, not yet removed
             )
         return files

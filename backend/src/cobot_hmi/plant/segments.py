@@ -94,7 +94,8 @@ def write_segment(path: Path, table: pa.Table, absorbed: list[str]) -> None:
         ordered.replace_schema_metadata(metadata),
         path,
         row_group_size=ROW_GROUP_ROWS,
-        write_statistics=True,
+        # Statistics of what a read chooses row groups by only: a smaller footer, read sooner.
+        write_statistics=[*SERIES, "time_ms"],
     )
 
 
