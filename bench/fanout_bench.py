@@ -378,7 +378,9 @@ def main() -> int:
             if doors
             else None
         )
+        threads_before = fanout_doors.thread_cpu_s(running.service.pid)
         results = asyncio.run(run(args, running))
+        threads_after = fanout_doors.thread_cpu_s(running.service.pid)
         if historian is not None:  # its figures before the service stops
             historian.finish()
         names = list(running.robot_names)
@@ -394,6 +396,8 @@ def main() -> int:
     ratios = _report_robots(args, results, names, client_robot)
     lossless = _report_clients(args, results)
     _report_service(args, results)
+    frames = results.baseline.frames_produced + results.load.frames_produced
+    fanout_doors.report_threads(threads_before, threads_after, frames)
     within = all(r <= 1.2 for r in ratios.values())
     print(f"  targets: fast clients lose nothing: {lossless}; every ratio ≤ 1.2: {within}")
     whole = True

@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 import orjson
+from proc_stats import CLOCK_TICKS
 from service_bench_support import Stack, broker, free_port, labels_of, loopback_pair
 
 CYCLE_MARKER_REGISTER = 63
@@ -121,6 +122,30 @@ def opcua_client(
         if process.poll() is None:
             process.terminate()
         process.wait(30)
+
+
+def thread_cpu_s(pid: int) -> dict[str, float]:
+    """CPU seconds of each of a process's threads so far, summed by thread name (from /proc:
+    the service's cyclic thread, web loop, OPC UA server, paho, health, recorder …)."""
+    by_name: dict[str, float] = {}
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        with contextlib.suppress(OSError):  # a thread that ended meanwhile
+            name = (task / "comm").read_text().strip()
+            fields = (task / "stat").read_text().rsplit(")", 1)[1].split()
+            seconds = (int(fields[11]) + int(fields[12])) / CLOCK_TICKS
+            by_name[name] = by_name.get(name, 0.0) + seconds
+    return by_name
+
+
+def report_threads(before: dict[str, float], after: dict[str, float], frames: int) -> None:
+    """The service's CPU per robot-frame by thread over the whole run (both conditions)."""
+    spent = {name: after[name] - before.get(name, 0.0) for name in after}
+    ranked = sorted(spent.items(), key=lambda item: -item[1])
+    print(
+        "  service CPU per robot-frame by thread, the whole run ("
+        f"{frames} frames): "
+        + ", ".join(f"{name} {1e6 * s / max(frames, 1):.1f} µs" for name, s in ranked if s > 0)
+    )
 
 
 def consumer_drops(final: dict[tuple[str, str], float]) -> dict[str, float]:

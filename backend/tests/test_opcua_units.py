@@ -11,7 +11,7 @@ from datetime import UTC, datetime
 
 import pytest
 from asyncua import ua
-from asyncua.server.address_space import AddressSpace
+from asyncua.server.address_space import AddressSpace, AttributeValue, NodeData
 from asyncua.server.internal_subscription import InternalSubscription
 from asyncua.server.monitored_item_service import MonitoredItemData
 from asyncua.ua.ua_binary import struct_to_binary
@@ -19,7 +19,7 @@ from asyncua.ua.ua_binary import struct_to_binary
 from cobot_hmi.codec import zero_frame
 from cobot_hmi.generated.frames import RobotState
 from cobot_hmi.layout import ANALOG_OUTPUT_RANGES, O2T_FIELDS, T2O_FIELDS
-from cobot_hmi.opcua import companion, robotics
+from cobot_hmi.opcua import companion, robotics, sessions
 from cobot_hmi.opcua.opcua_settings import DEFAULT_PORT
 from cobot_hmi.opcua.server import (
     PUBLISH_AFTER_TICK,
@@ -190,3 +190,33 @@ def test_values_made_without_the_checks_equal_the_constructors(
     slow = SharedDataValue(made, StatusCode=GOOD, SourceTimestamp=when, ServerTimestamp=when)
     assert fast == slow
     assert struct_to_binary(fast) == struct_to_binary(slow)
+
+
+async def test_deleting_every_item_of_a_subscription_removes_each_callback_once() -> None:
+    aspace = AddressSpace()
+    nodes = [ua.NodeId(f"v{i}", 2) for i in range(300)]
+    for node in nodes:
+        data = NodeData(node)
+        data.attributes[ua.AttributeIds.Value] = AttributeValue(ua.DataValue(ua.Variant(0.0)))
+        aspace[node] = data
+    result = ua.CreateSubscriptionResult(RevisedPublishingInterval=1000.0)
+    subscription = InternalSubscription(result, aspace, _publish, ua.NodeId(1, 0))
+    service = subscription.monitored_item_srv
+    requests = [
+        ua.MonitoredItemCreateRequest(
+            ItemToMonitor=ua.ReadValueId(NodeId=node, AttributeId=ua.AttributeIds.Value),
+            MonitoringMode=ua.MonitoringMode.Reporting,
+            RequestedParameters=ua.MonitoringParameters(ClientHandle=i, QueueSize=1),
+        )
+        for i, node in enumerate(nodes)
+    ]
+    params = ua.CreateMonitoredItemsParameters(ItemsToCreate=requests)
+    created = await service.create_monitored_items(params)
+    assert all(r.StatusCode.is_good() for r in created)
+    callbacks = [aspace[n].attributes[ua.AttributeIds.Value].datachange_callbacks for n in nodes]
+    assert all(len(c) == 1 for c in callbacks)
+    # sessions.py's, installed when it is imported: one pass, not one scan per item
+    assert type(service).delete_all_monitored_items is sessions._delete_all_monitored_items
+    service.delete_all_monitored_items()
+    assert not any(callbacks)
+    assert not service._monitored_items and not service._monitored_datachange

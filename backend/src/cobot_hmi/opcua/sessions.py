@@ -30,6 +30,7 @@ from asyncua import ua
 from asyncua.crypto.permission_rules import User, UserRole
 from asyncua.server.internal_server import InternalServer
 from asyncua.server.internal_session import InternalSession
+from asyncua.server.monitored_item_service import MonitoredItemService
 from asyncua.server.user_managers import UserManager
 
 from cobot_hmi.opcua.auth import PEER
@@ -40,6 +41,22 @@ from cobot_hmi.opcua.writes import Caller, CommandWrites, access_level_refusal
 log = logging.getLogger(__name__)
 
 _ANONYMOUS = User(role=UserRole.Anonymous)
+
+
+def _delete_all_monitored_items(service: MonitoredItemService) -> None:
+    """Every monitored item of a subscription deleted (its data-change callbacks, its event
+    and data-change indexes), in one pass: what asyncua's own does item by item, each looking
+    through every item's callback handle for its own (quadratic: a historian's 17 000 items,
+    deleted when its subscription expired or its session closed, held the server's thread and
+    the GIL for tens of seconds)."""
+    for handle in service._monitored_datachange:
+        service.aspace.delete_datachange_callback(handle)
+    service._monitored_datachange.clear()
+    service._monitored_events.clear()
+    service._monitored_items.clear()
+
+
+MonitoredItemService.delete_all_monitored_items = _delete_all_monitored_items
 
 
 class RobotInternalServer(InternalServer):
