@@ -423,3 +423,19 @@ def test_a_held_rebirth_request_goes_out_once_the_rate_limit_allows() -> None:
     # A node that never answers is asked again three times, not forever.
     host.on_message(topic("DDATA", "m1013"), payload(metric(alias=1001, value=13), seq=9), 300)
     assert [len(host.due(300.0 + 10.0 * n)) for n in range(1, 6)] == [1, 1, 1, 0, 0]
+
+
+def test_a_request_is_unanswered_only_once_what_came_after_it_has_been_handled() -> None:
+    """A plant behind its messages may hold the NBIRTH that answers, received and not yet
+    handled: it does not ask again until it has handled what came REBIRTH_ANSWER_S after."""
+    host = HostApplication("plant-host", rebirth_interval_s=5.0)
+    born(host)
+    gap = host.on_message(
+        topic("DDATA", "m1013"), payload(metric(alias=1001, value=13), seq=4), 101
+    )
+    assert len(gap.publish) == 1 and host.unanswered == 1
+    assert host.due(130.0, seen_until_s=110.9) == []
+    assert len(host.due(130.0, seen_until_s=111.0)) == 1
+    assert host.rebirths["unanswered"] == 1
+    born(host, 131.0)
+    assert host.unanswered == 0

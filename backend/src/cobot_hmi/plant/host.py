@@ -342,6 +342,12 @@ class HostApplication:
         self.bad_messages = 0
 
     @property
+    def unanswered(self) -> int:
+        """Nodes whose messages may be lost (a gap, the host's reconnection) and whose births
+        have not come since: a rebirth request held by the rate limit or not yet answered."""
+        return sum(s.held is not None or s.awaiting for s in self._sessions.values())
+
+    @property
     def subscriptions(self) -> list[str]:
         """The topic filters: the host's own STATE and every (or each named) group."""
         groups = sorted(self.groups) or ["+"]
@@ -684,10 +690,15 @@ class HostApplication:
                 asked.append(self._rebirth(session, view, "reconnect", now_s))
         return asked
 
-    def due(self, now_s: float) -> list[Outgoing]:
+    def due(self, now_s: float, seen_until_s: float | None = None) -> list[Outgoing]:
         """The rebirth requests the rate limit held that it allows now, and those sent again
         that no NBIRTH answered (call it every second or so: a quiet node sends nothing that
-        would bring them)."""
+        would bring them). ``seen_until_s``: every message received before it has been handled
+        (``now_s`` by default); a plant behind its messages may hold the answer, not yet
+        handled, so a request is unanswered only once what came ``REBIRTH_ANSWER_S`` after it
+        has been (asked again sooner, each node's births came twice, more work for a plant
+        already behind)."""
+        seen_s = now_s if seen_until_s is None else min(seen_until_s, now_s)
         asked = []
         for key, view in sorted(self.nodes.items()):
             session = self._sessions.get(key)
@@ -699,7 +710,8 @@ class HostApplication:
             elif (
                 session.awaiting
                 and session.retries < REBIRTH_RETRIES
-                and waited_s >= max(REBIRTH_ANSWER_S, self.rebirth_interval_s)
+                and seen_s - session.last_rebirth_s
+                >= max(REBIRTH_ANSWER_S, self.rebirth_interval_s)
             ):
                 session.retries += 1
                 asked.append(self._rebirth(session, view, "unanswered", now_s))

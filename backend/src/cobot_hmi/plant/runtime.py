@@ -179,6 +179,11 @@ class PlantRuntime:
         if answer.columns.times_ms:
             self.recorder.add_columns(answer.columns)
 
+    def _seen_until_s(self) -> float:
+        """Every message received before this time has been handled (on the event loop)."""
+        with self._room:
+            return self._inbox[0][2] if self._inbox else time.time()
+
     def _connected(self, url: str) -> None:
         """On the client's thread: connected and subscribed (the STATE birth went out)."""
         log.info("plant: connected to %s as host %s", url, self.settings.plant.plant_host_id)
@@ -215,6 +220,7 @@ class PlantRuntime:
         while True:
             await asyncio.sleep(_SWEEP_S)
             self.sessions.sweep()
-            # Rebirth requests the host's rate limit held, once it allows them.
-            for out in self.host.due(time.time()):
+            # Rebirth requests the host's rate limit held, once it allows them, and those
+            # unanswered once everything received long enough after them has been handled.
+            for out in self.host.due(time.time(), self._seen_until_s()):
                 self.client.publish(out.topic, out.payload, out.qos, out.retain)
