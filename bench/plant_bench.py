@@ -10,10 +10,12 @@ API as the plant page does (the nodes every 250 ms, the alarms every second).
 
 Printed: message → page model latency p50/p99 (the DDATA's payload timestamp, set when it was
 built, to the host having applied it; targets p99 ≤ 1 s); the plant's CPU in cores (≤ 1); its
-resident memory at the start and the end of the measured window (flat: ± 5 %); the seq gaps
-the host saw, the rebirths it asked for and those the cells answered (0 unanswered); messages
-published and received; the page's answers' times; the broker's and this process's CPU; the
-load average.
+resident memory at the start and the end of the measured window (the medians of its first and
+last 30 s, sampled every second; flat: ± 5 %); the seq gaps the host saw, the rebirths it asked
+for, the gaps still unanswered at the end (a node whose births have not come since its gap:
+target 0) and the requests the cells received and answered; the plant's inbox at its fullest;
+messages published and received; the page's answers' times; the broker's and this process's
+CPU; the load average.
 
 ``--kill-broker``: the broker is a cluster of three ``nats-server`` nodes (MQTT on JetStream,
 ``make peers`` builds ``.venv/go-bin/nats-server``), the cells on the first node, the plant
@@ -49,6 +51,9 @@ REPO: Final = HERE.parent
 NATS_SERVER: Final = REPO / ".venv" / "go-bin" / "nats-server"
 NODES_POLL_S: Final = 0.25
 ALARMS_POLL_S: Final = 1.0
+RSS_SPAN: Final = 30
+"""Samples (about a second apart) whose median is the resident memory at the window's start
+and at its end."""
 
 
 @dataclass
@@ -168,6 +173,8 @@ class Window:
     bench_cpu_s: float = 0.0
     rss_start_mib: float = 0.0
     rss_end_mib: float = 0.0
+    rss_samples_mib: list[float] = field(default_factory=list)
+    """The plant's resident memory about every second of the window."""
     sent: int = 0
     published: int = 0
     killed_at_s: float | None = None
@@ -211,7 +218,6 @@ def measure(
     stats.with_suffix(".reset").touch()
     window = Window()
     cpu0 = (process_cpu_s(plant.pid), sum(process_cpu_s(p) for p in broker_pids), own_cpu_s())
-    window.rss_start_mib = rss_mib(plant.pid)
     sent0, published0 = generator.sent, sum(c.published for c in generator.cells)
     started = time.monotonic()
     seconds = args.minutes * 60
@@ -219,6 +225,7 @@ def measure(
         if kill is not None and window.killed_at_s is None and left <= seconds / 2:
             window.killed_at_s = time.monotonic() - started
             kill()
+        window.rss_samples_mib.append(rss_mib(plant.pid))
         time.sleep(min(left, 1.0))
     window.seconds = time.monotonic() - started
     window.plant_cpu_s = process_cpu_s(plant.pid) - cpu0[0]
@@ -228,7 +235,12 @@ def measure(
         else float("nan")
     )
     window.bench_cpu_s = own_cpu_s() - cpu0[2]
-    window.rss_end_mib = rss_mib(plant.pid)
+    # Start and end: the medians of the window's first and last RSS_SPAN samples (a second's
+    # sample catches a flush's Arrow buffers or a full inbox at their largest; a trend shows in
+    # the medians as it does in single samples).
+    span = max(1, min(RSS_SPAN, len(window.rss_samples_mib) // 4))
+    window.rss_start_mib = percentile(window.rss_samples_mib[:span], 0.5)
+    window.rss_end_mib = percentile(window.rss_samples_mib[-span:], 0.5)
     window.extra["stats_at_end"] = json.loads(stats.read_text()) if stats.exists() else {}
     window.sent = generator.sent - sent0
     window.published = sum(c.published for c in generator.cells) - published0
@@ -333,10 +345,13 @@ def report(
         f"{histogram_percentile(bins, bin_s, 1.0) * 1e3:.0f} ms"
     )
     cores = window.plant_cpu_s / window.seconds
+    rss_max = max(window.rss_samples_mib, default=0.0)
     change = (window.rss_end_mib / window.rss_start_mib - 1) * 100 if window.rss_start_mib else 0
     print(
         f"  the plant: {cores:.2f} cores (target ≤ 1); resident memory {window.rss_start_mib:.0f}"
-        f" MiB → {window.rss_end_mib:.0f} MiB ({change:+.1f} %, target ± 5 %); history rows "
+        f" MiB → {window.rss_end_mib:.0f} MiB ({change:+.1f} %, target ± 5 %; medians of the "
+        f"window's first and last {RSS_SPAN} s, at most {rss_max:.0f} MiB)"
+        f"; history rows "
         f"{figures.get('history_rows', '?')}; broker CPU {window.broker_cpu_s / window.seconds:.2f}"
         f" cores; this process (load and page) {window.bench_cpu_s / window.seconds:.2f} cores"
     )
@@ -344,9 +359,11 @@ def report(
     asked = sum(rebirths.values())
     print(
         f"  seq gaps and rebirths: the plant asked {asked} ({rebirths or 'none'}; "
-        f"{figures.get('rebirths_held', 0)} held by its rate limit), the cells received "
-        f"{generator.rebirths_asked} and answered with {generator.births_sent - args.cells} "
-        f"births: unanswered {max(asked - generator.rebirths_asked, 0)}; at the end "
+        f"{figures.get('rebirths_held', 0)} held by its rate limit); gaps unanswered at the end "
+        f"{figures.get('unanswered', '?')} (nodes whose births did not come since: a request "
+        f"held or not answered; target 0); the cells received {generator.rebirths_asked} "
+        f"requests ({max(asked - generator.rebirths_asked, 0)} lost on the way) and answered "
+        f"with {generator.births_sent - args.cells} births; at the end "
         f"{figures.get('nodes_online', '?')}/{args.cells} cells and "
         f"{figures.get('devices_online', '?')}/{robots} robots online; connections "
         f"{figures.get('connections', '?')} ({figures.get('connections_lost', '?')} lost)"
@@ -354,7 +371,9 @@ def report(
     killed = "" if figures.get("stopped") else "; it did not stop within 30 s: killed"
     print(
         f"  the plant's event loop behind by {figures.get('loop_lag_s', float('nan')):.1f} s at "
-        f"the end (messages waiting their turn){killed}"
+        f"the end; its inbox (received, not yet handled) at most {figures.get('inbox_max', '?')}"
+        f" messages, full {figures.get('inbox_full', '?')} times (the client's thread waited: "
+        f"the broker held or dropped for it){killed}"
     )
 
     print(

@@ -86,6 +86,8 @@ def figures(runtime: PlantRuntime, latencies: Latencies) -> dict[str, Any]:
         "messages": runtime.messages,
         "rebirths": dict(host.rebirths),
         "rebirths_held": host.rebirths_held,
+        "unanswered": host.unanswered,
+        "inbox_full": runtime.inbox_full,
         "bad_messages": host.bad_messages,
         "stale_deaths": host.stale_deaths,
         "connections": runtime.client.connections,
@@ -126,7 +128,7 @@ def main() -> int:
         )
     )
 
-    loop = {"lag_s": 0.0}
+    loop = {"loop_lag_s": 0.0, "inbox_max": 0}
 
     async def serve() -> None:
         # The bench's reset (latencies from now on, after the births and the settling), and the
@@ -138,13 +140,15 @@ def main() -> int:
             while True:
                 slept = time.monotonic()
                 await asyncio.sleep(STATS_S)
-                loop["lag_s"] = max(0.0, time.monotonic() - slept - STATS_S)
+                loop["loop_lag_s"] = max(0.0, time.monotonic() - slept - STATS_S)
+                # The messages received and not yet handled, once a second (the runtime's
+                # inbox: bounded; full, the client's thread waits and the broker holds or drops).
+                loop["inbox_max"] = max(loop["inbox_max"], len(runtime._inbox))
                 if marker.exists():
                     marker.unlink()
                     latencies.reset()
-                write_stats(
-                    args.stats, {**figures(runtime, latencies), "loop_lag_s": loop["lag_s"]}
-                )
+                    loop["inbox_max"] = 0
+                write_stats(args.stats, {**figures(runtime, latencies), **loop})
 
         task = asyncio.create_task(reset_and_report())
         try:
@@ -152,7 +156,7 @@ def main() -> int:
         finally:
             task.cancel()
             # Written while the runtime's figures are still there (the lifespan has stopped it).
-            final = {**figures(runtime, latencies), "loop_lag_s": loop["lag_s"], "stopped": True}
+            final = {**figures(runtime, latencies), **loop, "stopped": True}
             write_stats(args.stats, final)
 
     asyncio.run(serve())
