@@ -3,8 +3,9 @@ out"), one page over both: two real processes on a real Mosquitto, each followin
 (``--group``), the first naming the second its peer (``--peer``) and a third that accepts
 connections and never answers. The first's ``/api/v1/plant/nodes`` answers both groups' edge
 nodes (each independent edge node in its group), its alarm list both groups' alarms; the hung
-peer is said to be down and never holds an answer; the second killed, it is said to be down and
-its cells are kept as last answered, while the first answers on."""
+peer is said to be down and never holds an answer; a trend of the second's robot asked of the
+first is the second's; the second killed, it is said to be down and its cells are kept as last
+answered, while the first answers on."""
 
 from __future__ import annotations
 
@@ -107,6 +108,20 @@ async def test_one_plant_process_answers_for_its_peer_on_another_group(
             ("east", "cell-e"),
         }
 
+        # A trend of the east's robot, asked of the west: the east's history answers it.
+        trend = {"group": "east", "node": "cell-e", "device": "r1", "metric": "robot_state"}
+
+        async def east_trend() -> bool:
+            points = await west.get("/api/v1/plant/trend", since=started - 3600, **trend)
+            return any(p["text"] == "STANDALONE_RUNNING" for p in points)
+
+        await eventually_async(east_trend, 30.0)
+        theirs = await east.get("/api/v1/plant/trend", since=started - 3600, **trend)
+        ours = await west.get("/api/v1/plant/trend", since=started - 3600, **trend)
+        assert [p["time"] for p in ours] == [p["time"] for p in theirs[: len(ours)]]
+        local = {**trend, "local": "true"}
+        assert await west.get("/api/v1/plant/trend", since=started - 3600, **local) == []
+
         # The hung peer: said not to answer, with why; it held no answer meanwhile.
         hung_peer = await _peer(west, hung)
         assert not hung_peer["answering"] and "timed out" in hung_peer["error"]
@@ -130,3 +145,8 @@ async def test_one_plant_process_answers_for_its_peer_on_another_group(
         )
         answer = await west.get("/api/v1/plant/alarms", since=started - 5)
         assert {t["node"] for t in answer["transitions"]} == {"cell-w"}
+        refused = await west.client.get(
+            "/api/v1/plant/trend", params={"since": started - 3600, **trend}
+        )
+        assert refused.status_code == 502, refused.text
+        assert east.base_url in refused.json()["detail"]["reason"]

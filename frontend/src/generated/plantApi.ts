@@ -911,6 +911,8 @@ export interface operations {
                 device?: string;
                 /** @description decimated to this many equal spans of the range, each its first, lowest, highest and last value (default: every value) */
                 points?: number | null;
+                /** @description only this process's history */
+                local?: boolean;
             };
             header?: never;
             path?: never;

@@ -9,7 +9,8 @@ page's ``/nodes`` merges what is kept and never waits for a peer. A peer that do
 said to be down since when (``GET /api/v1/plant/peers``), its cells kept as last answered. The
 alarm list and the shift's figures, which depend on the page's range, are asked for when the
 page asks, from every peer at once, each bounded by the same timeout; a peer that does not
-answer in time is left out of that answer and marked down.
+answer in time is left out of that answer and marked down. A trend of a peer's cell is asked of
+that peer (its history holds it).
 
 HTTP with the standard library on worker threads (the plant's runtime has no HTTP client), with
 a bearer token when the peers ask for a login (``--plant-peer-token``: a viewer's API token
@@ -114,6 +115,17 @@ class Peers:
             with contextlib.suppress(asyncio.CancelledError):
                 await task
         self._tasks = []
+
+    def owner(self, group: str, node: str) -> PeerState | None:
+        """The peer that last answered with this node (a trend of it is that peer's)."""
+        for peer in self.peers:
+            if any(n.get("group") == group and n.get("node") == node for n in peer.nodes):
+                return peer
+        return None
+
+    async def ask(self, peer: PeerState, path: str, params: dict[str, str]) -> Any:
+        """``path`` of one peer (its own part), bounded by the timeout; ``PeerError``."""
+        return await self._ask(peer, path, params)
 
     async def _ask(self, peer: PeerState, path: str, params: dict[str, str]) -> Any:
         query = urllib.parse.urlencode({**params, "local": "true"})

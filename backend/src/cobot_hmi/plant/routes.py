@@ -32,10 +32,11 @@ from cobot_hmi.plant.model import (
     shift_figures,
     state_group,
 )
-from cobot_hmi.plant.peers import Peers
+from cobot_hmi.plant.peers import PeerError, Peers
 from cobot_hmi.plant.recorder import MetricKey, PlantRecorder, Point
 from cobot_hmi.plant.runtime import PlantRuntime
 from cobot_hmi.service.api.deps import ViewerDep
+from cobot_hmi.service.errors import ApiError
 from cobot_hmi.service.plant_time import host_zone_name
 
 router = APIRouter(prefix="/api/v1/plant", tags=["plant"])
@@ -381,11 +382,26 @@ async def trend(
             "lowest, highest and last value (default: every value)",
         ),
     ] = None,
+    local: Annotated[bool, Query(description="only this process's history")] = False,
 ) -> list[TrendPoint]:
     end_ms = int((until if until is not None else time.time()) * 1000)
+    runtime = _runtime(request)
+    peers = None if local or (group, node) in runtime.host.nodes else _peers(request)
+    owner = None if peers is None else peers.owner(group, node)
+    if peers is not None and owner is not None:
+        # A peer's cell: its history is that peer's (asked as the page would, bounded).
+        asked = {"group": group, "node": node, "device": device, "metric": metric}
+        asked |= {"since": str(since), "until": str(end_ms / 1000)}
+        if points is not None:
+            asked["points"] = str(points)
+        try:
+            return _TREND.validate_python(await peers.ask(owner, "/api/v1/plant/trend", asked))
+        except (PeerError, ValueError) as error:
+            reason = f"the plant process {owner.url} that follows {node}: {error}"
+            raise ApiError(502, reason) from None
     found = await asyncio.to_thread(
         trends.trend,
-        _runtime(request).recorder,
+        runtime.recorder,
         MetricKey(group, node, device, metric),
         int(since * 1000),
         end_ms,
@@ -395,6 +411,9 @@ async def trend(
         TrendPoint(time=p.time_ms / 1000, value=p.value, text=p.text, historical=p.historical)
         for p in found
     ]
+
+
+_TREND: Final = TypeAdapter(list[TrendPoint])
 
 
 def _state_name(point: Point) -> str | None:
