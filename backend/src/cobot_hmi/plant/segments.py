@@ -274,10 +274,11 @@ def read_whole(path: Path) -> pa.Table | None:
     """A file's every row (compaction), ``None`` as ``read_series``."""
     try:
         file_index(path)  # its version checked
-        return pq.read_table(path, schema=SCHEMA)
+        table = pq.read_table(path, schema=SCHEMA)
     except FormatVersionError as error:
         log.warning("plant history: %s", error)
         return None
     except (OSError, pa.ArrowException) as error:
         log.warning("plant history: %s unreadable: %s", path, error)
         return None
+    return table.filter(pc.is_valid(table["time_ms"]))
