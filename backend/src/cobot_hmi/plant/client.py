@@ -34,8 +34,8 @@ KEEPALIVE_S: Final = 10
 CONNECT_TIMEOUT_S: Final = 3.0
 SUBSCRIBE_TIMEOUT_S: Final = 5.0
 READ_BURST: Final = 1000
-READ_BUFFER_BYTES: Final = 256 * 1024
 """Messages read at most between two calls of paho's ``loop`` (a fraction of a second's)."""
+READ_BUFFER_BYTES: Final = 256 * 1024
 
 MessageHandler = Callable[[str, bytes], None]
 """Called on the client's thread with each message's topic and payload."""
@@ -188,9 +188,13 @@ class FailoverClient:
         """The messages already waiting, read without a ``select`` each: paho's ``loop`` reads
         one packet a call when nothing of QoS 1 or 2 is in flight, and a plant receives
         thousands a second. Stops once a read brought no message and nothing is left in the
-        buffer (the next ``loop`` handles the rest), or after ``READ_BURST`` (so that ``loop``
-        still keeps the connection alive and writes)."""
-        for _ in range(READ_BURST):
+        buffer (the next ``loop`` handles the rest), or after ``READ_BURST`` messages (so that
+        ``loop`` still keeps the connection alive and writes: a read takes a whole buffer's
+        messages, hundreds, and a plant behind its messages may hold each one a while, its
+        inbox full; a burst counted in reads once kept ``loop`` away past the keepalive, and
+        the broker closed the connection)."""
+        first = self.messages
+        while self.messages - first < READ_BURST:
             before = self.messages
             rc = client.loop_read()
             if rc != mqtt.MQTT_ERR_SUCCESS or (self.messages == before and not reads.buffered):
