@@ -3,7 +3,8 @@ web API (``cobot_hmi.plant``; docs/operations.md "The plant").
 
 Settings as ``serve`` reads them (flags, ``COBOT_HMI_*``, the TOML file): the service's login,
 roles, TLS, directory and HTTP bounds, and the plant's ``--mqtt-url`` (repeatable), ``--group``
-(repeatable) and ``--plant-host-id``. On a state directory whose users file has no
+(repeatable), ``--plant-host-id`` and ``--peer`` (repeatable: the other plant processes whose
+cells its page shows, a plant split by group). On a state directory whose users file has no
 ``operator`` yet, one is made and its password printed once.
 """
 
@@ -49,7 +50,8 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
             "Subscribe to the Sparkplug namespace of the plant's brokers (--mqtt-url, "
             "repeatable: the next when one goes away; --group, repeatable: only those groups) "
             "as a Sparkplug 3.0 host application, record what arrives, and serve the plant's "
-            "REST API with the same login, roles, TLS and directory options as serve."
+            "REST API with the same login, roles, TLS and directory options as serve; --peer "
+            "URL, repeatable: the other plant processes whose cells its page shows as well."
         ),
     )
     from cobot_hmi.service.service_settings import ServiceSettings
