@@ -16,7 +16,7 @@ from typing import Any, Final, TypeVar
 import uvicorn
 
 from cobot_hmi.eventloop import freeze_startup_heap
-from cobot_hmi.service.api import http_limits
+from cobot_hmi.service.api import http_limits, ws_deflate
 from cobot_hmi.service.api.app import create_app
 from cobot_hmi.service.api.security import policy_from_settings
 from cobot_hmi.service.api.tls import ReloadingContext
@@ -46,8 +46,10 @@ def uvicorn_config(
         "lifespan": "on",
         # permessage-deflate (RFC 7692) when the client offers it, as browsers do: a phone's
         # stream shrinks several times (docs/api.md). Paid per client per message (each has
-        # its own compressor), after the hub has serialized once per group.
+        # its own compressor), after the hub has serialized once per group; so a stream of
+        # every field sends its frames uncompressed (ws_deflate.StreamWebSocketProtocol).
         "ws_per_message_deflate": True,
+        "ws": ws_deflate.StreamWebSocketProtocol,
         "timeout_graceful_shutdown": 3,
         "access_log": False,
         "log_level": "info",

@@ -13,6 +13,10 @@ connection:
   subscription moves its client to another group, it never makes the hub encode per client.
 - ``on_events``: the robot's events (and the cell's), each serialized once, to every client;
   the events a frame caused arrive after it (``robots.watch`` is registered after the hub).
+- A client of every field (a panel) is sent its frames uncompressed where the server can
+  (``send_plain``: permessage-deflate is each connection's own, a deflate per client per frame
+  at the robot's rate, ``service.api.ws_deflate``); a subscription to some fields (a phone's)
+  and every other message go as the connection negotiated.
 - Each client has its own bounded queue (in frames) and its own sender task. A slow client's
   queue overflows: its oldest frame messages are dropped, counted, and it is told with a
   ``dropped`` message before its next frames. A stalled client (one send stuck for
@@ -73,6 +77,9 @@ class StreamClient:
     max_frames: int
     session_id: str | None = None
     client: str = ""
+    send_plain: SendText | None = None
+    """Sends a text message uncompressed (the server's, where it has one): frames of every
+    field go by it."""
     queue: deque[tuple[Kind, str, int]] = field(default_factory=deque)
     queued_frames: int = 0
     dropped_pending: int = 0
@@ -135,12 +142,13 @@ class StreamClient:
                 if self.dropped_pending:
                     count, self.dropped_pending = self.dropped_pending, 0
                     await self._send(dumps({"type": "dropped", "count": count}).decode())
-            await self._send(text)
+            plain = kind is Kind.FRAMES and self.subscription.fields is None
+            await self._send(text, self.send_plain if plain else None)
             self.frames_sent += frames
 
-    async def _send(self, text: str) -> None:
+    async def _send(self, text: str, send: SendText | None = None) -> None:
         self.sending_since = time.monotonic()
-        await self.send_text(text)
+        await (send or self.send_text)(text)
         self.sending_since = None
         self.messages_sent += 1
 
@@ -223,9 +231,10 @@ class WebSocketFanOut:
         *,
         session_id: str | None = None,
         client: str = "",
+        send_plain: SendText | None = None,
     ) -> StreamClient:
         """Register a client (every field at ``rate_hz``, until it subscribes), queue its hello
-        first and start its sender."""
+        first and start its sender. ``send_plain``: the server's uncompressed send, if any."""
         stream_client = StreamClient(
             send_text,
             abort,
@@ -233,6 +242,7 @@ class WebSocketFanOut:
             self.client_queue_frames,
             session_id=session_id,
             client=client,
+            send_plain=send_plain,
         )
         stream_client.offer(Kind.EVENT, dumps(hello).decode())
         self._join(stream_client)

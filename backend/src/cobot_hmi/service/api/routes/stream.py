@@ -36,6 +36,8 @@ from cobot_hmi.service.robots.websocket_fanout import StreamClient, Subscription
 router = APIRouter()
 
 ABORT_KEY: Final = "cobot_hmi.abort_transport"
+SEND_PLAIN_KEY: Final = "cobot_hmi.send_plain"
+"""The server's ``send_plain`` (``ws_deflate``): a text message sent uncompressed."""
 CLOSE_BAD_REQUEST: Final = 4400
 CLOSE_LOGIN_REQUIRED: Final = 4401
 CLOSE_UNKNOWN_ROBOT: Final = 4404
@@ -49,13 +51,14 @@ SEND_BUFFER_BYTES: Final = 128 * 1024
 
 
 class TransportAbortMiddleware:
-    """Puts the server transport's ``abort`` in the WebSocket scope (uvicorn).
+    """Puts the server transport's ``abort`` in the WebSocket scope (uvicorn), and the
+    server's ``send_plain`` where it has one (``ws_deflate.StreamWebSocketProtocol``).
 
     A client that stopped reading cannot be sent a close frame (it would wait behind the full
     send buffer forever) and ``transport.close()`` waits for that buffer to drain: only an
     abort (RST) frees the connection. ASGI has no abort, so this reaches for uvicorn's
     protocol object, which is the ``send`` callable's owner; elsewhere it adds nothing and
-    a stalled client is sent a close instead.
+    a stalled client is sent a close instead (and every message goes as the server sends it).
     """
 
     def __init__(self, app: ASGIApp) -> None:
@@ -63,10 +66,14 @@ class TransportAbortMiddleware:
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] == "websocket":
-            transport = getattr(getattr(send, "__self__", None), "transport", None)
+            protocol = getattr(send, "__self__", None)
+            transport = getattr(protocol, "transport", None)
             abort = getattr(transport, "abort", None)
             if callable(abort):
                 scope = {**scope, ABORT_KEY: abort}
+            send_plain = getattr(protocol, "send_plain", None)
+            if callable(send_plain):
+                scope = {**scope, SEND_PLAIN_KEY: send_plain}
             _limit_send_buffer(transport)
         await self.app(scope, receive, send)
 
@@ -180,6 +187,7 @@ async def _stream(websocket: WebSocket, name: str | None) -> None:
         hello,
         session_id=session.id if session is not None else None,
         client=f"{client_address(websocket)}:{websocket.client.port if websocket.client else 0}",
+        send_plain=websocket.scope.get(SEND_PLAIN_KEY),
     )
     service.websocket_opened(session, robot)
     ended: asyncio.Future[str] = asyncio.get_running_loop().create_future()

@@ -1,0 +1,105 @@
+"""Layer: service. permessage-deflate (RFC 7692) on the streams, chosen message by message.
+
+uvicorn's WebSocket protocol (websockets' sans-I/O implementation) compresses every message of a
+connection that negotiated permessage-deflate, each with the connection's own compressor. For a
+stream of every field at the robot's rate (a panel on the plant's network: ~2.5 kB of JSON a
+frame, 100 frames/s at RPI 10 ms) that is a deflate per client per frame, which bench/fanout
+measured at about 20 µs of the service's CPU per robot-frame per client: more than the rest of
+the fan-out. A phone's subscription (a few fields at 10 frames/s) is cheap to compress and is
+what the compression is for. So the connection negotiates permessage-deflate as before
+(``StreamWebSocketProtocol``, the same offer uvicorn makes), and the stream may send one message
+as it is (``send_plain``, RSV1 unset): RFC 7692 §6 lets an endpoint send a message uncompressed
+on such a connection, and neither side's LZ77 window takes it in (§7.2.1: the compressor
+continues from the last compressed message), so the connection's compressor skips it and the
+messages after it still decompress.
+
+Imports uvicorn and websockets only.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from collections.abc import Sequence
+from typing import Any, Final
+
+from uvicorn.config import Config
+from uvicorn.protocols.websockets.websockets_sansio_impl import WebSocketsSansIOProtocol
+from uvicorn.server import ServerState
+from websockets.extensions.base import Extension
+from websockets.extensions.permessage_deflate import (
+    PerMessageDeflate,
+    ServerPerMessageDeflateFactory,
+)
+from websockets.frames import Frame
+from websockets.server import ServerProtocol
+from websockets.typing import ExtensionParameter
+
+WINDOW_BITS: Final = 12
+"""uvicorn's offer (4 KiB windows both ways), kept as it was."""
+COMPRESS_SETTINGS: Final = {"memLevel": 5}
+
+
+class SelectiveDeflate(PerMessageDeflate):
+    """permessage-deflate whose next message may go uncompressed (``plain_next``)."""
+
+    plain_next = False
+
+    def encode(self, frame: Frame) -> Frame:
+        if self.plain_next:
+            return frame  # RSV1 unset, the compressor not fed: its window stays as it was
+        return super().encode(frame)
+
+
+class SelectiveDeflateFactory(ServerPerMessageDeflateFactory):
+    """The same negotiation as websockets' server factory, the extension a ``SelectiveDeflate``."""
+
+    def process_request_params(
+        self, params: Sequence[ExtensionParameter], accepted_extensions: Sequence[Extension]
+    ) -> tuple[list[ExtensionParameter], PerMessageDeflate]:
+        response, agreed = super().process_request_params(params, accepted_extensions)
+        return response, SelectiveDeflate(
+            agreed.remote_no_context_takeover,
+            agreed.local_no_context_takeover,
+            agreed.remote_max_window_bits,
+            agreed.local_max_window_bits,
+            agreed.compress_settings,
+        )
+
+
+class StreamWebSocketProtocol(WebSocketsSansIOProtocol):
+    """uvicorn's WebSocket protocol with ``send_plain`` (uvicorn's ``ws`` option)."""
+
+    def __init__(
+        self,
+        config: Config,
+        server_state: ServerState,
+        app_state: dict[str, Any],
+        _loop: asyncio.AbstractEventLoop | None = None,
+    ) -> None:
+        super().__init__(config, server_state, app_state, _loop)
+        if config.ws_per_message_deflate:  # as uvicorn builds it, with the selective extension
+            factory = SelectiveDeflateFactory(
+                server_max_window_bits=WINDOW_BITS,
+                client_max_window_bits=WINDOW_BITS,
+                compress_settings=dict(COMPRESS_SETTINGS),
+            )
+            self.conn = ServerProtocol(
+                extensions=[factory],
+                max_size=config.ws_max_size,
+                logger=logging.getLogger("uvicorn.error"),
+            )
+
+    async def send_plain(self, text: str) -> None:
+        """Send ``text`` as a text message, uncompressed even where permessage-deflate was
+        negotiated. The stream's one sender calls it (a close or a ping meanwhile is a control
+        frame, which is never compressed)."""
+        deflate = next((e for e in self.conn.extensions if isinstance(e, SelectiveDeflate)), None)
+        if deflate is None:
+            await self.send({"type": "websocket.send", "text": text})
+            return
+        deflate.plain_next = True
+        try:
+            await self.send({"type": "websocket.send", "text": text})
+        finally:
+            deflate.plain_next = False
