@@ -104,7 +104,7 @@ def test_a_trend_over_hours_equals_a_brute_force_read(
     # A series is read from the row groups around it, not the whole hour.
     index = segments.file_index(segment_files[0])
     chosen = segments._row_groups(index, ("area", "cell-1", "r2", "robot_state"), 0, 2**62)
-    assert 0 < len(chosen) <= 3 < index.metadata.num_row_groups
+    assert 0 < len(chosen) <= 3 < index.groups
     # An unknown series reads nothing (no row group), a range outside the hours too.
     assert recorder.trend(MetricKey("area", "cell-7", "r1", "x"), start_ms, now_ms) == []
     assert recorder.trend(MetricKey("area", "cell-1", "r1", "robot_state"), 0, 1000) == []

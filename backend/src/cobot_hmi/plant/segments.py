@@ -14,9 +14,10 @@ Versions of the format (``PLANT_SEGMENT``; every file says its own in its Parque
   Parts (a second's rows, one small row group) stay in arrival order: they are read whole.
 
 Both are read: a version 1 file through its row groups' column statistics (time only prunes
-there), a version 2 one through its row-group keys. The files' footers and row-group ranges are
+there), a version 2 one through its row-group keys. Each file's row-group keys (or ranges) are
 kept in memory (``FILE_INDEX_LIMIT`` files): a compacted segment never changes, and a trend
-over a week opens 168 of them.
+over a week opens 168 of them; the footer itself is read again for each read (kept, its
+statistics parsed are some 1.5 MB an hour).
 
 Imports ``stored_format`` only.
 """
@@ -26,6 +27,7 @@ from __future__ import annotations
 import functools
 import json
 import logging
+import sys
 import threading
 from bisect import bisect_left, bisect_right
 from collections import OrderedDict
@@ -53,8 +55,8 @@ ROW_GROUP_ROWS: Final = 8192
 500-robot plant, 1.8 M rows, is some 220: a footer of about 100 kB, read once)."""
 SERIES: Final = ("group", "node", "device", "metric")
 VALUES: Final = ("time_ms", "value", "text", "historical")
-FILE_INDEX_LIMIT: Final = 4096
-"""Files whose footer is kept: half a year of hours."""
+FILE_INDEX_LIMIT: Final = 1024
+"""Files whose index is kept (six weeks of hours, some 40 MB at most for 500 robots)."""
 READ_THREADS: Final = 4
 """Files read at once by one trend (Parquet decoding runs without the GIL)."""
 SCHEMA: Final = pa.schema(
@@ -101,17 +103,18 @@ def write_segment(path: Path, table: pa.Table, absorbed: list[str]) -> None:
 
 @dataclass(frozen=True, slots=True)
 class _FileIndex:
-    """What a file's footer says that a read needs (kept: ``_index``)."""
+    """What a file's footer says that choosing its row groups needs (kept: ``file_index``; not
+    the footer itself, which parsed is some 1.5 MB for an hour of 500 robots: this is ~40 kB)."""
 
-    metadata: pq.FileMetaData
     version: int
     absorbed: tuple[str, ...]
+    groups: int
     first_keys: list[Series] | None
     """Version 2 segments: each row group's first and last series (sorted: bisected)."""
     last_keys: list[Series] | None
     statistics: list[dict[str, tuple[object, object]]]
-    """Files without row-group keys: per row group, each key column's and the time's (min, max)
-    where the file has them (version 2 segments: empty, their keys say more)."""
+    """Files without row-group keys (parts, version 1): per row group, each key column's and the
+    time's (min, max) where the file has them (a part is one row group, version 1 a few)."""
 
 
 _INDEX: OrderedDict[tuple[str, int, int], _FileIndex] = OrderedDict()
@@ -130,8 +133,13 @@ def _ranges(metadata: pq.FileMetaData, group: int) -> dict[str, tuple[object, ob
     return ranges
 
 
-def _load_index(path: Path) -> _FileIndex:
-    metadata = pq.read_metadata(path)
+def _series_of(key: list[str]) -> Series:
+    """A row-group key, its names shared with every other file's (``sys.intern``)."""
+    group, node, device, metric = (sys.intern(str(part)) for part in key)
+    return group, node, device, metric
+
+
+def _load_index(path: Path, metadata: pq.FileMetaData) -> _FileIndex:
     found = metadata.metadata or {}
     version = PLANT_SEGMENT.read_version(found.get(VERSION_KEY), path)
     absorbed = json.loads(found[ABSORBED_KEY]) if ABSORBED_KEY in found else []
@@ -140,12 +148,12 @@ def _load_index(path: Path) -> _FileIndex:
     if version >= 2 and ROW_GROUP_KEYS in found:
         keys = json.loads(found[ROW_GROUP_KEYS])
         if len(keys) == metadata.num_row_groups:
-            first_keys = [tuple(k[0]) for k in keys]
-            last_keys = [tuple(k[1]) for k in keys]
+            first_keys = [_series_of(k[0]) for k in keys]
+            last_keys = [_series_of(k[1]) for k in keys]
     return _FileIndex(
-        metadata,
         version,
         tuple(str(n) for n in absorbed) if isinstance(absorbed, list) else (),
+        len_groups,
         first_keys,
         last_keys,
         [] if first_keys is not None else [_ranges(metadata, g) for g in range(len_groups)],
@@ -153,22 +161,29 @@ def _load_index(path: Path) -> _FileIndex:
 
 
 def file_index(path: Path) -> _FileIndex:
-    """``path``'s footer, read once while the file is unchanged (its size and time say so).
+    """``path``'s index, read once while the file is unchanged (its size and time say so).
     Raises ``FormatVersionError`` for a newer format, ``OSError``/``ArrowException`` for a
     file that cannot be read."""
+    return _indexed(path)[0]
+
+
+def _indexed(path: Path) -> tuple[_FileIndex, pq.FileMetaData | None]:
+    """``path``'s index, and its footer when it was read for it just now (the read after uses
+    it rather than reading it again)."""
     stat = path.stat()
     key = (str(path), stat.st_mtime_ns, stat.st_size)
     with _INDEX_LOCK:
         found = _INDEX.get(key)
         if found is not None:
             _INDEX.move_to_end(key)
-            return found
-    index = _load_index(path)
+            return found, None
+    metadata = pq.read_metadata(path)
+    index = _load_index(path, metadata)
     with _INDEX_LOCK:
         _INDEX[key] = index
         while len(_INDEX) > FILE_INDEX_LIMIT:
             _INDEX.popitem(last=False)
-    return index
+    return index, metadata
 
 
 def forget_indexes() -> None:
@@ -191,13 +206,11 @@ def _row_groups(index: _FileIndex, series: Series, start_ms: int, end_ms: int) -
         # Sorted by series: the row groups whose [first, last] contains it, a contiguous run.
         low = bisect_left(index.last_keys, series)
         high = bisect_right(index.first_keys, series)
-        candidates = range(low, high)
-    else:
-        candidates = range(index.metadata.num_row_groups)
+        return list(range(low, high))  # the time: in the mask (a row group spans the hour)
     chosen = []
     wanted = dict(zip(SERIES, series, strict=True))
-    for g in candidates:
-        ranges = index.statistics[g] if index.statistics else _ranges(index.metadata, g)
+    for g in range(index.groups):
+        ranges = index.statistics[g]
         if any(
             name in ranges and not ranges[name][0] <= value <= ranges[name][1]  # type: ignore[operator]
             for name, value in wanted.items()
@@ -214,13 +227,13 @@ def read_series(path: Path, series: Series, start_ms: int, end_ms: int) -> pa.Ta
     """One file's rows of ``series`` in ``[start_ms, end_ms]`` (columns ``VALUES``); ``None``
     when it cannot be read or is of a newer format (named in the log, left on disk)."""
     try:
-        index = file_index(path)
+        index, metadata = _indexed(path)
         groups = _row_groups(index, series, start_ms, end_ms)
         if not groups:
             return None
         # The series' columns as dictionaries: compared by index, never made into strings.
         table = pq.ParquetFile(
-            path, metadata=index.metadata, read_dictionary=list(SERIES)
+            path, metadata=metadata, read_dictionary=list(SERIES)
         ).read_row_groups(groups, columns=[*SERIES, *VALUES], use_threads=False)
     except FormatVersionError as error:
         log.warning("plant history: %s", error)
