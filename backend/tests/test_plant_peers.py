@@ -18,6 +18,8 @@ from typing import Any
 
 import pytest
 
+from cobot_hmi.plant.plant_settings import PlantSettings
+from cobot_hmi.service.service_settings import SettingsError
 from conftest import free_tcp_port
 from mosquitto_support import mosquitto, needs_mosquitto
 from plant_support import Plant, needs_pysparkplug, plant_process, pysparkplug_node
@@ -52,6 +54,16 @@ async def _groups(plant: Plant) -> dict[tuple[str, str], Any]:
 async def _peer(plant: Plant, url: str) -> dict[str, Any]:
     peers = await plant.get("/api/v1/plant/peers")
     return next(p for p in peers if p["url"] == url)
+
+
+def test_a_peer_is_an_http_url(tmp_path: Path) -> None:
+    settings = PlantSettings.from_keys(
+        state_dir=tmp_path, plant_peers="http://127.0.0.1:8101,https://plant-2.example:8443/"
+    )
+    assert settings.plant.plant_peers == ["http://127.0.0.1:8101", "https://plant-2.example:8443/"]
+    for wrong in ("ftp://plant-2:21", "plant-2:8101", "http://"):
+        with pytest.raises((SettingsError, ValueError), match="a peer is http"):
+            PlantSettings.from_keys(state_dir=tmp_path, plant_peers=[wrong])
 
 
 async def test_one_plant_process_answers_for_its_peer_on_another_group(
