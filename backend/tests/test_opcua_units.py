@@ -29,7 +29,7 @@ from cobot_hmi.opcua.server import (
     watched_intervals,
 )
 from cobot_hmi.opcua.units import PER_TYPE, analog_unit, unit_for
-from cobot_hmi.opcua.values import GOOD, SharedDataValue, scalar_variant, shared_value
+from cobot_hmi.opcua.values import GOOD, SharedDataValue, notify, scalar_variant, shared_value
 from cobot_hmi.service.config.loading import load_settings
 from cobot_hmi.service.service_settings import SettingsError
 from cobot_hmi.settings import HmiSettings
@@ -220,3 +220,60 @@ async def test_deleting_every_item_of_a_subscription_removes_each_callback_once(
     service.delete_all_monitored_items()
     assert not any(callbacks)
     assert not service._monitored_items and not service._monitored_datachange
+
+
+async def _watched(nodes: list[ua.NodeId]) -> tuple[AddressSpace, InternalSubscription]:
+    """An address space holding ``nodes`` and a subscription with an item (queue 5) on each."""
+    aspace = AddressSpace()
+    for node in nodes:
+        data = NodeData(node)
+        data.attributes[ua.AttributeIds.Value] = AttributeValue(ua.DataValue(ua.Variant(0.0)))
+        aspace[node] = data
+    result = ua.CreateSubscriptionResult(RevisedPublishingInterval=1000.0)
+    subscription = InternalSubscription(result, aspace, _publish, ua.NodeId(1, 0))
+    requests = [
+        ua.MonitoredItemCreateRequest(
+            ItemToMonitor=ua.ReadValueId(NodeId=node, AttributeId=ua.AttributeIds.Value),
+            MonitoringMode=ua.MonitoringMode.Reporting,
+            RequestedParameters=ua.MonitoringParameters(ClientHandle=i, QueueSize=5),
+        )
+        for i, node in enumerate(nodes)
+    ]
+    params = ua.CreateMonitoredItemsParameters(ItemsToCreate=requests)
+    await subscription.monitored_item_srv.create_monitored_items(params)
+    return aspace, subscription
+
+
+async def test_the_values_notify_as_asyncua_would() -> None:
+    """``values.notify`` against asyncua's own callback: the same notifications queued for
+    the same writes (a repeated value none, a new status one, a disabled item none)."""
+    nodes = [ua.NodeId("a", 2), ua.NodeId("b", 2)]
+    when = datetime(2026, 12, 7, tzinfo=UTC)
+    bad = ua.StatusCode(ua.StatusCodes.BadCommunicationError)
+    writes = [(0, 1.0, GOOD), (0, 1.0, GOOD), (1, 2.0, GOOD), (0, None, bad), (0, 3.0, GOOD)]
+    queued = []
+    for fast in (False, True):
+        aspace, subscription = await _watched(nodes)
+        service = subscription.monitored_item_srv
+        await service.set_monitoring_mode(
+            ua.MonitoringMode.Disabled, [max(service._monitored_items)]
+        )
+        for index, number, status in writes:
+            double = ua.VariantType.Double
+            variant = ua.Variant() if number is None else scalar_variant(number, double)
+            value = shared_value(variant, status, when, when)
+            callbacks = aspace[nodes[index]].attributes[ua.AttributeIds.Value].datachange_callbacks
+            for handle, callback in callbacks.items():
+                if fast:
+                    await notify(callback.__self__, handle, value)
+                else:
+                    await callback(handle, value)
+        queued.append(
+            [
+                struct_to_binary(n)
+                for items in subscription._triggered_datachanges.values()
+                for n in items
+            ]
+        )
+    assert queued[0] == queued[1]
+    assert len(queued[0]) == 1 + 4  # the initial value, then 1.0, Bad, 3.0 of item a (b disabled)

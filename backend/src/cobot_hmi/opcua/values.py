@@ -23,6 +23,7 @@ from datetime import UTC, datetime
 from typing import Any, Final
 
 from asyncua import Server, ua
+from asyncua.server.monitored_item_service import MonitoredItemService
 
 from cobot_hmi.arms import ARMS, Arm
 from cobot_hmi.codec import CommandImage, Frame
@@ -128,6 +129,38 @@ def shared_value(
     return value
 
 
+_ASYNCUA_DATACHANGE: Final = MonitoredItemService.datachange_callback
+_DISABLED: Final = ua.MonitoringMode.Disabled
+_STATUS_VALUE: Final = ua.DataChangeTrigger.StatusValue
+
+
+async def notify(service: MonitoredItemService, handle: int, value: SharedDataValue) -> None:
+    """asyncua's ``MonitoredItemService.datachange_callback`` for one of these values: the same
+    checks (the item's mode, its filter or a change of status or value) and the same queue,
+    without what cost most of it for values that never change once stored: a notification
+    made, with a default DataValue and Variant of its own, before knowing it goes out (now
+    made only when it does, with this value), and the deep copy that ``SharedDataValue``
+    answers with itself (the previous value kept as asyncua keeps it)."""
+    mid = service._monitored_datachange[handle]
+    item = service._monitored_items[mid]
+    if item.mode == _DISABLED:
+        return
+    values = item.mvalue
+    values.old_dvalue = values.current_dvalue
+    values.current_dvalue = value
+    flt = item.filter
+    if flt:
+        changed = service._is_data_changed(values, flt.Trigger)
+        changed = changed and service._is_deadband_exceeded(values, flt)
+    else:
+        changed = service._is_data_changed(values, _STATUS_VALUE)
+    if changed:
+        event: ua.MonitoredItemNotification = _new(ua.MonitoredItemNotification)
+        event.ClientHandle = item.client_handle
+        event.Value = value
+        await service.isub.enqueue_datachange_event(mid, event, item.queue_size)
+
+
 def _utc(epoch_s: float) -> datetime:
     return datetime.fromtimestamp(epoch_s, UTC)
 
@@ -172,7 +205,10 @@ class RobotValues:
         callbacks = attribute.datachange_callbacks
         if callbacks:
             for handle, callback in list(callbacks.items()):
-                await callback(handle, value)
+                if getattr(callback, "__func__", None) is _ASYNCUA_DATACHANGE:
+                    await notify(callback.__self__, handle, value)
+                else:
+                    await callback(handle, value)
 
     async def start(self) -> None:
         """The values that never change, the unsupported members, and no data yet."""
