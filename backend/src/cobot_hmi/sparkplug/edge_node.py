@@ -5,7 +5,7 @@ Threads: the cyclic thread only appends each frame to this node's bounded queue 
 never waits); paho's network thread does the MQTT socket, keep-alive and reconnects and hands
 every event to the web event loop; everything else
 (reports by exception, births, deaths, the buffer, commands) runs on the web event loop, one
-task per robot waking at the robot's maximum rate, so all state here has one thread. The
+task for every robot waking each at its maximum rate, so all state here has one thread. The
 service's alarm, cycle and health events come from its event bus (``node.events``, on the web
 loop too) and are reported with the robot's next tick (``event_metrics``).
 
