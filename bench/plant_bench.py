@@ -371,7 +371,9 @@ def report(
     killed = "" if figures.get("stopped") else "; it did not stop within 30 s: killed"
     print(
         f"  the plant's event loop behind by {figures.get('loop_lag_s', float('nan')):.1f} s at "
-        f"the end; its inbox (received, not yet handled) at most {figures.get('inbox_max', '?')}"
+        f"the end; {figures.get('gc_full', '?')} full garbage collections (the longest "
+        f"{figures.get('gc_full_longest_s', float('nan')) * 1e3:.0f} ms); its inbox (received, "
+        f"not yet handled) at most {figures.get('inbox_max', '?')}"
         f" messages, full {figures.get('inbox_full', '?')} times (the client's thread waited: "
         f"the broker held or dropped for it){killed}"
     )

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import gc
 import json
 import time
 from pathlib import Path
@@ -43,6 +44,26 @@ def payload_timestamp_ms(data: bytes) -> int | None:
             return value
         shift += 7
     return None
+
+
+class FullCollections:
+    """The garbage collector's full collections (the oldest generation): how many and the
+    longest, which holds the event loop (every object of the plant's model walked)."""
+
+    def __init__(self) -> None:
+        self.count = 0
+        self.longest_s = 0.0
+        self._started = 0.0
+        gc.callbacks.append(self._callback)
+
+    def _callback(self, phase: str, info: dict[str, int]) -> None:
+        if info["generation"] != 2:
+            return
+        if phase == "start":
+            self._started = time.perf_counter()
+        else:
+            self.count += 1
+            self.longest_s = max(self.longest_s, time.perf_counter() - self._started)
 
 
 class Latencies:
@@ -76,10 +97,14 @@ def install(runtime: PlantRuntime, latencies: Latencies) -> None:
     runtime._handle = timed  # type: ignore[method-assign]
 
 
-def figures(runtime: PlantRuntime, latencies: Latencies) -> dict[str, Any]:
+def figures(
+    runtime: PlantRuntime, latencies: Latencies, collections: FullCollections
+) -> dict[str, Any]:
     host = runtime.host
     nodes = list(host.nodes.values())
     return {
+        "gc_full": collections.count,
+        "gc_full_longest_s": collections.longest_s,
         "latency_bin_s": BIN_S,
         "latency_bins": {str(i): n for i, n in enumerate(latencies.bins) if n},
         "latency_count": latencies.count,
@@ -121,6 +146,7 @@ def main() -> int:
     )
     runtime = PlantRuntime(settings)
     latencies = Latencies()
+    collections = FullCollections()
     install(runtime, latencies)
     server = uvicorn.Server(
         uvicorn.Config(
@@ -148,7 +174,8 @@ def main() -> int:
                     marker.unlink()
                     latencies.reset()
                     loop["inbox_max"] = 0
-                write_stats(args.stats, {**figures(runtime, latencies), **loop})
+                    collections.count, collections.longest_s = 0, 0.0
+                write_stats(args.stats, {**figures(runtime, latencies, collections), **loop})
 
         task = asyncio.create_task(reset_and_report())
         try:
@@ -156,7 +183,7 @@ def main() -> int:
         finally:
             task.cancel()
             # Written while the runtime's figures are still there (the lifespan has stopped it).
-            final = {**figures(runtime, latencies), **loop, "stopped": True}
+            final = {**figures(runtime, latencies, collections), **loop, "stopped": True}
             write_stats(args.stats, final)
 
     asyncio.run(serve())
