@@ -116,7 +116,7 @@ export async function startHealthCell(started: (child: Child) => void): Promise<
   ]);
   started(service);
   const baseURL = `http://${settings.httpHost}:${port}`;
-  await service.waitForHttp(`${baseURL}/readyz`, 200, 60_000, "health service connected to its robot");
+  await service.waitForHttp(`${baseURL}/readyz`, 200, 120_000, "health service connected to its robot");
   return { baseURL, controlURL, brokerAddress, opcuaURL, emulator, service };
 }
 

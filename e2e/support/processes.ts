@@ -60,8 +60,8 @@ export class Child {
     return this.process.pid ?? -1;
   }
 
-  /** Until its output shows `text` (it fails at once if the process ends first). */
-  async waitFor(text: string, timeout_ms = 30_000): Promise<void> {
+  /** Until its output shows `text` (it fails at once if the process ends first; a process starting on a machine at load 40 took over 30 s). */
+  async waitFor(text: string, timeout_ms = 90_000): Promise<void> {
     await expect
       .poll(() => {
         if (!this.running && !this.output.includes(text)) throw new Error(`${this.name} exited:\n${this.output}`);
