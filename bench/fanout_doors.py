@@ -160,7 +160,9 @@ def consumer_drops(final: dict[tuple[str, str], float]) -> dict[str, float]:
 
 def report(
     final: dict[tuple[str, str], float],
+    initial: dict[tuple[str, str], float],
     historian: Historian,
+    *,
     service_us: float,
     ratios: dict[str, float],
     clients_lossless: bool,
@@ -191,7 +193,14 @@ def report(
         and not seen.get("status_changes")
         and bool(seen.get("notifications"))
     )
-    gaps = sum(v for (m, _), v in final.items() if m == "cobot_hmi_frame_gaps_total")
+
+    def total_gaps(samples: dict[tuple[str, str], float]) -> float:
+        return sum(v for (m, _), v in samples.items() if m == "cobot_hmi_frame_gaps_total")
+
+    # While measured: the service's start (its OPC UA address space built while the robots
+    # already send) is not the cell at work.
+    gaps = total_gaps(final) - total_gaps(initial)
+    print(f"  T→O gaps since the service started: {total_gaps(final):.0f}")
     worst = max(ratios.values(), default=float("nan"))
     checks = [
         (
@@ -201,7 +210,7 @@ def report(
             service_us <= TARGET_US,
         ),
         ("worst cyclic p99 ratio", f"{worst:.3f}", f"≤ {TARGET_RATIO}", worst <= TARGET_RATIO),
-        ("T→O gaps", f"{gaps:.0f}", "0", gaps == 0),
+        ("T→O gaps while measured", f"{gaps:.0f}", "0", gaps == 0),
         ("frames lost by the consumers", f"{lost:.0f}", "0", lost == 0),
         (
             "frames lost by the WebSocket clients",
