@@ -14,7 +14,7 @@ machine). It subscribes the way a plant historian does, not the way a live scree
   answered within 30 s (asyncua's default, 1 s, gives a session up at the first slow answer of
   a loaded machine);
 - the monitored items created ``BATCH`` per CreateMonitoredItems request (a server's usual
-  MaxMonitoredItemsPerCall), browsing ``BROWSE_BATCH`` nodes per Browse.
+  MaxMonitoredItemsPerCall), browsing 100 nodes per Browse (bench/opcua_bench.py's ``variables``).
 
 It prints ``ready N`` (N: the variables subscribed) on stdout once subscribed, and, when its
 standard input closes, one JSON line of what it saw: notifications (after ``ready``), the
@@ -39,9 +39,9 @@ from typing import Any
 
 import orjson
 from asyncua import Client, ua
+from opcua_bench import variables  # the same browse as bench/opcua (BROWSE_BATCH a request)
 
 BATCH = 1000
-BROWSE_BATCH = 100
 KEEPALIVE_COUNT = 10
 LIFETIME_COUNT = 3 * KEEPALIVE_COUNT
 SESSION_TIMEOUT_MS = 120_000
@@ -96,37 +96,6 @@ class Seen:
             "latency_p50_s": at(0.5),
             "latency_p99_s": at(0.99),
         }
-
-
-async def variables(client: Client, names: list[str]) -> list[Any]:
-    """Every variable below each robot's object, browsed ``BROWSE_BATCH`` nodes a request."""
-    found: list[Any] = []
-    namespaces = await client.get_namespace_array()
-    level = [ua.NodeId(name, namespaces.index(f"urn:cobot-hmi:robot:{name}")) for name in names]
-    seen = set(level)
-    while level:
-        batch, level = level[:BROWSE_BATCH], level[BROWSE_BATCH:]
-        parameters = ua.BrowseParameters()
-        for node_id in batch:
-            description = ua.BrowseDescription()
-            description.NodeId = node_id
-            description.BrowseDirection = ua.BrowseDirection.Forward
-            description.ReferenceTypeId = ua.NodeId(ua.ObjectIds.HierarchicalReferences)
-            description.IncludeSubtypes = True
-            description.NodeClassMask = 0
-            description.ResultMask = ua.BrowseResultMask.All
-            parameters.NodesToBrowse.append(description)
-        for result in await client.uaclient.browse(parameters):
-            for reference in result.References:
-                node_id = reference.NodeId
-                if node_id in seen:
-                    continue
-                seen.add(node_id)
-                if reference.NodeClass == ua.NodeClass.Variable:
-                    found.append(client.get_node(node_id))
-                if reference.NodeClass in (ua.NodeClass.Object, ua.NodeClass.Variable):
-                    level.append(node_id)
-    return found
 
 
 async def subscribe(client: Client, nodes: list[Any], seen: Seen, interval_ms: float) -> None:

@@ -74,7 +74,7 @@ class Received:
                 self.latencies_s.append(received - source.timestamp())
 
 
-async def _variables(client: Client, names: list[str]) -> list[Any]:
+async def variables(client: Client, names: list[str]) -> list[Any]:
     """Every variable below each robot's object (its Robotics parts and its layout), browsed
     ``BROWSE_BATCH`` nodes per request."""
     found: list[Any] = []
@@ -134,7 +134,7 @@ class Subscriber:
         client.connection_lost_callback = self._lost
         await client.connect()
         self._client = client
-        nodes = await _variables(client, self._names)
+        nodes = await variables(client, self._names)
         self.variables = len(nodes)
         subscription = await client.create_subscription(SAMPLING_MS, self._received)
         for start in range(0, len(nodes), 500):
