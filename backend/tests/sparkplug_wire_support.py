@@ -13,12 +13,14 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import functools
+import re
 import shutil
 import signal
 import tempfile
 import threading
 import time
 import uuid
+from collections import Counter
 from collections.abc import AsyncIterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -118,10 +120,13 @@ class TahuSubscriber(Subscriber):
 # --------------------------------------------------------------------------- the capture
 
 
-@dataclass(frozen=True)
+@dataclass
 class Capture:
     path: Path
     broker_port: int
+    dropped: int | None = None
+    """Packets the capture itself says it dropped (its kernel buffer full on a busy machine),
+    known once it has stopped."""
 
     async def catch_up(self, peer: Subscriber, timeout_s: float = 60.0) -> None:
         """Until every packet sent so far is in the file: a marker published now is (dumpcap
@@ -159,11 +164,14 @@ async def capture(host: str, port: int, path: Path) -> AsyncIterator[Capture]:
         "lo",
         "-w",
         str(path),
+        "-B",
+        "64",  # MiB of kernel buffer (2 by default): a replay's burst on a busy machine fits
         "-f",
         f"host {host} and tcp port {port}",
         stdout=asyncio.subprocess.DEVNULL,
         stderr=asyncio.subprocess.PIPE,
     )
+    record = Capture(path, port)
     try:
         assert tshark.stderr is not None
         started = b""
@@ -171,11 +179,12 @@ async def capture(host: str, port: int, path: Path) -> AsyncIterator[Capture]:
             line = await asyncio.wait_for(tshark.stderr.readline(), 30)
             assert line, "tshark ended before capturing"
             started += line
-        yield Capture(path, port)
+        yield record
     finally:
         if tshark.returncode is None:
             tshark.send_signal(signal.SIGINT)
-        await asyncio.wait_for(tshark.communicate(), 30)
+        _, said = await asyncio.wait_for(tshark.communicate(), 30)
+        record.dropped = sum(int(n) for n in re.findall(rb"(\d+) packets? dropped", said))
 
 
 @dataclass(frozen=True)
@@ -199,6 +208,9 @@ class Wire:
     packets: list[Packet]
     accepts_s: list[float]
     """When the broker answered a TCP SYN (SYN-ACK), in order: it was listening then."""
+    segments_missing: dict[int, int]
+    """Per client port, the segments tshark found missing before one it holds (its TCP
+    analysis: "previous segment not captured"): that connection's record is incomplete."""
 
     def publishes(self, client_port: int) -> list[Heard]:
         """One connection's PUBLISHes to the broker, their payloads decoded with Tahu."""
@@ -226,7 +238,8 @@ async def read_capture(path: Path, broker_port: int) -> Wire:
         "-d",
         f"tcp.port=={broker_port},mqtt",
         "-Y",
-        f"mqtt || (tcp.flags.syn == 1 && tcp.flags.ack == 1 && tcp.srcport == {broker_port})",
+        f"mqtt || tcp.analysis.lost_segment || "
+        f"(tcp.flags.syn == 1 && tcp.flags.ack == 1 && tcp.srcport == {broker_port})",
         "-T",
         "json",
         "--no-duplicate-keys",  # several MQTT packets in one segment: a list, not lost keys
@@ -239,13 +252,19 @@ async def read_capture(path: Path, broker_port: int) -> Wire:
     assert process.returncode == 0, err.decode()
     packets: list[Packet] = []
     accepts: list[float] = []
+    missing: Counter[int] = Counter()
     for frame in orjson.loads(out or b"[]"):
         layers = frame["_source"]["layers"]
         at_s = float(_first(layers["frame"], "frame.time_epoch"))
         tcp = layers["tcp"]
         source, destination = int(_first(tcp, "tcp.srcport")), int(_first(tcp, "tcp.dstport"))
+        client_port = source if destination == broker_port else destination
+        if b"tcp.analysis.lost_segment" in orjson.dumps(tcp):
+            missing[client_port] += 1
         if "mqtt" not in layers:
-            accepts.append(at_s)
+            flags = tcp.get("tcp.flags_tree", {})
+            if source == broker_port and _first(flags, "tcp.flags.syn") in ("1", "True"):
+                accepts.append(at_s)
             continue
         mqtt_layers = layers["mqtt"]
         for mqtt in mqtt_layers if isinstance(mqtt_layers, list) else [mqtt_layers]:
@@ -255,11 +274,11 @@ async def read_capture(path: Path, broker_port: int) -> Wire:
                 Packet(
                     at_s,
                     destination == broker_port,
-                    source if destination == broker_port else destination,
+                    client_port,
                     message_type,
                     _first(mqtt, "mqtt.topic"),
                     bytes.fromhex(payload),
                     _first(mqtt, "mqtt.clientid"),
                 )
             )
-    return Wire(packets, accepts)
+    return Wire(packets, accepts, dict(missing))

@@ -58,6 +58,9 @@ class Restart:
     """The broker's first SYN-ACK after the outage (the capture): it was listening again."""
     connect_s: float
     """The node's first CONNECT after that (the capture)."""
+    capture_incomplete: str
+    """Why the capture does not hold every packet of the node's connection ("" when it
+    does): its own dropped count, or segments its TCP analysis found missing."""
 
 
 _record: list[Restart] = []
@@ -103,16 +106,23 @@ async def _restart(tmp_path: Path, plc_host: str) -> Restart:
         returned = min(t for t in wire.accepts_s if t > down_at)
         connects = [p for p in wire.connects(edge.client_id) if p.at_s >= returned]
         assert connects, "no CONNECT of the node after the broker's return in the capture"
+        port = connects[0].client_port
+        incomplete = []
+        if wire_file.dropped:
+            incomplete.append(f"the capture dropped {wire_file.dropped} packets")
+        if wire.segments_missing.get(port):
+            incomplete.append(f"{wire.segments_missing[port]} of the node's segments missing")
         return Restart(
             down_at,
             up_at,
             buffered(),
             edge.replayed,
             [h for h in peer.heard_so_far() if h.at_s > down_at],
-            wire.publishes(connects[0].client_port),
+            wire.publishes(port),
             wire,
             returned,
             connects[0].at_s,
+            ", ".join(incomplete),
         )
 
 
@@ -134,7 +144,12 @@ async def test_the_buffer_goes_out_once_in_order(tmp_path: Path, plc_host: str) 
         history = [m for m in _ddata(seen) if m.historical]
         contents = Counter(m.content() for m in history)
         repeated = sum(n - 1 for n in contents.values())
-        assert (len(history), len(contents), repeated) == (r.buffered, r.buffered, 0)
+        if seen is r.sent and r.capture_incomplete:
+            # A capture that lost packets (a busy machine's dumpcap) cannot count them; it can
+            # still show that none went out twice. The subscriber's count stays exact.
+            assert repeated == 0 and len(history) <= r.buffered, r.capture_incomplete
+        else:
+            assert (len(history), len(contents), repeated) == (r.buffered, r.buffered, 0)
         for device in {m.device for m in history}:
             stamps = [m.payload.metrics[0].timestamp for m in history if m.device == device]
             assert stamps == sorted(stamps), f"{device}'s history out of order"
