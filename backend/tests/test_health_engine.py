@@ -12,6 +12,7 @@ from __future__ import annotations
 import copy
 import json
 import math
+import re
 from dataclasses import replace
 from typing import Any
 
@@ -27,6 +28,7 @@ from cobot_hmi.emulator.robot.wear import JointWear, Wear
 from cobot_hmi.generated.frames import Frame
 from cobot_hmi.health import FrameBlock, HealthEngine, HealthSettings
 from cobot_hmi.health.life import LIFE_EXPONENT
+from cobot_hmi.health.report import LIFE_DATE_HORIZON_H, life_end_date
 from cobot_hmi.stored_format import FormatVersionError
 
 
@@ -166,6 +168,21 @@ def test_life_used_matches_the_law_by_hand() -> None:
         assert used == pytest.approx(100.0 * by_hand / rating.rated_life_h, rel=0.01, abs=1e-4)
     assert pytest.approx(10 / 3) == LIFE_EXPONENT
     assert report["joints"][1]["life_remaining_h"] > 0
+    # J2 works hard: a date; J5 hardly loaded: millennia of hours, no date; J4 still: neither.
+    j2, j4, j5 = (report["joints"][j] for j in (1, 3, 4))
+    assert re.fullmatch(r"\d{4}-\d{2}-\d{2}", j2["life_end_date"])
+    assert j5["life_remaining_h"] > LIFE_DATE_HORIZON_H and j5["life_end_date"] is None
+    assert (j4["life_remaining_h"], j4["life_end_date"]) == (None, None)
+
+
+def test_the_life_end_date_stops_at_a_hundred_years() -> None:
+    now_s = 1_796_601_600.0  # 2026-12-07 00:00 UTC
+    assert life_end_date(now_s, 48.0) == "2026-12-09"
+    assert life_end_date(now_s, 0.0) == "2026-12-07"
+    assert life_end_date(now_s, -5.0) == "2026-12-07"  # rated life already reached: today
+    assert life_end_date(now_s, LIFE_DATE_HORIZON_H) is not None
+    for beyond in (LIFE_DATE_HORIZON_H + 1.0, 1e12, math.inf, math.nan, None):
+        assert life_end_date(now_s, beyond) is None
 
 
 def test_the_state_document_restores_the_same_figures(sim: HealthSimulation) -> None:

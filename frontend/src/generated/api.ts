@@ -2783,7 +2783,7 @@ export interface components {
             joint: number;
             /**
              * Life End Date
-             * @description the date it runs out at that duty, YYYY-MM-DD
+             * @description the date it runs out at that duty, YYYY-MM-DD; null when the duty is not known or the date lies more than 100 years ahead
              */
             life_end_date: string | null;
             /**

@@ -29,13 +29,18 @@ def _round(value: float | None, digits: int = 2) -> float | None:
     return round(float(value), digits)
 
 
-def _date(epoch_s: float) -> str | None:
-    """The UTC date of ``epoch_s``; ``None`` past what the platform's calendar holds (a joint
-    that hardly moves has a remaining life of millennia)."""
-    try:
-        return time.strftime("%Y-%m-%d", time.gmtime(epoch_s))
-    except (OverflowError, OSError, ValueError):
+LIFE_DATE_HORIZON_H = 100 * 8766.0
+"""Beyond a hundred years the remaining life at this week's duty names no date a planner uses
+(a joint that hardly moves has a remaining life of millennia): the hours stay, the date is
+null (the health page says "more than 100 years" from the same bound)."""
+
+
+def life_end_date(now_s: float, remaining_h: float | None) -> str | None:
+    """The UTC date the reducer's rated life runs out at this week's duty; ``None`` when the
+    duty is not known or the date lies beyond ``LIFE_DATE_HORIZON_H``."""
+    if remaining_h is None or not math.isfinite(remaining_h) or remaining_h > LIFE_DATE_HORIZON_H:
         return None
+    return time.strftime("%Y-%m-%d", time.gmtime(now_s + max(0.0, remaining_h) * 3600.0))
 
 
 def _joint(
@@ -84,7 +89,7 @@ def _joint(
         "heat_excess_c": _round(heat_c),
         "life_used_percent": _round(life_used, 4),
         "life_remaining_h": _round(remaining_h, 0),
-        "life_end_date": _date(now_s + remaining_h * 3600.0) if remaining_h is not None else None,
+        "life_end_date": life_end_date(now_s, remaining_h),
         "collisions_this_shift": collisions,
         "rated": {
             "torque_nm": rating.rated_torque_nm,

@@ -60,7 +60,10 @@ class HealthJoint(BaseModel):
     )
     life_used_percent: float = Field(description="reducer life used, %")
     life_remaining_h: float | None = Field(description="remaining life at this week's duty, h")
-    life_end_date: str | None = Field(description="the date it runs out at that duty, YYYY-MM-DD")
+    life_end_date: str | None = Field(
+        description="the date it runs out at that duty, YYYY-MM-DD; null when the duty is not "
+        "known or the date lies more than 100 years ahead"
+    )
     collisions_this_shift: int = Field(
         ge=0, description="external-torque peaks over the joint's threshold this shift"
     )
