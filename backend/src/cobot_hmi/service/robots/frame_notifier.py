@@ -19,7 +19,9 @@ same way, by ``FrameNotifier.add``. A consumer declares where it runs:
   on its own schedule with ``Registration.deliver`` (``on_frames`` then runs on that thread).
 
 On the cyclic thread a frame costs one record and one ``deque.append`` per consumer: O(1) per
-consumer, never a wait. Each registration's queue is bounded (``queue_frames``): when a
+consumer, never a wait (no lock either: the originator's frame callback on the cyclic thread is
+the one producer of a robot's frames, and a restarted cyclic thread starts only after the old
+one has ended). Each registration's queue is bounded (``queue_frames``): when a
 consumer falls behind its oldest frames go and are counted (``dropped``, in ``/metrics`` as
 ``cobot_hmi_consumer_dropped_frames_total{robot,consumer}``), so no consumer can stall the
 cyclic connection or grow without bound.
@@ -95,12 +97,33 @@ class FrameConsumer(Protocol):
         ...
 
 
+_new_record = tuple.__new__
+"""``FrameRecord(...)`` without the NamedTuple's own ``__new__`` (a Python function: a frame
+of its own per record on the cyclic thread), as the generated decoder makes its frames."""
+
+
 class Registration:
     """One consumer on one robot: its bounded queue and its counters."""
 
-    __slots__ = ("consumer", "delivered", "dropped", "queue", "queue_frames", "robot", "urgent")
+    __slots__ = (
+        "_urgent",
+        "_urgent_ones",
+        "consumer",
+        "delivered",
+        "dropped",
+        "queue",
+        "queue_frames",
+        "robot",
+    )
 
-    def __init__(self, robot: str, consumer: FrameConsumer) -> None:
+    def __init__(
+        self,
+        robot: str,
+        consumer: FrameConsumer,
+        urgent_ones: set[Registration] | None = None,
+    ) -> None:
+        """``urgent_ones``: the notifier's set of its urgent registrations (this one joins it
+        while it is urgent), so the cyclic thread asks one set, not every registration."""
         self.robot = robot
         self.consumer = consumer
         self.queue_frames = max(1, consumer.queue_frames)
@@ -109,29 +132,46 @@ class Registration:
         """Frames that fell out of the full queue (a drain racing the append may make this one
         too high, never too low)."""
         self.delivered = 0
-        self.urgent = False
+        self._urgent = False
+        self._urgent_ones = set() if urgent_ones is None else urgent_ones
+
+    @property
+    def urgent(self) -> bool:
         """Set by a loop consumer that wants every frame at once (a write waiting)."""
+        return self._urgent
+
+    @urgent.setter
+    def urgent(self, urgent: bool) -> None:
+        self._urgent = urgent
+        if urgent:
+            self._urgent_ones.add(self)
+        else:
+            self._urgent_ones.discard(self)
 
     @property
     def name(self) -> str:
         return self.consumer.name
 
     def offer(self, record: FrameRecord) -> None:
-        """On the cyclic thread: append, counting the frame that falls out."""
+        """On the cyclic thread: append, counting the frame that falls out
+        (``FrameNotifier.publish`` does the same inline, without a call per consumer)."""
         queue = self.queue
         if len(queue) == self.queue_frames:
             self.dropped += 1
         queue.append(record)
 
     def drain(self) -> list[FrameRecord]:
-        """Every queued frame, oldest first (from any thread but the producer's)."""
+        """Every queued frame, oldest first (from any thread but the producer's). The frames
+        counted first stay until popped (the producer only appends; a full queue's append drops
+        one and adds one): one count, no test of the queue per frame."""
         queue = self.queue
-        records = []
-        while queue:
-            try:
-                records.append(queue.popleft())
-            except IndexError:  # pragma: no cover - emptied between the check and the pop
-                break
+        records: list[FrameRecord] = []
+        take, popleft = records.append, queue.popleft
+        try:
+            for _ in range(len(queue)):
+                take(popleft())
+        except IndexError:  # pragma: no cover - a second drainer (a shutdown's) took the rest
+            pass
         return records
 
     def deliver(self) -> None:
@@ -192,7 +232,6 @@ class FrameNotifier:
         self.robot = robot
         self.frames_per_wake = max(1, frames_per_wake)
         self._seq = 0
-        self._seq_lock = threading.Lock()
         self._registering = threading.Lock()
         self.latest: FrameRecord | None = None
         """The newest frame (any thread may read it: one reference)."""
@@ -200,6 +239,12 @@ class FrameNotifier:
         """Every consumer of this robot, in registration order (a new tuple swapped in whole:
         the cyclic thread iterates whichever it read)."""
         self._loop_registrations: tuple[Registration, ...] = ()
+        self._offers: tuple[tuple[deque[FrameRecord], int, Registration], ...] = ()
+        """Each registration's queue, bound and itself, for ``publish``'s loop (swapped in whole
+        with ``registrations``)."""
+        self._urgent_ones: set[Registration] = set()
+        """The loop registrations urgent now (set on the web loop, read on the cyclic thread:
+        one truth test)."""
         self._loop: asyncio.AbstractEventLoop | None = None
         self._wake: LoopWake | None = None
         self._since_turn = 0
@@ -210,21 +255,26 @@ class FrameNotifier:
     # ------------------------------------------------------------ the cyclic thread
 
     def publish(self, frame: Frame, raw: bytes, received_at_s: float, t2o_sequence: int) -> None:
-        """The originator's callback: one record, one append per consumer, a wake."""
-        with self._seq_lock:  # uncontended; guards against a second producer thread
-            self._seq += 1
-            seq = self._seq
-        record = FrameRecord(seq, received_at_s, frame, t2o_sequence, raw)
+        """The originator's callback: one record, one append per consumer, a wake. From the
+        one producer thread (see the module docstring): no lock."""
+        seq = self._seq = self._seq + 1
+        record: FrameRecord = _new_record(
+            FrameRecord, (seq, received_at_s, frame, t2o_sequence, raw)
+        )
         self.latest = record
-        for registration in self.registrations:
-            registration.offer(record)
-        loop, wake = self._loop, self._wake
-        if loop is None or wake is None or not self._loop_registrations:
+        for queue, queue_frames, registration in self._offers:  # ``Registration.offer``, inline
+            if len(queue) == queue_frames:
+                registration.dropped += 1
+            queue.append(record)
+        wake = self._wake
+        if wake is None or not self._loop_registrations:
             return
-        self._since_turn += 1
-        if self._since_turn >= self.frames_per_wake:
+        since_turn = self._since_turn = self._since_turn + 1
+        if since_turn >= self.frames_per_wake:
             wake.request()
-        elif not self._urgent_scheduled and any(r.urgent for r in self._loop_registrations):
+        elif self._urgent_ones and not self._urgent_scheduled:
+            loop = self._loop
+            assert loop is not None  # bound with the wake
             self._urgent_scheduled = True
             with contextlib.suppress(RuntimeError):
                 loop.call_soon_threadsafe(self._dispatch_urgent)
@@ -238,9 +288,10 @@ class FrameNotifier:
 
     def add(self, consumer: FrameConsumer) -> Registration:
         """Register ``consumer``: from now on it receives every frame of this robot."""
-        registration = Registration(self.robot, consumer)
+        registration = Registration(self.robot, consumer, self._urgent_ones)
         with self._registering:  # from any thread (the OPC UA server registers from its own)
             self.registrations = (*self.registrations, registration)
+            self._offers = _offers_of(self.registrations)
             if consumer.runs is Runs.LOOP:
                 self._loop_registrations = (*self._loop_registrations, registration)
         return registration
@@ -248,9 +299,11 @@ class FrameNotifier:
     def remove(self, registration: Registration) -> None:
         with self._registering:
             self.registrations = tuple(r for r in self.registrations if r is not registration)
+            self._offers = _offers_of(self.registrations)
             self._loop_registrations = tuple(
                 r for r in self._loop_registrations if r is not registration
             )
+            registration.urgent = False
 
     def dropped_by(self, consumer_name: str) -> int:
         """Frames the queues of the consumers called ``consumer_name`` dropped."""
@@ -279,3 +332,9 @@ class FrameNotifier:
         """On the web loop: every loop consumer's queued frames at once (a consumer that has
         just become urgent catches up without waiting for the next frame)."""
         self._dispatch()
+
+
+def _offers_of(
+    registrations: tuple[Registration, ...],
+) -> tuple[tuple[deque[FrameRecord], int, Registration], ...]:
+    return tuple((r.queue, r.queue_frames, r) for r in registrations)
