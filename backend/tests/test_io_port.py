@@ -67,7 +67,7 @@ class Recorder:
     def t2o_malformed(self) -> None:
         self.malformed += 1
 
-    def t2o_batch_read(self) -> None:
+    def t2o_batch_read(self, now: float) -> None:
         self.batches += 1
 
 

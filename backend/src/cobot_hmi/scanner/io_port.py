@@ -84,9 +84,9 @@ class T2OConsumer(Protocol):
     def t2o_malformed(self) -> None:
         """A datagram from the target's address that is no class 1 packet: dropped, counted."""
 
-    def t2o_batch_read(self) -> None:
+    def t2o_batch_read(self, now: float) -> None:
         """After a wake-up of the port that brought this connection T→O, and after every
-        wake-up for silence."""
+        wake-up for silence (``now``: the loop time then, read once for every connection)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -312,9 +312,11 @@ class IoPort:
             woken.clear()
         else:  # nothing came: the pump's word of silence, every connection looks
             consumers = [route.consumer for route in self._routes.values()]
+        loop = self._loop
+        now = loop.time() if loop is not None else asyncio.get_running_loop().time()
         for consumer in consumers:
             try:
-                consumer.t2o_batch_read()
+                consumer.t2o_batch_read(now)
             except Exception:
                 log.exception("T→O batch callback failed")
 

@@ -61,6 +61,14 @@ class T2OReceiver:
         self._seeded = False
         self._window = IntervalWindow()
         self._pace = PaceWatch()
+        self._t2o_size = settings.t2o_size
+        self._decodes_frames = settings.decodes_frames
+        """Read once (the settings are frozen): ``t2o_packet`` runs per frame."""
+        self._late_s = 0.0
+        """An interval longer than this is late (1.5 RPI at the granted API)."""
+        self._timeout = (0, 0.0)
+        """The T→O API (µs) and the connection timeout (s) computed at it (``check_silence``
+        runs after every wake-up)."""
         self.packets_in = 0
         self.gaps = 0
         self.duplicates = 0
@@ -92,11 +100,13 @@ class T2OReceiver:
         self._pace.restart(self.settings.rpi_us)  # again with the API the reply grants
         self._lost, self._first_frame = lost, first_frame
         self._link, self._port = link, port
+        self._late_s = link.t2o_api_us * 1.5e-6
 
     def granted(self, t2o_api_us: int) -> None:
         """The Forward Open's reply grants T→O every ``t2o_api_us``: the pace is judged by
         it."""
         self._pace.restart(t2o_api_us)
+        self._late_s = t2o_api_us * 1.5e-6
 
     def detach(self) -> None:
         """The connection is torn down: its futures are cancelled unless they are done."""
@@ -115,13 +125,14 @@ class T2OReceiver:
 
     # ------------------------------------------------------------------ T2OConsumer
 
-    def t2o_batch_read(self) -> None:
+    def t2o_batch_read(self, now: float) -> None:
         """After each wake-up for T→O (a batch, or the pump's word that T→O fell silent for the
-        connection timeout): push the fallback timer back and look at the watchdog."""
+        connection timeout) at loop time ``now``: push the fallback timer back and look at the
+        watchdog."""
         link = self._link
         if link is not None and link.o2t is not None:
-            link.o2t.t2o_read()
-            self.check_silence(link, asyncio.get_running_loop().time(), 0.0)
+            link.o2t.t2o_read(now)
+            self.check_silence(link, now, 0.0)
 
     def t2o_foreign(self) -> None:
         self.foreign += 1
@@ -137,8 +148,7 @@ class T2OReceiver:
             self.foreign += 1
             return
         payload = packet.payload
-        s = self.settings
-        if packet.cip_seq is None or len(payload) != s.t2o_size:
+        if packet.cip_seq is None or len(payload) != self._t2o_size:
             self.malformed += 1
             return
         verdict = link.sequence.accept(packet.encap_seq, packet.cip_seq)
@@ -155,7 +165,7 @@ class T2OReceiver:
         self.gaps += link.sequence.missed
         # Epoch seconds the kernel received it (read in batches, so not "now").
         received_at = arrived + (time.time() - time.monotonic())
-        if not s.decodes_frames:
+        if not self._decodes_frames:
             self._count_frame(link, arrived)
             self.latest_data = (payload, received_at)
             self._first_data()
@@ -177,7 +187,15 @@ class T2OReceiver:
                 self.malformed += 1
                 return
             link.last_payload = (payload, frame)
-        self._count_frame(link, arrived)
+        # ``_count_frame``, inline (per frame on the cyclic thread).
+        previous = link.last_frame_at
+        link.last_frame_at = arrived
+        if previous is not None:
+            interval_s = arrived - previous
+            self._window.add(interval_s * 1e3)
+            if interval_s > self._late_s:
+                self.late += 1
+        self.frames += 1
         self.latest = (frame, received_at)
         if not self._seeded:
             self._seeded = True
@@ -208,7 +226,10 @@ class T2OReceiver:
         real-time pumps 33 ms late at once, the timeout at RPI 2 ms being 32 ms), the target
         stopped with us and sends its next packet as soon as it runs again, which may be just
         after our first look. A target really gone is declared one RPI later than the timeout."""
-        limit_s = timeout_s(link, self.settings)
+        api_us, limit_s = self._timeout
+        if api_us != link.t2o_api_us:  # computed again only when the granted API changes
+            limit_s = timeout_s(link, self.settings)
+            self._timeout = (link.t2o_api_us, limit_s)
         if now - link.last_rx < limit_s or lag_s > link.o2t_api_us / 1e6:
             return
         if self._port is not None:
@@ -250,7 +271,7 @@ class T2OReceiver:
         if previous is not None:
             interval_s = arrived - previous
             self._window.add(interval_s * 1e3)
-            if interval_s > link.t2o_api_us * 1.5e-6:
+            if interval_s > self._late_s:
                 self.late += 1
         self.frames += 1
 
