@@ -161,17 +161,14 @@ class Registration:
         queue.append(record)
 
     def drain(self) -> list[FrameRecord]:
-        """Every queued frame, oldest first (from any thread but the producer's). The frames
-        counted first stay until popped (the producer only appends; a full queue's append drops
-        one and adds one): one count, no test of the queue per frame."""
+        """Every queued frame, oldest first (from any thread but the producer's)."""
         queue = self.queue
-        records: list[FrameRecord] = []
-        take, popleft = records.append, queue.popleft
-        try:
-            for _ in range(len(queue)):
-                take(popleft())
-        except IndexError:  # pragma: no cover - a second drainer (a shutdown's) took the rest
-            pass
+        records = []
+        while queue:
+            try:
+                records.append(queue.popleft())
+            except IndexError:  # pragma: no cover - emptied between the check and the pop
+                break
         return records
 
     def deliver(self) -> None:
