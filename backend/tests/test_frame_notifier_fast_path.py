@@ -5,7 +5,9 @@ those of each consumer's own bounded queue, as ``Registration.offer`` counts the
 from __future__ import annotations
 
 import asyncio
+import gc
 import threading
+import weakref
 from collections import deque
 from collections.abc import Sequence
 
@@ -105,3 +107,23 @@ async def test_an_urgent_consumer_is_woken_per_frame_until_it_is_no_longer_urgen
         await asyncio.sleep(0)
     assert consumer.seqs == [1, 2], "a removed registration is no longer served"
     assert notifier.registrations == ()
+
+
+async def test_the_loops_wake_holds_its_notifiers_weakly_and_serves_each_once() -> None:
+    loop = asyncio.get_running_loop()
+    kept = FrameNotifier("kept", frames_per_wake=1)
+    consumer = _Consumer("c", Runs.LOOP, 100)
+    kept.add(consumer)
+    kept.bind_loop(loop)
+    kept.bind_loop(loop)  # bound again: still one turn per wake
+    dropped = FrameNotifier("dropped", frames_per_wake=1)
+    dropped.add(_Consumer("d", Runs.LOOP, 100))
+    dropped.bind_loop(loop)
+    gone = weakref.ref(dropped)
+    del dropped
+    gc.collect()
+    assert gone() is None, "the wake does not keep a notifier alive"
+    kept.publish(zero_frame(), b"", 1.0, 1)
+    await eventually(lambda: consumer.seqs == [1], WAIT_DEADLINE_S)
+    kept.publish(zero_frame(), b"", 1.01, 2)
+    await eventually(lambda: consumer.seqs == [1, 2], WAIT_DEADLINE_S)

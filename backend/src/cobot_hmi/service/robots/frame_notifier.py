@@ -173,9 +173,15 @@ class Registration:
 
     def deliver(self) -> None:
         """Hand the queued frames to the consumer (on the thread or loop it runs on)."""
-        records = self.drain()
-        if not records:
+        queue = self.queue
+        if not queue:
             return
+        records = []
+        while queue:  # ``drain``, inline: per consumer and robot at each turn of the web loop
+            try:
+                records.append(queue.popleft())
+            except IndexError:  # pragma: no cover - emptied between the check and the pop
+                break
         self.delivered += len(records)
         try:
             self.consumer.on_frames(self.robot, records)
@@ -189,6 +195,9 @@ class LoopWake:
     def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
         self._loop = weakref.ref(loop)  # the loop's own entry in ``_WAKES`` must not hold it
         self._notifiers: weakref.WeakSet[FrameNotifier] = weakref.WeakSet()
+        self._turn: tuple[weakref.ref[FrameNotifier], ...] = ()
+        """The notifiers as weak references, in attach order: what a turn walks (a WeakSet's
+        iteration is a Python generator with a guard of its own)."""
         self._scheduled = False
 
     @classmethod
@@ -200,7 +209,9 @@ class LoopWake:
         return wake
 
     def attach(self, notifier: FrameNotifier) -> None:
-        self._notifiers.add(notifier)
+        if notifier not in self._notifiers:
+            self._notifiers.add(notifier)
+            self._turn = (*(r for r in self._turn if r() is not None), weakref.ref(notifier))
 
     def request(self) -> None:
         """From the cyclic thread: wake the loop unless a wake is on its way."""
@@ -215,8 +226,10 @@ class LoopWake:
 
     def _run(self) -> None:
         self._scheduled = False  # before the turns: a frame published meanwhile asks again
-        for notifier in list(self._notifiers):
-            notifier.dispatch_now()
+        for reference in self._turn:
+            notifier = reference()
+            if notifier is not None:
+                notifier.dispatch_now()
 
 
 _WAKES: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, LoopWake] = weakref.WeakKeyDictionary()
