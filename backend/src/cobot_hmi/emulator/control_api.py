@@ -493,6 +493,9 @@ def _add_faults(app: FastAPI, target: EmulatorTarget) -> None:
         drop = _bool(data, "drop_sessions") if "drop_sessions" in data else False
         for name, value in changes.items():  # everything valid: now apply
             setattr(target.faults, name, value)
+        # At once, not at the class 1 engine's next wake-up (which, while T→O streams, waits
+        # for the robot's next change of its own: up to its monitoring period).
+        target.process_image_changed()
         if drop:
             await target.drop_sessions()
         return _json_response(
@@ -502,6 +505,7 @@ def _add_faults(app: FastAPI, target: EmulatorTarget) -> None:
     @app.post("/faults/clear")
     async def clear_faults() -> Response:
         target.faults.reset()
+        target.process_image_changed()
         return _json_response({"faults": dataclasses.asdict(target.faults)})
 
 

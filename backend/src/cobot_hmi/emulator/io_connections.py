@@ -22,7 +22,7 @@ from cobot_hmi.emulator.connections import ConnectionInfo, ConnectionKind, IoCon
 from cobot_hmi.emulator.counters import TargetCounters
 from cobot_hmi.emulator.faults import TargetFaults
 from cobot_hmi.emulator.o2t_watchdog import O2TWatchdogs
-from cobot_hmi.emulator.process_image import ProcessImage
+from cobot_hmi.emulator.process_image import HoldsStill, ProcessImage
 from cobot_hmi.emulator.target_settings import TargetSettings
 from cobot_hmi.enip import io
 from cobot_hmi.enip.connection_manager import ForwardOpenRequest
@@ -43,6 +43,11 @@ O→T is read as it arrives."""
 HORIZON_MARGIN_S = 0.001
 """How far past the next wake-up T→O is built ahead: a wake-up that comes up to this late still
 finds the pump with a packet to send."""
+STILL_MARGIN_S = 0.0002
+"""A wake-up for the robot's next change of its own comes this much after it: one a hair early
+(the loop's and the epoch clocks read apart) would find the old frame and wait a whole RPI."""
+STILL_LONGEST_S = 1.0
+"""The longest a wake-up waits for the robot's next change of its own."""
 
 
 class IoConnections:
@@ -65,6 +70,10 @@ class IoConnections:
         self._t2o_data = t2o_data
         """The T→O assembly's data at an epoch time (``AssemblyObject.t2o_data``)."""
         self._consume_o2t = consume_o2t
+        self._still_until = (
+            process_image.frame_still_until_s if isinstance(process_image, HoldsStill) else None
+        )
+        """Until when the robot's frame holds by itself (epoch seconds), if it can tell."""
         """New O→T data of the owner in run, at an epoch time (``AssemblyObject.consume_o2t``)."""
         self.faults = faults
         self.counters = counters
@@ -263,7 +272,7 @@ class IoConnections:
             return
         queued = [c for c in self._by_o2t.values() if not c.t2o_streaming]
         if not queued:
-            self._tick_due = now + period_s  # streams only: the pump needs nothing from us
+            self._tick_due = self._streams_tick_due(now, period_s)
         else:
             first = min(queued, key=lambda c: c.t2o_last_due)
             wake_at = first.t2o_last_due
@@ -273,6 +282,20 @@ class IoConnections:
                 wake_at -= first.t2o_rpi_us / 2e6
             self._tick_due = max(now + period_s / 2, wake_at)
         self._ticker = loop.call_at(self._tick_due, self._tick)
+
+    def _streams_tick_due(self, now: float, period_s: float) -> float:
+        """Streams only (the pump needs nothing from us): the next wake-up, to read the robot
+        again. Once per RPI, or, while O→T wakes us as it comes (so no command waits for our
+        wake-ups), when the robot's frame changes by itself (a monitoring refresh, a step of
+        the program, a timed state change): until then a wake-up would only find the frame the
+        stream already carries. A change is thus read when it happens, not up to an RPI late."""
+        due = now + period_s
+        still_until = self._still_until
+        udp = self._udp
+        if still_until is None or udp is None or not udp.watching:
+            return due
+        held = still_until() - (time.time() - now) + STILL_MARGIN_S
+        return min(max(due, held), now + STILL_LONGEST_S)
 
     def _queue_t2o_until(self, horizon: float, now: float) -> None:
         """Queue each producing connection's packets due up to ``horizon``, earliest first."""
@@ -448,6 +471,21 @@ class IoConnections:
             count, _ = udp.cancel(conn.o2t_id, due + self.faults.t2o_delay_ms / 1e3)
             if count:
                 self._queue_t2o(conn, due, due + epoch_minus_loop, rebuild=True)
+        self._tick_sooner(now)
+
+    def _tick_sooner(self, now: float) -> None:
+        """The robot changed outside the cycle: while only streams run, the wake-up for its
+        next change of its own may now be due sooner (a program started, a reset)."""
+        period_s, ticker = self._wake_period_s, self._ticker
+        if ticker is None or period_s is None:
+            return
+        if not all(c.t2o_streaming for c in self._by_o2t.values()):
+            return
+        due = self._streams_tick_due(now, period_s)
+        if due < self._tick_due:
+            ticker.cancel()
+            self._tick_due = due
+            self._ticker = asyncio.get_running_loop().call_at(due, self._tick)
 
     def _o2t_received(self, data: bytes, addr: tuple[str, int], arrived: float) -> None:
         """One O→T datagram, ``arrived`` at that loop time (the kernel's receive time)."""

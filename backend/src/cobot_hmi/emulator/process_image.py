@@ -7,7 +7,7 @@ its event loop; an implementation must return quickly (it runs once per produced
 from __future__ import annotations
 
 from enum import StrEnum
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 from cobot_hmi.codec import CommandImage, Frame
 
@@ -43,4 +43,17 @@ class ProcessImage(Protocol):
 
     def command_image(self) -> CommandImage:
         """The last commanded image (an explicit read of the O→T assembly)."""
+        ...
+
+
+@runtime_checkable
+class HoldsStill(Protocol):
+    """A process image that can tell how long its frame stays as it is by itself (the
+    simulated robot): the target then leaves the pump's periodic stream alone until then,
+    rather than reading the robot again at every RPI only to find the same frame."""
+
+    def frame_still_until_s(self) -> float:
+        """Epoch seconds up to which ``produce_frame`` gives the frame it last gave, unless
+        a command or a control action changes the robot meanwhile (the target reads it again
+        after those anyway). A lower bound: the time of the last frame when unsure."""
         ...

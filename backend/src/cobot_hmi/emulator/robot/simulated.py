@@ -300,6 +300,29 @@ class SimulatedRobot:
             self._monitoring_at_s = self._now_s
         return self._monitoring
 
+    def frame_still_until_s(self) -> float:
+        """Until when the last frame holds by itself (``process_image.HoldsStill``): the next
+        monitoring refresh, a timed state transition (the end of INITIALIZING or SAFE_OFF,
+        the program's autostart) or, while the program moves the arm, the end of its step (the
+        part-present input and the cycle marker change only there), whichever comes first.
+        Everything else in the frame changes only by a call (a command, the control API)."""
+        now_s = self._now_s
+        refresh_s = self.settings.kinematic_refresh_ms / 1000.0
+        if refresh_s <= 0.0 or self._frame is None or self._frame_at_s != now_s:
+            return now_s
+        until_s = self._monitoring_at_s + refresh_s
+        states = self._states
+        if states.phase in (Phase.INITIALIZING, Phase.SAFE_OFF):
+            until_s = min(until_s, states.phase_until_s)
+        if states.autostart_at_s is not None:
+            until_s = min(until_s, states.autostart_at_s)
+        if states.motion_allowed(self._state_and_flags[0]):
+            left_s = self._runner.step_left_s()
+            if left_s is None:
+                return now_s
+            until_s = min(until_s, now_s + left_s)
+        return max(now_s, until_s)
+
     # ------------------------------------------------------------------ ProcessImage
 
     @property

@@ -177,6 +177,16 @@ class ProgramRunner:
         if self.steps[self.step_index].waypoint is not None:
             self.step_elapsed_s = 0.0
 
+    def step_left_s(self) -> float | None:
+        """Running time left before the current step ends (and the next begins); None while
+        the current move is not planned yet (``advance`` plans it from where the arm is)."""
+        step = self.steps[self.step_index]
+        if step.waypoint is None:
+            return step.dwell_s - self.step_elapsed_s
+        if self.move is None:
+            return None
+        return self.move.duration_s - self.step_elapsed_s
+
     def _step_duration(self, position: Sequence[float]) -> float:
         step = self.steps[self.step_index]
         if step.waypoint is None:
