@@ -201,6 +201,12 @@ class Catalogue:
         ]
 
 
+def has_state_names(metric: MetricDef) -> bool:
+    """Whether ``state_name`` may name a value of ``metric`` (then its DATA carries a ``name``
+    property with it)."""
+    return metric.field == "robot_state" or bool(metric.value_names)
+
+
 def state_name(metric: MetricDef, value: object) -> str | None:
     """The name a coded metric's value has (robot state, analog type), else ``None``."""
     if metric.field == "robot_state" and isinstance(value, int):

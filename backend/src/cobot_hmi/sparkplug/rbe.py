@@ -15,8 +15,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from operator import attrgetter
-from typing import Any
+from itertools import chain
+from operator import itemgetter
+from typing import Any, Final
 
 from cobot_hmi.codec import Frame
 from cobot_hmi.service.robots.frame_notifier import FrameRecord
@@ -28,7 +29,9 @@ Change = tuple[int, MetricValue, int]
 
 
 def _getter(fields: list[str]) -> Any:
-    getter = attrgetter(*fields)
+    """The fields' values of a frame, as a tuple: by position (a ``Frame`` is a named tuple;
+    ``itemgetter`` is a quarter cheaper than ``attrgetter``, and runs ten times per tick)."""
+    getter = itemgetter(*(Frame._fields.index(f) for f in fields))
     if len(fields) == 1:
         return lambda frame: (getter(frame),)
     return getter
@@ -44,6 +47,18 @@ def moved(new: float, old: float, deadband: float) -> bool:
     return abs(new - old) >= deadband
 
 
+_ANY_CHANGE: Final = math.ulp(0.0)
+"""The least step a deadband of 0 (or less) sends: between two numbers that are not NaN,
+``abs(new - old) >= ulp(0)`` exactly when ``new != old`` (the difference of two different
+floats is never 0, gradual underflow; of two equal infinities NaN, of unequal ones infinite)."""
+
+
+def threshold(deadband: float) -> float:
+    """What ``abs(new - old)`` must reach for ``moved`` (NaN aside): the deadband, or for one
+    of 0 or less any change (a NaN deadband stays NaN: nothing moves by it, as in ``moved``)."""
+    return _ANY_CHANGE if deadband <= 0 else deadband
+
+
 class Reporter:
     """One robot's last reported values and the changes since (module docstring)."""
 
@@ -56,6 +71,8 @@ class Reporter:
             span.first + i for span in catalogue.analog_spans for i in range(span.count)
         ]
         self._deadbands = catalogue.analog_deadbands()
+        self._thresholds = [threshold(d) for d in self._deadbands]
+        self._analog_positions = range(len(self._deadbands))
         self._last_discrete: tuple[Any, ...] | None = None
         self._reported_analog: list[float] = []
         self.transitions = 0
@@ -67,7 +84,7 @@ class Reporter:
         self._reported_analog = self._flat_analog(frame)
 
     def _flat_analog(self, frame: Frame) -> list[float]:
-        return [value for values in self._analog(frame) for value in values]
+        return list(chain.from_iterable(self._analog(frame)))
 
     def discrete_changes(self, items: Iterable[FrameRecord]) -> list[Change]:
         """Every discrete transition across ``items`` (oldest first), each at its frame's time."""
@@ -102,6 +119,25 @@ class Reporter:
         if not reported:
             self._reported_analog = current
             return []
+        total = sum(current) + sum(reported)
+        if math.isnan(total):  # a NaN among them (or infinities of both signs): value by value
+            return self._moved_changes(current, stamp)
+        # No NaN: ``moved`` is one comparison per value, made in one comprehension (a call of
+        # ``moved`` per value was the most of a tick's rbe time, py-spy).
+        moved_at = [
+            i
+            for i, new, old, at_least in zip(
+                self._analog_positions, current, reported, self._thresholds, strict=True
+            )
+            if abs(new - old) >= at_least
+        ]
+        for i in moved_at:
+            reported[i] = current[i]
+        offsets = self._analog_offsets
+        return [(offsets[i], current[i], stamp) for i in moved_at]
+
+    def _moved_changes(self, current: list[float], stamp: int) -> list[Change]:
+        reported = self._reported_analog
         changes: list[Change] = []
         for i, (new, old, deadband) in enumerate(
             zip(current, reported, self._deadbands, strict=True)

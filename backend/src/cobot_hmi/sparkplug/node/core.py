@@ -91,7 +91,8 @@ class Publisher:
         if not queued(self.client.publish(topic, data, qos=0, retain=False)):
             return False
         kind = topic.split("/")[2]
-        if any(m.is_historical for m in payload.metrics[:1]):
+        metrics = payload.metrics
+        if metrics and metrics[0].is_historical:  # (a slice would wrap a list of them)
             kind += "_historical"
         self.count(device, kind, len(data))
         return True

@@ -15,12 +15,21 @@ from collections.abc import Iterable, Mapping
 
 from cobot_hmi.layout import O2T_FIELDS
 from cobot_hmi.sparkplug.buffer import DiskBuffer
-from cobot_hmi.sparkplug.catalogue import Catalogue, state_name
+from cobot_hmi.sparkplug.catalogue import Catalogue, has_state_names, state_name
 from cobot_hmi.sparkplug.event_metrics import EventChange
 from cobot_hmi.sparkplug.node.births import BirthWriter
 from cobot_hmi.sparkplug.node.core import NodeStatus, Publisher
 from cobot_hmi.sparkplug.node.device import Device, now_ms
-from cobot_hmi.sparkplug.payload import DataType, Property, add_metric, make_payload
+from cobot_hmi.sparkplug.payload import (
+    DataMetricWriter,
+    DataType,
+    MetricValue,
+    Payload,
+    Property,
+    add_metric,
+    data_metric_writer,
+    make_payload,
+)
 from cobot_hmi.sparkplug.rbe import Change
 from cobot_hmi.sparkplug.topics import MessageType, Topics
 
@@ -56,6 +65,12 @@ class DeviceReports:
             f.name: next(m.offset for m in catalogue.command_metrics if m.field == f.name)
             for f in O2T_FIELDS
         }
+        self._writers: list[DataMetricWriter | None] = [
+            None if has_state_names(m) else data_metric_writer(m.datatype)
+            for m in catalogue.metrics
+        ]
+        """How a DDATA carries each catalogue metric (by offset); ``None``: with the name of
+        its value (``_add_change``)."""
         self._tasks: list[asyncio.Task[None]] = []
         self.tick_seconds = 0.0
         """CPU time of the robots' ticks on the web loop (reports, encoding, publishing calls):
@@ -183,18 +198,16 @@ class DeviceReports:
         # The payload's time and the rate's reference are one instant.
         device.reported_at = asyncio.get_running_loop().time()
         payload = make_payload(now_ms(), None)
+        metrics = payload.metrics
+        writers = self._writers
+        known = len(writers)
+        base = device.alias_base
         for offset, value, stamp in changes:
-            metric = device.metric(offset)
-            name = state_name(metric, value)
-            add_metric(
-                payload,
-                alias=device.alias_base + offset,
-                timestamp_ms=stamp,
-                datatype=metric.datatype,
-                value=value,
-                properties=(Property("name", DataType.STRING, name),) if name else (),
-                with_datatype=False,  # the DBIRTH gave it (Sparkplug 3.0: not in DATA)
-            )
+            write = writers[offset] if offset < known else None
+            if write is not None and value is not None:
+                write(metrics, base + offset, stamp, value)
+            else:
+                self._add_change(payload, device, offset, value, stamp)
         topic = self.topics.device_topic(MessageType.DDATA, device.device_name)
         if self.status.active and device.born:
             if self.publisher.publish(topic, payload, device):
@@ -205,3 +218,21 @@ class DeviceReports:
             return  # not born on this connection yet: its DBIRTH will carry the values
         if self.buffer.append(topic, payload.SerializeToString()):
             device.messages["DDATA_buffered"] += 1
+
+    @staticmethod
+    def _add_change(
+        payload: Payload, device: Device, offset: int, value: MetricValue | None, stamp: int
+    ) -> None:
+        """A change of an event metric, a coded one (a ``name`` property with the value's
+        name) or to Null, as the metric's definition says."""
+        metric = device.metric(offset)
+        name = state_name(metric, value)
+        add_metric(
+            payload,
+            alias=device.alias_base + offset,
+            timestamp_ms=stamp,
+            datatype=metric.datatype,
+            value=value,
+            properties=(Property("name", DataType.STRING, name),) if name else (),
+            with_datatype=False,  # the DBIRTH gave it (Sparkplug 3.0: not in DATA)
+        )
