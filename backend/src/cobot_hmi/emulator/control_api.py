@@ -510,11 +510,27 @@ def _add_faults(app: FastAPI, target: EmulatorTarget) -> None:
 
 
 class _EmbeddedServer(uvicorn.Server):
-    """uvicorn without its signal handlers: the emulator's process owns its signals."""
+    """uvicorn without its signal handlers (the emulator's process owns its signals) and
+    without its ten wake-ups a second (``main_loop``)."""
+
+    def __init__(self, config: uvicorn.Config) -> None:
+        super().__init__(config)
+        self.exit_asked = asyncio.Event()
+        """Set with ``should_exit`` by ``ControlApiServer.stop``: the main loop ends at once."""
 
     @contextlib.contextmanager
     def capture_signals(self) -> Generator[None, None, None]:
         yield
+
+    async def main_loop(self) -> None:
+        """uvicorn's looks at ``should_exit`` every 100 ms, a tenth of the emulator's idle
+        wake-ups; this one once a second, to refresh the Date header as uvicorn does (its
+        ``on_tick`` does that at every tenth tick), and at once when ``stop`` asks."""
+        counter = 0
+        while not await self.on_tick(counter):
+            counter = (counter + 10) % 864000
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self.exit_asked.wait(), 1.0)
 
 
 class ControlApiServer:
@@ -563,6 +579,7 @@ class ControlApiServer:
         if self._server is None or self._task is None:
             return
         self._server.should_exit = True
+        self._server.exit_asked.set()
         with contextlib.suppress(asyncio.CancelledError):
             await self._task
         self._server = None
