@@ -75,8 +75,9 @@ class TargetSettings:
     """How often the target wakes while a connection runs at an RPI under 10 ms (the I/O cycle
     of the emulated controller): it reads the O→T that came meanwhile and the robot's data once
     per wake-up, so a command or an event is in T→O at most this much later (each wake-up costs
-    far more CPU than a packet: docs/protocol.md "Timing"). At 10 ms and longer it wakes once
-    per packet. Watchdogs do not wait for it (the pump reports silence)."""
+    far more CPU than a packet: docs/protocol.md "Timing"). At 10 ms and longer it wakes for each
+    O→T packet, and for T→O once per packet, or, while T→O streams, when the robot's frame changes
+    by itself. Watchdogs do not wait for it (the pump reports silence)."""
     max_tcp_sessions: int = 64
     """TCP connections on the encapsulation port held at once; one more is closed at once and
     counted (``tcp_sessions_refused``), so idle connections cannot exhaust the process's file
