@@ -1,6 +1,7 @@
-"""The decoders' 64 bit registers are made again only when their 8 bytes changed since the last
-decode (``codegen/python_frames.py``): whatever the order of frames, and from two threads at
-once, each decoded register tuple is the one its own bytes say."""
+"""The decoders' 64 bit registers are taken from those decoded lately when their 8 bytes are the
+same (``codegen/python_frames.py``, a bounded table): whatever the order of frames, however many
+patterns (the table cleared when full), and from two threads at once, each decoded register
+tuple is the one its own bytes say."""
 
 from __future__ import annotations
 
@@ -35,6 +36,7 @@ def test_frames_in_any_order_decode_their_own_registers() -> None:
     rng = random.Random(40)
     patterns = [0, 1, 1 << 63, 0xFFFF_FFFF_FFFF_FFFF] + [rng.getrandbits(64) for _ in range(4)]
     sequence = [rng.choice(patterns) for _ in range(400)] + [patterns[2]] * 5 + [0, 0, 1, 1]
+    sequence += [rng.getrandbits(64) for _ in range(700)] + patterns  # more than the table holds
     for n, registers in enumerate(sequence):
         data = _frame_bytes(registers, float(n))
         frame = decode_frame(data)

@@ -122,26 +122,26 @@ def _decode_elements(assembly: Assembly) -> tuple[list[str], list[str], list[str
 
 def _memo_constant(tag: str, field: str) -> list[str]:
     return [
-        f"_{tag}_LAST_{field.upper()}: Final[list[tuple[tuple[int, ...], tuple[bool | int, ...]]]]"
-        " = [((), ())]",
-        f'"""The last ``{field}`` decoded and the bytes it came from (one entry, replaced whole:'
-        ' any thread may decode)."""',
+        f"_{tag}_{field.upper()}_SEEN: Final[dict[tuple[int, ...], tuple[bool | int, ...]]] = {{}}",
+        f'"""``{field}`` by the bytes it came from, as decoded lately (at most'
+        f' ``_SEEN_MAX``: a few per robot of a cell; any thread may decode)."""',
     ]
 
 
 def _memo_lines(tag: str, field: str, name: str, key: str, spliced: str) -> list[str]:
     """A wide bit array (64 booleans from 8 bytes, a spliced tuple of 64 items: about a third
-    of a frame's decode) taken from the last decode when its bytes are the same: a robot's
-    registers change far less often than its frames come."""
-    memo = f"_{tag}_LAST_{field.upper()}"
+    of a frame's decode) taken from those decoded lately when its bytes are the same: a
+    robot's registers change far less often than its frames come, and a cell's robots
+    interleave theirs (hence not the last one only)."""
+    seen = f"_{tag}_{field.upper()}_SEEN"
     return [
         f"    {field}_key = {key}",
-        f"    {field}_last = {memo}[0]",
-        f"    if {field}_key == {field}_last[0]:",
-        f"        {name} = {field}_last[1]",
-        "    else:",
+        f"    {name} = {seen}.get({field}_key)",
+        f"    if {name} is None:",
         f"        {name} = {spliced}",
-        f"        {memo}[0] = ({field}_key, {name})",
+        f"        if len({seen}) >= _SEEN_MAX:",
+        f"            {seen}.clear()",
+        f"        {seen}[{field}_key] = {name}",
     ]
 
 
@@ -255,6 +255,8 @@ _BIT_HELPERS: Final = [
     "    for width in range(9)",
     ")",
     '"""``_INTS[w][v]``: the ``w`` low bits of ``v`` as 0/1 codes, bit 0 first."""',
+    "_SEEN_MAX: Final = 256",
+    '"""Wide bit arrays a decoder keeps by their bytes (cleared when full)."""',
     "",
     "",
     "_PACKED: Final[dict[object, int]] = {",

@@ -147,6 +147,8 @@ _INTS: Final = tuple(
     for width in range(9)
 )
 """``_INTS[w][v]``: the ``w`` low bits of ``v`` as 0/1 codes, bit 0 first."""
+_SEEN_MAX: Final = 256
+"""Wide bit arrays a decoder keeps by their bytes (cleared when full)."""
 
 
 _PACKED: Final[dict[object, int]] = {
@@ -202,8 +204,8 @@ _T2O_ARRAYS: Final = attrgetter("controlbox_di", "controlbox_do", "analog_input_
 _T2O_ARRAY_COUNTS: Final = (16, 16, 2, 2, 2, 2, 6, 6, 3, 6, 6, 6, 6, 6, 6, 3, 3, 3, 3, 3, 3, 3, 3, 64)
 _T2O_RUN_0: Final = itemgetter(slice(5, 7), slice(7, 9))
 _T2O_RUN_1: Final = itemgetter(slice(16, 22), slice(22, 28), slice(28, 34), slice(34, 40), slice(40, 46), slice(46, 52), slice(52, 55), slice(55, 58), slice(58, 61), slice(61, 64), slice(64, 67), slice(67, 70), slice(70, 73), slice(73, 76))
-_T2O_LAST_BIT_OUTPUT_REGISTERS: Final[list[tuple[tuple[int, ...], tuple[bool | int, ...]]]] = [((), ())]
-"""The last ``bit_output_registers`` decoded and the bytes it came from (one entry, replaced whole: any thread may decode)."""
+_T2O_BIT_OUTPUT_REGISTERS_SEEN: Final[dict[tuple[int, ...], tuple[bool | int, ...]]] = {}
+"""``bit_output_registers`` by the bytes it came from, as decoded lately (at most ``_SEEN_MAX``: a few per robot of a cell; any thread may decode)."""
 
 
 def decode_t2o(data: bytes | bytearray | memoryview) -> Frame:
@@ -217,12 +219,12 @@ def decode_t2o(data: bytes | bytearray | memoryview) -> Frame:
         raise FrameSizeError("T→O frame too short", 284, size)
     v = _T2O_UNPACK(data)
     bit_output_registers_key = v[76:84]
-    bit_output_registers_last = _T2O_LAST_BIT_OUTPUT_REGISTERS[0]
-    if bit_output_registers_key == bit_output_registers_last[0]:
-        bit_output_registers_bits = bit_output_registers_last[1]
-    else:
+    bit_output_registers_bits = _T2O_BIT_OUTPUT_REGISTERS_SEEN.get(bit_output_registers_key)
+    if bit_output_registers_bits is None:
         bit_output_registers_bits = (*_B8[v[76]], *_B8[v[77]], *_B8[v[78]], *_B8[v[79]], *_B8[v[80]], *_B8[v[81]], *_B8[v[82]], *_B8[v[83]])
-        _T2O_LAST_BIT_OUTPUT_REGISTERS[0] = (bit_output_registers_key, bit_output_registers_bits)
+        if len(_T2O_BIT_OUTPUT_REGISTERS_SEEN) >= _SEEN_MAX:
+            _T2O_BIT_OUTPUT_REGISTERS_SEEN.clear()
+        _T2O_BIT_OUTPUT_REGISTERS_SEEN[bit_output_registers_key] = bit_output_registers_bits
     return _new(
         Frame,
         (
@@ -340,8 +342,8 @@ O2T_COUNTS: Final = {
 
 _O2T_ARRAYS: Final = attrgetter("controlbox_do", "tool_do", "analog_output_type", "analog_output", "bit_input_registers")
 _O2T_ARRAY_COUNTS: Final = (16, 6, 2, 2, 64)
-_O2T_LAST_BIT_INPUT_REGISTERS: Final[list[tuple[tuple[int, ...], tuple[bool | int, ...]]]] = [((), ())]
-"""The last ``bit_input_registers`` decoded and the bytes it came from (one entry, replaced whole: any thread may decode)."""
+_O2T_BIT_INPUT_REGISTERS_SEEN: Final[dict[tuple[int, ...], tuple[bool | int, ...]]] = {}
+"""``bit_input_registers`` by the bytes it came from, as decoded lately (at most ``_SEEN_MAX``: a few per robot of a cell; any thread may decode)."""
 
 
 def decode_o2t(data: bytes | bytearray | memoryview) -> CommandImage:
@@ -350,12 +352,12 @@ def decode_o2t(data: bytes | bytearray | memoryview) -> CommandImage:
         raise FrameSizeError("O→T command image", 20, len(data))
     v = _O2T_UNPACK(data)
     bit_input_registers_key = v[6:14]
-    bit_input_registers_last = _O2T_LAST_BIT_INPUT_REGISTERS[0]
-    if bit_input_registers_key == bit_input_registers_last[0]:
-        bit_input_registers_bits = bit_input_registers_last[1]
-    else:
+    bit_input_registers_bits = _O2T_BIT_INPUT_REGISTERS_SEEN.get(bit_input_registers_key)
+    if bit_input_registers_bits is None:
         bit_input_registers_bits = (*_B8[v[6]], *_B8[v[7]], *_B8[v[8]], *_B8[v[9]], *_B8[v[10]], *_B8[v[11]], *_B8[v[12]], *_B8[v[13]])
-        _O2T_LAST_BIT_INPUT_REGISTERS[0] = (bit_input_registers_key, bit_input_registers_bits)
+        if len(_O2T_BIT_INPUT_REGISTERS_SEEN) >= _SEEN_MAX:
+            _O2T_BIT_INPUT_REGISTERS_SEEN.clear()
+        _O2T_BIT_INPUT_REGISTERS_SEEN[bit_input_registers_key] = bit_input_registers_bits
     return _new(
         CommandImage,
         (
