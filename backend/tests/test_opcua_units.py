@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import copy
 import xml.etree.ElementTree as ET
-from datetime import UTC, datetime
+from datetime import UTC, datetime, timedelta, timezone
 
 import pytest
 from asyncua import ua
@@ -20,6 +20,7 @@ from cobot_hmi.codec import zero_frame
 from cobot_hmi.generated.frames import RobotState
 from cobot_hmi.layout import ANALOG_OUTPUT_RANGES, O2T_FIELDS, T2O_FIELDS
 from cobot_hmi.opcua import companion, robotics, sessions
+from cobot_hmi.opcua import values as opcua_values
 from cobot_hmi.opcua.opcua_settings import DEFAULT_PORT
 from cobot_hmi.opcua.server import (
     PUBLISH_AFTER_TICK,
@@ -29,7 +30,14 @@ from cobot_hmi.opcua.server import (
     watched_intervals,
 )
 from cobot_hmi.opcua.units import PER_TYPE, analog_unit, unit_for
-from cobot_hmi.opcua.values import GOOD, SharedDataValue, notify, scalar_variant, shared_value
+from cobot_hmi.opcua.values import (
+    GOOD,
+    SharedDataValue,
+    notify,
+    scalar_variant,
+    shared_value,
+    win_epoch,
+)
 from cobot_hmi.service.config.loading import load_settings
 from cobot_hmi.service.service_settings import SettingsError
 from cobot_hmi.settings import HmiSettings
@@ -222,20 +230,39 @@ async def test_deleting_every_item_of_a_subscription_removes_each_callback_once(
     assert not service._monitored_items and not service._monitored_datachange
 
 
-async def _watched(nodes: list[ua.NodeId]) -> tuple[AddressSpace, InternalSubscription]:
-    """An address space holding ``nodes`` and a subscription with an item (queue 5) on each."""
+async def _watched(
+    nodes: list[ua.NodeId],
+    queue_sizes: list[int] | None = None,
+    filters: list[ua.DataChangeFilter | None] | None = None,
+    publishing_ms: float = 1000.0,
+    published: list[ua.PublishResult] | None = None,
+) -> tuple[AddressSpace, InternalSubscription]:
+    """An address space holding ``nodes`` and a subscription with an item on each (queue 5
+    unless ``queue_sizes`` says, no filter unless ``filters`` says); what it publishes is
+    appended to ``published``."""
     aspace = AddressSpace()
     for node in nodes:
         data = NodeData(node)
         data.attributes[ua.AttributeIds.Value] = AttributeValue(ua.DataValue(ua.Variant(0.0)))
         aspace[node] = data
-    result = ua.CreateSubscriptionResult(RevisedPublishingInterval=1000.0)
-    subscription = InternalSubscription(result, aspace, _publish, ua.NodeId(1, 0))
+
+    async def publish(result: ua.PublishResult) -> None:
+        if published is not None:
+            published.append(result)
+
+    result = ua.CreateSubscriptionResult(RevisedPublishingInterval=publishing_ms)
+    subscription = InternalSubscription(result, aspace, publish, ua.NodeId(1, 0))
+    sizes = queue_sizes or [5] * len(nodes)
+    kinds = filters or [None] * len(nodes)
     requests = [
         ua.MonitoredItemCreateRequest(
             ItemToMonitor=ua.ReadValueId(NodeId=node, AttributeId=ua.AttributeIds.Value),
             MonitoringMode=ua.MonitoringMode.Reporting,
-            RequestedParameters=ua.MonitoringParameters(ClientHandle=i, QueueSize=5),
+            RequestedParameters=ua.MonitoringParameters(
+                ClientHandle=i,
+                QueueSize=sizes[i],
+                Filter=ua.ExtensionObject() if kinds[i] is None else kinds[i],
+            ),
         )
         for i, node in enumerate(nodes)
     ]
@@ -277,3 +304,85 @@ async def test_the_values_notify_as_asyncua_would() -> None:
         )
     assert queued[0] == queued[1]
     assert len(queued[0]) == 1 + 4  # the initial value, then 1.0, Bad, 3.0 of item a (b disabled)
+
+
+def _encoded(subscription: InternalSubscription) -> list[bytes]:
+    return [struct_to_binary(n) for ns in subscription._triggered_datachanges.values() for n in ns]
+
+
+async def test_queues_filters_and_publishing_at_once_as_asyncua() -> None:
+    """``values.notify`` against asyncua's own callback for items of queue 1, 5 and 0 (no
+    limit), one with a deadband filter, one with the StatusValueTimestamp trigger, and a
+    subscription that publishes at once (interval 0): the same notifications queued, the same
+    ones published, in the same messages."""
+    nodes = [ua.NodeId(name, 2) for name in "abcde"]
+    deadband = ua.DataChangeFilter(
+        Trigger=ua.DataChangeTrigger.StatusValue,
+        DeadbandType=ua.DeadbandType.Absolute,
+        DeadbandValue=0.5,
+    )
+    timestamps = ua.DataChangeFilter(Trigger=ua.DataChangeTrigger.StatusValueTimestamp)
+    start = datetime(2026, 12, 7, tzinfo=UTC)
+    bad = ua.StatusCode(ua.StatusCodes.BadCommunicationError)
+    writes = [
+        (index, number, status, start + timedelta(seconds=step))
+        for step, (index, number, status) in enumerate(
+            [(i, float(n), GOOD) for n in (1, 1, 1.2, 2, 3, 3) for i in range(5)]
+            + [(i, None, bad) for i in (0, 1, 2, 4)]  # asyncua's deadband fails on Null
+            + [(i, 4.0, GOOD) for i in range(5)]
+        )
+    ]
+    for publishing_ms in (1000.0, 0.0):
+        queued, published = [], []
+        for fast in (False, True):
+            sent: list[ua.PublishResult] = []
+            aspace, subscription = await _watched(
+                nodes,
+                [1, 5, 0, 1, 1],
+                [None, None, None, deadband, timestamps],
+                publishing_ms,
+                sent,
+            )
+            for index, number, status, when in writes:
+                double = ua.VariantType.Double
+                variant = ua.Variant() if number is None else scalar_variant(number, double)
+                value = shared_value(variant, status, when, when)
+                attribute = aspace[nodes[index]].attributes[ua.AttributeIds.Value]
+                for handle, callback in attribute.datachange_callbacks.items():
+                    if fast:
+                        await notify(callback.__self__, handle, value)
+                    else:
+                        await callback(handle, value)
+            queued.append(_encoded(subscription))
+            published.append(
+                [
+                    [struct_to_binary(data) for data in result.NotificationMessage.NotificationData]
+                    for result in sent
+                ]
+            )
+        assert queued[0] == queued[1]
+        assert published[0] == published[1]
+        if publishing_ms:
+            assert len(queued[0]) > len(nodes) and not published[0]
+        else:
+            assert len(published[0]) > len(nodes) and not queued[0]
+
+
+@pytest.mark.parametrize(
+    "when",
+    [
+        datetime(2026, 12, 7, 10, 11, 12, 131415, tzinfo=UTC),
+        datetime(2026, 12, 7, 11, 11, 12, 131415, tzinfo=timezone(timedelta(hours=1))),
+        datetime(2026, 12, 7, 10, 11, 12, 131415),
+        datetime(1500, 1, 1, tzinfo=UTC),
+        datetime(9999, 12, 31, 23, 59, 59, tzinfo=UTC),
+        datetime(1970, 1, 1, tzinfo=UTC),
+    ],
+)
+def test_a_remembered_timestamp_encodes_as_asyncua_encodes_it(when: datetime) -> None:
+    asyncua_own = opcua_values._ASYNCUA_WIN_EPOCH
+    assert ua.datetime_to_win_epoch is win_epoch  # installed on import
+    for _ in range(2):  # computed, then remembered
+        assert win_epoch(when) == asyncua_own(when)
+    utc = when.astimezone(UTC) if when.tzinfo is not None else when
+    assert win_epoch(utc) == asyncua_own(utc)

@@ -16,18 +16,20 @@ machines (``machinery``) stay Good: without a frame the robot is NotAvailable, m
 
 from __future__ import annotations
 
+import functools
 import time
-from collections.abc import Mapping
+from collections.abc import Awaitable, Callable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from typing import Any, Final
 
 from asyncua import Server, ua
+from asyncua.server.internal_subscription import InternalSubscription
 from asyncua.server.monitored_item_service import MonitoredItemService
 
 from cobot_hmi.arms import ARMS, Arm
 from cobot_hmi.codec import CommandImage, Frame
-from cobot_hmi.opcua.bindings import MachineState, RobotNodes
+from cobot_hmi.opcua.bindings import Binding, CommandBinding, MachineState, RobotNodes
 from cobot_hmi.opcua.machinery import MANUFACTURER_URI
 from cobot_hmi.opcua.units import analog_unit
 
@@ -129,36 +131,114 @@ def shared_value(
     return value
 
 
+_ASYNCUA_WIN_EPOCH: Final = ua.datetime_to_win_epoch
+_WIN_EPOCHS: dict[datetime, int] = {}
+_WIN_EPOCHS_KEPT: Final = 4096
+
+
+def win_epoch(dt: datetime) -> int:
+    """asyncua's ``datetime_to_win_epoch`` (a DateTime as OPC UA encodes it), remembered.
+
+    asyncua's encoder converts both timestamps of every DataValue it sends through datetime
+    arithmetic (a fifth of a notification's encoding); the notifications of one update share
+    two timestamps (the frame's receive time, the update's time), so the conversion is asked
+    of the same few datetimes thousands of times. The answer is asyncua's own, for an equal
+    datetime (equal datetimes are the same instant, or the same naive fields): the bytes on the
+    wire do not change. Installed as ``asyncua.ua.datetime_to_win_epoch``, which asyncua's
+    ``_DateTime.pack`` looks up at each call (here, once, on import)."""
+    known = _WIN_EPOCHS.get(dt)
+    if known is None:
+        if len(_WIN_EPOCHS) >= _WIN_EPOCHS_KEPT:
+            _WIN_EPOCHS.clear()
+        known = _WIN_EPOCHS[dt] = _ASYNCUA_WIN_EPOCH(dt)
+    return known
+
+
+ua.datetime_to_win_epoch = win_epoch
+
 _ASYNCUA_DATACHANGE: Final = MonitoredItemService.datachange_callback
 _DISABLED: Final = ua.MonitoringMode.Disabled
 _STATUS_VALUE: Final = ua.DataChangeTrigger.StatusValue
 
+Later = list[Callable[[], Awaitable[None]]]
+"""What a write still has to await once its value is stored and queued (``RobotValues._put``)."""
 
-async def notify(service: MonitoredItemService, handle: int, value: SharedDataValue) -> None:
-    """asyncua's ``MonitoredItemService.datachange_callback`` for one of these values: the same
-    checks (the item's mode, its filter or a change of status or value) and the same queue,
-    without what cost most of it for values that never change once stored: a notification
-    made, with a default DataValue and Variant of its own, before knowing it goes out (now
-    made only when it does, with this value), and the deep copy that ``SharedDataValue``
-    answers with itself (the previous value kept as asyncua keeps it)."""
+
+def _status_or_value_changed(old: ua.DataValue | None, new: ua.DataValue) -> bool:
+    """asyncua's ``MonitoredItemService._is_data_changed`` with the default trigger
+    (StatusValue) for a current value that is never None: the same comparisons, in its order,
+    without its list of triggers and accessor calls (a StatusCode is compared as asyncua does
+    unless it is the very same object)."""
+    if old is None:
+        return True
+    status = old.StatusCode
+    if status is not new.StatusCode and status != new.StatusCode:
+        return True
+    return bool(old.Value != new.Value)
+
+
+def monitored_change(
+    service: MonitoredItemService, handle: int, value: SharedDataValue
+) -> InternalSubscription | None:
+    """asyncua's ``MonitoredItemService.datachange_callback`` for one of these values, and its
+    subscription's ``enqueue_datachange_event``, without a coroutine: the same checks (the
+    item's mode, its filter or a change of status or value) and the same queue (a list per
+    item, the oldest dropped beyond the item's queue size), the notification made only when it
+    goes out, with this value (not a default DataValue and Variant of its own first), and no
+    deep copy (``SharedDataValue``: the previous value kept as asyncua keeps it).
+
+    asyncua awaits three coroutines per data change (the callback, the enqueue and the
+    publishing trigger) although only the trigger can wait, and only for a subscription that
+    publishes at once (no publishing cycle of its own); with a historian on every variable
+    they were most of the cost of a write. Returns that subscription when asyncua's trigger
+    would publish now (an item's first notification since the last publish, to a subscription
+    without a cycle): the caller awaits its ``_trigger_publish``; otherwise ``None``. Kept
+    equal to asyncua's own callback by test_opcua_units (the queued notifications compared)."""
     mid = service._monitored_datachange[handle]
     item = service._monitored_items[mid]
     if item.mode == _DISABLED:
-        return
+        return None
     values = item.mvalue
-    values.old_dvalue = values.current_dvalue
+    old = values.old_dvalue = values.current_dvalue
     values.current_dvalue = value
     flt = item.filter
     if flt:
-        changed = service._is_data_changed(values, flt.Trigger)
-        changed = changed and service._is_deadband_exceeded(values, flt)
-    else:
-        changed = service._is_data_changed(values, _STATUS_VALUE)
-    if changed:
-        event: ua.MonitoredItemNotification = _new(ua.MonitoredItemNotification)
-        event.ClientHandle = item.client_handle
-        event.Value = value
-        await service.isub.enqueue_datachange_event(mid, event, item.queue_size)
+        if not (
+            service._is_data_changed(values, flt.Trigger)
+            and service._is_deadband_exceeded(values, flt)
+        ):
+            return None
+    elif not _status_or_value_changed(old, value):
+        return None
+    event: ua.MonitoredItemNotification = _new(ua.MonitoredItemNotification)
+    event.ClientHandle = item.client_handle
+    event.Value = value
+    subscription = service.isub
+    queue = subscription._triggered_datachanges
+    queued = queue.get(mid)
+    if queued is None:
+        queue[mid] = [event]
+        if not subscription._task and subscription.data.RevisedPublishingInterval <= 0.0:
+            return subscription  # asyncua's _trigger_publish publishes at once
+        return None
+    size = item.queue_size
+    if size != 0 and len(queued) >= size:
+        queued.pop(0)
+    queued.append(event)
+    return None
+
+
+async def notify(service: MonitoredItemService, handle: int, value: SharedDataValue) -> None:
+    """The whole of asyncua's ``datachange_callback`` for one of these values:
+    ``monitored_change``, then the publishing it asks for."""
+    subscription = monitored_change(service, handle, value)
+    if subscription is not None:
+        await subscription._trigger_publish()
+
+
+async def _run(later: Later) -> None:
+    for action in later:
+        await action()
 
 
 def _utc(epoch_s: float) -> datetime:
@@ -172,7 +252,9 @@ class RobotValues:
         self._aspace = server.iserver.aspace
         self.nodes = nodes
         self._frame_values: list[object] = [None] * len(nodes.frame)
+        self._frame_reads = [binding.read for binding in nodes.frame]
         self._command_values: list[object] = [None] * len(nodes.command)
+        self._command_reads = [binding.read for binding in nodes.command]
         self._machine_states: list[MachineState | None] = [None] * len(nodes.state_machines)
         self._analog_types: list[str | None] = [None] * len(nodes.analog_units)
         self._frame_status: ua.StatusCode | None = None
@@ -189,26 +271,42 @@ class RobotValues:
         self._now = _utc(time.time())
         """The ServerTimestamp of this update's writes."""
 
-    async def _write(
-        self, node: ua.NodeId, variant: ua.Variant, status: ua.StatusCode, source: datetime
-    ) -> None:
+    def _put(self, node: ua.NodeId, value: SharedDataValue) -> Later | None:
         """One value as asyncua's own ``write_attribute_value`` stores it (the value, then each
         monitored item's callback), without its per-write checks: every variable here is
-        written with its own data type, and a Bad status always with a Null value."""
+        written with its own data type, and a Bad status always with a Null value. asyncua's
+        monitored items are told at once (``monitored_change``); what must still be awaited
+        (a publishing at once, another callback) is returned, in order, for this write's
+        caller to await before the next write (``None``, the rule: nothing)."""
         attribute = self._attributes.get(node)
         if attribute is None:
             attribute = self._attributes[node] = self._aspace[node].attributes[_VALUE]
-        value = shared_value(variant, status, source, self._now)
         self.writes += 1
         attribute.value = value
         attribute.value_callback = None
         callbacks = attribute.datachange_callbacks
-        if callbacks:
-            for handle, callback in list(callbacks.items()):
-                if getattr(callback, "__func__", None) is _ASYNCUA_DATACHANGE:
-                    await notify(callback.__self__, handle, value)
-                else:
-                    await callback(handle, value)
+        if not callbacks:
+            return None
+        later: Later | None = None
+        for handle, callback in callbacks.items():  # nothing awaited: the dict stays as it is
+            if getattr(callback, "__func__", None) is _ASYNCUA_DATACHANGE:
+                subscription = monitored_change(callback.__self__, handle, value)
+                if subscription is None:
+                    continue
+                action: Callable[[], Awaitable[None]] = subscription._trigger_publish
+            else:
+                action = functools.partial(callback, handle, value)
+            if later is None:
+                later = []
+            later.append(action)
+        return later
+
+    async def _write(
+        self, node: ua.NodeId, variant: ua.Variant, status: ua.StatusCode, source: datetime
+    ) -> None:
+        later = self._put(node, shared_value(variant, status, source, self._now))
+        if later:
+            await _run(later)
 
     async def start(self) -> None:
         """The values that never change, the unsupported members, and no data yet."""
@@ -229,31 +327,31 @@ class RobotValues:
             await self._write(node, _NULL, WAITING, now)
 
     async def update(self, sample: Sample) -> None:
-        now = time.time()
-        self._now = _utc(now)
+        now = self._now = _utc(time.time())  # also the SourceTimestamp of the service's own
         if sample.connection_state != self._state and self.nodes.connection_state is not None:
             self._state = sample.connection_state
             text = ua.Variant(sample.connection_state, ua.VariantType.String)
-            await self._write(self.nodes.connection_state, text, GOOD, _utc(now))
+            await self._write(self.nodes.connection_state, text, GOOD, now)
         if sample.control_holder != self._holder and self.nodes.control_holder is not None:
             self._holder = sample.control_holder
             holder = ua.Variant(sample.control_holder, ua.VariantType.String)
-            await self._write(self.nodes.control_holder, holder, GOOD, _utc(now))
+            await self._write(self.nodes.control_holder, holder, GOOD, now)
         if sample.identity is not None and sample.identity != self._identity:
-            await self._nameplates(sample.identity, _utc(now))
+            await self._nameplates(sample.identity, now)
         if sample.command is not None:
-            await self._command(sample.command, _utc(now))
+            await self._command(sample.command, now)
         if sample.health is not None and sample.health is not self._health_event:
             self._health_event = sample.health
             await self._health(sample.health)
         if not sample.connected:
             if self._frame_status is GOOD:
-                await self._frames_status(COMMUNICATION_ERROR, _utc(now))
-            await self._state_machines(None, _utc(now))
+                await self._frames_status(COMMUNICATION_ERROR, now)
+            await self._state_machines(None, now)
             return
         if sample.frame is not None:
-            await self._frame(sample.frame, _utc(sample.received_at))
-            await self._state_machines(sample.frame, _utc(sample.received_at))
+            received = _utc(sample.received_at)
+            await self._frame(sample.frame, received)
+            await self._state_machines(sample.frame, received)
 
     def _health_nodes(self) -> list[ua.NodeId]:
         nodes = self.nodes
@@ -301,14 +399,9 @@ class RobotValues:
     async def _frame(self, frame: Frame, source: datetime) -> None:
         force = self._frame_status is not GOOD
         self._frame_status = GOOD
-        values = self._frame_values
-        for index, binding in enumerate(self.nodes.frame):
-            value = binding.read(frame)
-            if force or value != values[index]:
-                values[index] = value
-                await self._write(
-                    binding.node, scalar_variant(value, binding.variant), GOOD, source
-                )
+        await self._changed(
+            self.nodes.frame, self._frame_values, self._frame_reads, frame, source, force=force
+        )
         for index, analog in enumerate(self.nodes.analog_units):
             if not analog.from_command:
                 await self._analog(index, analog.type_name(frame), source)
@@ -318,6 +411,28 @@ class RobotValues:
             self._revision = revision
             for node in self.nodes.software_revisions:
                 await self._write(node, ua.Variant(revision, ua.VariantType.String), GOOD, source)
+
+    async def _changed(
+        self,
+        bindings: Sequence[Binding | CommandBinding],
+        values: list[object],
+        reads: list[Callable[[Any], object]],
+        record: Frame | CommandImage,
+        source: datetime,
+        *,
+        force: bool = False,
+    ) -> None:
+        """Each binding's value read from ``record``; those that differ from ``values`` (all
+        with ``force``) written Good at ``source`` and kept in ``values``."""
+        now, put = self._now, self._put
+        for index, value in enumerate([read(record) for read in reads]):
+            if force or value != values[index]:
+                values[index] = value
+                binding = bindings[index]
+                variant = scalar_variant(value, binding.variant)
+                later = put(binding.node, shared_value(variant, GOOD, source, now))
+                if later:
+                    await _run(later)
 
     async def _state_machines(self, frame: Frame | None, source: datetime) -> None:
         """Each state machine's CurrentState and its Id, when the state changed: Good even
@@ -333,14 +448,9 @@ class RobotValues:
             await self._write(machine.state_id, state_id, GOOD, source)
 
     async def _command(self, image: CommandImage, source: datetime) -> None:
-        values = self._command_values
-        for index, binding in enumerate(self.nodes.command):
-            value = binding.read(image)
-            if value != values[index]:
-                values[index] = value
-                await self._write(
-                    binding.node, scalar_variant(value, binding.variant), GOOD, source
-                )
+        await self._changed(
+            self.nodes.command, self._command_values, self._command_reads, image, source
+        )
         for index, analog in enumerate(self.nodes.analog_units):
             if analog.from_command:
                 await self._analog(index, analog.type_name(image), source)
