@@ -53,8 +53,8 @@ def _decode_elements(assembly: Assembly) -> tuple[list[str], list[str], list[str
 
     Speed matters here (one call per received frame), so runs of REAL arrays come out of one
     ``itemgetter`` of slices, neighbouring flags out of one table look-up, and wide bit arrays
-    are spliced rather than concatenated, and made again only when their bytes changed since
-    the last decode; every element is still derived from the table.
+    are spliced rather than concatenated, and taken by their bytes from those decoded lately
+    (``_memo_lines``); every element is still derived from the table.
     """
     items = item_index(assembly)
     tag = assembly.direction.value.upper()
@@ -129,8 +129,8 @@ def _memo_constant(tag: str, field: str) -> list[str]:
 
 
 def _memo_lines(tag: str, field: str, name: str, key: str, spliced: str) -> list[str]:
-    """A wide bit array (64 booleans from 8 bytes, a spliced tuple of 64 items: about a third
-    of a frame's decode) taken from those decoded lately when its bytes are the same: a
+    """A wide bit array (64 booleans from 8 bytes, a spliced tuple of 64 items: 0.5-0.9 µs of
+    a frame's 3.5 µs decode) taken from those decoded lately when its bytes are the same: a
     robot's registers change far less often than its frames come, and a cell's robots
     interleave theirs (hence not the last one only)."""
     seen = f"_{tag}_{field.upper()}_SEEN"
