@@ -12,9 +12,10 @@ watch.
 Each robot has a ``RobotLink``, its handle on its originator: everything the web side asks of
 it goes through ``run_coroutine_threadsafe``; plain attribute reads (``state``, ``run``,
 ``command``) are single loads under the GIL. The frame callback goes straight to
-``FrameNotifier.publish`` (``robots.frame_notifier``) on the cyclic thread (it is O(1) and
-thread-safe); state changes are handed to the web loop. One robot lost or refused is one
-originator's business: the others run on.
+``FrameNotifier.publish`` (``robots.frame_notifier``) on the cyclic thread (it is O(1), with no
+lock: this thread is the one producer of every robot's frames, and a restarted thread starts only
+once the one before it has ended); state changes are handed to the web loop. One robot lost or
+refused is one originator's business: the others run on.
 
 Supervision: the cyclic thread ending while the service has not asked it to (an exception out
 of its loop, a bug) is never silent: it is logged, every robot's link reports LOST with the
