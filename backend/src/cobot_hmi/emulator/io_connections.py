@@ -460,6 +460,11 @@ class IoConnections:
                     self._stop_stream(conn)
             if self._wake_period_s is not None:
                 self._queue_t2o_until(now + self._wake_period_s + HORIZON_MARGIN_S, now)
+            if self._ticker is not None:
+                # The wake-up waited for the robot's next change (the streams needed nothing):
+                # the queue just built lasts one wake period, so the next must come by then.
+                self._ticker.cancel()
+                self._ticker = asyncio.get_running_loop().call_soon(self._tick)
             return
         for conn in self._by_o2t.values():
             if conn.t2o_streaming:
