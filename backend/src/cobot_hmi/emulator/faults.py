@@ -2,7 +2,9 @@
 
 Fault hooks the target honours on every T→O packet and Forward Open. The emulator's control
 API (issue 4) sets them; tests set them directly. Plain mutable fields: the target reads them
-each time, so a change takes effect on the next packet.
+each time, so a change takes effect on the next packet built. The control API also tells the
+target at once; one set directly while T→O is a periodic stream of the pump waits for the class
+1 engine's next wake-up (at the robot's next change of its own: up to its monitoring period).
 """
 
 from __future__ import annotations
