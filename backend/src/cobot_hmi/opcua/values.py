@@ -161,7 +161,7 @@ _DISABLED: Final = ua.MonitoringMode.Disabled
 _STATUS_VALUE: Final = ua.DataChangeTrigger.StatusValue
 
 Later = list[Callable[[], Awaitable[None]]]
-"""What a write still has to await once its value is stored and queued (``RobotValues._put``)."""
+"""What a write still has to await once its value is stored and queued (``RobotValues._store``)."""
 
 
 def _status_or_value_changed(old: ua.DataValue | None, new: ua.DataValue) -> bool:
@@ -253,8 +253,10 @@ class RobotValues:
         self.nodes = nodes
         self._frame_values: list[object] = [None] * len(nodes.frame)
         self._frame_reads = [binding.read for binding in nodes.frame]
+        self._frame_attributes: list[Any] = [None] * len(nodes.frame)
         self._command_values: list[object] = [None] * len(nodes.command)
         self._command_reads = [binding.read for binding in nodes.command]
+        self._command_attributes: list[Any] = [None] * len(nodes.command)
         self._machine_states: list[MachineState | None] = [None] * len(nodes.state_machines)
         self._analog_types: list[str | None] = [None] * len(nodes.analog_units)
         self._frame_status: ua.StatusCode | None = None
@@ -271,16 +273,20 @@ class RobotValues:
         self._now = _utc(time.time())
         """The ServerTimestamp of this update's writes."""
 
-    def _put(self, node: ua.NodeId, value: SharedDataValue) -> Later | None:
-        """One value as asyncua's own ``write_attribute_value`` stores it (the value, then each
-        monitored item's callback), without its per-write checks: every variable here is
-        written with its own data type, and a Bad status always with a Null value. asyncua's
-        monitored items are told at once (``monitored_change``); what must still be awaited
-        (a publishing at once, another callback) is returned, in order, for this write's
-        caller to await before the next write (``None``, the rule: nothing)."""
+    def _attribute(self, node: ua.NodeId) -> Any:
         attribute = self._attributes.get(node)
         if attribute is None:
             attribute = self._attributes[node] = self._aspace[node].attributes[_VALUE]
+        return attribute
+
+    def _store(self, attribute: Any, value: SharedDataValue) -> Later | None:
+        """One value as asyncua's own ``write_attribute_value`` stores it in a variable's
+        value ``attribute`` (the value, then each monitored item's callback), without its
+        per-write checks: every variable here is written with its own data type, and a Bad
+        status always with a Null value. asyncua's monitored items are told at once
+        (``monitored_change``); what must still be awaited (a publishing at once, another
+        callback) is returned, in order, for this write's caller to await before the next
+        write (``None``, the rule: nothing)."""
         self.writes += 1
         attribute.value = value
         attribute.value_callback = None
@@ -304,7 +310,7 @@ class RobotValues:
     async def _write(
         self, node: ua.NodeId, variant: ua.Variant, status: ua.StatusCode, source: datetime
     ) -> None:
-        later = self._put(node, shared_value(variant, status, source, self._now))
+        later = self._store(self._attribute(node), shared_value(variant, status, source, self._now))
         if later:
             await _run(later)
 
@@ -400,7 +406,11 @@ class RobotValues:
         force = self._frame_status is not GOOD
         self._frame_status = GOOD
         await self._changed(
-            self.nodes.frame, self._frame_values, self._frame_reads, frame, source, force=force
+            self.nodes.frame,
+            (self._frame_values, self._frame_reads, self._frame_attributes),
+            frame,
+            source,
+            force=force,
         )
         for index, analog in enumerate(self.nodes.analog_units):
             if not analog.from_command:
@@ -415,22 +425,27 @@ class RobotValues:
     async def _changed(
         self,
         bindings: Sequence[Binding | CommandBinding],
-        values: list[object],
-        reads: list[Callable[[Any], object]],
+        kept: tuple[list[object], list[Callable[[Any], object]], list[Any]],
         record: Frame | CommandImage,
         source: datetime,
         *,
         force: bool = False,
     ) -> None:
-        """Each binding's value read from ``record``; those that differ from ``values`` (all
-        with ``force``) written Good at ``source`` and kept in ``values``."""
-        now, put = self._now, self._put
+        """Each binding's value read from ``record``; those that differ from the values
+        ``kept`` (all with ``force``) written Good at ``source`` and kept. ``kept``: the
+        values, the bindings' reads and their value attributes (found at the first write: no
+        NodeId hashed per write)."""
+        values, reads, attributes = kept
+        now, store = self._now, self._store
         for index, value in enumerate([read(record) for read in reads]):
             if force or value != values[index]:
                 values[index] = value
                 binding = bindings[index]
+                attribute = attributes[index]
+                if attribute is None:
+                    attribute = attributes[index] = self._attribute(binding.node)
                 variant = scalar_variant(value, binding.variant)
-                later = put(binding.node, shared_value(variant, GOOD, source, now))
+                later = store(attribute, shared_value(variant, GOOD, source, now))
                 if later:
                     await _run(later)
 
@@ -449,7 +464,10 @@ class RobotValues:
 
     async def _command(self, image: CommandImage, source: datetime) -> None:
         await self._changed(
-            self.nodes.command, self._command_values, self._command_reads, image, source
+            self.nodes.command,
+            (self._command_values, self._command_reads, self._command_attributes),
+            image,
+            source,
         )
         for index, analog in enumerate(self.nodes.analog_units):
             if analog.from_command:
