@@ -11,10 +11,14 @@ predecessor at the same load. In the "on" phases one client (asyncua, on a threa
 process) is subscribed to every variable of every robot (the whole DeviceSet below the robots'
 objects) at 100 ms sampling and publishing.
 
+With ``--historian`` the client subscribes as ``bench/fanout --every-door``'s historian does
+(``fanout_historian``: sampling and publishing every 1000 ms, a queue of one per item) instead.
+
 Printed: notifications/s received; latency frame → client, p50/p99 (each notification's
 SourceTimestamp, the frame's kernel receive time in the service, to its arrival here: both
 clocks are this machine's); the service's CPU % of a core on and off and their difference per
-robot (the server's cost); per robot the cyclic receive interval p99 (the
+robot (the server's cost), and that cost per notification received and per robot-frame (the
+robots' frames in the phase, one an RPI each); per robot the cyclic receive interval p99 (the
 ``frame_receive_interval_seconds`` histogram between two scrapes) on and off, and their ratio;
 each for the baseline too when there is one. Targets: p99 ≤ 150 ms, ≤ 5 % of a core per robot,
 ratio ≤ 1.1.
@@ -46,6 +50,8 @@ from service_bench_support import (
 from sparkplug_bench import HISTOGRAM, _ready, _scrape, percentile
 
 SAMPLING_MS = 100.0
+HISTORIAN_MS = 1000.0
+"""``--historian``: the sampling and publishing interval of bench/fanout's historian."""
 BROWSE_BATCH = 100
 WATCHDOG_S = 10.0
 """The client's health probe: a Read of the server state every this often, answered within it
@@ -110,7 +116,11 @@ async def variables(client: Client, names: list[str]) -> list[Any]:
 class Subscriber:
     """The asyncua client on a thread and loop of its own, subscribed during an "on" phase."""
 
-    def __init__(self, endpoint: str, names: list[str], received: Received) -> None:
+    def __init__(
+        self, endpoint: str, names: list[str], received: Received, historian: bool = False
+    ) -> None:
+        self._interval_ms = HISTORIAN_MS if historian else SAMPLING_MS
+        self._queue_size = 1 if historian else 0  # 0: asyncua's default (the server's largest)
         self._endpoint = endpoint
         self._names = names
         self._received = received
@@ -136,10 +146,13 @@ class Subscriber:
         self._client = client
         nodes = await variables(client, self._names)
         self.variables = len(nodes)
-        subscription = await client.create_subscription(SAMPLING_MS, self._received)
+        interval_ms = self._interval_ms
+        subscription = await client.create_subscription(interval_ms, self._received)
         for start in range(0, len(nodes), 500):
             await subscription.subscribe_data_change(
-                nodes[start : start + 500], sampling_interval=SAMPLING_MS
+                nodes[start : start + 500],
+                sampling_interval=interval_ms,
+                queuesize=self._queue_size,
             )
 
     def stop(self) -> None:
@@ -190,7 +203,7 @@ def run_phase(
         source=condition.source,
     )
     base_url = f"http://{cell.service_host}:{http_port}"
-    subscriber = Subscriber(endpoint, names, received) if on else None
+    subscriber = Subscriber(endpoint, names, received, args.historian) if on else None
     try:
         _wait(lambda: _ready(base_url, names), "service", service, 120)
         if subscriber is not None:
@@ -233,6 +246,11 @@ def main() -> int:
     parser.add_argument("--seconds", type=float, default=60.0, help="of each condition, in all")
     parser.add_argument("--cycles", type=int, default=3, help="off/on alternations")
     parser.add_argument("--settle-seconds", type=float, default=3.0)
+    parser.add_argument(
+        "--historian",
+        action="store_true",
+        help=f"subscribe as bench/fanout's historian: every {HISTORIAN_MS:g} ms, queue 1",
+    )
     parser.add_argument(
         "--robot-niceness",
         type=int,
@@ -289,7 +307,9 @@ def report(
         f"({', '.join(c.label for c in conditions)}; OPC UA monitoring 10 Hz), one client "
         f"subscribed to every variable "
         f"({max(p.variables for p in phases)}) "
-        f"at {SAMPLING_MS:g} ms; emulators at nice {args.robot_niceness}; {os.cpu_count()} CPUs, "
+        f"at {HISTORIAN_MS if args.historian else SAMPLING_MS:g} ms"
+        f"{', queue 1' if args.historian else ''}; emulators at nice {args.robot_niceness}; "
+        f"{os.cpu_count()} CPUs, "
         "load average " + ", ".join(f"{x:.2f}" for x in os.getloadavg())
     )
     print(f"  service CPU without OPC UA: {service_off:.1f} % of a core")
@@ -313,6 +333,13 @@ def report(
             f"    service CPU {cpu_percent(condition):.1f} % of a core: the server "
             f"{server:.1f} % ({server / args.robots:.1f} % per robot, target ≤ 5 %); "
             f"the client (this process): {bench:.1f} %"
+        )
+        server_s = server / 100 * on_s
+        robot_frames = args.robots * on_s * 1000 / args.rpi_ms
+        print(
+            f"    the server's CPU per notification received "
+            f"{server_s / max(1, received.notifications) * 1e6:.1f} µs, per robot-frame "
+            f"{server_s / robot_frames * 1e6:.1f} µs"
         )
         for name in names:
             p99_on = max(p.p99_s[name] for p in on)
