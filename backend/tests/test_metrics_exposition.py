@@ -62,6 +62,10 @@ ADDED_SINCE_58F13A2: dict[str, Any] = {
         "type": "counter",
         "samples": {"cobot_hmi_consumer_dropped_frames_total": ["consumer,robot"]},
     },
+    "cobot_hmi_sparkplug_buffer_set_aside": {
+        "type": "counter",
+        "samples": {"cobot_hmi_sparkplug_buffer_set_aside_total": [""]},
+    },
     "cobot_hmi_cyclic_pump_datagrams_sent": {
         "type": "counter",
         "samples": {"cobot_hmi_cyclic_pump_datagrams_sent_total": [""]},

@@ -412,6 +412,7 @@ def test_metrics_view_reads_the_parts(tmp_path: Path) -> None:
     publisher.count(None, "NBIRTH", 100)
     publisher.count(device, "DBIRTH", 2000)
     connection.reconnects, replayer.replayed, reports.tick_seconds = 2, 7, 0.5
+    buffer.records_set_aside = 3
     commands.commands["done"] += 1
     commands.bad_commands, host.malformed = 1, 2
     view = NodeMetrics(
@@ -436,6 +437,7 @@ def test_metrics_view_reads_the_parts(tmp_path: Path) -> None:
         "sparkplug_buffered_messages",
         "sparkplug_buffered_bytes",
         "sparkplug_buffer_dropped_total",
+        "sparkplug_buffer_set_aside_total",
         "sparkplug_replayed_total",
         "sparkplug_frames_dropped_total",
         "sparkplug_tick_seconds_total",
@@ -453,6 +455,7 @@ def test_metrics_view_reads_the_parts(tmp_path: Path) -> None:
         2000.0,
     )
     assert families["sparkplug_replayed_total"] == [({}, 7.0)]
+    assert families["sparkplug_buffer_set_aside_total"] == [({}, 3.0)]
     assert families["sparkplug_tick_seconds_total"] == [({}, 0.5)]
     assert families["sparkplug_commands_total"] == [
         ({"outcome": "done"}, 1.0),

@@ -131,7 +131,7 @@ class NodeMetrics:
         ]
 
     def _buffer_families(self) -> list[MetricFamily]:
-        """The disk buffer: held, dropped, replayed."""
+        """The disk buffer: held, dropped, set aside, replayed."""
         return [
             _single(
                 "sparkplug_buffered_messages",
@@ -150,6 +150,13 @@ class NodeMetrics:
                 "counter",
                 "buffered DDATA dropped (buffer full or off)",
                 self.buffer.records_dropped,
+            ),
+            _single(
+                "sparkplug_buffer_set_aside_total",
+                "counter",
+                "buffered DDATA set aside unreplayed (a segment whose catalogue cannot be read), "
+                "kept in the buffer's aside/ folder",
+                self.buffer.records_set_aside,
             ),
             _single(
                 "sparkplug_replayed_total",
