@@ -17,6 +17,7 @@ import contextlib
 import dataclasses
 import socket
 from collections.abc import AsyncIterator
+from pathlib import Path
 
 import pytest
 
@@ -36,7 +37,14 @@ from cobot_hmi.enip.connection_manager import (
 from cobot_hmi.enip.cpf import CpfItem, ItemType
 from cobot_hmi.enip.encapsulation import Command
 from cobot_hmi.layout import ROBOT_STATES
-from cobot_hmi.scanner.io_port import BUSY_BATCH_S, HURRY_MIN_S, IoPort, hurry_window_s
+from cobot_hmi.scanner.io_port import (
+    BUSY_BATCH_S,
+    HURRY_MIN_S,
+    RECEIVE_BUFFER_BYTES,
+    RING_SLOTS,
+    IoPort,
+    hurry_window_s,
+)
 from cobot_hmi.scanner.originator import ConnectionState, Originator, OriginatorSettings
 from cobot_hmi.udp_endpoint import UdpEndpoint
 from conftest import _next_host as next_host
@@ -119,10 +127,11 @@ async def test_port_dispatches_by_connection_id_and_source(plc_host: str) -> Non
 
 
 async def test_port_batch_shortens_as_connections_add_up(plc_host: str) -> None:
-    """Eight connections at RPI 2 ms bring 4000 packets a second: a 40 ms batch would fill 160
-    of the pump ring's 256 slots, so the port wakes sooner (a quarter of the ring per batch,
-    16 ms); one connection asking for its T→O at once (an RPI of 10 ms or more) makes it wake
-    per datagram while the port brings few packets, every ``BUSY_BATCH_S`` on a busy port."""
+    """Eight connections at RPI 0.2 ms bring 40 000 packets a second: a 40 ms batch would fill
+    1600 of the pump ring's 4096 slots, so the port wakes sooner (a quarter of the ring per
+    batch, 25.6 ms); one connection asking for its T→O at once (an RPI of 10 ms or more) makes
+    it wake per datagram while the port brings few packets, every ``BUSY_BATCH_S`` on a busy
+    port."""
     port = IoPort(plc_host, 0)
     await port.open()
     try:
@@ -132,6 +141,7 @@ async def test_port_batch_shortens_as_connections_add_up(plc_host: str) -> None:
             ids[0], "127.0.0.1", consumers[0], batch_s=0.04, silence_s=0.0, packets_per_s=500
         )
         assert port.batch_s == pytest.approx(0.04)
+        assert RING_SLOTS == 4096
         for connection_id, consumer in zip(ids[1:8], consumers[1:8], strict=True):
             port.route(
                 connection_id,
@@ -139,13 +149,13 @@ async def test_port_batch_shortens_as_connections_add_up(plc_host: str) -> None:
                 consumer,
                 batch_s=0.04,
                 silence_s=0.032,
-                packets_per_s=500,
+                packets_per_s=5000,
             )
-        assert port.batch_s == pytest.approx(256 * 0.25 / 4000)
+        assert port.batch_s == pytest.approx(RING_SLOTS * 0.25 / (500 + 7 * 5000))
         port.route(
             ids[8], "127.0.0.1", consumers[8], batch_s=0.0, silence_s=0.16, packets_per_s=100
         )
-        assert port.batch_s == pytest.approx(BUSY_BATCH_S), "4100 packets/s: a busy port"
+        assert port.batch_s == pytest.approx(BUSY_BATCH_S), "a busy port"
         for connection_id in ids[:8]:
             port.unroute(connection_id)
         assert port.batch_s == 0.0, "100 packets/s, one connection at once: per datagram"
@@ -154,6 +164,7 @@ async def test_port_batch_shortens_as_connections_add_up(plc_host: str) -> None:
             ids[0], "127.0.0.1", consumers[0], batch_s=0.04, silence_s=0.0, packets_per_s=500
         )
         assert port.batch_s == pytest.approx(0.04)
+        assert RING_SLOTS == 4096
     finally:
         port.close()
 
@@ -546,3 +557,22 @@ async def test_a_hurried_busy_port_reads_per_datagram_for_its_window_then_batche
         port.close()
     assert hurry_window_s(0.002) == pytest.approx(HURRY_MIN_S)
     assert hurry_window_s(0.1) == pytest.approx(0.8), "eight RPIs of a slow connection"
+
+
+def _receive_buffer_cap_bytes() -> int:
+    return int(Path("/proc/sys/net/core/rmem_max").read_text())
+
+
+async def test_the_port_asks_the_kernel_for_a_receive_buffer_a_cell_needs(plc_host: str) -> None:
+    """The socket's receive buffer is what the port asked for, within the system's cap (Linux
+    reports twice the size asked: its bookkeeping), not the ~200 KiB default."""
+    port = IoPort(plc_host, 0)
+    await port.open()
+    try:
+        sock = port.udp._sock
+        assert sock is not None
+        granted = sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+        cap = _receive_buffer_cap_bytes()
+        assert granted >= 2 * min(RECEIVE_BUFFER_BYTES, cap)
+    finally:
+        port.close()

@@ -84,12 +84,17 @@ class UdpEndpoint:
         receive_size: int,
         kernel_timestamps: bool = True,
         on_batch: Callable[[], None] | None = None,
+        ring_slots: int = RING_SLOTS,
+        receive_buffer_bytes: int | None = None,
     ) -> None:
         """``receive_size``: one more than the longest datagram the owner accepts (a longer one
         then arrives as exactly this long, still too long). Every datagram carries the kernel's
         receive time; ``kernel_timestamps`` False uses the pump's read time instead.
         ``on_batch``: called after each wake-up ``watch`` asked for (a batch, or a silence),
-        once what came has been handed on."""
+        once what came has been handed on. ``ring_slots``: datagrams the pump holds for its
+        owner (an endpoint shared by many connections wants more). ``receive_buffer_bytes``:
+        the socket's kernel receive buffer asked for (the kernel caps it at
+        ``net.core.rmem_max``); ``None`` keeps the system's default."""
         self._loop = asyncio.get_running_loop()
         self._on_packet = on_packet
         self._on_batch = on_batch
@@ -101,8 +106,10 @@ class UdpEndpoint:
             sock.setblocking(False)
             if kernel_timestamps:
                 sock.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
+            if receive_buffer_bytes is not None:
+                sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, receive_buffer_bytes)
             sock.bind((host, port))
-            pump = pump_type(sock.fileno(), QUEUE_SLOTS, receive_size, RING_SLOTS, receive_size)
+            pump = pump_type(sock.fileno(), QUEUE_SLOTS, receive_size, ring_slots, receive_size)
         except (OSError, ValueError):
             sock.close()
             raise

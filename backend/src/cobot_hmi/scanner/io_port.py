@@ -42,14 +42,23 @@ from typing import Protocol
 from cobot_hmi.enip import io
 from cobot_hmi.enip.encapsulation import ENIP_UDP_PORT
 from cobot_hmi.enip.errors import EnipError
-from cobot_hmi.udp_endpoint import RING_SLOTS, UdpEndpoint
+from cobot_hmi.udp_endpoint import UdpEndpoint
 
 log = logging.getLogger(__name__)
 
+RING_SLOTS = 4096
+"""Received datagrams the pump holds for us: one port serves every robot of the cell, so a
+stall of our thread (the GIL held by the web loop, the machine busy) lasting 1.3 s at 32 robots
+at RPI 10 ms loses nothing (the pump's default, 256, held 80 ms of such a cell); 6 MiB of slots."""
+RECEIVE_BUFFER_BYTES = 4 * 1024 * 1024
+"""The socket's kernel receive buffer asked for: the kernel's default (about 200 KiB, some 160
+datagrams) was the shorter of the two while the pump's own thread waited for a core; capped
+by ``net.core.rmem_max``."""
+
 RING_SHARE_PER_BATCH = 0.25
 """At most this share of the pump's receive ring fills between two reads of ours: the rest is
-what a stall of our loop may last before the ring gives up its oldest datagrams (8 connections
-at RPI 2 ms fill 256 slots in 64 ms; a 40 ms batch would leave a stall of only 24 ms)."""
+what a stall of our loop may last before the ring gives up its oldest datagrams (32 connections
+at RPI 2 ms fill 4096 slots in 256 ms; a batch then leaves three quarters of that for a stall)."""
 
 
 PER_DATAGRAM_MAX_PER_S = 500.0
@@ -148,6 +157,8 @@ class IoPort:
                 self._received,
                 receive_size=io.MAX_DATAGRAM + 1,
                 on_batch=self._batch_read,
+                ring_slots=RING_SLOTS,
+                receive_buffer_bytes=RECEIVE_BUFFER_BYTES,
             )
         except OSError as error:
             raise OSError(f"cannot bind UDP {self.local_host}:{self.udp_port}: {error}") from None
