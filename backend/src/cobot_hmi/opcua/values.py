@@ -437,17 +437,22 @@ class RobotValues:
         NodeId hashed per write)."""
         values, reads, attributes = kept
         now, store = self._now, self._store
-        for index, value in enumerate([read(record) for read in reads]):
-            if force or value != values[index]:
-                values[index] = value
-                binding = bindings[index]
-                attribute = attributes[index]
-                if attribute is None:
-                    attribute = attributes[index] = self._attribute(binding.node)
-                variant = scalar_variant(value, binding.variant)
-                later = store(attribute, shared_value(variant, GOOD, source, now))
-                if later:
-                    await _run(later)
+        fresh = [read(record) for read in reads]
+        changed = (
+            range(len(fresh))
+            if force
+            else [i for i, (new, old) in enumerate(zip(fresh, values, strict=True)) if new != old]
+        )
+        for index in changed:
+            value = values[index] = fresh[index]
+            binding = bindings[index]
+            attribute = attributes[index]
+            if attribute is None:
+                attribute = attributes[index] = self._attribute(binding.node)
+            variant = scalar_variant(value, binding.variant)
+            later = store(attribute, shared_value(variant, GOOD, source, now))
+            if later:
+                await _run(later)
 
     async def _state_machines(self, frame: Frame | None, source: datetime) -> None:
         """Each state machine's CurrentState and its Id, when the state changed: Good even
