@@ -26,6 +26,7 @@ from typing import Any, Final
 from asyncua import Server, ua
 from asyncua.server.internal_subscription import InternalSubscription
 from asyncua.server.monitored_item_service import MonitoredItemService
+from asyncua.ua import uatypes
 
 from cobot_hmi.arms import ARMS, Arm
 from cobot_hmi.codec import CommandImage, Frame
@@ -131,7 +132,7 @@ def shared_value(
     return value
 
 
-_ASYNCUA_WIN_EPOCH: Final = ua.datetime_to_win_epoch
+_ASYNCUA_WIN_EPOCH: Final = uatypes.datetime_to_win_epoch  # its own module's: never this one
 _WIN_EPOCHS: dict[datetime, int] = {}
 _WIN_EPOCHS_KEPT: Final = 4096
 
