@@ -149,10 +149,10 @@ async def _ticks(node: Any, frames: list[Any], rounds: int, per_tick: int) -> di
     return {"ticks_ddata": ddata, "ticks_us_per_ddata": cpu / ddata * 1e6}
 
 
-async def _feed(node: Any, frames: list[Any], seconds: float, per_wake: int) -> float:
+async def _feed(node: Any, frames: list[Any], seconds: float, per_wake: int) -> tuple[float, float]:
     """Each robot ``per_wake`` frames every ``per_wake`` RPIs for ``seconds``, all robots'
     together (as the cell's notifiers wake the loop: once per ``ws_batch_ms``, 50 ms by
-    default): the main thread's CPU seconds."""
+    default): the CPU seconds of the main thread and of the process (paho's thread too)."""
     loop = asyncio.get_running_loop()
     devices = list(node.devices.values())
     records = [
@@ -160,14 +160,14 @@ async def _feed(node: Any, frames: list[Any], seconds: float, per_wake: int) -> 
         for k in range(len(devices))
     ]
     i = 0
-    started = time.thread_time()
+    started = time.thread_time(), time.process_time()
     start = loop.time()
     while (now := loop.time()) < start + seconds:
         for k, device in enumerate(devices):
             device.on_frames(device.device_name, records[k][i : i + per_wake])
         i += per_wake
         await asyncio.sleep(max(0.0, start + i * RPI_S - now))
-    return time.thread_time() - started
+    return time.thread_time() - started[0], time.process_time() - started[1]
 
 
 async def _loop(node: Any, frames: list[Any], seconds: float, per_wake: int) -> dict[str, float]:
@@ -180,11 +180,16 @@ async def _loop(node: Any, frames: list[Any], seconds: float, per_wake: int) -> 
     ddata = _ddata(node.devices) - before
     ticks = node.reports.tick_seconds - ticks_before
     await node.reports.stop()
+    robots = len(node.devices)
     return {
         "loop_ddata": ddata,
-        "loop_us_per_ddata": (busy - idle) / ddata * 1e6,
+        "loop_us_per_ddata": (busy[0] - idle[0]) / ddata * 1e6,
+        "process_us_per_ddata": (busy[1] - idle[1]) / ddata * 1e6,
         "loop_tick_us_per_ddata": ticks / ddata * 1e6,
-        "feed_us_per_s": idle / seconds * 1e6,
+        "feed_us_per_s": idle[0] / seconds * 1e6,
+        "loop_us_per_robot_s": (busy[0] - idle[0]) / seconds / robots * 1e6,
+        "process_us_per_robot_s": (busy[1] - idle[1]) / seconds / robots * 1e6,
+        "ddata_per_robot_s": ddata / seconds / robots,
     }
 
 
@@ -269,6 +274,7 @@ def _parent(args: argparse.Namespace) -> None:
         ("ticks_us_per_ddata", "tick (tight loop)"),
         ("loop_tick_us_per_ddata", "its ticks in the node's loop (its counter)"),
         ("loop_us_per_ddata", "the node's loop, feeding subtracted"),
+        ("process_us_per_ddata", "the process (paho's thread too), feeding subtracted"),
     ):
         old = statistics.median(r[key] for r in results["baseline"])
         new = statistics.median(r[key] for r in results["tree"])
@@ -279,6 +285,14 @@ def _parent(args: argparse.Namespace) -> None:
             + " / "
             + ", ".join(f"{r[key]:.1f}" for r in results["tree"])
         )
+    for key, what in (
+        ("loop_us_per_robot_s", "the node's loop, feeding subtracted, CPU µs per robot-second"),
+        ("process_us_per_robot_s", "the process, feeding subtracted, CPU µs per robot-second"),
+        ("ddata_per_robot_s", "DDATA per robot-second in the node's loop"),
+    ):
+        old = statistics.median(r[key] for r in results["baseline"])
+        new = statistics.median(r[key] for r in results["tree"])
+        print(f"  {what}: {args.baseline} {old:.1f}, this tree {new:.1f} (ratio {new / old:.2f})")
     print(
         "  DDATA per child (ticks, loop): "
         + ", ".join(f"{int(r['ticks_ddata'])}+{int(r['loop_ddata'])}" for r in results["tree"])

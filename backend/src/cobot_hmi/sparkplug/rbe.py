@@ -14,7 +14,7 @@ Imports only the codec, ``catalogue`` and ``payload``.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Sequence
 from itertools import chain
 from operator import itemgetter
 from typing import Any, Final
@@ -26,6 +26,10 @@ from cobot_hmi.sparkplug.payload import MetricValue
 
 Change = tuple[int, MetricValue, int]
 """``(metric offset, value, timestamp ms)``."""
+
+
+_FRAME: Final = itemgetter(2)
+"""A ``FrameRecord``'s frame."""
 
 
 def _getter(fields: list[str]) -> Any:
@@ -67,9 +71,10 @@ class Reporter:
         self._discrete_spans = spans
         self._discrete = _getter([s.field for s in spans])
         self._analog = _getter([s.field for s in catalogue.analog_spans])
-        self._analog_offsets = [
+        self.analog_offsets = [
             span.first + i for span in catalogue.analog_spans for i in range(span.count)
         ]
+        """The metric offset of each analog value, in the order ``analog_moved`` gives them."""
         self._deadbands = catalogue.analog_deadbands()
         self._thresholds = [threshold(d) for d in self._deadbands]
         self._analog_positions = range(len(self._deadbands))
@@ -86,17 +91,19 @@ class Reporter:
     def _flat_analog(self, frame: Frame) -> list[float]:
         return list(chain.from_iterable(self._analog(frame)))
 
-    def discrete_changes(self, items: Iterable[FrameRecord]) -> list[Change]:
+    def discrete_changes(self, items: Sequence[FrameRecord]) -> list[Change]:
         """Every discrete transition across ``items`` (oldest first), each at its frame's time."""
         changes: list[Change] = []
         last = self._last_discrete
-        for _, received_at, frame, _, _ in items:
-            values = self._discrete(frame)
+        seen = list(map(self._discrete, map(_FRAME, items)))
+        if last is not None and seen.count(last) == len(seen):
+            return changes  # the common case, every frame compared in one call
+        for record, values in zip(items, seen, strict=True):
             if last is None:
                 last = values
                 continue
-            if values != last:  # the common case, one tuple comparison
-                stamp = int(received_at * 1000)
+            if values != last:
+                stamp = int(record[1] * 1000)
                 for span, new, old in zip(self._discrete_spans, values, last, strict=True):
                     if new == old:
                         continue
@@ -114,35 +121,36 @@ class Reporter:
     def analog_changes(self, frame: Frame, received_at: float) -> list[Change]:
         """Analog metrics of ``frame`` that moved by their deadband since last reported."""
         stamp = int(received_at * 1000)
+        current, moved_at = self.analog_moved(frame)
+        offsets = self.analog_offsets
+        return [(offsets[i], current[i], stamp) for i in moved_at]
+
+    def analog_moved(self, frame: Frame) -> tuple[list[float], list[int]]:
+        """The analog values of ``frame`` and which of them (their positions in it, see
+        ``analog_offsets``) moved by their deadband since last reported: reported from now."""
         current = self._flat_analog(frame)
         reported = self._reported_analog
         if not reported:
             self._reported_analog = current
-            return []
-        total = sum(current) + sum(reported)
-        if math.isnan(total):  # a NaN among them (or infinities of both signs): value by value
-            return self._moved_changes(current, stamp)
-        # No NaN: ``moved`` is one comparison per value, made in one comprehension (a call of
-        # ``moved`` per value was the most of a tick's rbe time, py-spy).
-        moved_at = [
-            i
-            for i, new, old, at_least in zip(
-                self._analog_positions, current, reported, self._thresholds, strict=True
-            )
-            if abs(new - old) >= at_least
-        ]
+            return current, []
+        if math.isnan(sum(current) + sum(reported)):  # a NaN (or infinities of both signs)
+            moved_at = [
+                i
+                for i, new, old, deadband in zip(
+                    self._analog_positions, current, reported, self._deadbands, strict=True
+                )
+                if moved(new, old, deadband)
+            ]
+        else:
+            # No NaN: ``moved`` is one comparison, here in a comprehension (a call of ``moved``
+            # per value was the most of a tick's rbe time, py-spy).
+            moved_at = [
+                i
+                for i, new, old, at_least in zip(
+                    self._analog_positions, current, reported, self._thresholds, strict=True
+                )
+                if abs(new - old) >= at_least
+            ]
         for i in moved_at:
             reported[i] = current[i]
-        offsets = self._analog_offsets
-        return [(offsets[i], current[i], stamp) for i in moved_at]
-
-    def _moved_changes(self, current: list[float], stamp: int) -> list[Change]:
-        reported = self._reported_analog
-        changes: list[Change] = []
-        for i, (new, old, deadband) in enumerate(
-            zip(current, reported, self._deadbands, strict=True)
-        ):
-            if moved(new, old, deadband):
-                reported[i] = new
-                changes.append((self._analog_offsets[i], new, stamp))
-        return changes
+        return current, moved_at

@@ -81,19 +81,24 @@ class Publisher:
             device.messages[kind] += 1
             device.bytes[kind] += size
 
-    def publish(self, topic: str, payload: Payload, device: Device | None) -> bool:
+    def publish(
+        self, topic: str, payload: Payload, device: Device | None, kind: str | None = None
+    ) -> bool:
         """Number it (``seq``) and send it (QoS 0: paho queues; its thread writes); ``False``
-        (not counted) when paho has no connection to queue it on."""
+        (not counted) when paho has no connection to queue it on. Counted as ``kind`` when
+        given (a robot's live DDATA, the most of them), else by its topic and whether it is
+        historical."""
         if not payload.HasField("seq"):
             payload.seq = self.session.next_seq()
         data = payload.SerializeToString()
         assert self.client is not None
         if not queued(self.client.publish(topic, data, qos=0, retain=False)):
             return False
-        kind = topic.split("/")[2]
-        metrics = payload.metrics
-        if metrics and metrics[0].is_historical:  # (a slice would wrap a list of them)
-            kind += "_historical"
+        if kind is None:
+            kind = topic.split("/")[2]
+            metrics = payload.metrics
+            if metrics and metrics[0].is_historical:  # (a slice would wrap a list of them)
+                kind += "_historical"
         self.count(device, kind, len(data))
         return True
 

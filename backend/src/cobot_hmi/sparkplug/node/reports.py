@@ -12,7 +12,9 @@ import logging
 import math
 import time
 from collections.abc import Iterable, Mapping
+from typing import Final
 
+from cobot_hmi.codec import CommandImage
 from cobot_hmi.layout import O2T_FIELDS
 from cobot_hmi.sparkplug.buffer import DiskBuffer
 from cobot_hmi.sparkplug.catalogue import Catalogue, has_state_names, state_name
@@ -34,6 +36,13 @@ from cobot_hmi.sparkplug.rbe import Change
 from cobot_hmi.sparkplug.topics import MessageType, Topics
 
 log = logging.getLogger(__name__)
+
+_LIVE_DDATA: Final = MessageType.DDATA.value
+"""How the publisher counts a DDATA of this loop (never historical)."""
+
+Moved = tuple[list[float], list[int], int]
+"""The analog values of a robot's newest frame, which of them moved (``Reporter.analog_moved``)
+and the frame's time in ms."""
 
 
 class DeviceReports:
@@ -71,6 +80,14 @@ class DeviceReports:
         ]
         """How a DDATA carries each catalogue metric (by offset); ``None``: with the name of
         its value (``_add_change``)."""
+        # ``_report`` appends the analog values as Float metrics without names itself.
+        assert all(
+            self._writers[span.first + i] is data_metric_writer(DataType.FLOAT)
+            for span in catalogue.analog_spans
+            for i in range(span.count)
+        )
+        self._ddata_topics: dict[str, str] = {}
+        """Each robot's DDATA topic, made once."""
         self._tasks: list[asyncio.Task[None]] = []
         self.tick_seconds = 0.0
         """CPU time of the robots' ticks on the web loop (reports, encoding, publishing calls):
@@ -98,20 +115,22 @@ class DeviceReports:
         web loop at 8 robots, py-spy)."""
         loop = asyncio.get_running_loop()
         devices = list(self.devices.values())
-        last = dict.fromkeys(devices, loop.time())
+        period = self.period_s
+        # When each is due: max(its last tick, its last DDATA) + period, as each is ticked.
+        due = dict.fromkeys(devices, loop.time() + period)
         while True:
-            due = {d: max(last[d], d.reported_at) + self.period_s for d in devices}
             await asyncio.sleep(max(0.0, min(due.values(), default=math.inf) - loop.time()))
             now = loop.time()
             ready = [d for d in devices if due[d] <= now]
             await self._frames_of(d for d in ready if d.robot.connection.down_since is None)
             started = time.thread_time()
             for device in ready:
-                last[device] = loop.time()
+                ticked = loop.time()
                 try:
                     self.tick(device)
                 except Exception:  # a bug here must not end the robot's reports for good
                     log.exception("Sparkplug tick of %s failed", device.device_name)
+                due[device] = max(ticked, device.reported_at) + period
             self.tick_seconds += time.thread_time() - started
 
     async def _frames_of(self, devices: Iterable[Device]) -> None:
@@ -152,17 +171,24 @@ class DeviceReports:
                 self.births.device_birth(device)
             return
         changes: list[EventChange] = list(device.reporter.discrete_changes(items))
+        analog: Moved | None = None
         if items:
             newest = items[-1]
-            changes.extend(device.reporter.analog_changes(newest[2], newest[1]))
-        changes.extend(self._status_changes(device))
-        changes.extend(device.take_event_changes())
-        if changes:
-            self._report(device, changes)
+            values, moved_at = device.reporter.analog_moved(newest[2])
+            if moved_at:
+                analog = (values, moved_at, int(newest[1] * 1000))
+        later: list[EventChange] = [*self._status_changes(device), *device.take_event_changes()]
+        if changes or analog or later:
+            self._report(device, changes, analog, later)
 
     def _read_status(self, device: Device) -> None:
-        with contextlib.suppress(AssertionError):  # no originator yet
-            device.command = device.robot.link.command
+        # A try costs nothing unless it raises (``contextlib.suppress`` made a context a tick).
+        command: CommandImage | None
+        try:
+            command = device.robot.link.command
+        except AssertionError:  # no originator yet
+            command = device.command
+        device.command = command
         holder = device.robot.control.holder
         device.holder = holder.user if holder is not None else ""
 
@@ -193,11 +219,47 @@ class DeviceReports:
             changes.append((self.catalogue.write_reason.offset, reason, now))
         return changes
 
-    def _report(self, device: Device, changes: list[EventChange]) -> None:
-        """A DDATA: published when born, buffered on disk while the broker is away."""
+    def _report(
+        self,
+        device: Device,
+        changes: list[EventChange],
+        analog: Moved | None,
+        later: list[EventChange],
+    ) -> None:
+        """A DDATA (the discrete ``changes``, the ``analog`` values that moved, the ``later``
+        changes, in this order): published when born, buffered on disk while the broker is
+        away."""
         # The payload's time and the rate's reference are one instant.
         device.reported_at = asyncio.get_running_loop().time()
         payload = make_payload(now_ms(), None)
+        if changes:
+            self._add_changes(payload, device, changes)
+        if analog is not None:
+            # Analog metrics are Float without names (the catalogue's, checked when made):
+            # appended here as ``add_metric`` would, in one protobuf call each.
+            values, moved_at, stamp = analog
+            add = payload.metrics.add
+            base = device.alias_base
+            offsets = device.reporter.analog_offsets
+            for i in moved_at:
+                add(alias=base + offsets[i], timestamp=stamp, float_value=values[i])
+        if later:
+            self._add_changes(payload, device, later)
+        topic = self._ddata_topics.get(device.device_name)
+        if topic is None:
+            topic = self.topics.device_topic(MessageType.DDATA, device.device_name)
+            self._ddata_topics[device.device_name] = topic
+        if self.status.active and device.born:
+            if self.publisher.publish(topic, payload, device, _LIVE_DDATA):
+                return
+            # paho knows the connection is gone and this loop is told next: keep it.
+            payload.ClearField("seq")
+        elif self.status.active:
+            return  # not born on this connection yet: its DBIRTH will carry the values
+        if self.buffer.append(topic, payload.SerializeToString()):
+            device.messages["DDATA_buffered"] += 1
+
+    def _add_changes(self, payload: Payload, device: Device, changes: list[EventChange]) -> None:
         metrics = payload.metrics
         writers = self._writers
         known = len(writers)
@@ -208,16 +270,6 @@ class DeviceReports:
                 write(metrics, base + offset, stamp, value)
             else:
                 self._add_change(payload, device, offset, value, stamp)
-        topic = self.topics.device_topic(MessageType.DDATA, device.device_name)
-        if self.status.active and device.born:
-            if self.publisher.publish(topic, payload, device):
-                return
-            # paho knows the connection is gone and this loop is told next: keep it.
-            payload.ClearField("seq")
-        elif self.status.active:
-            return  # not born on this connection yet: its DBIRTH will carry the values
-        if self.buffer.append(topic, payload.SerializeToString()):
-            device.messages["DDATA_buffered"] += 1
 
     @staticmethod
     def _add_change(
