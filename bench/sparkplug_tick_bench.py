@@ -11,8 +11,11 @@ default deadbands), publishing through a real paho client into a local Mosquitto
   and tick (10: the node's default 10 DDATA/s per robot at RPI 10 ms): the main thread's CPU
   per DDATA (the rbe comparison, the payload, its serialisation, paho's ``publish`` call);
 - loop: the node's own task (``DeviceReports._devices_loop``) for ``--loop-seconds`` with each
-  robot fed a frame every 10 ms by a task on the same loop, its CPU (the main thread's) per
-  DDATA less that of the feeding alone, measured in the same child just before.
+  robot fed ``--frames-per-wake`` frames every as many RPIs, all robots together (as the
+  cell's notifiers wake the web loop), by a task on the same loop: the CPU of the main thread
+  (the web loop's) and of the process (paho's network thread too) per DDATA and per
+  robot-second, less that of the feeding alone, measured in the same child just before; the
+  node's own counter of its ticks' CPU; DDATA per robot-second (the cadence).
 
 The conditions alternate ``--cycles`` times (the machine's other load drifts; both must see it);
 the load average is printed with each. Run by hand:
