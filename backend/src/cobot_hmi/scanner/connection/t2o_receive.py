@@ -187,15 +187,7 @@ class T2OReceiver:
                 self.malformed += 1
                 return
             link.last_payload = (payload, frame)
-        # ``_count_frame``, inline (per frame on the cyclic thread).
-        previous = link.last_frame_at
-        link.last_frame_at = arrived
-        if previous is not None:
-            interval_s = arrived - previous
-            self._window.add(interval_s * 1e3)
-            if interval_s > self._late_s:
-                self.late += 1
-        self.frames += 1
+        self._count_frame(link, arrived)
         self.latest = (frame, received_at)
         if not self._seeded:
             self._seeded = True
