@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from types import SimpleNamespace
 from typing import TYPE_CHECKING, cast
 
 import pytest
@@ -20,7 +19,7 @@ from hypothesis import strategies as st
 
 from cobot_hmi.codec import Frame
 from cobot_hmi.emulator.robot.simulated import RobotSettings, SimulatedRobot
-from cobot_hmi.service.robots.frame_notifier import FrameNotifier, FrameRecord
+from cobot_hmi.service.robots.frame_notifier import FrameRecord
 from cobot_hmi.service.service_settings import DEFAULT_DEADBANDS
 from cobot_hmi.sparkplug.buffer import DiskBuffer
 from cobot_hmi.sparkplug.catalogue import Catalogue, MetricDef, Role, state_name
@@ -42,22 +41,12 @@ from cobot_hmi.sparkplug.payload import (
 from cobot_hmi.sparkplug.rbe import moved, threshold
 from cobot_hmi.sparkplug.session import NodeSession
 from cobot_hmi.sparkplug.topics import Topics
+from sparkplug_parts_support import device_of
 
 if TYPE_CHECKING:
-    from cobot_hmi.service.robots.robot import RobotRuntime
+    pass
 
 FRAMES_PER_TICK = 10
-
-
-class StandInRobot:
-    """What a ``Device`` and the reports read of a robot (as ``test_sparkplug_node_parts``)."""
-
-    def __init__(self, name: str) -> None:
-        self.name = name
-        self.frames = FrameNotifier(name)
-        self.connection = SimpleNamespace(down_since=None, connects=1)
-        self.link = SimpleNamespace(command=None)
-        self.control = SimpleNamespace(holder=None)
 
 
 def demo_frames(count: int) -> list[Frame]:
@@ -175,7 +164,7 @@ async def test_ddata_bytes_as_the_plain_way_builds_them(
     tmp_path: Path, deadbands: dict[str, float]
 ) -> None:
     catalogue = Catalogue(deadbands)
-    device = Device(cast("RobotRuntime", StandInRobot("m1013")), 2, catalogue)
+    device = device_of("m1013", catalogue, number=2)
     buffer = DiskBuffer(tmp_path / "buffer", 64 << 20)
     reports = reports_of(catalogue, device, buffer, tmp_path)
     frames = demo_frames(2400)

@@ -12,7 +12,6 @@ from collections.abc import AsyncIterator, Iterator
 from contextlib import asynccontextmanager, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from types import SimpleNamespace
 from typing import TYPE_CHECKING, cast
 
 import orjson
@@ -21,7 +20,7 @@ import pytest
 
 from cobot_hmi.codec import Frame
 from cobot_hmi.emulator.static_robot import standing_frame
-from cobot_hmi.service.robots.frame_notifier import FrameNotifier, FrameRecord
+from cobot_hmi.service.robots.frame_notifier import FrameRecord
 from cobot_hmi.sparkplug.buffer import DiskBuffer
 from cobot_hmi.sparkplug.catalogue import ALIAS_STRIDE, BD_SEQ, Catalogue
 from cobot_hmi.sparkplug.mqtt_client import BrokerAddress, ClientOptions, make_client
@@ -37,31 +36,16 @@ from cobot_hmi.sparkplug.payload import DataType, add_metric, make_payload
 from cobot_hmi.sparkplug.session import NodeSession
 from cobot_hmi.sparkplug.topics import MessageType, Topics
 from mosquitto_support import Broker, Subscriber, encode_command, mosquitto, needs_mosquitto
+from sparkplug_parts_support import StandInRobot, device_of
 from sparkplug_support import BOOLEAN
 from waiting import eventually
 
 if TYPE_CHECKING:
-    from cobot_hmi.service.robots.robot import RobotRuntime
+    pass
 
 pytestmark = [needs_mosquitto, pytest.mark.timeout(120)]
 
 GROUP, NODE = "plant", "parts"
-
-
-class StandInRobot:
-    """What a ``Device`` and the reports read of a robot: its name and frames, whether its
-    connection is up (and which one), its command image and control holder."""
-
-    def __init__(self, name: str) -> None:
-        self.name = name
-        self.frames = FrameNotifier(name)
-        self.connection = SimpleNamespace(down_since=None, connects=1)
-        self.link = SimpleNamespace(command=None)
-        self.control = SimpleNamespace(holder=None)
-
-
-def device_of(name: str, catalogue: Catalogue, number: int = 1) -> Device:
-    return Device(cast("RobotRuntime", StandInRobot(name)), number, catalogue)
 
 
 def feed(device: Device, frame: Frame) -> None:

@@ -18,14 +18,12 @@ from collections.abc import AsyncIterator, Iterator
 from contextlib import asynccontextmanager, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from types import SimpleNamespace
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any
 
 import paho.mqtt.client as mqtt
 import pytest
 
 from cobot_hmi.emulator.static_robot import standing_frame
-from cobot_hmi.service.robots.frame_notifier import FrameNotifier
 from cobot_hmi.sparkplug.buffer import SET_ASIDE, DiskBuffer
 from cobot_hmi.sparkplug.catalogue import Catalogue
 from cobot_hmi.sparkplug.event_metrics import AlarmDeclaration
@@ -38,10 +36,11 @@ from cobot_hmi.sparkplug.payload import DataType, MetricValue, add_metric, make_
 from cobot_hmi.sparkplug.session import NodeSession
 from cobot_hmi.sparkplug.topics import MessageType, Topics
 from mosquitto_support import Message, Subscriber, mosquitto, needs_mosquitto
+from sparkplug_parts_support import device_of
 from waiting import eventually
 
 if TYPE_CHECKING:
-    from cobot_hmi.service.robots.robot import RobotRuntime
+    pass
 
 pytestmark = [needs_mosquitto, pytest.mark.timeout(120)]
 
@@ -66,14 +65,7 @@ aliases written for ``over_temp`` and ``Cycle/Last`` now mean ``power_loss`` and
 
 
 def device(alarms: list[AlarmDeclaration], number: int) -> Device:
-    robot = SimpleNamespace(
-        name=ROBOT,
-        frames=FrameNotifier(ROBOT),
-        connection=SimpleNamespace(down_since=None, connects=1),
-        link=SimpleNamespace(command=None),
-        control=SimpleNamespace(holder=None),
-    )
-    return Device(cast("RobotRuntime", robot), number, Catalogue({}), alarms)
+    return device_of(ROBOT, Catalogue({}), number, alarms)
 
 
 WRITTEN: dict[str, tuple[DataType, MetricValue]] = {
