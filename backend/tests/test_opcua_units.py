@@ -33,9 +33,10 @@ from cobot_hmi.opcua.units import PER_TYPE, analog_unit, unit_for
 from cobot_hmi.opcua.values import (
     GOOD,
     SharedDataValue,
-    notify,
+    run_later,
     scalar_variant,
     shared_value,
+    tell_monitored_items,
     win_epoch,
 )
 from cobot_hmi.service.config.loading import load_settings
@@ -272,8 +273,8 @@ async def _watched(
 
 
 async def test_the_values_notify_as_asyncua_would() -> None:
-    """``values.notify`` against asyncua's own callback: the same notifications queued for
-    the same writes (a repeated value none, a new status one, a disabled item none)."""
+    """``values.tell_monitored_items`` against asyncua's own callback: the same notifications
+    queued for the same writes (a repeated value none, a new status one, a disabled item none)."""
     nodes = [ua.NodeId("a", 2), ua.NodeId("b", 2)]
     when = datetime(2026, 12, 7, tzinfo=UTC)
     bad = ua.StatusCode(ua.StatusCodes.BadCommunicationError)
@@ -290,10 +291,10 @@ async def test_the_values_notify_as_asyncua_would() -> None:
             variant = ua.Variant() if number is None else scalar_variant(number, double)
             value = shared_value(variant, status, when, when)
             callbacks = aspace[nodes[index]].attributes[ua.AttributeIds.Value].datachange_callbacks
-            for handle, callback in callbacks.items():
-                if fast:
-                    await notify(callback.__self__, handle, value)
-                else:
+            if fast:
+                await run_later(tell_monitored_items(callbacks, value) or [])
+            else:
+                for handle, callback in callbacks.items():
                     await callback(handle, value)
         queued.append(
             [
@@ -311,8 +312,8 @@ def _encoded(subscription: InternalSubscription) -> list[bytes]:
 
 
 async def test_queues_filters_and_publishing_at_once_as_asyncua() -> None:
-    """``values.notify`` against asyncua's own callback for items of queue 1, 5 and 0 (no
-    limit), one with a deadband filter, one with the StatusValueTimestamp trigger, and a
+    """``values.tell_monitored_items`` against asyncua's own callback for items of queue 1, 5
+    and 0 (no limit), one with a deadband filter, one with the StatusValueTimestamp trigger, and a
     subscription that publishes at once (interval 0): the same notifications queued, the same
     ones published, in the same messages."""
     nodes = [ua.NodeId(name, 2) for name in "abcde"]
@@ -348,10 +349,11 @@ async def test_queues_filters_and_publishing_at_once_as_asyncua() -> None:
                 variant = ua.Variant() if number is None else scalar_variant(number, double)
                 value = shared_value(variant, status, when, when)
                 attribute = aspace[nodes[index]].attributes[ua.AttributeIds.Value]
-                for handle, callback in attribute.datachange_callbacks.items():
-                    if fast:
-                        await notify(callback.__self__, handle, value)
-                    else:
+                callbacks = attribute.datachange_callbacks
+                if fast:
+                    await run_later(tell_monitored_items(callbacks, value) or [])
+                else:
+                    for handle, callback in callbacks.items():
                         await callback(handle, value)
             queued.append(_encoded(subscription))
             published.append(

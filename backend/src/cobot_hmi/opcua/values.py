@@ -229,15 +229,29 @@ def monitored_change(
     return None
 
 
-async def notify(service: MonitoredItemService, handle: int, value: SharedDataValue) -> None:
-    """The whole of asyncua's ``datachange_callback`` for one of these values:
-    ``monitored_change``, then the publishing it asks for."""
-    subscription = monitored_change(service, handle, value)
-    if subscription is not None:
-        await subscription._trigger_publish()
+def tell_monitored_items(callbacks: Mapping[int, Any], value: SharedDataValue) -> Later | None:
+    """A variable's monitored items (its value attribute's ``datachange_callbacks``) told of
+    ``value`` as asyncua's ``write_attribute_value`` tells them: asyncua's own callbacks at once
+    (``monitored_change``), what must still be awaited (a publishing at once, another callback)
+    returned in order (``None``, the rule: nothing). Nothing is awaited here, so the dict
+    stays as it is while it is walked."""
+    later: Later | None = None
+    for handle, callback in callbacks.items():
+        if getattr(callback, "__func__", None) is _ASYNCUA_DATACHANGE:
+            subscription = monitored_change(callback.__self__, handle, value)
+            if subscription is None:
+                continue
+            action: Callable[[], Awaitable[None]] = subscription._trigger_publish
+        else:
+            action = functools.partial(callback, handle, value)
+        if later is None:
+            later = []
+        later.append(action)
+    return later
 
 
-async def _run(later: Later) -> None:
+async def run_later(later: Later) -> None:
+    """What ``tell_monitored_items`` left to await, in order."""
     for action in later:
         await action()
 
@@ -284,36 +298,23 @@ class RobotValues:
         """One value as asyncua's own ``write_attribute_value`` stores it in a variable's
         value ``attribute`` (the value, then each monitored item's callback), without its
         per-write checks: every variable here is written with its own data type, and a Bad
-        status always with a Null value. asyncua's monitored items are told at once
-        (``monitored_change``); what must still be awaited (a publishing at once, another
-        callback) is returned, in order, for this write's caller to await before the next
-        write (``None``, the rule: nothing)."""
+        status always with a Null value. Its monitored items are told at once
+        (``tell_monitored_items``); what must still be awaited is returned for this write's
+        caller to await before the next write."""
         self.writes += 1
         attribute.value = value
         attribute.value_callback = None
         callbacks = attribute.datachange_callbacks
         if not callbacks:
             return None
-        later: Later | None = None
-        for handle, callback in callbacks.items():  # nothing awaited: the dict stays as it is
-            if getattr(callback, "__func__", None) is _ASYNCUA_DATACHANGE:
-                subscription = monitored_change(callback.__self__, handle, value)
-                if subscription is None:
-                    continue
-                action: Callable[[], Awaitable[None]] = subscription._trigger_publish
-            else:
-                action = functools.partial(callback, handle, value)
-            if later is None:
-                later = []
-            later.append(action)
-        return later
+        return tell_monitored_items(callbacks, value)
 
     async def _write(
         self, node: ua.NodeId, variant: ua.Variant, status: ua.StatusCode, source: datetime
     ) -> None:
         later = self._store(self._attribute(node), shared_value(variant, status, source, self._now))
         if later:
-            await _run(later)
+            await run_later(later)
 
     async def start(self) -> None:
         """The values that never change, the unsupported members, and no data yet."""
@@ -453,7 +454,7 @@ class RobotValues:
             variant = scalar_variant(value, binding.variant)
             later = store(attribute, shared_value(variant, GOOD, source, now))
             if later:
-                await _run(later)
+                await run_later(later)
 
     async def _state_machines(self, frame: Frame | None, source: datetime) -> None:
         """Each state machine's CurrentState and its Id, when the state changed: Good even
