@@ -277,7 +277,8 @@ def test_analog_deadband_is_against_the_last_reported_value() -> None:
     reported = []
     for step in range(1, 30):  # creeping 0.3° at a time: reported every 4th step
         moved_frame = frame._replace(joint_position=(0.3 * step, 0, 0, 0, 0, 0))
-        reported += [v for o, v, _ in reporter.analog_changes(moved_frame, 1.0) if o == j1]
+        values, moved_at = reporter.analog_moved(moved_frame)
+        reported += [values[i] for i in moved_at if reporter.analog_offsets[i] == j1]
     assert reported == pytest.approx([1.2, 2.4, 3.6, 4.8, 6.0, 7.2, 8.4])
 
 

@@ -118,13 +118,6 @@ class Reporter:
         self.transitions += len(changes)
         return changes
 
-    def analog_changes(self, frame: Frame, received_at: float) -> list[Change]:
-        """Analog metrics of ``frame`` that moved by their deadband since last reported."""
-        stamp = int(received_at * 1000)
-        current, moved_at = self.analog_moved(frame)
-        offsets = self.analog_offsets
-        return [(offsets[i], current[i], stamp) for i in moved_at]
-
     def analog_moved(self, frame: Frame) -> tuple[list[float], list[int]]:
         """The analog values of ``frame`` and which of them (their positions in it, see
         ``analog_offsets``) moved by their deadband since last reported: reported from now."""
