@@ -35,7 +35,7 @@ import tempfile
 import time
 from pathlib import Path
 from types import SimpleNamespace
-from typing import Any, cast
+from typing import Any
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -49,40 +49,22 @@ def _frames(count: int) -> list[Any]:
     return [robot.produce_frame(i * RPI_S) for i in range(count)]
 
 
-class StandInRobot:
-    """What a ``Device`` and the reports read of a robot (as the node's tests use)."""
-
-    def __init__(self, name: str) -> None:
-        from cobot_hmi.service.robots.frame_notifier import FrameNotifier
-
-        self.name = name
-        self.frames = FrameNotifier(name)
-        self.connection = SimpleNamespace(down_since=None, connects=1)
-        self.link = SimpleNamespace(command=None)
-        self.control = SimpleNamespace(holder=None)
-
-
 def _node(robots: int, broker: str, directory: Path) -> Any:
     """Devices, their reports and a connected publisher (the node's parts, wired as its tests
-    wire them)."""
+    wire them: backend/tests/sparkplug_parts_support.py, imported once this process's source
+    tree is on the path)."""
+    sys.path.append(str(ROOT / "backend" / "tests"))
     from cobot_hmi.service.setting_fields import DEFAULT_DEADBANDS
     from cobot_hmi.sparkplug.buffer import DiskBuffer
     from cobot_hmi.sparkplug.catalogue import Catalogue
     from cobot_hmi.sparkplug.mqtt_client import BrokerAddress, ClientOptions, make_client
-    from cobot_hmi.sparkplug.node.births import BirthWriter
-    from cobot_hmi.sparkplug.node.core import Background, NodeStatus, Publisher
-    from cobot_hmi.sparkplug.node.device import Device
-    from cobot_hmi.sparkplug.node.replay import Replayer
-    from cobot_hmi.sparkplug.node.reports import DeviceReports
+    from cobot_hmi.sparkplug.node.core import NodeStatus, Publisher
     from cobot_hmi.sparkplug.session import NodeSession
     from cobot_hmi.sparkplug.topics import Topics
+    from sparkplug_parts_support import device_of, report_parts
 
     catalogue = Catalogue(DEFAULT_DEADBANDS)
-    topics = Topics("bench", "tick")
-    devices = {
-        f"r{n}": Device(cast(Any, StandInRobot(f"r{n}")), n, catalogue)
-        for n in range(1, robots + 1)
-    }
+    devices = {f"r{n}": device_of(f"r{n}", catalogue, n) for n in range(1, robots + 1)}
     publisher = Publisher(NodeSession(directory / "bdseq"))
     address = BrokerAddress.parse(broker)
     client = make_client(ClientOptions(address, "bench-tick", "", "", None, None, None))
@@ -94,28 +76,15 @@ def _node(robots: int, broker: str, directory: Path) -> Any:
             raise SystemExit(f"no connection to {broker}")
         time.sleep(0.01)
     publisher.client = client
-    status = NodeStatus(online=True, active=True)
-    buffer = DiskBuffer(directory / "buffer", 1 << 20)
-    replayer = Replayer(
-        topics=topics,
-        devices=devices,
-        buffer=buffer,
+    parts = report_parts(
+        Topics("bench", "tick"),
+        catalogue,
+        devices,
         publisher=publisher,
-        status=status,
-        background=Background(),
+        buffer=DiskBuffer(directory / "buffer", 1 << 20),
+        status=NodeStatus(online=True, active=True),
     )
-    births = BirthWriter(topics, catalogue, devices, publisher, replayer)
-    reports = DeviceReports(
-        topics=topics,
-        catalogue=catalogue,
-        devices=devices,
-        births=births,
-        publisher=publisher,
-        buffer=buffer,
-        status=status,
-        period_s=0.1,
-    )
-    return SimpleNamespace(devices=devices, reports=reports, client=client)
+    return SimpleNamespace(devices=devices, reports=parts.reports, client=client)
 
 
 def _records(frames: list[Any], start: int, count: int, t0: float) -> list[Any]:

@@ -23,10 +23,8 @@ from cobot_hmi.service.robots.frame_notifier import FrameRecord
 from cobot_hmi.service.service_settings import DEFAULT_DEADBANDS
 from cobot_hmi.sparkplug.buffer import DiskBuffer
 from cobot_hmi.sparkplug.catalogue import Catalogue, MetricDef, Role, state_name
-from cobot_hmi.sparkplug.node.births import BirthWriter
-from cobot_hmi.sparkplug.node.core import Background, NodeStatus, Publisher
+from cobot_hmi.sparkplug.node.core import NodeStatus, Publisher
 from cobot_hmi.sparkplug.node.device import Device
-from cobot_hmi.sparkplug.node.replay import Replayer
 from cobot_hmi.sparkplug.node.reports import DeviceReports
 from cobot_hmi.sparkplug.payload import (
     DataType,
@@ -41,7 +39,7 @@ from cobot_hmi.sparkplug.payload import (
 from cobot_hmi.sparkplug.rbe import moved, threshold
 from cobot_hmi.sparkplug.session import NodeSession
 from cobot_hmi.sparkplug.topics import Topics
-from sparkplug_parts_support import device_of
+from sparkplug_parts_support import device_of, report_parts
 
 if TYPE_CHECKING:
     pass
@@ -128,28 +126,15 @@ class Reference:
 def reports_of(
     catalogue: Catalogue, device: Device, buffer: DiskBuffer, tmp: Path
 ) -> DeviceReports:
-    topics = Topics("plant", "golden")
-    devices = {device.device_name: device}
-    status = NodeStatus()  # not born: every DDATA goes to the buffer as built
-    publisher = Publisher(NodeSession(tmp / "bdseq"))
-    replayer = Replayer(
-        topics=topics,
-        devices=devices,
+    parts = report_parts(
+        Topics("plant", "golden"),
+        catalogue,
+        {device.device_name: device},
+        publisher=Publisher(NodeSession(tmp / "bdseq")),
         buffer=buffer,
-        publisher=publisher,
-        status=status,
-        background=Background(),
+        status=NodeStatus(),  # not born: every DDATA goes to the buffer as built
     )
-    return DeviceReports(
-        topics=topics,
-        catalogue=catalogue,
-        devices=devices,
-        births=BirthWriter(topics, catalogue, devices, publisher, replayer),
-        publisher=publisher,
-        buffer=buffer,
-        status=status,
-        period_s=0.1,
-    )
+    return parts.reports
 
 
 DEADBANDS = [

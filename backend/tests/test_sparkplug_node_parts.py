@@ -36,7 +36,7 @@ from cobot_hmi.sparkplug.payload import DataType, add_metric, make_payload
 from cobot_hmi.sparkplug.session import NodeSession
 from cobot_hmi.sparkplug.topics import MessageType, Topics
 from mosquitto_support import Broker, Subscriber, encode_command, mosquitto, needs_mosquitto
-from sparkplug_parts_support import StandInRobot, device_of
+from sparkplug_parts_support import StandInRobot, device_of, report_parts
 from sparkplug_support import BOOLEAN
 from waiting import eventually
 
@@ -350,15 +350,16 @@ def test_metrics_view_reads_the_parts(tmp_path: Path) -> None:
     device = device_of("m1013", catalogue)
     devices = {"m1013": device}
     buffer = DiskBuffer(tmp_path / "buffer", 1 << 20)
-    replayer = Replayer(
-        topics=topics,
-        devices=devices,
-        buffer=buffer,
+    parts = report_parts(
+        topics,
+        catalogue,
+        devices,
         publisher=publisher,
+        buffer=buffer,
         status=status,
         background=background,
     )
-    births = BirthWriter(topics, catalogue, devices, publisher, replayer)
+    replayer, births, reports = parts.replayer, parts.births, parts.reports
     commands = CommandHandler(
         topics=topics,
         catalogue=catalogue,
@@ -382,16 +383,6 @@ def test_metrics_view_reads_the_parts(tmp_path: Path) -> None:
         commands=commands,
         status=status,
         background=background,
-    )
-    reports = DeviceReports(
-        topics=topics,
-        catalogue=catalogue,
-        devices=devices,
-        births=births,
-        publisher=publisher,
-        buffer=buffer,
-        status=status,
-        period_s=0.1,
     )
     publisher.count(None, "NBIRTH", 100)
     publisher.count(device, "DBIRTH", 2000)
