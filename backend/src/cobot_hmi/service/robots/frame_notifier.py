@@ -173,15 +173,9 @@ class Registration:
 
     def deliver(self) -> None:
         """Hand the queued frames to the consumer (on the thread or loop it runs on)."""
-        queue = self.queue
-        if not queue:
+        if not self.queue:  # the common case at a turn of the web loop: no call
             return
-        records = []
-        while queue:  # ``drain``, inline: per consumer and robot at each turn of the web loop
-            try:
-                records.append(queue.popleft())
-            except IndexError:  # pragma: no cover - emptied between the check and the pop
-                break
+        records = self.drain()
         self.delivered += len(records)
         try:
             self.consumer.on_frames(self.robot, records)
