@@ -20,10 +20,16 @@ import pytest
 
 from cobot_hmi.plant import segments, trends
 from cobot_hmi.plant.host import Sample
-from cobot_hmi.plant.recorder import SEGMENT, MetricKey, PlantRecorder, Point
+from cobot_hmi.plant.recorder import (
+    COMPACT_AFTER_S,
+    HOUR_MS,
+    SEGMENT,
+    MetricKey,
+    PlantRecorder,
+    Point,
+)
 from cobot_hmi.stored_format import FormatVersionError
 
-HOUR_MS = 3_600_000
 PLANT_V1 = Path(__file__).parent / "legacy" / "stored_formats" / "plant_v1"
 V1_START_MS = 1_764_547_200_000  # 2025-12-01 00:00 UTC, the fixture's first value
 DEVICES = ["", "r1", "r2", "r3"]
@@ -83,7 +89,11 @@ def test_a_trend_over_hours_equals_a_brute_force_read(
     monkeypatch.setattr(segments, "ROW_GROUP_ROWS", 64)
     segments.forget_indexes()
     now_ms = int(time.time() * 1000)
-    start_ms = now_ms - now_ms % HOUR_MS - 6 * HOUR_MS  # six whole hours: compacted at once
+    # Six whole hours that ended an hour before this one began: each over for longer than the
+    # recorder's COMPACT_AFTER_S whatever the minute now, so all compacted at once (six hours
+    # up to this one's start failed in its first ten minutes: the last not compacted yet).
+    assert COMPACT_AFTER_S * 1000 < HOUR_MS
+    start_ms = now_ms - now_ms % HOUR_MS - 7 * HOUR_MS
     recorder = _record(tmp_path, start_ms, 6, seed=41)
     segment_files = sorted(tmp_path.glob(f"*/{SEGMENT}"))
     assert len(segment_files) == 6 and not list(tmp_path.glob("*/part-*"))
