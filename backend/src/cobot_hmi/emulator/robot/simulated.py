@@ -157,6 +157,30 @@ class _AnalogInputs:
         return io.analog_input(self._values)
 
 
+class _RefreshGrid:
+    """The instants the monitoring values refresh at: whole periods from power-on, on the
+    robot's own clock, as the controller's (every 100 ms whatever the RPI or the reader's
+    timing), so a late read never moves the refreshes after it."""
+
+    __slots__ = ("origin_s", "period_s")
+
+    def __init__(self, period_s: float, origin_s: float) -> None:
+        self.period_s, self.origin_s = period_s, origin_s
+
+    def instant_s(self, at_s: float) -> float:
+        """The grid's last instant at or before ``at_s`` (``-inf`` with no period)."""
+        if self.period_s <= 0.0:
+            return -math.inf
+        # The epsilon: an instant read exactly on the grid is on it, whatever the rounding.
+        periods = math.floor((at_s - self.origin_s) / self.period_s + 1e-9)
+        return min(at_s, self.origin_s + periods * self.period_s)
+
+    def next_s(self, at_s: float) -> float:
+        """A hair before the grid's next instant after ``at_s`` (``instant_s`` may round onto
+        it that early)."""
+        return self.instant_s(at_s) + self.period_s * (1.0 - 1e-6)
+
+
 def _cycle_marker(runner: ProgramRunner) -> bool:
     """The cycle-start marker: on through the first steps of each program cycle, rising as the
     cycle starts (it holds while the program pauses: no edge but a cycle's start)."""
@@ -196,6 +220,7 @@ class SimulatedRobot:
         self._currents_a: tuple[float, ...] = (0.0,) * len(self.model.joints)
         self._started = start_s is not None
         self._now_s = start_s or 0.0
+        self._refresh_grid = _RefreshGrid(s.kinematic_refresh_ms / 1000.0, self._now_s)
         self._monitoring: Monitoring | None = None
         self._kinematics = _KinematicsCache(self.model)
         self._monitoring_at_s = -math.inf
@@ -218,10 +243,19 @@ class SimulatedRobot:
     # ------------------------------------------------------------------ simulation
 
     def _advance(self, now_s: float) -> None:
+        """Up to ``now_s``. A monitoring refresh due on the way is made at its own instant of
+        the grid, not at this call (the emulator's read of a robot that holds still comes when
+        its loop wakes, late on a loaded host): the robot is first brought up to that instant."""
         if not self._started:
             self._started = True
-            self._now_s = now_s
+            self._now_s = self._refresh_grid.origin_s = now_s
             self._states.restart(now_s)
+        elif self._monitoring is not None and self._refresh_grid.period_s > 0.0:
+            grid_s = self._refresh_grid.instant_s(now_s)
+            if self._monitoring_at_s < grid_s < now_s and grid_s >= self._now_s:
+                self._advance(grid_s)  # an instant of the grid: no refresh of its own before it
+                self._monitoring = self._refresh_monitoring(self._state_and_flags[1])
+                self._monitoring_at_s = grid_s
         states = self._states
         dt_s = now_s - self._now_s
         if dt_s <= 0.0:
@@ -294,8 +328,14 @@ class SimulatedRobot:
         )
 
     def _monitoring_now(self, flags: Flags) -> Monitoring:
-        refresh_s = self.settings.kinematic_refresh_ms / 1000.0
-        if self._monitoring is None or self._now_s - self._monitoring_at_s >= refresh_s:
+        """The monitoring values the frame carries: those of the last refresh (``_advance``
+        makes it on the grid), or fresh ones now when an event dropped them (a stop, a wear
+        change: shown at once) or every instant differs (no refresh period)."""
+        if (
+            self._monitoring is None
+            or self.settings.kinematic_refresh_ms <= 0.0
+            or self._refresh_grid.instant_s(self._now_s) > self._monitoring_at_s
+        ):
             self._monitoring = self._refresh_monitoring(flags)
             self._monitoring_at_s = self._now_s
         return self._monitoring
@@ -307,10 +347,9 @@ class SimulatedRobot:
         part-present input and the cycle marker change only there), whichever comes first.
         Everything else in the frame changes only by a call (a command, the control API)."""
         now_s = self._now_s
-        refresh_s = self.settings.kinematic_refresh_ms / 1000.0
-        if refresh_s <= 0.0 or self._frame is None or self._frame_at_s != now_s:
+        if self._refresh_grid.period_s <= 0.0 or self._frame is None or self._frame_at_s != now_s:
             return now_s
-        until_s = self._monitoring_at_s + refresh_s
+        until_s = self._refresh_grid.next_s(now_s)
         states = self._states
         if states.phase in (Phase.INITIALIZING, Phase.SAFE_OFF):
             until_s = min(until_s, states.phase_until_s)
