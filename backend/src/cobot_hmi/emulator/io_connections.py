@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import math
 import random
 import time
 from collections.abc import Callable
@@ -320,7 +321,11 @@ class IoConnections:
             if due > horizon:
                 return
             if due < now - period_s:
-                due = now  # far behind (a stalled loop): resynchronise, never burst
+                # Far behind (a stalled loop): skip the packets missed, never burst, and stay on
+                # the schedule's grid, as a controller producing on its own clock does (a frame
+                # for the late ``now`` put the robot's instants off it, and the health engine
+                # takes the spacing of samples as whole periods).
+                due += math.floor((now - due) / period_s) * period_s
             conn.t2o_last_due = due
             self._queue_t2o(conn, due, due + epoch_minus_loop, rebuild=False, data=tick_data)
 
