@@ -9,6 +9,7 @@ bound (a wait never ends before its timeout, or the loop would spin).
 from __future__ import annotations
 
 import asyncio
+import gc
 import os
 import resource
 import selectors
@@ -20,6 +21,7 @@ from contextlib import contextmanager
 
 import pytest
 
+from cobot_hmi import eventloop
 from cobot_hmi.eventloop import PreciseEpollSelector, precise_event_loop
 from cobot_hmi.udp_endpoint import UdpEndpoint
 
@@ -148,3 +150,17 @@ def test_the_selector_keeps_the_selectors_contract() -> None:
         with pytest.raises(KeyError):
             selector.unregister(a)
         assert selector.select(0) == []
+
+
+def test_after_start_up_the_young_generation_is_collected_less_often() -> None:
+    """``freeze_startup_heap`` freezes what exists and raises the youngest generation's
+    threshold (a frame's objects die by reference counting before a collection looks at them),
+    keeping the older generations' own."""
+    before = gc.get_threshold()
+    try:
+        gc.set_threshold(700, 10, 10)
+        eventloop.freeze_startup_heap()
+        assert gc.get_threshold() == (eventloop.YOUNG_COLLECTION_THRESHOLD, 10, 10)
+        assert gc.get_freeze_count() > 0
+    finally:
+        gc.set_threshold(*before)
