@@ -2,14 +2,14 @@
 the health thread, in process, without the service around it.
 
 The emulated arm (``SimulatedRobot``: the demo program with its cycle marker, monitoring values
-refreshed every 100 ms as the real controller's) is stepped once at 100 Hz for ``--seconds``
-and its frames kept; then each of ``--robots`` engines is fed them as the service's health
-thread feeds it (``service/health/monitor.py``): the frames appended one by one as they are
-delivered, a block every second (``FrameBlock.from_frames``, ``observe``), the cycles ended at
-the marker's rising edges once their frames are in, a baseline learned from the cycles after
+refreshed every 100 ms as the real controller's) is stepped once at 100 Hz for ``--seconds`` and
+its frames kept; then each of ``--robots`` engines is fed them as the service's health thread
+feeds it (``service/health/monitor.py``): the frames appended one by one as they are delivered,
+a block every ``health_refresh_s`` (``FrameBlock.from_frames``, ``observe``), the cycles ended
+at the marker's rising edges once their frames are in, a baseline learned from the cycles after
 the first three, a report every 30 s (``health_report_s``). Timed with the process's CPU clock,
-best of ``--rounds``, split into the block's conversion, the engine and the reports; beside
-the conversion, what ``FrameBlock.from_payloads`` costs the same blocks from their raw bytes.
+best of ``--rounds``, split into the block's conversion, the engine and the reports; beside the
+conversion, what ``FrameBlock.from_payloads`` costs the same blocks from their raw bytes.
 
 Beside it, two references on the same frames and the same clock: decoding each frame from its
 284 bytes (``decode_frame``: what the scanner pays once per frame for every consumer) and a
@@ -35,10 +35,11 @@ from cobot_hmi.arms import M1013_ARM
 from cobot_hmi.codec import Frame, decode_frame, encode_frame
 from cobot_hmi.emulator.robot import RobotSettings, SimulatedRobot
 from cobot_hmi.health import FrameBlock, HealthEngine
+from cobot_hmi.service.health.health_service_settings import HealthServiceSettings
 
 MARKER_REGISTER = 63
 RATE_HZ = 100
-BLOCK_FRAMES = RATE_HZ  # health_refresh_s = 1 s
+BLOCK_FRAMES = int(HealthServiceSettings().health_refresh_s * RATE_HZ)  # as the service feeds it
 REPORT_EVERY_BLOCKS = 30  # health_report_s = 30 s
 BASELINE_AFTER_CYCLES = 3
 BASELINE_CYCLES = 20
