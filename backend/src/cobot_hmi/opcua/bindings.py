@@ -24,6 +24,9 @@ class Binding:
     node: ua.NodeId
     read: Callable[[Frame], object]
     variant: ua.VariantType
+    field_position: int | None = None
+    """The one frame field ``read`` reads (its position in ``Frame``), so the updater reads it
+    again only when that field changed; ``None``: ``read`` may read any field, every frame."""
 
 
 @dataclass(frozen=True, slots=True)

@@ -187,7 +187,7 @@ class LayoutBuilder:
         if command:
             self._nodes.command.append(CommandBinding(nodeid, read, variant, field.name, index))
         else:
-            self._nodes.frame.append(Binding(nodeid, read, variant))
+            self._nodes.frame.append(Binding(nodeid, read, variant, position))
         if field.enum is not None:
             text = ua.NodeId(f"{nodeid_text}.ValueAsText", self._ns)
             self._nodes.frame.append(

@@ -201,7 +201,9 @@ class RoboticsBuilder:
                 information,
                 ua.NodeId(ua.ObjectIds.EUInformation),
             )
-        self._nodes.frame.append(Binding(node, _joint(field, joint), ua.VariantType.Double))
+        self._nodes.frame.append(
+            Binding(node, _joint(field, joint), ua.VariantType.Double, Frame._fields.index(field))
+        )
 
     async def _power_train(self, folder: ua.NodeId, joint: int) -> ua.NodeId:
         train = await self._b.instantiate(

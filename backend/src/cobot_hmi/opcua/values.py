@@ -260,6 +260,37 @@ def _utc(epoch_s: float) -> datetime:
     return datetime.fromtimestamp(epoch_s, UTC)
 
 
+class FieldReads:
+    """Which of a robot's frame bindings to read for a new frame: those of the fields that
+    differ from the last frame's (a field compared whole, in C, instead of each of its
+    elements' bindings called and compared: most of a moving robot's 540 variables keep their
+    value from one sample to the next), and every binding that may read any field."""
+
+    def __init__(self, bindings: Sequence[Binding]) -> None:
+        self._always = [i for i, b in enumerate(bindings) if b.field_position is None]
+        by_field: dict[int, list[int]] = {}
+        for i, binding in enumerate(bindings):
+            if binding.field_position is not None:
+                by_field.setdefault(binding.field_position, []).append(i)
+        self._by_field = sorted(by_field.items())
+        self._last: Frame | None = None
+
+    def indices(self, frame: Frame, *, everything: bool = False) -> list[int] | None:
+        """The bindings to read for ``frame``, in their order (``None``: all of them, for the
+        first frame or with ``everything``); ``frame`` becomes the last frame."""
+        last, self._last = self._last, frame
+        if everything or last is None:
+            return None
+        if frame is last:  # the same bytes decoded once: no field changed
+            return list(self._always)
+        chosen = list(self._always)
+        for position, bound in self._by_field:
+            if frame[position] != last[position]:
+                chosen += bound
+        chosen.sort()
+        return chosen
+
+
 class RobotValues:
     """The values of one robot's variables as last written (see the module docstring)."""
 
@@ -269,6 +300,7 @@ class RobotValues:
         self._frame_values: list[object] = [None] * len(nodes.frame)
         self._frame_reads = [binding.read for binding in nodes.frame]
         self._frame_attributes: list[Any] = [None] * len(nodes.frame)
+        self._frame_reading = FieldReads(nodes.frame)
         self._command_values: list[object] = [None] * len(nodes.command)
         self._command_reads = [binding.read for binding in nodes.command]
         self._command_attributes: list[Any] = [None] * len(nodes.command)
@@ -413,6 +445,7 @@ class RobotValues:
             frame,
             source,
             force=force,
+            only=self._frame_reading.indices(frame, everything=force),
         )
         for index, analog in enumerate(self.nodes.analog_units):
             if not analog.from_command:
@@ -432,19 +465,18 @@ class RobotValues:
         source: datetime,
         *,
         force: bool = False,
+        only: Sequence[int] | None = None,
     ) -> None:
-        """Each binding's value read from ``record``; those that differ from the values
+        """Each binding's value read from ``record`` (``only`` those at these indices, in
+        order: the others' values are known unchanged); those that differ from the values
         ``kept`` (all with ``force``) written Good at ``source`` and kept. ``kept``: the
         values, the bindings' reads and their value attributes (found at the first write: no
         NodeId hashed per write)."""
         values, reads, attributes = kept
         now, store = self._now, self._store
-        fresh = [read(record) for read in reads]
-        changed = (
-            range(len(fresh))
-            if force
-            else [i for i, (new, old) in enumerate(zip(fresh, values, strict=True)) if new != old]
-        )
+        indices = range(len(reads)) if only is None else only
+        fresh = {i: reads[i](record) for i in indices}
+        changed = indices if force else [i for i in indices if fresh[i] != values[i]]
         for index in changed:
             value = values[index] = fresh[index]
             binding = bindings[index]
