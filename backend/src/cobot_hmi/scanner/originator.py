@@ -161,6 +161,11 @@ class Originator:
     stale = _ReadThrough[int](lambda o: o._receiver.stale)
     foreign = _ReadThrough[int](lambda o: o._receiver.foreign)
     frames = _ReadThrough[int](lambda o: o._receiver.frames)
+    t2o_api_us = _ReadThrough[int | None](
+        lambda o: o._receiver.link.t2o_api_us if o._receiver.link is not None else None
+    )
+    """The open connection's T→O packet interval (the RPI asked for until the reply grants
+    one); None between connections. One int read: any thread (the health thread's clock)."""
 
     @property
     def io_port(self) -> IoPort | None:

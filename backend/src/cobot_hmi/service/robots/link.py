@@ -471,6 +471,13 @@ class RobotLink:
         originator = self._originator
         return originator.latest if originator is not None else None
 
+    @property
+    def t2o_api_us(self) -> int | None:
+        """The open connection's T→O packet interval (None between connections): read from the
+        health thread (``service.health.producer_clock``)."""
+        originator = self._originator
+        return originator.t2o_api_us if originator is not None else None
+
     # ------------------------------------------------------------ calls on the cyclic loop
 
     async def _call_sync(self, function: Callable[[], _T]) -> _T:
