@@ -101,6 +101,8 @@ async def test_the_report_answers_every_joint_and_a_restart_keeps_what_it_counte
             return hmi.service.health.monitors[ROBOT].frames_fed > 0
 
         await eventually_async(frames_fed, timeout_s=60.0)
+        # Fed on the robot's clock: its frames' T→O sequence numbers at the granted API.
+        assert hmi.service.health.monitors[ROBOT].clock.runs >= 1
         fed = re.search(r'^cobot_hmi_health_frames_fed_total\{robot="robot"\} (\S+)$',
                         await hmi.metrics(), re.MULTILINE)  # fmt: skip
         assert fed is not None and float(fed.group(1)) > 0

@@ -140,7 +140,9 @@ class FrameBlock:
         )
 
     @staticmethod
-    def from_payloads(times_s: Sequence[float], payloads: Sequence[bytes]) -> FrameBlock:
+    def from_payloads(
+        times_s: Sequence[float] | FloatArray, payloads: Sequence[bytes]
+    ) -> FrameBlock:
         """The arrays of undecoded T→O payloads (the frame records' ``raw``), read in place
         with numpy: the same values as ``from_frames`` of their decoded frames (a REAL is a
         float32, exact as a float64) at a sixth of its cost. ``ValueError`` for a payload not

@@ -6,10 +6,14 @@ thread (``Runs.THREAD``): on the cyclic thread a frame costs one append into its
 (``health_queue_frames``; when health falls behind the oldest frames go and are counted in the
 notifier's ``dropped``, ``/metrics``' ``cobot_hmi_consumer_dropped_frames_total``), never a
 wait. The health thread takes the queued frames every ``health_refresh_s`` as one block (the
-engine wants at least a second's frames a block) and feeds the engine; the cycle meter's cycles
-(``cycle`` events, heard on the web loop) wait in ``cycles`` until the engine has seen every
-frame of theirs, then end the cycle in the engine. Every call into the engine holds ``lock``:
-the web loop asks for reports and baselines from a worker thread of its own.
+engine wants at least a second's frames a block) and feeds the engine, the frames' times on the
+robot's own clock (``producer_clock``: from their T→O sequence numbers at the granted API; the
+receive times where those are not known); the cycle meter's cycles (``cycle`` events, heard on
+the web loop, their boundaries receive times of frames) wait in ``cycles`` until the engine has
+seen every frame of theirs, then end the cycle in the engine at those frames' producer times
+(``ReceiveToProducer``), so a cycle holds the same frames whichever clock the block carries.
+Every call into the engine holds ``lock``: the web loop asks for reports and baselines from a
+worker thread of its own.
 """
 
 from __future__ import annotations
@@ -17,18 +21,26 @@ from __future__ import annotations
 import logging
 import math
 import threading
-from collections import deque
-from collections.abc import Sequence
+from collections import OrderedDict, deque
+from collections.abc import Callable, Sequence
 from typing import Final
+
+import numpy as np
 
 from cobot_hmi.arms import ARMS, Arm, arm_by_name
 from cobot_hmi.health import FrameBlock, HealthEngine
+from cobot_hmi.health.frames import FloatArray, IntArray
+from cobot_hmi.service.health.producer_clock import ProducerClock
 from cobot_hmi.service.robots.frame_notifier import FrameRecord, Registration, Runs
 from cobot_hmi.service.robots.robot import RobotRuntime
 
 log = logging.getLogger(__name__)
 
 VERDICT_RANK: Final = {"ok": 0, "watch": 1, "act": 2}
+MAPPED_S: Final = 60.0
+"""How far back the frames' receive and producer times are kept to map cycle boundaries: a
+cycle is announced within a second or so of its end frame, and its start is the end of the
+cycle before (remembered apart, ``ReceiveToProducer.ENDS``)."""
 
 
 def arm_of(robot: RobotRuntime, configured: str) -> Arm:
@@ -50,13 +62,65 @@ def worst_verdict(joints: Sequence[dict[str, object]]) -> str:
     return max(words, key=lambda w: VERDICT_RANK.get(w, 0), default="ok")
 
 
+def granted_api_s(robot: RobotRuntime) -> float | None:
+    """The robot's connection's T→O packet interval (s), None between connections."""
+    api_us = robot.link.t2o_api_us
+    return api_us / 1e6 if api_us else None
+
+
+class ReceiveToProducer:
+    """The fed frames' receive times and producer times, to map the cycle meter's boundaries
+    (receive times of frames) to those frames' producer times."""
+
+    ENDS: Final = 8
+    """Mapped boundaries remembered apart from the frames (a cycle's start is the previous
+    cycle's end, which may be older than ``MAPPED_S``)."""
+
+    def __init__(self) -> None:
+        self.blocks: deque[tuple[FloatArray, FloatArray]] = deque()
+        self.ends: OrderedDict[float, float] = OrderedDict()
+
+    def add(self, received_s: FloatArray, producer_s: FloatArray) -> None:
+        self.blocks.append((received_s, producer_s))
+        newest_s = float(received_s[-1])
+        while len(self.blocks) > 1 and float(self.blocks[0][0][-1]) < newest_s - MAPPED_S:
+            self.blocks.popleft()
+
+    def producer_s(self, received_s: float) -> float:
+        """The producer time of the first frame received at ``received_s`` or later (the
+        boundary's own frame); one older than every frame kept: ``received_s`` moved by the
+        oldest kept frame's difference of clocks (within a frame's lateness plus
+        ``producer_clock.RAISE_S``)."""
+        known = self.ends.get(received_s)
+        if known is not None:
+            return known
+        for received, producer in self.blocks:
+            if received_s <= received[-1]:
+                index = int(np.searchsorted(received, received_s, side="left"))
+                if index == 0 and received is self.blocks[0][0] and received_s < received[0]:
+                    return received_s - float(received[0] - producer[0])
+                mapped = float(producer[index])
+                self.ends[received_s] = mapped
+                while len(self.ends) > self.ENDS:
+                    self.ends.popitem(last=False)
+                return mapped
+        return received_s  # not fed yet (never asked: a cycle waits for its end's frame)
+
+
 class RobotHealth:
     """One robot's engine fed its frames and cycles (see the module docstring)."""
 
     name: Final = "health"
     runs: Final = Runs.THREAD
 
-    def __init__(self, robot: RobotRuntime, engine: HealthEngine, queue_frames: int) -> None:
+    def __init__(
+        self,
+        robot: RobotRuntime,
+        engine: HealthEngine,
+        queue_frames: int,
+        api_s: Callable[[], float | None] | None = None,
+    ) -> None:
+        """``api_s``: the connection's T→O packet interval now (default: the robot's link's)."""
         self.robot = robot
         self.engine = engine
         self.queue_frames = queue_frames
@@ -68,6 +132,12 @@ class RobotHealth:
         self._payloads: list[bytes] = []
         """The frames' undecoded T→O payloads: read in place as one block
         (``FrameBlock.from_payloads``, a sixth of what the decoded frames cost)."""
+        self._sequences: list[int] = []
+        self.api_s = api_s if api_s is not None else lambda: granted_api_s(robot)
+        self.clock = ProducerClock()
+        self.mapped = ReceiveToProducer()
+        self.received_until_s = -math.inf
+        """The receive time of the last frame fed (the cycles' boundaries are receive times)."""
         self.frames_fed = 0
         self.cycles_fed = 0
         self.cycles_refused = 0
@@ -79,6 +149,7 @@ class RobotHealth:
         """The queued frames (``Registration.deliver`` on the health thread)."""
         for record in records:
             self._times.append(record.received_at_s)
+            self._sequences.append(record.t2o_sequence)
             self._payloads.append(record.raw)
 
     def step(self) -> None:
@@ -86,21 +157,34 @@ class RobotHealth:
         if self.registration is not None:
             self.registration.deliver()
         if self._payloads:
-            block = FrameBlock.from_payloads(self._times, self._payloads)
+            received_s = np.asarray(self._times, dtype=np.float64)
+            producer_s = self.clock.times(received_s, self._taken_sequences(), self.api_s())
+            block = FrameBlock.from_payloads(producer_s, self._payloads)
             self._times, self._payloads = [], []
+            self.mapped.add(received_s, producer_s)
+            self.received_until_s = max(self.received_until_s, float(received_s[-1]))
             with self.lock:
                 self.engine.observe(block)
             self.frames_fed += len(block)
         with self.lock:
-            last_s = self.engine.last_time_s
-            while self.cycles and self.cycles[0][1] <= last_s:
+            while self.cycles and self.cycles[0][1] <= self.received_until_s:
                 start_s, end_s, interrupted = self.cycles.popleft()
                 try:
-                    self.engine.end_cycle(start_s, end_s, interrupted)
+                    self.engine.end_cycle(
+                        self.mapped.producer_s(start_s), self.mapped.producer_s(end_s), interrupted
+                    )
                     self.cycles_fed += 1
                 except ValueError as error:
                     self.cycles_refused += 1
                     log.info("%s: health skipped a cycle: %s", self.robot.name, error)
+
+    def _taken_sequences(self) -> IntArray | None:
+        """The queued frames' T→O sequence numbers, emptied; None if one is not known."""
+        sequences, self._sequences = self._sequences, []
+        try:
+            return np.asarray(sequences, dtype=np.int64)
+        except (TypeError, ValueError):  # a None among them (a frame replayed without one)
+            return None
 
     def adopt_arm(self, configured: str) -> None:
         """A fresh engine (no cycle, no baseline yet) takes the arm the robot's identity names
