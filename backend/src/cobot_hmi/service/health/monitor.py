@@ -89,8 +89,8 @@ class ReceiveToProducer:
     def producer_s(self, received_s: float) -> float:
         """The producer time of the first frame received at ``received_s`` or later (the
         boundary's own frame); one older than every frame kept: ``received_s`` moved by the
-        oldest kept frame's difference of clocks (within a frame's lateness plus
-        ``producer_clock.RAISE_S``)."""
+        oldest kept frame's difference of clocks (a frame's lateness: the clocks of frames on
+        time differ by nothing, ``producer_clock``)."""
         known = self.ends.get(received_s)
         if known is not None:
             return known

@@ -13,11 +13,21 @@ the producer's clock is ``anchor + (sequence - anchor sequence) × API``.
 
 - The counter is unwrapped across its 32 bits (steps in half-range arithmetic, as
   ``enip.sequence`` compares them).
-- **The anchor** is the earliest-arriving frame: a packet may arrive late, never early, so of
-  ``receive time - (sequence × API)`` the least over a block is the one closest to the
-  producer's instant (most packets of a block arrive on time even under load). It is taken
-  again, per block, when a block's least is lower (an earlier anchor was late) or higher by
-  more than ``RAISE_S`` (see there); each such move changes one spacing, at the block's start.
+- **The anchor** of a frame is the earliest-arriving of it and the frames after it: a packet
+  may arrive late, never early, so of ``receive time - (sequence × API)`` (its lag) the least
+  is the one closest to the producer's instant (most packets arrive on time even under load),
+  and a frame late in a burst takes the lag of the on-time frames after it. The least of the
+  frames *after* a frame, not of the whole run, because the lag rises for good when the
+  producer sends fewer packets than its clock counts periods: one that skips packets without
+  counting them (the emulator after a stalled loop skips the missed packets on its grid,
+  docs/emulator.md) or whose clock runs slower than its API (a crystal's 50 ppm: 0.18 s an
+  hour). The frames after such a step take the new lag from it, so the spacing across a skip is
+  its whole periods and the producer times never drift from the receive times; fitting the
+  producer's period instead would leave every skip's spacing wrong. A block's last
+  ``TAIL_S`` have too few frames after them to tell a lasting rise from a burst of lateness:
+  they keep the lag before them (a rise among them is taken at the next block's start). A
+  frame late by more than a skip that follows it cannot be told from one on time after the
+  skip: it takes the skip's lag (one spacing moved, not every later one).
 - **A new anchor** (a new run) where the sequence goes backwards or repeats (a new connection
   restarts its count), or a step of the sequence and the receive times' step disagree by more
   than ``JUMP_S`` (a new connection whose count happens to run on, a jump of the counter, a
@@ -25,14 +35,15 @@ the producer's clock is ``anchor + (sequence - anchor sequence) × API``.
   is where the engine's samples stop anyway (``health.samples.MAX_GAP_S``).
 - **No sequence** (a frame without one, no API known): the receive times, as before.
 
-The producer times are never later than the receive times and, outside a new run's first
-block, never earlier by more than a frame's lateness plus ``RAISE_S``: the cycle meter's
+The producer times are never later than the receive times and earlier by a frame's lateness
+(the frames on time: by nothing, or what a rise in a block's tail left): the cycle meter's
 boundaries (receive times of frames) are mapped to the producer times of those frames
 (``monitor.RobotHealth``), so the engine cuts each cycle at the same frames as before.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Final, NamedTuple
 
 import numpy as np
@@ -45,15 +56,9 @@ JUMP_S: Final = 1.0
 """A sequence step whose time (steps × API) differs from the receive times' step by more than
 this starts a new run: longer than any lateness a loaded host showed (110 ms), and as long as
 the engine's ``MAX_GAP_S``."""
-RAISE_S: Final = 0.1
-"""How far the producer times may fall behind the receive times (the block's least lag) before
-the anchor is taken again. They fall behind when the producer's clock runs slower than its
-nominal API (a crystal's 50 ppm: 0.18 s an hour), or when it skips packets without counting
-them (the emulator after a stalled loop skips missed packets on its grid, docs/emulator.md):
-without a bound the producer times would drift away from the receive times over hours and the
-cycle boundaries with them. Re-anchoring on a bound, rather than fitting the producer's real
-period, keeps every spacing within a run exactly whole APIs (what the engine snaps to) at the
-cost of one spacing changed per re-anchoring; ten packets at 10 ms, so it is rare."""
+TAIL_S: Final = 0.25
+"""A block's frames this close to its end keep the lag before them: longer than the longest
+burst of lateness a loaded host showed (110 ms)."""
 
 
 class _Last(NamedTuple):
@@ -71,7 +76,7 @@ class ProducerClock:
         self._last: _Last | None = None
         """The last frame's raw sequence number, receive time and producer time."""
         self.runs = 0
-        """Anchors taken anew (the first, reconnections, jumps, raises past ``RAISE_S``)."""
+        """Runs begun (the first frames, reconnections, jumps of the sequence)."""
 
     def times(
         self, received_s: FloatArray, sequences: IntArray | None, api_s: float | None
@@ -104,21 +109,24 @@ class ProducerClock:
         # step is left out): within a run a frame's time is its run's anchor + elapsed.
         elapsed_s = np.cumsum(np.where(new_run, 0, steps)) * api_s
         lag_s = received_s - elapsed_s
+        tail = max(1, math.ceil(TAIL_S / api_s))
         producer_s = np.empty(n, dtype=np.float64)
         starts = np.flatnonzero(new_run).tolist()
         bounds = [0, *starts] if not starts or starts[0] != 0 else starts
         for k, start in enumerate(bounds):
             end = bounds[k + 1] if k + 1 < len(bounds) else n
-            least_s = float(lag_s[start:end].min())
-            if start == 0 and last is not None and not new_run[0]:
-                anchor_s = last.producer_s  # the run goes on: its anchor unless moved
-                if least_s > anchor_s + RAISE_S:
-                    anchor_s = least_s
-                    self.runs += 1
-                elif least_s < anchor_s:  # a frame came before its time: the anchor was late
-                    anchor_s = least_s
+            lag = lag_s[start:end]
+            # Each frame's anchor: the least lag of it and every later frame of its run.
+            anchor_s = np.minimum.accumulate(lag[::-1])[::-1]
+            held = max(0, lag.size - tail)  # the frames before the tail
+            if held:
+                level_s = float(anchor_s[held - 1])
+            elif start == 0 and last is not None and not new_run[0]:
+                level_s = min(last.producer_s, float(lag.min()))  # the run's anchor goes on
             else:
-                anchor_s = least_s
+                level_s = float(lag.min())
+            anchor_s[held:] = level_s
+            if start != 0 or last is None or new_run[0]:
                 self.runs += 1
             producer_s[start:end] = anchor_s + elapsed_s[start:end]
         self._last = _Last(int(sequences[-1]), float(received_s[-1]), float(producer_s[-1]))
