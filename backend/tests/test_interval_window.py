@@ -49,3 +49,41 @@ def test_one_late_interval_in_a_hundred_is_the_p99() -> None:
     assert figures.p50_ms == 10.0
     assert figures.p99_ms == 30.0  # rank 990 of 1000: the 10 late ones are ranks 990–999
     assert figures.max_ms == 30.0
+
+
+@given(
+    chunks=st.lists(intervals, min_size=1, max_size=8),
+    size=st.integers(min_value=1, max_value=64),
+    bounded=st.booleans(),
+)
+def test_figures_asked_between_additions_keep_to_the_newest(
+    chunks: list[list[float]], size: int, bounded: bool
+) -> None:
+    """Figures asked (or the window bounded, as the owner does per batch) between additions:
+    the same figures as of the newest ``size`` intervals, whatever the ring's wrap."""
+    window = IntervalWindow(size)
+    added: list[float] = []
+    for chunk in chunks:
+        for value in chunk:
+            window.add(value)
+        added += chunk
+        if bounded:
+            window.bound()
+        kept = sorted(added[-size:])
+        n = len(kept)
+        figures = window.figures()
+        assert figures.count == n
+        assert figures.p50_ms == kept[n // 2]
+        assert figures.p99_ms == kept[min(n - 1, int(n * 0.99))]
+        assert figures.max_ms == kept[-1]
+        assert figures.mean_ms == pytest.approx(sum(kept) / n, rel=1e-9, abs=1e-9)
+
+
+def test_an_unasked_window_holds_at_most_a_window_of_additions() -> None:
+    window = IntervalWindow(100)
+    for i in range(10_000):
+        window.add(float(i))
+        window.bound()
+    assert len(window._added) < 100
+    assert window.figures().max_ms == 9999.0
+    assert window.figures().count == 100

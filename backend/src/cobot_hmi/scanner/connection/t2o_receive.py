@@ -129,6 +129,7 @@ class T2OReceiver:
         """After each wake-up for T→O (a batch, or the pump's word that T→O fell silent for the
         connection timeout) at loop time ``now``: push the fallback timer back and look at the
         watchdog."""
+        self._window.bound()
         link = self._link
         if link is not None and link.o2t is not None:
             link.o2t.t2o_read(now)
