@@ -42,6 +42,7 @@ _BYTE: Final = ua.NodeId(ua.ObjectIds.Byte)
 _UINT32: Final = ua.NodeId(ua.ObjectIds.UInt32)
 _FRAME_FIELDS: Final = Frame._fields
 _COMMAND_FIELDS: Final = CommandImage._fields
+_ROBOT_STATE: Final = _FRAME_FIELDS.index("robot_state")
 STATE_TEXTS: Final = {state.value: state.name for state in ROBOT_STATES}
 
 
@@ -195,6 +196,7 @@ class LayoutBuilder:
                     text,
                     lambda frame: ua.LocalizedText(state_text(frame.robot_state)),
                     ua.VariantType.LocalizedText,
+                    _ROBOT_STATE,  # read again only when the state changed (``FieldReads``)
                 )
             )
 
