@@ -11,6 +11,9 @@ connection:
   ``subscribe`` message: ``Subscription``) from those pieces and hands the same text to each
   client of the group. A client's ``offer`` is a deque append: O(1) per client per tick; a
   subscription moves its client to another group, it never makes the hub encode per client.
+  A client whose sender is idle is written its frames at once where the server can
+  (``offer_frames``, ``service.api.ws_deflate``): the same framed bytes for every client of
+  the group, no task wake per client and message.
 - ``on_events``: the robot's events (and the cell's), each serialized once, to every client;
   the events a frame caused arrive after it (``robots.watch`` is registered after the hub).
 - A client of every field (a panel) is sent its frames uncompressed where the server can
@@ -43,6 +46,9 @@ from cobot_hmi.service.robots.frame_notifier import FrameRecord, Runs
 log = logging.getLogger(__name__)
 
 SendText = Callable[[str], Awaitable[None]]
+WriteNow = Callable[[bytes], bool]
+"""Writes a UTF-8 text message uncompressed at once if the connection takes it (True), else
+writes nothing (False)."""
 Abort = Callable[[str], Coroutine[Any, Any, None]]
 
 QUEUE_FRAMES: Final = 4096
@@ -80,12 +86,16 @@ class StreamClient:
     send_plain: SendText | None = None
     """Sends a text message uncompressed (the server's, where it has one): frames of every
     field go by it."""
+    write_now: WriteNow | None = None
+    """The server's immediate uncompressed write, where it has one (``offer_frames``)."""
     queue: deque[tuple[Kind, str, int]] = field(default_factory=deque)
     queued_frames: int = 0
     dropped_pending: int = 0
     dropped_total: int = 0
     frames_sent: int = 0
     messages_sent: int = 0
+    written_at_once: int = 0
+    """Of ``messages_sent``, those written at once (``offer_frames``), not by the sender."""
     sending_since: float | None = None
     """``time.monotonic()`` when the send in progress started; ``None`` when idle."""
     closed_reason: str | None = None
@@ -106,6 +116,26 @@ class StreamClient:
             while self.queued_frames > self.max_frames and self._drop_oldest_frames():
                 pass
         self.wake.set()
+
+    def offer_frames(self, text: str, message: bytes, frames: int) -> None:
+        """Send a frames message (``text``, ``message`` its UTF-8): written at once when the
+        client takes every field uncompressed, its sender is idle and the connection takes it
+        (no task wake, nothing queued: most messages of a client that keeps up), else queued
+        for its sender, behind what waits."""
+        write_now = self.write_now
+        if (
+            write_now is not None
+            and not self.queue
+            and self.sending_since is None
+            and self.closed_reason is None
+            and self.subscription.fields is None
+            and write_now(message)
+        ):
+            self.frames_sent += frames
+            self.messages_sent += 1
+            self.written_at_once += 1
+            return
+        self.offer(Kind.FRAMES, text, frames)
 
     def _drop_oldest_frames(self) -> bool:
         """Drop the oldest frames message that is not the newest one; False if there is none."""
@@ -232,9 +262,11 @@ class WebSocketFanOut:
         session_id: str | None = None,
         client: str = "",
         send_plain: SendText | None = None,
+        write_now: WriteNow | None = None,
     ) -> StreamClient:
         """Register a client (every field at ``rate_hz``, until it subscribes), queue its hello
-        first and start its sender. ``send_plain``: the server's uncompressed send, if any."""
+        first and start its sender. ``send_plain``, ``write_now``: the server's uncompressed
+        send and immediate write, if any."""
         stream_client = StreamClient(
             send_text,
             abort,
@@ -243,6 +275,7 @@ class WebSocketFanOut:
             session_id=session_id,
             client=client,
             send_plain=send_plain,
+            write_now=write_now,
         )
         stream_client.offer(Kind.EVENT, dumps(hello).decode())
         self._join(stream_client)
@@ -358,9 +391,10 @@ class WebSocketFanOut:
                             )
                         )
                 body = b",".join(pieces[i] or b"" for i in chosen)
-                text = (b'{"type":"frames","frames":[' + body + b"]}").decode()
+                message = b'{"type":"frames","frames":[' + body + b"]}"
+                text = message.decode()
                 for stream_client in group.clients:
-                    stream_client.offer(Kind.FRAMES, text, len(chosen))
+                    stream_client.offer_frames(text, message, len(chosen))
         self._check_stalls()
         self.tick_seconds += time.perf_counter() - started
 

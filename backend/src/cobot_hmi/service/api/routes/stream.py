@@ -38,6 +38,9 @@ router = APIRouter()
 ABORT_KEY: Final = "cobot_hmi.abort_transport"
 SEND_PLAIN_KEY: Final = "cobot_hmi.send_plain"
 """The server's ``send_plain`` (``ws_deflate``): a text message sent uncompressed."""
+WRITE_TEXT_NOW_KEY: Final = "cobot_hmi.write_text_now"
+"""The server's ``write_text_now`` (``ws_deflate``): an uncompressed text message written at
+once if the connection takes it."""
 CLOSE_BAD_REQUEST: Final = 4400
 CLOSE_LOGIN_REQUIRED: Final = 4401
 CLOSE_UNKNOWN_ROBOT: Final = 4404
@@ -52,7 +55,8 @@ SEND_BUFFER_BYTES: Final = 128 * 1024
 
 class TransportAbortMiddleware:
     """Puts the server transport's ``abort`` in the WebSocket scope (uvicorn), and the
-    server's ``send_plain`` where it has one (``ws_deflate.StreamWebSocketProtocol``).
+    server's ``send_plain`` and ``write_text_now`` where it has them
+    (``ws_deflate.StreamWebSocketProtocol``).
 
     A client that stopped reading cannot be sent a close frame (it would wait behind the full
     send buffer forever) and ``transport.close()`` waits for that buffer to drain: only an
@@ -74,6 +78,9 @@ class TransportAbortMiddleware:
             send_plain = getattr(protocol, "send_plain", None)
             if callable(send_plain):
                 scope = {**scope, SEND_PLAIN_KEY: send_plain}
+            write_text_now = getattr(protocol, "write_text_now", None)
+            if callable(write_text_now):
+                scope = {**scope, WRITE_TEXT_NOW_KEY: write_text_now}
             _limit_send_buffer(transport)
         await self.app(scope, receive, send)
 
@@ -188,6 +195,7 @@ async def _stream(websocket: WebSocket, name: str | None) -> None:
         session_id=session.id if session is not None else None,
         client=f"{client_address(websocket)}:{websocket.client.port if websocket.client else 0}",
         send_plain=websocket.scope.get(SEND_PLAIN_KEY),
+        write_now=websocket.scope.get(WRITE_TEXT_NOW_KEY),
     )
     service.websocket_opened(session, robot)
     ended: asyncio.Future[str] = asyncio.get_running_loop().create_future()
