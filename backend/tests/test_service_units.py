@@ -20,7 +20,7 @@ from cobot_hmi.layout import FRAME_ECHOED
 from cobot_hmi.service.events.bus import EventBus
 from cobot_hmi.service.events.text import FrameWatcher
 from cobot_hmi.service.robots.confirmation import FrameWaiters
-from cobot_hmi.service.robots.frame_notifier import FrameNotifier, FrameRecord, Runs
+from cobot_hmi.service.robots.frame_notifier import FrameNotifier, FrameRecord, LoopWake, Runs
 from cobot_hmi.service.robots.watch import FrameEventWatch
 from cobot_hmi.service.robots.websocket_fanout import (
     Kind,
@@ -314,6 +314,57 @@ async def test_the_robots_of_one_loop_share_one_wake() -> None:
     await eventually(lambda: len(right_seen.batches) == 2)
     assert right_seen.batches[1] == [4, 5, 6, 7, 8]
     assert left_seen.batches == [[1, 2, 3, 4, 5]], "nothing new: no empty batch"
+
+
+async def test_a_broadcast_period_is_the_loop_timers_not_the_first_robots() -> None:
+    """With a ``turn_period_s`` the loop's timer serves the cell: a robot with a broadcast
+    period of frames (5) does not ask for a turn of its own, every robot's frames are taken in
+    the timer's turn, and a robot asks itself only at twice its period's frames (the timer
+    behind)."""
+    loop = asyncio.get_running_loop()
+    left = FrameNotifier("left", frames_per_wake=5, turn_period_s=3600.0)  # the timer far off
+    right = FrameNotifier("right", frames_per_wake=5, turn_period_s=3600.0)
+    left_seen, right_seen = _LoopConsumer(), _LoopConsumer()
+    left.add(left_seen)
+    right.add(right_seen)
+    left.bind_loop(loop)
+    right.bind_loop(loop)
+    for i in range(3):
+        right.publish(zero_frame(), b"", 1000.0 + i * 0.01, i)
+    for i in range(9):
+        left.publish(zero_frame(), b"", 1000.0 + i * 0.01, i)
+    for _ in range(20):
+        await asyncio.sleep(0)
+    assert left_seen.batches == [] and right_seen.batches == [], "no turn asked at 5 frames"
+    left.publish(zero_frame(), b"", 1000.1, 9)  # the tenth: the timer is behind
+    await eventually(lambda: bool(left_seen.batches))
+    assert left_seen.batches == [list(range(1, 11))]
+    assert right_seen.batches == [[1, 2, 3]], "served in the same turn"
+
+
+async def test_the_loop_timer_turns_on_its_period() -> None:
+    """A short period: frames fewer than a period's are taken by the timer's turns, the cell's
+    robots in the same turn; turns keep coming while nothing is published (no empty batch)."""
+    loop = asyncio.get_running_loop()
+    left = FrameNotifier("left", frames_per_wake=5, turn_period_s=0.01)
+    right = FrameNotifier("right", frames_per_wake=5, turn_period_s=0.01)
+    left_seen, right_seen = _LoopConsumer(), _LoopConsumer()
+    left.add(left_seen)
+    right.add(right_seen)
+    left.bind_loop(loop)
+    right.bind_loop(loop)
+    wake = LoopWake.of(loop)
+    left.publish(zero_frame(), b"", 1000.0, 0)
+    right.publish(zero_frame(), b"", 1000.0, 0)
+    right.publish(zero_frame(), b"", 1000.01, 1)
+    await eventually(lambda: bool(left_seen.batches) and bool(right_seen.batches))
+    assert left_seen.batches == [[1]] and right_seen.batches == [[1, 2]]
+    turns = wake.timed_turns
+    await eventually(lambda: wake.timed_turns >= turns + 3)
+    assert left_seen.batches == [[1]], "nothing new: no empty batch"
+    left.publish(zero_frame(), b"", 1000.1, 1)
+    await eventually(lambda: len(left_seen.batches) == 2)
+    assert left_seen.batches[1] == [2]
 
 
 # --------------------------------------------------------------------------- store

@@ -7,14 +7,18 @@ consumer (the WebSocket fan-out, the state and alarm events, write confirmation,
 the Sparkplug B edge node, the OPC UA server) implements ``FrameConsumer`` and is registered the
 same way, by ``FrameNotifier.add``. A consumer declares where it runs:
 
-- ``Runs.LOOP``: on the web event loop. The notifier asks for a wake of the loop once it has
-  ``frames_per_wake`` frames since its consumers' last turn, and on every frame while a
-  consumer asks to be ``urgent`` (a write waiting for its confirmation); each consumer gets
-  the frames queued for it since its last turn, in registration order. Every notifier bound
-  to one loop (the cell's robots) shares one ``LoopWake``: the first robot to ask wakes the
-  loop once (one ``call_soon_threadsafe``) and the loop serves every robot's consumers then,
-  so the robots' frames reach the loop together, about once per broadcast period for the
-  whole cell rather than once per period per robot.
+- ``Runs.LOOP``: on the web event loop. Every notifier bound to one loop (the cell's robots)
+  shares one ``LoopWake``, whose turn serves every robot's consumers at once, each consumer
+  the frames queued for it since its last turn, in registration order. A notifier given a
+  ``turn_period_s`` (the broadcast period) is served by the loop's own timer, a turn every
+  period on a fixed grid: one wake of the loop per period for the whole cell, none from the
+  cyclic thread. (Asking for a turn when a robot had ``frames_per_wake`` frames, the first
+  robot of a cell to get there set the pace: with 32 robots at phases spread over the period
+  the turns came every 4 frames of 5, a quarter more turns and WebSocket messages than the
+  period asked for.) Without a period the notifier asks for a turn once it has
+  ``frames_per_wake`` frames since the last one (one ``call_soon_threadsafe``; with a period,
+  at twice that, should the timer fall behind). On every frame while a consumer asks to be
+  ``urgent`` (a write waiting for its confirmation) the loop is woken for it at once.
 - ``Runs.THREAD``: on a thread of the consumer's own (the recorder's), which takes its frames
   on its own schedule with ``Registration.deliver`` (``on_frames`` then runs on that thread).
 
@@ -193,6 +197,12 @@ class LoopWake:
         """The notifiers as weak references, in attach order: what a turn walks (a WeakSet's
         iteration is a Python generator with a guard of its own)."""
         self._scheduled = False
+        self._period_s: float | None = None
+        """The timer's period: the shortest of the attached notifiers' (None: no timer)."""
+        self._next_turn_s = 0.0
+        self._timer: asyncio.TimerHandle | None = None
+        self.timed_turns = 0
+        """Turns the timer made (for the tests)."""
 
     @classmethod
     def of(cls, loop: asyncio.AbstractEventLoop) -> LoopWake:
@@ -225,6 +235,38 @@ class LoopWake:
             if notifier is not None:
                 notifier.dispatch_now()
 
+    def turn_every(self, period_s: float) -> None:
+        """On the loop: a turn every ``period_s`` (or the shorter period it has), from now."""
+        if self._period_s is not None and self._period_s <= period_s:
+            return
+        self._period_s = period_s
+        loop = self._loop()
+        if loop is None:
+            return
+        if self._timer is not None:
+            self._timer.cancel()
+        self._next_turn_s = loop.time() + period_s
+        self._timer = loop.call_at(self._next_turn_s, self._timed_turn)
+
+    def _timed_turn(self) -> None:
+        """A turn on the timer's grid, then the next one: a period later, or, when this one
+        came more than a period late, a period from now (no burst of turns to catch up)."""
+        self._timer = None
+        loop = self._loop()
+        period_s = self._period_s
+        if loop is None or period_s is None or not any(r() is not None for r in self._turn):
+            self._period_s = None  # every notifier is gone: the timer ends with them
+            return
+        try:
+            self.timed_turns += 1
+            self._run()
+        finally:
+            now = loop.time()
+            self._next_turn_s += period_s
+            if self._next_turn_s <= now:
+                self._next_turn_s = now + period_s
+            self._timer = loop.call_at(self._next_turn_s, self._timed_turn)
+
 
 _WAKES: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, LoopWake] = weakref.WeakKeyDictionary()
 
@@ -232,9 +274,18 @@ _WAKES: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, LoopWake] = weakref
 class FrameNotifier:
     """One robot's frames to its consumers (see the module docstring)."""
 
-    def __init__(self, robot: str, *, frames_per_wake: int = 1) -> None:
+    def __init__(
+        self, robot: str, *, frames_per_wake: int = 1, turn_period_s: float | None = None
+    ) -> None:
+        """``frames_per_wake``: the frames of a broadcast period; ``turn_period_s``: that
+        period, for the loop's timer (None: a turn asked for every ``frames_per_wake``)."""
         self.robot = robot
         self.frames_per_wake = max(1, frames_per_wake)
+        self.turn_period_s = turn_period_s if self.frames_per_wake > 1 else None
+        """The loop's timer serves this robot (a robot with a frame per period or fewer asks
+        for a turn at each frame instead)."""
+        self._wake_after = self.frames_per_wake * (2 if self.turn_period_s else 1)
+        """Frames since the last turn at which this robot asks for one itself."""
         self._seq = 0
         self._registering = threading.Lock()
         self.latest: FrameRecord | None = None
@@ -274,7 +325,7 @@ class FrameNotifier:
         if wake is None or not self._loop_registrations:
             return
         since_turn = self._since_turn = self._since_turn + 1
-        if since_turn >= self.frames_per_wake:
+        if since_turn >= self._wake_after:
             wake.request()
         elif self._urgent_ones and not self._urgent_scheduled:
             loop = self._loop
@@ -314,10 +365,13 @@ class FrameNotifier:
         return sum(r.dropped for r in self.registrations if r.name == consumer_name)
 
     def bind_loop(self, loop: asyncio.AbstractEventLoop) -> None:
-        """The web event loop that runs the loop consumers (before the first frame)."""
+        """The web event loop that runs the loop consumers (before the first frame; on that
+        loop when the notifier has a ``turn_period_s``, whose timer it starts)."""
         self._loop = loop
         self._wake = LoopWake.of(loop)
         self._wake.attach(self)
+        if self.turn_period_s is not None:
+            self._wake.turn_every(self.turn_period_s)
 
     # ------------------------------------------------------------ the web loop
 

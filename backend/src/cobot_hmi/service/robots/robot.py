@@ -115,6 +115,7 @@ class RobotRuntime:
         self.frames = FrameNotifier(
             self.name,
             frames_per_wake=max(1, round(stream.ws_batch_ms / settings.rpi_ms)),
+            turn_period_s=stream.ws_batch_ms / 1000,
         )
         """Every frame of the robot, published once, to every consumer
         (``robots.frame_notifier``)."""
