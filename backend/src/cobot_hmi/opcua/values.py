@@ -30,6 +30,7 @@ from asyncua.ua import uatypes
 
 from cobot_hmi.arms import ARMS, Arm
 from cobot_hmi.codec import CommandImage, Frame
+from cobot_hmi.opcua import encoding
 from cobot_hmi.opcua.bindings import Binding, CommandBinding, MachineState, RobotNodes
 from cobot_hmi.opcua.machinery import MANUFACTURER_URI
 from cobot_hmi.opcua.units import analog_unit
@@ -156,6 +157,7 @@ def win_epoch(dt: datetime) -> int:
 
 
 ua.datetime_to_win_epoch = win_epoch
+encoding.install()  # the notifications' DataValues encoded without asyncua's generic walk
 
 _ASYNCUA_DATACHANGE: Final = MonitoredItemService.datachange_callback
 _DISABLED: Final = ua.MonitoringMode.Disabled
