@@ -287,17 +287,26 @@ class _LoopConsumer:
         self.batches.append([record.seq for record in records])
 
 
-async def test_the_robots_of_one_loop_share_one_wake() -> None:
-    """The first robot to have a broadcast period of frames wakes the loop once, and every
-    robot's consumers take their frames then: one turn of the loop for the cell."""
+def _two_robots(
+    turn_period_s: float | None = None,
+) -> tuple[FrameNotifier, FrameNotifier, _LoopConsumer, _LoopConsumer]:
+    """Two robots' notifiers (a broadcast period of 5 frames) bound to this test's loop, each
+    with a loop consumer that keeps its batches."""
     loop = asyncio.get_running_loop()
-    left = FrameNotifier("left", frames_per_wake=5)
-    right = FrameNotifier("right", frames_per_wake=5)
+    left = FrameNotifier("left", frames_per_wake=5, turn_period_s=turn_period_s)
+    right = FrameNotifier("right", frames_per_wake=5, turn_period_s=turn_period_s)
     left_seen, right_seen = _LoopConsumer(), _LoopConsumer()
     left.add(left_seen)
     right.add(right_seen)
     left.bind_loop(loop)
     right.bind_loop(loop)
+    return left, right, left_seen, right_seen
+
+
+async def test_the_robots_of_one_loop_share_one_wake() -> None:
+    """The first robot to have a broadcast period of frames wakes the loop once, and every
+    robot's consumers take their frames then: one turn of the loop for the cell."""
+    left, right, left_seen, right_seen = _two_robots()
     for i in range(3):
         right.publish(zero_frame(), b"", 1000.0 + i * 0.01, i)
     for i in range(5):
@@ -321,14 +330,7 @@ async def test_a_broadcast_period_is_the_loop_timers_not_the_first_robots() -> N
     period of frames (5) does not ask for a turn of its own, every robot's frames are taken in
     the timer's turn, and a robot asks itself only at twice its period's frames (the timer
     behind)."""
-    loop = asyncio.get_running_loop()
-    left = FrameNotifier("left", frames_per_wake=5, turn_period_s=3600.0)  # the timer far off
-    right = FrameNotifier("right", frames_per_wake=5, turn_period_s=3600.0)
-    left_seen, right_seen = _LoopConsumer(), _LoopConsumer()
-    left.add(left_seen)
-    right.add(right_seen)
-    left.bind_loop(loop)
-    right.bind_loop(loop)
+    left, right, left_seen, right_seen = _two_robots(3600.0)  # the timer far off
     for i in range(3):
         right.publish(zero_frame(), b"", 1000.0 + i * 0.01, i)
     for i in range(9):
@@ -345,15 +347,8 @@ async def test_a_broadcast_period_is_the_loop_timers_not_the_first_robots() -> N
 async def test_the_loop_timer_turns_on_its_period() -> None:
     """A short period: frames fewer than a period's are taken by the timer's turns, the cell's
     robots in the same turn; turns keep coming while nothing is published (no empty batch)."""
-    loop = asyncio.get_running_loop()
-    left = FrameNotifier("left", frames_per_wake=5, turn_period_s=0.01)
-    right = FrameNotifier("right", frames_per_wake=5, turn_period_s=0.01)
-    left_seen, right_seen = _LoopConsumer(), _LoopConsumer()
-    left.add(left_seen)
-    right.add(right_seen)
-    left.bind_loop(loop)
-    right.bind_loop(loop)
-    wake = LoopWake.of(loop)
+    left, right, left_seen, right_seen = _two_robots(0.01)
+    wake = LoopWake.of(asyncio.get_running_loop())
     left.publish(zero_frame(), b"", 1000.0, 0)
     right.publish(zero_frame(), b"", 1000.0, 0)
     right.publish(zero_frame(), b"", 1000.01, 1)
