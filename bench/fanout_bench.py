@@ -59,14 +59,19 @@ class ClientRecord:
     missing: int = 0
     dropped_told: int = 0
     messages: int = 0
+    frames_messages: int = 0
+    connected_s: float = 0.0
+    """From the handshake's end to the client's stop (or its close)."""
     closed: str | None = None
     seqs_out_of_order: int = 0
     latencies_s: list[float] = field(default_factory=list)
 
 
 async def fast_client(url: str, record: ClientRecord, stop: asyncio.Event) -> None:
+    connected_at: float | None = None
     try:
         async with connect(url, max_size=None) as ws:
+            connected_at = time.monotonic()
             while not stop.is_set():
                 try:
                     text = await asyncio.wait_for(ws.recv(), 1.0)
@@ -78,6 +83,7 @@ async def fast_client(url: str, record: ClientRecord, stop: asyncio.Event) -> No
                 if kind == "dropped":
                     record.dropped_told += message["count"]
                 elif kind == "frames":
+                    record.frames_messages += 1
                     now = time.time()
                     for frame in message["frames"]:
                         seq = frame["seq"]
@@ -93,6 +99,9 @@ async def fast_client(url: str, record: ClientRecord, stop: asyncio.Event) -> No
                     record.latencies_s.append(now - message["frames"][-1]["t"])
     except ConnectionClosed as closed:
         record.closed = f"closed by the server: {closed}"
+    finally:
+        if connected_at is not None:
+            record.connected_s += time.monotonic() - connected_at
 
 
 async def never_reading_client(host: str, port: int, path: str) -> socket.socket:
@@ -466,11 +475,14 @@ def _report_clients(args: argparse.Namespace, results: Results) -> bool:
         f"{disorder}, closed by the server {len(closed)}"
     )
     if every:
-        messages, frames = sum(r.messages for r in every), sum(r.frames for r in every)
+        messages = sum(r.frames_messages for r in every)
+        frames = sum(r.frames for r in every)
+        connected_s = sum(r.connected_s for r in every)
         print(
-            "  messages per fast client per second "
-            f"{messages / args.clients / results.load.seconds:.1f}"
-            f" ({frames / max(messages, 1):.1f} frames each)"
+            "  frames messages per fast client per second "
+            f"{messages / max(connected_s, 1e-9):.1f} ({frames / max(messages, 1):.1f} frames"
+            f" each; {sum(r.messages for r in every) - messages} status, event and other"
+            " messages)"
         )
     if latencies:
         print(
