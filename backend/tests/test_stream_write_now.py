@@ -3,13 +3,14 @@ against the emulator over real sockets: a client that keeps up is written its fr
 sender task, after its hello and in order; while its connection does not take writes (the
 transport paused by flow control, as for a peer that stopped reading) the frames queue behind
 the sender, and when it takes writes again they come in order, none lost, before the ones
-written at once again. The client reads raw frames with websockets' sans-I/O parser (no
+written at once again. The robot is conftest's standing one: only the frames' order and
+framing matter here. The client reads raw frames with websockets' sans-I/O parser (no
 client-side checks of the server beyond the framing), so what it sees is what was written."""
 
 from __future__ import annotations
 
 import asyncio
-from collections.abc import AsyncIterator, Callable
+from collections.abc import Callable
 from typing import Any
 
 import orjson
@@ -18,20 +19,13 @@ from websockets.client import ClientProtocol
 from websockets.frames import Frame, Opcode
 from websockets.uri import parse_uri
 
-from cobot_hmi.emulator.target import Target
 from cobot_hmi.service.api.ws_deflate import StreamWebSocketProtocol
 from cobot_hmi.service.robots.websocket_fanout import StreamClient
-from service_support import Running, emulator, hmi_fixture
+from service_support import Running, hmi_fixture
 
 pytestmark = pytest.mark.timeout(120)
 
 DEADLINE_S = 60.0
-
-
-@pytest.fixture
-async def target(robot_host: str) -> AsyncIterator[Target]:
-    async with emulator(robot_host) as target:
-        yield target
 
 
 hmi = hmi_fixture()

@@ -26,7 +26,6 @@ Imports uvicorn and websockets only.
 from __future__ import annotations
 
 import asyncio
-import functools
 import logging
 from collections.abc import Sequence
 from typing import Any, Final
@@ -47,17 +46,24 @@ from websockets.typing import ExtensionParameter
 WINDOW_BITS: Final = 12
 """uvicorn's offer (4 KiB windows both ways), kept as it was."""
 COMPRESS_SETTINGS: Final = {"memLevel": 5}
-FRAMED_MESSAGES_KEPT: Final = 8
-"""Messages whose framing is kept: a broadcast writes one message to each of its clients in a
-row, so one is enough; a few more for the robots' streams broadcasting in turn."""
 
 
-@functools.lru_cache(maxsize=FRAMED_MESSAGES_KEPT)
+class _TextFrames:
+    """The framing of the last message framed, kept by the message's identity."""
+
+    message: bytes = b""
+    framed: bytes = b""
+
+
 def text_frame(message: bytes) -> bytes:
     """``message`` (UTF-8 text) as one final, unmasked, uncompressed text frame (RFC 6455 §5.2,
-    a server's), framed by websockets. Cached: every client of a broadcast is written the same
-    bytes object, whose hash Python keeps, so the framing and its copy are done once."""
-    return Frame(Opcode.TEXT, message).serialize(mask=False)
+    a server's), framed by websockets. A broadcast writes the same bytes object to each client
+    of its group in a row, so the last message's framing is kept by identity (no hash of the
+    message): framed and copied once per broadcast. Called on the web loop only."""
+    if message is not _TextFrames.message:
+        _TextFrames.framed = Frame(Opcode.TEXT, message).serialize(mask=False)
+        _TextFrames.message = message
+    return _TextFrames.framed
 
 
 class SelectiveDeflate(PerMessageDeflate):
